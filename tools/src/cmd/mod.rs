@@ -1,0 +1,36 @@
+//! One module per subcommand.
+
+use std::process::ExitCode;
+
+pub mod bench;
+pub mod doctor;
+pub mod galil;
+pub mod galil_sim;
+pub mod kin;
+
+/// Bad input from the user (unknown robot, wrong joint count, NaN): exit code 2.
+#[derive(Debug)]
+pub struct UsageError(pub String);
+
+impl std::fmt::Display for UsageError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for UsageError {}
+
+/// Shorthand: an `anyhow` error carrying a [`UsageError`].
+pub fn usage(message: impl Into<String>) -> anyhow::Error {
+    anyhow::Error::new(UsageError(message.into()))
+}
+
+/// Prints `err` and picks the exit code: 2 for a [`UsageError`], 1 for anything else.
+pub fn report_error(err: &anyhow::Error) -> ExitCode {
+    eprintln!("error: {err:#}");
+    if err.downcast_ref::<UsageError>().is_some() {
+        ExitCode::from(2)
+    } else {
+        ExitCode::from(1)
+    }
+}

@@ -1,0 +1,48 @@
+//! `penelope`: the one command line of the Penelope teleoperation architecture.
+//!
+//! Each subcommand lives in its own module under `cmd/`; this file only parses and dispatches.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod cmd;
+
+/// Penelope: distributed hard-real-time bilateral teleoperation.
+#[derive(Parser, Debug)]
+#[command(name = "penelope", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Kinematics and dynamics of a robot model: fk, jacobian, ik, gravity, inertia, rne.
+    Kin(cmd::kin::Args),
+    /// Benchmarks: jitter beside cyclictest, FPGA model throughput.
+    #[command(subcommand)]
+    Bench(cmd::bench::BenchCommand),
+    /// Check this host for real-time use and print what to fix.
+    Doctor(cmd::doctor::Args),
+    /// Drive a Galil DMC motion controller over a serial line.
+    Galil(cmd::galil::Args),
+    /// Emulate a Galil DMC-40x0 on a pseudo-terminal.
+    GalilSim(cmd::galil_sim::Args),
+}
+
+fn main() -> ExitCode {
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Kin(args) => cmd::kin::run(args),
+        Command::Bench(bench) => cmd::bench::run(bench),
+        Command::Doctor(args) => cmd::doctor::run(args),
+        Command::Galil(args) => cmd::galil::run(args),
+        Command::GalilSim(args) => cmd::galil_sim::run(args),
+    };
+    match result {
+        Ok(code) => code,
+        Err(err) => cmd::report_error(&err),
+    }
+}
