@@ -1,0 +1,1 @@
+//! The Galil DMC motion controller over a serial line.
