@@ -4,8 +4,11 @@
 //!
 //! - [`model`]: robot models from DH tables (PUMA 560, PUMA 200, FRHC, or any lab's file):
 //!   kinematics, inverse kinematics, dynamics.
+//! - [`sim`]: the simulated lab: rigid-body plants, a simulated board, environments, a virtual
+//!   operator and a virtual force sensor.
 //! - [`galil`]: the Galil DMC protocol over any byte stream, its `Board`, and an emulator.
 #![warn(missing_docs)]
 
 pub mod galil;
 pub mod model;
+pub mod sim;

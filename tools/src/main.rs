@@ -18,6 +18,8 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// The teleoperation demo: FRHC master, PUMA 200 slave, a wall; report, telemetry and plots.
+    Demo(cmd::demo::Args),
     /// Kinematics and dynamics of a robot model: fk, jacobian, ik, gravity, inertia, rne.
     Kin(cmd::kin::Args),
     /// Benchmarks: jitter beside cyclictest, FPGA model throughput.
@@ -35,6 +37,7 @@ fn main() -> ExitCode {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Demo(args) => cmd::demo::run_demo(args),
         Command::Kin(args) => cmd::kin::run(args),
         Command::Bench(bench) => cmd::bench::run(bench),
         Command::Doctor(args) => cmd::doctor::run(args),

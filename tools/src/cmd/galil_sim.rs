@@ -1,12 +1,102 @@
-//! Placeholder: being built in this session.
+//! `penelope galil-sim`: a Galil DMC-40x0 emulator on a pseudo-terminal.
+//!
+//! Prints the device path, then serves it until interrupted; drive it with `penelope galil
+//! --port PATH ...` or any serial terminal program.
 
 use std::process::ExitCode;
+use std::time::Duration;
+
+use penelope_drivers::galil::emulator::{DmcConfig, PtyEmulator, PtyOptions};
 
 /// Options.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Number of axes, 1..=8.
+    #[arg(long, default_value_t = 6)]
+    pub axes: usize,
+    /// Model string answered to `^R^V`.
+    #[arg(long, default_value = "DMC4060")]
+    pub model: String,
+    /// Pace both directions like a serial line at this baud rate (bits/s); unpaced by default.
+    #[arg(long)]
+    pub baud: Option<u32>,
+    /// Print an unsolicited message (as a board program's `MG` would) every this many ms.
+    #[arg(long, value_name = "MS")]
+    pub unsolicited_every: Option<u64>,
+    /// The unsolicited message text (a CR LF is appended).
+    #[arg(long, default_value = "#AUTO running")]
+    pub unsolicited_text: String,
+    /// Also make a symbolic link to the device at this path (replaced if it exists).
+    #[arg(long)]
+    pub link: Option<std::path::PathBuf>,
+    /// Stop after this many seconds (default: run until interrupted).
+    #[arg(long, value_name = "S")]
+    pub duration: Option<f64>,
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<ExitCode> {
-    anyhow::bail!("not built yet")
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    if !(1..=8).contains(&args.axes) {
+        return Err(crate::cmd::usage("--axes must be 1..=8"));
+    }
+    if args.baud == Some(0) {
+        return Err(crate::cmd::usage("--baud must be positive"));
+    }
+    if args.model.is_empty() || !args.model.is_ascii() || args.model.contains(char::is_whitespace) {
+        return Err(crate::cmd::usage(
+            "--model must be one ASCII word, e.g. DMC4060",
+        ));
+    }
+    if let Some(d) = args.duration
+        && !(d.is_finite() && d >= 0.0)
+    {
+        return Err(crate::cmd::usage(
+            "--duration must be a non-negative number of seconds",
+        ));
+    }
+    let unsolicited = args.unsolicited_every.map(|ms| {
+        let mut text = args.unsolicited_text.clone().into_bytes();
+        text.extend_from_slice(b"\r\n");
+        (Duration::from_millis(ms.max(1)), text)
+    });
+    let emu = PtyEmulator::spawn(PtyOptions {
+        dmc: DmcConfig {
+            axes: args.axes,
+            model: args.model.clone(),
+            ..DmcConfig::default()
+        },
+        baud: args.baud,
+        unsolicited,
+    })?;
+    if let Some(link) = &args.link {
+        let _ = std::fs::remove_file(link);
+        std::os::unix::fs::symlink(emu.path(), link)?;
+    }
+    println!("{}", emu.path().display());
+    eprintln!(
+        "galil-sim: {} with {} axes on {}{}; interrupt to stop",
+        args.model,
+        args.axes,
+        emu.path().display(),
+        args.baud
+            .map(|b| format!(", paced at {b} baud"))
+            .unwrap_or_default()
+    );
+    let start = std::time::Instant::now();
+    loop {
+        std::thread::sleep(Duration::from_millis(100));
+        if let Some(d) = args.duration
+            && start.elapsed().as_secs_f64() >= d
+        {
+            break;
+        }
+        if !emu.is_running() {
+            anyhow::bail!("the emulator thread stopped");
+        }
+    }
+    if let Some(link) = &args.link {
+        let _ = std::fs::remove_file(link);
+    }
+    emu.stop();
+    Ok(ExitCode::SUCCESS)
 }

@@ -1,12 +1,492 @@
-//! Placeholder: being built in this session.
+//! `penelope kin <robot> <op>`: kinematics and dynamics of a robot model from the command line.
+//!
+//! `<robot>` is `puma560`, `puma200`, `frhc`, or the path of a DH file (see
+//! `drivers/robots/*.toml` for the format). Joint values are comma-separated radians (metres for
+//! prismatic joints), or the name of a pose in the robot's file (`start`, `qn`, ...).
+//! `--json` prints one JSON object; bad input exits with code 2.
 
+use std::fmt::Write as _;
 use std::process::ExitCode;
 
-/// Options.
-#[derive(clap::Args, Debug)]
-pub struct Args {}
+use nalgebra::{Matrix3, Matrix4, Rotation3, Translation3, UnitQuaternion};
+use penelope_drivers::model::{self, DhRobotModel};
+use penelope_hal::{
+    Dynamics, IkSolutions, InverseKinematics, JacobianFrame, JointVector, Kinematics, Pose,
+};
+use serde_json::json;
 
-/// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<ExitCode> {
-    anyhow::bail!("not built yet")
+use crate::cmd::usage;
+
+/// Options of `penelope kin`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The robot: puma560, puma200, frhc, or the path of a DH file (TOML).
+    pub robot: String,
+    /// What to compute.
+    #[command(subcommand)]
+    pub op: Op,
+    /// Print one JSON object instead of text.
+    #[arg(long, global = true)]
+    pub json: bool,
+}
+
+/// Joint positions.
+#[derive(clap::Args, Debug)]
+pub struct JointArg {
+    /// Joint positions: comma-separated radians (metres for prismatic joints), or a pose name
+    /// from the robot's file (nest, start, work, ...).
+    #[arg(long, allow_hyphen_values = true)]
+    pub q: String,
+}
+
+/// The frame of a Jacobian.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameArg {
+    /// Rows are the tool's velocity in the base frame.
+    Base,
+    /// Rows are the tool's velocity in the tool frame.
+    Tool,
+}
+
+/// The operations.
+#[derive(clap::Subcommand, Debug)]
+pub enum Op {
+    /// Forward kinematics: the tool pose T (4x4 homogeneous, metres) at --q.
+    Fk(JointArg),
+    /// The geometric Jacobian at --q, rows [v; w] (m/s and rad/s per joint unit speed).
+    Jacobian {
+        /// Joint positions.
+        #[command(flatten)]
+        joints: JointArg,
+        /// The frame the rows are expressed in.
+        #[arg(long, value_enum, default_value_t = FrameArg::Base)]
+        frame: FrameArg,
+    },
+    /// Inverse kinematics: every branch reaching the tool pose --pose.
+    Ik {
+        /// The tool pose: 16 comma-separated numbers, the 4x4 homogeneous transform row-major
+        /// (the rotation is projected onto the nearest rotation matrix).
+        #[arg(long, allow_hyphen_values = true)]
+        pose: String,
+    },
+    /// Joint torques (N·m) that hold the arm still at --q against gravity.
+    Gravity(JointArg),
+    /// The joint-space inertia matrix (kg·m², reflected motor inertia on the diagonal) at --q.
+    Inertia(JointArg),
+    /// Inverse dynamics by recursive Newton-Euler: torques for --qdd at --q, --qd (no friction).
+    Rne {
+        /// Joint positions.
+        #[command(flatten)]
+        joints: JointArg,
+        /// Joint speeds, comma-separated rad/s.
+        #[arg(long, allow_hyphen_values = true)]
+        qd: String,
+        /// Joint accelerations, comma-separated rad/s².
+        #[arg(long, allow_hyphen_values = true)]
+        qdd: String,
+    },
+    /// The model: DH table, limits, named poses and what is assumed.
+    Info,
+}
+
+/// Runs `penelope kin`.
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let m = load(&args.robot)?;
+    let n = m.joint_count();
+    let out = match &args.op {
+        Op::Fk(j) => {
+            let q = joints(&m, "--q", &j.q)?;
+            let t = m.forward_matrix(&q);
+            if args.json {
+                json!({ "T": rows(&t) }).to_string()
+            } else {
+                let p = m.forward(&q);
+                let (roll, pitch, yaw) = p.rotation.euler_angles();
+                let mut s = header(&m, "forward kinematics", &q);
+                s += &format!(
+                    "T (tool pose in the base frame; m) =\n{}",
+                    matrix_text(&t, None)
+                );
+                let v = p.translation.vector;
+                s += &format!(
+                    "position (m):   x {:.6}  y {:.6}  z {:.6}\nroll-pitch-yaw (deg): {:.4} {:.4} {:.4}\n",
+                    v.x,
+                    v.y,
+                    v.z,
+                    roll.to_degrees(),
+                    pitch.to_degrees(),
+                    yaw.to_degrees()
+                );
+                s
+            }
+        }
+        Op::Jacobian { joints: j, frame } => {
+            let q = joints(&m, "--q", &j.q)?;
+            let frame = match frame {
+                FrameArg::Base => JacobianFrame::Base,
+                FrameArg::Tool => JacobianFrame::Tool,
+            };
+            let jac = m.jacobian(&q, frame).columns(0, n).into_owned();
+            if args.json {
+                json!({ "J": rows(&jac) }).to_string()
+            } else {
+                let mut s = header(&m, "geometric Jacobian", &q);
+                let _ = writeln!(
+                    s,
+                    "J ({} frame; rows vx vy vz [m/s] wx wy wz [rad/s], one column per joint) =",
+                    if frame == JacobianFrame::Base {
+                        "base"
+                    } else {
+                        "tool"
+                    }
+                );
+                s += &matrix_text(&jac, Some(&["vx", "vy", "vz", "wx", "wy", "wz"]));
+                s
+            }
+        }
+        Op::Ik { pose } => {
+            let target = parse_pose(pose)?;
+            let mut sols = IkSolutions::new();
+            m.inverse_all(&target, &mut sols)
+                .map_err(|e| anyhow::anyhow!("inverse kinematics: {e}"))?;
+            if args.json {
+                let list: Vec<_> = sols
+                    .iter()
+                    .map(|s| {
+                        json!({
+                            "branch": s.branch,
+                            "q": &s.q.as_slice()[..n],
+                            "within_limits": s.within_limits,
+                        })
+                    })
+                    .collect();
+                json!({ "solutions": list }).to_string()
+            } else {
+                let mut s = format!(
+                    "{} inverse kinematics ({}): {} solution(s)\n",
+                    m.name(),
+                    if m.has_closed_form() {
+                        "closed form"
+                    } else {
+                        "damped least squares"
+                    },
+                    sols.len()
+                );
+                let _ = writeln!(s, "{:<18} {:<62} limits", "branch", "q (rad)");
+                for sol in &sols {
+                    let q: Vec<String> = sol.q.iter().take(n).map(|x| format!("{x:9.5}")).collect();
+                    let _ = writeln!(
+                        s,
+                        "{:<18} {:<62} {}",
+                        sol.branch,
+                        q.join(" "),
+                        if sol.within_limits { "ok" } else { "OUTSIDE" }
+                    );
+                }
+                s
+            }
+        }
+        Op::Gravity(j) => {
+            let q = joints(&m, "--q", &j.q)?;
+            let tau = m.gravity(&q);
+            if args.json {
+                json!({ "tau": &tau.as_slice()[..n] }).to_string()
+            } else {
+                let mut s = header(&m, "gravity (holding torque)", &q);
+                s += &per_joint(&m, &tau, "N·m");
+                s
+            }
+        }
+        Op::Inertia(j) => {
+            let q = joints(&m, "--q", &j.q)?;
+            let mm = m.inertia(&q).view((0, 0), (n, n)).into_owned();
+            if args.json {
+                json!({ "M": rows(&mm) }).to_string()
+            } else {
+                let mut s = header(&m, "joint-space inertia", &q);
+                s += "M (kg·m², reflected motor inertia Jm G² on the diagonal) =\n";
+                s += &matrix_text(&mm, None);
+                s
+            }
+        }
+        Op::Rne { joints: j, qd, qdd } => {
+            let q = joints(&m, "--q", &j.q)?;
+            let qd = joints(&m, "--qd", qd)?;
+            let qdd = joints(&m, "--qdd", qdd)?;
+            let tau = m.inverse_dynamics(&q, &qd, &qdd);
+            if args.json {
+                json!({ "tau": &tau.as_slice()[..n] }).to_string()
+            } else {
+                let mut s = header(&m, "inverse dynamics (Newton-Euler, no friction)", &q);
+                s += &per_joint(&m, &tau, "N·m");
+                s
+            }
+        }
+        Op::Info => info(&m, args.json),
+    };
+    println!("{}", out.trim_end());
+    Ok(ExitCode::SUCCESS)
+}
+
+/// A built-in robot or a DH file; anything else is a usage error.
+fn load(robot: &str) -> anyhow::Result<DhRobotModel> {
+    if let Some(m) = model::by_name(robot) {
+        return Ok(m);
+    }
+    let path = std::path::Path::new(robot);
+    if !path.is_file() {
+        return Err(usage(format!(
+            "unknown robot `{robot}`: expected one of {} or the path of a DH file",
+            model::BUILT_IN.join(", ")
+        )));
+    }
+    model::from_file(path).map_err(|e| usage(format!("invalid DH file {robot}: {e}")))
+}
+
+/// Parses joint values: a pose name, or exactly one finite number per joint.
+fn joints(m: &DhRobotModel, flag: &str, text: &str) -> anyhow::Result<JointVector> {
+    let n = m.joint_count();
+    if let Some(q) = m.pose(text.trim()) {
+        return Ok(q);
+    }
+    let values = numbers(flag, text)?;
+    if values.len() != n {
+        return Err(usage(format!(
+            "{flag}: {} has {n} joints, got {} value(s)",
+            m.name(),
+            values.len()
+        )));
+    }
+    let mut q = JointVector::zeros();
+    q.as_mut_slice()[..n].copy_from_slice(&values);
+    Ok(q)
+}
+
+/// Comma-separated finite numbers.
+fn numbers(flag: &str, text: &str) -> anyhow::Result<Vec<f64>> {
+    text.split(',')
+        .enumerate()
+        .map(|(i, s)| {
+            let s = s.trim();
+            let x: f64 = s
+                .parse()
+                .map_err(|_| usage(format!("{flag}: value {} `{s}` is not a number", i + 1)))?;
+            if x.is_finite() {
+                Ok(x)
+            } else {
+                Err(usage(format!(
+                    "{flag}: value {} is not finite ({s})",
+                    i + 1
+                )))
+            }
+        })
+        .collect()
+}
+
+/// A 4x4 homogeneous transform from 16 row-major numbers: the bottom row must be `0 0 0 1` and
+/// the rotation orthonormal to 1e-3 (so a matrix typed with 4 decimals is accepted); it is then
+/// projected onto the nearest rotation.
+fn parse_pose(text: &str) -> anyhow::Result<Pose> {
+    let v = numbers("--pose", text)?;
+    if v.len() != 16 {
+        return Err(usage(format!(
+            "--pose: expected 16 numbers (the 4x4 transform, row-major), got {}",
+            v.len()
+        )));
+    }
+    let t = Matrix4::from_row_slice(&v);
+    let bottom = [t[(3, 0)], t[(3, 1)], t[(3, 2)], t[(3, 3)]];
+    if bottom
+        .iter()
+        .zip([0.0, 0.0, 0.0, 1.0])
+        .any(|(a, b)| (a - b).abs() > 1e-9)
+    {
+        return Err(usage(format!(
+            "--pose: the last row must be 0,0,0,1, got {bottom:?}"
+        )));
+    }
+    let r: Matrix3<f64> = t.fixed_view::<3, 3>(0, 0).into_owned();
+    let ortho = (r.transpose() * r - Matrix3::identity()).amax();
+    if ortho > 1e-3 || r.determinant() <= 0.0 {
+        return Err(usage(format!(
+            "--pose: the upper-left 3x3 block is not a rotation (|R^T R - I| = {ortho:.2e}, det = {:.6})",
+            r.determinant()
+        )));
+    }
+    let rot = Rotation3::from_matrix_eps(&r, 1e-15, 100, Rotation3::identity());
+    Ok(Pose::from_parts(
+        Translation3::new(t[(0, 3)], t[(1, 3)], t[(2, 3)]),
+        UnitQuaternion::from_rotation_matrix(&rot),
+    ))
+}
+
+fn rows<R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f64, R, C>>(
+    m: &nalgebra::Matrix<f64, R, C, S>,
+) -> Vec<Vec<f64>> {
+    (0..m.nrows())
+        .map(|r| (0..m.ncols()).map(|c| m[(r, c)]).collect())
+        .collect()
+}
+
+fn header(m: &DhRobotModel, what: &str, q: &JointVector) -> String {
+    let n = m.joint_count();
+    let q: Vec<String> = q.iter().take(n).map(|x| format!("{x:.6}")).collect();
+    format!("{} {what} at q = [{}]\n", m.name(), q.join(", "))
+}
+
+fn matrix_text<R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f64, R, C>>(
+    m: &nalgebra::Matrix<f64, R, C, S>,
+    labels: Option<&[&str]>,
+) -> String {
+    let mut s = String::new();
+    for r in 0..m.nrows() {
+        let label = labels
+            .and_then(|l| l.get(r))
+            .map_or(String::new(), |l| format!("{l:>3} "));
+        let row: Vec<String> = (0..m.ncols())
+            .map(|c| {
+                let x = m[(r, c)];
+                // Print exact zeros for values at rounding level.
+                format!("{:>11.6}", if x.abs() < 5e-13 { 0.0 } else { x })
+            })
+            .collect();
+        let _ = writeln!(s, "  {label}[{} ]", row.join(""));
+    }
+    s
+}
+
+fn per_joint(m: &DhRobotModel, tau: &JointVector, unit: &str) -> String {
+    let mut s = String::new();
+    for (j, name) in m.joint_names().iter().enumerate() {
+        let x = tau[j];
+        let _ = writeln!(
+            s,
+            "  {:>2} {:<14} {:>12.6} {unit}",
+            j + 1,
+            name,
+            if x.abs() < 5e-13 { 0.0 } else { x }
+        );
+    }
+    s
+}
+
+fn info(m: &DhRobotModel, as_json: bool) -> String {
+    let n = m.joint_count();
+    let chain = m.chain();
+    let links: Vec<_> = (0..n).filter_map(|j| chain.link(j)).collect();
+    let lim = penelope_hal::RobotModel::limits(m);
+    if as_json {
+        let joints: Vec<_> = links
+            .iter()
+            .enumerate()
+            .map(|(j, l)| {
+                json!({
+                    "name": m.joint_names()[j],
+                    "type": if l.kind == model::JointKind::Revolute { "revolute" } else { "prismatic" },
+                    "theta": l.theta, "d": l.d, "a": l.a, "alpha": l.alpha, "offset": l.offset,
+                    "limits": [finite_or_null(lim.position_min[j]), finite_or_null(lim.position_max[j])],
+                    "counts_per_radian": m.counts_per_radian(j),
+                })
+            })
+            .collect();
+        let poses: serde_json::Map<String, serde_json::Value> = m
+            .poses()
+            .iter()
+            .map(|(name, q)| (name.clone(), json!(&q.as_slice()[..n])))
+            .collect();
+        return json!({
+            "name": m.name(),
+            "kind": m.kind(),
+            "description": m.description(),
+            "assumptions": m.assumptions(),
+            "inverse_kinematics": if m.has_closed_form() { "closed-form" } else { "numerical" },
+            "joints": joints,
+            "poses": poses,
+        })
+        .to_string();
+    }
+    let mut s = format!("{} — {}\n", m.name(), m.description());
+    let _ = writeln!(
+        s,
+        "inverse kinematics: {}",
+        if m.has_closed_form() {
+            "closed form, 8 branches"
+        } else {
+            "damped least squares"
+        }
+    );
+    let _ = writeln!(
+        s,
+        "{:>2} {:<14} {:>10} {:>10} {:>8} {:>8}  {:>17}",
+        "j", "name", "d (m)", "a (m)", "alpha°", "offset°", "limits (deg)"
+    );
+    for (j, l) in links.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "{:>2} {:<14} {:>10.5} {:>10.5} {:>8.2} {:>8.2}  {:>8.1} {:>8.1}",
+            j + 1,
+            m.joint_names()[j],
+            l.d,
+            l.a,
+            l.alpha.to_degrees(),
+            l.offset.to_degrees(),
+            lim.position_min[j].to_degrees(),
+            lim.position_max[j].to_degrees()
+        );
+    }
+    s += "named poses (deg):\n";
+    for (name, q) in m.poses() {
+        let q: Vec<String> = q
+            .iter()
+            .take(n)
+            .map(|x| format!("{:.1}", x.to_degrees()))
+            .collect();
+        let _ = writeln!(s, "  {name:<8} [{}]", q.join(", "));
+    }
+    if !m.assumptions().is_empty() {
+        s += "assumptions:\n";
+        for a in m.assumptions() {
+            let _ = writeln!(s, "  - {a}");
+        }
+    }
+    s
+}
+
+fn finite_or_null(x: f64) -> serde_json::Value {
+    if x.is_finite() {
+        json!(x)
+    } else {
+        serde_json::Value::Null
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn poses_must_be_rigid_transforms() {
+        let ok = "1,0,0,0.5, 0,1,0,0, 0,0,1,0.3, 0,0,0,1";
+        let p = parse_pose(ok).unwrap();
+        assert!((p.translation.vector.x - 0.5).abs() < 1e-15);
+        for bad in [
+            "1,0,0,0, 0,1,0,0, 0,0,1,0",            // 12 numbers
+            "2,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1",   // scaled
+            "-1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1",  // a reflection
+            "1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,1,1",   // bottom row
+            "1,0,0,nan, 0,1,0,0, 0,0,1,0, 0,0,0,1", // NaN
+        ] {
+            assert!(parse_pose(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn joint_values_are_checked() {
+        let m = model::puma560();
+        assert!(joints(&m, "--q", "0,0,0,0,0,0").is_ok());
+        assert!(joints(&m, "--q", "qn").is_ok());
+        assert!(joints(&m, "--q", "0,0,0").is_err());
+        assert!(joints(&m, "--q", "0,0,0,0,0,inf").is_err());
+        assert!(joints(&m, "--q", "0,0,0,0,0,x").is_err());
+    }
 }

@@ -1,0 +1,1090 @@
+//! A DMC-40x0 emulator: the reply grammar, echo, `TC1` codes for the common errors, stop codes,
+//! `QZ`/`QR`, position tracking, and motor dynamics per axis at the `TM` servo period.
+//!
+//! [`Dmc`] is the pure state machine (bytes in, bytes out, time passed in); [`PtyEmulator`] runs
+//! it on a pseudo-terminal so any serial client can drive it like a board
+//! (`penelope galil-sim`).
+//!
+//! # What it models
+//!
+//! - Commands end with CR or `;`; each gets `:` (accepted, after any data and `\r\n`) or a lone
+//!   `?` (rejected). An empty line gets `:`. Lines over 80 characters and lower-case commands are
+//!   rejected (code 1). Unknown commands: code 1. Values out of range: code 6. `PR`/`PA` during a
+//!   profiled move: code 7. `BG` with the motor off: 20; while moving: 21.
+//! - `EO` (echo, on after power-up and `RS`), `CW` (`CW1` sets bit 7 on unsolicited bytes; `CW2`,
+//!   the power-up default, does not), `LZ` (`LZ0` prints ten-digit zero-padded fields), `TC0`/`TC1`
+//!   (reading clears), `TM`, `RS`, `^R^V`, `QZ`, `QR`, `MG` (strings, numbers and `_TP`, `_TE`,
+//!   `_TV`, `_TT`, `_TS`, `_SC`, `_BG` operands, four decimals).
+//! - Per axis: `SH`, `MO`, `BG`, `ST`, `AB`, `TP`, `TE`, `TV`, `TT`, `TS`, `SC`, and the settings
+//!   `PR PA SP AC DC JG KP KI KD OF TL ER OE PT` written positionally, by name (`PRA=10`) or
+//!   queried (`PR ?,?`, `ACA=?`).
+//! - Dynamics at the `TM` period (`TM 1000` = 976.5625 µs): a trapezoidal profiler (`SP`, `AC`,
+//!   `DC`) drives the reference; with the motor on, the motor follows the reference as a
+//!   critically damped 20 Hz second-order loop with acceleration feed-forward; with zero gains
+//!   (`KP`=`KI`=`KD`=0) the axis is in torque mode and `OF` volts accelerate it; with the motor
+//!   off it coasts. `OE` ≥ 1 turns the motor off (stop code 8) when `|TE|` exceeds `ER`. `TS`
+//!   bits: 7 moving, 5 motor off, 3 and 2
+//!   the limit switches (1 = inactive, as wired on a DMC-40x0 without switches).
+//!
+//! The emulator allocates freely: it stands in for hardware and never runs in the control thread.
+
+mod pty;
+
+pub use pty::{PtyEmulator, PtyOptions};
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use super::command::{AXIS_LETTERS, MAX_GALIL_AXES, MAX_LINE, Setting};
+use super::record::{AxisRecord, RecordLayout, encode_record};
+
+/// How the emulator presents itself.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DmcConfig {
+    /// Number of axes, 1..=8.
+    pub axes: usize,
+    /// Model string, e.g. `DMC4060`.
+    pub model: String,
+    /// Firmware revision string.
+    pub firmware: String,
+}
+
+impl Default for DmcConfig {
+    fn default() -> Self {
+        DmcConfig {
+            axes: 6,
+            model: "DMC4060".into(),
+            firmware: "1.2h1-SIN".into(),
+        }
+    }
+}
+
+/// A snapshot of one emulated axis, for tests and displays.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct AxisSnapshot {
+    /// Motor position, counts.
+    pub position: f64,
+    /// Profiler reference position, counts.
+    pub reference: f64,
+    /// Velocity, counts/s.
+    pub velocity: f64,
+    /// Amplifier on.
+    pub motor_on: bool,
+    /// Stop code.
+    pub stop_code: u8,
+    /// Position tracking mode on.
+    pub tracking: bool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Profile {
+    Idle,
+    Move { target: f64 },
+    Jog,
+    Tracking { target: f64 },
+    Stopping,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Pending {
+    None,
+    Relative,
+    Absolute,
+    Jog,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct AxisSim {
+    motor_on: bool,
+    pos: f64,
+    vel: f64,
+    ref_pos: f64,
+    ref_vel: f64,
+    profile: Profile,
+    pending: Pending,
+    stop_code: u8,
+    output: f64,
+    // settings
+    pr: f64,
+    pa: f64,
+    sp: f64,
+    ac: f64,
+    dc: f64,
+    jg: f64,
+    kp: f64,
+    ki: f64,
+    kd: f64,
+    of: f64,
+    tl: f64,
+    er: f64,
+    oe: f64,
+    pt: f64,
+}
+
+impl AxisSim {
+    fn new() -> Self {
+        AxisSim {
+            motor_on: false,
+            pos: 0.0,
+            vel: 0.0,
+            ref_pos: 0.0,
+            ref_vel: 0.0,
+            profile: Profile::Idle,
+            pending: Pending::None,
+            stop_code: 0,
+            output: 0.0,
+            pr: 0.0,
+            pa: 0.0,
+            sp: 25_000.0,
+            ac: 256_000.0,
+            dc: 256_000.0,
+            jg: 25_000.0,
+            kp: 6.0,
+            ki: 0.0,
+            kd: 64.0,
+            of: 0.0,
+            tl: 9.9982,
+            er: 16_384.0,
+            oe: 0.0,
+            pt: 0.0,
+        }
+    }
+
+    fn moving(&self) -> bool {
+        self.profile != Profile::Idle
+    }
+
+    fn torque_mode(&self) -> bool {
+        self.kp == 0.0 && self.ki == 0.0 && self.kd == 0.0
+    }
+
+    fn switches(&self) -> u8 {
+        let mut ts = 0b1100; // limit switches inactive
+        if self.moving() {
+            ts |= 0x80;
+        }
+        if !self.motor_on {
+            ts |= 0x20;
+        }
+        ts
+    }
+
+    fn get(&self, s: Setting) -> f64 {
+        match s {
+            Setting::PositionRelative => self.pr,
+            Setting::PositionAbsolute => self.pa,
+            Setting::Speed => self.sp,
+            Setting::Acceleration => self.ac,
+            Setting::Deceleration => self.dc,
+            Setting::Jog => self.jg,
+            Setting::Kp => self.kp,
+            Setting::Ki => self.ki,
+            Setting::Kd => self.kd,
+            Setting::Offset => self.of,
+            Setting::TorqueLimit => self.tl,
+            Setting::ErrorLimit => self.er,
+            Setting::OffOnError => self.oe,
+            Setting::PositionTracking => self.pt,
+        }
+    }
+
+    /// Applies one setting; the error is a Galil code.
+    fn set(&mut self, s: Setting, v: f64) -> Result<(), u16> {
+        let in_range = |lo: f64, hi: f64| {
+            if (lo..=hi).contains(&v) {
+                Ok(v)
+            } else {
+                Err(6u16)
+            }
+        };
+        const POS: f64 = 2_147_483_647.0;
+        match s {
+            Setting::PositionRelative => {
+                let v = in_range(-POS, POS)?;
+                if matches!(self.profile, Profile::Move { .. } | Profile::Jog) {
+                    return Err(7);
+                }
+                self.pr = v.round();
+                self.pending = Pending::Relative;
+            }
+            Setting::PositionAbsolute => {
+                let v = in_range(-POS, POS)?.round();
+                match self.profile {
+                    Profile::Tracking { .. } => self.profile = Profile::Tracking { target: v },
+                    Profile::Move { .. } | Profile::Jog => return Err(7),
+                    _ if self.pt != 0.0 && self.motor_on => {
+                        self.profile = Profile::Tracking { target: v };
+                        self.stop_code = 0;
+                    }
+                    _ => self.pending = Pending::Absolute,
+                }
+                self.pa = v;
+            }
+            Setting::Speed => self.sp = in_range(0.0, 22_000_000.0)?.round(),
+            Setting::Acceleration => {
+                self.ac = (in_range(1024.0, 1_073_740_800.0)? / 1024.0).floor() * 1024.0;
+            }
+            Setting::Deceleration => {
+                self.dc = (in_range(1024.0, 1_073_740_800.0)? / 1024.0).floor() * 1024.0;
+            }
+            Setting::Jog => {
+                self.jg = in_range(-22_000_000.0, 22_000_000.0)?.round();
+                if self.profile != Profile::Jog {
+                    self.pending = Pending::Jog;
+                }
+            }
+            Setting::Kp => self.kp = in_range(0.0, 1023.875)?,
+            Setting::Ki => self.ki = in_range(0.0, 255.999)?,
+            Setting::Kd => self.kd = in_range(0.0, 4095.875)?,
+            Setting::Offset => self.of = in_range(-9.9982, 9.9982)?,
+            Setting::TorqueLimit => self.tl = in_range(0.0, 9.9982)?,
+            Setting::ErrorLimit => self.er = in_range(0.0, POS)?.round(),
+            Setting::OffOnError => {
+                let v = in_range(0.0, 3.0)?;
+                if v.fract() != 0.0 {
+                    return Err(6);
+                }
+                self.oe = v;
+            }
+            Setting::PositionTracking => {
+                let v = in_range(0.0, 1.0)?;
+                if v.fract() != 0.0 {
+                    return Err(6);
+                }
+                self.pt = v;
+                if v == 0.0 {
+                    if let Profile::Tracking { target } = self.profile {
+                        // Leaving tracking: finish the way to the last target as a move.
+                        if self.ref_pos == target && self.ref_vel == 0.0 {
+                            self.profile = Profile::Idle;
+                            self.stop_code = 1;
+                        } else {
+                            self.profile = Profile::Move { target };
+                        }
+                    }
+                } else if self.motor_on {
+                    if matches!(self.profile, Profile::Move { .. } | Profile::Jog) {
+                        return Err(7);
+                    }
+                    self.profile = Profile::Tracking {
+                        target: self.ref_pos.round(),
+                    };
+                    self.stop_code = 0;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn begin(&mut self) -> Result<(), u16> {
+        if !self.motor_on {
+            return Err(20);
+        }
+        if self.moving() {
+            return Err(21);
+        }
+        match self.pending {
+            Pending::Relative => {
+                self.profile = Profile::Move {
+                    target: self.ref_pos.round() + self.pr,
+                }
+            }
+            Pending::Absolute => self.profile = Profile::Move { target: self.pa },
+            Pending::Jog => self.profile = Profile::Jog,
+            Pending::None => return Ok(()),
+        }
+        self.stop_code = 0;
+        Ok(())
+    }
+
+    fn servo_here(&mut self) {
+        self.motor_on = true;
+        self.ref_pos = self.pos.round();
+        self.ref_vel = 0.0;
+        self.vel = 0.0;
+        self.profile = if self.pt != 0.0 {
+            Profile::Tracking {
+                target: self.ref_pos,
+            }
+        } else {
+            Profile::Idle
+        };
+    }
+
+    fn motor_off(&mut self) {
+        self.motor_on = false;
+        if self.moving() {
+            self.profile = Profile::Idle;
+        }
+    }
+
+    fn stop(&mut self) {
+        if self.moving() {
+            self.profile = Profile::Stopping;
+            self.pt = 0.0;
+        }
+    }
+
+    fn abort(&mut self) {
+        if self.moving() {
+            self.profile = Profile::Idle;
+            self.stop_code = 7;
+        }
+        self.pt = 0.0;
+        self.ref_vel = 0.0;
+        self.ref_pos = self.pos.round();
+        if self.oe >= 1.0 {
+            self.motor_on = false;
+        }
+    }
+
+    /// One servo period of `dt` seconds.
+    fn step(&mut self, dt: f64) {
+        if !self.motor_on {
+            self.vel *= (-5.0 * dt).exp();
+            self.pos += self.vel * dt;
+            self.ref_pos = self.pos;
+            self.ref_vel = 0.0;
+            self.output = 0.0;
+            return;
+        }
+        let ref_vel_before = self.ref_vel;
+        // Profiler.
+        let approach = |ref_pos: f64, ref_vel: f64, target: f64, sp: f64, ac: f64, dc: f64| {
+            let d = target - ref_pos;
+            let v_des = d.signum() * sp.min((2.0 * dc * d.abs()).sqrt());
+            let accel = if v_des.abs() > ref_vel.abs() { ac } else { dc };
+            let dv = (v_des - ref_vel).clamp(-accel * dt, accel * dt);
+            let v = ref_vel + dv;
+            let p = ref_pos + v * dt;
+            // Arrived (or would overshoot): snap.
+            if (target - p).signum() != d.signum() || (d.abs() < 0.5 && v.abs() <= dc * dt) {
+                (target, 0.0, true)
+            } else {
+                (p, v, false)
+            }
+        };
+        match self.profile {
+            Profile::Idle => self.ref_vel = 0.0,
+            Profile::Move { target } => {
+                let (p, v, done) = approach(
+                    self.ref_pos,
+                    self.ref_vel,
+                    target,
+                    self.sp,
+                    self.ac,
+                    self.dc,
+                );
+                self.ref_pos = p;
+                self.ref_vel = v;
+                if done {
+                    self.profile = Profile::Idle;
+                    self.stop_code = 1;
+                }
+            }
+            Profile::Tracking { target } => {
+                let (p, v, _) = approach(
+                    self.ref_pos,
+                    self.ref_vel,
+                    target,
+                    self.sp,
+                    self.ac,
+                    self.dc,
+                );
+                self.ref_pos = p;
+                self.ref_vel = v;
+            }
+            Profile::Jog => {
+                let accel = if self.jg.abs() > self.ref_vel.abs() {
+                    self.ac
+                } else {
+                    self.dc
+                };
+                self.ref_vel += (self.jg - self.ref_vel).clamp(-accel * dt, accel * dt);
+                self.ref_pos += self.ref_vel * dt;
+            }
+            Profile::Stopping => {
+                self.ref_vel -= self.ref_vel.clamp(-self.dc * dt, self.dc * dt);
+                self.ref_pos += self.ref_vel * dt;
+                if self.ref_vel == 0.0 {
+                    self.profile = Profile::Idle;
+                    self.stop_code = 4;
+                }
+            }
+        }
+        // Motor and servo loop.
+        let e = self.ref_pos - self.pos;
+        if self.torque_mode() {
+            self.output = self.of.clamp(-self.tl, self.tl);
+            let acc = 10_000.0 * self.output - 5.0 * self.vel;
+            self.vel += acc * dt;
+        } else {
+            let wn = 2.0 * std::f64::consts::PI * 20.0;
+            // Acceleration feed-forward plus a critically damped correction.
+            let ref_acc = (self.ref_vel - ref_vel_before) / dt;
+            let acc = ref_acc + wn * wn * e + 2.0 * wn * (self.ref_vel - self.vel);
+            self.vel += acc * dt;
+            self.output = (self.of + self.kp * e * 10.0 / 32_768.0).clamp(-self.tl, self.tl);
+        }
+        self.pos += self.vel * dt;
+        // Off on error.
+        if self.oe >= 1.0 && (self.ref_pos - self.pos).abs() > self.er {
+            self.motor_on = false;
+            self.profile = Profile::Idle;
+            self.stop_code = 8;
+            self.pt = 0.0;
+        }
+    }
+}
+
+/// The emulated controller.
+#[derive(Clone, Debug)]
+pub struct Dmc {
+    config: DmcConfig,
+    layout: RecordLayout,
+    echo: bool,
+    marked: bool,
+    lz0: bool,
+    error_code: u16,
+    tm: f64,
+    axes: Vec<AxisSim>,
+    sim_time: f64,
+    sample: u16,
+    line: Vec<u8>,
+    line_too_long: bool,
+    parts_in_line: usize,
+    pending_unsolicited: VecDeque<Vec<u8>>,
+}
+
+/// Galil's text for the error codes the emulator produces.
+pub fn error_text(code: u16) -> &'static str {
+    match code {
+        0 => "No error",
+        1 => "Unrecognized command",
+        6 => "Number out of range",
+        7 => "Command not valid while running",
+        20 => "Begin not valid with motor off",
+        21 => "Begin not valid while running",
+        22 => "Begin not possible due to limit switch",
+        _ => "Error",
+    }
+}
+
+/// The largest simulated time one call catches up, seconds (an idle emulator jumps beyond it).
+const MAX_CATCH_UP: f64 = 60.0;
+
+impl Dmc {
+    /// A controller at power-up: echo on, `CW2`, `LZ1`, motors off, every axis at zero.
+    pub fn new(config: DmcConfig) -> Self {
+        let n = config.axes.clamp(1, MAX_GALIL_AXES);
+        let config = DmcConfig { axes: n, ..config };
+        Dmc {
+            layout: RecordLayout {
+                axes: n,
+                general: 52,
+                coordinated: 26,
+                axis: 36,
+            },
+            config,
+            echo: true,
+            marked: false,
+            lz0: false,
+            error_code: 0,
+            tm: 1000.0,
+            axes: vec![AxisSim::new(); n],
+            sim_time: 0.0,
+            sample: 0,
+            line: Vec::new(),
+            line_too_long: false,
+            parts_in_line: 0,
+            pending_unsolicited: VecDeque::new(),
+        }
+    }
+
+    /// The configuration (axes clamped to 1..=8).
+    pub fn config(&self) -> &DmcConfig {
+        &self.config
+    }
+
+    /// The record layout `QZ` reports.
+    pub fn layout(&self) -> RecordLayout {
+        self.layout
+    }
+
+    /// One axis' state.
+    pub fn axis(&self, i: usize) -> Option<AxisSnapshot> {
+        self.axes.get(i).map(|a| AxisSnapshot {
+            position: a.pos,
+            reference: a.ref_pos,
+            velocity: a.vel,
+            motor_on: a.motor_on,
+            stop_code: a.stop_code,
+            tracking: matches!(a.profile, Profile::Tracking { .. }),
+        })
+    }
+
+    /// The servo period, seconds (`TM` × 1000/1024 µs).
+    pub fn servo_period(&self) -> f64 {
+        self.tm * 1e-6 * (1000.0 / 1024.0)
+    }
+
+    /// Runs the servo loop up to simulated time `now` (since the emulator's start).
+    pub fn advance(&mut self, now: Duration) {
+        let now = now.as_secs_f64();
+        let dt = self.servo_period();
+        if now - self.sim_time > MAX_CATCH_UP {
+            self.sim_time = now - MAX_CATCH_UP;
+        }
+        while self.sim_time + dt <= now {
+            for a in &mut self.axes {
+                a.step(dt);
+            }
+            self.sim_time += dt;
+            self.sample = self.sample.wrapping_add(1);
+        }
+    }
+
+    /// Queues an unsolicited message (as a board program's `MG` would print it); it comes out in
+    /// the middle of the next text reply, or with [`Dmc::flush_unsolicited`].
+    pub fn queue_unsolicited(&mut self, text: &[u8]) {
+        self.pending_unsolicited.push_back(text.to_vec());
+    }
+
+    /// Writes every queued unsolicited message to `out` now (marked with bit 7 under `CW1`).
+    pub fn flush_unsolicited(&mut self, out: &mut Vec<u8>) {
+        while let Some(msg) = self.pending_unsolicited.pop_front() {
+            self.write_unsolicited(&msg, out);
+        }
+    }
+
+    /// True when no command is partly received (a good moment for unsolicited output).
+    pub fn idle(&self) -> bool {
+        self.line.is_empty()
+    }
+
+    fn write_unsolicited(&self, msg: &[u8], out: &mut Vec<u8>) {
+        out.extend(msg.iter().map(|&b| if self.marked { b | 0x80 } else { b }));
+    }
+
+    /// Feeds received bytes at simulated time `now`; echo and replies are appended to `out`.
+    pub fn input(&mut self, bytes: &[u8], now: Duration, out: &mut Vec<u8>) {
+        self.advance(now);
+        for &b in bytes {
+            if self.echo {
+                out.push(b);
+            }
+            match b {
+                b'\r' => {
+                    self.end_part(out, true);
+                    self.parts_in_line = 0;
+                }
+                b';' => self.end_part(out, false),
+                b'\n' => {}
+                _ => {
+                    if self.line.len() >= MAX_LINE {
+                        self.line_too_long = true;
+                    } else {
+                        self.line.push(b);
+                    }
+                }
+            }
+        }
+    }
+
+    fn end_part(&mut self, out: &mut Vec<u8>, end_of_line: bool) {
+        let part = std::mem::take(&mut self.line);
+        let too_long = std::mem::replace(&mut self.line_too_long, false);
+        let text = String::from_utf8_lossy(&part);
+        let text = text.trim();
+        if text.is_empty() {
+            if end_of_line && self.parts_in_line == 0 {
+                out.push(b':');
+            }
+            return;
+        }
+        self.parts_in_line += 1;
+        let start = out.len();
+        let result = if too_long {
+            Err(1)
+        } else {
+            self.execute(text, out)
+        };
+        let binary = matches!(result, Ok(Reply::Binary));
+        match result {
+            Ok(Reply::Ack) => out.push(b':'),
+            Ok(Reply::Text(t)) => {
+                out.extend_from_slice(t.as_bytes());
+                out.extend_from_slice(b"\r\n:");
+            }
+            Ok(Reply::Binary) => out.push(b':'),
+            Err(code) => {
+                self.error_code = code;
+                out.push(b'?');
+            }
+        }
+        // Unsolicited output interleaves with the reply text (never inside a binary record).
+        if let Some(msg) = self.pending_unsolicited.pop_front() {
+            let mut bytes = Vec::new();
+            self.write_unsolicited(&msg, &mut bytes);
+            let at = if binary || out.len() - start < 2 {
+                out.len()
+            } else {
+                start + 1
+            };
+            out.splice(at..at, bytes);
+        }
+    }
+
+    fn fmt_int(&self, v: f64) -> String {
+        let r = v.round();
+        let sign = if r < 0.0 { '-' } else { ' ' };
+        let mag = r.abs() as u64;
+        if self.lz0 {
+            format!("{sign}{mag:010}")
+        } else {
+            format!("{sign}{mag}")
+        }
+    }
+
+    fn fmt_dec(&self, v: f64) -> String {
+        let scaled = (v * 10_000.0).round();
+        let sign = if scaled < 0.0 { '-' } else { ' ' };
+        let mag = scaled.abs() as u64;
+        let (int, frac) = (mag / 10_000, mag % 10_000);
+        if self.lz0 {
+            format!("{sign}{int:010}.{frac:04}")
+        } else {
+            format!("{sign}{int}.{frac:04}")
+        }
+    }
+
+    fn join(&self, values: impl Iterator<Item = f64>, integer: bool) -> String {
+        let mut s = String::new();
+        for (i, v) in values.enumerate() {
+            if i > 0 {
+                s.push(',');
+            }
+            s.push_str(&if integer {
+                self.fmt_int(v)
+            } else {
+                self.fmt_dec(v)
+            });
+        }
+        s
+    }
+
+    /// Axis indices named by letters (all axes when empty); code 1 for letters beyond the board.
+    fn axes_arg(&self, rest: &str) -> Result<Vec<usize>, u16> {
+        let rest = rest.trim();
+        if rest.is_empty() {
+            return Ok((0..self.axes.len()).collect());
+        }
+        let mut v = Vec::new();
+        for c in rest.chars() {
+            let i = AXIS_LETTERS.iter().position(|&l| l == c).ok_or(1u16)?;
+            if i >= self.axes.len() {
+                return Err(1);
+            }
+            if !v.contains(&i) {
+                v.push(i);
+            }
+        }
+        v.sort_unstable();
+        Ok(v)
+    }
+
+    fn execute(&mut self, text: &str, out: &mut Vec<u8>) -> Result<Reply, u16> {
+        if text.as_bytes() == [0x12, 0x16] {
+            return Ok(Reply::Text(format!(
+                "{} Rev {}",
+                self.config.model, self.config.firmware
+            )));
+        }
+        let bytes = text.as_bytes();
+        if bytes.len() < 2 || !bytes[0].is_ascii_uppercase() || !bytes[1].is_ascii_uppercase() {
+            return Err(1);
+        }
+        let (mnemonic, rest) = text.split_at(2);
+        let rest = rest.trim();
+        match mnemonic {
+            "EO" => {
+                self.echo = flag(rest)?;
+                Ok(Reply::Ack)
+            }
+            "CW" => {
+                if rest == "?" {
+                    return Ok(Reply::Text(self.fmt_int(if self.marked {
+                        1.0
+                    } else {
+                        2.0
+                    })));
+                }
+                let first = rest.split(',').next().unwrap_or("").trim();
+                match first {
+                    "1" => self.marked = true,
+                    "2" => self.marked = false,
+                    "" => {}
+                    _ => return Err(6),
+                }
+                Ok(Reply::Ack)
+            }
+            "LZ" => {
+                self.lz0 = !flag(rest)?;
+                Ok(Reply::Ack)
+            }
+            "TC" => {
+                let code = std::mem::take(&mut self.error_code);
+                match rest {
+                    "" | "0" => Ok(Reply::Text(code.to_string())),
+                    "1" => Ok(Reply::Text(if code == 0 {
+                        "0".into()
+                    } else {
+                        format!("{code} {}", error_text(code))
+                    })),
+                    _ => Err(6),
+                }
+            }
+            "TM" => {
+                if rest == "?" {
+                    return Ok(Reply::Text(self.fmt_int(self.tm)));
+                }
+                let v = number(rest)?;
+                if !(250.0..=20_000.0).contains(&v) {
+                    return Err(6);
+                }
+                self.tm = v.round();
+                Ok(Reply::Ack)
+            }
+            "RS" => {
+                if !rest.is_empty() {
+                    return Err(1);
+                }
+                let keep = self.pending_unsolicited.clone();
+                let time = self.sim_time;
+                *self = Dmc::new(self.config.clone());
+                self.sim_time = time;
+                self.pending_unsolicited = keep;
+                Ok(Reply::Ack)
+            }
+            "QZ" => Ok(Reply::Text(format!(
+                "{}, {}, {}, {}",
+                self.layout.axes, self.layout.general, self.layout.coordinated, self.layout.axis
+            ))),
+            "QR" => {
+                let recs: Vec<AxisRecord> = self.axes.iter().map(axis_record).collect();
+                let mut buf = vec![0u8; self.layout.record_len()];
+                let n = encode_record(&self.layout, 0x07, self.sample, &recs, &mut buf)
+                    .map_err(|_| 1u16)?;
+                out.extend_from_slice(&buf[..n]);
+                Ok(Reply::Binary)
+            }
+            "SH" | "MO" | "BG" | "ST" => {
+                let axes = self.axes_arg(rest)?;
+                let mut result = Ok(());
+                for i in axes {
+                    let a = &mut self.axes[i];
+                    match mnemonic {
+                        "SH" => a.servo_here(),
+                        "MO" => a.motor_off(),
+                        "ST" => a.stop(),
+                        _ => {
+                            if let Err(code) = a.begin() {
+                                result = Err(code);
+                            }
+                        }
+                    }
+                }
+                result.map(|()| Reply::Ack)
+            }
+            "AB" => {
+                if !(rest.is_empty() || rest == "0" || rest == "1") {
+                    return Err(6);
+                }
+                for a in &mut self.axes {
+                    a.abort();
+                }
+                Ok(Reply::Ack)
+            }
+            "TP" | "TE" | "TV" | "TT" | "TS" | "SC" => {
+                let axes = self.axes_arg(rest)?;
+                let values: Vec<f64> = axes.iter().map(|&i| self.operand(mnemonic, i)).collect();
+                Ok(Reply::Text(self.join(values.into_iter(), mnemonic != "TT")))
+            }
+            "MG" => self.message(rest).map(Reply::Text),
+            _ => match Setting::from_mnemonic(mnemonic) {
+                Some(setting) => self.setting(setting, rest),
+                None => Err(1),
+            },
+        }
+    }
+
+    fn operand(&self, name: &str, axis: usize) -> f64 {
+        let a = &self.axes[axis];
+        match name {
+            "TP" => a.pos.round(),
+            "TE" => (a.ref_pos - a.pos).round(),
+            "TV" => a.vel.round(),
+            "TT" => a.output,
+            "TS" => f64::from(a.switches()),
+            "SC" => f64::from(a.stop_code),
+            "BG" => f64::from(u8::from(a.moving())),
+            _ => 0.0,
+        }
+    }
+
+    fn message(&self, rest: &str) -> Result<String, u16> {
+        let mut parts = Vec::new();
+        for arg in split_args(rest) {
+            let arg = arg.trim();
+            if let Some(s) = arg.strip_prefix('"') {
+                parts.push(s.strip_suffix('"').ok_or(1u16)?.to_string());
+            } else if let Some(op) = arg.strip_prefix('_') {
+                if op.len() != 3 || !op.is_ascii() {
+                    return Err(1);
+                }
+                let (name, letter) = op.split_at(2);
+                let axis = AXIS_LETTERS
+                    .iter()
+                    .position(|l| letter.starts_with(*l))
+                    .filter(|&i| i < self.axes.len())
+                    .ok_or(1u16)?;
+                if !["TP", "TE", "TV", "TT", "TS", "SC", "BG"].contains(&name) {
+                    return Err(1);
+                }
+                parts.push(self.fmt_dec(self.operand(name, axis)));
+            } else {
+                parts.push(self.fmt_dec(number(arg)?));
+            }
+        }
+        Ok(parts.concat())
+    }
+
+    fn setting(&mut self, setting: Setting, rest: &str) -> Result<Reply, u16> {
+        let n = self.axes.len();
+        // Named form: `PRA=1000`, `ACA=?`.
+        if let Some((letter, value)) = rest.split_once('=') {
+            let axis = AXIS_LETTERS
+                .iter()
+                .position(|&l| letter.trim() == l.to_string())
+                .filter(|&i| i < n)
+                .ok_or(1u16)?;
+            let value = value.trim();
+            if value == "?" {
+                return Ok(Reply::Text(self.fmt_setting(setting, axis)));
+            }
+            self.axes[axis].set(setting, number(value)?)?;
+            return Ok(Reply::Ack);
+        }
+        let fields: Vec<&str> = if rest.is_empty() {
+            Vec::new()
+        } else {
+            rest.split(',').map(str::trim).collect()
+        };
+        if fields.len() > n {
+            return Err(6);
+        }
+        if fields.contains(&"?") {
+            let mut answers = Vec::new();
+            for (i, f) in fields.iter().enumerate() {
+                match *f {
+                    "?" => answers.push(self.fmt_setting(setting, i)),
+                    "" => {}
+                    _ => return Err(1),
+                }
+            }
+            return Ok(Reply::Text(answers.join(",")));
+        }
+        // Validate everything before changing anything.
+        let mut values = Vec::with_capacity(fields.len());
+        for f in &fields {
+            values.push(if f.is_empty() { None } else { Some(number(f)?) });
+        }
+        let mut result = Ok(Reply::Ack);
+        for (i, v) in values.into_iter().enumerate() {
+            if let Some(v) = v
+                && let Err(code) = self.axes[i].set(setting, v)
+            {
+                result = Err(code);
+            }
+        }
+        result
+    }
+
+    fn fmt_setting(&self, setting: Setting, axis: usize) -> String {
+        let v = self.axes[axis].get(setting);
+        if setting.is_integer() {
+            self.fmt_int(v)
+        } else {
+            self.fmt_dec(v)
+        }
+    }
+}
+
+enum Reply {
+    Ack,
+    Text(String),
+    Binary,
+}
+
+fn flag(rest: &str) -> Result<bool, u16> {
+    match rest {
+        "0" => Ok(false),
+        "1" => Ok(true),
+        _ => Err(6),
+    }
+}
+
+fn number(s: &str) -> Result<f64, u16> {
+    super::number::parse_number(s.as_bytes()).map_err(|_| 1u16)
+}
+
+/// Splits `MG` arguments on commas outside quotes.
+fn split_args(s: &str) -> Vec<&str> {
+    let mut out = Vec::new();
+    let mut start = 0;
+    let mut quoted = false;
+    for (i, c) in s.char_indices() {
+        match c {
+            '"' => quoted = !quoted,
+            ',' if !quoted => {
+                out.push(&s[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    out.push(&s[start..]);
+    out
+}
+
+fn axis_record(a: &AxisSim) -> AxisRecord {
+    let clamp = |v: f64| v.round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32;
+    AxisRecord {
+        status: if a.moving() { 0x8000 } else { 0 },
+        switches: a.switches(),
+        stop_code: a.stop_code,
+        reference_position: clamp(a.ref_pos),
+        position: clamp(a.pos),
+        position_error: clamp(a.ref_pos - a.pos),
+        aux_position: 0,
+        velocity: clamp(a.vel),
+        torque: clamp(a.output / 10.0 * 32_767.0),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn send(dmc: &mut Dmc, t: f64, text: &str) -> String {
+        let mut out = Vec::new();
+        dmc.input(text.as_bytes(), Duration::from_secs_f64(t), &mut out);
+        String::from_utf8_lossy(&out).into_owned()
+    }
+
+    fn quiet() -> Dmc {
+        let mut d = Dmc::new(DmcConfig::default());
+        assert_eq!(send(&mut d, 0.0, "EO0\r"), "EO0\r:");
+        d
+    }
+
+    #[test]
+    fn grammar_and_errors() {
+        let mut d = quiet();
+        assert_eq!(send(&mut d, 0.0, "\r"), ":");
+        assert_eq!(send(&mut d, 0.0, "TP\r"), " 0, 0, 0, 0, 0, 0\r\n:");
+        assert_eq!(send(&mut d, 0.0, "tp\r"), "?");
+        assert_eq!(send(&mut d, 0.0, "TC1\r"), "1 Unrecognized command\r\n:");
+        assert_eq!(send(&mut d, 0.0, "TC1\r"), "0\r\n:");
+        assert_eq!(send(&mut d, 0.0, "BG A\r"), "?");
+        assert_eq!(
+            send(&mut d, 0.0, "TC1\r"),
+            "20 Begin not valid with motor off\r\n:"
+        );
+        assert_eq!(send(&mut d, 0.0, "OE 5\r"), "?");
+        assert_eq!(send(&mut d, 0.0, "TC0\r"), "6\r\n:");
+        assert_eq!(send(&mut d, 0.0, "SH;TPA;XX\r"), ": 0\r\n:?");
+        assert_eq!(send(&mut d, 0.0, "LZ0;TPA\r"), ": 0000000000\r\n:");
+        assert_eq!(send(&mut d, 0.0, "QZ\r"), "6, 52, 26, 36\r\n:");
+        assert_eq!(
+            send(&mut d, 0.0, "KP ?,?\r"),
+            " 0000000006.0000, 0000000006.0000\r\n:"
+        );
+        assert_eq!(
+            send(&mut d, 0.0, "\u{12}\u{16}\r"),
+            "DMC4060 Rev 1.2h1-SIN\r\n:"
+        );
+        assert_eq!(send(&mut d, 0.0, "ACA=?\r"), " 0000256000\r\n:");
+        assert_eq!(send(&mut d, 0.0, &format!("{}\r", "T".repeat(90))), "?");
+    }
+
+    #[test]
+    fn profiled_move_and_stop_codes() {
+        let mut d = quiet();
+        send(&mut d, 0.0, "SH;PR 1000;BG A\r");
+        assert_eq!(send(&mut d, 0.001, "BG A\r"), "?");
+        assert_eq!(
+            send(&mut d, 0.002, "TC1\r"),
+            "21 Begin not valid while running\r\n:"
+        );
+        assert_eq!(send(&mut d, 1.0, "MG _BGA, _SCA\r"), " 0.0000 1.0000\r\n:");
+        let a = d.axis(0).unwrap();
+        assert!((a.position - 1000.0).abs() < 2.0, "{a:?}");
+        // Jog then stop.
+        send(&mut d, 1.0, "JG ,5000;BG B\r");
+        send(&mut d, 1.5, "ST B\r");
+        assert_eq!(send(&mut d, 2.0, "SC B\r"), " 4\r\n:");
+        // Abort with OE1 turns the motor off.
+        send(&mut d, 2.0, "OE 1,1,1,1,1,1;JG ,3000;BG B\r");
+        send(&mut d, 2.1, "AB\r");
+        assert_eq!(send(&mut d, 2.2, "SC B;TS B\r"), " 7\r\n: 44\r\n:");
+    }
+
+    #[test]
+    fn tracking_and_off_on_error() {
+        let mut d = quiet();
+        send(&mut d, 0.0, "SH;PT 1,1\r");
+        send(&mut d, 0.0, "PA 500,-500\r");
+        send(&mut d, 1.0, "\r");
+        let (a, b) = (d.axis(0).unwrap(), d.axis(1).unwrap());
+        assert!(a.tracking && (a.position - 500.0).abs() < 2.0, "{a:?}");
+        assert!((b.position + 500.0).abs() < 2.0, "{b:?}");
+        // A huge jump with a tight error limit trips off-on-error.
+        send(
+            &mut d,
+            1.0,
+            "ER 10;OE 1;SP 1000000;AC 100000000;DC 100000000;PA 100000\r",
+        );
+        send(&mut d, 1.5, "\r");
+        let a = d.axis(0).unwrap();
+        assert!(!a.motor_on);
+        assert_eq!(a.stop_code, 8);
+    }
+
+    #[test]
+    fn torque_mode_follows_offset() {
+        let mut d = quiet();
+        send(&mut d, 0.0, "KP 0;KI 0;KD 0;SH A;OF 1\r");
+        send(&mut d, 0.5, "\r");
+        assert!(d.axis(0).unwrap().velocity > 100.0);
+        assert_eq!(send(&mut d, 0.5, "TT A\r"), " 1.0000\r\n:");
+    }
+
+    #[test]
+    fn unsolicited_is_marked_under_cw1_and_interleaves() {
+        let mut d = quiet();
+        send(&mut d, 0.0, "CW1\r");
+        d.queue_unsolicited(b"hi:\r\n");
+        let out = {
+            let mut out = Vec::new();
+            d.input(b"TPA\r", Duration::ZERO, &mut out);
+            out
+        };
+        assert_eq!(out[0], b' ');
+        assert_eq!(
+            &out[1..6],
+            &[b'h' | 0x80, b'i' | 0x80, b':' | 0x80, 0x8D, 0x8A]
+        );
+        assert_eq!(&out[6..], b"0\r\n:");
+    }
+}

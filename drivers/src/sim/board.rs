@@ -1,0 +1,258 @@
+//! A simulated motion board in front of a [`RigidBodyPlant`].
+//!
+//! What a real board does to the signals, modelled: encoders quantise positions to whole counts
+//! and velocities are differences of counts; the DAC saturates at its full scale and resolves
+//! `2^bits` levels; the command written is held until the next write (sample-and-hold), while the
+//! plant keeps moving; an optional on-board position loop servos `AxisCommand::Position` targets
+//! at the plant's sub-step rate, as a motion controller's own servo loop does.
+
+use penelope_hal::{
+    AxisCommand, AxisState, Board, Error, ErrorKind, Frame, JointVector, MAX_AXES, RobotModel,
+    Timestamp, Wrench,
+};
+
+use super::Interaction;
+use super::plant::{PlantConfig, RigidBodyPlant};
+use super::tap::{TapSample, TapWriter};
+
+/// Settings of a [`SimBoard`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SimBoardConfig {
+    /// Encoder counts per radian of joint motion, per axis (gear ratio included).
+    pub counts_per_radian: JointVector,
+    /// DAC full scale per axis, expressed as joint torque, N·m: efforts beyond are clipped.
+    pub effort_full_scale: JointVector,
+    /// DAC resolution, bits (16 on most motion boards).
+    pub dac_bits: u32,
+    /// Proportional gain of the on-board position loop, N·m/rad.
+    pub position_kp: JointVector,
+    /// Derivative gain of the on-board position loop, N·m·s/rad.
+    pub position_kd: JointVector,
+    /// Corner of the first-order low-pass on the reported velocity (count differences), Hz; 0
+    /// reports raw differences. Motion boards filter their velocity estimate the same way.
+    pub velocity_cutoff_hz: f64,
+}
+
+/// Invalid use of a simulated board.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SimBoardError {
+    /// A slice shorter than the axis count.
+    WrongLength,
+    /// A NaN or infinite effort.
+    NonFinite,
+}
+
+impl Error for SimBoardError {
+    fn kind(&self) -> ErrorKind {
+        match self {
+            SimBoardError::WrongLength => ErrorKind::InvalidInput,
+            SimBoardError::NonFinite => ErrorKind::NonFinite,
+        }
+    }
+}
+
+impl core::fmt::Display for SimBoardError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            SimBoardError::WrongLength => "slice shorter than the axis count",
+            SimBoardError::NonFinite => "effort is NaN or infinite",
+        })
+    }
+}
+
+/// A board driving a simulated robot, with the robot's surroundings acting on its tool.
+pub struct SimBoard<M, I> {
+    plant: RigidBodyPlant<M>,
+    interaction: I,
+    config: SimBoardConfig,
+    held: [AxisCommand; MAX_AXES],
+    enabled: bool,
+    last_counts: [i64; MAX_AXES],
+    velocity: [f64; MAX_AXES],
+    last_read: Option<Timestamp>,
+    tap: Option<TapWriter>,
+}
+
+impl<M: RobotModel, I: Interaction> SimBoard<M, I> {
+    /// A board whose axes are the joints of `model`, at rest at `q0` at time `start`, with
+    /// `interaction` acting on the tool.
+    pub fn new(
+        model: M,
+        plant: PlantConfig,
+        config: SimBoardConfig,
+        interaction: I,
+        q0: JointVector,
+        start: Timestamp,
+    ) -> Self {
+        let plant = RigidBodyPlant::new(model, plant, q0, start);
+        let mut board = SimBoard {
+            plant,
+            interaction,
+            config,
+            held: [AxisCommand::Off; MAX_AXES],
+            enabled: false,
+            last_counts: [0; MAX_AXES],
+            velocity: [0.0; MAX_AXES],
+            last_read: None,
+            tap: None,
+        };
+        for j in 0..board.axis_count() {
+            board.last_counts[j] = board.encoder(j);
+        }
+        board
+    }
+
+    /// Publishes the plant's true state to `tap` after every read (for a virtual sensor and for
+    /// ground-truth telemetry).
+    pub fn with_tap(mut self, tap: TapWriter) -> Self {
+        self.tap = Some(tap);
+        self
+    }
+
+    /// The plant (ground truth).
+    pub fn plant(&self) -> &RigidBodyPlant<M> {
+        &self.plant
+    }
+
+    /// The interaction acting on the tool.
+    pub fn interaction(&self) -> &I {
+        &self.interaction
+    }
+
+    fn encoder(&self, axis: usize) -> i64 {
+        let q = self.plant.snapshot().joints.position[axis];
+        // Floor, as an incremental encoder counts whole lines passed.
+        libm::floor(q * self.config.counts_per_radian[axis]) as i64
+    }
+
+    fn dac(&self, axis: usize, effort: f64) -> f64 {
+        let full = self.config.effort_full_scale[axis];
+        let clipped = effort.clamp(-full, full);
+        let levels = (1u64 << self.config.dac_bits.min(52)) as f64;
+        let step = 2.0 * full / levels;
+        if step > 0.0 && step.is_finite() { libm::round(clipped / step) * step } else { clipped }
+    }
+
+    /// Integrates the plant to `now` with the held commands.
+    fn advance(&mut self, now: Timestamp) {
+        let n = self.axis_count();
+        let needs_servo = self.enabled && self.held[..n].iter().any(|c| matches!(c, AxisCommand::Position(_)));
+        if !needs_servo {
+            let tau = self.held_efforts();
+            self.plant.advance_to(now, &tau, &mut self.interaction);
+            return;
+        }
+        // The on-board servo recomputes its torque every sub-step.
+        while self.plant.snapshot().time < now {
+            let step_end = (self.plant.snapshot().time + core::time::Duration::from_micros(200)).min(now);
+            let mut tau = self.held_efforts();
+            let state = self.plant.snapshot().joints;
+            for j in 0..n {
+                if let AxisCommand::Position(target) = self.held[j] {
+                    let target_rad = target as f64 / self.config.counts_per_radian[j];
+                    let effort = self.config.position_kp[j] * (target_rad - state.position[j])
+                        - self.config.position_kd[j] * state.velocity[j];
+                    tau[j] = self.dac(j, effort);
+                }
+            }
+            self.plant.advance_to(step_end, &tau, &mut self.interaction);
+        }
+    }
+
+    fn held_efforts(&self) -> JointVector {
+        let mut tau = JointVector::zeros();
+        if !self.enabled {
+            return tau;
+        }
+        for j in 0..self.axis_count() {
+            if let AxisCommand::Effort(e) = self.held[j] {
+                tau[j] = self.dac(j, e);
+            }
+        }
+        tau
+    }
+
+    fn publish(&mut self) {
+        let Some(tap) = self.tap.as_mut() else { return };
+        let snapshot = self.plant.snapshot();
+        let pose = self.plant.model().forward(&snapshot.joints.position);
+        let base = snapshot.interaction;
+        let rotation_t = pose.rotation.inverse();
+        let tool_wrench = Wrench { force: rotation_t * base.force, torque: rotation_t * base.torque, frame: Frame::Tool };
+        tap.publish(TapSample {
+            time: snapshot.time,
+            joints: snapshot.joints,
+            tool_pose: pose,
+            base_wrench: base,
+            tool_wrench,
+            kinetic_energy: snapshot.kinetic_energy,
+            interaction_work: snapshot.interaction_work,
+        });
+    }
+}
+
+impl<M: RobotModel, I: Interaction> Board for SimBoard<M, I> {
+    type Error = SimBoardError;
+
+    fn axis_count(&self) -> usize {
+        self.plant.model().joint_count().min(MAX_AXES)
+    }
+
+    /// # Real-time
+    /// No allocation; integrates the plant up to `now` (time proportional to the elapsed time).
+    fn read_axes(&mut self, now: Timestamp, out: &mut [AxisState]) -> Result<(), SimBoardError> {
+        let n = self.axis_count();
+        if out.len() < n {
+            return Err(SimBoardError::WrongLength);
+        }
+        self.advance(now);
+        let dt = self.last_read.map(|t| (now - t).as_secs_f64()).unwrap_or(0.0);
+        let gain = if self.config.velocity_cutoff_hz > 0.0 && dt > 0.0 {
+            let tau = 1.0 / (2.0 * core::f64::consts::PI * self.config.velocity_cutoff_hz);
+            dt / (tau + dt)
+        } else {
+            1.0
+        };
+        for (j, axis) in out.iter_mut().enumerate().take(n) {
+            let counts = self.encoder(j);
+            if dt > 0.0 {
+                let raw = (counts - self.last_counts[j]) as f64 / dt;
+                self.velocity[j] += gain * (raw - self.velocity[j]);
+            }
+            let velocity = self.velocity[j];
+            let effort = match self.held[j] {
+                AxisCommand::Effort(e) if self.enabled => self.dac(j, e),
+                _ => self.plant.snapshot().joints.effort[j],
+            };
+            let following_error = match self.held[j] {
+                AxisCommand::Position(target) => target - counts,
+                _ => 0,
+            };
+            *axis = AxisState { position: counts, velocity, effort, following_error, enabled: self.enabled };
+            self.last_counts[j] = counts;
+        }
+        self.last_read = Some(now);
+        self.publish();
+        Ok(())
+    }
+
+    /// # Real-time
+    /// No allocation; integrates the plant up to `now` with the previous commands first.
+    fn write_axes(&mut self, now: Timestamp, commands: &[AxisCommand]) -> Result<(), SimBoardError> {
+        let n = self.axis_count();
+        if commands.len() < n {
+            return Err(SimBoardError::WrongLength);
+        }
+        if commands[..n].iter().any(|c| matches!(c, AxisCommand::Effort(e) if !e.is_finite())) {
+            return Err(SimBoardError::NonFinite);
+        }
+        self.advance(now);
+        self.held[..n].copy_from_slice(&commands[..n]);
+        Ok(())
+    }
+
+    fn set_enabled(&mut self, enabled: bool) -> Result<(), SimBoardError> {
+        self.enabled = enabled;
+        Ok(())
+    }
+}

@@ -1,0 +1,100 @@
+//! Kinematics and dynamics calls allocate nothing: a counting global allocator around every
+//! real-time call of every built-in model and a numerical one.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use penelope_drivers::model;
+use penelope_hal::{
+    Dynamics, IkSolutions, InverseKinematics, JacobianFrame, JointVector, Kinematics, NamedPose,
+    RobotModel, Wrench,
+};
+
+struct Counting;
+
+thread_local! {
+    // Only this thread's allocations count (the test harness allocates on its own threads).
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+fn count() {
+    let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+}
+
+fn allocations() -> usize {
+    ALLOCATIONS.with(Cell::get)
+}
+
+// SAFETY: forwards to the system allocator; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        count();
+        // SAFETY: same contract as ours.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: same contract as ours.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        count();
+        // SAFETY: same contract as ours.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+const NUMERICAL_FRHC: &str = "inverse_kinematics = \"numerical\"";
+
+#[test]
+fn no_call_allocates() {
+    let frhc_text = model::FRHC_TOML.replace("inverse_kinematics = \"auto\"", NUMERICAL_FRHC);
+    let models = [
+        model::puma560(),
+        model::puma200(),
+        model::frhc(),
+        model::from_toml_str(&frhc_text).unwrap(),
+    ];
+    // The counter does see this thread's allocations.
+    let before = allocations();
+    let probe = std::hint::black_box(vec![1.0_f64; 4]);
+    assert!(allocations() > before);
+    let mut sink = probe[0];
+    let mut sols = IkSolutions::new();
+    let qd = JointVector::from_column_slice(&[0.1, -0.2, 0.3, -0.4, 0.5, -0.6]);
+    for m in &models {
+        let q = m.named_pose(NamedPose::Work);
+        let seed = m.named_pose(NamedPose::Start);
+        let target = m.forward(&q);
+        let before = allocations();
+        for _ in 0..10 {
+            sink += m.forward(&q).translation.vector.x;
+            sink += m.jacobian(&q, JacobianFrame::Base)[(0, 0)];
+            sink += m.jacobian(&q, JacobianFrame::Tool)[(0, 0)];
+            sink += m.forward_and_jacobian(&q, JacobianFrame::Base).1[(1, 1)];
+            sink += m.forward_matrix(&q)[(0, 3)];
+            sink += m.inverse_all(&target, &mut sols).unwrap() as f64;
+            sink += m.inverse_near(&target, &seed).unwrap()[0];
+            sink += m.inverse_numerical(&target, &seed).unwrap()[0];
+            sink += m.gravity(&q)[1];
+            sink += m.inertia(&q)[(1, 1)];
+            sink += m.inverse_dynamics(&q, &qd, &qd)[2];
+            sink += m.friction(&qd)[0];
+            sink += m
+                .wrench_to_torques(&q, &Wrench::zero(penelope_hal::Frame::Base))
+                .unwrap()[0];
+            sink += m.jacobian_damped_inverse(&q, 0.01)[(0, 0)];
+        }
+        let after = allocations();
+        assert_eq!(
+            after - before,
+            0,
+            "{} allocated {} times",
+            m.name(),
+            after - before
+        );
+    }
+    assert!(sink.is_finite());
+}

@@ -1,0 +1,650 @@
+//! The periodic executor (Linux, feature `std`): one thread per loop, SCHED_FIFO, pinned, memory
+//! locked, sleeping to absolute deadlines on `CLOCK_MONOTONIC`.
+//!
+//! Each period the thread sleeps with `clock_nanosleep(TIMER_ABSTIME)` to its deadline, measures
+//! how late it woke (the wake-up latency, as cyclictest does), calls the body with a [`Tick`],
+//! measures the body's execution time, and moves the deadline on by one period. Deadlines are
+//! absolute, so they never drift. When a body overruns past the next deadline the overrun is
+//! counted and the missed deadlines are skipped (not run late in a burst).
+//!
+//! Before the first tick the thread asks for its real-time rights: SCHED_FIFO at the configured
+//! priority, the CPU affinity, `mlockall(MCL_CURRENT | MCL_FUTURE)`, a prefaulted stack, and
+//! `/dev/cpu_dma_latency` held at 0 for the life of the process. Where the OS refuses one, it says
+//! so once per process on stderr, naming the fix, and runs on without it; [`RtStatus`] tells what
+//! was applied.
+//!
+//! ```no_run
+//! use std::time::Duration;
+//! use penelope_rt_core::exec::{self, Flow, PeriodicConfig};
+//!
+//! let config = PeriodicConfig::new("control", Duration::from_millis(1)).priority(80).cpu(1);
+//! let mut thread = exec::spawn(config, |tick| {
+//!     // ... one control tick at tick.deadline ...
+//!     if tick.index == 9_999 { Flow::Stop } else { Flow::Continue }
+//! })
+//! .expect("spawn");
+//! let report = thread.join().expect("thread ran");
+//! println!("p99 wake-up latency {:?}", report.latency.summary().p99);
+//! ```
+
+use std::fmt;
+use std::sync::Arc;
+use std::sync::OnceLock;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use penelope_hal::Timestamp;
+
+use crate::cell::{ArcLatestReader, ArcLatestWriter, latest};
+use crate::clock::{MonotonicClock, timestamp_to_timespec};
+pub use crate::sim::Flow;
+use crate::stats::{DurationStats, LatencyHistogram};
+
+/// How a periodic thread runs.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PeriodicConfig {
+    /// Thread name (shown by `ps -L`, `top -H`; at most 15 bytes are kept by Linux).
+    pub name: String,
+    /// The period.
+    pub period: Duration,
+    /// SCHED_FIFO priority 1 to 99, or `None` for normal scheduling.
+    pub priority: Option<u8>,
+    /// Pin the thread to this CPU, or `None` to let it float.
+    pub cpu: Option<usize>,
+    /// Lock the process's memory (`mlockall`) before the first tick.
+    pub lock_memory: bool,
+    /// Bytes of stack to touch before the first tick, so no page fault happens later.
+    pub prefault_stack: usize,
+    /// The thread's stack size, bytes (must exceed `prefault_stack` plus what the body uses).
+    pub stack_size: usize,
+    /// Hold `/dev/cpu_dma_latency` at 0 (keeps idle CPUs out of deep sleep states).
+    pub hold_dma_latency: bool,
+}
+
+impl PeriodicConfig {
+    /// `name` every `period`: FIFO priority 80, no pinning, memory locked, 256 KiB of stack
+    /// prefaulted out of 1 MiB, `cpu_dma_latency` held.
+    pub fn new(name: impl Into<String>, period: Duration) -> Self {
+        PeriodicConfig {
+            name: name.into(),
+            period,
+            priority: Some(80),
+            cpu: None,
+            lock_memory: true,
+            prefault_stack: 256 * 1024,
+            stack_size: 1024 * 1024,
+            hold_dma_latency: true,
+        }
+    }
+
+    /// Sets the SCHED_FIFO priority (1 to 99).
+    pub fn priority(mut self, priority: u8) -> Self {
+        self.priority = Some(priority);
+        self
+    }
+
+    /// Normal (non-real-time) scheduling.
+    pub fn normal_priority(mut self) -> Self {
+        self.priority = None;
+        self
+    }
+
+    /// Pins the thread to `cpu`.
+    pub fn cpu(mut self, cpu: usize) -> Self {
+        self.cpu = Some(cpu);
+        self
+    }
+
+    /// Checks the configuration.
+    ///
+    /// # Errors
+    /// [`ExecError::Config`] for a zero period, a priority outside 1 to 99, or a stack smaller
+    /// than the prefault size plus 64 KiB.
+    pub fn validate(&self) -> Result<(), ExecError> {
+        if self.period.is_zero() {
+            return Err(ExecError::Config("period must be above zero"));
+        }
+        if self.priority.is_some_and(|p| !(1..=99).contains(&p)) {
+            return Err(ExecError::Config("SCHED_FIFO priority must be 1 to 99"));
+        }
+        if self.stack_size < self.prefault_stack + 64 * 1024 {
+            return Err(ExecError::Config(
+                "stack must exceed the prefault size by 64 KiB",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// One period, as handed to the body.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Tick {
+    /// 0 for the first tick; skipped deadlines are not counted.
+    pub index: u64,
+    /// The scheduled instant of this tick (`CLOCK_MONOTONIC`): pass it to logic as `now`.
+    pub deadline: Timestamp,
+    /// When the thread actually woke.
+    pub woke: Timestamp,
+    /// The period.
+    pub period: Duration,
+    /// Overruns so far.
+    pub overruns: u64,
+    /// Execution time of the previous tick (zero for the first).
+    pub previous_exec: Duration,
+}
+
+impl Tick {
+    /// How late the thread woke: `woke - deadline`.
+    pub fn latency(&self) -> Duration {
+        self.woke.saturating_since(self.deadline)
+    }
+}
+
+/// Whether one real-time setting took effect.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Setting {
+    /// Not asked for by the configuration.
+    #[default]
+    NotRequested,
+    /// In effect.
+    Applied,
+    /// Refused by the OS (the `errno`, 0 when unknown).
+    Refused(i32),
+}
+
+impl Setting {
+    /// True for [`Setting::Applied`].
+    pub fn is_applied(self) -> bool {
+        self == Setting::Applied
+    }
+}
+
+/// Which real-time settings took effect for a thread.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct RtStatus {
+    /// SCHED_FIFO priority.
+    pub fifo: Setting,
+    /// CPU pinning.
+    pub affinity: Setting,
+    /// `mlockall`.
+    pub memory_locked: Setting,
+    /// `/dev/cpu_dma_latency` held at 0.
+    pub dma_latency: Setting,
+}
+
+/// Figures a running thread publishes after every tick (constant-size, for a latest-value cell).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct LiveStats {
+    /// Ticks run.
+    pub ticks: u64,
+    /// Ticks whose end passed the next deadline.
+    pub overruns: u64,
+    /// Deadlines skipped because of overruns.
+    pub skipped: u64,
+    /// The last tick's wake-up latency.
+    pub last_latency: Duration,
+    /// Largest wake-up latency so far.
+    pub max_latency: Duration,
+    /// Mean wake-up latency so far.
+    pub mean_latency: Duration,
+    /// The last tick's execution time.
+    pub last_exec: Duration,
+    /// Largest execution time so far.
+    pub max_exec: Duration,
+}
+
+/// Everything a periodic thread measured, returned when it stops.
+#[derive(Clone, Debug)]
+pub struct RunReport {
+    /// Ticks run.
+    pub ticks: u64,
+    /// Ticks whose end passed the next deadline.
+    pub overruns: u64,
+    /// Deadlines skipped because of overruns.
+    pub skipped: u64,
+    /// Wake-up latency histogram (1 µs buckets to 10 ms).
+    pub latency: Box<LatencyHistogram>,
+    /// Execution time of the body.
+    pub exec: DurationStats,
+    /// The real-time settings in effect.
+    pub rt: RtStatus,
+    /// The first deadline.
+    pub started: Timestamp,
+    /// When the thread stopped.
+    pub stopped: Timestamp,
+}
+
+/// Why a periodic thread could not be started or joined.
+#[derive(Debug)]
+pub enum ExecError {
+    /// A bad [`PeriodicConfig`].
+    Config(&'static str),
+    /// The thread could not be created.
+    Spawn(std::io::Error),
+    /// The body panicked.
+    Panicked,
+}
+
+impl fmt::Display for ExecError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ExecError::Config(m) => write!(f, "periodic thread configuration: {m}"),
+            ExecError::Spawn(e) => write!(f, "cannot spawn periodic thread: {e}"),
+            ExecError::Panicked => f.write_str("periodic thread panicked"),
+        }
+    }
+}
+
+impl std::error::Error for ExecError {}
+
+/// A running periodic thread.
+#[derive(Debug)]
+pub struct PeriodicThread {
+    stop: Arc<AtomicBool>,
+    handle: JoinHandle<RunReport>,
+    live: ArcLatestReader<LiveStats>,
+}
+
+impl PeriodicThread {
+    /// Asks the thread to stop after its current tick.
+    pub fn stop(&self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+
+    /// True once the thread has ended.
+    pub fn is_finished(&self) -> bool {
+        self.handle.is_finished()
+    }
+
+    /// The latest figures the thread published (`None` before its first tick).
+    pub fn live(&mut self) -> Option<LiveStats> {
+        self.live.latest()
+    }
+
+    /// Waits for the thread to end (after [`stop`](PeriodicThread::stop) or a [`Flow::Stop`]) and
+    /// returns what it measured.
+    ///
+    /// # Errors
+    /// [`ExecError::Panicked`] if the body panicked.
+    pub fn join(self) -> Result<RunReport, ExecError> {
+        self.handle.join().map_err(|_| ExecError::Panicked)
+    }
+
+    /// [`stop`](PeriodicThread::stop), then [`join`](PeriodicThread::join).
+    ///
+    /// # Errors
+    /// As [`join`](PeriodicThread::join).
+    pub fn stop_and_join(self) -> Result<RunReport, ExecError> {
+        self.stop();
+        self.join()
+    }
+}
+
+/// Spawns a periodic thread running `body` every `config.period` until it returns [`Flow::Stop`]
+/// or [`PeriodicThread::stop`] is called.
+///
+/// # Errors
+/// [`ExecError::Config`] or [`ExecError::Spawn`]. Refused real-time rights are not errors: they
+/// are warned about once and reported in [`RunReport::rt`].
+pub fn spawn<F>(config: PeriodicConfig, body: F) -> Result<PeriodicThread, ExecError>
+where
+    F: FnMut(Tick) -> Flow + Send + 'static,
+{
+    config.validate()?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let (writer, live) = latest::<LiveStats>();
+    let thread_stop = stop.clone();
+    let handle = std::thread::Builder::new()
+        .name(config.name.clone())
+        .stack_size(config.stack_size)
+        .spawn(move || run_loop(&config, &thread_stop, Some(writer), body))
+        .map_err(ExecError::Spawn)?;
+    Ok(PeriodicThread { stop, handle, live })
+}
+
+/// Runs `body` periodically in the calling thread (whose scheduling, affinity and stack this
+/// changes) until it returns [`Flow::Stop`] or `stop` becomes true.
+///
+/// # Errors
+/// [`ExecError::Config`] for a bad configuration.
+pub fn run_current<F>(
+    config: &PeriodicConfig,
+    stop: &AtomicBool,
+    body: F,
+) -> Result<RunReport, ExecError>
+where
+    F: FnMut(Tick) -> Flow,
+{
+    config.validate()?;
+    Ok(run_loop(config, stop, None, body))
+}
+
+fn run_loop<F>(
+    config: &PeriodicConfig,
+    stop: &AtomicBool,
+    mut live: Option<ArcLatestWriter<LiveStats>>,
+    mut body: F,
+) -> RunReport
+where
+    F: FnMut(Tick) -> Flow,
+{
+    let rt = apply_rt(config);
+    // Everything the loop needs is allocated here, before the first tick.
+    let mut latency: Box<LatencyHistogram> = Box::default();
+    let mut exec = DurationStats::new();
+    let mut stats = LiveStats::default();
+    let period = config.period;
+    let mut deadline = MonotonicClock::read() + period;
+    let started = deadline;
+    let mut index = 0u64;
+    let mut previous_exec = Duration::ZERO;
+    let mut latency_sum: u128 = 0;
+    while !stop.load(Ordering::Relaxed) {
+        sleep_until(deadline);
+        let woke = MonotonicClock::read();
+        let late = woke.saturating_since(deadline);
+        latency.record(late);
+        let flow = body(Tick {
+            index,
+            deadline,
+            woke,
+            period,
+            overruns: stats.overruns,
+            previous_exec,
+        });
+        let end = MonotonicClock::read();
+        previous_exec = end.saturating_since(woke);
+        exec.record(previous_exec);
+        index += 1;
+
+        let mut next = deadline + period;
+        if end >= next {
+            // Overrun: skip every deadline already passed; resume at the first one ahead.
+            let behind = end.saturating_since(next).as_nanos();
+            let missed = u64::try_from(behind / period.as_nanos()).unwrap_or(u64::MAX) + 1;
+            stats.overruns += 1;
+            stats.skipped += missed;
+            let jump = u64::try_from(period.as_nanos())
+                .unwrap_or(u64::MAX)
+                .saturating_mul(missed);
+            next = Timestamp::from_nanos(next.as_nanos().saturating_add(jump));
+        }
+        deadline = next;
+
+        stats.ticks = index;
+        stats.last_latency = late;
+        stats.max_latency = stats.max_latency.max(late);
+        latency_sum += late.as_nanos();
+        stats.mean_latency = Duration::from_nanos(
+            u64::try_from(latency_sum / u128::from(index)).unwrap_or(u64::MAX),
+        );
+        stats.last_exec = previous_exec;
+        stats.max_exec = stats.max_exec.max(previous_exec);
+        if let Some(w) = live.as_mut() {
+            w.write(stats);
+        }
+        if flow == Flow::Stop {
+            break;
+        }
+    }
+    RunReport {
+        ticks: stats.ticks,
+        overruns: stats.overruns,
+        skipped: stats.skipped,
+        latency,
+        exec,
+        rt,
+        started,
+        stopped: MonotonicClock::read(),
+    }
+}
+
+/// Sleeps until `deadline` on `CLOCK_MONOTONIC` (absolute), resuming after signals.
+///
+/// # Real-time
+/// One `clock_nanosleep` call (more only after a signal); no allocation.
+pub fn sleep_until(deadline: Timestamp) {
+    let ts = timestamp_to_timespec(deadline);
+    loop {
+        // SAFETY: `ts` is a valid timespec; the remainder pointer may be null with TIMER_ABSTIME.
+        let rc = unsafe {
+            libc::clock_nanosleep(
+                libc::CLOCK_MONOTONIC,
+                libc::TIMER_ABSTIME,
+                &ts,
+                std::ptr::null_mut(),
+            )
+        };
+        if rc != libc::EINTR {
+            return;
+        }
+    }
+}
+
+/// Asks for the real-time settings of `config` for the calling thread, warning once per process
+/// about each refusal.
+pub fn apply_rt(config: &PeriodicConfig) -> RtStatus {
+    let mut status = RtStatus::default();
+    if let Some(p) = config.priority {
+        status.fifo = set_fifo(p);
+        if let Setting::Refused(errno) = status.fifo {
+            warn_once(&WARNED_FIFO, || {
+                format!(
+                    "SCHED_FIFO priority {p} refused ({}); running with normal scheduling. Fix: \
+                     run as root, or `setcap cap_sys_nice+ep <binary>`, or add `<user> - rtprio 98` \
+                     to /etc/security/limits.conf and log in again (docs/deployment.md)",
+                    errno_text(errno)
+                )
+            });
+        }
+    }
+    if let Some(cpu) = config.cpu {
+        status.affinity = if core_affinity::set_for_current(core_affinity::CoreId { id: cpu }) {
+            Setting::Applied
+        } else {
+            warn_once(&WARNED_AFFINITY, || {
+                format!(
+                    "cannot pin thread `{}` to CPU {cpu} (this machine has {} CPUs online, or a \
+                     cpuset excludes it); running unpinned. Fix: choose a CPU from `nproc` / the \
+                     isolated set",
+                    config.name,
+                    std::thread::available_parallelism().map_or(0, |n| n.get())
+                )
+            });
+            Setting::Refused(libc::EINVAL)
+        };
+    }
+    if config.lock_memory {
+        status.memory_locked = lock_memory();
+        if let Setting::Refused(errno) = status.memory_locked {
+            warn_once(&WARNED_MLOCK, || {
+                format!(
+                    "mlockall refused ({}); pages may fault in the real-time path. Fix: run as \
+                     root, or `setcap cap_ipc_lock+ep <binary>`, or add `<user> - memlock \
+                     unlimited` to /etc/security/limits.conf (docs/deployment.md)",
+                    errno_text(errno)
+                )
+            });
+        }
+    }
+    if config.prefault_stack > 0 {
+        prefault_stack(config.prefault_stack.div_ceil(PREFAULT_CHUNK));
+    }
+    if config.hold_dma_latency {
+        status.dma_latency = hold_dma_latency();
+        if let Setting::Refused(errno) = status.dma_latency {
+            warn_once(&WARNED_DMA, || {
+                format!(
+                    "cannot hold /dev/cpu_dma_latency at 0 ({}); idle CPUs may enter deep sleep \
+                     states and add wake-up latency. Fix: run as root, or a udev rule giving the \
+                     real-time group write access (docs/deployment.md)",
+                    errno_text(errno)
+                )
+            });
+        }
+    }
+    status
+}
+
+static WARNED_FIFO: AtomicBool = AtomicBool::new(false);
+static WARNED_AFFINITY: AtomicBool = AtomicBool::new(false);
+static WARNED_MLOCK: AtomicBool = AtomicBool::new(false);
+static WARNED_DMA: AtomicBool = AtomicBool::new(false);
+
+fn warn_once(flag: &AtomicBool, message: impl FnOnce() -> String) {
+    if !flag.swap(true, Ordering::Relaxed) {
+        eprintln!("penelope: warning: {}", message());
+    }
+}
+
+fn errno_text(errno: i32) -> String {
+    std::io::Error::from_raw_os_error(errno).to_string()
+}
+
+/// Tries to give the calling thread SCHED_FIFO `priority` (1 to 99), without warning. Used by
+/// `penelope doctor` (from a throw-away thread) to probe for real-time rights.
+pub fn set_fifo(priority: u8) -> Setting {
+    use thread_priority::{
+        RealtimeThreadSchedulePolicy, ThreadPriority, ThreadPriorityValue, ThreadSchedulePolicy,
+        set_thread_priority_and_policy, thread_native_id,
+    };
+    let Ok(value) = ThreadPriorityValue::try_from(priority) else {
+        return Setting::Refused(libc::EINVAL);
+    };
+    // For real-time policies the crate passes cross-platform values 1..=99 through unchanged.
+    match set_thread_priority_and_policy(
+        thread_native_id(),
+        ThreadPriority::Crossplatform(value),
+        ThreadSchedulePolicy::Realtime(RealtimeThreadSchedulePolicy::Fifo),
+    ) {
+        Ok(()) => Setting::Applied,
+        Err(thread_priority::Error::OS(errno)) => Setting::Refused(errno),
+        Err(_) => Setting::Refused(0),
+    }
+}
+
+fn lock_memory() -> Setting {
+    static LOCKED: OnceLock<Setting> = OnceLock::new();
+    *LOCKED.get_or_init(|| {
+        use nix::sys::mman::{MlockAllFlags, mlockall};
+        match mlockall(MlockAllFlags::MCL_CURRENT | MlockAllFlags::MCL_FUTURE) {
+            Ok(()) => Setting::Applied,
+            Err(e) => Setting::Refused(e as i32),
+        }
+    })
+}
+
+/// Opens `/dev/cpu_dma_latency`, writes a 32-bit 0 and keeps the file open for the life of the
+/// process (closing it would lift the request). Done once per process.
+pub fn hold_dma_latency() -> Setting {
+    static HELD: OnceLock<Setting> = OnceLock::new();
+    static FILE: OnceLock<std::fs::File> = OnceLock::new();
+    *HELD.get_or_init(|| {
+        use std::io::Write;
+        let opened = std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/cpu_dma_latency")
+            .and_then(|mut f| f.write_all(&0i32.to_ne_bytes()).map(|()| f));
+        match opened {
+            Ok(f) => {
+                let _ = FILE.set(f);
+                Setting::Applied
+            }
+            Err(e) => Setting::Refused(e.raw_os_error().unwrap_or(0)),
+        }
+    })
+}
+
+const PREFAULT_CHUNK: usize = 16 * 1024;
+
+/// Touches `chunks` × 16 KiB of stack so the pages are mapped (and locked) before the first tick.
+#[inline(never)]
+fn prefault_stack(chunks: usize) {
+    let mut buffer = [0u8; PREFAULT_CHUNK];
+    std::hint::black_box(&mut buffer);
+    if chunks > 1 {
+        prefault_stack(chunks - 1);
+    }
+    std::hint::black_box(&buffer);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn runs_counts_and_stops() {
+        let config = PeriodicConfig {
+            lock_memory: false,
+            hold_dma_latency: false,
+            ..PeriodicConfig::new("test-exec", Duration::from_micros(500)).normal_priority()
+        };
+        let mut seen = Vec::with_capacity(100);
+        let stop = AtomicBool::new(false);
+        let report = run_current(&config, &stop, |tick| {
+            seen.push((tick.index, tick.deadline));
+            if tick.index == 49 {
+                Flow::Stop
+            } else {
+                Flow::Continue
+            }
+        })
+        .unwrap();
+        assert_eq!(report.ticks, 50);
+        assert_eq!(report.latency.count(), 50);
+        assert_eq!(report.exec.count(), 50);
+        // Deadlines are absolute multiples of the period from the start (skips allowed on a
+        // loaded machine, never drift).
+        for w in seen.windows(2) {
+            let gap = w[1].1.as_nanos() - w[0].1.as_nanos();
+            assert_eq!(gap % 500_000, 0, "deadline drifted: gap {gap} ns");
+        }
+        assert_eq!(report.rt.fifo, Setting::NotRequested);
+    }
+
+    #[test]
+    fn overruns_are_counted_and_skipped() {
+        let config = PeriodicConfig {
+            lock_memory: false,
+            hold_dma_latency: false,
+            ..PeriodicConfig::new("test-overrun", Duration::from_millis(1)).normal_priority()
+        };
+        let stop = AtomicBool::new(false);
+        let report = run_current(&config, &stop, |tick| {
+            if tick.index == 2 {
+                std::thread::sleep(Duration::from_micros(3500));
+            }
+            if tick.index == 5 {
+                Flow::Stop
+            } else {
+                Flow::Continue
+            }
+        })
+        .unwrap();
+        assert!(report.overruns >= 1);
+        assert!(report.skipped >= 3, "skipped {}", report.skipped);
+    }
+
+    #[test]
+    fn spawned_thread_publishes_live_stats_and_stops_on_request() {
+        let config = PeriodicConfig {
+            lock_memory: false,
+            hold_dma_latency: false,
+            ..PeriodicConfig::new("test-spawn", Duration::from_millis(1)).normal_priority()
+        };
+        let mut t = spawn(config, |_| Flow::Continue).unwrap();
+        while t.live().is_none_or(|s| s.ticks < 5) {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        let report = t.stop_and_join().unwrap();
+        assert!(report.ticks >= 5);
+        assert!(PeriodicConfig::new("x", Duration::ZERO).validate().is_err());
+        assert!(matches!(
+            PeriodicConfig::new("x", Duration::from_millis(1))
+                .priority(100)
+                .validate(),
+            Err(ExecError::Config(_))
+        ));
+    }
+}

@@ -1,0 +1,892 @@
+//! Safety, always on in the control loop: the reference-freshness watchdog, joint limits, master
+//! force limits, NaN/inf rejection and the e-stop latch.
+//!
+//! [`Safety`] is a small state machine the control loop consults every tick:
+//!
+//! ```text
+//!            activate                  reference older than `watchdog`
+//! Inactive ----------> Running <------------------------------------> Holding
+//!    ^                    |     fresh reference again (controller re-activated)  |
+//!    | rearm              | limit, NaN, controller or board error                | stale for
+//!    |                    v                                                      | `stale_to_fault`
+//! Fault / EStop <---------+------------------------------------------------------+
+//!         (e-stop from any state; both latch until an explicit `rearm`, then `activate`)
+//! ```
+//!
+//! What each state commands ([`Action`]):
+//!
+//! | state | slave | master |
+//! |---|---|---|
+//! | `Inactive`, `EStop` | amplifiers off | amplifiers off |
+//! | `Running` | the controller's command, clamped to the limits | same, reference wrench capped at the force limits |
+//! | `Holding` | hold the position measured when the reference went stale | zero force |
+//! | `Fault` | [`FaultAction`] (default: hold position) | [`FaultAction`] (default: amplifiers off) |
+
+use core::fmt;
+use core::time::Duration;
+
+use penelope_hal::controller::ControllerError;
+use penelope_hal::{
+    ErrorKind, JointCommand, JointLimits, JointState, JointVector, MAX_JOINTS, Reference,
+    Timestamp, Wrench,
+};
+
+/// Which side of a teleoperation pair a robot is on: it decides what a stale reference does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    /// The operator's hand controller: a stale reference means zero force.
+    Master,
+    /// The remote arm: a stale reference means hold position.
+    Slave,
+}
+
+/// How a slave holds its position.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum HoldMode {
+    /// Ask the board's own position servo to hold the encoder counts
+    /// ([`penelope_hal::AxisCommand::Position`]).
+    BoardServo,
+    /// A joint PD around the hold position plus the model's gravity torque, sent as efforts:
+    /// gains in N·m/rad and N·m·s/rad.
+    Pd {
+        /// Stiffness per joint, N·m/rad.
+        kp: JointVector,
+        /// Damping per joint, N·m·s/rad.
+        kd: JointVector,
+    },
+}
+
+/// What a faulted robot does until it is re-armed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FaultAction {
+    /// Hold the last good measured position (see [`HoldMode`]).
+    Hold,
+    /// Amplifiers off.
+    Off,
+}
+
+/// The limits and timeouts of one robot.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SafetyConfig {
+    /// Master or slave.
+    pub role: Role,
+    /// Joints in use (1 to [`MAX_JOINTS`]); entries past it are ignored and commanded zero.
+    pub joint_count: usize,
+    /// Position, velocity and torque limits. Measured positions or speeds outside them fault;
+    /// commanded torques and positions are clamped to them.
+    pub limits: JointLimits,
+    /// A reference older than this is stale.
+    pub watchdog: Duration,
+    /// Stale for this long (after `watchdog`) means fault.
+    pub stale_to_fault: Duration,
+    /// Largest force a master may display, N (norm of the reference wrench's force).
+    pub max_force: f64,
+    /// Largest moment a master may display, N·m (norm of the reference wrench's moment).
+    pub max_moment: f64,
+    /// How a slave holds position.
+    pub hold: HoldMode,
+    /// What a fault commands.
+    pub fault_action: FaultAction,
+}
+
+impl SafetyConfig {
+    /// A slave's defaults: 50 ms watchdog, fault after 500 ms more, hold with the board's servo,
+    /// hold on fault. Force limits are not applied to a slave.
+    pub fn slave(joint_count: usize, limits: JointLimits) -> Self {
+        SafetyConfig {
+            role: Role::Slave,
+            joint_count,
+            limits,
+            watchdog: Duration::from_millis(50),
+            stale_to_fault: Duration::from_millis(500),
+            max_force: f64::INFINITY,
+            max_moment: f64::INFINITY,
+            hold: HoldMode::BoardServo,
+            fault_action: FaultAction::Hold,
+        }
+    }
+
+    /// A master's defaults: the FRHC's 10 N / 0.5 N·m display limits, 50 ms watchdog, fault after
+    /// 500 ms more, amplifiers off on fault.
+    pub fn master(joint_count: usize, limits: JointLimits) -> Self {
+        SafetyConfig {
+            role: Role::Master,
+            max_force: 10.0,
+            max_moment: 0.5,
+            fault_action: FaultAction::Off,
+            ..SafetyConfig::slave(joint_count, limits)
+        }
+    }
+
+    /// Checks the configuration.
+    ///
+    /// # Errors
+    /// [`SafetyConfigError`] naming the first bad field.
+    pub fn validate(&self) -> Result<(), SafetyConfigError> {
+        if self.joint_count == 0 || self.joint_count > MAX_JOINTS {
+            return Err(SafetyConfigError::JointCount);
+        }
+        if self.watchdog.is_zero() {
+            return Err(SafetyConfigError::Watchdog);
+        }
+        for j in 0..self.joint_count {
+            let l = &self.limits;
+            let ok = !l.position_min[j].is_nan()
+                && !l.position_max[j].is_nan()
+                && l.position_min[j] <= l.position_max[j]
+                && l.velocity_max[j] > 0.0
+                && l.effort_max[j] > 0.0;
+            if !ok {
+                return Err(SafetyConfigError::Limits { joint: j as u8 });
+            }
+        }
+        if !(self.max_force > 0.0 && self.max_moment > 0.0) {
+            return Err(SafetyConfigError::ForceLimit);
+        }
+        if let HoldMode::Pd { kp, kd } = self.hold {
+            let ok = (0..self.joint_count)
+                .all(|j| kp[j].is_finite() && kd[j].is_finite() && kp[j] >= 0.0 && kd[j] >= 0.0);
+            if !ok {
+                return Err(SafetyConfigError::HoldGains);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A bad [`SafetyConfig`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SafetyConfigError {
+    /// `joint_count` is zero or above [`MAX_JOINTS`].
+    JointCount,
+    /// The watchdog timeout is zero.
+    Watchdog,
+    /// A joint's limits are NaN, inverted, or not positive.
+    Limits {
+        /// The joint (0-based).
+        joint: u8,
+    },
+    /// A force or moment limit is not positive.
+    ForceLimit,
+    /// A hold gain is negative or not finite.
+    HoldGains,
+}
+
+impl fmt::Display for SafetyConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SafetyConfigError::JointCount => write!(f, "joint count must be 1 to {MAX_JOINTS}"),
+            SafetyConfigError::Watchdog => f.write_str("watchdog timeout must be above zero"),
+            SafetyConfigError::Limits { joint } => {
+                write!(
+                    f,
+                    "joint {joint}: limits must be ordered, finite where bounded, and positive"
+                )
+            }
+            SafetyConfigError::ForceLimit => {
+                f.write_str("force and moment limits must be positive")
+            }
+            SafetyConfigError::HoldGains => {
+                f.write_str("hold gains must be finite and non-negative")
+            }
+        }
+    }
+}
+
+/// Where the safety machine is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum SafetyState {
+    /// Not activated: amplifiers off.
+    #[default]
+    Inactive,
+    /// Following the reference.
+    Running,
+    /// The reference is stale: a slave holds position, a master applies zero force.
+    Holding,
+    /// Stopped by a fault; needs [`Safety::rearm`].
+    Fault,
+    /// Emergency stop latched; needs [`Safety::rearm`].
+    EStop,
+}
+
+impl SafetyState {
+    /// The lower-case name shown to users.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            SafetyState::Inactive => "inactive",
+            SafetyState::Running => "running",
+            SafetyState::Holding => "holding",
+            SafetyState::Fault => "fault",
+            SafetyState::EStop => "estop",
+        }
+    }
+}
+
+impl fmt::Display for SafetyState {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Why the robot faulted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FaultCause {
+    /// The reference stayed stale past the watchdog and `stale_to_fault`.
+    ReferenceTimeout,
+    /// A measured joint position left its range.
+    PositionLimit {
+        /// The joint (0-based).
+        joint: u8,
+    },
+    /// A measured joint speed exceeded its limit.
+    VelocityLimit {
+        /// The joint (0-based).
+        joint: u8,
+    },
+    /// The measured state held NaN or infinity.
+    NonFiniteState,
+    /// The controller's command held NaN or infinity.
+    NonFiniteCommand,
+    /// The controller could not compute a command.
+    Controller(ControllerError),
+    /// Reading the board failed (repeatedly).
+    BoardRead(ErrorKind),
+    /// Writing the board failed.
+    BoardWrite(ErrorKind),
+}
+
+impl fmt::Display for FaultCause {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FaultCause::ReferenceTimeout => f.write_str("reference timed out"),
+            FaultCause::PositionLimit { joint } => write!(f, "joint {joint} position limit"),
+            FaultCause::VelocityLimit { joint } => write!(f, "joint {joint} velocity limit"),
+            FaultCause::NonFiniteState => f.write_str("measured state is NaN or infinite"),
+            FaultCause::NonFiniteCommand => f.write_str("command is NaN or infinite"),
+            FaultCause::Controller(e) => write!(f, "controller: {e}"),
+            FaultCause::BoardRead(k) => write!(f, "board read: {k}"),
+            FaultCause::BoardWrite(k) => write!(f, "board write: {k}"),
+        }
+    }
+}
+
+/// Something the safety layer or the control loop noticed during a tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum SafetyEvent {
+    /// Activated (commands start from the measured state).
+    Activated = 0,
+    /// Deactivated.
+    Deactivated,
+    /// The reference went stale: hold position (slave) or zero force (master).
+    ReferenceStale,
+    /// A fresh reference came back after a stale spell; the controller was re-activated.
+    ReferenceRecovered,
+    /// A reference with NaN or infinity was rejected (the previous one is kept, and ages).
+    ReferenceRejected,
+    /// A commanded torque was clamped to its limit.
+    EffortClamped,
+    /// A commanded position was clamped to its range.
+    PositionClamped,
+    /// A master's reference wrench was scaled down to the force limits.
+    ForceLimited,
+    /// A fault latched (see [`Safety::fault_cause`]).
+    Faulted,
+    /// The e-stop latched.
+    EStopped,
+    /// A fault or e-stop was cleared by an explicit re-arm.
+    Rearmed,
+    /// The active controller changed.
+    ControllerSwitched,
+    /// A command was refused (unknown controller, activation while latched, ...).
+    CommandRejected,
+    /// A board read or write failed.
+    BoardError,
+    /// The force sensor failed to read (no wrench this tick).
+    SensorError,
+    /// The telemetry ring was full: this tick's sample was dropped.
+    TelemetryDropped,
+}
+
+impl SafetyEvent {
+    /// Every event, in bit order.
+    pub const ALL: [SafetyEvent; 16] = [
+        SafetyEvent::Activated,
+        SafetyEvent::Deactivated,
+        SafetyEvent::ReferenceStale,
+        SafetyEvent::ReferenceRecovered,
+        SafetyEvent::ReferenceRejected,
+        SafetyEvent::EffortClamped,
+        SafetyEvent::PositionClamped,
+        SafetyEvent::ForceLimited,
+        SafetyEvent::Faulted,
+        SafetyEvent::EStopped,
+        SafetyEvent::Rearmed,
+        SafetyEvent::ControllerSwitched,
+        SafetyEvent::CommandRejected,
+        SafetyEvent::BoardError,
+        SafetyEvent::SensorError,
+        SafetyEvent::TelemetryDropped,
+    ];
+
+    /// A kebab-case name for logs.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            SafetyEvent::Activated => "activated",
+            SafetyEvent::Deactivated => "deactivated",
+            SafetyEvent::ReferenceStale => "reference-stale",
+            SafetyEvent::ReferenceRecovered => "reference-recovered",
+            SafetyEvent::ReferenceRejected => "reference-rejected",
+            SafetyEvent::EffortClamped => "effort-clamped",
+            SafetyEvent::PositionClamped => "position-clamped",
+            SafetyEvent::ForceLimited => "force-limited",
+            SafetyEvent::Faulted => "faulted",
+            SafetyEvent::EStopped => "estopped",
+            SafetyEvent::Rearmed => "rearmed",
+            SafetyEvent::ControllerSwitched => "controller-switched",
+            SafetyEvent::CommandRejected => "command-rejected",
+            SafetyEvent::BoardError => "board-error",
+            SafetyEvent::SensorError => "sensor-error",
+            SafetyEvent::TelemetryDropped => "telemetry-dropped",
+        }
+    }
+}
+
+/// A set of [`SafetyEvent`]s, one bit each (`Copy`, for telemetry).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct EventSet(pub u32);
+
+impl EventSet {
+    /// No events.
+    pub const EMPTY: EventSet = EventSet(0);
+
+    /// Adds `event`.
+    pub fn insert(&mut self, event: SafetyEvent) {
+        self.0 |= 1 << event as u8;
+    }
+
+    /// True when `event` is in the set.
+    pub fn contains(self, event: SafetyEvent) -> bool {
+        self.0 & (1 << event as u8) != 0
+    }
+
+    /// True when no event is in the set.
+    pub fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+
+    /// Both sets together.
+    pub fn union(self, other: EventSet) -> EventSet {
+        EventSet(self.0 | other.0)
+    }
+
+    /// The events in the set, in bit order.
+    pub fn iter(self) -> impl Iterator<Item = SafetyEvent> {
+        SafetyEvent::ALL
+            .into_iter()
+            .filter(move |e| self.contains(*e))
+    }
+}
+
+/// What the joints are told to do this tick.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Action {
+    /// Amplifiers off.
+    Off,
+    /// Run the active controller.
+    Run,
+    /// Hold these joint positions, rad (see [`HoldMode`]).
+    Hold(JointVector),
+    /// Zero effort on every joint, amplifiers on (a master's safe state).
+    ZeroForce,
+}
+
+/// Why [`Safety::activate`] refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ActivateError {
+    /// The e-stop is latched: re-arm first.
+    EStopLatched,
+    /// A fault is latched: re-arm first.
+    Faulted,
+    /// The measured state is NaN or infinite.
+    NonFiniteState,
+}
+
+impl fmt::Display for ActivateError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            ActivateError::EStopLatched => "e-stop latched: re-arm first",
+            ActivateError::Faulted => "fault latched: re-arm first",
+            ActivateError::NonFiniteState => "measured state is NaN or infinite",
+        })
+    }
+}
+
+/// [`Safety::rearm`] found nothing latched.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct NothingLatched;
+
+impl fmt::Display for NothingLatched {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("nothing to re-arm: no fault or e-stop is latched")
+    }
+}
+
+/// The safety state machine of one robot. See the [module docs](self).
+///
+/// # Real-time
+/// Every method is constant-time, allocation-free and never panics.
+#[derive(Clone, Debug)]
+pub struct Safety {
+    config: SafetyConfig,
+    state: SafetyState,
+    cause: Option<FaultCause>,
+    activated_at: Timestamp,
+    /// The last finite measured position: where holds and fault holds start.
+    last_good: JointVector,
+    hold_at: JointVector,
+    events: EventSet,
+}
+
+impl Safety {
+    /// A machine in [`SafetyState::Inactive`].
+    ///
+    /// # Errors
+    /// [`SafetyConfigError`] from [`SafetyConfig::validate`].
+    pub fn new(config: SafetyConfig) -> Result<Self, SafetyConfigError> {
+        config.validate()?;
+        Ok(Safety {
+            config,
+            state: SafetyState::Inactive,
+            cause: None,
+            activated_at: Timestamp::ZERO,
+            last_good: JointVector::zeros(),
+            hold_at: JointVector::zeros(),
+            events: EventSet::EMPTY,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SafetyConfig {
+        &self.config
+    }
+
+    /// The current state.
+    pub fn state(&self) -> SafetyState {
+        self.state
+    }
+
+    /// The cause of the latched fault, if any.
+    pub fn fault_cause(&self) -> Option<FaultCause> {
+        self.cause
+    }
+
+    /// The events noted since the last call, clearing them.
+    pub fn take_events(&mut self) -> EventSet {
+        core::mem::take(&mut self.events)
+    }
+
+    /// The events noted since the last [`take_events`](Safety::take_events).
+    pub fn events(&self) -> EventSet {
+        self.events
+    }
+
+    /// Notes an event observed elsewhere (board, sensor, telemetry).
+    pub fn note(&mut self, event: SafetyEvent) {
+        self.events.insert(event);
+    }
+
+    /// Starts running from the measured state (holding until a fresh reference arrives).
+    ///
+    /// # Errors
+    /// [`ActivateError`] while a fault or e-stop is latched, or for a non-finite state.
+    pub fn activate(&mut self, now: Timestamp, measured: &JointState) -> Result<(), ActivateError> {
+        match self.state {
+            SafetyState::EStop => return Err(ActivateError::EStopLatched),
+            SafetyState::Fault => return Err(ActivateError::Faulted),
+            _ => {}
+        }
+        if !measured.is_finite() {
+            return Err(ActivateError::NonFiniteState);
+        }
+        self.last_good = measured.position;
+        self.hold_at = measured.position;
+        self.activated_at = now;
+        if self.state == SafetyState::Inactive {
+            self.events.insert(SafetyEvent::Activated);
+        }
+        // Until a fresh reference is seen, hold (slave) or apply zero force (master).
+        self.state = SafetyState::Holding;
+        Ok(())
+    }
+
+    /// Stops running (amplifiers off). A latched fault or e-stop stays latched.
+    pub fn deactivate(&mut self) {
+        if matches!(self.state, SafetyState::Running | SafetyState::Holding) {
+            self.state = SafetyState::Inactive;
+            self.events.insert(SafetyEvent::Deactivated);
+        }
+    }
+
+    /// Latches the e-stop (amplifiers off) from any state.
+    pub fn estop(&mut self) {
+        if self.state != SafetyState::EStop {
+            self.state = SafetyState::EStop;
+            self.events.insert(SafetyEvent::EStopped);
+        }
+    }
+
+    /// Latches a fault (the first cause is kept). An e-stop takes precedence; an inactive robot
+    /// faults too, so a broken board is reported before activation.
+    pub fn fault(&mut self, cause: FaultCause) {
+        match self.state {
+            SafetyState::EStop | SafetyState::Fault => {}
+            _ => {
+                self.state = SafetyState::Fault;
+                self.cause = Some(cause);
+                self.hold_at = self.last_good;
+                self.events.insert(SafetyEvent::Faulted);
+            }
+        }
+    }
+
+    /// Clears a latched fault or e-stop: the robot becomes [`SafetyState::Inactive`] and must be
+    /// activated again.
+    ///
+    /// # Errors
+    /// [`NothingLatched`] when there was no fault or e-stop.
+    pub fn rearm(&mut self) -> Result<(), NothingLatched> {
+        match self.state {
+            SafetyState::Fault | SafetyState::EStop => {
+                self.state = SafetyState::Inactive;
+                self.cause = None;
+                self.events.insert(SafetyEvent::Rearmed);
+                Ok(())
+            }
+            _ => Err(NothingLatched),
+        }
+    }
+
+    /// Checks the measured state and the reference's age, moves the machine, and says what the
+    /// joints should do. `reference_stamp` is the production time of the newest finite reference,
+    /// if any arrived.
+    pub fn supervise(
+        &mut self,
+        now: Timestamp,
+        measured: &JointState,
+        reference_stamp: Option<Timestamp>,
+    ) -> Action {
+        if matches!(self.state, SafetyState::Running | SafetyState::Holding) {
+            self.check_measured(measured);
+        }
+        if matches!(self.state, SafetyState::Running | SafetyState::Holding) {
+            self.check_freshness(now, measured, reference_stamp);
+        }
+        self.action()
+    }
+
+    /// What the current state commands, without checking anything.
+    pub fn action(&self) -> Action {
+        match self.state {
+            SafetyState::Inactive | SafetyState::EStop => Action::Off,
+            SafetyState::Running => Action::Run,
+            SafetyState::Holding => match self.config.role {
+                Role::Slave => Action::Hold(self.hold_at),
+                Role::Master => Action::ZeroForce,
+            },
+            SafetyState::Fault => match self.config.fault_action {
+                FaultAction::Hold => Action::Hold(self.hold_at),
+                FaultAction::Off => Action::Off,
+            },
+        }
+    }
+
+    fn check_measured(&mut self, measured: &JointState) {
+        let n = self.config.joint_count;
+        let finite = (0..n).all(|j| {
+            measured.position[j].is_finite()
+                && measured.velocity[j].is_finite()
+                && measured.effort[j].is_finite()
+        });
+        if !finite {
+            self.fault(FaultCause::NonFiniteState);
+            return;
+        }
+        let l = &self.config.limits;
+        for j in 0..n {
+            let q = measured.position[j];
+            if !(q >= l.position_min[j] && q <= l.position_max[j]) {
+                self.fault(FaultCause::PositionLimit { joint: j as u8 });
+                return;
+            }
+            if measured.velocity[j].abs() > l.velocity_max[j] {
+                self.fault(FaultCause::VelocityLimit { joint: j as u8 });
+                return;
+            }
+        }
+        self.last_good = measured.position;
+    }
+
+    fn check_freshness(&mut self, now: Timestamp, measured: &JointState, stamp: Option<Timestamp>) {
+        let fresh = stamp.is_some_and(|s| now.saturating_since(s) <= self.config.watchdog);
+        if fresh {
+            if self.state == SafetyState::Holding {
+                self.state = SafetyState::Running;
+                self.events.insert(SafetyEvent::ReferenceRecovered);
+            }
+            return;
+        }
+        // Stale (or never received): measure from the later of the last reference and activation.
+        let since = stamp.map_or(self.activated_at, |s| s.max(self.activated_at));
+        let age = now.saturating_since(since);
+        if self.state == SafetyState::Running {
+            self.state = SafetyState::Holding;
+            self.hold_at = measured.position;
+            self.events.insert(SafetyEvent::ReferenceStale);
+        }
+        if age
+            > self
+                .config
+                .watchdog
+                .saturating_add(self.config.stale_to_fault)
+        {
+            self.fault(FaultCause::ReferenceTimeout);
+        }
+    }
+
+    /// Caps a master's reference wrench at the force limits (slaves: unchanged).
+    pub fn limit_reference(&mut self, reference: Reference) -> Reference {
+        if self.config.role != Role::Master {
+            return reference;
+        }
+        match reference {
+            Reference::Wrench(w) => Reference::Wrench(self.limit_wrench(w)),
+            Reference::Hybrid(mut h) => {
+                h.wrench = self.limit_wrench(h.wrench);
+                Reference::Hybrid(h)
+            }
+            other => other,
+        }
+    }
+
+    /// Scales the force and the moment of `w` down to the configured limits (each separately,
+    /// keeping their directions). Non-finite wrenches become zero.
+    pub fn limit_wrench(&mut self, mut w: Wrench) -> Wrench {
+        if !w.is_finite() {
+            self.events.insert(SafetyEvent::ForceLimited);
+            return Wrench::zero(w.frame);
+        }
+        let f = w.force.norm();
+        if f > self.config.max_force {
+            w.force *= self.config.max_force / f;
+            self.events.insert(SafetyEvent::ForceLimited);
+        }
+        let m = w.torque.norm();
+        if m > self.config.max_moment {
+            w.torque *= self.config.max_moment / m;
+            self.events.insert(SafetyEvent::ForceLimited);
+        }
+        w
+    }
+
+    /// Checks a command for NaN/inf and clamps it to the torque or position limits; joints past
+    /// `joint_count` are zeroed.
+    ///
+    /// # Errors
+    /// [`FaultCause::NonFiniteCommand`] (the caller faults).
+    pub fn limit_command(&mut self, command: JointCommand) -> Result<JointCommand, FaultCause> {
+        let n = self.config.joint_count;
+        let l = &self.config.limits;
+        let (mut v, is_effort) = match command {
+            JointCommand::Effort(v) => (v, true),
+            JointCommand::Position(v) => (v, false),
+        };
+        if !(0..n).all(|j| v[j].is_finite()) {
+            return Err(FaultCause::NonFiniteCommand);
+        }
+        let mut clamped = false;
+        for j in 0..MAX_JOINTS {
+            if j >= n {
+                v[j] = 0.0;
+                continue;
+            }
+            let (lo, hi) = if is_effort {
+                (-l.effort_max[j], l.effort_max[j])
+            } else {
+                (l.position_min[j], l.position_max[j])
+            };
+            let c = v[j].clamp(lo, hi);
+            clamped |= c != v[j];
+            v[j] = c;
+        }
+        if clamped {
+            self.events.insert(if is_effort {
+                SafetyEvent::EffortClamped
+            } else {
+                SafetyEvent::PositionClamped
+            });
+        }
+        Ok(if is_effort {
+            JointCommand::Effort(v)
+        } else {
+            JointCommand::Position(v)
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+    use penelope_hal::Frame;
+
+    fn limits() -> JointLimits {
+        JointLimits {
+            position_min: JointVector::repeat(-1.0),
+            position_max: JointVector::repeat(1.0),
+            velocity_max: JointVector::repeat(2.0),
+            effort_max: JointVector::repeat(10.0),
+        }
+    }
+
+    fn ms(x: u64) -> Timestamp {
+        Timestamp::from_nanos(x * 1_000_000)
+    }
+
+    #[test]
+    fn slave_holds_then_faults_on_a_stale_reference_and_needs_rearm() {
+        let mut s = Safety::new(SafetyConfig::slave(6, limits())).unwrap();
+        let at = JointState::at_rest(JointVector::repeat(0.5));
+        assert_eq!(s.supervise(ms(0), &at, None), Action::Off);
+        s.activate(ms(0), &at).unwrap();
+        assert_eq!(s.supervise(ms(1), &at, None), Action::Hold(at.position));
+        assert_eq!(s.supervise(ms(2), &at, Some(ms(2))), Action::Run);
+        assert!(s.take_events().contains(SafetyEvent::ReferenceRecovered));
+        // The reference stops; after 50 ms it is stale: hold where we are.
+        let moved = JointState::at_rest(JointVector::repeat(0.25));
+        assert_eq!(s.supervise(ms(52), &moved, Some(ms(2))), Action::Run);
+        assert_eq!(
+            s.supervise(ms(53), &moved, Some(ms(2))),
+            Action::Hold(moved.position)
+        );
+        assert!(s.take_events().contains(SafetyEvent::ReferenceStale));
+        assert_eq!(s.state(), SafetyState::Holding);
+        // 550 ms after the last reference: fault, still holding (slave default).
+        assert_eq!(
+            s.supervise(ms(553), &moved, Some(ms(2))),
+            Action::Hold(moved.position)
+        );
+        assert_eq!(s.state(), SafetyState::Fault);
+        assert_eq!(s.fault_cause(), Some(FaultCause::ReferenceTimeout));
+        // A fresh reference does not clear a fault; activation is refused until re-armed.
+        assert_eq!(
+            s.supervise(ms(600), &moved, Some(ms(600))),
+            Action::Hold(moved.position)
+        );
+        assert_eq!(s.activate(ms(600), &moved), Err(ActivateError::Faulted));
+        s.rearm().unwrap();
+        assert_eq!(s.rearm(), Err(NothingLatched));
+        assert_eq!(s.state(), SafetyState::Inactive);
+        s.activate(ms(601), &moved).unwrap();
+        assert_eq!(s.supervise(ms(602), &moved, Some(ms(602))), Action::Run);
+    }
+
+    #[test]
+    fn master_goes_to_zero_force_and_caps_wrenches() {
+        let mut s = Safety::new(SafetyConfig::master(6, limits())).unwrap();
+        let at = JointState::at_rest(JointVector::zeros());
+        s.activate(ms(0), &at).unwrap();
+        assert_eq!(s.supervise(ms(1), &at, None), Action::ZeroForce);
+        let w = Wrench {
+            force: Vector3::new(30.0, 40.0, 0.0),
+            torque: Vector3::new(0.0, 0.0, 0.2),
+            frame: Frame::Base,
+        };
+        let Reference::Wrench(capped) = s.limit_reference(Reference::Wrench(w)) else {
+            panic!("kind changed")
+        };
+        assert!((capped.force.norm() - 10.0).abs() < 1e-12);
+        assert!((capped.force.x / capped.force.y - 0.75).abs() < 1e-12);
+        assert_eq!(capped.torque, w.torque);
+        assert!(s.take_events().contains(SafetyEvent::ForceLimited));
+        // Fault on a master: amplifiers off.
+        s.fault(FaultCause::NonFiniteCommand);
+        assert_eq!(s.action(), Action::Off);
+    }
+
+    #[test]
+    fn limits_nan_and_estop() {
+        let mut s = Safety::new(SafetyConfig::slave(3, limits())).unwrap();
+        let ok = JointState::at_rest(JointVector::zeros());
+        s.activate(ms(0), &ok).unwrap();
+        let cmd = s
+            .limit_command(JointCommand::Effort(JointVector::new(
+                20.0, -20.0, 1.0, 5.0, 5.0, 5.0,
+            )))
+            .unwrap();
+        assert_eq!(
+            cmd,
+            JointCommand::Effort(JointVector::new(10.0, -10.0, 1.0, 0.0, 0.0, 0.0))
+        );
+        assert!(s.take_events().contains(SafetyEvent::EffortClamped));
+        let mut nan = JointVector::zeros();
+        nan[1] = f64::NAN;
+        assert_eq!(
+            s.limit_command(JointCommand::Position(nan)),
+            Err(FaultCause::NonFiniteCommand)
+        );
+        // Velocity beyond the limit faults.
+        let mut fast = ok;
+        fast.velocity[2] = -3.0;
+        s.supervise(ms(1), &fast, Some(ms(1)));
+        assert_eq!(
+            s.fault_cause(),
+            Some(FaultCause::VelocityLimit { joint: 2 })
+        );
+        // E-stop overrides a fault, and re-arming is explicit.
+        s.estop();
+        assert_eq!(s.state(), SafetyState::EStop);
+        assert_eq!(s.action(), Action::Off);
+        assert_eq!(s.activate(ms(2), &ok), Err(ActivateError::EStopLatched));
+        s.rearm().unwrap();
+        s.activate(ms(3), &ok).unwrap();
+        // A NaN in the measured state faults.
+        let mut bad = ok;
+        bad.position[0] = f64::NAN;
+        s.supervise(ms(4), &bad, Some(ms(4)));
+        assert_eq!(s.fault_cause(), Some(FaultCause::NonFiniteState));
+        // Position limit.
+        s.rearm().unwrap();
+        s.activate(ms(5), &ok).unwrap();
+        let mut out = ok;
+        out.position[1] = 1.5;
+        s.supervise(ms(6), &out, Some(ms(6)));
+        assert_eq!(
+            s.fault_cause(),
+            Some(FaultCause::PositionLimit { joint: 1 })
+        );
+    }
+
+    #[test]
+    fn bad_configs_are_refused() {
+        let mut c = SafetyConfig::slave(7, limits());
+        assert_eq!(c.validate(), Err(SafetyConfigError::JointCount));
+        c.joint_count = 6;
+        c.limits.position_min[4] = 2.0;
+        assert_eq!(c.validate(), Err(SafetyConfigError::Limits { joint: 4 }));
+        c.limits = limits();
+        c.watchdog = Duration::ZERO;
+        assert_eq!(c.validate(), Err(SafetyConfigError::Watchdog));
+    }
+
+    #[test]
+    fn event_sets() {
+        let mut e = EventSet::EMPTY;
+        e.insert(SafetyEvent::Faulted);
+        e.insert(SafetyEvent::TelemetryDropped);
+        assert!(e.contains(SafetyEvent::Faulted));
+        assert!(!e.contains(SafetyEvent::Rearmed));
+        let names: heapless::Vec<&str, 4> = e.iter().map(|e| e.as_str()).collect();
+        assert_eq!(names.as_slice(), &["faulted", "telemetry-dropped"]);
+    }
+}

@@ -1,0 +1,190 @@
+//! Kinesthetic force display: the master half of position-forward / force-back.
+
+use nalgebra::Vector6;
+use penelope_hal::{
+    ControlInput, Controller, ControllerError, Frame, JacobianFrame, JointCommand, JointState,
+    Reference, RobotModel, Timestamp, Wrench,
+};
+
+use super::passivity::{PassivityConfig, PassivityController, PassivityObserver};
+use super::{
+    TeleopConfigError, bottom, cap_wrench, check_cap, check_gain, check_gains, deadband, effort,
+    lowpass_gain, stack, top, wrench_in_base,
+};
+
+/// Settings of a [`ForceDisplay`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ForceDisplayConfig {
+    /// Forces smaller than this are not displayed (the sensor's noise level), N. The band is
+    /// subtracted from the force's length, so the display is continuous.
+    pub force_deadband: f64,
+    /// Moments smaller than this are not displayed, N·m.
+    pub torque_deadband: f64,
+    /// Added master damping on the tool twist `[v; omega]`: N·s/m, then N·m·s/rad.
+    pub damping: [f64; 6],
+    /// Largest displayed force, N (the FRHC's is about 10 N).
+    pub max_force: f64,
+    /// Largest displayed moment, N·m (the FRHC's is about 0.5 N·m).
+    pub max_torque: f64,
+    /// Corner of the first-order low-pass on the reference wrench, Hz (0: no filter).
+    pub filter_cutoff_hz: f64,
+    /// Add the master's gravity torque `g(q)`.
+    pub gravity_compensation: bool,
+    /// The time-domain passivity controller on the master port (off by default; the observer
+    /// always runs).
+    pub passivity: PassivityConfig,
+}
+
+impl Default for ForceDisplayConfig {
+    /// For an FRHC: 0.2 N / 0.01 N·m dead band, 2 N·s/m and 0.02 N·m·s/rad damping, 10 N /
+    /// 0.5 N·m caps, 30 Hz filter, gravity compensated, passivity controller off.
+    fn default() -> Self {
+        ForceDisplayConfig {
+            force_deadband: 0.2,
+            torque_deadband: 0.01,
+            damping: [2.0, 2.0, 2.0, 0.02, 0.02, 0.02],
+            max_force: 10.0,
+            max_torque: 0.5,
+            filter_cutoff_hz: 30.0,
+            gravity_compensation: true,
+            passivity: PassivityConfig::default(),
+        }
+    }
+}
+
+impl ForceDisplayConfig {
+    /// Checks the values.
+    ///
+    /// # Errors
+    /// [`TeleopConfigError`] for negative or non-finite values (caps may be infinite).
+    pub fn validate(&self) -> Result<(), TeleopConfigError> {
+        check_gain(self.force_deadband, "force_deadband")?;
+        check_gain(self.torque_deadband, "torque_deadband")?;
+        check_gains(&self.damping, "damping")?;
+        check_cap(self.max_force, "max_force")?;
+        check_cap(self.max_torque, "max_torque")?;
+        check_gain(self.filter_cutoff_hz, "filter_cutoff_hz")?;
+        self.passivity.validate()
+    }
+}
+
+/// Displays a wrench on a master hand controller:
+/// `F = cap(deadband(lowpass(F_ref)) - D v - alpha v)`, `tau = J^T F + g(q)`.
+///
+/// The reference is a `Reference::Wrench` (or the wrench of a `Reference::Hybrid`) already in the
+/// master's base frame with the force gain applied: what a `SlaveToMaster`
+/// [`TeleopChannel`](super::TeleopChannel) produces (`Base`/`Master` frame; a `Tool`-frame wrench
+/// is rotated with the forward kinematics). The cap scales the whole wrench by one factor so its
+/// direction is kept. `alpha` is the passivity controller's damping (zero unless enabled).
+///
+/// On activation the filter starts from zero, so the display fades in over the filter's time
+/// constant instead of jumping.
+///
+/// # Real-time
+/// `activate` and `update`: no allocation, no blocking, constant time, no panics.
+#[derive(Clone, Copy, Debug)]
+pub struct ForceDisplay {
+    config: ForceDisplayConfig,
+    filtered: Vector6<f64>,
+    passivity: PassivityController,
+    last_wrench: Wrench,
+    saturation: f64,
+}
+
+impl ForceDisplay {
+    /// A display with these settings.
+    ///
+    /// # Errors
+    /// As [`ForceDisplayConfig::validate`].
+    pub fn new(config: ForceDisplayConfig) -> Result<Self, TeleopConfigError> {
+        config.validate()?;
+        Ok(ForceDisplay {
+            config,
+            filtered: Vector6::zeros(),
+            passivity: PassivityController::new(config.passivity)?,
+            last_wrench: Wrench::zero(Frame::Base),
+            saturation: 1.0,
+        })
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &ForceDisplayConfig {
+        &self.config
+    }
+
+    /// The wrench displayed on the last tick (master base frame, about the tool origin).
+    pub fn last_wrench(&self) -> &Wrench {
+        &self.last_wrench
+    }
+
+    /// The cap's scale factor on the last tick: 1 when within the limits, less when capped.
+    pub fn saturation(&self) -> f64 {
+        self.saturation
+    }
+
+    /// The energy observer of the master port (operator force `-F`, tool twist).
+    pub fn passivity(&self) -> &PassivityObserver {
+        self.passivity.observer()
+    }
+
+    /// The damping the passivity controller added on the last tick, N·s/m.
+    pub fn passivity_damping(&self) -> f64 {
+        self.passivity.last_damping()
+    }
+}
+
+impl Controller for ForceDisplay {
+    fn kind(&self) -> &'static str {
+        "force-display"
+    }
+
+    fn activate(&mut self, _now: Timestamp, _measured: &JointState, _model: &dyn RobotModel) {
+        self.filtered = Vector6::zeros();
+        self.passivity.reset();
+        self.last_wrench = Wrench::zero(Frame::Base);
+        self.saturation = 1.0;
+    }
+
+    fn update(&mut self, input: &ControlInput<'_>) -> Result<JointCommand, ControllerError> {
+        if !input.state.is_finite() {
+            return Err(ControllerError::NonFinite);
+        }
+        let wanted = match input.reference {
+            Reference::Wrench(w) => w,
+            Reference::Hybrid(h) => &h.wrench,
+            _ => return Err(ControllerError::UnsupportedReference),
+        };
+        let model = input.model;
+        let q = &input.state.position;
+        let jac = model.jacobian(q, JacobianFrame::Base);
+        let wanted = match wanted.frame {
+            Frame::Base | Frame::Master => wanted.to_vector(),
+            _ => wrench_in_base(wanted, &model.forward(q))
+                .ok_or(ControllerError::UnsupportedReference)?,
+        };
+        let dt = input.period.as_secs_f64();
+        self.filtered += (wanted - self.filtered) * lowpass_gain(self.config.filter_cutoff_hz, dt);
+        let v = jac * input.state.velocity;
+        let shown = stack(
+            &deadband(top(&self.filtered), self.config.force_deadband),
+            &deadband(bottom(&self.filtered), self.config.torque_deadband),
+        );
+        let mut f = shown - Vector6::from(self.config.damping).component_mul(&v);
+        // The operator applies about -f to the device: that is the power into the system.
+        let alpha = self.passivity.damping(dt, &(-f), &v);
+        f -= v * alpha;
+        let (f, k) = cap_wrench(&f, self.config.max_force, self.config.max_torque);
+        self.passivity.commit(dt, &(-f), &v, alpha);
+        self.saturation = k;
+        let mut tau = jac.transpose() * f;
+        if self.config.gravity_compensation {
+            tau += model.gravity(q);
+        }
+        self.last_wrench = Wrench {
+            force: top(&f),
+            torque: bottom(&f),
+            frame: Frame::Base,
+        };
+        effort(tau)
+    }
+}

@@ -1,0 +1,10 @@
+//! A lab: its configuration file, and the teleoperation run it describes.
+
+pub mod config;
+pub mod devices;
+pub mod model;
+pub mod report;
+pub mod run;
+pub mod script;
+
+pub use config::{ConfigError, LabConfig, Law};

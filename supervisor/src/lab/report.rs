@@ -1,0 +1,331 @@
+//! The report of a teleoperation run: what a person wants to know after the demo.
+//!
+//! Every figure is computed from the recorded telemetry (the control loops' samples and the
+//! simulated plants' ground truth), per phase of the operator's script.
+
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+use nalgebra::Vector3;
+use penelope_hal::{Kinematics, Timestamp};
+use penelope_rt_core::telemetry::ReferenceKind;
+use serde::Serialize;
+
+use super::run::{ClockMode, LabSample, RunInfo, RunOutput, sensor_to_base};
+use super::script::{CONTACT_PHASE, FREE_MOTION_PHASES, INDEX_PHASE, TAP_PHASE};
+
+/// Position tracking in free motion.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct TrackingReport {
+    /// RMS distance between the slave's tool and its reference (the mapped master pose), mm.
+    pub rms_mm: f64,
+    /// Largest distance, mm.
+    pub max_mm: f64,
+    /// Control ticks measured.
+    pub samples: usize,
+}
+
+/// Forces in steady contact (the second half of the contact phase).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ContactReport {
+    /// Mean contact force the wrist sensor measured, magnitude, N.
+    pub sensed_force_n: f64,
+    /// Mean force the master should display: force gain x mapped sensed force, magnitude, N.
+    pub expected_display_n: f64,
+    /// Mean force the master commanded, magnitude, N.
+    pub displayed_force_n: f64,
+    /// `|displayed - expected| / |expected|` of the mean vectors, percent.
+    pub display_error_pct: f64,
+    /// Mean force the operator's hand felt (pushed with), magnitude, N.
+    pub hand_force_n: f64,
+    /// Mean true contact force on the slave (simulation ground truth), magnitude, N.
+    pub true_contact_force_n: f64,
+    /// Control ticks measured.
+    pub samples: usize,
+}
+
+/// What the operator feels in free motion: the master's drag.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct DragReport {
+    /// RMS hand force in free motion, N.
+    pub rms_n: f64,
+    /// Largest hand force in free motion, N.
+    pub max_n: f64,
+}
+
+/// Energy during tapping.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct EnergyReport {
+    /// Peak mechanical energy (kinetic energy of both arms + energy stored in the wall) in each
+    /// tap cycle, J.
+    pub tap_cycle_peaks_j: Vec<f64>,
+    /// Last cycle's peak over the largest earlier peak (above 1 would mean energy building up).
+    pub growth_ratio: f64,
+    /// Work the operator's hand did on the master during the tapping, J.
+    pub operator_work_j: f64,
+}
+
+/// Indexing (clutch) behaviour.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ClutchReport {
+    /// Largest step of the slave reference between two control ticks while the clutch was held
+    /// and just after release, mm.
+    pub max_step_mm: f64,
+    /// Largest step of the slave reference between two control ticks in normal free motion, mm.
+    pub normal_max_step_mm: f64,
+}
+
+/// Timing of one loop.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct LoopTiming {
+    /// Thread name.
+    pub name: String,
+    /// Period, µs.
+    pub period_us: f64,
+    /// Ticks run.
+    pub ticks: u64,
+    /// Ticks whose body ended past the next deadline.
+    pub overruns: u64,
+    /// Wake-up latency, µs: min, p50, p99, p99.9, max.
+    pub latency_us: [f64; 5],
+    /// Execution time of the body, µs: mean, max.
+    pub exec_us: [f64; 2],
+    /// Whether SCHED_FIFO and mlockall took effect.
+    pub realtime: bool,
+}
+
+/// The whole report.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Report {
+    /// Lab name.
+    pub lab: String,
+    /// Law.
+    pub law: String,
+    /// Clock: "real-time" or "simulated".
+    pub clock: String,
+    /// Seed.
+    pub seed: u64,
+    /// Length of the run, s.
+    pub duration_s: f64,
+    /// Position scale.
+    pub scale: f64,
+    /// Force gain.
+    pub force_gain: f64,
+    /// Free-motion tracking.
+    pub tracking: TrackingReport,
+    /// Steady contact.
+    pub contact: ContactReport,
+    /// Free-motion drag.
+    pub drag: DragReport,
+    /// Energy while tapping.
+    pub energy: EnergyReport,
+    /// Clutch.
+    pub clutch: ClutchReport,
+    /// Per-thread timing (real-time runs; empty on a simulated clock).
+    pub timing: Vec<LoopTiming>,
+    /// Safety events per robot: `robot/event -> count`.
+    pub safety_events: BTreeMap<String, u64>,
+    /// Faults seen (robot: cause).
+    pub faults: Vec<String>,
+    /// Telemetry samples dropped because the logger fell behind.
+    pub dropped_samples: usize,
+}
+
+fn phase_of(info: &RunInfo, t: Timestamp) -> &'static str {
+    info.script.segment_at(t - info.start).map_or("", |(_, s, _)| s.label)
+}
+
+fn phase_window(info: &RunInfo, label: &str) -> Option<(Duration, Duration)> {
+    let mut t0 = Duration::ZERO;
+    for s in info.script.segments() {
+        if s.label == label {
+            return Some((t0, t0 + s.duration));
+        }
+        t0 += s.duration;
+    }
+    None
+}
+
+fn rms(values: impl Iterator<Item = f64>) -> (f64, f64, usize) {
+    let (mut sum, mut max, mut n) = (0.0, 0.0f64, 0usize);
+    for v in values {
+        sum += v * v;
+        max = max.max(v.abs());
+        n += 1;
+    }
+    (if n > 0 { (sum / n as f64).sqrt() } else { 0.0 }, max, n)
+}
+
+fn mean_vector(values: impl Iterator<Item = Vector3<f64>>) -> (Vector3<f64>, usize) {
+    let (mut sum, mut n) = (Vector3::zeros(), 0usize);
+    for v in values {
+        sum += v;
+        n += 1;
+    }
+    (if n > 0 { sum / n as f64 } else { sum }, n)
+}
+
+fn in_window(info: &RunInfo, s: &LabSample, window: (Duration, Duration)) -> bool {
+    let t = s.telemetry.time - info.start;
+    t >= window.0 && t < window.1
+}
+
+/// The run's report.
+pub fn report(out: &RunOutput) -> Report {
+    let info = &out.info;
+    let free = |s: &&LabSample| {
+        s.telemetry.reference_kind != ReferenceKind::None && FREE_MOTION_PHASES.contains(&phase_of(info, s.telemetry.time))
+    };
+
+    // Tracking: slave tool vs its reference, free-motion phases.
+    let (track_rms, track_max, track_n) = rms(
+        out.slave.iter().filter(free).map(|s| (s.telemetry.reference_position - s.telemetry.tool_position).norm()),
+    );
+
+    // Contact: the second half of the steady-contact phase.
+    let contact_window = phase_window(info, CONTACT_PHASE).map(|(a, b)| (a + (b - a) / 2, b)).unwrap_or_default();
+    let slave_contact: Vec<&LabSample> = out.slave.iter().filter(|s| in_window(info, s, contact_window)).collect();
+    let master_contact: Vec<&LabSample> = out.master.iter().filter(|s| in_window(info, s, contact_window)).collect();
+    let slave_model = &info.slave_model;
+    let (sensed_base, contact_n) = mean_vector(slave_contact.iter().map(|s| {
+        let pose = slave_model.forward(&s.telemetry.q);
+        sensor_to_base(&s.telemetry.wrench, &info.sensor_mount, &pose).force
+    }));
+    let (true_contact, _) = mean_vector(slave_contact.iter().filter_map(|s| s.truth.map(|t| t.base_wrench.force)));
+    let (displayed, _) = mean_vector(master_contact.iter().map(|s| s.telemetry.commanded_wrench.force));
+    let (hand, _) = mean_vector(master_contact.iter().filter_map(|s| s.truth.map(|t| t.base_wrench.force)));
+    // Expected display: the environment's push on the slave, rotated into the master frame and
+    // scaled by the force gain (the sensor reads the robot pushing, hence the minus).
+    let expected = info.rotation.inverse() * (-sensed_base * info.force_gain);
+    let display_error_pct =
+        if expected.norm() > 1e-9 { (displayed - expected).norm() / expected.norm() * 100.0 } else { 0.0 };
+
+    // Drag: hand force in free motion.
+    let (drag_rms, drag_max, _) =
+        rms(out.master.iter().filter(free).filter_map(|s| s.truth.map(|t| t.base_wrench.force.norm())));
+
+    // Energy per tap cycle.
+    let mut peaks = Vec::new();
+    let mut operator_work = 0.0;
+    if let Some((a, b)) = phase_window(info, TAP_PHASE) {
+        let frequency = info.script.segments().iter().find(|s| s.label == TAP_PHASE).and_then(|s| match s.motion {
+            penelope_drivers::sim::operator::Motion::Tap { frequency, .. } => Some(frequency),
+            _ => None,
+        });
+        let cycle = Duration::from_secs_f64(1.0 / frequency.unwrap_or(1.0));
+        let mut k = a;
+        while k + cycle <= b {
+            let window = (k, k + cycle);
+            let peak = out
+                .slave
+                .iter()
+                .zip(out.master.iter())
+                .filter(|(s, _)| in_window(info, s, window))
+                .filter_map(|(s, m)| {
+                    let (ts, tm) = (s.truth?, m.truth?);
+                    Some(ts.kinetic_energy + tm.kinetic_energy + info.environment.stored_energy(&ts.tool_pose.translation.vector))
+                })
+                .fold(0.0f64, f64::max);
+            peaks.push(peak);
+            k += cycle;
+        }
+        let work_at = |t: Duration| {
+            out.master.iter().find(|s| s.telemetry.time - info.start >= t).and_then(|s| s.truth).map(|t| t.interaction_work)
+        };
+        if let (Some(w0), Some(w1)) = (work_at(a), work_at(b)) {
+            operator_work = w1 - w0;
+        }
+    }
+    // The last cycle against the largest before it: above 1 means energy is building up.
+    let growth_ratio = match peaks.split_last() {
+        Some((last, earlier)) if !earlier.is_empty() => {
+            let before = earlier.iter().copied().fold(0.0f64, f64::max);
+            if before > 0.0 { last / before } else { 1.0 }
+        }
+        _ => 1.0,
+    };
+
+    // Clutch: reference steps.
+    let steps = |pred: &dyn Fn(&LabSample) -> bool| {
+        out.slave
+            .windows(2)
+            .filter(|w| pred(&w[1]))
+            .map(|w| (w[1].telemetry.reference_position - w[0].telemetry.reference_position).norm())
+            .fold(0.0f64, f64::max)
+            * 1e3
+    };
+    let index_window = phase_window(info, INDEX_PHASE).map(|(a, b)| (a, b + Duration::from_millis(300))).unwrap_or_default();
+    let clutch = ClutchReport {
+        max_step_mm: steps(&|s| in_window(info, s, index_window)),
+        normal_max_step_mm: steps(&|s| phase_of(info, s.telemetry.time).starts_with("sweep")),
+    };
+
+    // Timing.
+    let timing = out
+        .threads
+        .iter()
+        .filter_map(|t| {
+            let r = t.report.as_ref()?;
+            let l = r.latency.summary();
+            let us = |d: Duration| d.as_secs_f64() * 1e6;
+            Some(LoopTiming {
+                name: t.name.clone(),
+                period_us: us(t.period),
+                ticks: r.ticks,
+                overruns: r.overruns,
+                latency_us: [us(l.min), us(l.p50), us(l.p99), us(l.p999), us(l.max)],
+                exec_us: [us(r.exec.mean()), us(r.exec.max())],
+                realtime: r.rt.fifo.is_applied() && r.rt.memory_locked.is_applied(),
+            })
+        })
+        .collect();
+
+    // Safety.
+    let mut safety_events = BTreeMap::new();
+    let mut faults = Vec::new();
+    for (robot, rows) in [("master", &out.master), ("slave", &out.slave)] {
+        let mut last_fault = None;
+        for s in rows.iter() {
+            for e in s.telemetry.events.iter() {
+                *safety_events.entry(format!("{robot}/{}", e.as_str())).or_insert(0) += 1;
+            }
+            if s.telemetry.fault.is_some() && s.telemetry.fault != last_fault {
+                if let Some(cause) = s.telemetry.fault {
+                    faults.push(format!("{robot} at {:.3} s: {cause}", (s.telemetry.time - info.start).as_secs_f64()));
+                }
+            }
+            last_fault = s.telemetry.fault;
+        }
+    }
+
+    Report {
+        lab: info.lab.clone(),
+        law: info.law.as_str().to_string(),
+        clock: match info.clock {
+            ClockMode::RealTime => "real-time",
+            ClockMode::Simulated => "simulated",
+        }
+        .to_string(),
+        seed: info.seed,
+        duration_s: out.slave.last().map_or(0.0, |s| (s.telemetry.time - info.start).as_secs_f64()),
+        scale: info.scale,
+        force_gain: info.force_gain,
+        tracking: TrackingReport { rms_mm: track_rms * 1e3, max_mm: track_max * 1e3, samples: track_n },
+        contact: ContactReport {
+            sensed_force_n: sensed_base.norm(),
+            expected_display_n: expected.norm(),
+            displayed_force_n: displayed.norm(),
+            display_error_pct,
+            hand_force_n: hand.norm(),
+            true_contact_force_n: true_contact.norm(),
+            samples: contact_n,
+        },
+        drag: DragReport { rms_n: drag_rms, max_n: drag_max },
+        energy: EnergyReport { tap_cycle_peaks_j: peaks, growth_ratio, operator_work_j: operator_work },
+        clutch,
+        timing,
+        safety_events,
+        faults,
+        dropped_samples: out.dropped.0 + out.dropped.1,
+    }
+}

@@ -1,0 +1,344 @@
+//! The control thread allocates and frees nothing: a counting global allocator watches every tick
+//! of the control (and communication) loop of a simulated six-joint robot over 100,000+ cycles with
+//! reference updates, controller switches, watchdog trips, a fault, an e-stop and re-arms; then the
+//! same loops on real periodic threads.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Duration;
+
+use penelope_hal::RobotModel;
+use penelope_hal::{JointReference, JointVector, Reference, Timestamp};
+use penelope_rt_core::cell::{LatestCell, Stamped, latest};
+use penelope_rt_core::comm::CommLoop;
+use penelope_rt_core::control::{ControlCommand, ControlConfig, ControlLoop, ControlPorts};
+use penelope_rt_core::controller::JointPid;
+use penelope_rt_core::exec::{self, Flow, PeriodicConfig};
+use penelope_rt_core::ring::{Ring, ring};
+use penelope_rt_core::safety::{SafetyConfig, SafetyEvent, SafetyState};
+use penelope_rt_core::sim::{self, SimRunner, SimTask};
+use penelope_rt_core::telemetry::TelemetrySample;
+use penelope_rt_core::testbed::{
+    ChainBoard, DecoupledChain, SineTrajectory, critically_damped_gains,
+};
+
+struct Counting;
+
+thread_local! {
+    /// Whether this thread's allocations are being counted.
+    static TRACKING: Cell<bool> = const { Cell::new(false) };
+    /// This thread's counted (allocations, frees). Per thread, so tests running in parallel do
+    /// not see each other's allocations.
+    static COUNTS: Cell<(u64, u64)> = const { Cell::new((0, 0)) };
+}
+
+fn count(allocs: u64, frees: u64) {
+    if TRACKING.try_with(Cell::get).unwrap_or(false) {
+        let _ = COUNTS.try_with(|c| {
+            let (a, f) = c.get();
+            c.set((a + allocs, f + frees));
+        });
+    }
+}
+
+fn thread_counts() -> (u64, u64) {
+    COUNTS.with(Cell::get)
+}
+
+// SAFETY: forwards to the system allocator; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        count(1, 0);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        count(1, 0);
+        unsafe { System.alloc_zeroed(layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        count(1, 1);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        count(0, 1);
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+/// Runs `f` with this thread's allocations counted; returns (allocations, frees) it made.
+fn counted<R>(f: impl FnOnce() -> R) -> (R, u64, u64) {
+    let (a0, f0) = thread_counts();
+    TRACKING.with(|t| t.set(true));
+    let r = f();
+    TRACKING.with(|t| t.set(false));
+    let (a1, f1) = thread_counts();
+    (r, a1 - a0, f1 - f0)
+}
+
+const CPR: f64 = 10_000.0;
+
+fn ms(x: u64) -> Timestamp {
+    Timestamp::from_nanos(x * 1_000_000)
+}
+
+#[test]
+fn the_counter_sees_allocations() {
+    let (v, allocs, frees) = counted(|| {
+        let v = vec![1u8; 100];
+        let w = v.clone();
+        drop(w);
+        v
+    });
+    assert_eq!(v.len(), 100);
+    assert!(allocs >= 2 && frees >= 1, "allocs {allocs} frees {frees}");
+}
+
+#[test]
+fn control_and_comm_loops_allocate_nothing_over_100k_simulated_cycles() {
+    let model = DecoupledChain::six_joint();
+    let start_q = JointVector::from([0.1, -0.2, 0.3, 0.0, 0.2, -0.1]);
+    let board = ChainBoard::new(model.clone(), CPR)
+        .with_position(start_q)
+        .with_noise(2, 42);
+    let config = ControlConfig::new(
+        Duration::from_millis(1),
+        SafetyConfig::slave(6, *model.limits()),
+    )
+    .with_counts_per_radian(CPR);
+    let controllers = [
+        JointPid::new(critically_damped_gains(&model, 40.0)),
+        JointPid::new(critically_damped_gains(&model, 20.0)),
+    ];
+
+    let reference = LatestCell::<Stamped<Reference>>::new();
+    let (ref_tx, ref_rx) = reference.split().unwrap();
+    let telemetry = Ring::<TelemetrySample, 256>::new();
+    let (tel_tx, mut tel_rx) = telemetry.split().unwrap();
+    let commands = Ring::<ControlCommand, 16>::new();
+    let (mut cmd_tx, cmd_rx) = commands.split().unwrap();
+    let ports = ControlPorts {
+        reference: ref_rx,
+        telemetry: tel_tx,
+        commands: cmd_rx,
+    };
+    let mut control = ControlLoop::new(config, board, model, controllers, ports).unwrap();
+    let mut comm = CommLoop::new(SineTrajectory::new(0.2, 0.5), ref_tx);
+    comm.start(
+        Timestamp::ZERO,
+        &Reference::Joint(JointReference {
+            position: start_q,
+            ..Default::default()
+        }),
+    );
+
+    // Counters, updated inside the counted sections (plain integers: no allocation).
+    let mut control_allocs = (0u64, 0u64);
+    let mut comm_allocs = (0u64, 0u64);
+    let restart = Cell::new(None::<JointVector>);
+
+    let mut comm_body = |now: Timestamp| {
+        let ((), a, f) = counted(|| {
+            if let Some(q) = restart.take() {
+                comm.start(
+                    now,
+                    &Reference::Joint(JointReference {
+                        position: q,
+                        ..Default::default()
+                    }),
+                );
+            }
+            let t_ms = now.as_nanos() / 1_000_000;
+            // Reference gaps: 100 ms every 20 s (hold, then recover); 1 s at 50 s (fault).
+            let short_gap = t_ms % 20_000 >= 10_000 && t_ms % 20_000 < 10_100;
+            let long_gap = (50_000..51_000).contains(&t_ms);
+            if !short_gap && !long_gap {
+                comm.tick(now);
+            }
+        });
+        comm_allocs.0 += a;
+        comm_allocs.1 += f;
+        sim::Flow::Continue
+    };
+    let mut control_body = |now: Timestamp| {
+        let (_, a, f) = counted(|| control.tick(now));
+        control_allocs.0 += a;
+        control_allocs.1 += f;
+        sim::Flow::Continue
+    };
+    // The non-real-time side (not counted): commands and telemetry.
+    let mut events = [0u64; 16];
+    let mut samples = 0u64;
+    let mut operator_body = |now: Timestamp| {
+        let t_ms = now.as_nanos() / 1_000_000;
+        let command = match t_ms {
+            0 => Some(ControlCommand::Activate),
+            51_500 | 70_030 => Some(ControlCommand::Rearm),
+            51_505 | 70_035 => Some(ControlCommand::Activate),
+            70_000 => Some(ControlCommand::EStop),
+            t if t % 1_000 == 500 => {
+                Some(ControlCommand::SwitchController(((t / 1_000) % 2) as u8))
+            }
+            _ => None,
+        };
+        if let Some(c) = command {
+            cmd_tx.push(c).unwrap();
+        }
+        while let Some(s) = tel_rx.pop() {
+            samples += 1;
+            for e in s.events.iter() {
+                events[e as usize] += 1;
+            }
+            if s.seq > 1 && s.events.contains(SafetyEvent::Activated) {
+                restart.set(Some(s.q));
+            }
+        }
+        sim::Flow::Continue
+    };
+    let mut tasks = [
+        SimTask::new(Duration::from_millis(1), &mut operator_body),
+        SimTask::new(Duration::from_millis(4), &mut comm_body),
+        SimTask::new(Duration::from_millis(1), &mut control_body),
+    ];
+    let report = SimRunner::new(Timestamp::ZERO).run_until(&mut tasks, ms(101_000));
+
+    let ticks = control.seq();
+    assert!(ticks >= 100_000, "only {ticks} control cycles");
+    assert!(report.ticks > ticks);
+    assert_eq!(
+        control_allocs,
+        (0, 0),
+        "the control loop allocated/freed (allocs, frees)"
+    );
+    assert_eq!(
+        comm_allocs,
+        (0, 0),
+        "the communication loop allocated/freed (allocs, frees)"
+    );
+    // The run did what it claims.
+    let count = |e: SafetyEvent| events[e as usize];
+    assert!(samples >= 100_000);
+    assert!(
+        count(SafetyEvent::ControllerSwitched) >= 90,
+        "switches {}",
+        count(SafetyEvent::ControllerSwitched)
+    );
+    assert!(
+        count(SafetyEvent::ReferenceStale) >= 5,
+        "stale {}",
+        count(SafetyEvent::ReferenceStale)
+    );
+    assert!(count(SafetyEvent::ReferenceRecovered) >= 5);
+    assert_eq!(count(SafetyEvent::Faulted), 1);
+    assert_eq!(count(SafetyEvent::EStopped), 1);
+    assert_eq!(count(SafetyEvent::Rearmed), 2);
+    assert_eq!(control.safety().state(), SafetyState::Running);
+}
+
+#[test]
+fn periodic_threads_allocate_nothing_between_ticks() {
+    let model = DecoupledChain::six_joint();
+    let board = ChainBoard::new(model.clone(), CPR);
+    let config = ControlConfig::new(
+        Duration::from_micros(500),
+        SafetyConfig::slave(6, *model.limits()),
+    )
+    .with_counts_per_radian(CPR);
+    let (ref_tx, ref_rx) = latest::<Stamped<Reference>>();
+    let (tel_tx, mut tel_rx) = ring::<TelemetrySample, 1024>();
+    let (mut cmd_tx, cmd_rx) = ring::<ControlCommand, 8>();
+    let ports = ControlPorts {
+        reference: ref_rx,
+        telemetry: tel_tx,
+        commands: cmd_rx,
+    };
+    let pid = JointPid::new(critically_damped_gains(&model, 30.0));
+    let mut control = ControlLoop::new(config, board, model, [pid], ports).unwrap();
+    let mut comm = CommLoop::new(SineTrajectory::new(0.1, 1.0), ref_tx);
+    comm.start(
+        Timestamp::ZERO,
+        &Reference::Joint(JointReference::default()),
+    );
+    cmd_tx.push(ControlCommand::Activate).unwrap();
+
+    const TICKS: u64 = 2_000;
+    let thread_config = |name: &str, period| PeriodicConfig {
+        lock_memory: false,
+        hold_dma_latency: false,
+        ..PeriodicConfig::new(name, period).normal_priority()
+    };
+    // Counting starts in the first tick and stops in the last, so it covers the executor's own
+    // work between ticks (sleep, clock, histogram, live statistics) as well as the loops.
+    let control_counts = Arc::new([AtomicU64::new(u64::MAX), AtomicU64::new(u64::MAX)]);
+    let comm_counts = Arc::new([AtomicU64::new(u64::MAX), AtomicU64::new(u64::MAX)]);
+    let report_to = |counts: &[AtomicU64; 2]| {
+        TRACKING.with(|t| t.set(false));
+        let (a, f) = thread_counts();
+        counts[0].store(a, Ordering::Relaxed);
+        counts[1].store(f, Ordering::Relaxed);
+    };
+    let out = control_counts.clone();
+    let control_thread = exec::spawn(
+        thread_config("alloc-control", Duration::from_micros(500)),
+        move |tick| {
+            TRACKING.with(|t| t.set(true));
+            control.tick(tick.deadline);
+            control.note_timing(tick.latency(), tick.previous_exec);
+            if tick.index + 1 == TICKS {
+                report_to(&out);
+                Flow::Stop
+            } else {
+                Flow::Continue
+            }
+        },
+    )
+    .unwrap();
+    let out = comm_counts.clone();
+    let comm_thread = exec::spawn(
+        thread_config("alloc-comm", Duration::from_millis(1)),
+        move |tick| {
+            TRACKING.with(|t| t.set(true));
+            comm.tick(tick.deadline);
+            if tick.index + 1 == TICKS / 2 {
+                report_to(&out);
+                Flow::Stop
+            } else {
+                Flow::Continue
+            }
+        },
+    )
+    .unwrap();
+    let mut received = 0u64;
+    let mut running = false;
+    while !control_thread.is_finished() {
+        while let Some(s) = tel_rx.pop() {
+            received += 1;
+            running |= s.state == SafetyState::Running;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let control_report = control_thread.join().unwrap();
+    let comm_report = comm_thread.join().unwrap();
+    while tel_rx.pop().is_some() {
+        received += 1;
+    }
+    let read = |c: &[AtomicU64; 2]| (c[0].load(Ordering::Relaxed), c[1].load(Ordering::Relaxed));
+    assert_eq!(
+        read(&control_counts),
+        (0, 0),
+        "the control thread allocated/freed (allocs, frees)"
+    );
+    assert_eq!(
+        read(&comm_counts),
+        (0, 0),
+        "the communication thread allocated/freed"
+    );
+    assert_eq!(control_report.ticks, TICKS);
+    assert_eq!(comm_report.ticks, TICKS / 2);
+    assert!(running, "the control loop never ran its controller");
+    assert_eq!(received + tel_rx.dropped() as u64, TICKS);
+}

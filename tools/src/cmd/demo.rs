@@ -1,0 +1,221 @@
+//! `penelope demo`: the paper's test task on simulated devices. An operator's hand moves the
+//! FRHC, the PUMA 200 follows, touches a wall, and the operator feels it.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Duration;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use penelope_supervisor::lab::config::LabConfig;
+use penelope_supervisor::lab::report::{Report, report};
+use penelope_supervisor::lab::run::{ClockMode, RunOptions, RunOutput, run};
+
+use super::usage;
+
+mod files;
+mod plots;
+
+/// Options of `penelope demo`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Lab configuration file (default: the shipped `config/demo.toml`).
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Length of the run, for example `20s` or `1500ms` (default: the operator script, 20 s).
+    #[arg(long, value_parser = parse_duration)]
+    duration: Option<Duration>,
+    /// Bilateral law: `force-position` (position forward, force back) or `position-error`.
+    #[arg(long, value_parser = ["force-position", "position-error"])]
+    law: Option<String>,
+    /// Position scale: slave motion per master motion.
+    #[arg(long)]
+    scale: Option<f64>,
+    /// Seed of every random source (sensor noise).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Output folder for telemetry, plots and the report (default: `out/demo-<unix time>`).
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Print the report as JSON on stdout (progress and file names go to stderr).
+    #[arg(long)]
+    json: bool,
+    /// Run the same loops on a simulated clock: faster than real time and bit-for-bit
+    /// reproducible for a given seed.
+    #[arg(long)]
+    sim_clock: bool,
+}
+
+/// Parses `20s`, `1.5s`, `1500ms`, `2m` or a bare number of seconds.
+pub fn parse_duration(text: &str) -> Result<Duration, String> {
+    let text = text.trim();
+    let (number, unit) = match text.find(|c: char| c.is_ascii_alphabetic()) {
+        Some(i) => text.split_at(i),
+        None => (text, "s"),
+    };
+    let value: f64 = number.trim().parse().map_err(|_| format!("not a duration: `{text}` (try 20s or 500ms)"))?;
+    let seconds = match unit {
+        "s" => value,
+        "ms" => value / 1e3,
+        "us" => value / 1e6,
+        "m" | "min" => value * 60.0,
+        _ => return Err(format!("unknown unit `{unit}` in `{text}` (use s, ms, us or m)")),
+    };
+    if !(seconds.is_finite() && seconds > 0.0) {
+        return Err(format!("duration must be positive: `{text}`"));
+    }
+    Ok(Duration::from_secs_f64(seconds))
+}
+
+/// Runs the demo.
+pub fn run_demo(args: Args) -> anyhow::Result<ExitCode> {
+    let lab = match &args.config {
+        Some(path) => LabConfig::from_file(path).map_err(|e| usage(e.to_string()))?,
+        None => LabConfig::demo(),
+    };
+    let law = match args.law.as_deref() {
+        Some("position-error") => Some(penelope_supervisor::lab::Law::PositionError),
+        Some(_) => Some(penelope_supervisor::lab::Law::ForcePosition),
+        None => None,
+    };
+    if let Some(s) = args.scale
+        && !(s.is_finite() && s > 0.0)
+    {
+        return Err(usage(format!("--scale must be a positive number, got {s}")));
+    }
+    let options = RunOptions {
+        duration: args.duration,
+        law,
+        scale: args.scale,
+        seed: args.seed,
+        clock: if args.sim_clock { ClockMode::Simulated } else { ClockMode::RealTime },
+    };
+    let out_dir = args.out.clone().unwrap_or_else(default_out_dir);
+
+    let bar = ProgressBar::new(1000);
+    bar.set_style(
+        ProgressStyle::with_template("{prefix} [{bar:30}] {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar.set_prefix(format!("{} {}", lab.name, if args.sim_clock { "(simulated clock)" } else { "(real time)" }));
+    let output = run(&lab, &options, &mut |p| {
+        let fraction = p.elapsed.as_secs_f64() / p.total.as_secs_f64().max(1e-9);
+        bar.set_position((fraction * 1000.0).clamp(0.0, 1000.0) as u64);
+        bar.set_message(format!(
+            "{:5.1}/{:.0} s  {:<10}  tracking {:5.2} mm  contact {:5.1} N  displayed {:4.1} N",
+            p.elapsed.as_secs_f64(),
+            p.total.as_secs_f64(),
+            p.phase,
+            p.tracking_error * 1e3,
+            p.contact_force,
+            p.displayed_force
+        ));
+    })
+    .map_err(|e| usage(e.to_string()))?;
+    bar.finish_and_clear();
+
+    let report = report(&output);
+    std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
+    let written = write_outputs(&out_dir, &output, &report)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        for f in &written {
+            eprintln!("wrote {}", f.display());
+        }
+    } else {
+        print_report(&report, &out_dir, &written);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn default_out_dir() -> PathBuf {
+    let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    PathBuf::from("out").join(format!("demo-{secs}"))
+}
+
+fn write_outputs(dir: &Path, output: &RunOutput, report: &Report) -> anyhow::Result<Vec<PathBuf>> {
+    let mut written = Vec::new();
+    for (name, rows) in [("telemetry-master.csv", &output.master), ("telemetry-slave.csv", &output.slave)] {
+        let path = dir.join(name);
+        files::write_telemetry(&path, &output.info, rows).with_context(|| format!("writing {}", path.display()))?;
+        written.push(path);
+    }
+    let path = dir.join("report.json");
+    std::fs::write(&path, serde_json::to_string_pretty(report)?).with_context(|| format!("writing {}", path.display()))?;
+    written.push(path);
+    written.extend(plots::write_all(dir, output).context("drawing plots")?);
+    Ok(written)
+}
+
+fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
+    println!("Penelope teleoperation demo: {} ({} law, {} clock, seed {})", r.lab, r.law, r.clock, r.seed);
+    println!("  run: {:.1} s, scale {}, force gain {}", r.duration_s, r.scale, r.force_gain);
+    println!();
+    println!("  free-motion tracking (slave tool vs mapped master pose)");
+    println!("    RMS {:.3} mm   max {:.3} mm   over {} ticks", r.tracking.rms_mm, r.tracking.max_mm, r.tracking.samples);
+    println!("  steady contact with the wall");
+    println!(
+        "    sensed {:.2} N (true {:.2} N)   expected display {:.2} N   displayed {:.2} N ({:.2}% off)   hand feels {:.2} N",
+        r.contact.sensed_force_n,
+        r.contact.true_contact_force_n,
+        r.contact.expected_display_n,
+        r.contact.displayed_force_n,
+        r.contact.display_error_pct,
+        r.contact.hand_force_n
+    );
+    println!("  free-motion drag felt by the operator");
+    println!("    RMS {:.2} N   max {:.2} N", r.drag.rms_n, r.drag.max_n);
+    println!("  tapping: peak energy per cycle (J)");
+    let peaks: Vec<String> = r.energy.tap_cycle_peaks_j.iter().map(|e| format!("{e:.3}")).collect();
+    println!(
+        "    {}   last/largest earlier {:.2}   operator work {:.3} J",
+        peaks.join(" "),
+        r.energy.growth_ratio,
+        r.energy.operator_work_j
+    );
+    println!("  clutch (indexing)");
+    println!(
+        "    largest reference step {:.3} mm (normal motion: {:.3} mm per tick)",
+        r.clutch.max_step_mm, r.clutch.normal_max_step_mm
+    );
+    if r.timing.is_empty() {
+        println!("  loop timing: simulated clock (no wake-up latency to measure)");
+    } else {
+        println!("  loop timing (wake-up latency, µs)          min    p50    p99  p99.9    max  overruns  exec mean/max");
+        for t in &r.timing {
+            println!(
+                "    {:<16} {:>6.0} µs period {}  {:>6.1} {:>6.1} {:>6.1} {:>6.1} {:>6.1}  {:>8}  {:.1}/{:.1}",
+                t.name,
+                t.period_us,
+                if t.realtime { "FIFO" } else { "normal" },
+                t.latency_us[0],
+                t.latency_us[1],
+                t.latency_us[2],
+                t.latency_us[3],
+                t.latency_us[4],
+                t.overruns,
+                t.exec_us[0],
+                t.exec_us[1]
+            );
+        }
+    }
+    println!("  safety events");
+    if r.safety_events.is_empty() {
+        println!("    none");
+    }
+    for (event, count) in &r.safety_events {
+        println!("    {event:<36} {count}");
+    }
+    for f in &r.faults {
+        println!("    FAULT {f}");
+    }
+    if r.dropped_samples > 0 {
+        println!("  WARNING: {} telemetry samples dropped (the logger fell behind)", r.dropped_samples);
+    }
+    println!();
+    println!("  output in {}:", dir.display());
+    for f in written {
+        println!("    {}", f.file_name().map_or_else(|| f.display().to_string(), |n| n.to_string_lossy().into_owned()));
+    }
+}
