@@ -212,7 +212,12 @@ fn closed_form_branches_match_the_toolbox_ikine_a() {
         for (j, w) in want.iter().enumerate() {
             let d = (s.q[j] - w).rem_euclid(core::f64::consts::TAU);
             let d = d.min(core::f64::consts::TAU - d);
-            assert!(d < 1e-9, "{name} joint {}: got {}, toolbox {w}", j + 1, s.q[j]);
+            assert!(
+                d < 1e-9,
+                "{name} joint {}: got {}, toolbox {w}",
+                j + 1,
+                s.q[j]
+            );
         }
     }
 }

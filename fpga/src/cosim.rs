@@ -92,7 +92,10 @@ pub fn simulator_or_skip(test: &str) -> bool {
              (apt-get install -y iverilog)"
         );
     }
-    eprintln!(
+    // Straight to the process's stderr: the test harness captures `eprintln!`, and this line
+    // must be seen.
+    let _ = writeln!(
+        std::io::stderr(),
         "\n*** SKIPPED {test}: iverilog/vvp not installed; the RTL co-simulation did NOT run. \
          Install iverilog (scripts/test does) to run it. ***\n"
     );

@@ -88,7 +88,7 @@ pub struct DhRow {
     pub a: i32,
     /// The twist.
     pub alpha: Alpha,
-    /// The joint offset, raw [`ANGLE`] word.
+    /// The joint offset, raw [`ANGLE`](crate::sincos::ANGLE) word.
     pub offset: i32,
 }
 

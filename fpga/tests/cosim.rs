@@ -18,7 +18,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 const RANDOM_VECTORS: usize = 100_000;
-const MUTANT_RANDOM_VECTORS: usize = 3_000;
+const MUTANT_RANDOM_VECTORS: usize = 500;
 
 // --- vector generation ---------------------------------------------------------------------
 

@@ -145,7 +145,6 @@ impl Transition {
 mod tests {
     use super::LifecycleState::*;
     use super::Transition::*;
-    use super::*;
 
     #[test]
     fn the_ros2_happy_path_and_refusals() {

@@ -482,8 +482,7 @@ where
             self.write(now, command);
         }
 
-        let events = self.safety.take_events();
-        let mut events = events;
+        let mut events = self.safety.take_events();
         self.fill_sample(now, wrench, commanded_wrench, events);
         if !self.ports.telemetry.push(&self.last) {
             events.insert(SafetyEvent::TelemetryDropped);

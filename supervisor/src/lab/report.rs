@@ -289,10 +289,10 @@ pub fn report(out: &RunOutput) -> Report {
             for e in s.telemetry.events.iter() {
                 *safety_events.entry(format!("{robot}/{}", e.as_str())).or_insert(0) += 1;
             }
-            if s.telemetry.fault.is_some() && s.telemetry.fault != last_fault {
-                if let Some(cause) = s.telemetry.fault {
-                    faults.push(format!("{robot} at {:.3} s: {cause}", (s.telemetry.time - info.start).as_secs_f64()));
-                }
+            if let Some(cause) = s.telemetry.fault
+                && s.telemetry.fault != last_fault
+            {
+                faults.push(format!("{robot} at {:.3} s: {cause}", (s.telemetry.time - info.start).as_secs_f64()));
             }
             last_fault = s.telemetry.fault;
         }

@@ -562,12 +562,12 @@ fn controllers_for(lab: &LabConfig, robot: &str, law: Law) -> Result<(Controller
                 )));
             }
         };
-        let wanted = match (law, c.kind) {
-            (Law::ForcePosition, ControllerKind::ForceDisplay) => true,
-            (Law::PositionError, ControllerKind::PositionErrorMaster) => true,
-            (_, ControllerKind::SlaveTracking) => true,
-            _ => false,
-        };
+        let wanted = matches!(
+            (law, c.kind),
+            (Law::ForcePosition, ControllerKind::ForceDisplay)
+                | (Law::PositionError, ControllerKind::PositionErrorMaster)
+                | (_, ControllerKind::SlaveTracking)
+        );
         if wanted && active.is_none() {
             active = Some(set.len());
         }

@@ -91,6 +91,13 @@ pub enum Op {
 
 /// Runs `penelope kin`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let out = output(&args)?;
+    println!("{}", out.trim_end());
+    Ok(ExitCode::SUCCESS)
+}
+
+/// What `penelope kin` prints.
+fn output(args: &Args) -> anyhow::Result<String> {
     let m = load(&args.robot)?;
     let n = m.joint_count();
     let out = match &args.op {
@@ -224,8 +231,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         Op::Info => info(&m, args.json),
     };
-    println!("{}", out.trim_end());
-    Ok(ExitCode::SUCCESS)
+    Ok(out)
 }
 
 /// A built-in robot or a DH file; anything else is a usage error.
@@ -478,6 +484,103 @@ mod tests {
         ] {
             assert!(parse_pose(bad).is_err(), "{bad}");
         }
+    }
+
+    fn json(robot: &str, op: Op) -> serde_json::Value {
+        let args = Args {
+            robot: robot.into(),
+            op,
+            json: true,
+        };
+        serde_json::from_str(&output(&args).unwrap()).unwrap()
+    }
+
+    fn q(text: &str) -> JointArg {
+        JointArg { q: text.into() }
+    }
+
+    #[test]
+    fn json_shapes_follow_the_issue() {
+        let t = json("puma560", Op::Fk(q("qn")));
+        assert_eq!(t["T"].as_array().unwrap().len(), 4);
+        assert!((t["T"][0][3].as_f64().unwrap() - 0.596_303_148_574_615_6).abs() < 1e-12);
+        let j = json(
+            "frhc",
+            Op::Jacobian {
+                joints: q("start"),
+                frame: FrameArg::Tool,
+            },
+        );
+        assert_eq!(j["J"].as_array().unwrap().len(), 6);
+        assert_eq!(j["J"][0].as_array().unwrap().len(), 6);
+        let g = json("puma560", Op::Gravity(q("qn")));
+        assert!((g["tau"][1].as_f64().unwrap() - 31.639_880_378_357_12).abs() < 1e-9);
+        let m = json("puma200", Op::Inertia(q("work")));
+        assert_eq!(m["M"].as_array().unwrap().len(), 6);
+        let r = json(
+            "puma560",
+            Op::Rne {
+                joints: q("qn"),
+                qd: "0,0,0,0,0,0".into(),
+                qdd: "0,0,0,0,0,0".into(),
+            },
+        );
+        // Static Newton-Euler is the holding torque (two algorithms: equal to rounding).
+        for k in 0..6 {
+            let (a, b) = (r["tau"][k].as_f64().unwrap(), g["tau"][k].as_f64().unwrap());
+            assert!((a - b).abs() < 1e-9, "joint {k}: {a} vs {b}");
+        }
+        // ik of fk gives 8 branches, each with a name, 6 joints and a limits flag.
+        let flat: Vec<String> = t["T"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|row| row.as_array().unwrap().iter().map(|x| x.to_string()))
+            .collect();
+        let ik = json(
+            "puma560",
+            Op::Ik {
+                pose: flat.join(","),
+            },
+        );
+        let sols = ik["solutions"].as_array().unwrap();
+        assert_eq!(sols.len(), 8);
+        assert!(sols.iter().all(|s| s["branch"].is_string()
+            && s["q"].as_array().unwrap().len() == 6
+            && s["within_limits"].is_boolean()));
+    }
+
+    #[test]
+    fn bad_input_is_a_usage_error() {
+        let run_err = |robot: &str, op: Op| {
+            let args = Args {
+                robot: robot.into(),
+                op,
+                json: false,
+            };
+            output(&args).unwrap_err()
+        };
+        for e in [
+            run_err("nosuch", Op::Info),
+            run_err("puma560", Op::Fk(q("0,0,0"))),
+            run_err("puma560", Op::Gravity(q("0,0,0,0,0,NaN"))),
+            run_err(
+                "puma560",
+                Op::Ik {
+                    pose: "1,2,3".into(),
+                },
+            ),
+        ] {
+            assert!(e.downcast_ref::<crate::cmd::UsageError>().is_some(), "{e}");
+        }
+        // An unreachable pose is not a usage error (exit code 1).
+        let e = run_err(
+            "puma560",
+            Op::Ik {
+                pose: "1,0,0,5, 0,1,0,0, 0,0,1,0, 0,0,0,1".into(),
+            },
+        );
+        assert!(e.downcast_ref::<crate::cmd::UsageError>().is_none());
     }
 
     #[test]

@@ -50,8 +50,10 @@ fn panel(
     chart.configure_mesh().x_desc("time (s)").y_desc(y_label).draw()?;
     for (name, series, color) in lines {
         let color = *color;
+        // At most about 4000 points a line: enough for the eye, small enough for a browser.
+        let stride = (series.len() / 4000).max(1);
         chart
-            .draw_series(LineSeries::new(series.iter().copied(), color.stroke_width(2)))?
+            .draw_series(LineSeries::new(series.iter().step_by(stride).copied(), color.stroke_width(2)))?
             .label(*name)
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
     }
