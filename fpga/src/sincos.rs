@@ -17,8 +17,8 @@
 //!
 //! So `sin(0) = 0`, `cos(0) = 1` and `sin(pi/2) = 1` exactly, and every output is within 0.7
 //! LSB (`2^-23`) of the true value of the quantized angle (tested: `tests/accuracy.rs`).
-//! Cost in hardware: one dual-port ROM of 4097 x 46 bits (three 18 Kb block RAMs) and two
-//! 17x10 multipliers; one clock cycle.
+//! Cost in hardware: one dual-port ROM of 4097 x 46 bits (about 190 kbit: 11 to 12 of the
+//! XC2V1000's forty 18 Kb block RAMs) and two 17x10 multipliers; one clock cycle.
 //!
 //! # Real-time
 //! No allocation, no panic, constant time.

@@ -91,3 +91,39 @@ fn a_bad_configuration_is_a_clear_error_not_a_crash() {
     let options = RunOptions { scale: Some(f64::NAN), ..RunOptions::default() };
     assert!(run(&LabConfig::demo(), &options, &mut |_| {}).is_err());
 }
+
+#[test]
+fn the_fpga_kinematics_drive_the_master_when_configured() {
+    let text = penelope_supervisor::lab::config::DEMO_TOML.replacen(
+        "kinematics = \"float\"         # \"float\", or \"fpga\"",
+        "kinematics = \"fpga\" # \"float\", or \"fpga\"",
+        1,
+    );
+    assert_ne!(text, penelope_supervisor::lab::config::DEMO_TOML, "the demo file names the switch");
+    let lab = LabConfig::from_toml(&text).unwrap();
+    let options = RunOptions { duration: Some(Duration::from_secs(9)), ..RunOptions::default() };
+    let out = run(&lab, &options, &mut |_| {}).unwrap();
+    assert!(matches!(out.info.master_model, penelope_supervisor::lab::model::LabModel::Fpga { .. }));
+    let r = report(&out);
+    assert!(r.faults.is_empty(), "{:?}", r.faults);
+    assert!(r.tracking.rms_mm < 2.0, "tracking with FPGA kinematics: {} mm", r.tracking.rms_mm);
+    // The FPGA words differ from f64 by well under a micrometre, so the runs differ, but little.
+    let (float, _) = simulate(Law::ForcePosition, 1, Some(Duration::from_secs(9)));
+    assert!(out.slave != float.slave, "the FPGA path must actually be in use");
+    let drift = out
+        .slave
+        .iter()
+        .zip(&float.slave)
+        .map(|(a, b)| (a.telemetry.tool_position - b.telemetry.tool_position).norm())
+        .fold(0.0f64, f64::max);
+    assert!(drift < 1e-3, "FPGA and float runs drift apart by {drift} m");
+
+    let puma_fpga = penelope_supervisor::lab::config::DEMO_TOML.replacen(
+        "model = \"puma200\"\nkinematics = \"float\"",
+        "model = \"puma200\"\nkinematics = \"fpga\"",
+        1,
+    );
+    let lab = LabConfig::from_toml(&puma_fpga).unwrap();
+    let err = run(&lab, &options, &mut |_| {}).err().expect("no FPGA model of a PUMA");
+    assert!(err.to_string().contains("fpga"), "{err}");
+}

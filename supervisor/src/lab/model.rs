@@ -2,6 +2,7 @@
 //! kinematics with the float dynamics.
 
 use penelope_drivers::model::DhRobotModel;
+use penelope_fpga::FpgaKinematics;
 use penelope_hal::{
     Dynamics, IkSolutions, InverseKinematics, JacobianFrame, Jacobian, JointLimits, JointSpaceMatrix,
     JointVector, Kinematics, KinematicsError, Pose, RobotModel,
@@ -12,13 +13,48 @@ use penelope_hal::{
 pub enum LabModel {
     /// Float kinematics and dynamics.
     Float(DhRobotModel),
+    /// Forward kinematics and Jacobian from the bit-exact model of the FPGA board; inverse
+    /// kinematics and dynamics from the float model.
+    Fpga {
+        /// The FPGA model.
+        fpga: FpgaKinematics,
+        /// The float model, for everything the FPGA does not compute.
+        float: Box<DhRobotModel>,
+    },
 }
 
+/// The FPGA kinematics were asked for a robot the FPGA board does not model.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NoFpgaModel(pub String);
+
+impl std::fmt::Display for NoFpgaModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "kinematics = \"fpga\" models the FRHC's FPGA board; robot model `{}` has none", self.0)
+    }
+}
+
+impl std::error::Error for NoFpgaModel {}
+
 impl LabModel {
+    /// The model for `float` with the kinematics the configuration chose.
+    ///
+    /// # Errors
+    /// [`NoFpgaModel`] when `fpga` is asked for a robot other than the FRHC.
+    pub fn new(float: DhRobotModel, fpga: bool) -> Result<Self, NoFpgaModel> {
+        if !fpga {
+            return Ok(LabModel::Float(float));
+        }
+        if float.name() != "frhc" {
+            return Err(NoFpgaModel(float.name().to_string()));
+        }
+        Ok(LabModel::Fpga { fpga: FpgaKinematics::frhc(), float: Box::new(float) })
+    }
+
     /// The underlying float model (dynamics, named poses, encoder scaling).
     pub fn float(&self) -> &DhRobotModel {
         match self {
             LabModel::Float(m) => m,
+            LabModel::Fpga { float, .. } => float,
         }
     }
 }
@@ -30,11 +66,13 @@ impl Kinematics for LabModel {
     fn forward(&self, q: &JointVector) -> Pose {
         match self {
             LabModel::Float(m) => m.forward(q),
+            LabModel::Fpga { fpga, .. } => fpga.forward(q),
         }
     }
     fn jacobian(&self, q: &JointVector, frame: JacobianFrame) -> Jacobian {
         match self {
             LabModel::Float(m) => m.jacobian(q, frame),
+            LabModel::Fpga { fpga, .. } => fpga.jacobian(q, frame),
         }
     }
 }

@@ -42,9 +42,9 @@ use penelope_rt_core::teleop::{
 };
 
 use super::config::{
-    BoardKind, ConfigError, ControllerKind, LabConfig, Law, Role, ShapeKind,
+    BoardKind, ConfigError, ControllerKind, KinematicsChoice, LabConfig, Law, Role, ShapeKind,
 };
-use super::devices::{LabBoard, LabInteraction};
+use super::devices::{GalilSetup, LabBoard, LabInteraction, LinkMonitor, galil_board};
 use super::model::LabModel;
 use super::script;
 
@@ -142,12 +142,44 @@ struct Built {
     control_period: Duration,
     comm_period: Duration,
     master: ControlLoop<LabBoard, LabModel, ControllerBox, RefReader, LabSink, Commands, NoSensor>,
-    slave: ControlLoop<LabBoard, LabModel, ControllerBox, RefReader, LabSink, Commands, VirtualForceSensor>,
+    slave: SlaveLoop,
     master_comm: MasterComm,
     slave_comm: SlaveComm,
     master_log: ArcConsumer<LabSample, TELEMETRY_CAPACITY>,
     slave_log: ArcConsumer<LabSample, TELEMETRY_CAPACITY>,
     info: RunInfo,
+}
+
+/// The slave's control loop: with the virtual wrist sensor (a simulated plant behind its board),
+/// or without a sensor (a Galil board: no plant in this process for a virtual sensor to read, so
+/// the loop has no sensor slot rather than one failing every tick).
+enum SlaveLoop {
+    Sensed(Box<ControlLoop<LabBoard, LabModel, ControllerBox, RefReader, LabSink, Commands, VirtualForceSensor>>),
+    Unsensed(Box<ControlLoop<LabBoard, LabModel, ControllerBox, RefReader, LabSink, Commands, NoSensor>>),
+}
+
+impl SlaveLoop {
+    /// # Real-time
+    /// As [`ControlLoop::tick`].
+    fn tick(&mut self, now: Timestamp) {
+        match self {
+            SlaveLoop::Sensed(l) => {
+                l.tick(now);
+            }
+            SlaveLoop::Unsensed(l) => {
+                l.tick(now);
+            }
+        }
+    }
+
+    /// # Real-time
+    /// Constant time.
+    fn note_timing(&mut self, wake_latency: Duration, exec_time: Duration) {
+        match self {
+            SlaveLoop::Sensed(l) => l.note_timing(wake_latency, exec_time),
+            SlaveLoop::Unsensed(l) => l.note_timing(wake_latency, exec_time),
+        }
+    }
 }
 
 /// What a run was, for its report.
@@ -183,6 +215,9 @@ pub struct RunInfo {
     pub sensor_mount: Pose,
     /// `R_ms`: master base frame to slave base frame.
     pub rotation: UnitQuaternion<f64>,
+    /// The slave's Galil board link counters (exchange rate), when the slave is on a Galil
+    /// board.
+    pub slave_link: Option<LinkMonitor>,
 }
 
 /// The master's communication thread: sends the master pose and clutch, feeds the slave's
@@ -307,8 +342,19 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     let slave_model = load_model(&slave_cfg.model)?;
     let q_master = start_pose(&master_model, &master_cfg.start)?;
     let q_slave = start_pose(&slave_model, &slave_cfg.start)?;
+    // A slave on a Galil board starts where its encoders say (encoder zero is the `start` pose:
+    // see `devices::galil_board`); there is no plant behind it, so no ground truth and no
+    // virtual wrist sensor.
+    let slave_galil = open_slave_galil(lab, slave_name, &slave_model, &q_slave, options, start)?;
+    let q_slave = slave_galil.as_ref().map_or(q_slave, |g| g.measured);
     let master_tool = master_model.forward(&q_master);
     let slave_tool = slave_model.forward(&q_slave);
+    // What the controllers compute with: float kinematics, or the FPGA model where configured.
+    // The plants behind the simulated boards are physics and always use the float model.
+    let master_kin = LabModel::new(master_model.clone(), master_cfg.kinematics == KinematicsChoice::Fpga)
+        .map_err(setup(master_name))?;
+    let slave_kin = LabModel::new(slave_model.clone(), slave_cfg.kinematics == KinematicsChoice::Fpga)
+        .map_err(setup(slave_name))?;
 
     // The slave's environment, placed relative to its start tool point.
     let mut environment = Environment::new();
@@ -336,13 +382,11 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     // Boards (simulated plants behind them) with their truth taps.
     let (_, master_board_cfg) = lab.board_of(master_name)?;
     let (_, slave_board_cfg) = lab.board_of(slave_name)?;
-    for (robot, board) in [(master_name, master_board_cfg), (slave_name, slave_board_cfg)] {
-        if board.kind == BoardKind::Galil {
-            return Err(RunError::Setup(format!(
-                "robot `{robot}`: a galil board needs real hardware or `penelope galil-sim`; \
-                 this build's demo drives simulated boards only"
-            )));
-        }
+    if master_board_cfg.kind == BoardKind::Galil {
+        return Err(RunError::Setup(format!(
+            "robot `{master_name}`: the master runs on a simulated board (the virtual operator's \
+             hand pushes its plant); only the slave can be on a galil board"
+        )));
     }
     let mut master_tap = TapWriter::new();
     let master_truth = master_tap.reader().map_err(|_| RunError::Setup("tap".into()))?;
@@ -360,44 +404,56 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     )
     .with_tap(master_tap);
 
-    let mut slave_tap = TapWriter::new();
-    let slave_truth = slave_tap.reader().map_err(|_| RunError::Setup("tap".into()))?;
-    let sensor_source = slave_tap.reader().map_err(|_| RunError::Setup("tap".into()))?;
-    let slave_plant = PlantConfig { motor_torque_limit: slave_model.limits().effort_max, ..PlantConfig::default() };
-    let slave_board = SimBoard::new(
-        LabModel::Float(slave_model.clone()),
-        slave_plant,
-        sim_board_config(&slave_model, slave_board_cfg.dac_bits),
-        LabInteraction::Environment(environment.clone()),
-        q_slave,
-        start,
-    )
-    .with_tap(slave_tap);
+    // The slave's board with its plant's truth tap and the wrist sensor reading that plant
+    // (simulated board), or the Galil board alone.
+    let sensor_cfg = lab.sensors.values().find(|s| s.robot == slave_name);
+    let sensor_mount = sensor_cfg
+        .map_or(Pose::identity(), |c| Pose::translation(c.mount_xyz_m[0], c.mount_xyz_m[1], c.mount_xyz_m[2]));
+    let (slave_board, slave_truth, sensor, slave_bindings, slave_link) = match slave_galil {
+        Some(GalilSetup { board, bindings, monitor, .. }) => {
+            if sensor_cfg.is_some() {
+                log::warn!("slave `{slave_name}` is on a galil board: its virtual wrist sensor has no plant to read and is left out");
+            }
+            (board, None, None, Some(bindings), Some(monitor))
+        }
+        None => {
+            let mut slave_tap = TapWriter::new();
+            let slave_truth = slave_tap.reader().map_err(|_| RunError::Setup("tap".into()))?;
+            let sensor_source = slave_tap.reader().map_err(|_| RunError::Setup("tap".into()))?;
+            let slave_plant = PlantConfig { motor_torque_limit: slave_model.limits().effort_max, ..PlantConfig::default() };
+            let slave_board = SimBoard::new(
+                LabModel::Float(slave_model.clone()),
+                slave_plant,
+                sim_board_config(&slave_model, slave_board_cfg.dac_bits),
+                LabInteraction::Environment(environment.clone()),
+                q_slave,
+                start,
+            )
+            .with_tap(slave_tap);
 
-    // The wrist sensor.
-    let (_, sensor_cfg) = lab
-        .sensors
-        .iter()
-        .find(|(_, s)| s.robot == slave_name)
-        .ok_or_else(|| RunError::Setup(format!("no sensor on the slave `{slave_name}`")))?;
-    let sensor_mount = Pose::translation(sensor_cfg.mount_xyz_m[0], sensor_cfg.mount_xyz_m[1], sensor_cfg.mount_xyz_m[2]);
-    let mut sensor = VirtualForceSensor::new(
-        ForceSensorConfig {
-            mount: sensor_mount,
-            force_noise: sensor_cfg.force_noise_n,
-            torque_noise: sensor_cfg.torque_noise_nm,
-            cutoff_hz: sensor_cfg.cutoff_hz,
-            seed: options.seed,
-            ..ForceSensorConfig::default()
-        },
-        sensor_source,
-    );
-    // Tare the wrist sensor with the slave at rest in free space, as an operator does before a
-    // session: one board read publishes the plant's state, the sensor takes its reading as zero.
-    let mut slave_board = slave_board;
-    let mut axes = [penelope_hal::AxisState::default(); penelope_hal::MAX_AXES];
-    penelope_hal::Board::read_axes(&mut slave_board, start, &mut axes).map_err(|e| RunError::Setup(format!("slave board: {e:?}")))?;
-    penelope_hal::ForceSensor::tare(&mut sensor, start).map_err(setup("wrist sensor tare"))?;
+            // The wrist sensor.
+            let sensor_cfg =
+                sensor_cfg.ok_or_else(|| RunError::Setup(format!("no sensor on the slave `{slave_name}`")))?;
+            let mut sensor = VirtualForceSensor::new(
+                ForceSensorConfig {
+                    mount: sensor_mount,
+                    force_noise: sensor_cfg.force_noise_n,
+                    torque_noise: sensor_cfg.torque_noise_nm,
+                    cutoff_hz: sensor_cfg.cutoff_hz,
+                    seed: options.seed,
+                    ..ForceSensorConfig::default()
+                },
+                sensor_source,
+            );
+            // Tare the wrist sensor with the slave at rest in free space, as an operator does before a
+            // session: one board read publishes the plant's state, the sensor takes its reading as zero.
+            let mut slave_board = slave_board;
+            let mut axes = [penelope_hal::AxisState::default(); penelope_hal::MAX_AXES];
+            penelope_hal::Board::read_axes(&mut slave_board, start, &mut axes).map_err(|e| RunError::Setup(format!("slave board: {e:?}")))?;
+            penelope_hal::ForceSensor::tare(&mut sensor, start).map_err(setup("wrist sensor tare"))?;
+            (LabBoard::Sim(Box::new(slave_board)), Some(slave_truth), Some(sensor), None, None)
+        }
+    };
 
     // Controllers, in configuration order; the law picks the active one.
     let [r, p, y] = lab.teleop.rotation_rpy_deg.map(f64::to_radians);
@@ -431,7 +487,7 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     let master_loop = ControlLoop::new(
         master_control,
         LabBoard::Sim(Box::new(master_board)),
-        LabModel::Float(master_model.clone()),
+        master_kin.clone(),
         master_controllers,
         ControlPorts {
             reference: master_ref_r,
@@ -444,21 +500,29 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     let mut slave_safety = SafetyConfig::slave(slave_model.joint_count(), *slave_model.limits());
     slave_safety.watchdog = watchdog;
     let effort = slave_model.limits().effort_max;
-    slave_safety.hold = HoldMode::Pd { kp: effort * 40.0, kd: effort * 1.0 };
-    let slave_control = ControlConfig::new(control_period, slave_safety).with_robot_scaling(&model_robot(&slave_model));
+    if slave_bindings.is_none() {
+        slave_safety.hold = HoldMode::Pd { kp: effort * 40.0, kd: effort * 1.0 };
+    } // A Galil board holds with its own servo (`HoldMode::BoardServo`, the slave default).
+    let mut slave_control = ControlConfig::new(control_period, slave_safety).with_robot_scaling(&model_robot(&slave_model));
+    if let Some(bindings) = slave_bindings {
+        slave_control.axes = bindings; // axis map, counts per radian and encoder offsets
+    }
     let slave_loop = ControlLoop::new(
         slave_control,
-        LabBoard::Sim(Box::new(slave_board)),
-        LabModel::Float(slave_model.clone()),
+        slave_board,
+        slave_kin.clone(),
         slave_controllers,
         ControlPorts {
             reference: slave_ref_r,
-            telemetry: LabSink { ring: slave_log_w, state: slave_state_w, truth: Some(slave_truth) },
+            telemetry: LabSink { ring: slave_log_w, state: slave_state_w, truth: slave_truth },
             commands: slave_cmd,
         },
     )
-    .map_err(setup("slave control loop"))?
-    .with_sensor(sensor);
+    .map_err(setup("slave control loop"))?;
+    let slave_loop = match sensor {
+        Some(sensor) => SlaveLoop::Sensed(Box::new(slave_loop.with_sensor(sensor))),
+        None => SlaveLoop::Unsensed(Box::new(slave_loop)),
+    };
 
     // Switch to the law's controllers, then activate from the measured state at the first tick.
     for (w, index) in [(&mut master_cmd_w, master_active), (&mut slave_cmd_w, slave_active)] {
@@ -484,7 +548,7 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     slave_channel.start(start, &Reference::Cartesian(CartesianReference { pose: slave_tool, twist: Twist::default() }));
     let master_comm = MasterComm {
         comm: CommLoop::new(master_channel, master_ref_w),
-        model: LabModel::Float(master_model.clone()),
+        model: master_kin.clone(),
         state: master_state,
         to_slave: m2s.0,
         from_slave: s2m.1,
@@ -494,7 +558,7 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     };
     let slave_comm = SlaveComm {
         comm: CommLoop::new(slave_channel, slave_ref_w),
-        model: LabModel::Float(slave_model.clone()),
+        model: slave_kin.clone(),
         state: slave_state,
         to_master: s2m.0,
         from_master: m2s.1,
@@ -513,11 +577,12 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
         control_period,
         comm_period,
         script,
-        master_model: LabModel::Float(master_model),
-        slave_model: LabModel::Float(slave_model),
+        master_model: master_kin,
+        slave_model: slave_kin,
         environment,
         sensor_mount,
         rotation: mapping.rotation,
+        slave_link,
     };
     Ok(Built {
         start,
@@ -532,6 +597,27 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
         slave_log,
         info,
     })
+}
+
+/// Opens the slave's Galil board, when its board is one (`None` for a simulated board).
+fn open_slave_galil(
+    lab: &LabConfig,
+    slave: &str,
+    model: &models::DhRobotModel,
+    zero_pose: &JointVector,
+    options: &RunOptions,
+    start: Timestamp,
+) -> Result<Option<GalilSetup>, RunError> {
+    let (name, board) = lab.board_of(slave)?;
+    if board.kind != BoardKind::Galil {
+        return Ok(None);
+    }
+    if options.clock == ClockMode::Simulated {
+        return Err(RunError::Setup(format!(
+            "board `{name}` is a galil board, which runs in real time: use the real-time clock (no --sim-clock)"
+        )));
+    }
+    galil_board(board, model, zero_pose, start).map(Some).map_err(setup(&format!("board `{name}`")))
 }
 
 /// A `Robot` view of a model, for encoder scaling.

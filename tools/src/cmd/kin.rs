@@ -28,6 +28,10 @@ pub struct Args {
     /// Print one JSON object instead of text.
     #[arg(long, global = true)]
     pub json: bool,
+    /// Compute fk and jacobian with the bit-exact model of the FPGA board (FRHC only); fk also
+    /// reports the raw fixed-point words and the modelled cycle count at 40 MHz.
+    #[arg(long, global = true)]
+    pub fpga: bool,
 }
 
 /// Joint positions.
@@ -100,6 +104,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 fn output(args: &Args) -> anyhow::Result<String> {
     let m = load(&args.robot)?;
     let n = m.joint_count();
+    if args.fpga {
+        return fpga_output(args, &m);
+    }
     let out = match &args.op {
         Op::Fk(j) => {
             let q = joints(&m, "--q", &j.q)?;
@@ -235,6 +242,70 @@ fn output(args: &Args) -> anyhow::Result<String> {
 }
 
 /// A built-in robot or a DH file; anything else is a usage error.
+/// `--fpga`: fk and jacobian from the bit-exact FPGA model of the FRHC.
+fn fpga_output(args: &Args, m: &DhRobotModel) -> anyhow::Result<String> {
+    use penelope_fpga::{FpgaKinematics, cycles, pipeline};
+    if m.name() != "frhc" {
+        return Err(usage(format!(
+            "--fpga models the FRHC's FPGA board; robot `{}` has no FPGA kinematics",
+            args.robot
+        )));
+    }
+    let fpga = FpgaKinematics::frhc();
+    match &args.op {
+        Op::Fk(j) => {
+            let q = joints(m, "--q", &j.q)?;
+            let run = fpga.fk_words(&q).map_err(|e| usage(format!("--q: {e}")))?;
+            let t = FpgaKinematics::pose_of(&run.words).to_homogeneous();
+            let seconds = cycles::seconds(run.cycles);
+            if args.json {
+                return Ok(json!({
+                    "T": rows(&t),
+                    "fpga": {
+                        "q_words": run.q,
+                        "q_format": "<+-,24,1> pi-rad",
+                        "r_words": run.words.r,
+                        "r_format": pipeline::ROT.to_string(),
+                        "p_words": run.words.p,
+                        "p_format": pipeline::POS.to_string(),
+                        "cycles": run.cycles,
+                        "clock_hz": cycles::CLOCK_HZ,
+                        "latency_s": seconds,
+                    }
+                })
+                .to_string());
+            }
+            let mut s = header(m, "forward kinematics (bit-exact FPGA model)", &q);
+            s += &format!("T (tool pose in the base frame; m) =\n{}", matrix_text(&t, None));
+            s += &format!(
+                "raw words: p {:?} ({}), r {:?} ({})\n{} cycles at {} MHz = {:.3} µs\n",
+                run.words.p,
+                pipeline::POS,
+                run.words.r,
+                pipeline::ROT,
+                run.cycles,
+                cycles::CLOCK_HZ / 1e6,
+                seconds * 1e6
+            );
+            Ok(s)
+        }
+        Op::Jacobian { joints: j, frame } => {
+            let q = joints(m, "--q", &j.q)?;
+            let frame = match frame {
+                FrameArg::Base => JacobianFrame::Base,
+                FrameArg::Tool => JacobianFrame::Tool,
+            };
+            let jac = penelope_hal::Kinematics::jacobian(&fpga, &q, frame);
+            if args.json {
+                Ok(json!({ "J": rows(&jac) }).to_string())
+            } else {
+                Ok(header(m, "geometric Jacobian (bit-exact FPGA model)", &q) + &matrix_text(&jac, None))
+            }
+        }
+        _ => Err(usage("--fpga applies to fk and jacobian only")),
+    }
+}
+
 fn load(robot: &str) -> anyhow::Result<DhRobotModel> {
     if let Some(m) = model::by_name(robot) {
         return Ok(m);

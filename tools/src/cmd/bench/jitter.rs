@@ -53,8 +53,9 @@ pub struct Args {
     /// SCHED_FIFO priority of both measured threads.
     #[arg(long, default_value_t = 90)]
     pub priority: u8,
-    /// Length of one alternation slice.
-    #[arg(long, default_value = "5s")]
+    /// Length of one alternation slice (short slices spread a changing background load evenly
+    /// over both sides).
+    #[arg(long, default_value = "1s")]
     pub slice: String,
     /// Length of each run of the achievable-rate search; `0s` skips the search.
     #[arg(long, default_value = "2s")]
@@ -153,12 +154,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut ours = Measurement::new("penelope");
     let mut theirs = Measurement::new("cyclictest");
     let mut rt = RtStatus::default();
+    let mut pairs = Vec::with_capacity(slices as usize);
     for i in 0..slices {
         let report = run_ours(period, per_slice, args.priority, cpu)?;
         rt = report.rt;
         ours.add_report(&report);
         let ct = run_cyclictest(period, per_slice, args.priority, cpu)?;
         theirs.add(&ct);
+        pairs.push((report.latency.summary(), ct.summary()));
         eprintln!("  slice {}/{slices} done", i + 1);
     }
 
@@ -171,20 +174,23 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         for hz in [1_000u64, 2_000, 4_000, 8_000, 10_000, 20_000] {
             let p = Duration::from_nanos(1_000_000_000 / hz);
             let report = run_ours(p, rate_duration, args.priority, cpu)?;
+            let baseline = run_cyclictest(p, rate_duration, args.priority, cpu)?;
             rates.push(RateRun {
                 hz,
                 ticks: report.ticks,
                 overruns: report.overruns,
                 late: report.latency.count_at_or_above(p),
                 p999: report.latency.summary().p999,
+                exec_mean: report.exec.mean(),
                 exec_max: report.exec.max(),
+                baseline_late: baseline.count_at_or_above(p),
             });
         }
     }
     let best = rates.iter().filter(|r| r.overruns == 0).map(|r| r.hz).max();
 
     let text = render_text(
-        &args, period, duration, cpu, &ours, &theirs, &rates, best, &rt,
+        &args, period, duration, cpu, &ours, &theirs, &pairs, &rates, best, &rt,
     );
     print!("{text}");
     let json_path = args.out.join("jitter.json");
@@ -199,9 +205,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "ours": ours.json(period),
         "cyclictest": theirs.json(period),
         "ratios": ratios_json(&ours.histogram.summary(), &theirs.histogram.summary()),
+        "per_slice_median_ratios": {
+            "p99": finite_or_null(median_ratio(&pairs, |s| s.p99)),
+            "p999": finite_or_null(median_ratio(&pairs, |s| s.p999)),
+        },
         "rates": rates.iter().map(|r| json!({
             "hz": r.hz, "ticks": r.ticks, "overruns": r.overruns, "late_by_a_period": r.late,
-            "p999_us": us(r.p999), "exec_max_us": us(r.exec_max),
+            "p999_us": us(r.p999), "exec_mean_us": us(r.exec_mean), "exec_max_us": us(r.exec_max),
+            "cyclictest_late_by_a_period": r.baseline_late,
         })).collect::<Vec<_>>(),
         "best_overrun_free_hz": best,
     });
@@ -222,7 +233,10 @@ struct RateRun {
     overruns: u64,
     late: u64,
     p999: Duration,
+    exec_mean: Duration,
     exec_max: Duration,
+    /// cyclictest's wake-ups late by a period or more, same rate and length.
+    baseline_late: u64,
 }
 
 /// One side's merged results.
@@ -273,6 +287,32 @@ impl Measurement {
     }
 }
 
+/// The median over slice pairs of `pick(ours) / pick(cyclictest)`.
+fn median_ratio(
+    pairs: &[(LatencySummary, LatencySummary)],
+    pick: impl Fn(&LatencySummary) -> Duration,
+) -> f64 {
+    let mut r: Vec<f64> = pairs
+        .iter()
+        .map(|(a, b)| ratio(pick(a), pick(b)))
+        .filter(|x| x.is_finite())
+        .collect();
+    if r.is_empty() {
+        return f64::NAN;
+    }
+    r.sort_by(f64::total_cmp);
+    let n = r.len();
+    if n % 2 == 1 {
+        r[n / 2]
+    } else {
+        (r[n / 2 - 1] + r[n / 2]) / 2.0
+    }
+}
+
+fn finite_or_null(x: f64) -> serde_json::Value {
+    if x.is_finite() { json!(x) } else { json!(null) }
+}
+
 fn ratio(a: Duration, b: Duration) -> f64 {
     if b.is_zero() {
         f64::NAN
@@ -306,6 +346,7 @@ fn render_text(
     cpu: usize,
     ours: &Measurement,
     theirs: &Measurement,
+    pairs: &[(LatencySummary, LatencySummary)],
     rates: &[RateRun],
     best: Option<u64>,
     rt: &RtStatus,
@@ -355,6 +396,15 @@ fn render_text(
         o,
         "(percentiles are 1 us bucket upper edges; late>=T: wake-ups a period or more late; overruns: ticks that ended past the next deadline)"
     );
+    if pairs.len() >= 3 {
+        let _ = writeln!(
+            o,
+            "median over the {} slice pairs of ours/cyclictest: p99 {:.2}, p99.9 {:.2} (robust to background load that changes between slices)",
+            pairs.len(),
+            median_ratio(pairs, |s| s.p99),
+            median_ratio(pairs, |s| s.p999)
+        );
+    }
     let _ = writeln!(
         o,
         "real-time settings of our thread: SCHED_FIFO {}, affinity {}, mlockall {}, cpu_dma_latency {}",
@@ -364,22 +414,34 @@ fn render_text(
         rt_json(rt)["cpu_dma_latency"].as_str().unwrap_or("?"),
     );
     if !rates.is_empty() {
-        let _ = writeln!(o, "\nAchievable control rate (our loop, same load):");
         let _ = writeln!(
             o,
-            "{:>8} {:>9} {:>9} {:>9} {:>10} {:>12}",
-            "rate", "ticks", "overruns", "late>=T", "p99.9 us", "exec max us"
+            "\nAchievable control rate (our loop, same load; cyclictest at the same rate for reference):"
+        );
+        let _ = writeln!(
+            o,
+            "{:>8} {:>9} {:>9} {:>9} {:>10} {:>13} {:>12} {:>11}",
+            "rate",
+            "ticks",
+            "overruns",
+            "late>=T",
+            "p99.9 us",
+            "exec mean us",
+            "exec max us",
+            "ct late>=T"
         );
         for r in rates {
             let _ = writeln!(
                 o,
-                "{:>5} kHz {:>9} {:>9} {:>9} {:>10.1} {:>12.1}",
+                "{:>5} kHz {:>9} {:>9} {:>9} {:>10.1} {:>13.1} {:>12.1} {:>11}",
                 r.hz / 1000,
                 r.ticks,
                 r.overruns,
                 r.late,
                 us(r.p999),
-                us(r.exec_max)
+                us(r.exec_mean),
+                us(r.exec_max),
+                r.baseline_late
             );
         }
         match best {
