@@ -438,13 +438,19 @@ fn master_caps_displayed_force_goes_to_zero_force_when_stale_then_faults_off() {
         torque: Vector3::zeros(),
         frame: Frame::Base,
     };
-    ref_tx.write(Stamped { stamp: ms(1), value: Reference::Wrench(slave_force) });
+    ref_tx.write(Stamped {
+        stamp: ms(1),
+        value: Reference::Wrench(slave_force),
+    });
     let out = ctl.tick(ms(1));
     assert_eq!(out.state, SafetyState::Running);
     assert!(out.events.contains(SafetyEvent::ForceLimited));
     let s = tel_rx.pop().unwrap();
     assert_eq!(s.wrench, contact, "the measured wrench is reported");
-    assert!((s.commanded_wrench.force.norm() - 10.0).abs() < 1e-9, "displayed force capped at 10 N");
+    assert!(
+        (s.commanded_wrench.force.norm() - 10.0).abs() < 1e-9,
+        "displayed force capped at 10 N"
+    );
     assert!((s.commanded_wrench.force.z / s.commanded_wrench.force.y - 4.0 / 3.0).abs() < 1e-9);
     assert!(s.effort.iter().any(|t| t.abs() > 0.1));
     // No new reference: after 50 ms zero force (amplifiers on), after 550 ms fault: off.
@@ -457,7 +463,14 @@ fn master_caps_displayed_force_goes_to_zero_force_when_stale_then_faults_off() {
         ctl.tick(ms(t));
     }
     assert_eq!(ctl.safety().state(), SafetyState::Fault);
-    assert_eq!(ctl.safety().fault_cause(), Some(FaultCause::ReferenceTimeout));
+    assert_eq!(
+        ctl.safety().fault_cause(),
+        Some(FaultCause::ReferenceTimeout)
+    );
     assert_eq!(ctl.last_sample().effort, JointVector::zeros());
-    assert_eq!(ctl.last_sample().position_command, JointVector::zeros(), "master fault: off, no hold");
+    assert_eq!(
+        ctl.last_sample().position_command,
+        JointVector::zeros(),
+        "master fault: off, no hold"
+    );
 }

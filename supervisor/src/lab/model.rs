@@ -17,9 +17,9 @@ pub enum LabModel {
     /// kinematics and dynamics from the float model.
     Fpga {
         /// The FPGA model.
-        fpga: FpgaKinematics,
+        fpga: Box<FpgaKinematics>,
         /// The float model, for everything the FPGA does not compute.
-        float: Box<DhRobotModel>,
+        float: DhRobotModel,
     },
 }
 
@@ -47,7 +47,7 @@ impl LabModel {
         if float.name() != "frhc" {
             return Err(NoFpgaModel(float.name().to_string()));
         }
-        Ok(LabModel::Fpga { fpga: FpgaKinematics::frhc(), float: Box::new(float) })
+        Ok(LabModel::Fpga { fpga: Box::new(FpgaKinematics::frhc()), float })
     }
 
     /// The underlying float model (dynamics, named poses, encoder scaling).

@@ -129,6 +129,19 @@ pub struct Report {
     pub faults: Vec<String>,
     /// Telemetry samples dropped because the logger fell behind.
     pub dropped_samples: usize,
+    /// The slave's Galil link, when the slave is on a Galil board: exchanges and mean rate (Hz).
+    pub galil_link: Option<GalilLinkReport>,
+}
+
+/// What a Galil board's I/O thread achieved.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct GalilLinkReport {
+    /// Command/reply cycles completed.
+    pub cycles: u64,
+    /// Mean cycles per second over the run.
+    pub mean_rate_hz: f64,
+    /// Whether the link ended faulted.
+    pub faulted: bool,
 }
 
 fn phase_of(info: &RunInfo, t: Timestamp) -> &'static str {
@@ -327,5 +340,10 @@ pub fn report(out: &RunOutput) -> Report {
         safety_events,
         faults,
         dropped_samples: out.dropped.0 + out.dropped.1,
+        galil_link: info.slave_link.as_ref().map(|l| GalilLinkReport {
+            cycles: l.cycles(),
+            mean_rate_hz: l.mean_exchange_rate_hz(),
+            faulted: l.faulted(),
+        }),
     }
 }

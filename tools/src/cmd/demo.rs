@@ -200,6 +200,14 @@ fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
             );
         }
     }
+    if let Some(link) = &r.galil_link {
+        println!(
+            "  galil link (slave board): {} exchanges, {:.0} per second{}",
+            link.cycles,
+            link.mean_rate_hz,
+            if link.faulted { ", FAULTED" } else { "" }
+        );
+    }
     println!("  safety events");
     if r.safety_events.is_empty() {
         println!("    none");

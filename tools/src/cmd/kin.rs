@@ -562,12 +562,31 @@ mod tests {
             robot: robot.into(),
             op,
             json: true,
+            fpga: false,
         };
         serde_json::from_str(&output(&args).unwrap()).unwrap()
     }
 
     fn q(text: &str) -> JointArg {
         JointArg { q: text.into() }
+    }
+
+    #[test]
+    fn fpga_fk_matches_the_float_path_and_reports_its_words() {
+        let float = json("frhc", Op::Fk(q("0.1,1,2.5,0.2,0.3,0.1")));
+        let args = Args { robot: "frhc".into(), op: Op::Fk(q("0.1,1,2.5,0.2,0.3,0.1")), json: true, fpga: true };
+        let fpga: serde_json::Value = serde_json::from_str(&output(&args).unwrap()).unwrap();
+        for i in 0..3 {
+            for j in 0..4 {
+                let (a, b) = (float["T"][i][j].as_f64().unwrap(), fpga["T"][i][j].as_f64().unwrap());
+                assert!((a - b).abs() < 1e-5, "T[{i}][{j}]: float {a}, fpga {b}");
+            }
+        }
+        assert_eq!(fpga["fpga"]["cycles"], 61);
+        assert_eq!(fpga["fpga"]["p_words"].as_array().unwrap().len(), 3);
+        let not_frhc = Args { robot: "puma560".into(), op: Op::Fk(q("qn")), json: true, fpga: true };
+        let err = output(&not_frhc).unwrap_err();
+        assert!(err.downcast_ref::<crate::cmd::UsageError>().is_some(), "{err}");
     }
 
     #[test]
@@ -628,6 +647,7 @@ mod tests {
                 robot: robot.into(),
                 op,
                 json: false,
+                fpga: false,
             };
             output(&args).unwrap_err()
         };
