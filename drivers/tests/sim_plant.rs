@@ -24,7 +24,10 @@ fn holding_torque_holds_and_no_torque_falls() {
     let robot = model::puma200();
     let q0 = robot.named_pose(NamedPose::Work);
     let hold = robot.gravity(&q0);
-    let config = PlantConfig { friction: false, ..PlantConfig::default() };
+    let config = PlantConfig {
+        friction: false,
+        ..PlantConfig::default()
+    };
     let mut held = RigidBodyPlant::new(model::puma200(), config, q0, Timestamp::ZERO);
     held.advance_to(ms(500), &hold, &mut FreeSpace);
     let drift = (held.snapshot().joints.position - q0).norm();
@@ -33,7 +36,10 @@ fn holding_torque_holds_and_no_torque_falls() {
     let mut dropped = RigidBodyPlant::new(model::puma200(), config, q0, Timestamp::ZERO);
     dropped.advance_to(ms(200), &JointVector::zeros(), &mut FreeSpace);
     let fell = (dropped.snapshot().joints.position - q0).norm();
-    assert!(fell > 1e-2, "an unpowered arm must fall, moved only {fell} rad");
+    assert!(
+        fell > 1e-2,
+        "an unpowered arm must fall, moved only {fell} rad"
+    );
     assert!(dropped.snapshot().kinetic_energy > 0.0);
 }
 
@@ -42,19 +48,42 @@ fn friction_and_motor_limits_take_effect() {
     let robot = model::puma200();
     let q0 = robot.named_pose(NamedPose::Work);
     let push = robot.gravity(&q0) + JointVector::new(50.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    let limited = PlantConfig { motor_torque_limit: JointVector::repeat(1.0), friction: false, ..PlantConfig::default() };
+    let limited = PlantConfig {
+        motor_torque_limit: JointVector::repeat(1.0),
+        friction: false,
+        ..PlantConfig::default()
+    };
     let mut plant = RigidBodyPlant::new(model::puma200(), limited, q0, Timestamp::ZERO);
     plant.advance_to(ms(10), &push, &mut FreeSpace);
-    assert!(plant.snapshot().joints.effort.iter().all(|e| e.abs() <= 1.0));
+    assert!(
+        plant
+            .snapshot()
+            .joints
+            .effort
+            .iter()
+            .all(|e| e.abs() <= 1.0)
+    );
 
-    let free = PlantConfig { friction: false, ..PlantConfig::default() };
-    let with_friction = PlantConfig { friction: true, ..PlantConfig::default() };
+    let free = PlantConfig {
+        friction: false,
+        ..PlantConfig::default()
+    };
+    let with_friction = PlantConfig {
+        friction: true,
+        ..PlantConfig::default()
+    };
     let mut a = RigidBodyPlant::new(model::puma200(), free, q0, Timestamp::ZERO);
     let mut b = RigidBodyPlant::new(model::puma200(), with_friction, q0, Timestamp::ZERO);
     a.advance_to(ms(100), &push, &mut FreeSpace);
     b.advance_to(ms(100), &push, &mut FreeSpace);
-    let (va, vb) = (a.snapshot().joints.velocity[0], b.snapshot().joints.velocity[0]);
-    assert!(va > 0.0 && vb < va, "friction must slow the joint: {vb} vs {va}");
+    let (va, vb) = (
+        a.snapshot().joints.velocity[0],
+        b.snapshot().joints.velocity[0],
+    );
+    assert!(
+        va > 0.0 && vb < va,
+        "friction must slow the joint: {vb} vs {va}"
+    );
 }
 
 fn board_config(counts_per_radian: f64) -> SimBoardConfig {
@@ -94,16 +123,28 @@ fn the_board_quantises_encoders_and_the_dac() {
     assert_eq!(axes[0].effort, 100.0, "saturated at full scale");
     assert_eq!(axes[1].effort, 0.0, "rounded to the nearest DAC level");
     commands[0] = AxisCommand::Effort(f64::NAN);
-    assert!(board.write_axes(ms(1), &commands).is_err(), "NaN is refused");
-    assert!(board.read_axes(ms(2), &mut axes[..3]).is_err(), "short slices are refused");
+    assert!(
+        board.write_axes(ms(1), &commands).is_err(),
+        "NaN is refused"
+    );
+    assert!(
+        board.read_axes(ms(2), &mut axes[..3]).is_err(),
+        "short slices are refused"
+    );
 }
 
 #[test]
 fn the_on_board_position_loop_reaches_its_target() {
     let robot = model::puma200();
     let q0 = robot.named_pose(NamedPose::Work);
-    let mut board =
-        SimBoard::new(model::puma200(), PlantConfig::default(), board_config(10_000.0), FreeSpace, q0, Timestamp::ZERO);
+    let mut board = SimBoard::new(
+        model::puma200(),
+        PlantConfig::default(),
+        board_config(10_000.0),
+        FreeSpace,
+        q0,
+        Timestamp::ZERO,
+    );
     board.set_enabled(true).unwrap();
     let mut commands = [AxisCommand::Off; 8];
     let target = q0 + JointVector::new(0.05, 0.0, 0.0, 0.0, 0.0, 0.0);
@@ -115,7 +156,11 @@ fn the_on_board_position_loop_reaches_its_target() {
     board.read_axes(ms(1500), &mut axes).unwrap();
     // The PD loop without gravity feed-forward leaves a steady error on loaded joints; joint 1
     // (vertical axis) carries no gravity load and must arrive.
-    assert!(axes[0].following_error.abs() < 200, "joint 1 error {} counts", axes[0].following_error);
+    assert!(
+        axes[0].following_error.abs() < 200,
+        "joint 1 error {} counts",
+        axes[0].following_error
+    );
 }
 
 #[test]
@@ -125,7 +170,10 @@ fn the_virtual_sensor_reads_the_wall_in_its_own_frame() {
     let tool = robot.forward(&q0).translation.vector;
     // A floor whose surface is 1 mm above the tool: the tool starts 1 mm inside it.
     let wall = ContactModel {
-        shape: Shape::Plane { point: tool + Vector3::new(0.0, 0.0, 0.001), normal: Vector3::z_axis() },
+        shape: Shape::Plane {
+            point: tool + Vector3::new(0.0, 0.0, 0.001),
+            normal: Vector3::z_axis(),
+        },
         stiffness: 10_000.0,
         damping: 0.0,
     };
@@ -133,9 +181,15 @@ fn the_virtual_sensor_reads_the_wall_in_its_own_frame() {
     let mut tap = TapWriter::new();
     let reader = tap.reader().unwrap();
     let mut truth = tap.reader().unwrap();
-    let mut board =
-        SimBoard::new(model::puma200(), PlantConfig::default(), board_config(10_000.0), environment, q0, Timestamp::ZERO)
-            .with_tap(tap);
+    let mut board = SimBoard::new(
+        model::puma200(),
+        PlantConfig::default(),
+        board_config(10_000.0),
+        environment,
+        q0,
+        Timestamp::ZERO,
+    )
+    .with_tap(tap);
     let mut sensor = VirtualForceSensor::new(
         ForceSensorConfig {
             mount: Pose::identity(),
@@ -147,14 +201,23 @@ fn the_virtual_sensor_reads_the_wall_in_its_own_frame() {
         },
         reader,
     );
-    assert!(sensor.read(Timestamp::ZERO).is_err(), "no data before the first board read");
+    assert!(
+        sensor.read(Timestamp::ZERO).is_err(),
+        "no data before the first board read"
+    );
     let mut axes = [AxisState::default(); 8];
-    board.read_axes(Timestamp::from_nanos(200_000), &mut axes).unwrap();
+    board
+        .read_axes(Timestamp::from_nanos(200_000), &mut axes)
+        .unwrap();
     let reading = sensor.read(Timestamp::from_nanos(200_000)).unwrap();
     let sample = truth.latest().unwrap();
     // The wall pushes the tool up with ~10 N; the sensor reports the tool pushing down, in the
     // tool frame.
-    assert!((sample.base_wrench.force - Vector3::new(0.0, 0.0, 10.0)).norm() < 0.5, "{:?}", sample.base_wrench);
+    assert!(
+        (sample.base_wrench.force - Vector3::new(0.0, 0.0, 10.0)).norm() < 0.5,
+        "{:?}",
+        sample.base_wrench
+    );
     let expected = sample.tool_pose.rotation.inverse() * -sample.base_wrench.force;
     assert!((reading.force - expected).norm() < 1e-9);
     assert_eq!(reading.frame, Frame::Sensor);

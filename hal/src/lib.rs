@@ -6,7 +6,7 @@
 //!   (time is passed in, never read inside logic).
 //! - [`joint`]: joint-space vectors, state and limits (radians, rad/s, N·m).
 //! - [`spatial`]: poses, twists and wrenches, each tagged with the [`Frame`] it is expressed in.
-//! - [`reference`]: what a trajectory hands a controller: joint, Cartesian, wrench or hybrid.
+//! - [`reference`](mod@reference): what a trajectory hands a controller: joint, Cartesian, wrench or hybrid.
 //! - [`lifecycle`]: the ROS 2 lifecycle (`unconfigured -> inactive -> active -> finalized`, + `error`).
 //! - [`error`]: the embedded-hal style [`ErrorKind`] every device error maps onto.
 //! - The five object traits: [`board`], [`robot`] (with [`robot::Kinematics`] and

@@ -7,7 +7,13 @@ use penelope_supervisor::lab::run::{ClockMode, RunOptions, RunOutput, run};
 use penelope_supervisor::lab::{LabConfig, Law};
 
 fn simulate(law: Law, seed: u64, duration: Option<Duration>) -> (RunOutput, Report) {
-    let options = RunOptions { duration, law: Some(law), scale: None, seed, clock: ClockMode::Simulated };
+    let options = RunOptions {
+        duration,
+        law: Some(law),
+        scale: None,
+        seed,
+        clock: ClockMode::Simulated,
+    };
     let out = run(&LabConfig::demo(), &options, &mut |_| {}).expect("the demo lab builds and runs");
     let r = report(&out);
     (out, r)
@@ -18,9 +24,21 @@ fn free_motion_tracking_is_under_two_millimetres_rms_for_both_laws() {
     for law in [Law::ForcePosition, Law::PositionError] {
         let (_, r) = simulate(law, 1, None);
         assert!(r.faults.is_empty(), "{law:?}: faults {:?}", r.faults);
-        assert!(r.tracking.samples > 5_000, "{law:?}: too few free-motion ticks: {}", r.tracking.samples);
-        assert!(r.tracking.rms_mm < 2.0, "{law:?}: tracking RMS {} mm", r.tracking.rms_mm);
-        assert!(r.tracking.max_mm < 5.0, "{law:?}: tracking max {} mm", r.tracking.max_mm);
+        assert!(
+            r.tracking.samples > 5_000,
+            "{law:?}: too few free-motion ticks: {}",
+            r.tracking.samples
+        );
+        assert!(
+            r.tracking.rms_mm < 2.0,
+            "{law:?}: tracking RMS {} mm",
+            r.tracking.rms_mm
+        );
+        assert!(
+            r.tracking.max_mm < 5.0,
+            "{law:?}: tracking max {} mm",
+            r.tracking.max_mm
+        );
     }
 }
 
@@ -29,11 +47,24 @@ fn in_steady_contact_the_master_displays_the_gain_times_the_mapped_sensor_force(
     let (_, r) = simulate(Law::ForcePosition, 1, None);
     let c = &r.contact;
     assert!(c.samples > 500, "steady-contact ticks: {}", c.samples);
-    assert!(c.sensed_force_n > 5.0, "the slave must press on the wall, sensed {} N", c.sensed_force_n);
-    assert!(c.display_error_pct < 5.0, "commanded display off by {}%", c.display_error_pct);
+    assert!(
+        c.sensed_force_n > 5.0,
+        "the slave must press on the wall, sensed {} N",
+        c.sensed_force_n
+    );
+    assert!(
+        c.display_error_pct < 5.0,
+        "commanded display off by {}%",
+        c.display_error_pct
+    );
     // The force the operator's hand actually feels (the plant's statics) also matches.
     let hand_error = (c.hand_force_n - c.expected_display_n).abs() / c.expected_display_n * 100.0;
-    assert!(hand_error < 5.0, "hand feels {} N, expected {} N", c.hand_force_n, c.expected_display_n);
+    assert!(
+        hand_error < 5.0,
+        "hand feels {} N, expected {} N",
+        c.hand_force_n,
+        c.expected_display_n
+    );
     // The sensor tracks the true contact force (bias tared, noise filtered).
     assert!((c.sensed_force_n - c.true_contact_force_n).abs() < 0.05 * c.true_contact_force_n);
 }
@@ -44,8 +75,14 @@ fn tapping_does_not_build_up_energy_with_default_gains() {
         let (_, r) = simulate(law, 1, None);
         let peaks = &r.energy.tap_cycle_peaks_j;
         assert!(peaks.len() >= 5, "{law:?}: tap cycles {}", peaks.len());
-        assert!(peaks.iter().all(|e| e.is_finite() && *e > 0.0), "{law:?}: {peaks:?}");
-        assert!(r.energy.growth_ratio <= 1.05, "{law:?}: energy grows: {peaks:?}");
+        assert!(
+            peaks.iter().all(|e| e.is_finite() && *e > 0.0),
+            "{law:?}: {peaks:?}"
+        );
+        assert!(
+            r.energy.growth_ratio <= 1.05,
+            "{law:?}: energy grows: {peaks:?}"
+        );
     }
 }
 
@@ -64,11 +101,19 @@ fn clutch_re_anchoring_never_jumps() {
     let held: Vec<_> = out
         .slave
         .iter()
-        .filter(|s| (s.telemetry.time - out.info.start) >= a && (s.telemetry.time - out.info.start) < b)
+        .filter(|s| {
+            (s.telemetry.time - out.info.start) >= a && (s.telemetry.time - out.info.start) < b
+        })
         .map(|s| s.telemetry.reference_position)
         .collect();
-    let spread = held.iter().map(|p| (p - held[0]).norm()).fold(0.0f64, f64::max);
-    assert!(spread < 1e-4, "the slave reference moved {spread} m while clutched");
+    let spread = held
+        .iter()
+        .map(|p| (p - held[0]).norm())
+        .fold(0.0f64, f64::max);
+    assert!(
+        spread < 1e-4,
+        "the slave reference moved {spread} m while clutched"
+    );
 }
 
 #[test]
@@ -77,18 +122,30 @@ fn the_simulated_clock_is_bit_for_bit_reproducible_and_the_seed_matters() {
     let (a, _) = simulate(Law::ForcePosition, 7, short);
     let (b, _) = simulate(Law::ForcePosition, 7, short);
     assert_eq!(a.master.len(), b.master.len());
-    assert!(a.master == b.master && a.slave == b.slave, "same seed, different telemetry");
+    assert!(
+        a.master == b.master && a.slave == b.slave,
+        "same seed, different telemetry"
+    );
     let (c, _) = simulate(Law::ForcePosition, 8, short);
-    assert!(a.slave != c.slave, "a different seed must change the sensor noise and so the telemetry");
+    assert!(
+        a.slave != c.slave,
+        "a different seed must change the sensor noise and so the telemetry"
+    );
 }
 
 #[test]
 fn a_bad_configuration_is_a_clear_error_not_a_crash() {
-    let text = penelope_supervisor::lab::config::DEMO_TOML.replace("model = \"puma200\"", "model = \"puma999\"");
+    let text = penelope_supervisor::lab::config::DEMO_TOML
+        .replace("model = \"puma200\"", "model = \"puma999\"");
     let lab = LabConfig::from_toml(&text).unwrap();
-    let err = run(&lab, &RunOptions::default(), &mut |_| {}).err().expect("unknown model");
+    let err = run(&lab, &RunOptions::default(), &mut |_| {})
+        .err()
+        .expect("unknown model");
     assert!(err.to_string().contains("puma999"), "{err}");
-    let options = RunOptions { scale: Some(f64::NAN), ..RunOptions::default() };
+    let options = RunOptions {
+        scale: Some(f64::NAN),
+        ..RunOptions::default()
+    };
     assert!(run(&LabConfig::demo(), &options, &mut |_| {}).is_err());
 }
 
@@ -99,17 +156,34 @@ fn the_fpga_kinematics_drive_the_master_when_configured() {
         "kinematics = \"fpga\" # \"float\", or \"fpga\"",
         1,
     );
-    assert_ne!(text, penelope_supervisor::lab::config::DEMO_TOML, "the demo file names the switch");
+    assert_ne!(
+        text,
+        penelope_supervisor::lab::config::DEMO_TOML,
+        "the demo file names the switch"
+    );
     let lab = LabConfig::from_toml(&text).unwrap();
-    let options = RunOptions { duration: Some(Duration::from_secs(9)), ..RunOptions::default() };
+    let options = RunOptions {
+        duration: Some(Duration::from_secs(9)),
+        ..RunOptions::default()
+    };
     let out = run(&lab, &options, &mut |_| {}).unwrap();
-    assert!(matches!(out.info.master_model, penelope_supervisor::lab::model::LabModel::Fpga { .. }));
+    assert!(matches!(
+        out.info.master_model,
+        penelope_supervisor::lab::model::LabModel::Fpga { .. }
+    ));
     let r = report(&out);
     assert!(r.faults.is_empty(), "{:?}", r.faults);
-    assert!(r.tracking.rms_mm < 2.0, "tracking with FPGA kinematics: {} mm", r.tracking.rms_mm);
+    assert!(
+        r.tracking.rms_mm < 2.0,
+        "tracking with FPGA kinematics: {} mm",
+        r.tracking.rms_mm
+    );
     // The FPGA words differ from f64 by well under a micrometre, so the runs differ, but little.
     let (float, _) = simulate(Law::ForcePosition, 1, Some(Duration::from_secs(9)));
-    assert!(out.slave != float.slave, "the FPGA path must actually be in use");
+    assert!(
+        out.slave != float.slave,
+        "the FPGA path must actually be in use"
+    );
     let drift = out
         .slave
         .iter()
@@ -124,6 +198,8 @@ fn the_fpga_kinematics_drive_the_master_when_configured() {
         1,
     );
     let lab = LabConfig::from_toml(&puma_fpga).unwrap();
-    let err = run(&lab, &options, &mut |_| {}).err().expect("no FPGA model of a PUMA");
+    let err = run(&lab, &options, &mut |_| {})
+        .err()
+        .expect("no FPGA model of a PUMA");
     assert!(err.to_string().contains("fpga"), "{err}");
 }

@@ -58,10 +58,24 @@ fn one_hundred_thousand_demo_ticks_allocate_nothing() {
         reports += 1;
     })
     .expect("the demo lab runs");
-    assert!(out.slave.len() >= 100_000, "ran {} slave ticks", out.slave.len());
+    assert!(
+        out.slave.len() >= 100_000,
+        "ran {} slave ticks",
+        out.slave.len()
+    );
     assert!(reports > 100, "progress was reported {reports} times");
     let first = first.expect("progress was reported");
-    assert_eq!(last - first, 0, "the loops allocated or freed {} times", last - first);
+    assert_eq!(
+        last - first,
+        0,
+        "the loops allocated or freed {} times",
+        last - first
+    );
     // The run went through every phase: contact was made and the clutch was used.
-    assert!(out.slave.iter().any(|s| s.telemetry.wrench.force.norm() > 5.0), "contact happened");
+    assert!(
+        out.slave
+            .iter()
+            .any(|s| s.telemetry.wrench.force.norm() > 5.0),
+        "contact happened"
+    );
 }

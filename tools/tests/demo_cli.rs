@@ -15,11 +15,24 @@ fn scratch(name: &str) -> PathBuf {
 
 fn run_sim(out: &Path, seed: u64) -> serde_json::Value {
     let output = penelope()
-        .args(["demo", "--sim-clock", "--duration", "13s", "--json", "--seed", &seed.to_string(), "--out"])
+        .args([
+            "demo",
+            "--sim-clock",
+            "--duration",
+            "13s",
+            "--json",
+            "--seed",
+            &seed.to_string(),
+            "--out",
+        ])
         .arg(out)
         .output()
         .expect("penelope runs");
-    assert!(output.status.success(), "stderr: {}", String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     serde_json::from_slice(&output.stdout).expect("--json prints the report as JSON")
 }
 
@@ -31,7 +44,13 @@ fn sim_clock_runs_write_identical_files_for_a_seed_and_different_ones_for_anothe
     run_sim(&c, 4);
     assert_eq!(report["clock"], "simulated");
     assert!(report["tracking"]["rms_mm"].as_f64().unwrap() < 2.0);
-    for file in ["telemetry-master.csv", "telemetry-slave.csv", "tracking.svg", "forces.svg", "report.json"] {
+    for file in [
+        "telemetry-master.csv",
+        "telemetry-slave.csv",
+        "tracking.svg",
+        "forces.svg",
+        "report.json",
+    ] {
         assert!(a.join(file).is_file(), "{file} written");
     }
     let slave = |d: &Path| std::fs::read(d.join("telemetry-slave.csv")).unwrap();
@@ -51,8 +70,18 @@ fn bad_options_exit_with_code_two_and_say_why() {
         vec!["demo", "--sim-clock", "--duration", "soon"],
         vec!["demo", "--sim-clock", "--config", "/nonexistent/lab.toml"],
     ] {
-        let output = penelope().args(&args).arg("--out").arg(&out).output().unwrap();
-        assert_eq!(output.status.code(), Some(2), "{args:?}: {}", String::from_utf8_lossy(&output.stderr));
+        let output = penelope()
+            .args(&args)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert_eq!(
+            output.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&output.stderr)
+        );
         assert!(!output.stderr.is_empty(), "{args:?} explains itself");
     }
 }

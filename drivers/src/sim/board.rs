@@ -130,13 +130,20 @@ impl<M: RobotModel, I: Interaction> SimBoard<M, I> {
         let clipped = effort.clamp(-full, full);
         let levels = (1u64 << self.config.dac_bits.min(52)) as f64;
         let step = 2.0 * full / levels;
-        if step > 0.0 && step.is_finite() { libm::round(clipped / step) * step } else { clipped }
+        if step > 0.0 && step.is_finite() {
+            libm::round(clipped / step) * step
+        } else {
+            clipped
+        }
     }
 
     /// Integrates the plant to `now` with the held commands.
     fn advance(&mut self, now: Timestamp) {
         let n = self.axis_count();
-        let needs_servo = self.enabled && self.held[..n].iter().any(|c| matches!(c, AxisCommand::Position(_)));
+        let needs_servo = self.enabled
+            && self.held[..n]
+                .iter()
+                .any(|c| matches!(c, AxisCommand::Position(_)));
         if !needs_servo {
             let tau = self.held_efforts();
             self.plant.advance_to(now, &tau, &mut self.interaction);
@@ -144,7 +151,8 @@ impl<M: RobotModel, I: Interaction> SimBoard<M, I> {
         }
         // The on-board servo recomputes its torque every sub-step.
         while self.plant.snapshot().time < now {
-            let step_end = (self.plant.snapshot().time + core::time::Duration::from_micros(200)).min(now);
+            let step_end =
+                (self.plant.snapshot().time + core::time::Duration::from_micros(200)).min(now);
             let mut tau = self.held_efforts();
             let state = self.plant.snapshot().joints;
             for j in 0..n {
@@ -178,7 +186,11 @@ impl<M: RobotModel, I: Interaction> SimBoard<M, I> {
         let pose = self.plant.model().forward(&snapshot.joints.position);
         let base = snapshot.interaction;
         let rotation_t = pose.rotation.inverse();
-        let tool_wrench = Wrench { force: rotation_t * base.force, torque: rotation_t * base.torque, frame: Frame::Tool };
+        let tool_wrench = Wrench {
+            force: rotation_t * base.force,
+            torque: rotation_t * base.torque,
+            frame: Frame::Tool,
+        };
         tap.publish(TapSample {
             time: snapshot.time,
             joints: snapshot.joints,
@@ -206,7 +218,10 @@ impl<M: RobotModel, I: Interaction> Board for SimBoard<M, I> {
             return Err(SimBoardError::WrongLength);
         }
         self.advance(now);
-        let dt = self.last_read.map(|t| (now - t).as_secs_f64()).unwrap_or(0.0);
+        let dt = self
+            .last_read
+            .map(|t| (now - t).as_secs_f64())
+            .unwrap_or(0.0);
         let gain = if self.config.velocity_cutoff_hz > 0.0 && dt > 0.0 {
             let tau = 1.0 / (2.0 * core::f64::consts::PI * self.config.velocity_cutoff_hz);
             dt / (tau + dt)
@@ -228,7 +243,13 @@ impl<M: RobotModel, I: Interaction> Board for SimBoard<M, I> {
                 AxisCommand::Position(target) => target - counts,
                 _ => 0,
             };
-            *axis = AxisState { position: counts, velocity, effort, following_error, enabled: self.enabled };
+            *axis = AxisState {
+                position: counts,
+                velocity,
+                effort,
+                following_error,
+                enabled: self.enabled,
+            };
             self.last_counts[j] = counts;
         }
         self.last_read = Some(now);
@@ -238,12 +259,19 @@ impl<M: RobotModel, I: Interaction> Board for SimBoard<M, I> {
 
     /// # Real-time
     /// No allocation; integrates the plant up to `now` with the previous commands first.
-    fn write_axes(&mut self, now: Timestamp, commands: &[AxisCommand]) -> Result<(), SimBoardError> {
+    fn write_axes(
+        &mut self,
+        now: Timestamp,
+        commands: &[AxisCommand],
+    ) -> Result<(), SimBoardError> {
         let n = self.axis_count();
         if commands.len() < n {
             return Err(SimBoardError::WrongLength);
         }
-        if commands[..n].iter().any(|c| matches!(c, AxisCommand::Effort(e) if !e.is_finite())) {
+        if commands[..n]
+            .iter()
+            .any(|c| matches!(c, AxisCommand::Effort(e) if !e.is_finite()))
+        {
             return Err(SimBoardError::NonFinite);
         }
         self.advance(now);

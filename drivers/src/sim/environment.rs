@@ -36,7 +36,11 @@ impl Shape {
             Shape::Sphere { center, radius } => {
                 let d = p - center;
                 let dist = d.norm();
-                let normal = if dist > 1e-12 { Unit::new_unchecked(d / dist) } else { Vector3::z_axis() };
+                let normal = if dist > 1e-12 {
+                    Unit::new_unchecked(d / dist)
+                } else {
+                    Vector3::z_axis()
+                };
                 (radius - dist, normal)
             }
         }
@@ -70,7 +74,11 @@ impl ContactModel {
     /// Elastic energy stored in the contact at `p`, J (`½ k d²`).
     pub fn stored_energy(&self, p: &Vector3<f64>) -> f64 {
         let (depth, _) = self.shape.penetration(p);
-        if depth > 0.0 { 0.5 * self.stiffness * depth * depth } else { 0.0 }
+        if depth > 0.0 {
+            0.5 * self.stiffness * depth * depth
+        } else {
+            0.0
+        }
     }
 }
 
@@ -115,7 +123,11 @@ impl Interaction for Environment {
         let p = tool.translation.vector;
         let force = self.shapes.iter().map(|s| s.force(&p, &twist.linear)).sum();
         // Point contact at the tool origin: no moment about it.
-        Wrench { force, torque: Vector3::zeros(), frame: Frame::Base }
+        Wrench {
+            force,
+            torque: Vector3::zeros(),
+            frame: Frame::Base,
+        }
     }
 }
 
@@ -125,7 +137,10 @@ mod tests {
 
     fn wall() -> ContactModel {
         ContactModel {
-            shape: Shape::Plane { point: Vector3::new(0.5, 0.0, 0.0), normal: -Vector3::x_axis() },
+            shape: Shape::Plane {
+                point: Vector3::new(0.5, 0.0, 0.0),
+                normal: -Vector3::x_axis(),
+            },
             stiffness: 10_000.0,
             damping: 50.0,
         }
@@ -134,11 +149,17 @@ mod tests {
     #[test]
     fn a_wall_pushes_back_in_proportion_to_depth_and_never_pulls() {
         let w = wall();
-        assert_eq!(w.force(&Vector3::new(0.49, 0.0, 0.0), &Vector3::zeros()), Vector3::zeros());
+        assert_eq!(
+            w.force(&Vector3::new(0.49, 0.0, 0.0), &Vector3::zeros()),
+            Vector3::zeros()
+        );
         let f = w.force(&Vector3::new(0.502, 0.1, 0.0), &Vector3::zeros());
         assert!((f - Vector3::new(-20.0, 0.0, 0.0)).norm() < 1e-9);
         // Leaving fast: damping would pull, but the surface only pushes.
-        let leaving = w.force(&Vector3::new(0.5001, 0.0, 0.0), &Vector3::new(-5.0, 0.0, 0.0));
+        let leaving = w.force(
+            &Vector3::new(0.5001, 0.0, 0.0),
+            &Vector3::new(-5.0, 0.0, 0.0),
+        );
         assert_eq!(leaving, Vector3::zeros());
         assert!((w.stored_energy(&Vector3::new(0.502, 0.0, 0.0)) - 0.02).abs() < 1e-12);
     }
@@ -146,7 +167,10 @@ mod tests {
     #[test]
     fn a_sphere_pushes_radially() {
         let s = ContactModel {
-            shape: Shape::Sphere { center: Vector3::zeros(), radius: 0.1 },
+            shape: Shape::Sphere {
+                center: Vector3::zeros(),
+                radius: 0.1,
+            },
             stiffness: 1000.0,
             damping: 0.0,
         };

@@ -37,7 +37,11 @@ impl Default for ForceSensorConfig {
     fn default() -> Self {
         ForceSensorConfig {
             mount: Pose::identity(),
-            bias: Wrench { force: Vector3::new(0.4, -0.3, 0.8), torque: Vector3::new(0.01, 0.02, -0.01), frame: Frame::Sensor },
+            bias: Wrench {
+                force: Vector3::new(0.4, -0.3, 0.8),
+                torque: Vector3::new(0.01, 0.02, -0.01),
+                frame: Frame::Sensor,
+            },
             force_noise: 0.05,
             torque_noise: 0.002,
             cutoff_hz: 30.0,
@@ -124,7 +128,11 @@ impl Sensor for VirtualForceSensor {
         let truth = in_sensor.to_vector();
         let mut raw = [0.0; 6];
         for (i, value) in raw.iter_mut().enumerate() {
-            let sigma = if i < 3 { self.config.force_noise } else { self.config.torque_noise };
+            let sigma = if i < 3 {
+                self.config.force_noise
+            } else {
+                self.config.torque_noise
+            };
             *value = truth[i] + bias[i] + sigma * self.gaussian();
         }
         let filtered = match self.filtered {

@@ -107,7 +107,10 @@ impl OperatorScript {
     /// # Errors
     /// [`ScriptTooLong`] beyond [`MAX_SEGMENTS`].
     pub fn new(segments: &[Segment]) -> Result<Self, ScriptTooLong> {
-        let mut script = OperatorScript { segments: FixedVec::new(), starts: FixedVec::new() };
+        let mut script = OperatorScript {
+            segments: FixedVec::new(),
+            starts: FixedVec::new(),
+        };
         let mut position = Vector3::zeros();
         for s in segments {
             script.segments.push(*s).map_err(|_| ScriptTooLong)?;
@@ -154,9 +157,17 @@ impl OperatorScript {
             Motion::Hold => (start, Vector3::zeros()),
             Motion::MoveTo { offset } => {
                 let (s, ds) = minimum_jerk(t / total);
-                (start + (offset - start) * s, (offset - start) * (ds / total))
+                (
+                    start + (offset - start) * s,
+                    (offset - start) * (ds / total),
+                )
             }
-            Motion::Sine { axis, amplitude, frequency, fade } => {
+            Motion::Sine {
+                axis,
+                amplitude,
+                frequency,
+                fade,
+            } => {
                 let w = 2.0 * PI * frequency;
                 let (e, de) = fade_envelope(t, total, fade.as_secs_f64());
                 let (sin, cos) = (w * t).sin_cos();
@@ -164,7 +175,11 @@ impl OperatorScript {
                 let v = axis.into_inner() * (amplitude * (de * sin + e * w * cos));
                 (start + p, v)
             }
-            Motion::Tap { direction, depth, frequency } => {
+            Motion::Tap {
+                direction,
+                depth,
+                frequency,
+            } => {
                 let w = 2.0 * PI * frequency;
                 let (sin, cos) = (w * t).sin_cos();
                 let p = direction.into_inner() * (depth * 0.5 * (1.0 - cos));
@@ -228,8 +243,19 @@ pub struct VirtualOperator {
 impl VirtualOperator {
     /// An operator whose script starts at `start` from the handle pose `anchor` (the master's
     /// tool pose in its base frame), holding the handle with `hand`.
-    pub fn new(script: OperatorScript, hand: HandImpedance, anchor: Pose, start: Timestamp) -> Self {
-        VirtualOperator { script, hand, anchor, start, last_force: Wrench::zero(Frame::Base) }
+    pub fn new(
+        script: OperatorScript,
+        hand: HandImpedance,
+        anchor: Pose,
+        start: Timestamp,
+    ) -> Self {
+        VirtualOperator {
+            script,
+            hand,
+            anchor,
+            start,
+            last_force: Wrench::zero(Frame::Base),
+        }
     }
 
     /// The script.
@@ -250,7 +276,9 @@ impl VirtualOperator {
 
     /// The label of the script segment playing at `now`.
     pub fn phase(&self, now: Timestamp) -> &'static str {
-        self.script.segment_at(now - self.start).map_or("", |(_, s, _)| s.label)
+        self.script
+            .segment_at(now - self.start)
+            .map_or("", |(_, s, _)| s.label)
     }
 
     /// The wrench the hand applied at the last evaluation (master base frame).
@@ -263,11 +291,16 @@ impl Interaction for VirtualOperator {
     fn wrench_on_tool(&mut self, now: Timestamp, tool: &Pose, twist: &Twist) -> Wrench {
         let (target, target_velocity) = self.hand_target(now);
         let p = tool.translation.vector;
-        let force = (target - p) * self.hand.stiffness + (target_velocity - twist.linear) * self.hand.damping;
+        let force = (target - p) * self.hand.stiffness
+            + (target_velocity - twist.linear) * self.hand.damping;
         let rotation_error: UnitQuaternion<f64> = self.anchor.rotation * tool.rotation.inverse();
         let torque = rotation_error.scaled_axis() * self.hand.rotational_stiffness
             - twist.angular * self.hand.rotational_damping;
-        self.last_force = Wrench { force, torque, frame: Frame::Base };
+        self.last_force = Wrench {
+            force,
+            torque,
+            frame: Frame::Base,
+        };
         self.last_force
     }
 }
@@ -280,7 +313,9 @@ mod tests {
         OperatorScript::new(&[
             Segment {
                 label: "reach",
-                motion: Motion::MoveTo { offset: Vector3::new(0.05, 0.0, 0.0) },
+                motion: Motion::MoveTo {
+                    offset: Vector3::new(0.05, 0.0, 0.0),
+                },
                 duration: Duration::from_secs(1),
                 clutch: false,
             },
@@ -295,7 +330,12 @@ mod tests {
                 duration: Duration::from_secs(3),
                 clutch: false,
             },
-            Segment { label: "index", motion: Motion::Hold, duration: Duration::from_secs(1), clutch: true },
+            Segment {
+                label: "index",
+                motion: Motion::Hold,
+                duration: Duration::from_secs(1),
+                clutch: true,
+            },
         ])
         .unwrap()
     }
@@ -310,7 +350,10 @@ mod tests {
             let (p, v) = s.target(t);
             let numeric = (p - previous) / dt;
             assert!((p - previous).norm() < 1e-3, "jump at {t:?}");
-            assert!((numeric - v).norm() < 2e-2, "velocity mismatch at {t:?}: {numeric} vs {v}");
+            assert!(
+                (numeric - v).norm() < 2e-2,
+                "velocity mismatch at {t:?}: {numeric} vs {v}"
+            );
             previous = p;
         }
         assert!((s.target(Duration::from_secs(1)).0 - Vector3::new(0.05, 0.0, 0.0)).norm() < 1e-12);
@@ -326,10 +369,19 @@ mod tests {
 
     #[test]
     fn the_hand_pulls_the_handle_toward_its_target() {
-        let mut op = VirtualOperator::new(script(), HandImpedance::default(), Pose::identity(), Timestamp::ZERO);
+        let mut op = VirtualOperator::new(
+            script(),
+            HandImpedance::default(),
+            Pose::identity(),
+            Timestamp::ZERO,
+        );
         let at = Pose::translation(-0.01, 0.0, 0.0);
         let w = op.wrench_on_tool(Timestamp::ZERO, &at, &Twist::default());
-        assert!((w.force.x - 4.0).abs() < 1e-9, "400 N/m * 1 cm = 4 N, got {}", w.force.x);
+        assert!(
+            (w.force.x - 4.0).abs() < 1e-9,
+            "400 N/m * 1 cm = 4 N, got {}",
+            w.force.x
+        );
         assert!(w.torque.norm() < 1e-12);
     }
 }

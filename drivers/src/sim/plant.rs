@@ -71,7 +71,11 @@ impl<M: RobotModel> RigidBodyPlant<M> {
             kinetic_energy: 0.0,
             interaction_work: 0.0,
         };
-        RigidBodyPlant { model, config, snapshot }
+        RigidBodyPlant {
+            model,
+            config,
+            snapshot,
+        }
     }
 
     /// The robot model the plant integrates.
@@ -90,12 +94,21 @@ impl<M: RobotModel> RigidBodyPlant<M> {
     ///
     /// # Real-time
     /// No allocation; time bounded by `(now - time) / substep` sub-steps.
-    pub fn advance_to(&mut self, now: Timestamp, tau: &JointVector, interaction: &mut dyn Interaction) {
+    pub fn advance_to(
+        &mut self,
+        now: Timestamp,
+        tau: &JointVector,
+        interaction: &mut dyn Interaction,
+    ) {
         let n = self.model.joint_count();
         let mut applied = JointVector::zeros();
         for j in 0..n {
             let limit = self.config.motor_torque_limit[j];
-            applied[j] = if tau[j].is_finite() { tau[j].clamp(-limit, limit) } else { 0.0 };
+            applied[j] = if tau[j].is_finite() {
+                tau[j].clamp(-limit, limit)
+            } else {
+                0.0
+            };
         }
         self.snapshot.joints.effort = applied;
         while self.snapshot.time < now {
@@ -119,7 +132,11 @@ impl<M: RobotModel> RigidBodyPlant<M> {
             frame: Frame::Base,
         };
         let wrench = interaction.wrench_on_tool(self.snapshot.time, &pose, &twist);
-        let wrench = if wrench.is_finite() { wrench } else { Wrench::zero(Frame::Base) };
+        let wrench = if wrench.is_finite() {
+            wrench
+        } else {
+            Wrench::zero(Frame::Base)
+        };
         let external = jac.transpose() * wrench.to_vector();
         let bias = self.model.inverse_dynamics(&q, &qd, &JointVector::zeros());
         let mut friction = JointVector::zeros();

@@ -335,8 +335,10 @@ impl LabConfig {
     /// # Errors
     /// As [`from_toml`](Self::from_toml), plus [`ConfigError::Io`].
     pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| ConfigError::Io { path: path.display().to_string(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
         Self::from_toml(&text)
     }
 
@@ -354,7 +356,9 @@ impl LabConfig {
         let mut found = self.robots.iter().filter(|(_, r)| r.role == role);
         match (found.next(), found.next()) {
             (Some((name, robot)), None) => Ok((name.as_str(), robot)),
-            _ => Err(ConfigError::Invalid(format!("exactly one robot must have role {role:?}"))),
+            _ => Err(ConfigError::Invalid(format!(
+                "exactly one robot must have role {role:?}"
+            ))),
         }
     }
 
@@ -366,13 +370,21 @@ impl LabConfig {
         let mut found = self.boards.iter().filter(|(_, b)| b.robot == robot);
         match (found.next(), found.next()) {
             (Some((name, board)), None) => Ok((name.as_str(), board)),
-            _ => Err(ConfigError::Invalid(format!("exactly one board must drive robot `{robot}`"))),
+            _ => Err(ConfigError::Invalid(format!(
+                "exactly one board must drive robot `{robot}`"
+            ))),
         }
     }
 
     /// The controllers bound to `robot`, in file order (sorted by name).
-    pub fn controllers_of<'a>(&'a self, robot: &'a str) -> impl Iterator<Item = (&'a str, &'a ControllerConfig)> + 'a {
-        self.controllers.iter().filter(move |(_, c)| c.robot == robot).map(|(n, c)| (n.as_str(), c))
+    pub fn controllers_of<'a>(
+        &'a self,
+        robot: &'a str,
+    ) -> impl Iterator<Item = (&'a str, &'a ControllerConfig)> + 'a {
+        self.controllers
+            .iter()
+            .filter(move |(_, c)| c.robot == robot)
+            .map(|(n, c)| (n.as_str(), c))
     }
 
     fn check(&self) -> Result<(), ConfigError> {
@@ -382,7 +394,10 @@ impl LabConfig {
         }
         for (name, board) in &self.boards {
             if !self.robots.contains_key(&board.robot) {
-                return invalid(format!("board `{name}` drives unknown robot `{}`", board.robot));
+                return invalid(format!(
+                    "board `{name}` drives unknown robot `{}`",
+                    board.robot
+                ));
             }
             if board.kind == BoardKind::Galil && board.port.is_none() {
                 return invalid(format!("galil board `{name}` needs `port`"));
@@ -390,15 +405,24 @@ impl LabConfig {
         }
         for (name, sensor) in &self.sensors {
             if !self.robots.contains_key(&sensor.robot) {
-                return invalid(format!("sensor `{name}` is on unknown robot `{}`", sensor.robot));
+                return invalid(format!(
+                    "sensor `{name}` is on unknown robot `{}`",
+                    sensor.robot
+                ));
             }
         }
         for (name, c) in &self.controllers {
             if !self.robots.contains_key(&c.robot) {
-                return invalid(format!("controller `{name}` drives unknown robot `{}`", c.robot));
+                return invalid(format!(
+                    "controller `{name}` drives unknown robot `{}`",
+                    c.robot
+                ));
             }
             if !self.trajectories.contains_key(&c.trajectory) {
-                return invalid(format!("controller `{name}` follows unknown trajectory `{}`", c.trajectory));
+                return invalid(format!(
+                    "controller `{name}` follows unknown trajectory `{}`",
+                    c.trajectory
+                ));
             }
             if let Some(s) = &c.sensor
                 && !self.sensors.contains_key(s)
@@ -410,7 +434,9 @@ impl LabConfig {
             if let Some(from) = &t.from
                 && !self.robots.contains_key(from)
             {
-                return invalid(format!("trajectory `{name}` comes from unknown robot `{from}`"));
+                return invalid(format!(
+                    "trajectory `{name}` comes from unknown robot `{from}`"
+                ));
             }
         }
         for shape in &self.environment.shapes {
@@ -446,10 +472,21 @@ mod tests {
     #[test]
     fn typos_and_dangling_bindings_are_errors() {
         let typo = DEMO_TOML.replace("force_gain", "forse_gain");
-        assert!(matches!(LabConfig::from_toml(&typo), Err(ConfigError::Parse(_))));
+        assert!(matches!(
+            LabConfig::from_toml(&typo),
+            Err(ConfigError::Parse(_))
+        ));
         let dangling = DEMO_TOML.replace("sensor = \"wrist\"", "sensor = \"elbow\"");
-        assert!(matches!(LabConfig::from_toml(&dangling), Err(ConfigError::Invalid(_))));
-        let galil = DEMO_TOML.replace("kind = \"sim\"                 # \"galil\"", "kind = \"galil\" #");
-        assert!(matches!(LabConfig::from_toml(&galil), Err(ConfigError::Invalid(m)) if m.contains("port")));
+        assert!(matches!(
+            LabConfig::from_toml(&dangling),
+            Err(ConfigError::Invalid(_))
+        ));
+        let galil = DEMO_TOML.replace(
+            "kind = \"sim\"                 # \"galil\"",
+            "kind = \"galil\" #",
+        );
+        assert!(
+            matches!(LabConfig::from_toml(&galil), Err(ConfigError::Invalid(m)) if m.contains("port"))
+        );
     }
 }

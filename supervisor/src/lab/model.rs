@@ -4,8 +4,8 @@
 use penelope_drivers::model::DhRobotModel;
 use penelope_fpga::FpgaKinematics;
 use penelope_hal::{
-    Dynamics, IkSolutions, InverseKinematics, JacobianFrame, Jacobian, JointLimits, JointSpaceMatrix,
-    JointVector, Kinematics, KinematicsError, Pose, RobotModel,
+    Dynamics, IkSolutions, InverseKinematics, Jacobian, JacobianFrame, JointLimits,
+    JointSpaceMatrix, JointVector, Kinematics, KinematicsError, Pose, RobotModel,
 };
 
 /// A robot model chosen by configuration.
@@ -29,7 +29,11 @@ pub struct NoFpgaModel(pub String);
 
 impl std::fmt::Display for NoFpgaModel {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "kinematics = \"fpga\" models the FRHC's FPGA board; robot model `{}` has none", self.0)
+        write!(
+            f,
+            "kinematics = \"fpga\" models the FRHC's FPGA board; robot model `{}` has none",
+            self.0
+        )
     }
 }
 
@@ -47,7 +51,10 @@ impl LabModel {
         if float.name() != "frhc" {
             return Err(NoFpgaModel(float.name().to_string()));
         }
-        Ok(LabModel::Fpga { fpga: Box::new(FpgaKinematics::frhc()), float })
+        Ok(LabModel::Fpga {
+            fpga: Box::new(FpgaKinematics::frhc()),
+            float,
+        })
     }
 
     /// The underlying float model (dynamics, named poses, encoder scaling).
@@ -81,7 +88,11 @@ impl InverseKinematics for LabModel {
     fn inverse_all(&self, target: &Pose, out: &mut IkSolutions) -> Result<usize, KinematicsError> {
         self.float().inverse_all(target, out)
     }
-    fn inverse_near(&self, target: &Pose, seed: &JointVector) -> Result<JointVector, KinematicsError> {
+    fn inverse_near(
+        &self,
+        target: &Pose,
+        seed: &JointVector,
+    ) -> Result<JointVector, KinematicsError> {
         self.float().inverse_near(target, seed)
     }
 }
@@ -93,7 +104,12 @@ impl Dynamics for LabModel {
     fn inertia(&self, q: &JointVector) -> JointSpaceMatrix {
         self.float().inertia(q)
     }
-    fn inverse_dynamics(&self, q: &JointVector, qd: &JointVector, qdd: &JointVector) -> JointVector {
+    fn inverse_dynamics(
+        &self,
+        q: &JointVector,
+        qd: &JointVector,
+        qdd: &JointVector,
+    ) -> JointVector {
         self.float().inverse_dynamics(q, qd, qdd)
     }
     fn friction(&self, qd: &JointVector) -> JointVector {

@@ -145,7 +145,9 @@ pub struct GalilLinkReport {
 }
 
 fn phase_of(info: &RunInfo, t: Timestamp) -> &'static str {
-    info.script.segment_at(t - info.start).map_or("", |(_, s, _)| s.label)
+    info.script
+        .segment_at(t - info.start)
+        .map_or("", |(_, s, _)| s.label)
 }
 
 fn phase_window(info: &RunInfo, label: &str) -> Option<(Duration, Duration)> {
@@ -187,44 +189,80 @@ fn in_window(info: &RunInfo, s: &LabSample, window: (Duration, Duration)) -> boo
 pub fn report(out: &RunOutput) -> Report {
     let info = &out.info;
     let free = |s: &&LabSample| {
-        s.telemetry.reference_kind != ReferenceKind::None && FREE_MOTION_PHASES.contains(&phase_of(info, s.telemetry.time))
+        s.telemetry.reference_kind != ReferenceKind::None
+            && FREE_MOTION_PHASES.contains(&phase_of(info, s.telemetry.time))
     };
 
     // Tracking: slave tool vs its reference, free-motion phases.
-    let (track_rms, track_max, track_n) = rms(
-        out.slave.iter().filter(free).map(|s| (s.telemetry.reference_position - s.telemetry.tool_position).norm()),
-    );
+    let (track_rms, track_max, track_n) = rms(out
+        .slave
+        .iter()
+        .filter(free)
+        .map(|s| (s.telemetry.reference_position - s.telemetry.tool_position).norm()));
 
     // Contact: the second half of the steady-contact phase.
-    let contact_window = phase_window(info, CONTACT_PHASE).map(|(a, b)| (a + (b - a) / 2, b)).unwrap_or_default();
-    let slave_contact: Vec<&LabSample> = out.slave.iter().filter(|s| in_window(info, s, contact_window)).collect();
-    let master_contact: Vec<&LabSample> = out.master.iter().filter(|s| in_window(info, s, contact_window)).collect();
+    let contact_window = phase_window(info, CONTACT_PHASE)
+        .map(|(a, b)| (a + (b - a) / 2, b))
+        .unwrap_or_default();
+    let slave_contact: Vec<&LabSample> = out
+        .slave
+        .iter()
+        .filter(|s| in_window(info, s, contact_window))
+        .collect();
+    let master_contact: Vec<&LabSample> = out
+        .master
+        .iter()
+        .filter(|s| in_window(info, s, contact_window))
+        .collect();
     let slave_model = &info.slave_model;
     let (sensed_base, contact_n) = mean_vector(slave_contact.iter().map(|s| {
         let pose = slave_model.forward(&s.telemetry.q);
         sensor_to_base(&s.telemetry.wrench, &info.sensor_mount, &pose).force
     }));
-    let (true_contact, _) = mean_vector(slave_contact.iter().filter_map(|s| s.truth.map(|t| t.base_wrench.force)));
-    let (displayed, _) = mean_vector(master_contact.iter().map(|s| s.telemetry.commanded_wrench.force));
-    let (hand, _) = mean_vector(master_contact.iter().filter_map(|s| s.truth.map(|t| t.base_wrench.force)));
+    let (true_contact, _) = mean_vector(
+        slave_contact
+            .iter()
+            .filter_map(|s| s.truth.map(|t| t.base_wrench.force)),
+    );
+    let (displayed, _) = mean_vector(
+        master_contact
+            .iter()
+            .map(|s| s.telemetry.commanded_wrench.force),
+    );
+    let (hand, _) = mean_vector(
+        master_contact
+            .iter()
+            .filter_map(|s| s.truth.map(|t| t.base_wrench.force)),
+    );
     // Expected display: the environment's push on the slave, rotated into the master frame and
     // scaled by the force gain (the sensor reads the robot pushing, hence the minus).
     let expected = info.rotation.inverse() * (-sensed_base * info.force_gain);
-    let display_error_pct =
-        if expected.norm() > 1e-9 { (displayed - expected).norm() / expected.norm() * 100.0 } else { 0.0 };
+    let display_error_pct = if expected.norm() > 1e-9 {
+        (displayed - expected).norm() / expected.norm() * 100.0
+    } else {
+        0.0
+    };
 
     // Drag: hand force in free motion.
-    let (drag_rms, drag_max, _) =
-        rms(out.master.iter().filter(free).filter_map(|s| s.truth.map(|t| t.base_wrench.force.norm())));
+    let (drag_rms, drag_max, _) = rms(out
+        .master
+        .iter()
+        .filter(free)
+        .filter_map(|s| s.truth.map(|t| t.base_wrench.force.norm())));
 
     // Energy per tap cycle.
     let mut peaks = Vec::new();
     let mut operator_work = 0.0;
     if let Some((a, b)) = phase_window(info, TAP_PHASE) {
-        let frequency = info.script.segments().iter().find(|s| s.label == TAP_PHASE).and_then(|s| match s.motion {
-            penelope_drivers::sim::operator::Motion::Tap { frequency, .. } => Some(frequency),
-            _ => None,
-        });
+        let frequency = info
+            .script
+            .segments()
+            .iter()
+            .find(|s| s.label == TAP_PHASE)
+            .and_then(|s| match s.motion {
+                penelope_drivers::sim::operator::Motion::Tap { frequency, .. } => Some(frequency),
+                _ => None,
+            });
         let cycle = Duration::from_secs_f64(1.0 / frequency.unwrap_or(1.0));
         let mut k = a;
         while k + cycle <= b {
@@ -236,14 +274,24 @@ pub fn report(out: &RunOutput) -> Report {
                 .filter(|(s, _)| in_window(info, s, window))
                 .filter_map(|(s, m)| {
                     let (ts, tm) = (s.truth?, m.truth?);
-                    Some(ts.kinetic_energy + tm.kinetic_energy + info.environment.stored_energy(&ts.tool_pose.translation.vector))
+                    Some(
+                        ts.kinetic_energy
+                            + tm.kinetic_energy
+                            + info
+                                .environment
+                                .stored_energy(&ts.tool_pose.translation.vector),
+                    )
                 })
                 .fold(0.0f64, f64::max);
             peaks.push(peak);
             k += cycle;
         }
         let work_at = |t: Duration| {
-            out.master.iter().find(|s| s.telemetry.time - info.start >= t).and_then(|s| s.truth).map(|t| t.interaction_work)
+            out.master
+                .iter()
+                .find(|s| s.telemetry.time - info.start >= t)
+                .and_then(|s| s.truth)
+                .map(|t| t.interaction_work)
         };
         if let (Some(w0), Some(w1)) = (work_at(a), work_at(b)) {
             operator_work = w1 - w0;
@@ -267,7 +315,9 @@ pub fn report(out: &RunOutput) -> Report {
             .fold(0.0f64, f64::max)
             * 1e3
     };
-    let index_window = phase_window(info, INDEX_PHASE).map(|(a, b)| (a, b + Duration::from_millis(300))).unwrap_or_default();
+    let index_window = phase_window(info, INDEX_PHASE)
+        .map(|(a, b)| (a, b + Duration::from_millis(300)))
+        .unwrap_or_default();
     let clutch = ClutchReport {
         max_step_mm: steps(&|s| in_window(info, s, index_window)),
         normal_max_step_mm: steps(&|s| phase_of(info, s.telemetry.time).starts_with("sweep")),
@@ -300,12 +350,17 @@ pub fn report(out: &RunOutput) -> Report {
         let mut last_fault = None;
         for s in rows.iter() {
             for e in s.telemetry.events.iter() {
-                *safety_events.entry(format!("{robot}/{}", e.as_str())).or_insert(0) += 1;
+                *safety_events
+                    .entry(format!("{robot}/{}", e.as_str()))
+                    .or_insert(0) += 1;
             }
             if let Some(cause) = s.telemetry.fault
                 && s.telemetry.fault != last_fault
             {
-                faults.push(format!("{robot} at {:.3} s: {cause}", (s.telemetry.time - info.start).as_secs_f64()));
+                faults.push(format!(
+                    "{robot} at {:.3} s: {cause}",
+                    (s.telemetry.time - info.start).as_secs_f64()
+                ));
             }
             last_fault = s.telemetry.fault;
         }
@@ -320,10 +375,17 @@ pub fn report(out: &RunOutput) -> Report {
         }
         .to_string(),
         seed: info.seed,
-        duration_s: out.slave.last().map_or(0.0, |s| (s.telemetry.time - info.start).as_secs_f64()),
+        duration_s: out
+            .slave
+            .last()
+            .map_or(0.0, |s| (s.telemetry.time - info.start).as_secs_f64()),
         scale: info.scale,
         force_gain: info.force_gain,
-        tracking: TrackingReport { rms_mm: track_rms * 1e3, max_mm: track_max * 1e3, samples: track_n },
+        tracking: TrackingReport {
+            rms_mm: track_rms * 1e3,
+            max_mm: track_max * 1e3,
+            samples: track_n,
+        },
         contact: ContactReport {
             sensed_force_n: sensed_base.norm(),
             expected_display_n: expected.norm(),
@@ -333,8 +395,15 @@ pub fn report(out: &RunOutput) -> Report {
             true_contact_force_n: true_contact.norm(),
             samples: contact_n,
         },
-        drag: DragReport { rms_n: drag_rms, max_n: drag_max },
-        energy: EnergyReport { tap_cycle_peaks_j: peaks, growth_ratio, operator_work_j: operator_work },
+        drag: DragReport {
+            rms_n: drag_rms,
+            max_n: drag_max,
+        },
+        energy: EnergyReport {
+            tap_cycle_peaks_j: peaks,
+            growth_ratio,
+            operator_work_j: operator_work,
+        },
         clutch,
         timing,
         safety_events,

@@ -31,14 +31,17 @@ use penelope_hal::{
 };
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, Stamped, latest};
 use penelope_rt_core::comm::CommLoop;
-use penelope_rt_core::control::{ControlCommand, ControlConfig, ControlLoop, ControlPorts, NoSensor};
+use penelope_rt_core::control::{
+    ControlCommand, ControlConfig, ControlLoop, ControlPorts, NoSensor,
+};
 use penelope_rt_core::ring::{ArcConsumer, ArcProducer, ring};
 use penelope_rt_core::safety::{HoldMode, SafetyConfig};
 use penelope_rt_core::sim::{Flow, SimRunner, SimTask};
 use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
 use penelope_rt_core::teleop::{
-    ChannelConfig, ChannelDirection, ForceDisplay, ForceDisplayConfig, ImpedanceConfig, MappingConfig,
-    PositionErrorMaster, SlaveTracking, TeleopChannel, TeleopSample, TrackingConfig, CartesianImpedance,
+    CartesianImpedance, ChannelConfig, ChannelDirection, ForceDisplay, ForceDisplayConfig,
+    ImpedanceConfig, MappingConfig, PositionErrorMaster, SlaveTracking, TeleopChannel,
+    TeleopSample, TrackingConfig,
 };
 
 use super::config::{
@@ -81,7 +84,13 @@ pub struct RunOptions {
 
 impl Default for RunOptions {
     fn default() -> Self {
-        RunOptions { duration: None, law: None, scale: None, seed: 1, clock: ClockMode::Simulated }
+        RunOptions {
+            duration: None,
+            law: None,
+            scale: None,
+            seed: 1,
+            clock: ClockMode::Simulated,
+        }
     }
 }
 
@@ -107,7 +116,12 @@ impl TelemetrySink for LabSink {
     fn push(&mut self, sample: &TelemetrySample) -> bool {
         self.state.write(*sample);
         let truth = self.truth.as_mut().and_then(TapReader::latest);
-        self.ring.push(LabSample { telemetry: *sample, truth }).is_ok()
+        self.ring
+            .push(LabSample {
+                telemetry: *sample,
+                truth,
+            })
+            .is_ok()
     }
 }
 
@@ -154,8 +168,22 @@ struct Built {
 /// or without a sensor (a Galil board: no plant in this process for a virtual sensor to read, so
 /// the loop has no sensor slot rather than one failing every tick).
 enum SlaveLoop {
-    Sensed(Box<ControlLoop<LabBoard, LabModel, ControllerBox, RefReader, LabSink, Commands, VirtualForceSensor>>),
-    Unsensed(Box<ControlLoop<LabBoard, LabModel, ControllerBox, RefReader, LabSink, Commands, NoSensor>>),
+    Sensed(
+        Box<
+            ControlLoop<
+                LabBoard,
+                LabModel,
+                ControllerBox,
+                RefReader,
+                LabSink,
+                Commands,
+                VirtualForceSensor,
+            >,
+        >,
+    ),
+    Unsensed(
+        Box<ControlLoop<LabBoard, LabModel, ControllerBox, RefReader, LabSink, Commands, NoSensor>>,
+    ),
 }
 
 impl SlaveLoop {
@@ -240,8 +268,16 @@ impl MasterComm {
             let clutch = self.script.clutch(now - self.start);
             self.comm.trajectory_mut().track_master(now, &pose, clutch);
             self.sequence += 1;
-            let reference = Reference::Cartesian(CartesianReference { pose, twist: Twist::default() });
-            self.to_slave.write(TeleopSample { sequence: self.sequence, sent: now, clutch, reference });
+            let reference = Reference::Cartesian(CartesianReference {
+                pose,
+                twist: Twist::default(),
+            });
+            self.to_slave.write(TeleopSample {
+                sequence: self.sequence,
+                sent: now,
+                clutch,
+                reference,
+            });
         }
         if let Fresh::New(sample) = self.from_slave.read() {
             // A stale or malformed sample is counted by the channel and dropped.
@@ -274,11 +310,19 @@ impl SlaveComm {
             let wrench = sensor_to_base(&sample.wrench, &self.sensor_mount, &pose);
             self.sequence += 1;
             let reference = Reference::Hybrid(HybridReference {
-                motion: CartesianReference { pose, twist: Twist::default() },
+                motion: CartesianReference {
+                    pose,
+                    twist: Twist::default(),
+                },
                 wrench,
                 force_axes: [true; 6],
             });
-            self.to_master.write(TeleopSample { sequence: self.sequence, sent: now, clutch: false, reference });
+            self.to_master.write(TeleopSample {
+                sequence: self.sequence,
+                sent: now,
+                clutch: false,
+                reference,
+            });
         }
     }
 }
@@ -287,7 +331,11 @@ impl SlaveComm {
 /// origin.
 pub fn sensor_to_base(reading: &Wrench, mount: &Pose, tool: &Pose) -> Wrench {
     let in_tool = reading.expressed_in(&mount.inverse(), Frame::Tool);
-    Wrench { force: tool.rotation * in_tool.force, torque: tool.rotation * in_tool.torque, frame: Frame::Base }
+    Wrench {
+        force: tool.rotation * in_tool.force,
+        torque: tool.rotation * in_tool.torque,
+        frame: Frame::Base,
+    }
 }
 
 fn load_model(name: &str) -> Result<models::DhRobotModel, RunError> {
@@ -312,7 +360,9 @@ fn sim_board_config(model: &models::DhRobotModel, dac_bits: u32) -> SimBoardConf
         counts[j] = model.counts_per_radian(j);
     }
     let limits = *model.limits();
-    let full_scale = limits.effort_max.map(|e| if e.is_finite() { e } else { 100.0 });
+    let full_scale = limits
+        .effort_max
+        .map(|e| if e.is_finite() { e } else { 100.0 });
     SimBoardConfig {
         counts_per_radian: counts,
         effort_full_scale: full_scale,
@@ -327,13 +377,16 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     let law = options.law.unwrap_or(lab.teleop.law);
     let scale = options.scale.unwrap_or(lab.teleop.scale);
     if !(scale.is_finite() && scale > 0.0) {
-        return Err(RunError::Setup(format!("scale must be positive, got {scale}")));
+        return Err(RunError::Setup(format!(
+            "scale must be positive, got {scale}"
+        )));
     }
     let control_period = Duration::from_micros(lab.timing.control_period_us);
     let comm_period = Duration::from_micros(lab.timing.comm_period_us);
     let watchdog = Duration::from_millis(lab.timing.watchdog_ms);
-    let script = script::by_name(&lab.operator.script)
-        .ok_or_else(|| RunError::Setup(format!("unknown operator script `{}`", lab.operator.script)))?;
+    let script = script::by_name(&lab.operator.script).ok_or_else(|| {
+        RunError::Setup(format!("unknown operator script `{}`", lab.operator.script))
+    })?;
     let duration = options.duration.unwrap_or(script.duration());
 
     let (master_name, master_cfg) = lab.robot_with_role(Role::Master)?;
@@ -351,10 +404,16 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     let slave_tool = slave_model.forward(&q_slave);
     // What the controllers compute with: float kinematics, or the FPGA model where configured.
     // The plants behind the simulated boards are physics and always use the float model.
-    let master_kin = LabModel::new(master_model.clone(), master_cfg.kinematics == KinematicsChoice::Fpga)
-        .map_err(setup(master_name))?;
-    let slave_kin = LabModel::new(slave_model.clone(), slave_cfg.kinematics == KinematicsChoice::Fpga)
-        .map_err(setup(slave_name))?;
+    let master_kin = LabModel::new(
+        master_model.clone(),
+        master_cfg.kinematics == KinematicsChoice::Fpga,
+    )
+    .map_err(setup(master_name))?;
+    let slave_kin = LabModel::new(
+        slave_model.clone(),
+        slave_cfg.kinematics == KinematicsChoice::Fpga,
+    )
+    .map_err(setup(slave_name))?;
 
     // The slave's environment, placed relative to its start tool point.
     let mut environment = Environment::new();
@@ -363,12 +422,22 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
         let geometry = match shape.kind {
             ShapeKind::Plane => {
                 let n = Vector3::from(shape.normal.unwrap_or([0.0, 0.0, 1.0]));
-                Shape::Plane { point, normal: nalgebra::Unit::new_normalize(n) }
+                Shape::Plane {
+                    point,
+                    normal: nalgebra::Unit::new_normalize(n),
+                }
             }
-            ShapeKind::Sphere => Shape::Sphere { center: point, radius: shape.radius_m.unwrap_or(0.05) },
+            ShapeKind::Sphere => Shape::Sphere {
+                center: point,
+                radius: shape.radius_m.unwrap_or(0.05),
+            },
         };
         environment = environment
-            .with(ContactModel { shape: geometry, stiffness: shape.stiffness_n_per_m, damping: shape.damping_ns_per_m })
+            .with(ContactModel {
+                shape: geometry,
+                stiffness: shape.stiffness_n_per_m,
+                damping: shape.damping_ns_per_m,
+            })
             .map_err(|_| RunError::Setup("too many environment shapes".into()))?;
     }
 
@@ -389,7 +458,9 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
         )));
     }
     let mut master_tap = TapWriter::new();
-    let master_truth = master_tap.reader().map_err(|_| RunError::Setup("tap".into()))?;
+    let master_truth = master_tap
+        .reader()
+        .map_err(|_| RunError::Setup("tap".into()))?;
     let master_plant = PlantConfig {
         motor_torque_limit: master_model.limits().effort_max,
         ..PlantConfig::default()
@@ -407,20 +478,35 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     // The slave's board with its plant's truth tap and the wrist sensor reading that plant
     // (simulated board), or the Galil board alone.
     let sensor_cfg = lab.sensors.values().find(|s| s.robot == slave_name);
-    let sensor_mount = sensor_cfg
-        .map_or(Pose::identity(), |c| Pose::translation(c.mount_xyz_m[0], c.mount_xyz_m[1], c.mount_xyz_m[2]));
+    let sensor_mount = sensor_cfg.map_or(Pose::identity(), |c| {
+        Pose::translation(c.mount_xyz_m[0], c.mount_xyz_m[1], c.mount_xyz_m[2])
+    });
     let (slave_board, slave_truth, sensor, slave_bindings, slave_link) = match slave_galil {
-        Some(GalilSetup { board, bindings, monitor, .. }) => {
+        Some(GalilSetup {
+            board,
+            bindings,
+            monitor,
+            ..
+        }) => {
             if sensor_cfg.is_some() {
-                log::warn!("slave `{slave_name}` is on a galil board: its virtual wrist sensor has no plant to read and is left out");
+                log::warn!(
+                    "slave `{slave_name}` is on a galil board: its virtual wrist sensor has no plant to read and is left out"
+                );
             }
             (board, None, None, Some(bindings), Some(monitor))
         }
         None => {
             let mut slave_tap = TapWriter::new();
-            let slave_truth = slave_tap.reader().map_err(|_| RunError::Setup("tap".into()))?;
-            let sensor_source = slave_tap.reader().map_err(|_| RunError::Setup("tap".into()))?;
-            let slave_plant = PlantConfig { motor_torque_limit: slave_model.limits().effort_max, ..PlantConfig::default() };
+            let slave_truth = slave_tap
+                .reader()
+                .map_err(|_| RunError::Setup("tap".into()))?;
+            let sensor_source = slave_tap
+                .reader()
+                .map_err(|_| RunError::Setup("tap".into()))?;
+            let slave_plant = PlantConfig {
+                motor_torque_limit: slave_model.limits().effort_max,
+                ..PlantConfig::default()
+            };
             let slave_board = SimBoard::new(
                 LabModel::Float(slave_model.clone()),
                 slave_plant,
@@ -432,8 +518,8 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
             .with_tap(slave_tap);
 
             // The wrist sensor.
-            let sensor_cfg =
-                sensor_cfg.ok_or_else(|| RunError::Setup(format!("no sensor on the slave `{slave_name}`")))?;
+            let sensor_cfg = sensor_cfg
+                .ok_or_else(|| RunError::Setup(format!("no sensor on the slave `{slave_name}`")))?;
             let mut sensor = VirtualForceSensor::new(
                 ForceSensorConfig {
                     mount: sensor_mount,
@@ -449,9 +535,17 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
             // session: one board read publishes the plant's state, the sensor takes its reading as zero.
             let mut slave_board = slave_board;
             let mut axes = [penelope_hal::AxisState::default(); penelope_hal::MAX_AXES];
-            penelope_hal::Board::read_axes(&mut slave_board, start, &mut axes).map_err(|e| RunError::Setup(format!("slave board: {e:?}")))?;
-            penelope_hal::ForceSensor::tare(&mut sensor, start).map_err(setup("wrist sensor tare"))?;
-            (LabBoard::Sim(Box::new(slave_board)), Some(slave_truth), Some(sensor), None, None)
+            penelope_hal::Board::read_axes(&mut slave_board, start, &mut axes)
+                .map_err(|e| RunError::Setup(format!("slave board: {e:?}")))?;
+            penelope_hal::ForceSensor::tare(&mut sensor, start)
+                .map_err(setup("wrist sensor tare"))?;
+            (
+                LabBoard::Sim(Box::new(slave_board)),
+                Some(slave_truth),
+                Some(sensor),
+                None,
+                None,
+            )
         }
     };
 
@@ -481,9 +575,11 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     let s2m: Link = latest::<TeleopSample>();
 
     // Control loops.
-    let mut master_safety = SafetyConfig::master(master_model.joint_count(), *master_model.limits());
+    let mut master_safety =
+        SafetyConfig::master(master_model.joint_count(), *master_model.limits());
     master_safety.watchdog = watchdog;
-    let master_control = ControlConfig::new(control_period, master_safety).with_robot_scaling(&model_robot(&master_model));
+    let master_control = ControlConfig::new(control_period, master_safety)
+        .with_robot_scaling(&model_robot(&master_model));
     let master_loop = ControlLoop::new(
         master_control,
         LabBoard::Sim(Box::new(master_board)),
@@ -491,7 +587,11 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
         master_controllers,
         ControlPorts {
             reference: master_ref_r,
-            telemetry: LabSink { ring: master_log_w, state: master_state_w, truth: Some(master_truth) },
+            telemetry: LabSink {
+                ring: master_log_w,
+                state: master_state_w,
+                truth: Some(master_truth),
+            },
             commands: master_cmd,
         },
     )
@@ -501,9 +601,13 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     slave_safety.watchdog = watchdog;
     let effort = slave_model.limits().effort_max;
     if slave_bindings.is_none() {
-        slave_safety.hold = HoldMode::Pd { kp: effort * 40.0, kd: effort * 1.0 };
+        slave_safety.hold = HoldMode::Pd {
+            kp: effort * 40.0,
+            kd: effort * 1.0,
+        };
     } // A Galil board holds with its own servo (`HoldMode::BoardServo`, the slave default).
-    let mut slave_control = ControlConfig::new(control_period, slave_safety).with_robot_scaling(&model_robot(&slave_model));
+    let mut slave_control = ControlConfig::new(control_period, slave_safety)
+        .with_robot_scaling(&model_robot(&slave_model));
     if let Some(bindings) = slave_bindings {
         slave_control.axes = bindings; // axis map, counts per radian and encoder offsets
     }
@@ -514,7 +618,11 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
         slave_controllers,
         ControlPorts {
             reference: slave_ref_r,
-            telemetry: LabSink { ring: slave_log_w, state: slave_state_w, truth: slave_truth },
+            telemetry: LabSink {
+                ring: slave_log_w,
+                state: slave_state_w,
+                truth: slave_truth,
+            },
             commands: slave_cmd,
         },
     )
@@ -525,10 +633,16 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     };
 
     // Switch to the law's controllers, then activate from the measured state at the first tick.
-    for (w, index) in [(&mut master_cmd_w, master_active), (&mut slave_cmd_w, slave_active)] {
-        let index = u8::try_from(index).map_err(|_| RunError::Setup("too many controllers".into()))?;
-        w.push(ControlCommand::SwitchController(index)).map_err(|_| RunError::Setup("command ring".into()))?;
-        w.push(ControlCommand::Activate).map_err(|_| RunError::Setup("command ring".into()))?;
+    for (w, index) in [
+        (&mut master_cmd_w, master_active),
+        (&mut slave_cmd_w, slave_active),
+    ] {
+        let index =
+            u8::try_from(index).map_err(|_| RunError::Setup("too many controllers".into()))?;
+        w.push(ControlCommand::SwitchController(index))
+            .map_err(|_| RunError::Setup("command ring".into()))?;
+        w.push(ControlCommand::Activate)
+            .map_err(|_| RunError::Setup("command ring".into()))?;
     }
 
     // Communication loops: the channels start from each robot's own tool pose.
@@ -538,14 +652,26 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
         ..ChannelConfig::default()
     })
     .map_err(setup("master channel"))?;
-    master_channel.start(start, &Reference::Cartesian(CartesianReference { pose: master_tool, twist: Twist::default() }));
+    master_channel.start(
+        start,
+        &Reference::Cartesian(CartesianReference {
+            pose: master_tool,
+            twist: Twist::default(),
+        }),
+    );
     let mut slave_channel = TeleopChannel::new(ChannelConfig {
         direction: ChannelDirection::MasterToSlave,
         mapping,
         ..ChannelConfig::default()
     })
     .map_err(setup("slave channel"))?;
-    slave_channel.start(start, &Reference::Cartesian(CartesianReference { pose: slave_tool, twist: Twist::default() }));
+    slave_channel.start(
+        start,
+        &Reference::Cartesian(CartesianReference {
+            pose: slave_tool,
+            twist: Twist::default(),
+        }),
+    );
     let master_comm = MasterComm {
         comm: CommLoop::new(master_channel, master_ref_w),
         model: master_kin.clone(),
@@ -617,7 +743,9 @@ fn open_slave_galil(
             "board `{name}` is a galil board, which runs in real time: use the real-time clock (no --sim-clock)"
         )));
     }
-    galil_board(board, model, zero_pose, start).map(Some).map_err(setup(&format!("board `{name}`")))
+    galil_board(board, model, zero_pose, start)
+        .map(Some)
+        .map_err(setup(&format!("board `{name}`")))
 }
 
 /// A `Robot` view of a model, for encoder scaling.
@@ -627,7 +755,11 @@ fn model_robot(model: &models::DhRobotModel) -> models::DhRobot {
 
 /// The controllers bound to `robot`, in configuration order, and the index of the one the law
 /// uses.
-fn controllers_for(lab: &LabConfig, robot: &str, law: Law) -> Result<(ControllerBox, usize), RunError> {
+fn controllers_for(
+    lab: &LabConfig,
+    robot: &str,
+    law: Law,
+) -> Result<(ControllerBox, usize), RunError> {
     let mut set: ControllerBox = Vec::new();
     let mut active = None;
     for (name, c) in lab.controllers_of(robot) {
@@ -638,7 +770,9 @@ fn controllers_for(lab: &LabConfig, robot: &str, law: Law) -> Result<(Controller
             ControllerKind::PositionErrorMaster => {
                 Box::new(PositionErrorMaster::new(ImpedanceConfig::master()).map_err(setup(name))?)
             }
-            ControllerKind::SlaveTracking => Box::new(SlaveTracking::new(TrackingConfig::default()).map_err(setup(name))?),
+            ControllerKind::SlaveTracking => {
+                Box::new(SlaveTracking::new(TrackingConfig::default()).map_err(setup(name))?)
+            }
             ControllerKind::CartesianImpedance => {
                 Box::new(CartesianImpedance::new(ImpedanceConfig::default()).map_err(setup(name))?)
             }
@@ -660,7 +794,10 @@ fn controllers_for(lab: &LabConfig, robot: &str, law: Law) -> Result<(Controller
         set.push(controller);
     }
     let active = active.ok_or_else(|| {
-        RunError::Setup(format!("robot `{robot}` has no controller for the {} law", law.as_str()))
+        RunError::Setup(format!(
+            "robot `{robot}` has no controller for the {} law",
+            law.as_str()
+        ))
     })?;
     Ok((set, active))
 }
@@ -713,16 +850,40 @@ fn drain(log: &mut ArcConsumer<LabSample, TELEMETRY_CAPACITY>, into: &mut Vec<La
     }
 }
 
-fn progress_of(info: &RunInfo, start: Timestamp, master: &[LabSample], slave: &[LabSample], total: Duration) -> Progress {
+fn progress_of(
+    info: &RunInfo,
+    start: Timestamp,
+    master: &[LabSample],
+    slave: &[LabSample],
+    total: Duration,
+) -> Progress {
     let now = slave.last().map(|s| s.telemetry.time).unwrap_or(start);
     let elapsed = now - start;
     let (tracking_error, contact_force) = slave
         .last()
-        .map(|s| ((s.telemetry.reference_position - s.telemetry.tool_position).norm(), s.telemetry.wrench.force.norm()))
+        .map(|s| {
+            (
+                (s.telemetry.reference_position - s.telemetry.tool_position).norm(),
+                s.telemetry.wrench.force.norm(),
+            )
+        })
         .unwrap_or((0.0, 0.0));
-    let displayed_force = master.last().map(|s| s.telemetry.commanded_wrench.force.norm()).unwrap_or(0.0);
-    let phase = info.script.segment_at(elapsed).map_or("", |(_, s, _)| s.label);
-    Progress { elapsed, total, phase, tracking_error, contact_force, displayed_force }
+    let displayed_force = master
+        .last()
+        .map(|s| s.telemetry.commanded_wrench.force.norm())
+        .unwrap_or(0.0);
+    let phase = info
+        .script
+        .segment_at(elapsed)
+        .map_or("", |(_, s, _)| s.label);
+    Progress {
+        elapsed,
+        total,
+        phase,
+        tracking_error,
+        contact_force,
+        displayed_force,
+    }
 }
 
 /// Runs the lab. `on_progress` is called from the calling (non-real-time) thread about 20 times
@@ -730,14 +891,22 @@ fn progress_of(info: &RunInfo, start: Timestamp, master: &[LabSample], slave: &[
 ///
 /// # Errors
 /// [`RunError`] when the configuration cannot be built or a thread fails.
-pub fn run(lab: &LabConfig, options: &RunOptions, on_progress: &mut dyn FnMut(&Progress)) -> Result<RunOutput, RunError> {
+pub fn run(
+    lab: &LabConfig,
+    options: &RunOptions,
+    on_progress: &mut dyn FnMut(&Progress),
+) -> Result<RunOutput, RunError> {
     match options.clock {
         ClockMode::Simulated => run_simulated(lab, options, on_progress),
         ClockMode::RealTime => run_real_time(lab, options, on_progress),
     }
 }
 
-fn run_simulated(lab: &LabConfig, options: &RunOptions, on_progress: &mut dyn FnMut(&Progress)) -> Result<RunOutput, RunError> {
+fn run_simulated(
+    lab: &LabConfig,
+    options: &RunOptions,
+    on_progress: &mut dyn FnMut(&Progress),
+) -> Result<RunOutput, RunError> {
     let mut b = build(lab, options, Timestamp::ZERO)?;
     let total = b.end - b.start;
     let mut master = Vec::with_capacity(total.as_millis() as usize + 16);
@@ -781,10 +950,20 @@ fn run_simulated(lab: &LabConfig, options: &RunOptions, on_progress: &mut dyn Fn
         on_progress(&progress_of(&b.info, b.start, &master, &slave, total));
     }
     let dropped = (b.master_log.dropped(), b.slave_log.dropped());
-    Ok(RunOutput { info: b.info, master, slave, dropped, threads: Vec::new() })
+    Ok(RunOutput {
+        info: b.info,
+        master,
+        slave,
+        dropped,
+        threads: Vec::new(),
+    })
 }
 
-fn run_real_time(lab: &LabConfig, options: &RunOptions, on_progress: &mut dyn FnMut(&Progress)) -> Result<RunOutput, RunError> {
+fn run_real_time(
+    lab: &LabConfig,
+    options: &RunOptions,
+    on_progress: &mut dyn FnMut(&Progress),
+) -> Result<RunOutput, RunError> {
     use penelope_rt_core::clock::MonotonicClock;
     use penelope_rt_core::exec::{PeriodicConfig, spawn};
 
@@ -792,7 +971,19 @@ fn run_real_time(lab: &LabConfig, options: &RunOptions, on_progress: &mut dyn Fn
     let start = MonotonicClock::read() + Duration::from_millis(100);
     let b = build(lab, options, start)?;
     let total = b.end - b.start;
-    let Built { end, control_period, comm_period, mut master, mut slave, mut master_comm, mut slave_comm, mut master_log, mut slave_log, info, .. } = b;
+    let Built {
+        end,
+        control_period,
+        comm_period,
+        mut master,
+        mut slave,
+        mut master_comm,
+        mut slave_comm,
+        mut master_log,
+        mut slave_log,
+        info,
+        ..
+    } = b;
     let stop = end;
     let spawn_err = |e: penelope_rt_core::exec::ExecError| RunError::Thread(e.to_string());
     let threads = vec![
@@ -803,7 +994,9 @@ fn run_real_time(lab: &LabConfig, options: &RunOptions, on_progress: &mut dyn Fn
     ];
     let mut handles = Vec::new();
     {
-        let cfg = PeriodicConfig::new(threads[0].0, threads[0].1).priority(threads[0].2).cpu(0);
+        let cfg = PeriodicConfig::new(threads[0].0, threads[0].1)
+            .priority(threads[0].2)
+            .cpu(0);
         handles.push(
             spawn(cfg, move |tick| {
                 if tick.deadline >= stop {
@@ -815,7 +1008,9 @@ fn run_real_time(lab: &LabConfig, options: &RunOptions, on_progress: &mut dyn Fn
             })
             .map_err(spawn_err)?,
         );
-        let cfg = PeriodicConfig::new(threads[1].0, threads[1].1).priority(threads[1].2).cpu(1);
+        let cfg = PeriodicConfig::new(threads[1].0, threads[1].1)
+            .priority(threads[1].2)
+            .cpu(1);
         handles.push(
             spawn(cfg, move |tick| {
                 if tick.deadline >= stop {
@@ -827,7 +1022,9 @@ fn run_real_time(lab: &LabConfig, options: &RunOptions, on_progress: &mut dyn Fn
             })
             .map_err(spawn_err)?,
         );
-        let cfg = PeriodicConfig::new(threads[2].0, threads[2].1).priority(threads[2].2).cpu(0);
+        let cfg = PeriodicConfig::new(threads[2].0, threads[2].1)
+            .priority(threads[2].2)
+            .cpu(0);
         handles.push(
             spawn(cfg, move |tick| {
                 if tick.deadline >= stop {
@@ -838,7 +1035,9 @@ fn run_real_time(lab: &LabConfig, options: &RunOptions, on_progress: &mut dyn Fn
             })
             .map_err(spawn_err)?,
         );
-        let cfg = PeriodicConfig::new(threads[3].0, threads[3].1).priority(threads[3].2).cpu(1);
+        let cfg = PeriodicConfig::new(threads[3].0, threads[3].1)
+            .priority(threads[3].2)
+            .cpu(1);
         handles.push(
             spawn(cfg, move |tick| {
                 if tick.deadline >= stop {
@@ -861,14 +1060,24 @@ fn run_real_time(lab: &LabConfig, options: &RunOptions, on_progress: &mut dyn Fn
     let mut timings = Vec::new();
     for (h, (name, period, _)) in handles.into_iter().zip(threads) {
         match h.join() {
-            Ok(report) => timings.push(ThreadTiming { name: name.to_string(), period, report: Some(report) }),
+            Ok(report) => timings.push(ThreadTiming {
+                name: name.to_string(),
+                period,
+                report: Some(report),
+            }),
             Err(e) => return Err(RunError::Thread(format!("{name}: {e}"))),
         }
     }
     drain(&mut master_log, &mut master_rows);
     drain(&mut slave_log, &mut slave_rows);
     let dropped = (master_log.dropped(), slave_log.dropped());
-    Ok(RunOutput { info, master: master_rows, slave: slave_rows, dropped, threads: timings })
+    Ok(RunOutput {
+        info,
+        master: master_rows,
+        slave: slave_rows,
+        dropped,
+        threads: timings,
+    })
 }
 
 /// The model of a robot role, for post-processing.

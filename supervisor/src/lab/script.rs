@@ -19,7 +19,12 @@ pub const TAP_PHASE: &str = "tap";
 pub const INDEX_PHASE: &str = "index";
 
 fn seg(label: &'static str, motion: Motion, seconds: f64, clutch: bool) -> Segment {
-    Segment { label, motion, duration: Duration::from_secs_f64(seconds), clutch }
+    Segment {
+        label,
+        motion,
+        duration: Duration::from_secs_f64(seconds),
+        clutch,
+    }
 }
 
 /// The demo's 20-second script, in the master's base frame relative to the handle's start:
@@ -27,29 +32,64 @@ fn seg(label: &'static str, motion: Motion, seconds: f64, clutch: bool) -> Segme
 /// move with the clutch held (the slave holds while the hand rises 2 cm), return, approach the
 /// wall, push into it, hold steady contact, lift, tap the wall, release and rest.
 pub fn demo() -> OperatorScript {
-    let z = |z: f64| Motion::MoveTo { offset: Vector3::new(0.0, 0.0, z) };
+    let z = |z: f64| Motion::MoveTo {
+        offset: Vector3::new(0.0, 0.0, z),
+    };
     let segments = [
         seg("settle", Motion::Hold, 1.0, false),
-        seg("reach", Motion::MoveTo { offset: Vector3::new(0.04, 0.0, 0.0) }, 1.5, false),
+        seg(
+            "reach",
+            Motion::MoveTo {
+                offset: Vector3::new(0.04, 0.0, 0.0),
+            },
+            1.5,
+            false,
+        ),
         seg(
             "sweep",
-            Motion::Sine { axis: Vector3::y_axis(), amplitude: 0.04, frequency: 0.5, fade: Duration::from_millis(500) },
+            Motion::Sine {
+                axis: Vector3::y_axis(),
+                amplitude: 0.04,
+                frequency: 0.5,
+                fade: Duration::from_millis(500),
+            },
             4.0,
             false,
         ),
         seg(
             "sweep-fast",
-            Motion::Sine { axis: Vector3::x_axis(), amplitude: 0.008, frequency: 1.5, fade: Duration::from_millis(400) },
+            Motion::Sine {
+                axis: Vector3::x_axis(),
+                amplitude: 0.008,
+                frequency: 1.5,
+                fade: Duration::from_millis(400),
+            },
             2.0,
             false,
         ),
-        seg("index", Motion::MoveTo { offset: Vector3::new(0.0, 0.0, 0.02) }, 1.0, true),
+        seg(
+            "index",
+            Motion::MoveTo {
+                offset: Vector3::new(0.0, 0.0, 0.02),
+            },
+            1.0,
+            true,
+        ),
         seg("return", z(0.0), 1.0, false),
         seg("approach", z(-0.012), 1.0, false),
         seg("push", z(-0.045), 1.0, false),
         seg(CONTACT_PHASE, Motion::Hold, 2.0, false),
         seg("lift", z(-0.01), 0.5, false),
-        seg(TAP_PHASE, Motion::Tap { direction: -Vector3::z_axis(), depth: 0.035, frequency: 2.0 }, 3.0, false),
+        seg(
+            TAP_PHASE,
+            Motion::Tap {
+                direction: -Vector3::z_axis(),
+                depth: 0.035,
+                frequency: 2.0,
+            },
+            3.0,
+            false,
+        ),
         seg("release", z(0.0), 1.5, false),
         seg("rest", Motion::Hold, 0.5, false),
     ];
@@ -73,9 +113,18 @@ mod tests {
     fn the_demo_script_lasts_twenty_seconds_and_names_its_phases() {
         let s = demo();
         assert_eq!(s.duration(), Duration::from_secs(20));
-        for phase in FREE_MOTION_PHASES.iter().chain([&CONTACT_PHASE, &TAP_PHASE, &INDEX_PHASE]) {
-            assert!(s.segments().iter().any(|seg| seg.label == *phase), "{phase}");
+        for phase in FREE_MOTION_PHASES
+            .iter()
+            .chain([&CONTACT_PHASE, &TAP_PHASE, &INDEX_PHASE])
+        {
+            assert!(
+                s.segments().iter().any(|seg| seg.label == *phase),
+                "{phase}"
+            );
         }
-        assert!(s.clutch(Duration::from_millis(9_000)), "the clutch is held while indexing");
+        assert!(
+            s.clutch(Duration::from_millis(9_000)),
+            "the clutch is held while indexing"
+        );
     }
 }

@@ -53,13 +53,20 @@ pub fn parse_duration(text: &str) -> Result<Duration, String> {
         Some(i) => text.split_at(i),
         None => (text, "s"),
     };
-    let value: f64 = number.trim().parse().map_err(|_| format!("not a duration: `{text}` (try 20s or 500ms)"))?;
+    let value: f64 = number
+        .trim()
+        .parse()
+        .map_err(|_| format!("not a duration: `{text}` (try 20s or 500ms)"))?;
     let seconds = match unit {
         "s" => value,
         "ms" => value / 1e3,
         "us" => value / 1e6,
         "m" | "min" => value * 60.0,
-        _ => return Err(format!("unknown unit `{unit}` in `{text}` (use s, ms, us or m)")),
+        _ => {
+            return Err(format!(
+                "unknown unit `{unit}` in `{text}` (use s, ms, us or m)"
+            ));
+        }
     };
     if !(seconds.is_finite() && seconds > 0.0) {
         return Err(format!("duration must be positive: `{text}`"));
@@ -88,7 +95,11 @@ pub fn run_demo(args: Args) -> anyhow::Result<ExitCode> {
         law,
         scale: args.scale,
         seed: args.seed,
-        clock: if args.sim_clock { ClockMode::Simulated } else { ClockMode::RealTime },
+        clock: if args.sim_clock {
+            ClockMode::Simulated
+        } else {
+            ClockMode::RealTime
+        },
     };
     let out_dir = args.out.clone().unwrap_or_else(default_out_dir);
 
@@ -98,7 +109,15 @@ pub fn run_demo(args: Args) -> anyhow::Result<ExitCode> {
             .unwrap_or_else(|_| ProgressStyle::default_bar())
             .progress_chars("=> "),
     );
-    bar.set_prefix(format!("{} {}", lab.name, if args.sim_clock { "(simulated clock)" } else { "(real time)" }));
+    bar.set_prefix(format!(
+        "{} {}",
+        lab.name,
+        if args.sim_clock {
+            "(simulated clock)"
+        } else {
+            "(real time)"
+        }
+    ));
     let output = run(&lab, &options, &mut |p| {
         let fraction = p.elapsed.as_secs_f64() / p.total.as_secs_f64().max(1e-9);
         bar.set_position((fraction * 1000.0).clamp(0.0, 1000.0) as u64);
@@ -130,30 +149,46 @@ pub fn run_demo(args: Args) -> anyhow::Result<ExitCode> {
 }
 
 fn default_out_dir() -> PathBuf {
-    let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
     PathBuf::from("out").join(format!("demo-{secs}"))
 }
 
 fn write_outputs(dir: &Path, output: &RunOutput, report: &Report) -> anyhow::Result<Vec<PathBuf>> {
     let mut written = Vec::new();
-    for (name, rows) in [("telemetry-master.csv", &output.master), ("telemetry-slave.csv", &output.slave)] {
+    for (name, rows) in [
+        ("telemetry-master.csv", &output.master),
+        ("telemetry-slave.csv", &output.slave),
+    ] {
         let path = dir.join(name);
-        files::write_telemetry(&path, &output.info, rows).with_context(|| format!("writing {}", path.display()))?;
+        files::write_telemetry(&path, &output.info, rows)
+            .with_context(|| format!("writing {}", path.display()))?;
         written.push(path);
     }
     let path = dir.join("report.json");
-    std::fs::write(&path, serde_json::to_string_pretty(report)?).with_context(|| format!("writing {}", path.display()))?;
+    std::fs::write(&path, serde_json::to_string_pretty(report)?)
+        .with_context(|| format!("writing {}", path.display()))?;
     written.push(path);
     written.extend(plots::write_all(dir, output).context("drawing plots")?);
     Ok(written)
 }
 
 fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
-    println!("Penelope teleoperation demo: {} ({} law, {} clock, seed {})", r.lab, r.law, r.clock, r.seed);
-    println!("  run: {:.1} s, scale {}, force gain {}", r.duration_s, r.scale, r.force_gain);
+    println!(
+        "Penelope teleoperation demo: {} ({} law, {} clock, seed {})",
+        r.lab, r.law, r.clock, r.seed
+    );
+    println!(
+        "  run: {:.1} s, scale {}, force gain {}",
+        r.duration_s, r.scale, r.force_gain
+    );
     println!();
     println!("  free-motion tracking (slave tool vs mapped master pose)");
-    println!("    RMS {:.3} mm   max {:.3} mm   over {} ticks", r.tracking.rms_mm, r.tracking.max_mm, r.tracking.samples);
+    println!(
+        "    RMS {:.3} mm   max {:.3} mm   over {} ticks",
+        r.tracking.rms_mm, r.tracking.max_mm, r.tracking.samples
+    );
     println!("  steady contact with the wall");
     println!(
         "    sensed {:.2} N (true {:.2} N)   expected display {:.2} N   displayed {:.2} N ({:.2}% off)   hand feels {:.2} N",
@@ -167,7 +202,12 @@ fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
     println!("  free-motion drag felt by the operator");
     println!("    RMS {:.2} N   max {:.2} N", r.drag.rms_n, r.drag.max_n);
     println!("  tapping: peak energy per cycle (J)");
-    let peaks: Vec<String> = r.energy.tap_cycle_peaks_j.iter().map(|e| format!("{e:.3}")).collect();
+    let peaks: Vec<String> = r
+        .energy
+        .tap_cycle_peaks_j
+        .iter()
+        .map(|e| format!("{e:.3}"))
+        .collect();
     println!(
         "    {}   last/largest earlier {:.2}   operator work {:.3} J",
         peaks.join(" "),
@@ -182,7 +222,9 @@ fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
     if r.timing.is_empty() {
         println!("  loop timing: simulated clock (no wake-up latency to measure)");
     } else {
-        println!("  loop timing (wake-up latency, µs)          min    p50    p99  p99.9    max  overruns  exec mean/max");
+        println!(
+            "  loop timing (wake-up latency, µs)          min    p50    p99  p99.9    max  overruns  exec mean/max"
+        );
         for t in &r.timing {
             println!(
                 "    {:<16} {:>6.0} µs period {}  {:>6.1} {:>6.1} {:>6.1} {:>6.1} {:>6.1}  {:>8}  {:.1}/{:.1}",
@@ -219,11 +261,20 @@ fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
         println!("    FAULT {f}");
     }
     if r.dropped_samples > 0 {
-        println!("  WARNING: {} telemetry samples dropped (the logger fell behind)", r.dropped_samples);
+        println!(
+            "  WARNING: {} telemetry samples dropped (the logger fell behind)",
+            r.dropped_samples
+        );
     }
     println!();
     println!("  output in {}:", dir.display());
     for f in written {
-        println!("    {}", f.file_name().map_or_else(|| f.display().to_string(), |n| n.to_string_lossy().into_owned()));
+        println!(
+            "    {}",
+            f.file_name().map_or_else(
+                || f.display().to_string(),
+                |n| n.to_string_lossy().into_owned()
+            )
+        );
     }
 }

@@ -276,7 +276,10 @@ fn fpga_output(args: &Args, m: &DhRobotModel) -> anyhow::Result<String> {
                 .to_string());
             }
             let mut s = header(m, "forward kinematics (bit-exact FPGA model)", &q);
-            s += &format!("T (tool pose in the base frame; m) =\n{}", matrix_text(&t, None));
+            s += &format!(
+                "T (tool pose in the base frame; m) =\n{}",
+                matrix_text(&t, None)
+            );
             s += &format!(
                 "raw words: p {:?} ({}), r {:?} ({})\n{} cycles at {} MHz = {:.3} µs\n",
                 run.words.p,
@@ -299,7 +302,8 @@ fn fpga_output(args: &Args, m: &DhRobotModel) -> anyhow::Result<String> {
             if args.json {
                 Ok(json!({ "J": rows(&jac) }).to_string())
             } else {
-                Ok(header(m, "geometric Jacobian (bit-exact FPGA model)", &q) + &matrix_text(&jac, None))
+                Ok(header(m, "geometric Jacobian (bit-exact FPGA model)", &q)
+                    + &matrix_text(&jac, None))
             }
         }
         _ => Err(usage("--fpga applies to fk and jacobian only")),
@@ -574,19 +578,35 @@ mod tests {
     #[test]
     fn fpga_fk_matches_the_float_path_and_reports_its_words() {
         let float = json("frhc", Op::Fk(q("0.1,1,2.5,0.2,0.3,0.1")));
-        let args = Args { robot: "frhc".into(), op: Op::Fk(q("0.1,1,2.5,0.2,0.3,0.1")), json: true, fpga: true };
+        let args = Args {
+            robot: "frhc".into(),
+            op: Op::Fk(q("0.1,1,2.5,0.2,0.3,0.1")),
+            json: true,
+            fpga: true,
+        };
         let fpga: serde_json::Value = serde_json::from_str(&output(&args).unwrap()).unwrap();
         for i in 0..3 {
             for j in 0..4 {
-                let (a, b) = (float["T"][i][j].as_f64().unwrap(), fpga["T"][i][j].as_f64().unwrap());
+                let (a, b) = (
+                    float["T"][i][j].as_f64().unwrap(),
+                    fpga["T"][i][j].as_f64().unwrap(),
+                );
                 assert!((a - b).abs() < 1e-5, "T[{i}][{j}]: float {a}, fpga {b}");
             }
         }
         assert_eq!(fpga["fpga"]["cycles"], 61);
         assert_eq!(fpga["fpga"]["p_words"].as_array().unwrap().len(), 3);
-        let not_frhc = Args { robot: "puma560".into(), op: Op::Fk(q("qn")), json: true, fpga: true };
+        let not_frhc = Args {
+            robot: "puma560".into(),
+            op: Op::Fk(q("qn")),
+            json: true,
+            fpga: true,
+        };
         let err = output(&not_frhc).unwrap_err();
-        assert!(err.downcast_ref::<crate::cmd::UsageError>().is_some(), "{err}");
+        assert!(
+            err.downcast_ref::<crate::cmd::UsageError>().is_some(),
+            "{err}"
+        );
     }
 
     #[test]

@@ -8,17 +8,36 @@ use penelope_supervisor::lab::run::{LabSample, RunInfo};
 /// the plant's ground truth and loop timing. Units in the column names.
 pub fn write_telemetry(path: &Path, info: &RunInfo, rows: &[LabSample]) -> anyhow::Result<()> {
     let mut w = csv::Writer::from_path(path)?;
-    let mut header: Vec<String> = vec!["time_s".into(), "phase".into(), "state".into(), "controller".into()];
+    let mut header: Vec<String> = vec![
+        "time_s".into(),
+        "phase".into(),
+        "state".into(),
+        "controller".into(),
+    ];
     for name in ["q_rad", "qd_rad_s", "effort_nm"] {
         header.extend((1..=6).map(|j| format!("{name}{j}")));
     }
     for name in [
-        "ref_m", "tool_m", "sensor_force_n", "sensor_torque_nm", "commanded_force_n", "true_tool_m", "true_force_n",
+        "ref_m",
+        "tool_m",
+        "sensor_force_n",
+        "sensor_torque_nm",
+        "commanded_force_n",
+        "true_tool_m",
+        "true_force_n",
     ] {
         header.extend(["x", "y", "z"].iter().map(|a| format!("{name}_{a}")));
     }
     header.extend(
-        ["kinetic_energy_j", "interaction_work_j", "wake_latency_us", "exec_us", "events"].iter().map(|s| s.to_string()),
+        [
+            "kinetic_energy_j",
+            "interaction_work_j",
+            "wake_latency_us",
+            "exec_us",
+            "events",
+        ]
+        .iter()
+        .map(|s| s.to_string()),
     );
     w.write_record(&header)?;
     let mut record: Vec<String> = Vec::with_capacity(header.len());
@@ -27,13 +46,21 @@ pub fn write_telemetry(path: &Path, info: &RunInfo, rows: &[LabSample]) -> anyho
         record.clear();
         let elapsed = t.time - info.start;
         record.push(format!("{:.6}", elapsed.as_secs_f64()));
-        record.push(info.script.segment_at(elapsed).map_or("", |(_, seg, _)| seg.label).to_string());
+        record.push(
+            info.script
+                .segment_at(elapsed)
+                .map_or("", |(_, seg, _)| seg.label)
+                .to_string(),
+        );
         record.push(t.state.as_str().to_string());
         record.push(t.controller.to_string());
         for v in [&t.q, &t.qd, &t.effort] {
             record.extend(v.iter().map(|x| format!("{x:.9}")));
         }
-        let truth_pos = s.truth.map(|x| x.tool_pose.translation.vector).unwrap_or_default();
+        let truth_pos = s
+            .truth
+            .map(|x| x.tool_pose.translation.vector)
+            .unwrap_or_default();
         let truth_force = s.truth.map(|x| x.base_wrench.force).unwrap_or_default();
         for v in [
             &t.reference_position,
@@ -47,7 +74,10 @@ pub fn write_telemetry(path: &Path, info: &RunInfo, rows: &[LabSample]) -> anyho
             record.extend(v.iter().map(|x| format!("{x:.9}")));
         }
         record.push(format!("{:.9}", s.truth.map_or(0.0, |x| x.kinetic_energy)));
-        record.push(format!("{:.9}", s.truth.map_or(0.0, |x| x.interaction_work)));
+        record.push(format!(
+            "{:.9}",
+            s.truth.map_or(0.0, |x| x.interaction_work)
+        ));
         record.push(format!("{:.3}", t.wake_latency.as_secs_f64() * 1e6));
         record.push(format!("{:.3}", t.exec_time.as_secs_f64() * 1e6));
         let events: Vec<&str> = t.events.iter().map(|e| e.as_str()).collect();

@@ -2,10 +2,10 @@
 
 use std::path::{Path, PathBuf};
 
-use plotters::prelude::*;
-use penelope_supervisor::lab::run::{LabSample, RunOutput, sensor_to_base};
 use penelope_hal::Kinematics;
 use penelope_rt_core::telemetry::ReferenceKind;
+use penelope_supervisor::lab::run::{LabSample, RunOutput, sensor_to_base};
+use plotters::prelude::*;
 
 const SIZE: (u32, u32) = (1100, 700);
 
@@ -47,17 +47,30 @@ fn panel(
         .x_label_area_size(35)
         .y_label_area_size(60)
         .build_cartesian_2d(x0..x1, y0..y1)?;
-    chart.configure_mesh().x_desc("time (s)").y_desc(y_label).draw()?;
+    chart
+        .configure_mesh()
+        .x_desc("time (s)")
+        .y_desc(y_label)
+        .draw()?;
     for (name, series, color) in lines {
         let color = *color;
         // At most about 4000 points a line: enough for the eye, small enough for a browser.
         let stride = (series.len() / 4000).max(1);
         chart
-            .draw_series(LineSeries::new(series.iter().step_by(stride).copied(), color.stroke_width(2)))?
+            .draw_series(LineSeries::new(
+                series.iter().step_by(stride).copied(),
+                color.stroke_width(2),
+            ))?
             .label(*name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
     }
-    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw()?;
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
     Ok(())
 }
 
@@ -66,25 +79,44 @@ pub fn write_all(dir: &Path, out: &RunOutput) -> anyhow::Result<Vec<PathBuf>> {
     let mut written = Vec::new();
     // Tracking: the slave's reference and tool position along each axis, and the error, from the
     // first reference on.
-    let tracked = || out.slave.iter().filter(|s| s.telemetry.reference_kind != ReferenceKind::None);
+    let tracked = || {
+        out.slave
+            .iter()
+            .filter(|s| s.telemetry.reference_kind != ReferenceKind::None)
+    };
     let axis = |i: usize, reference: bool| -> Series {
         tracked()
             .map(|s| {
-                let v = if reference { s.telemetry.reference_position } else { s.telemetry.tool_position };
+                let v = if reference {
+                    s.telemetry.reference_position
+                } else {
+                    s.telemetry.tool_position
+                };
                 (time_of(out, s), v[i] * 1e3)
             })
             .collect()
     };
     let error: Series = tracked()
-        .map(|s| (time_of(out, s), (s.telemetry.reference_position - s.telemetry.tool_position).norm() * 1e3))
+        .map(|s| {
+            (
+                time_of(out, s),
+                (s.telemetry.reference_position - s.telemetry.tool_position).norm() * 1e3,
+            )
+        })
         .collect();
     let path = dir.join("tracking.svg");
     {
         let root = SVGBackend::new(&path, SIZE).into_drawing_area();
         root.fill(&WHITE)?;
         let (top, bottom) = root.split_vertically(SIZE.1 * 3 / 5);
-        let (rx, tx, ry, ty, rz, tz) =
-            (axis(0, true), axis(0, false), axis(1, true), axis(1, false), axis(2, true), axis(2, false));
+        let (rx, tx, ry, ty, rz, tz) = (
+            axis(0, true),
+            axis(0, false),
+            axis(1, true),
+            axis(1, false),
+            axis(2, true),
+            axis(2, false),
+        );
         panel(
             &top,
             "Slave tool position against its reference (the mapped master pose)",
@@ -98,7 +130,12 @@ pub fn write_all(dir: &Path, out: &RunOutput) -> anyhow::Result<Vec<PathBuf>> {
                 ("z slave", &tz, MAGENTA),
             ],
         )?;
-        panel(&bottom, "Tracking error", "error (mm)", &[("|reference - slave|", &error, BLACK)])?;
+        panel(
+            &bottom,
+            "Tracking error",
+            "error (mm)",
+            &[("|reference - slave|", &error, BLACK)],
+        )?;
         root.present()?;
     }
     written.push(path);
@@ -110,16 +147,30 @@ pub fn write_all(dir: &Path, out: &RunOutput) -> anyhow::Result<Vec<PathBuf>> {
         .iter()
         .map(|s| {
             let pose = slave_model.forward(&s.telemetry.q);
-            (time_of(out, s), sensor_to_base(&s.telemetry.wrench, &out.info.sensor_mount, &pose).force.norm())
+            (
+                time_of(out, s),
+                sensor_to_base(&s.telemetry.wrench, &out.info.sensor_mount, &pose)
+                    .force
+                    .norm(),
+            )
         })
         .collect();
-    let scaled: Series = sensed.iter().map(|&(t, f)| (t, f * out.info.force_gain)).collect();
-    let displayed: Series =
-        out.master.iter().map(|s| (time_of(out, s), s.telemetry.commanded_wrench.force.norm())).collect();
+    let scaled: Series = sensed
+        .iter()
+        .map(|&(t, f)| (t, f * out.info.force_gain))
+        .collect();
+    let displayed: Series = out
+        .master
+        .iter()
+        .map(|s| (time_of(out, s), s.telemetry.commanded_wrench.force.norm()))
+        .collect();
     let hand: Series = out
         .master
         .iter()
-        .filter_map(|s| s.truth.map(|t| (time_of(out, s), t.base_wrench.force.norm())))
+        .filter_map(|s| {
+            s.truth
+                .map(|t| (time_of(out, s), t.base_wrench.force.norm()))
+        })
         .collect();
     let path = dir.join("forces.svg");
     {
@@ -143,17 +194,26 @@ pub fn write_all(dir: &Path, out: &RunOutput) -> anyhow::Result<Vec<PathBuf>> {
     // Timing: wake-up latency per tick of the control threads (real-time runs only).
     if !out.threads.is_empty() {
         let latency = |rows: &[LabSample]| -> Series {
-            rows.iter().map(|s| (time_of(out, s), s.telemetry.wake_latency.as_secs_f64() * 1e6)).collect()
+            rows.iter()
+                .map(|s| {
+                    (
+                        time_of(out, s),
+                        s.telemetry.wake_latency.as_secs_f64() * 1e6,
+                    )
+                })
+                .collect()
         };
         let (m, s) = (latency(&out.master), latency(&out.slave));
         let path = dir.join("timing.svg");
         {
             let root = SVGBackend::new(&path, SIZE).into_drawing_area();
             root.fill(&WHITE)?;
-            panel(&root, "Control threads: wake-up latency per tick", "latency (µs)", &[
-                ("master control", &m, BLUE),
-                ("slave control", &s, RED),
-            ])?;
+            panel(
+                &root,
+                "Control threads: wake-up latency per tick",
+                "latency (µs)",
+                &[("master control", &m, BLUE), ("slave control", &s, RED)],
+            )?;
             root.present()?;
         }
         written.push(path);
