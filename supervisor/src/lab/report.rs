@@ -265,7 +265,12 @@ pub fn report(out: &RunOutput) -> Report {
             });
         let cycle = Duration::from_secs_f64(1.0 / frequency.unwrap_or(1.0));
         let mut k = a;
-        while k + cycle <= b {
+        // Only whole cycles the run reached.
+        let run_end = out
+            .slave
+            .last()
+            .map_or(Duration::ZERO, |s| s.telemetry.time - info.start);
+        while k + cycle <= b.min(run_end + Duration::from_millis(1)) {
             let window = (k, k + cycle);
             let peak = out
                 .slave

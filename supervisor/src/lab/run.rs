@@ -965,7 +965,7 @@ fn run_real_time(
     on_progress: &mut dyn FnMut(&Progress),
 ) -> Result<RunOutput, RunError> {
     use penelope_rt_core::clock::MonotonicClock;
-    use penelope_rt_core::exec::{PeriodicConfig, spawn};
+    use penelope_rt_core::exec::{PeriodicConfig, Tick, spawn};
 
     // Start a little in the future so every thread is up before the first deadline.
     let start = MonotonicClock::read() + Duration::from_millis(100);
@@ -984,71 +984,45 @@ fn run_real_time(
         info,
         ..
     } = b;
-    let stop = end;
-    let spawn_err = |e: penelope_rt_core::exec::ExecError| RunError::Thread(e.to_string());
-    let threads = vec![
-        ("master-control", control_period, 80u8),
-        ("slave-control", control_period, 80u8),
-        ("master-comm", comm_period, 70u8),
-        ("slave-comm", comm_period, 70u8),
+    // Control threads above communication threads; each robot's pair on its own CPU.
+    let threads = [
+        ("master-control", control_period, 80u8, 0usize),
+        ("slave-control", control_period, 80, 1),
+        ("master-comm", comm_period, 70, 0),
+        ("slave-comm", comm_period, 70, 1),
     ];
-    let mut handles = Vec::new();
-    {
-        let cfg = PeriodicConfig::new(threads[0].0, threads[0].1)
-            .priority(threads[0].2)
-            .cpu(0);
-        handles.push(
-            spawn(cfg, move |tick| {
-                if tick.deadline >= stop {
-                    return Flow::Stop;
-                }
+    let spawn_until_end = |index: usize, mut body: Box<dyn FnMut(Tick) + Send>| {
+        let (name, period, priority, cpu) = threads[index];
+        let config = PeriodicConfig::new(name, period)
+            .priority(priority)
+            .cpu(cpu);
+        spawn(config, move |tick| {
+            if tick.deadline >= end {
+                return Flow::Stop;
+            }
+            body(tick);
+            Flow::Continue
+        })
+        .map_err(|e| RunError::Thread(format!("{name}: {e}")))
+    };
+    let handles = [
+        spawn_until_end(
+            0,
+            Box::new(move |tick| {
                 master.note_timing(tick.latency(), tick.previous_exec);
                 master.tick(tick.deadline);
-                Flow::Continue
-            })
-            .map_err(spawn_err)?,
-        );
-        let cfg = PeriodicConfig::new(threads[1].0, threads[1].1)
-            .priority(threads[1].2)
-            .cpu(1);
-        handles.push(
-            spawn(cfg, move |tick| {
-                if tick.deadline >= stop {
-                    return Flow::Stop;
-                }
+            }),
+        )?,
+        spawn_until_end(
+            1,
+            Box::new(move |tick| {
                 slave.note_timing(tick.latency(), tick.previous_exec);
                 slave.tick(tick.deadline);
-                Flow::Continue
-            })
-            .map_err(spawn_err)?,
-        );
-        let cfg = PeriodicConfig::new(threads[2].0, threads[2].1)
-            .priority(threads[2].2)
-            .cpu(0);
-        handles.push(
-            spawn(cfg, move |tick| {
-                if tick.deadline >= stop {
-                    return Flow::Stop;
-                }
-                master_comm.tick(tick.deadline);
-                Flow::Continue
-            })
-            .map_err(spawn_err)?,
-        );
-        let cfg = PeriodicConfig::new(threads[3].0, threads[3].1)
-            .priority(threads[3].2)
-            .cpu(1);
-        handles.push(
-            spawn(cfg, move |tick| {
-                if tick.deadline >= stop {
-                    return Flow::Stop;
-                }
-                slave_comm.tick(tick.deadline);
-                Flow::Continue
-            })
-            .map_err(spawn_err)?,
-        );
-    }
+            }),
+        )?,
+        spawn_until_end(2, Box::new(move |tick| master_comm.tick(tick.deadline)))?,
+        spawn_until_end(3, Box::new(move |tick| slave_comm.tick(tick.deadline)))?,
+    ];
     let mut master_rows = Vec::with_capacity(total.as_millis() as usize + 16);
     let mut slave_rows = Vec::with_capacity(total.as_millis() as usize + 16);
     while handles.iter().any(|h| !h.is_finished()) {
@@ -1058,7 +1032,7 @@ fn run_real_time(
         on_progress(&progress_of(&info, start, &master_rows, &slave_rows, total));
     }
     let mut timings = Vec::new();
-    for (h, (name, period, _)) in handles.into_iter().zip(threads) {
+    for (h, (name, period, _, _)) in handles.into_iter().zip(threads) {
         match h.join() {
             Ok(report) => timings.push(ThreadTiming {
                 name: name.to_string(),

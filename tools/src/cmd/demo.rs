@@ -208,12 +208,16 @@ fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
         .iter()
         .map(|e| format!("{e:.3}"))
         .collect();
-    println!(
-        "    {}   last/largest earlier {:.2}   operator work {:.3} J",
-        peaks.join(" "),
-        r.energy.growth_ratio,
-        r.energy.operator_work_j
-    );
+    if peaks.is_empty() {
+        println!("    the run ended before the tapping phase");
+    } else {
+        println!(
+            "    {}   last/largest earlier {:.2}   operator work {:.3} J",
+            peaks.join(" "),
+            r.energy.growth_ratio,
+            r.energy.operator_work_j
+        );
+    }
     println!("  clutch (indexing)");
     println!(
         "    largest reference step {:.3} mm (normal motion: {:.3} mm per tick)",
