@@ -58,7 +58,7 @@ pub use display::{ForceDisplay, ForceDisplayConfig};
 pub use impedance::{CartesianImpedance, ImpedanceConfig, PositionErrorMaster};
 pub use mapping::{Anchors, MappingConfig, MappingError, WorkspaceMapping};
 pub use passivity::{PassivityConfig, PassivityController, PassivityObserver};
-pub use tracking::{SlaveTracking, TrackingConfig};
+pub use tracking::{SlaveTracking, TrackingConfig, TrackingOutput};
 
 /// A configuration value that cannot be used.
 #[non_exhaustive]

@@ -8,6 +8,17 @@ use penelope_hal::{
 
 use super::{TeleopConfigError, check_gain, check_gains, effort, lowpass_gain, twist_in_base};
 
+/// What [`SlaveTracking`] commands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum TrackingOutput {
+    /// Joint torques by computed torque (`JointCommand::Effort`).
+    #[default]
+    Torque,
+    /// The inverse-kinematics joint reference as position targets (`JointCommand::Position`):
+    /// the board's servo closes the loop.
+    BoardServo,
+}
+
 /// Settings of a [`SlaveTracking`] controller. Gains are per joint, in acceleration units
 /// (computed torque multiplies them by the inertia matrix).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -39,6 +50,10 @@ pub struct TrackingConfig {
     /// A new IK solution further than this from the previous one in any joint, rad, is taken as a
     /// branch jump (near a singularity) and refused.
     pub max_ik_step: f64,
+    /// What the controller sends: joint torques (computed torque, the default) or the joint
+    /// reference as position targets for the board's own servo loop (for a board whose link is
+    /// too slow to close a torque loop over it, such as a Galil DMC on a serial line).
+    pub output: TrackingOutput,
 }
 
 impl Default for TrackingConfig {
@@ -57,6 +72,7 @@ impl Default for TrackingConfig {
             friction_velocity_band: 0.02,
             hold_on_ik_failure: true,
             max_ik_step: 0.2,
+            output: TrackingOutput::Torque,
         }
     }
 }
@@ -235,6 +251,12 @@ impl Controller for SlaveTracking {
             }
             Reference::Wrench(_) => return Err(ControllerError::UnsupportedReference),
         };
+        if self.config.output == TrackingOutput::BoardServo {
+            // The board's servo closes the loop: the joint reference is the command. Keep it as
+            // the next IK seed, as the torque path does.
+            self.q_ref = q_ref;
+            return Ok(JointCommand::Position(q_ref));
+        }
         // Acceleration feed-forward.
         let qdd_ref = match qdd_given {
             Some(a) => a,

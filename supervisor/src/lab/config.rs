@@ -231,6 +231,9 @@ pub enum ControllerKind {
     PositionErrorMaster,
     /// Slave half: follows the mapped master pose (inverse kinematics + computed torque).
     SlaveTracking,
+    /// Slave half for a board with its own servo behind a slow link (a Galil DMC on a serial
+    /// line): inverse kinematics, joint positions sent as the board's targets.
+    SlavePosition,
     /// Cartesian impedance toward the reference pose.
     CartesianImpedance,
     /// Joint PID with gravity compensation.

@@ -41,7 +41,7 @@ use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
 use penelope_rt_core::teleop::{
     CartesianImpedance, ChannelConfig, ChannelDirection, ForceDisplay, ForceDisplayConfig,
     ImpedanceConfig, MappingConfig, PositionErrorMaster, SlaveTracking, TeleopChannel,
-    TeleopSample, TrackingConfig,
+    TeleopSample, TrackingConfig, TrackingOutput,
 };
 
 use super::config::{
@@ -400,6 +400,7 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     // virtual wrist sensor.
     let slave_galil = open_slave_galil(lab, slave_name, &slave_model, &q_slave, options, start)?;
     let q_slave = slave_galil.as_ref().map_or(q_slave, |g| g.measured);
+    let slave_on_galil = slave_galil.is_some();
     let master_tool = master_model.forward(&q_master);
     let slave_tool = slave_model.forward(&q_slave);
     // What the controllers compute with: float kinematics, or the FPGA model where configured.
@@ -559,8 +560,8 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
         negate_wrench: true, // the wrist sensor reports the robot pushing on the world
         ..MappingConfig::default()
     };
-    let (master_controllers, master_active) = controllers_for(lab, master_name, law)?;
-    let (slave_controllers, slave_active) = controllers_for(lab, slave_name, law)?;
+    let (master_controllers, master_active) = controllers_for(lab, master_name, law, false)?;
+    let (slave_controllers, slave_active) = controllers_for(lab, slave_name, law, slave_on_galil)?;
 
     // Cells and rings.
     let (master_ref_w, master_ref_r) = latest::<Stamped<Reference>>();
@@ -754,11 +755,13 @@ fn model_robot(model: &models::DhRobotModel) -> models::DhRobot {
 }
 
 /// The controllers bound to `robot`, in configuration order, and the index of the one the law
-/// uses.
+/// uses. A slave on a board with its own servo over a slow link (`board_servo`) prefers a
+/// `slave-position` controller (position targets) to `slave-tracking` (torques).
 fn controllers_for(
     lab: &LabConfig,
     robot: &str,
     law: Law,
+    board_servo: bool,
 ) -> Result<(ControllerBox, usize), RunError> {
     let mut set: ControllerBox = Vec::new();
     let mut active = None;
@@ -773,6 +776,13 @@ fn controllers_for(
             ControllerKind::SlaveTracking => {
                 Box::new(SlaveTracking::new(TrackingConfig::default()).map_err(setup(name))?)
             }
+            ControllerKind::SlavePosition => Box::new(
+                SlaveTracking::new(TrackingConfig {
+                    output: TrackingOutput::BoardServo,
+                    ..TrackingConfig::default()
+                })
+                .map_err(setup(name))?,
+            ),
             ControllerKind::CartesianImpedance => {
                 Box::new(CartesianImpedance::new(ImpedanceConfig::default()).map_err(setup(name))?)
             }
@@ -782,16 +792,31 @@ fn controllers_for(
                 )));
             }
         };
-        let wanted = matches!(
-            (law, c.kind),
+        let slave_kind = if board_servo {
+            ControllerKind::SlavePosition
+        } else {
+            ControllerKind::SlaveTracking
+        };
+        let wanted = match (law, c.kind) {
             (Law::ForcePosition, ControllerKind::ForceDisplay)
-                | (Law::PositionError, ControllerKind::PositionErrorMaster)
-                | (_, ControllerKind::SlaveTracking)
-        );
+            | (Law::PositionError, ControllerKind::PositionErrorMaster) => true,
+            (_, kind) => kind == slave_kind,
+        };
         if wanted && active.is_none() {
             active = Some(set.len());
         }
         set.push(controller);
+    }
+    // A slave without a controller of the preferred kind falls back to the other one.
+    if active.is_none() {
+        let fallback = if board_servo {
+            ControllerKind::SlaveTracking
+        } else {
+            ControllerKind::SlavePosition
+        };
+        active = lab
+            .controllers_of(robot)
+            .position(|(_, c)| c.kind == fallback);
     }
     let active = active.ok_or_else(|| {
         RunError::Setup(format!(
