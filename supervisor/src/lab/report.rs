@@ -185,6 +185,40 @@ fn in_window(info: &RunInfo, s: &LabSample, window: (Duration, Duration)) -> boo
     t >= window.0 && t < window.1
 }
 
+/// Mechanical energy of the coupled system at each slave tick: both arms' kinetic energy plus
+/// the energy stored in the environment, the master taken at its latest tick not after the
+/// slave's (the two control threads tick on their own deadlines, and overruns skip ticks, so
+/// samples are matched by time, not by index).
+fn coupled_energy(out: &RunOutput) -> Vec<(Duration, f64)> {
+    let info = &out.info;
+    let mut master = out
+        .master
+        .iter()
+        .filter_map(|m| m.truth.map(|t| (m.telemetry.time, t)))
+        .peekable();
+    let mut current = None;
+    let mut series = Vec::with_capacity(out.slave.len());
+    for s in &out.slave {
+        while let Some(&(t, truth)) = master.peek() {
+            if t > s.telemetry.time {
+                break;
+            }
+            current = Some(truth);
+            master.next();
+        }
+        if let (Some(ts), Some(tm)) = (s.truth, current) {
+            let stored = info
+                .environment
+                .stored_energy(&ts.tool_pose.translation.vector);
+            series.push((
+                s.telemetry.time - info.start,
+                ts.kinetic_energy + tm.kinetic_energy + stored,
+            ));
+        }
+    }
+    series
+}
+
 /// The run's report.
 pub fn report(out: &RunOutput) -> Report {
     let info = &out.info;
@@ -264,6 +298,7 @@ pub fn report(out: &RunOutput) -> Report {
                 _ => None,
             });
         let cycle = Duration::from_secs_f64(1.0 / frequency.unwrap_or(1.0));
+        let energy = coupled_energy(out);
         let mut k = a;
         // Only whole cycles the run reached.
         let run_end = out
@@ -272,21 +307,10 @@ pub fn report(out: &RunOutput) -> Report {
             .map_or(Duration::ZERO, |s| s.telemetry.time - info.start);
         while k + cycle <= b.min(run_end + Duration::from_millis(1)) {
             let window = (k, k + cycle);
-            let peak = out
-                .slave
+            let peak = energy
                 .iter()
-                .zip(out.master.iter())
-                .filter(|(s, _)| in_window(info, s, window))
-                .filter_map(|(s, m)| {
-                    let (ts, tm) = (s.truth?, m.truth?);
-                    Some(
-                        ts.kinetic_energy
-                            + tm.kinetic_energy
-                            + info
-                                .environment
-                                .stored_energy(&ts.tool_pose.translation.vector),
-                    )
-                })
+                .filter(|(t, _)| *t >= window.0 && *t < window.1)
+                .map(|(_, e)| *e)
                 .fold(0.0f64, f64::max);
             peaks.push(peak);
             k += cycle;

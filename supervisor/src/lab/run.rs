@@ -869,6 +869,12 @@ pub struct RunOutput {
     pub threads: Vec<ThreadTiming>,
 }
 
+/// Control ticks in a run of length `total` (with room to spare), so the logger's vectors never
+/// grow while the loops run.
+fn ticks_in(total: Duration, period: Duration) -> usize {
+    (total.as_nanos() / period.as_nanos().max(1)) as usize + 16
+}
+
 fn drain(log: &mut ArcConsumer<LabSample, TELEMETRY_CAPACITY>, into: &mut Vec<LabSample>) {
     while let Some(s) = log.pop() {
         into.push(s);
@@ -934,8 +940,8 @@ fn run_simulated(
 ) -> Result<RunOutput, RunError> {
     let mut b = build(lab, options, Timestamp::ZERO)?;
     let total = b.end - b.start;
-    let mut master = Vec::with_capacity(total.as_millis() as usize + 16);
-    let mut slave = Vec::with_capacity(total.as_millis() as usize + 16);
+    let mut master = Vec::with_capacity(ticks_in(total, b.control_period));
+    let mut slave = Vec::with_capacity(ticks_in(total, b.control_period));
     let mut runner = SimRunner::new(b.start);
     let chunk = Duration::from_millis(50);
     let mut until = b.start;
@@ -1048,8 +1054,8 @@ fn run_real_time(
         spawn_until_end(2, Box::new(move |tick| master_comm.tick(tick.deadline)))?,
         spawn_until_end(3, Box::new(move |tick| slave_comm.tick(tick.deadline)))?,
     ];
-    let mut master_rows = Vec::with_capacity(total.as_millis() as usize + 16);
-    let mut slave_rows = Vec::with_capacity(total.as_millis() as usize + 16);
+    let mut master_rows = Vec::with_capacity(ticks_in(total, control_period));
+    let mut slave_rows = Vec::with_capacity(ticks_in(total, control_period));
     while handles.iter().any(|h| !h.is_finished()) {
         std::thread::sleep(Duration::from_millis(50));
         drain(&mut master_log, &mut master_rows);
