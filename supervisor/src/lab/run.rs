@@ -1084,11 +1084,3 @@ fn run_real_time(
         threads: timings,
     })
 }
-
-/// The model of a robot role, for post-processing.
-pub fn model_of(info: &RunInfo, role: Role) -> &dyn RobotModel {
-    match role {
-        Role::Master => &info.master_model,
-        Role::Slave => &info.slave_model,
-    }
-}
