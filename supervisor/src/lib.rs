@@ -3,6 +3,21 @@
 //! # A tour
 //!
 //! - [`lab`]: the lab configuration file and the teleoperation run it describes (the demo).
+//! - [`proto`]: the protocol, the single definition of every message on the wire (the IDL).
+//! - [`service`]: the seam between the transport and what a node serves.
+//! - [`net`]: frames, authentication, the TCP server of a node and the client connection.
+//! - [`objects`]: the creator and the objects it makes (robots, boards, sensors, controllers,
+//!   trajectories), their lifecycle and their real-time loops.
+//! - [`naming`]: the naming service (a tree of contexts with leases per node).
+//! - [`node`]: a node: creator, objects and optionally the naming service behind one server.
+//! - [`client`]: the naming-aware client and the proxies of remote objects.
 #![warn(missing_docs)]
 
+pub mod client;
 pub mod lab;
+pub mod naming;
+pub mod net;
+pub mod node;
+pub mod objects;
+pub mod proto;
+pub mod service;

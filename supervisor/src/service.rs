@@ -1,0 +1,145 @@
+//! The seam between the transport (`net`) and what a node serves (creator, objects, naming).
+//!
+//! The server decodes a [`Call`] from a connection and hands it to a [`Service`] together with
+//! the connection's [`Session`]; the service answers with a [`Reply`] or a [`WireError`]. Streams
+//! (telemetry) go back to the connection through the session's [`Outbox`], which never blocks
+//! the producer: when the connection is slow, frames are dropped and counted.
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
+
+use crate::proto::{Call, Method, Reply, ServerMsg, WireError};
+
+/// What a node serves. Called from connection threads (never from a real-time thread), possibly
+/// from several at once.
+pub trait Service: Send + Sync + 'static {
+    /// Serves one call of `session`.
+    ///
+    /// # Errors
+    /// The typed error that goes back to the client in the response.
+    fn call(&self, session: &Session, call: Call) -> Result<Reply, WireError>;
+
+    /// The connection of `session` closed: drop its subscriptions.
+    fn closed(&self, session: &Session) {
+        let _ = session;
+    }
+}
+
+/// How objects of one node reach objects of other nodes (a controller bound to a sensor that lives
+/// elsewhere). The node implements it with the naming service and a client connection; called
+/// only from non-real-time threads (a controller's communication thread, connection threads).
+pub trait Remote: Send + Sync + 'static {
+    /// Calls `method` on the object bound at the naming `path` (`/node/sensors/ft`).
+    ///
+    /// # Errors
+    /// [`WireError::UnknownName`] if nothing is bound there, [`WireError::Remote`] if its node
+    /// cannot be reached, or the remote object's own error.
+    fn call(&self, path: &str, method: Method) -> Result<Reply, WireError>;
+}
+
+/// One client connection, as a [`Service`] sees it.
+#[derive(Clone, Debug)]
+pub struct Session {
+    /// Unique per node run.
+    pub id: u64,
+    /// The peer's address.
+    pub peer: SocketAddr,
+    /// The name the client gave in its hello.
+    pub client: String,
+    /// Frames to push to this connection (telemetry).
+    pub outbox: Outbox,
+}
+
+/// A bounded, non-blocking queue of frames to one connection.
+///
+/// Producers ([`Outbox::try_push`]) never wait: a full queue drops the frame and counts it. The
+/// connection's writer drains the other end ([`OutboxReceiver`]).
+#[derive(Clone, Debug)]
+pub struct Outbox {
+    tx: SyncSender<ServerMsg>,
+    dropped: Arc<AtomicU64>,
+    closed: Arc<AtomicBool>,
+}
+
+/// The connection writer's end of an [`Outbox`].
+#[derive(Debug)]
+pub struct OutboxReceiver {
+    /// Frames in push order.
+    pub rx: Receiver<ServerMsg>,
+    closed: Arc<AtomicBool>,
+}
+
+impl Drop for OutboxReceiver {
+    fn drop(&mut self) {
+        self.closed.store(true, Ordering::Release);
+    }
+}
+
+impl Outbox {
+    /// An outbox holding at most `capacity` frames, and its receiving end.
+    pub fn bounded(capacity: usize) -> (Outbox, OutboxReceiver) {
+        let (tx, rx) = sync_channel(capacity.max(1));
+        let closed = Arc::new(AtomicBool::new(false));
+        (
+            Outbox {
+                tx,
+                dropped: Arc::new(AtomicU64::new(0)),
+                closed: closed.clone(),
+            },
+            OutboxReceiver { rx, closed },
+        )
+    }
+
+    /// Queues `msg` if there is room; `false` if it was dropped (full or closed).
+    pub fn try_push(&self, msg: ServerMsg) -> bool {
+        match self.tx.try_send(msg) {
+            Ok(()) => true,
+            Err(TrySendError::Full(_)) => {
+                self.dropped.fetch_add(1, Ordering::Relaxed);
+                false
+            }
+            Err(TrySendError::Disconnected(_)) => {
+                self.closed.store(true, Ordering::Release);
+                false
+            }
+        }
+    }
+
+    /// Queues `msg`, waiting for room (for responses, which must not be lost). `false` if the
+    /// connection is gone.
+    pub fn push(&self, msg: ServerMsg) -> bool {
+        self.tx.send(msg).is_ok()
+    }
+
+    /// Frames dropped so far because the queue was full.
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+
+    /// Whether the connection's writer is gone (pushing is pointless).
+    pub fn is_closed(&self) -> bool {
+        self.closed.load(Ordering::Acquire)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_full_outbox_drops_and_counts_and_a_closed_one_says_so() {
+        let (outbox, receiver) = Outbox::bounded(2);
+        assert!(outbox.try_push(ServerMsg::AuthOk));
+        assert!(outbox.try_push(ServerMsg::AuthOk));
+        assert!(!outbox.try_push(ServerMsg::AuthOk));
+        assert_eq!(outbox.dropped(), 1);
+        assert!(!outbox.is_closed());
+        assert_eq!(receiver.rx.recv().unwrap(), ServerMsg::AuthOk);
+        drop(receiver);
+        assert!(outbox.is_closed());
+        assert!(!outbox.try_push(ServerMsg::AuthOk));
+        assert!(!outbox.push(ServerMsg::AuthOk));
+    }
+}
