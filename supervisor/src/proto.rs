@@ -31,7 +31,10 @@
 
 use std::fmt;
 
-use penelope_hal::{LifecycleState, NamedPose, Transition};
+use nalgebra::{Matrix3, SMatrix, Translation3, UnitQuaternion, Vector3};
+use penelope_hal::{
+    Frame, JointVector, LifecycleState, MAX_JOINTS, NamedPose, Pose, Transition, Wrench,
+};
 use serde::{Deserialize, Serialize};
 
 /// The first four bytes of every hello: `PNLP`.
@@ -972,9 +975,186 @@ pub fn check_name(name: &str) -> Result<(), WireError> {
     Ok(())
 }
 
+// ---------------------------------------------------------------------------------------------
+// Conversions between the wire's plain data and the math types of `hal`
+// ---------------------------------------------------------------------------------------------
+
+impl From<&Pose> for PoseMsg {
+    fn from(pose: &Pose) -> Self {
+        let r = pose.rotation.to_rotation_matrix();
+        let col = |j: usize| [r[(0, j)], r[(1, j)], r[(2, j)]];
+        let t = pose.translation.vector;
+        PoseMsg {
+            position: [t.x, t.y, t.z],
+            n: col(0),
+            o: col(1),
+            a: col(2),
+        }
+    }
+}
+
+impl PoseMsg {
+    /// The pose, after checking that every value is finite and that `n, o, a` are orthonormal
+    /// and right-handed within 1e-6 (then re-orthonormalized).
+    ///
+    /// # Errors
+    /// [`WireError::BadArgument`] saying what is wrong.
+    pub fn to_pose(&self) -> Result<Pose, WireError> {
+        let all = self
+            .position
+            .iter()
+            .chain(&self.n)
+            .chain(&self.o)
+            .chain(&self.a);
+        if !all.into_iter().all(|x| x.is_finite()) {
+            return Err(WireError::BadArgument(
+                "pose has a NaN or infinite value".into(),
+            ));
+        }
+        let m = Matrix3::from_columns(&[
+            Vector3::from(self.n),
+            Vector3::from(self.o),
+            Vector3::from(self.a),
+        ]);
+        let off = (m.transpose() * m - Matrix3::identity()).abs().max();
+        if off > 1e-6 || m.determinant() < 0.0 {
+            return Err(WireError::BadArgument(
+                "pose versors n, o, a are not orthonormal and right-handed".into(),
+            ));
+        }
+        let rotation = UnitQuaternion::from_matrix(&m);
+        Ok(Pose::from_parts(
+            Translation3::from(Vector3::from(self.position)),
+            rotation,
+        ))
+    }
+}
+
+impl From<&Wrench> for WrenchMsg {
+    fn from(w: &Wrench) -> Self {
+        WrenchMsg {
+            force: [w.force.x, w.force.y, w.force.z],
+            torque: [w.torque.x, w.torque.y, w.torque.z],
+        }
+    }
+}
+
+impl WrenchMsg {
+    /// The wrench in `frame`, after checking every value is finite.
+    ///
+    /// # Errors
+    /// [`WireError::BadArgument`] for a NaN or infinite component.
+    pub fn to_wrench(&self, frame: Frame) -> Result<Wrench, WireError> {
+        if !self.force.iter().chain(&self.torque).all(|x| x.is_finite()) {
+            return Err(WireError::BadArgument(
+                "wrench has a NaN or infinite value".into(),
+            ));
+        }
+        Ok(Wrench {
+            force: Vector3::from(self.force),
+            torque: Vector3::from(self.torque),
+            frame,
+        })
+    }
+}
+
+/// The first `n` joints of `q` on the wire.
+pub fn joints_from_vector(q: &JointVector, n: usize) -> Joints {
+    q.iter().take(n.min(MAX_JOINTS)).copied().collect()
+}
+
+/// A joint vector from exactly `n` finite wire values (the rest zero).
+///
+/// # Errors
+/// [`WireError::BadArgument`] for a wrong count or a NaN or infinite value.
+pub fn joints_to_vector(q: &[f64], n: usize) -> Result<JointVector, WireError> {
+    if q.len() != n || n > MAX_JOINTS {
+        return Err(WireError::BadArgument(format!(
+            "expected {n} joint values, got {}",
+            q.len()
+        )));
+    }
+    if !q.iter().all(|x| x.is_finite()) {
+        return Err(WireError::BadArgument(
+            "a joint value is NaN or infinite".into(),
+        ));
+    }
+    let mut v = JointVector::zeros();
+    v.as_mut_slice()[..n].copy_from_slice(q);
+    Ok(v)
+}
+
+impl MatrixMsg {
+    /// The top-left `rows` × `cols` block of `m`, row-major.
+    pub fn from_block<const R: usize, const C: usize>(
+        m: &SMatrix<f64, R, C>,
+        rows: usize,
+        cols: usize,
+    ) -> Self {
+        let (rows, cols) = (rows.min(R), cols.min(C));
+        let mut data = Vec::with_capacity(rows * cols);
+        for i in 0..rows {
+            for j in 0..cols {
+                data.push(m[(i, j)]);
+            }
+        }
+        MatrixMsg {
+            rows: rows as u16,
+            cols: cols as u16,
+            data,
+        }
+    }
+
+    /// The value at row `i`, column `j` (`None` out of range).
+    pub fn get(&self, i: usize, j: usize) -> Option<f64> {
+        if i < usize::from(self.rows) && j < usize::from(self.cols) {
+            self.data.get(i * usize::from(self.cols) + j).copied()
+        } else {
+            None
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn poses_wrenches_and_joints_cross_the_wire_intact() {
+        let pose = Pose::from_parts(
+            Translation3::new(0.1, -0.2, 0.3),
+            UnitQuaternion::from_euler_angles(0.3, -0.2, 1.1),
+        );
+        let back = PoseMsg::from(&pose).to_pose().unwrap();
+        assert!((back.translation.vector - pose.translation.vector).norm() < 1e-12);
+        assert!(back.rotation.angle_to(&pose.rotation) < 1e-9);
+        let mut skew = PoseMsg::from(&pose);
+        skew.n = [1.0, 1.0, 0.0];
+        assert!(matches!(skew.to_pose(), Err(WireError::BadArgument(_))));
+        let mut nan = PoseMsg::from(&pose);
+        nan.position[1] = f64::NAN;
+        assert!(nan.to_pose().is_err());
+
+        let w = WrenchMsg {
+            force: [1.0, 2.0, 3.0],
+            torque: [0.1, 0.2, f64::INFINITY],
+        };
+        assert!(w.to_wrench(Frame::Base).is_err());
+
+        assert!(joints_to_vector(&[0.1, 0.2], 3).is_err());
+        assert!(joints_to_vector(&[0.1, f64::NAN, 0.3], 3).is_err());
+        let q = joints_to_vector(&[0.1, 0.2, 0.3], 3).unwrap();
+        assert_eq!(joints_from_vector(&q, 3), vec![0.1, 0.2, 0.3]);
+
+        let m = MatrixMsg::from_block(
+            &nalgebra::Matrix2x3::new(1.0, 2.0, 3.0, 4.0, 5.0, 6.0),
+            2,
+            2,
+        );
+        assert_eq!(m.data, vec![1.0, 2.0, 4.0, 5.0]);
+        assert_eq!(m.get(1, 0), Some(4.0));
+        assert_eq!(m.get(2, 0), None);
+    }
 
     #[test]
     fn names_are_checked() {
