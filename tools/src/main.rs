@@ -31,6 +31,12 @@ enum Command {
     Galil(cmd::galil::Args),
     /// Emulate a Galil DMC-40x0 on a pseudo-terminal.
     GalilSim(cmd::galil_sim::Args),
+    /// Run a node: its creator, its objects and their real-time loops, served over TCP.
+    Node(cmd::node::Args),
+    /// Run the naming service alone.
+    Naming(cmd::naming::Args),
+    /// Talk to the nodes: list, create, configure, activate, call methods, watch telemetry.
+    Ctl(cmd::ctl::Args),
 }
 
 fn main() -> ExitCode {
@@ -43,6 +49,9 @@ fn main() -> ExitCode {
         Command::Doctor(args) => cmd::doctor::run(args),
         Command::Galil(args) => cmd::galil::run(args),
         Command::GalilSim(args) => cmd::galil_sim::run(args),
+        Command::Node(args) => cmd::node::run(args),
+        Command::Naming(args) => cmd::naming::run(args),
+        Command::Ctl(args) => cmd::ctl::run(args),
     };
     match result {
         Ok(code) => code,

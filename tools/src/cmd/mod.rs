@@ -3,11 +3,14 @@
 use std::process::ExitCode;
 
 pub mod bench;
+pub mod ctl;
 pub mod demo;
 pub mod doctor;
 pub mod galil;
 pub mod galil_sim;
 pub mod kin;
+pub mod naming;
+pub mod node;
 
 /// Bad input from the user (unknown robot, wrong joint count, NaN): exit code 2.
 #[derive(Debug)]

@@ -4,6 +4,7 @@ use std::process::ExitCode;
 
 pub mod fpga;
 pub mod jitter;
+pub mod rpc;
 
 /// Which benchmark to run.
 #[derive(clap::Subcommand, Debug)]
@@ -12,6 +13,8 @@ pub enum BenchCommand {
     Jitter(jitter::Args),
     /// FPGA kinematics model throughput beside the float model, and the modelled hardware latency.
     Fpga(fpga::Args),
+    /// Remote-call round trip beside a raw TCP echo and ICMP ping, idle and under load.
+    Rpc(rpc::Args),
 }
 
 /// Runs the chosen benchmark.
@@ -19,5 +22,6 @@ pub fn run(command: BenchCommand) -> anyhow::Result<ExitCode> {
     match command {
         BenchCommand::Jitter(args) => jitter::run(args),
         BenchCommand::Fpga(args) => fpga::run(args),
+        BenchCommand::Rpc(args) => rpc::run(args),
     }
 }
