@@ -260,12 +260,46 @@ pub type ArcConsumer<T, const N: usize> = Consumer<T, N, std::sync::Arc<Ring<T, 
 /// `std::thread::spawn`. Allocates once, here; the halves never allocate.
 #[cfg(all(feature = "std", not(loom)))]
 pub fn ring<T: Copy, const N: usize>() -> (ArcProducer<T, N>, ArcConsumer<T, N>) {
-    Ring::halves(std::sync::Arc::new(Ring::new()))
+    let () = Ring::<T, N>::CAPACITY_IS_A_POWER_OF_TWO;
+    // Built in place on the heap: `Arc::new(Ring::new())` makes the ring on the stack first in
+    // unoptimized builds, and a ring of 4096 telemetry samples (megabytes) overflows a thread's
+    // stack.
+    let mut storage = std::boxed::Box::<Ring<T, N>>::new_uninit();
+    let p = storage.as_mut_ptr();
+    // SAFETY: `p` points to writable, exclusively owned memory for one `Ring`. The slots are
+    // `UnsafeCell<MaybeUninit<T>>`, for which uninitialized bytes are a valid value; every other
+    // field is written here before `assume_init`.
+    let ring = unsafe {
+        core::ptr::addr_of_mut!((*p).head).write(AtomicUsize::new(0));
+        core::ptr::addr_of_mut!((*p).tail).write(AtomicUsize::new(0));
+        core::ptr::addr_of_mut!((*p).dropped).write(AtomicUsize::new(0));
+        core::ptr::addr_of_mut!((*p).split).write(AtomicBool::new(false));
+        storage.assume_init()
+    };
+    // Moves heap to heap (a copy into the Arc's allocation), never through the stack.
+    let ring: std::sync::Arc<Ring<T, N>> = std::sync::Arc::from(ring);
+    Ring::halves(ring)
 }
 
 #[cfg(all(test, not(loom)))]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_ring_larger_than_a_thread_stack_is_built_on_the_heap() {
+        // 8 MiB of slots: made on a 256 KiB stack, so building it there first would overflow.
+        let handle = std::thread::Builder::new()
+            .stack_size(256 * 1024)
+            .spawn(|| {
+                let (mut tx, mut rx) = ring::<[u64; 256], 4096>();
+                assert!(tx.push([7; 256]).is_ok());
+                assert_eq!(rx.pop().map(|v| v[255]), Some(7));
+                assert_eq!(rx.pop(), None);
+                tx.free()
+            })
+            .unwrap();
+        assert_eq!(handle.join().unwrap(), 4096);
+    }
 
     #[test]
     fn fifo_order_and_counted_drops() {
