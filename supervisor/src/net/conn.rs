@@ -1,12 +1,41 @@
 //! The client side of one connection to a node.
 //!
-//! SKELETON (lead): signatures are the contract; NET fills in the bodies.
+//! A [`Connection`] is one TCP stream (`TCP_NODELAY`) that has passed the hello (and the
+//! challenge-response when the node asks for it). [`Connection::call`] sends one request and
+//! waits for its answer; [`Connection::call_many`] pipelines many (written back to back, answers
+//! read in order); telemetry frames that arrive meanwhile are kept (at most
+//! [`TELEMETRY_BACKLOG`] batches, the oldest dropped first) for [`Connection::next_telemetry`].
+//!
+//! Request ids increase from 1. A call that timed out leaves its answer on the wire: it is
+//! recognised and skipped later. Any other surprise (an answer with an unexpected id, a frame a
+//! node never sends) is [`RpcError::Protocol`], and a connection-level [`ServerMsg::Error`] is
+//! [`RpcError::Remote`]; after either, or a transport failure, the connection is unusable and
+//! every later call says so. Nothing here panics on what the node sends.
 
-use std::net::SocketAddr;
-use std::time::Duration;
+use std::collections::VecDeque;
+use std::io::{self, Write};
+use std::net::{Shutdown, SocketAddr, TcpStream};
+use std::time::{Duration, Instant};
 
-use crate::net::frame::FrameError;
-use crate::proto::{Call, DEFAULT_MAX_FRAME, Reply, TelemetryBatch, WireError};
+use crate::net::auth;
+use crate::net::frame::{FrameDecoder, FrameError, encode_into};
+use crate::proto::{
+    Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, MAGIC, PROTOCOL_VERSION, Reply, ServerMsg,
+    TelemetryBatch, WireError,
+};
+
+/// Telemetry batches kept while nobody asks for them; older ones are dropped.
+pub const TELEMETRY_BACKLOG: usize = 1024;
+
+/// Pipelined requests in flight at most in [`Connection::call_many`] (more wait for answers, so
+/// neither side's socket buffers can fill up and stall both).
+const MAX_IN_FLIGHT: usize = 512;
+
+/// How far past a deadline a read may wait before it is noticed.
+const TIMEOUT_SLACK: Duration = Duration::from_millis(5);
+
+/// Request bytes buffered before they are written in [`Connection::call_many`].
+const WRITE_CHUNK: usize = 64 * 1024;
 
 /// How a client connects.
 #[derive(Clone, Debug)]
@@ -22,7 +51,7 @@ pub struct ClientConfig {
 }
 
 impl ClientConfig {
-    /// Defaults for a client named `name`.
+    /// Defaults for a client named `name`: no secret, 5 s timeout, 256 KiB frames.
     pub fn new(name: impl Into<String>) -> Self {
         ClientConfig {
             name: name.into(),
@@ -66,16 +95,90 @@ impl From<RpcError> for WireError {
 #[derive(Debug)]
 pub struct Connection {
     node: String,
+    stream: TcpStream,
+    decoder: FrameDecoder,
+    out: Vec<u8>,
+    max_frame: usize,
+    timeout: Duration,
+    /// The socket's read timeout as last set.
+    read_timeout: Duration,
+    next_id: u64,
+    /// Answers to ids below this may still arrive from calls that timed out: skipped.
+    stale_below: u64,
+    telemetry: VecDeque<TelemetryBatch>,
+    /// Why the connection is unusable.
+    broken: Option<String>,
+}
+
+/// A frame of the node, classified.
+#[allow(clippy::large_enum_variant)] // moved once per frame; boxing would allocate per call
+enum Incoming {
+    Response(u64, Result<Reply, WireError>),
+    Telemetry(TelemetryBatch),
 }
 
 impl Connection {
-    /// Connects, says hello and authenticates if asked.
+    /// Connects (within `config.timeout`), says hello and authenticates if asked.
     ///
     /// # Errors
-    /// [`RpcError`].
+    /// [`RpcError::Io`] if the node cannot be reached, [`RpcError::Timeout`] if it does not
+    /// answer in time, [`RpcError::Remote`] with [`WireError::AuthFailed`] if the node wants a
+    /// secret and none or a wrong one was given (or another error the node sent),
+    /// [`RpcError::Protocol`] for a peer that is not a Penelope node of this version.
     pub fn connect(addr: SocketAddr, config: &ClientConfig) -> Result<Connection, RpcError> {
-        let _ = (addr, config);
-        Err(RpcError::Protocol("skeleton".into()))
+        let timeout = config.timeout.max(Duration::from_millis(1));
+        let stream = TcpStream::connect_timeout(&addr, timeout)?;
+        stream.set_nodelay(true)?;
+        stream.set_read_timeout(Some(timeout))?;
+        stream.set_write_timeout(Some(timeout))?;
+        let mut conn = Connection {
+            node: String::new(),
+            stream,
+            decoder: FrameDecoder::new(config.max_frame),
+            out: Vec::with_capacity(256),
+            max_frame: config.max_frame,
+            timeout,
+            read_timeout: timeout,
+            next_id: 1,
+            stale_below: 0,
+            telemetry: VecDeque::new(),
+            broken: None,
+        };
+        conn.send(&ClientMsg::Hello(ClientHello::new(config.name.clone())))?;
+        conn.write_out()?;
+        let mut deadline = Deadline::after(timeout);
+        let hello = match conn.read_msg(&mut deadline)? {
+            ServerMsg::Hello(h) => h,
+            ServerMsg::Error(e) => return Err(RpcError::Remote(e)),
+            other => return Err(conn.protocol(format!("expected the node's hello, got {other:?}"))),
+        };
+        if hello.magic != MAGIC {
+            return Err(conn.protocol("the peer is not a Penelope node (bad magic)".into()));
+        }
+        if hello.version != PROTOCOL_VERSION {
+            return Err(RpcError::Remote(WireError::VersionMismatch {
+                ours: PROTOCOL_VERSION,
+                theirs: hello.version,
+            }));
+        }
+        conn.node = hello.node;
+        if let Some(challenge) = hello.challenge {
+            let Some(secret) = config.secret.as_deref() else {
+                log::warn!("node `{}` at {addr} requires a shared secret", conn.node);
+                return Err(RpcError::Remote(WireError::AuthFailed));
+            };
+            let mac = auth::mac(secret, &challenge, &config.name);
+            conn.send(&ClientMsg::Auth { mac })?;
+            conn.write_out()?;
+            match conn.read_msg(&mut deadline)? {
+                ServerMsg::AuthOk => {}
+                ServerMsg::Error(e) => return Err(RpcError::Remote(e)),
+                other => {
+                    return Err(conn.protocol(format!("expected AuthOk, got {other:?}")));
+                }
+            }
+        }
+        Ok(conn)
     }
 
     /// The node's name from its hello.
@@ -83,36 +186,479 @@ impl Connection {
         &self.node
     }
 
-    /// One call, waiting for its answer.
+    /// The node's address.
     ///
     /// # Errors
-    /// [`RpcError::Remote`] for an error reply, others for transport failures.
-    pub fn call(&mut self, call: Call) -> Result<Reply, RpcError> {
-        let _ = call;
-        Err(RpcError::Protocol("skeleton".into()))
+    /// The socket's error.
+    pub fn peer_addr(&self) -> io::Result<SocketAddr> {
+        self.stream.peer_addr()
     }
 
-    /// Several calls sent back to back, then their answers in order.
+    /// Whether the connection can still be used (no transport or protocol failure so far).
+    pub fn is_usable(&self) -> bool {
+        self.broken.is_none()
+    }
+
+    /// One call, waiting at most the configured timeout for its answer.
     ///
     /// # Errors
-    /// Transport failures; each call's own error is in its slot.
+    /// [`RpcError::Remote`] for an error reply, [`RpcError::Timeout`], others for transport or
+    /// protocol failures (which leave the connection unusable).
+    pub fn call(&mut self, call: Call) -> Result<Reply, RpcError> {
+        self.check()?;
+        let id = self.next_id;
+        self.next_id += 1;
+        self.send(&ClientMsg::Request { id, call })?;
+        self.write_out()?;
+        match self.wait_response(id, &mut Deadline::after(self.timeout)) {
+            Ok(result) => result.map_err(RpcError::Remote),
+            Err(e) => {
+                if matches!(e, RpcError::Timeout) {
+                    self.stale_below = self.next_id;
+                }
+                Err(e)
+            }
+        }
+    }
+
+    /// Several calls sent back to back (pipelined: one write for many requests, at most 512 in
+    /// flight), then their answers in order. The timeout applies to each answer.
+    ///
+    /// # Errors
+    /// Transport, protocol and timeout failures; each call's own error is in its slot.
     pub fn call_many(
         &mut self,
         calls: Vec<Call>,
     ) -> Result<Vec<Result<Reply, WireError>>, RpcError> {
-        let _ = calls;
-        Err(RpcError::Protocol("skeleton".into()))
+        self.check()?;
+        let first = self.next_id;
+        let n = calls.len() as u64;
+        self.next_id += n;
+        let mut results = Vec::with_capacity(calls.len());
+        let mut sent = first;
+        let result = (|| {
+            for call in calls {
+                if sent - first - results.len() as u64 >= MAX_IN_FLIGHT as u64 {
+                    self.write_out()?;
+                    let want = first + results.len() as u64;
+                    results.push(self.wait_response(want, &mut Deadline::after(self.timeout))?);
+                }
+                self.send(&ClientMsg::Request { id: sent, call })?;
+                sent += 1;
+                if self.out.len() >= WRITE_CHUNK {
+                    self.write_out()?;
+                }
+            }
+            self.write_out()?;
+            while (results.len() as u64) < n {
+                let want = first + results.len() as u64;
+                results.push(self.wait_response(want, &mut Deadline::after(self.timeout))?);
+            }
+            Ok(())
+        })();
+        match result {
+            Ok(()) => Ok(results),
+            Err(e) => {
+                if matches!(e, RpcError::Timeout) {
+                    self.stale_below = self.next_id;
+                }
+                Err(e)
+            }
+        }
     }
 
-    /// The next telemetry batch, waiting at most `timeout`.
+    /// The next telemetry batch (first those that arrived during calls), waiting at most
+    /// `timeout`; `Ok(None)` if none came.
     ///
     /// # Errors
-    /// Transport failures.
+    /// Transport and protocol failures.
     pub fn next_telemetry(
         &mut self,
         timeout: Duration,
     ) -> Result<Option<TelemetryBatch>, RpcError> {
-        let _ = timeout;
-        Err(RpcError::Protocol("skeleton".into()))
+        if let Some(b) = self.telemetry.pop_front() {
+            return Ok(Some(b));
+        }
+        self.check()?;
+        let mut deadline = Deadline::after(timeout);
+        loop {
+            match self.read_incoming(&mut deadline) {
+                Ok(Incoming::Telemetry(b)) => return Ok(Some(b)),
+                Ok(Incoming::Response(id, _)) if id < self.stale_below => {}
+                Ok(Incoming::Response(id, _)) => {
+                    return Err(self.protocol(format!("an answer to request {id}, never sent")));
+                }
+                Err(RpcError::Timeout) => return Ok(None),
+                Err(e) => return Err(e),
+            }
+        }
+    }
+
+    fn check(&self) -> Result<(), RpcError> {
+        match &self.broken {
+            Some(why) => Err(RpcError::Protocol(format!("connection unusable: {why}"))),
+            None => Ok(()),
+        }
+    }
+
+    fn protocol(&mut self, what: String) -> RpcError {
+        self.broken = Some(what.clone());
+        let _ = self.stream.shutdown(Shutdown::Both);
+        RpcError::Protocol(what)
+    }
+
+    fn fail<E: std::fmt::Display>(&mut self, e: E) -> E {
+        self.broken = Some(e.to_string());
+        e
+    }
+
+    /// Appends one frame to the output buffer.
+    fn send(&mut self, msg: &ClientMsg) -> Result<(), RpcError> {
+        encode_into(msg, self.max_frame, &mut self.out).map_err(RpcError::Frame)
+    }
+
+    /// Writes the output buffer.
+    fn write_out(&mut self) -> Result<(), RpcError> {
+        if self.out.is_empty() {
+            return Ok(());
+        }
+        let r = self.stream.write_all(&self.out);
+        self.out.clear();
+        r.map_err(|e| RpcError::Io(self.fail(e)))
+    }
+
+    /// Waits for the answer to `id`, keeping telemetry and skipping answers of timed-out calls.
+    fn wait_response(
+        &mut self,
+        id: u64,
+        deadline: &mut Deadline,
+    ) -> Result<Result<Reply, WireError>, RpcError> {
+        loop {
+            match self.read_incoming(deadline)? {
+                Incoming::Response(got, result) if got == id => return Ok(result),
+                Incoming::Response(got, _) if got < self.stale_below && got < id => {}
+                Incoming::Response(got, _) => {
+                    return Err(self.protocol(format!("expected the answer to {id}, got {got}")));
+                }
+                Incoming::Telemetry(b) => {
+                    if self.telemetry.len() >= TELEMETRY_BACKLOG {
+                        self.telemetry.pop_front();
+                    }
+                    self.telemetry.push_back(b);
+                }
+            }
+        }
+    }
+
+    fn read_incoming(&mut self, deadline: &mut Deadline) -> Result<Incoming, RpcError> {
+        match self.read_msg(deadline)? {
+            ServerMsg::Response { id, result } => Ok(Incoming::Response(id, result)),
+            ServerMsg::Telemetry(b) => Ok(Incoming::Telemetry(b)),
+            ServerMsg::Error(e) => {
+                let e = self.fail(e);
+                let _ = self.stream.shutdown(Shutdown::Both);
+                Err(RpcError::Remote(e))
+            }
+            other => Err(self.protocol(format!("unexpected {other:?} from the node"))),
+        }
+    }
+
+    /// Reads the next frame of the node, waiting until `deadline`.
+    fn read_msg(&mut self, deadline: &mut Deadline) -> Result<ServerMsg, RpcError> {
+        loop {
+            match self.decoder.next::<ServerMsg>() {
+                Ok(Some(m)) => return Ok(m),
+                Ok(None) => {}
+                Err(e) => return Err(RpcError::Frame(self.fail(e))),
+            }
+            let left = deadline.left();
+            if left.is_zero() {
+                return Err(RpcError::Timeout);
+            }
+            // Only touch the socket option when the wait must be clearly shorter than the one
+            // set, or may be longer again (a call's usual wait keeps it: no extra system call per
+            // call; a read may overshoot the deadline by at most the slack).
+            let want = left.min(self.timeout).max(Duration::from_millis(1));
+            if want + TIMEOUT_SLACK < self.read_timeout
+                || (self.read_timeout < self.timeout && want > self.read_timeout + TIMEOUT_SLACK)
+            {
+                self.stream.set_read_timeout(Some(want))?;
+                self.read_timeout = want;
+            }
+            match self.decoder.read_from(&mut self.stream) {
+                Ok(0) => {
+                    let e = self.decoder.eof_error();
+                    return Err(RpcError::Frame(self.fail(e)));
+                }
+                Ok(_) => {}
+                Err(FrameError::Io(e))
+                    if matches!(
+                        e.kind(),
+                        io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
+                    ) =>
+                {
+                    if deadline.expired(self.read_timeout) {
+                        return Err(RpcError::Timeout);
+                    }
+                }
+                Err(e) => return Err(RpcError::Frame(self.fail(e))),
+            }
+        }
+    }
+}
+
+/// A wait of at most `timeout`. Its clock starts only when the first read did not bring the
+/// whole answer (the socket's read timeout bounds that first read), so a call answered by its
+/// first read never reads the clock; a wait may thus last up to twice `timeout` when the answer
+/// trickles in.
+#[derive(Clone, Copy)]
+enum Deadline {
+    /// Nothing read yet.
+    Fresh(Duration),
+    /// The first read is under way.
+    FirstRead(Duration),
+    /// The clock runs.
+    At(Instant),
+}
+
+impl Deadline {
+    fn after(timeout: Duration) -> Self {
+        Deadline::Fresh(timeout)
+    }
+
+    /// The longest the next read may wait.
+    fn left(&mut self) -> Duration {
+        match *self {
+            Deadline::Fresh(t) => {
+                *self = Deadline::FirstRead(t);
+                t
+            }
+            Deadline::FirstRead(t) => {
+                *self = Deadline::At(Instant::now() + t);
+                t
+            }
+            Deadline::At(at) => at.saturating_duration_since(Instant::now()),
+        }
+    }
+
+    /// After a read that timed out having waited `waited`: whether the time is up.
+    fn expired(&mut self, waited: Duration) -> bool {
+        if let Deadline::FirstRead(t) | Deadline::Fresh(t) = *self {
+            *self = Deadline::At(Instant::now() + t.saturating_sub(waited));
+        }
+        match *self {
+            Deadline::At(at) => Instant::now() >= at,
+            _ => false,
+        }
+    }
+}
+
+impl Drop for Connection {
+    fn drop(&mut self) {
+        if self.broken.is_none() {
+            self.out.clear();
+            if self.send(&ClientMsg::Bye).is_ok() {
+                let _ = self.stream.write_all(&self.out);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::net::TcpListener;
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::net::frame::{read_frame, write_frame};
+    use crate::net::server::{Server, ServerConfig};
+    use crate::proto::{ServerHello, TelemetryRecord};
+    use crate::service::{Service, Session};
+
+    struct Echo;
+
+    impl Service for Echo {
+        fn call(&self, session: &Session, call: Call) -> Result<Reply, WireError> {
+            match call {
+                Call::Ping { payload } => Ok(Reply::Pong(payload)),
+                Call::Unsubscribe { subscription } => {
+                    // A test hook: push that many empty telemetry batches first.
+                    for s in 0..subscription {
+                        session.outbox.push(ServerMsg::Telemetry(TelemetryBatch {
+                            subscription: s,
+                            dropped: 0,
+                            samples: Vec::<TelemetryRecord>::new(),
+                        }));
+                    }
+                    Ok(Reply::Unit)
+                }
+                _ => Err(WireError::NotReady("echo only".into())),
+            }
+        }
+    }
+
+    fn server(secret: Option<&[u8]>) -> Server {
+        let mut c = ServerConfig::new("unit");
+        c.secret = secret.map(<[u8]>::to_vec);
+        Server::bind("127.0.0.1:0".parse().unwrap(), c, Arc::new(Echo)).unwrap()
+    }
+
+    #[test]
+    fn calls_pipelines_and_telemetry_over_a_real_server() {
+        let s = server(None);
+        let mut c = Connection::connect(s.local_addr(), &ClientConfig::new("t")).unwrap();
+        assert_eq!(c.node(), "unit");
+        assert_eq!(
+            c.call(Call::Ping {
+                payload: vec![1, 2]
+            })
+            .unwrap(),
+            Reply::Pong(vec![1, 2])
+        );
+        assert!(matches!(
+            c.call(Call::NodeInfo),
+            Err(RpcError::Remote(WireError::NotReady(_)))
+        ));
+        let calls = (0..2000u32)
+            .map(|i| Call::Ping {
+                payload: i.to_le_bytes().to_vec(),
+            })
+            .collect();
+        let replies = c.call_many(calls).unwrap();
+        assert_eq!(replies.len(), 2000);
+        assert_eq!(
+            replies[1234],
+            Ok(Reply::Pong(1234u32.to_le_bytes().to_vec()))
+        );
+        assert_eq!(
+            c.call(Call::Unsubscribe { subscription: 3 }).unwrap(),
+            Reply::Unit
+        );
+        let mut subs = Vec::new();
+        while let Some(b) = c.next_telemetry(Duration::from_millis(300)).unwrap() {
+            subs.push(b.subscription);
+        }
+        assert_eq!(subs, [0, 1, 2]);
+        assert!(c.call_many(Vec::new()).unwrap().is_empty());
+        drop(c);
+        s.shutdown();
+    }
+
+    #[test]
+    fn the_secret_is_required_and_checked() {
+        let s = server(Some(b"k"));
+        let mut cfg = ClientConfig::new("t");
+        assert!(matches!(
+            Connection::connect(s.local_addr(), &cfg),
+            Err(RpcError::Remote(WireError::AuthFailed))
+        ));
+        cfg.secret = Some(b"wrong".to_vec());
+        assert!(matches!(
+            Connection::connect(s.local_addr(), &cfg),
+            Err(RpcError::Remote(WireError::AuthFailed))
+        ));
+        cfg.secret = Some(b"k".to_vec());
+        let mut c = Connection::connect(s.local_addr(), &cfg).unwrap();
+        assert_eq!(
+            c.call(Call::Ping { payload: vec![] }).unwrap(),
+            Reply::Pong(vec![])
+        );
+        assert_eq!(s.stats().auth_failures, 2);
+        drop(c);
+        s.shutdown();
+    }
+
+    /// A scripted node: answers the hello, then whatever `script` writes.
+    fn fake_node(script: impl FnOnce(&mut TcpStream) + Send + 'static) -> SocketAddr {
+        let l = TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = l.local_addr().unwrap();
+        std::thread::spawn(move || {
+            let (mut s, _) = l.accept().unwrap();
+            let _: ClientMsg = read_frame(&mut s, 1000).unwrap();
+            let hello = ServerMsg::Hello(ServerHello {
+                magic: MAGIC,
+                version: PROTOCOL_VERSION,
+                node: "fake".into(),
+                challenge: None,
+            });
+            write_frame(&mut s, &hello, 1000).unwrap();
+            script(&mut s);
+            std::thread::sleep(Duration::from_millis(200));
+        });
+        addr
+    }
+
+    #[test]
+    fn wrong_ids_errors_garbage_and_silence_are_typed_errors() {
+        let mut cfg = ClientConfig::new("t");
+        cfg.timeout = Duration::from_millis(300);
+        let addr = fake_node(|s| {
+            let _: ClientMsg = read_frame(s, 1000).unwrap();
+            let r = ServerMsg::Response {
+                id: 99,
+                result: Ok(Reply::Unit),
+            };
+            write_frame(s, &r, 1000).unwrap();
+        });
+        let mut c = Connection::connect(addr, &cfg).unwrap();
+        assert!(matches!(c.call(Call::NodeInfo), Err(RpcError::Protocol(_))));
+        assert!(!c.is_usable());
+        assert!(matches!(c.call(Call::NodeInfo), Err(RpcError::Protocol(_))));
+
+        let addr = fake_node(|s| {
+            let e = ServerMsg::Error(WireError::RateLimited { limit: 1 });
+            write_frame(s, &e, 1000).unwrap();
+        });
+        let mut c = Connection::connect(addr, &cfg).unwrap();
+        assert!(matches!(
+            c.call(Call::NodeInfo),
+            Err(RpcError::Remote(WireError::RateLimited { limit: 1 }))
+        ));
+
+        let addr = fake_node(|s| s.write_all(&[3, 0, 0, 0, 0xff, 0xff, 0xff]).unwrap());
+        let mut c = Connection::connect(addr, &cfg).unwrap();
+        assert!(matches!(
+            c.call(Call::NodeInfo),
+            Err(RpcError::Frame(FrameError::Malformed(_)))
+        ));
+
+        let addr = fake_node(|_| {});
+        cfg.timeout = Duration::from_millis(100);
+        let mut c = Connection::connect(addr, &cfg).unwrap();
+        assert!(matches!(c.call(Call::NodeInfo), Err(RpcError::Timeout)));
+        assert!(
+            c.next_telemetry(Duration::from_millis(10))
+                .unwrap()
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn a_late_answer_of_a_timed_out_call_is_skipped() {
+        let mut cfg = ClientConfig::new("t");
+        cfg.timeout = Duration::from_millis(200);
+        let addr = fake_node(|s| {
+            let _: ClientMsg = read_frame(s, 1000).unwrap();
+            std::thread::sleep(Duration::from_millis(400));
+            write_frame(
+                s,
+                &ServerMsg::Response {
+                    id: 1,
+                    result: Ok(Reply::Unit),
+                },
+                1000,
+            )
+            .unwrap();
+            let _: ClientMsg = read_frame(s, 1000).unwrap();
+            let r = ServerMsg::Response {
+                id: 2,
+                result: Ok(Reply::Pong(vec![7])),
+            };
+            write_frame(s, &r, 1000).unwrap();
+        });
+        let mut c = Connection::connect(addr, &cfg).unwrap();
+        assert!(matches!(c.call(Call::NodeInfo), Err(RpcError::Timeout)));
+        std::thread::sleep(Duration::from_millis(300));
+        assert_eq!(c.call(Call::NodeInfo).unwrap(), Reply::Pong(vec![7]));
     }
 }

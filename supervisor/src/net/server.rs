@@ -1,30 +1,81 @@
 //! The TCP server of a node.
 //!
-//! SKELETON (lead): signatures are the contract; NET fills in the bodies.
+//! # Threads
+//! - one accept thread (`pnlp-accept`), which refuses connections over
+//!   [`ServerConfig::max_connections`] with [`WireError::TooManyConnections`];
+//! - per connection, a reader thread (`pnlp-conn-N`) that does the handshake, decodes requests,
+//!   calls the [`Service`] and writes each response itself (no hand-off to another thread on the
+//!   request path: the round trip costs the same context switches as a raw TCP echo), and a
+//!   writer thread (`pnlp-wr-N`) that drains the session's [`Outbox`] (telemetry pushed by the
+//!   objects with [`Outbox::try_push`], or anything a service pushes).
+//!
+//! Both write whole frames to the socket under one short lock; responses go out in request
+//! order (only the reader writes them), telemetry in push order. Pipelined requests are answered
+//! into one buffer that is written once the decoder has no complete request left (one `write`
+//! per batch). Responses do not go through the outbox: `Outbox::push` would cost a thread
+//! hand-off per call and could wait behind telemetry.
+//!
+//! # Limits
+//! Each connection holds at most `max_frame` + 4 bytes of input, one batch of responses and the
+//! outbox's `outbox_capacity` frames. A client that does not read blocks the socket's writes for
+//! at most `write_timeout` and is then dropped; meanwhile the outbox drops telemetry (never the
+//! real-time side's problem). Requests are limited by a token bucket per connection
+//! (`max_requests_per_s`, bursts up to one second's worth): over it a request is answered with
+//! [`WireError::RateLimited`]; [`ABUSE_STRIKES`] refused requests in a row close the connection.
+//! Malformed or oversized frames, a wrong hello, a failed authentication, a silent handshake or
+//! an idle connection get a [`ServerMsg::Error`] and are closed. [`Service::closed`] runs at every
+//! end of a session that passed its handshake.
 
-use std::net::SocketAddr;
-use std::sync::Arc;
-use std::time::Duration;
+use std::collections::HashMap;
+use std::io::{self, Read, Write};
+use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
+use std::os::fd::AsFd;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::RecvTimeoutError;
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
 
-use crate::proto::DEFAULT_MAX_FRAME;
-use crate::service::Service;
+use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
+
+use crate::net::auth;
+use crate::net::frame::{FrameDecoder, FrameError, encode_into};
+use crate::proto::{
+    ClientMsg, DEFAULT_MAX_FRAME, MAGIC, PROTOCOL_VERSION, ServerHello, ServerMsg, WireError,
+};
+use crate::service::{Outbox, OutboxReceiver, Service, Session};
+
+/// Refused requests in a row (rate limit) after which a connection is closed.
+pub const ABUSE_STRIKES: u32 = 1000;
+
+/// How often the accept thread looks at the stop flag, and the longest a read waits before the
+/// reader looks at the idle clock.
+const POLL_EVERY: Duration = Duration::from_millis(100);
+/// Responses buffered before they are written even though more requests are queued, bytes.
+const OUT_FLUSH_AT: usize = 64 * 1024;
+/// After a closing error: how long and how much input is drained so that the error frame is not
+/// lost to a TCP reset.
+const LINGER: Duration = Duration::from_millis(200);
+const LINGER_BYTES: usize = 1 << 20;
 
 /// How a server runs.
 #[derive(Clone, Debug)]
 pub struct ServerConfig {
     /// The node's name (sent in the hello).
     pub node: String,
-    /// The shared secret; required to bind anything but loopback.
+    /// The shared secret; required to bind anything but loopback. When set (even on loopback),
+    /// every client must authenticate.
     pub secret: Option<Vec<u8>>,
-    /// Largest frame accepted, bytes.
+    /// Largest frame accepted (and sent), bytes of body.
     pub max_frame: usize,
     /// Connections served at once.
     pub max_connections: u32,
-    /// Requests per second per connection (token bucket).
+    /// Requests per second per connection (token bucket; bursts up to one second's worth).
     pub max_requests_per_s: u32,
     /// Time allowed for the hello (and authentication).
     pub handshake_timeout: Duration,
-    /// A connection silent this long is closed.
+    /// A connection with no frame in either direction for this long is closed.
     pub idle_timeout: Duration,
     /// A client that does not take a frame within this time is dropped.
     pub write_timeout: Duration,
@@ -33,7 +84,8 @@ pub struct ServerConfig {
 }
 
 impl ServerConfig {
-    /// Defaults for `node`.
+    /// Defaults for `node`: 256 KiB frames, 64 connections, 200 000 requests/s per connection,
+    /// 5 s handshake, 300 s idle, 5 s write timeout, 256 queued frames.
     pub fn new(node: impl Into<String>) -> Self {
         ServerConfig {
             node: node.into(),
@@ -62,7 +114,7 @@ pub enum NetError {
     Io(#[from] std::io::Error),
 }
 
-/// Counters of a server.
+/// Counters of a server (since it started).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ServerStats {
     /// Connections accepted.
@@ -71,30 +123,135 @@ pub struct ServerStats {
     pub refused: u64,
     /// Connections open now.
     pub open: u64,
-    /// Connections dropped for a protocol error, a timeout or the rate limit.
+    /// Connections dropped for a protocol error, a timeout, the rate limit or a client that did
+    /// not read.
     pub dropped: u64,
-    /// Requests served.
+    /// Requests served (rate-limited ones not included).
     pub requests: u64,
+    /// Sessions that passed the handshake (each ends with one [`Service::closed`]).
+    pub sessions: u64,
+    /// Frames received.
+    pub frames_in: u64,
+    /// Frames sent.
+    pub frames_out: u64,
+    /// Malformed frames and wrong hellos.
+    pub malformed: u64,
+    /// Frames refused for their announced length.
+    pub too_large: u64,
+    /// Failed authentications.
+    pub auth_failures: u64,
+    /// Handshake, idle and write timeouts.
+    pub timeouts: u64,
+    /// Requests refused by the rate limit.
+    pub rate_limited: u64,
+}
+
+#[derive(Default)]
+struct Counters {
+    accepted: AtomicU64,
+    refused: AtomicU64,
+    open: AtomicU64,
+    dropped: AtomicU64,
+    requests: AtomicU64,
+    sessions: AtomicU64,
+    frames_in: AtomicU64,
+    frames_out: AtomicU64,
+    malformed: AtomicU64,
+    too_large: AtomicU64,
+    auth_failures: AtomicU64,
+    timeouts: AtomicU64,
+    rate_limited: AtomicU64,
+}
+
+fn bump(c: &AtomicU64) {
+    c.fetch_add(1, Ordering::Relaxed);
+}
+
+fn add(c: &AtomicU64, n: u64) {
+    if n > 0 {
+        c.fetch_add(n, Ordering::Relaxed);
+    }
+}
+
+struct Shared {
+    config: ServerConfig,
+    service: Arc<dyn Service>,
+    stop: AtomicBool,
+    counters: Counters,
+    next_session: AtomicU64,
+    /// A handle on every open connection's socket, to close them at shutdown.
+    streams: Mutex<HashMap<u64, TcpStream>>,
+    /// Every connection thread not yet joined.
+    threads: Mutex<Vec<JoinHandle<()>>>,
+    /// When the server started (the idle clock's origin).
+    epoch: Instant,
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    // A panic elsewhere never leaves these maps inconsistent: keep serving.
+    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 /// A running server.
-#[derive(Debug)]
 pub struct Server {
     addr: SocketAddr,
+    shared: Arc<Shared>,
+    accept: Option<JoinHandle<()>>,
+}
+
+impl std::fmt::Debug for Server {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Server")
+            .field("addr", &self.addr)
+            .field("node", &self.shared.config.node)
+            .field("stats", &self.stats())
+            .finish()
+    }
 }
 
 impl Server {
-    /// Listens on `addr` and serves `service`.
+    /// Listens on `addr` and serves `service`. Port 0 takes any free port (see
+    /// [`local_addr`](Self::local_addr)).
     ///
     /// # Errors
-    /// [`NetError`].
+    /// [`NetError::SecretRequired`] for a non-loopback address (such as `0.0.0.0`) without a
+    /// non-empty secret; [`NetError::Io`] if the socket cannot be bound or the accept thread
+    /// cannot start.
     pub fn bind(
         addr: SocketAddr,
         config: ServerConfig,
         service: Arc<dyn Service>,
     ) -> Result<Server, NetError> {
-        let _ = (config, service);
-        Ok(Server { addr })
+        let has_secret = config.secret.as_ref().is_some_and(|s| !s.is_empty());
+        if !addr.ip().is_loopback() && !has_secret {
+            return Err(NetError::SecretRequired(addr));
+        }
+        let listener = TcpListener::bind(addr)?;
+        let addr = listener.local_addr()?;
+        let shared = Arc::new(Shared {
+            config,
+            service,
+            stop: AtomicBool::new(false),
+            counters: Counters::default(),
+            next_session: AtomicU64::new(1),
+            streams: Mutex::new(HashMap::new()),
+            threads: Mutex::new(Vec::new()),
+            epoch: Instant::now(),
+        });
+        let s = shared.clone();
+        let accept = std::thread::Builder::new()
+            .name("pnlp-accept".into())
+            .spawn(move || accept_loop(&s, &listener))?;
+        log::info!(
+            "node `{}` listening on {addr}{}",
+            shared.config.node,
+            if has_secret { " (shared secret)" } else { "" }
+        );
+        Ok(Server {
+            addr,
+            shared,
+            accept: Some(accept),
+        })
     }
 
     /// The bound address (the real port when bound to port 0).
@@ -104,9 +261,751 @@ impl Server {
 
     /// Counters.
     pub fn stats(&self) -> ServerStats {
-        ServerStats::default()
+        let c = &self.shared.counters;
+        let get = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        ServerStats {
+            accepted: get(&c.accepted),
+            refused: get(&c.refused),
+            open: get(&c.open),
+            dropped: get(&c.dropped),
+            requests: get(&c.requests),
+            sessions: get(&c.sessions),
+            frames_in: get(&c.frames_in),
+            frames_out: get(&c.frames_out),
+            malformed: get(&c.malformed),
+            too_large: get(&c.too_large),
+            auth_failures: get(&c.auth_failures),
+            timeouts: get(&c.timeouts),
+            rate_limited: get(&c.rate_limited),
+        }
     }
 
-    /// Stops accepting, closes connections and joins the threads.
-    pub fn shutdown(self) {}
+    /// Stops accepting, closes every connection (their sessions get [`Service::closed`]) and
+    /// joins every thread of the server.
+    pub fn shutdown(mut self) {
+        self.stop_and_join();
+    }
+
+    fn stop_and_join(&mut self) {
+        self.shared.stop.store(true, Ordering::Release);
+        if let Some(h) = self.accept.take() {
+            let _ = h.join();
+        }
+        for s in lock(&self.shared.streams).values() {
+            let _ = s.shutdown(Shutdown::Both);
+        }
+        let threads = std::mem::take(&mut *lock(&self.shared.threads));
+        for t in threads {
+            let _ = t.join();
+        }
+        log::info!(
+            "node `{}` server on {} stopped",
+            self.shared.config.node,
+            self.addr
+        );
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        if self.accept.is_some() {
+            self.stop_and_join();
+        }
+    }
+}
+
+fn accept_loop(shared: &Arc<Shared>, listener: &TcpListener) {
+    while !shared.stop.load(Ordering::Acquire) {
+        let mut fds = [PollFd::new(listener.as_fd(), PollFlags::POLLIN)];
+        let ready = poll(&mut fds, PollTimeout::from(POLL_EVERY.as_millis() as u16));
+        reap(shared);
+        match ready {
+            Ok(0) => continue,
+            Ok(_) => {}
+            Err(nix::errno::Errno::EINTR) => continue,
+            Err(e) => {
+                log::error!("poll on the listening socket failed: {e}");
+                std::thread::sleep(POLL_EVERY);
+                continue;
+            }
+        }
+        if shared.stop.load(Ordering::Acquire) {
+            break;
+        }
+        match listener.accept() {
+            Ok((stream, peer)) => admit(shared, stream, peer),
+            Err(e) => {
+                // EMFILE and friends: back off instead of spinning.
+                log::warn!("accept failed: {e}");
+                std::thread::sleep(Duration::from_millis(10));
+            }
+        }
+    }
+}
+
+/// Joins the connection threads that have ended.
+fn reap(shared: &Shared) {
+    let finished: Vec<JoinHandle<()>> = {
+        let mut threads = lock(&shared.threads);
+        let (done, running): (Vec<_>, Vec<_>) = threads.drain(..).partition(|t| t.is_finished());
+        *threads = running;
+        done
+    };
+    for t in finished {
+        let _ = t.join();
+    }
+}
+
+fn admit(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr) {
+    let c = &shared.counters;
+    let limit = shared.config.max_connections;
+    if c.open.load(Ordering::Relaxed) >= u64::from(limit) {
+        bump(&c.refused);
+        log::warn!("refusing {peer}: {limit} connections open");
+        refuse(
+            stream,
+            &WireError::TooManyConnections { limit },
+            shared.config.max_frame,
+        );
+        return;
+    }
+    let id = shared.next_session.fetch_add(1, Ordering::Relaxed);
+    let handle = match stream.try_clone() {
+        Ok(h) => h,
+        Err(e) => {
+            log::warn!("cannot serve {peer}: {e}");
+            return;
+        }
+    };
+    bump(&c.accepted);
+    bump(&c.open);
+    lock(&shared.streams).insert(id, handle);
+    let s = shared.clone();
+    let spawned = std::thread::Builder::new()
+        .name(format!("pnlp-conn-{id}"))
+        .spawn(move || {
+            serve(&s, stream, peer, id);
+            lock(&s.streams).remove(&id);
+            s.counters.open.fetch_sub(1, Ordering::Relaxed);
+        });
+    match spawned {
+        Ok(t) => lock(&shared.threads).push(t),
+        Err(e) => {
+            log::error!("cannot start a thread for {peer}: {e}");
+            if let Some(s) = lock(&shared.streams).remove(&id) {
+                let _ = s.shutdown(Shutdown::Both);
+            }
+            c.open.fetch_sub(1, Ordering::Relaxed);
+        }
+    }
+}
+
+/// Sends `error` on a connection that is not served and closes it (from the accept thread: never
+/// waits long).
+fn refuse(stream: TcpStream, error: &WireError, max_frame: usize) {
+    let mut stream = stream;
+    let _ = stream.set_nodelay(true);
+    let _ = stream.set_write_timeout(Some(Duration::from_millis(50)));
+    let mut out = Vec::new();
+    if encode_into(&ServerMsg::Error(error.clone()), max_frame, &mut out).is_ok() {
+        let _ = stream.write_all(&out);
+    }
+    let _ = stream.shutdown(Shutdown::Write);
+    // Take what the client already sent (its hello), so closing does not reset the connection
+    // and lose the error; do not wait for more.
+    if stream.set_nonblocking(true).is_ok() {
+        let mut scratch = [0u8; 4096];
+        while let Ok(n) = stream.read(&mut scratch) {
+            if n == 0 {
+                break;
+            }
+        }
+    }
+}
+
+/// Why a connection ends.
+enum End {
+    /// The client closed or said bye.
+    Client,
+    /// The server is stopping.
+    Shutdown,
+    /// Dropped: a typed error has been sent (or the socket failed).
+    Dropped,
+}
+
+/// The socket's write side, shared by the reader (responses) and the writer (outbox).
+struct Wire {
+    stream: TcpStream,
+    failed: bool,
+}
+
+impl Wire {
+    /// Writes whole frames; `false` once the socket has failed (timeout: a client that does not
+    /// read).
+    fn send(&mut self, bytes: &[u8]) -> bool {
+        if self.failed {
+            return false;
+        }
+        if let Err(e) = self.stream.write_all(bytes) {
+            log::debug!("write failed: {e}");
+            self.failed = true;
+            let _ = self.stream.shutdown(Shutdown::Both);
+        }
+        !self.failed
+    }
+}
+
+struct Conn<'a> {
+    shared: &'a Shared,
+    id: u64,
+    peer: SocketAddr,
+    stream: TcpStream,
+    decoder: FrameDecoder,
+    wire: Arc<Mutex<Wire>>,
+    /// Responses not yet written.
+    out: Vec<u8>,
+    out_frames: u64,
+    /// Milliseconds since the server's epoch of the last frame in either direction.
+    last_activity: Arc<AtomicU64>,
+    /// When the last input arrived.
+    now: Instant,
+}
+
+impl Conn<'_> {
+    fn now_ms(&self) -> u64 {
+        self.shared.epoch.elapsed().as_millis() as u64
+    }
+
+    /// Notes input: reads the clock once per read (the rate limit and the idle clock use it).
+    fn touch(&mut self) {
+        self.now = Instant::now();
+        let ms = self
+            .now
+            .saturating_duration_since(self.shared.epoch)
+            .as_millis() as u64;
+        self.last_activity.store(ms, Ordering::Relaxed);
+    }
+
+    fn flush(&mut self) -> bool {
+        if self.out.is_empty() {
+            return true;
+        }
+        let ok = lock(&self.wire).send(&self.out);
+        self.out.clear();
+        add(&self.shared.counters.frames_out, self.out_frames);
+        self.out_frames = 0;
+        ok
+    }
+
+    fn queue(&mut self, msg: &ServerMsg) {
+        let max = self.shared.config.max_frame;
+        match encode_into(msg, max, &mut self.out) {
+            Ok(()) => self.out_frames += 1,
+            Err(e) => {
+                // A reply over the frame limit: tell the client instead.
+                let id = match msg {
+                    ServerMsg::Response { id, .. } => *id,
+                    _ => 0,
+                };
+                let result = Err(WireError::from(&e));
+                if encode_into(&ServerMsg::Response { id, result }, max, &mut self.out).is_ok() {
+                    self.out_frames += 1;
+                }
+            }
+        }
+    }
+
+    /// Sends `error`, closes our side and drains the input briefly so the error is not lost.
+    fn fail(&mut self, error: WireError) -> End {
+        log::info!(
+            "dropping connection {} from {}: {error}",
+            self.id,
+            self.peer
+        );
+        bump(&self.shared.counters.dropped);
+        self.queue(&ServerMsg::Error(error));
+        self.flush();
+        let _ = self.stream.shutdown(Shutdown::Write);
+        let deadline = Instant::now() + LINGER;
+        let _ = self.stream.set_read_timeout(Some(LINGER));
+        let mut scratch = [0u8; 4096];
+        let mut drained = 0;
+        while drained < LINGER_BYTES && Instant::now() < deadline {
+            match self.stream.read(&mut scratch) {
+                Ok(0) | Err(_) => break,
+                Ok(n) => drained += n,
+            }
+        }
+        End::Dropped
+    }
+
+    fn frame_error(&mut self, e: FrameError) -> End {
+        let c = &self.shared.counters;
+        match e {
+            FrameError::TooLarge { .. } => {
+                bump(&c.too_large);
+                self.fail(WireError::from(&e))
+            }
+            FrameError::Malformed(_) => {
+                bump(&c.malformed);
+                self.fail(WireError::from(&e))
+            }
+            FrameError::Closed => End::Client,
+            FrameError::Truncated => {
+                log::info!(
+                    "connection {} from {} closed inside a frame",
+                    self.id,
+                    self.peer
+                );
+                End::Client
+            }
+            FrameError::Io(e) => {
+                if self.shared.stop.load(Ordering::Acquire) {
+                    End::Shutdown
+                } else {
+                    log::debug!("connection {} from {}: {e}", self.id, self.peer);
+                    End::Client
+                }
+            }
+            FrameError::Overflow { .. } => self.fail(WireError::Remote("input overflow".into())),
+        }
+    }
+
+    /// Reads until the next message; `Err(end)` when the connection must end. `deadline` bounds
+    /// the wait (the handshake); otherwise the idle timeout does.
+    fn next_msg(&mut self, deadline: Option<Instant>) -> Result<ClientMsg, End> {
+        loop {
+            match self.decoder.next::<ClientMsg>() {
+                Ok(Some(m)) => {
+                    bump(&self.shared.counters.frames_in);
+                    return Ok(m);
+                }
+                Ok(None) => {}
+                Err(e) => return Err(self.frame_error(e)),
+            }
+            if !self.flush() {
+                return Err(self.dropped_writer());
+            }
+            match self.decoder.read_from(&mut self.stream) {
+                Ok(0) => {
+                    if self.shared.stop.load(Ordering::Acquire) {
+                        return Err(End::Shutdown);
+                    }
+                    let e = self.decoder.eof_error();
+                    return Err(self.frame_error(e));
+                }
+                Ok(_) => self.touch(),
+                Err(FrameError::Io(e))
+                    if matches!(
+                        e.kind(),
+                        io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
+                    ) =>
+                {
+                    if self.shared.stop.load(Ordering::Acquire) {
+                        return Err(End::Shutdown);
+                    }
+                    if lock(&self.wire).failed {
+                        return Err(self.dropped_writer());
+                    }
+                    let expired = match deadline {
+                        Some(d) => Instant::now() >= d,
+                        None => {
+                            let idle = self
+                                .now_ms()
+                                .saturating_sub(self.last_activity.load(Ordering::Relaxed));
+                            idle >= self.shared.config.idle_timeout.as_millis() as u64
+                        }
+                    };
+                    if expired {
+                        bump(&self.shared.counters.timeouts);
+                        let what = if deadline.is_some() {
+                            "no handshake in time"
+                        } else {
+                            "idle connection"
+                        };
+                        return Err(self.fail(WireError::Timeout(what.into())));
+                    }
+                }
+                Err(e) => return Err(self.frame_error(e)),
+            }
+        }
+    }
+
+    fn dropped_writer(&self) -> End {
+        if self.shared.stop.load(Ordering::Acquire) {
+            return End::Shutdown;
+        }
+        log::info!(
+            "dropping connection {} from {}: it does not read (write timeout)",
+            self.id,
+            self.peer
+        );
+        bump(&self.shared.counters.timeouts);
+        bump(&self.shared.counters.dropped);
+        End::Dropped
+    }
+
+    /// Hello (and authentication): the client's name, or how it ended.
+    fn handshake(&mut self) -> Result<String, End> {
+        let config = &self.shared.config;
+        let deadline = Instant::now() + config.handshake_timeout;
+        let _ = self.stream.set_read_timeout(Some(
+            config
+                .handshake_timeout
+                .clamp(Duration::from_millis(1), POLL_EVERY),
+        ));
+        let hello = match self.next_msg(Some(deadline))? {
+            ClientMsg::Hello(h) => h,
+            other => {
+                bump(&self.shared.counters.malformed);
+                return Err(self.fail(WireError::Unexpected(format!(
+                    "{} before the hello",
+                    msg_name(&other)
+                ))));
+            }
+        };
+        if hello.magic != MAGIC {
+            bump(&self.shared.counters.malformed);
+            return Err(self.fail(WireError::BadMagic));
+        }
+        if hello.version != PROTOCOL_VERSION {
+            bump(&self.shared.counters.malformed);
+            return Err(self.fail(WireError::VersionMismatch {
+                ours: PROTOCOL_VERSION,
+                theirs: hello.version,
+            }));
+        }
+        let secret = self.shared.config.secret.clone().filter(|s| !s.is_empty());
+        let challenge = secret.as_ref().map(|_| auth::challenge());
+        self.queue(&ServerMsg::Hello(ServerHello {
+            magic: MAGIC,
+            version: PROTOCOL_VERSION,
+            node: self.shared.config.node.clone(),
+            challenge,
+        }));
+        if let (Some(secret), Some(challenge)) = (secret, challenge) {
+            let ok = match self.next_msg(Some(deadline))? {
+                ClientMsg::Auth { mac } => auth::verify(&secret, &challenge, &hello.client, &mac),
+                _ => false,
+            };
+            if !ok {
+                bump(&self.shared.counters.auth_failures);
+                return Err(self.fail(WireError::AuthFailed));
+            }
+            self.queue(&ServerMsg::AuthOk);
+        }
+        if !self.flush() {
+            return Err(self.dropped_writer());
+        }
+        Ok(hello.client)
+    }
+
+    /// Serves requests until the connection ends.
+    fn requests(&mut self, session: &Session) -> End {
+        let config = &self.shared.config;
+        let _ = self.stream.set_read_timeout(Some(
+            config
+                .idle_timeout
+                .clamp(Duration::from_millis(1), POLL_EVERY * 5),
+        ));
+        let mut bucket = TokenBucket::new(config.max_requests_per_s);
+        let mut strikes = 0u32;
+        loop {
+            let msg = match self.next_msg(None) {
+                Ok(m) => m,
+                Err(end) => return end,
+            };
+            match msg {
+                ClientMsg::Request { id, call } => {
+                    if bucket.take(self.now) {
+                        strikes = 0;
+                        bump(&self.shared.counters.requests);
+                        let service = &self.shared.service;
+                        let result = catch_unwind(AssertUnwindSafe(|| service.call(session, call)))
+                            .unwrap_or_else(|_| {
+                                log::error!("the service panicked serving request {id}");
+                                Err(WireError::Remote("internal error in the node".into()))
+                            });
+                        self.queue(&ServerMsg::Response { id, result });
+                    } else {
+                        bump(&self.shared.counters.rate_limited);
+                        strikes += 1;
+                        let limit = bucket.rate;
+                        if strikes >= ABUSE_STRIKES {
+                            return self.fail(WireError::RateLimited { limit });
+                        }
+                        self.queue(&ServerMsg::Response {
+                            id,
+                            result: Err(WireError::RateLimited { limit }),
+                        });
+                    }
+                    if self.out.len() >= OUT_FLUSH_AT && !self.flush() {
+                        return self.dropped_writer();
+                    }
+                }
+                ClientMsg::Bye => {
+                    self.flush();
+                    return End::Client;
+                }
+                other => {
+                    bump(&self.shared.counters.malformed);
+                    return self.fail(WireError::Unexpected(format!(
+                        "{} after the handshake",
+                        msg_name(&other)
+                    )));
+                }
+            }
+        }
+    }
+}
+
+fn msg_name(m: &ClientMsg) -> &'static str {
+    match m {
+        ClientMsg::Hello(_) => "hello",
+        ClientMsg::Auth { .. } => "auth",
+        ClientMsg::Request { .. } => "request",
+        ClientMsg::Bye => "bye",
+    }
+}
+
+/// Requests per second with bursts up to one second's worth.
+struct TokenBucket {
+    rate: u32,
+    tokens: f64,
+    last: Instant,
+}
+
+impl TokenBucket {
+    fn new(rate: u32) -> Self {
+        TokenBucket {
+            rate,
+            tokens: f64::from(rate.max(1)),
+            last: Instant::now(),
+        }
+    }
+
+    fn take(&mut self, now: Instant) -> bool {
+        let rate = f64::from(self.rate.max(1));
+        let dt = now.saturating_duration_since(self.last).as_secs_f64();
+        self.last = now;
+        self.tokens = (self.tokens + dt * rate).min(rate);
+        if self.tokens >= 1.0 {
+            self.tokens -= 1.0;
+            true
+        } else {
+            false
+        }
+    }
+}
+
+/// The connection thread: handshake, then the writer thread and the requests.
+fn serve(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr, id: u64) {
+    let config = &shared.config;
+    let _ = stream.set_nodelay(true);
+    let _ = stream.set_write_timeout(Some(config.write_timeout.max(Duration::from_millis(1))));
+    let write_half = match stream.try_clone() {
+        Ok(w) => w,
+        Err(e) => {
+            log::warn!("connection {id} from {peer}: {e}");
+            return;
+        }
+    };
+    let wire = Arc::new(Mutex::new(Wire {
+        stream: write_half,
+        failed: false,
+    }));
+    let mut conn = Conn {
+        shared,
+        id,
+        peer,
+        stream,
+        decoder: FrameDecoder::new(config.max_frame),
+        wire: wire.clone(),
+        out: Vec::with_capacity(4096),
+        out_frames: 0,
+        last_activity: Arc::new(AtomicU64::new(0)),
+        now: Instant::now(),
+    };
+    conn.touch();
+    let client = match conn.handshake() {
+        Ok(c) => c,
+        Err(_) => {
+            let _ = conn.stream.shutdown(Shutdown::Both);
+            return;
+        }
+    };
+    log::info!("connection {id} from {peer}: client {client:?}");
+    bump(&shared.counters.sessions);
+    let (outbox, receiver) = Outbox::bounded(config.outbox_capacity);
+    let session = Session {
+        id,
+        peer,
+        client,
+        outbox: outbox.clone(),
+    };
+    let closing = Arc::new(AtomicBool::new(false));
+    let writer = {
+        let (wire, closing, activity) = (wire.clone(), closing.clone(), conn.last_activity.clone());
+        let shared = shared.clone();
+        std::thread::Builder::new()
+            .name(format!("pnlp-wr-{id}"))
+            .spawn(move || drain_outbox(receiver, &wire, &closing, &activity, &shared))
+    };
+    let end = match &writer {
+        Ok(_) => conn.requests(&session),
+        Err(e) => {
+            log::error!("cannot start the writer of connection {id}: {e}");
+            End::Dropped
+        }
+    };
+    closing.store(true, Ordering::Release);
+    // Wake the writer (it ignores everything once closing is set).
+    let _ = outbox.try_push(ServerMsg::AuthOk);
+    let _ = conn.stream.shutdown(Shutdown::Both);
+    if let Ok(h) = writer {
+        let _ = h.join();
+    }
+    let service = &shared.service;
+    if catch_unwind(AssertUnwindSafe(|| service.closed(&session))).is_err() {
+        log::error!("the service panicked closing session {id}");
+    }
+    let how = match end {
+        End::Client => "closed by the client",
+        End::Shutdown => "closed by the server's shutdown",
+        End::Dropped => "dropped",
+    };
+    log::info!("connection {id} from {peer} {how}");
+}
+
+/// The writer thread: frames pushed to the outbox, in order, batched while more are queued.
+fn drain_outbox(
+    receiver: OutboxReceiver,
+    wire: &Mutex<Wire>,
+    closing: &AtomicBool,
+    activity: &AtomicU64,
+    shared: &Shared,
+) {
+    let max = shared.config.max_frame;
+    let mut buf = Vec::with_capacity(4096);
+    loop {
+        let first = match receiver.rx.recv_timeout(Duration::from_secs(1)) {
+            Ok(m) => m,
+            Err(RecvTimeoutError::Timeout) => {
+                if closing.load(Ordering::Acquire) {
+                    return;
+                }
+                continue;
+            }
+            Err(RecvTimeoutError::Disconnected) => return,
+        };
+        if closing.load(Ordering::Acquire) {
+            return;
+        }
+        let mut frames = 0u64;
+        let mut next = Some(first);
+        while let Some(msg) = next {
+            match encode_into(&msg, max, &mut buf) {
+                Ok(()) => frames += 1,
+                Err(e) => log::warn!("outbox frame not sent: {e}"),
+            }
+            if buf.len() >= OUT_FLUSH_AT {
+                break;
+            }
+            next = receiver.rx.try_recv().ok();
+        }
+        if !buf.is_empty() {
+            let ok = lock(wire).send(&buf);
+            buf.clear();
+            if !ok {
+                return;
+            }
+            add(&shared.counters.frames_out, frames);
+            activity.store(shared.epoch.elapsed().as_millis() as u64, Ordering::Relaxed);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::net::frame::{read_frame, write_frame};
+    use crate::proto::{Call, ClientHello, Reply};
+
+    struct Echo;
+
+    impl Service for Echo {
+        fn call(&self, _: &Session, call: Call) -> Result<Reply, WireError> {
+            match call {
+                Call::Ping { payload } => Ok(Reply::Pong(payload)),
+                _ => Err(WireError::NotReady("echo only".into())),
+            }
+        }
+    }
+
+    fn local() -> SocketAddr {
+        "127.0.0.1:0".parse().unwrap()
+    }
+
+    #[test]
+    fn a_non_loopback_bind_needs_a_secret() {
+        let any: SocketAddr = "0.0.0.0:0".parse().unwrap();
+        let e = Server::bind(any, ServerConfig::new("n"), Arc::new(Echo)).unwrap_err();
+        assert!(matches!(e, NetError::SecretRequired(_)), "{e}");
+        let mut c = ServerConfig::new("n");
+        c.secret = Some(Vec::new());
+        assert!(matches!(
+            Server::bind(any, c, Arc::new(Echo)),
+            Err(NetError::SecretRequired(_))
+        ));
+    }
+
+    #[test]
+    fn hello_then_pipelined_requests_are_answered_in_order() {
+        let server = Server::bind(local(), ServerConfig::new("unit"), Arc::new(Echo)).unwrap();
+        let mut s = TcpStream::connect(server.local_addr()).unwrap();
+        let max = DEFAULT_MAX_FRAME;
+        let mut batch = Vec::new();
+        encode_into(&ClientMsg::Hello(ClientHello::new("t")), max, &mut batch).unwrap();
+        for id in 0..50u64 {
+            let call = Call::Ping {
+                payload: vec![id as u8; id as usize],
+            };
+            encode_into(&ClientMsg::Request { id, call }, max, &mut batch).unwrap();
+        }
+        s.write_all(&batch).unwrap();
+        let hello: ServerMsg = read_frame(&mut s, max).unwrap();
+        assert!(
+            matches!(hello, ServerMsg::Hello(ServerHello { ref node, challenge: None, .. }) if node == "unit")
+        );
+        for id in 0..50u64 {
+            let r: ServerMsg = read_frame(&mut s, max).unwrap();
+            assert_eq!(
+                r,
+                ServerMsg::Response {
+                    id,
+                    result: Ok(Reply::Pong(vec![id as u8; id as usize]))
+                }
+            );
+        }
+        write_frame(&mut s, &ClientMsg::Bye, max).unwrap();
+        assert!(matches!(
+            read_frame::<_, ServerMsg>(&mut s, max),
+            Err(FrameError::Closed)
+        ));
+        let st = server.stats();
+        assert_eq!(st.requests, 50);
+        assert_eq!(st.accepted, 1);
+        server.shutdown();
+    }
+
+    #[test]
+    fn the_token_bucket_allows_a_burst_then_the_rate() {
+        let t0 = Instant::now();
+        let mut b = TokenBucket::new(10);
+        b.last = t0;
+        let allowed = (0..20).filter(|_| b.take(t0)).count();
+        assert_eq!(allowed, 10);
+        assert!(b.take(t0 + Duration::from_millis(150)));
+        assert!(!b.take(t0 + Duration::from_millis(150)));
+    }
 }
