@@ -1,0 +1,178 @@
+//! The per-tick bodies a node runs for an active controller allocate nothing: the control task
+//! (board and plant, safety, joint PID, telemetry into the ring and cells, sensor cell) and the
+//! communication task (trajectory, reference cell), built by the creator exactly as `activate`
+//! builds them, stepped here on a simulated clock without threads.
+//!
+//! The counting allocator counts every allocation of the process, so this binary holds this one
+//! test only.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use penelope_hal::{Frame, Timestamp, Transition, Wrench};
+use penelope_rt_core::cell::Stamped;
+use penelope_rt_core::safety::SafetyState;
+use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_supervisor::proto::{
+    Call, ControllerMethod, CreatorCall, JointAxis, Method, RobotMethod,
+};
+use penelope_supervisor::service::{Outbox, Service, Session};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+// SAFETY: forwards to the system allocator unchanged; only counts calls.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn object(c: &Creator, s: &Session, name: &str, method: Method) {
+    c.call(
+        s,
+        Call::Object {
+            object: name.into(),
+            method,
+        },
+    )
+    .unwrap_or_else(|e| panic!("{name}: {e}"));
+}
+
+#[test]
+fn fifty_thousand_node_loop_ticks_allocate_nothing() {
+    let mut config = CreatorConfig::new("alloc");
+    config.rt.priority = None;
+    let c = Creator::new(config);
+    let (outbox, _rx) = Outbox::bounded(16);
+    let s = Session {
+        id: 1,
+        peer: "127.0.0.1:1".parse().unwrap(),
+        client: "test".into(),
+        outbox,
+    };
+    for (kind, name, cfg) in [
+        ("robot/puma560", "arm", ""),
+        (
+            "board/sim",
+            "sim",
+            "[[shapes]]\nkind = \"plane\"\npoint = [0, 0, -5]",
+        ),
+        (
+            "trajectory/trapezoidal",
+            "move",
+            "pose = \"work\"\nmax_velocity = 0.5",
+        ),
+        ("controller/joint-pid", "pid", ""),
+    ] {
+        c.call(
+            &s,
+            Call::Creator(CreatorCall::Create {
+                kind: kind.into(),
+                name: name.into(),
+                config: cfg.into(),
+            }),
+        )
+        .unwrap();
+    }
+    object(
+        &c,
+        &s,
+        "arm",
+        Method::Robot(RobotMethod::MapJoints {
+            board: "sim".into(),
+            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
+        }),
+    );
+    for name in ["sim", "arm", "move"] {
+        object(&c, &s, name, Method::Transition(Transition::Configure));
+    }
+    object(
+        &c,
+        &s,
+        "pid",
+        Method::Controller(ControllerMethod::SetRobot {
+            robot: "arm".into(),
+        }),
+    );
+    object(
+        &c,
+        &s,
+        "pid",
+        Method::Controller(ControllerMethod::SetTrajectory {
+            trajectory: "move".into(),
+        }),
+    );
+    object(
+        &c,
+        &s,
+        "pid",
+        Method::Controller(ControllerMethod::SetSensor {
+            sensor: "arm-ft".into(),
+        }),
+    );
+    c.call(
+        &s,
+        Call::Creator(CreatorCall::Create {
+            kind: "sensor/virtual".into(),
+            name: "arm-ft".into(),
+            config: String::new(),
+        }),
+    )
+    .unwrap();
+    object(&c, &s, "arm-ft", Method::Transition(Transition::Configure));
+    object(&c, &s, "pid", Method::Transition(Transition::Configure));
+
+    let mut detached = c.detach_loop("pid").expect("the loop builds");
+    let mut wrench = detached.wrench.take().expect("a sensor is bound");
+    let period_ns = 1_000_000u64;
+    let mut step = |i: u64, d: &mut penelope_supervisor::objects::DetachedLoop| {
+        let now = Timestamp::from_nanos((i + 1) * period_ns);
+        if i.is_multiple_of(2) {
+            d.comm.tick(now);
+            // What the sensor feed does each period, without its thread.
+            wrench.write(Stamped {
+                stamp: now,
+                value: Wrench::zero(Frame::Base),
+            });
+        }
+        d.control.tick(now);
+        while d.telemetry.pop().is_some() {}
+        let _ = d.probe.latest();
+    };
+    // Warm-up: the first ticks start the trajectory.
+    for i in 0..1000 {
+        step(i, &mut detached);
+    }
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    for i in 1000..50_000 {
+        step(i, &mut detached);
+    }
+    let after = ALLOCATIONS.load(Ordering::Relaxed);
+    assert_eq!(
+        after - before,
+        0,
+        "the node loop allocated or freed {} times",
+        after - before
+    );
+    let last = *detached.control.control_loop().last_sample();
+    assert_eq!(last.seq, 50_000);
+    assert_eq!(last.state, SafetyState::Running, "fault: {:?}", last.fault);
+    assert!(detached.comm.published() > 20_000);
+}
