@@ -1,13 +1,140 @@
-//! `penelope node` (being written).
+//! `penelope node`: one Penelope process of the distributed system (one per PC in the paper).
+//!
+//! ```text
+//! penelope node --name lab-a --host-naming                     # hosts the naming service on :7300
+//! penelope node --name lab-b --naming 127.0.0.1:7300           # registers in it
+//! penelope node --name lab-b --config config/node-example.toml # objects up at start
+//! penelope node --name lab-c --listen 0.0.0.0:7302 --advertise 10.0.0.3:7302 \
+//!     --naming 10.0.0.1:7300 --secret-file lab.secret          # a LAN needs the shared secret
+//! ```
+//!
+//! At start only the node's creator exists, bound at `/<name>/creator`. With `--config`, the
+//! objects of a node file are created, related and brought to their states; the format is
+//! documented in [`penelope_supervisor::node`] (`NodeFile`), with an example at
+//! `config/node-example.toml`. The node runs until Ctrl-C or SIGTERM, then deactivates every loop
+//! (amplifiers off) and unregisters from the naming service.
 
+use std::net::SocketAddr;
+use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Duration;
+
+use anyhow::Context as _;
+use penelope_supervisor::node::{NamingChoice, Node, NodeConfig, NodeFile};
+use penelope_supervisor::proto::DEFAULT_PORT;
+
+use super::naming::{block_stop_signals, read_secret, refuse_open_listen, wait_for_stop};
 
 /// Options of `penelope node`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// The node's name: its context /NAME in the naming tree (letters, digits, `_ . -`).
+    #[arg(long)]
+    pub name: String,
+    /// Address to listen on [default: 127.0.0.1:7300 with --host-naming, else 127.0.0.1 on any
+    /// free port]. Anything but loopback requires --secret-file.
+    #[arg(long)]
+    pub listen: Option<SocketAddr>,
+    /// Address registered in the naming tree, when it differs from --listen (0.0.0.0, NAT).
+    #[arg(long, value_name = "HOST:PORT")]
+    pub advertise: Option<String>,
+    /// The naming service's address.
+    #[arg(long, value_name = "ADDR", conflicts_with = "host_naming",
+          default_value_t = SocketAddr::from(([127, 0, 0, 1], DEFAULT_PORT)))]
+    pub naming: SocketAddr,
+    /// Host the naming service in this node.
+    #[arg(long)]
+    pub host_naming: bool,
+    /// A node file: objects to create, relate and bring up at start.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// File holding the shared secret of the system (its bytes, a trailing newline ignored).
+    #[arg(long, value_name = "FILE")]
+    pub secret_file: Option<PathBuf>,
+    /// SCHED_FIFO priority of the control threads (1-99; 0: normal scheduling).
+    #[arg(long, value_name = "N", default_value_t = 80, value_parser = clap::value_parser!(u8).range(0..=99))]
+    pub priority: u8,
+    /// Pin the control threads to this CPU.
+    #[arg(long, value_name = "N")]
+    pub cpu: Option<usize>,
+    /// Lock memory (mlockall) before the first control tick.
+    #[arg(long)]
+    pub lock_memory: bool,
+    /// Lease in the naming service, ms (renewed every third of it).
+    #[arg(long, value_name = "MS", default_value_t = 3000)]
+    pub lease_ms: u64,
+}
 
 /// Runs `penelope node`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let _ = args;
-    Err(crate::cmd::usage("penelope node: not built yet"))
+    let secret = read_secret(args.secret_file.as_deref())?;
+    let listen = args.listen.unwrap_or_else(|| {
+        let port = if args.host_naming { DEFAULT_PORT } else { 0 };
+        SocketAddr::from(([127, 0, 0, 1], port))
+    });
+    refuse_open_listen(listen, secret.is_some())?;
+    let file = match &args.config {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading the node file {}", path.display()))?;
+            Some(
+                NodeFile::parse(&text)
+                    .map_err(|e| crate::cmd::usage(format!("node file {}: {e}", path.display())))?,
+            )
+        }
+        None => None,
+    };
+    let naming = if args.host_naming {
+        NamingChoice::Host
+    } else {
+        NamingChoice::Remote(args.naming)
+    };
+    let mut config = NodeConfig::new(args.name.clone(), naming.clone());
+    config.listen = listen;
+    config.advertise = args.advertise;
+    config.secret = secret;
+    config.lease = Duration::from_millis(args.lease_ms);
+    config.creator.rt.priority = (args.priority > 0).then_some(args.priority);
+    config.creator.rt.cpu = args.cpu;
+    config.creator.rt.lock_memory = args.lock_memory;
+
+    let signals = block_stop_signals()?;
+    let node = Node::start(config).map_err(|e| match e {
+        penelope_supervisor::node::NodeError::BadName(_)
+        | penelope_supervisor::node::NodeError::BadLease(_) => crate::cmd::usage(e.to_string()),
+        other => anyhow::Error::new(other).context(format!("starting node `{}`", args.name)),
+    })?;
+    let naming_text = match naming {
+        NamingChoice::Host => format!("hosted here ({})", node.advertised()),
+        NamingChoice::Remote(a) => a.to_string(),
+        NamingChoice::None => "none".into(),
+    };
+    println!(
+        "node {} on {} (naming path {}/creator, naming service {naming_text})",
+        node.name(),
+        node.advertised(),
+        node.context()
+    );
+    if let Some(file) = file {
+        match file.apply(&node) {
+            Ok(created) => {
+                for info in created {
+                    let state = node
+                        .creator()
+                        .info(&info.name)
+                        .map_or(info.state, |i| i.state);
+                    println!("  {} {} ({state:?})", info.kind, info.name);
+                }
+            }
+            Err(e) => {
+                node.shutdown();
+                return Err(anyhow::Error::new(e).context("applying the node file"));
+            }
+        }
+    }
+    println!("Ctrl-C stops the node");
+    let signal = wait_for_stop(&signals)?;
+    println!("{signal}: deactivating the loops and unregistering");
+    node.shutdown();
+    Ok(ExitCode::SUCCESS)
 }
