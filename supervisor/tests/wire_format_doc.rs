@@ -1,0 +1,309 @@
+//! Keeps `docs/wire-format.md` true: every byte block of the document is compared with what the
+//! real encoder makes of the message it names.
+//!
+//! A block is marked by an HTML comment naming it, `<!-- wire: NAME -->` (or
+//! `<!-- wire: NAME prefix -->` when the block shows only the first bytes of a long message),
+//! followed by a fenced block whose lines are hex bytes, each line optionally ending in a
+//! `# comment`. The bytes are a whole frame: the 4-byte little-endian length, then the postcard
+//! body. Run with `WIRE_FORMAT_PRINT=1 -- --nocapture` to print every message's bytes.
+
+use std::collections::BTreeMap;
+
+use penelope_supervisor::net::{auth, frame};
+use penelope_supervisor::proto::{
+    AUTH_LEN, Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, MAGIC, Method, PROTOCOL_VERSION,
+    PoseMsg, Reply, RobotMethod, ServerHello, ServerMsg, TelemetryBatch, TelemetryRecord,
+    WireError, WrenchMsg,
+};
+use serde::Serialize;
+
+/// The document, relative to this crate.
+const DOC: &str = include_str!("../../docs/wire-format.md");
+
+/// The challenge of the examples: bytes 0x00 to 0x1f.
+fn example_challenge() -> [u8; AUTH_LEN] {
+    std::array::from_fn(|i| i as u8)
+}
+
+/// The shared secret of the examples.
+const EXAMPLE_SECRET: &[u8] = b"correct horse battery staple";
+
+/// A telemetry record of a six-joint robot.
+fn record(seq: u64) -> TelemetryRecord {
+    TelemetryRecord {
+        time_ns: 1_000_000 * seq,
+        seq,
+        q: vec![0.0, -0.5, 0.5, 0.0, 0.25, 0.0],
+        qd: vec![0.0; 6],
+        effort: vec![0.0, 12.5, -3.0, 0.0, 0.1, 0.0],
+        tool_position: [0.5, 0.0, 0.25],
+        wrench: WrenchMsg {
+            force: [0.0, 0.0, -2.0],
+            torque: [0.0; 3],
+        },
+        state: "active".into(),
+        fault: None,
+    }
+}
+
+/// A frame as the real encoder makes it: the length, then the postcard body; checked against
+/// [`frame::encode`].
+fn framed<T: Serialize>(msg: &T) -> Vec<u8> {
+    let body = postcard::to_stdvec(msg).expect("every example serializes");
+    let mut bytes = u32::try_from(body.len())
+        .expect("small")
+        .to_le_bytes()
+        .to_vec();
+    bytes.extend_from_slice(&body);
+    let encoded = frame::encode(msg, DEFAULT_MAX_FRAME).expect("the frame encoder accepts it");
+    assert_eq!(
+        encoded, bytes,
+        "net::frame::encode disagrees with length + postcard"
+    );
+    bytes
+}
+
+/// Every message the document shows, by the name its block carries.
+fn examples() -> BTreeMap<&'static str, Vec<u8>> {
+    let challenge = example_challenge();
+    let pose = PoseMsg {
+        position: [0.5, 0.0, 0.25],
+        n: [1.0, 0.0, 0.0],
+        o: [0.0, -1.0, 0.0],
+        a: [0.0, 0.0, -1.0],
+    };
+    let mut m = BTreeMap::new();
+    m.insert(
+        "client-hello",
+        framed(&ClientMsg::Hello(ClientHello::new("ctl"))),
+    );
+    m.insert(
+        "server-hello",
+        framed(&ServerMsg::Hello(ServerHello {
+            magic: MAGIC,
+            version: PROTOCOL_VERSION,
+            node: "lab-a".into(),
+            challenge: None,
+        })),
+    );
+    m.insert(
+        "server-hello-challenge",
+        framed(&ServerMsg::Hello(ServerHello {
+            magic: MAGIC,
+            version: PROTOCOL_VERSION,
+            node: "lab-a".into(),
+            challenge: Some(challenge),
+        })),
+    );
+    m.insert(
+        "client-auth",
+        framed(&ClientMsg::Auth {
+            mac: auth::mac(EXAMPLE_SECRET, &challenge, "ctl"),
+        }),
+    );
+    m.insert("server-auth-ok", framed(&ServerMsg::AuthOk));
+    m.insert(
+        "server-auth-failed",
+        framed(&ServerMsg::Error(WireError::AuthFailed)),
+    );
+    m.insert(
+        "request-forward-kinematics",
+        framed(&ClientMsg::Request {
+            id: 1,
+            call: Call::Object {
+                object: "slave".into(),
+                method: Method::Robot(RobotMethod::ForwardKinematics { q: None }),
+            },
+        }),
+    );
+    m.insert(
+        "response-pose",
+        framed(&ServerMsg::Response {
+            id: 1,
+            result: Ok(Reply::Pose(pose)),
+        }),
+    );
+    m.insert(
+        "response-unknown-name",
+        framed(&ServerMsg::Response {
+            id: 2,
+            result: Err(WireError::UnknownName("slave2".into())),
+        }),
+    );
+    m.insert(
+        "request-ping",
+        framed(&ClientMsg::Request {
+            id: 300,
+            call: Call::Ping {
+                payload: vec![0, 1, 2, 3, 4, 5, 6, 7],
+            },
+        }),
+    );
+    m.insert(
+        "telemetry-batch",
+        framed(&ServerMsg::Telemetry(TelemetryBatch {
+            subscription: 1,
+            dropped: 0,
+            samples: vec![record(1000), record(1001)],
+        })),
+    );
+    m.insert(
+        "error-frame-too-large",
+        framed(&ServerMsg::Error(WireError::FrameTooLarge {
+            len: u64::from(u32::MAX),
+            max: DEFAULT_MAX_FRAME as u64,
+        })),
+    );
+    m.insert("client-bye", framed(&ClientMsg::Bye));
+    m
+}
+
+/// One marked block of the document.
+#[derive(Debug)]
+struct Block {
+    name: String,
+    prefix: bool,
+    line: usize,
+    bytes: Vec<u8>,
+}
+
+/// Every `<!-- wire: NAME [prefix] -->` block of `doc`.
+fn blocks(doc: &str) -> Result<Vec<Block>, String> {
+    let lines: Vec<&str> = doc.lines().collect();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < lines.len() {
+        let Some(marker) = lines[i]
+            .trim()
+            .strip_prefix("<!-- wire:")
+            .and_then(|r| r.strip_suffix("-->"))
+        else {
+            i += 1;
+            continue;
+        };
+        let mut words = marker.split_whitespace();
+        let name = words
+            .next()
+            .ok_or(format!("line {}: marker without a name", i + 1))?;
+        let prefix = match words.next() {
+            None => false,
+            Some("prefix") => true,
+            Some(other) => return Err(format!("line {}: unknown marker word {other:?}", i + 1)),
+        };
+        let start = i + 1;
+        if !lines
+            .get(start)
+            .is_some_and(|l| l.trim_start().starts_with("```"))
+        {
+            return Err(format!(
+                "line {}: a fenced block must follow the marker",
+                i + 1
+            ));
+        }
+        let mut bytes = Vec::new();
+        let mut j = start + 1;
+        loop {
+            let Some(l) = lines.get(j) else {
+                return Err(format!("line {}: unterminated block", start + 1));
+            };
+            if l.trim_start().starts_with("```") {
+                break;
+            }
+            let data = l.split('#').next().unwrap_or("");
+            for tok in data.split_whitespace() {
+                let ok = tok.len() == 2 && tok.bytes().all(|b| b.is_ascii_hexdigit());
+                let byte = u8::from_str_radix(tok, 16).ok().filter(|_| ok);
+                bytes.push(byte.ok_or(format!("line {}: {tok:?} is not a hex byte", j + 1))?);
+            }
+            j += 1;
+        }
+        out.push(Block {
+            name: name.to_string(),
+            prefix,
+            line: i + 1,
+            bytes,
+        });
+        i = j + 1;
+    }
+    Ok(out)
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes
+        .chunks(16)
+        .map(|c| {
+            c.iter()
+                .map(|b| format!("{b:02x}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn every_byte_block_of_the_wire_format_document_is_what_the_encoder_makes() {
+    let examples = examples();
+    if std::env::var_os("WIRE_FORMAT_PRINT").is_some() {
+        for (name, bytes) in &examples {
+            println!("== {name} ({} bytes)\n{}", bytes.len(), hex(bytes));
+        }
+    }
+    let blocks = blocks(DOC).unwrap();
+    for b in &blocks {
+        let expected = examples
+            .get(b.name.as_str())
+            .unwrap_or_else(|| panic!("line {}: no example named {:?}", b.line, b.name));
+        let shown = if b.prefix {
+            assert!(
+                b.bytes.len() < expected.len(),
+                "line {}: a prefix block shows the whole message",
+                b.line
+            );
+            &expected[..b.bytes.len().min(expected.len())]
+        } else {
+            expected.as_slice()
+        };
+        assert_eq!(
+            hex(&b.bytes),
+            hex(shown),
+            "docs/wire-format.md line {}: block {:?} differs from the encoder",
+            b.line,
+            b.name
+        );
+        // What the document shows also decodes back to a message.
+        let body = &b.bytes[4.min(b.bytes.len())..];
+        if !b.prefix {
+            let as_client = postcard::from_bytes::<ClientMsg>(body).is_ok();
+            let as_server = postcard::from_bytes::<ServerMsg>(body).is_ok();
+            assert!(
+                as_client || as_server,
+                "line {}: {:?} does not decode",
+                b.line,
+                b.name
+            );
+        }
+    }
+    // Every example appears in the document.
+    for name in examples.keys() {
+        assert!(
+            blocks.iter().any(|b| b.name == *name),
+            "docs/wire-format.md has no block for {name:?}"
+        );
+    }
+}
+
+#[test]
+fn the_block_parser_refuses_what_it_cannot_read() {
+    assert!(blocks("<!-- wire: x -->\nno fence").is_err());
+    assert!(blocks("<!-- wire: x -->\n```text\n0g\n```").is_err());
+    assert!(blocks("<!-- wire: x -->\n```text\n00 01").is_err());
+    assert!(blocks("<!-- wire: x whatever -->\n```text\n00\n```").is_err());
+    let ok =
+        blocks("text\n<!-- wire: x prefix -->\n```text\n0a 0B  # ten, eleven 99\n```\n").unwrap();
+    assert_eq!(ok.len(), 1);
+    assert_eq!(
+        (ok[0].name.as_str(), ok[0].prefix, ok[0].bytes.clone()),
+        ("x", true, vec![10, 11])
+    );
+}
