@@ -1,0 +1,232 @@
+//! A node with a running control loop (PUMA 560 on a simulated board, joint PID, 1 kHz) is
+//! attacked over its TCP port — garbage, oversized lengths, half frames, stalled handshakes, a
+//! subscriber that never reads, a request flood, a wrong secret — while the loop runs. The node
+//! must keep answering, the controller must stay active, and the loop must not overrun more during
+//! the attack than during a quiet window of the same length (VM stalls happen in both: the test
+//! compares, it never asserts a duration).
+
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use penelope_supervisor::client::{Client, ControllerProxy, Lifecycle, RobotProxy};
+use penelope_supervisor::net::conn::{ClientConfig, Connection};
+use penelope_supervisor::net::frame::encode;
+use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
+use penelope_supervisor::proto::{
+    AUTH_LEN, Call, ClientHello, ClientMsg, ControlStatus, DEFAULT_MAX_FRAME, Reply,
+};
+
+const WINDOW: Duration = Duration::from_secs(2);
+
+fn frame(msg: &ClientMsg) -> Vec<u8> {
+    encode(msg, DEFAULT_MAX_FRAME).unwrap()
+}
+
+/// Runs one kind of attack in a loop until `stop`, counting connections made.
+fn attack(
+    addr: SocketAddr,
+    stop: Arc<AtomicBool>,
+    made: Arc<AtomicU64>,
+    kind: usize,
+) -> thread::JoinHandle<()> {
+    thread::spawn(move || {
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64 ^ kind as u64;
+        let mut held = Vec::new();
+        while !stop.load(Ordering::Relaxed) {
+            let Ok(mut s) = TcpStream::connect(addr) else {
+                thread::sleep(Duration::from_millis(5));
+                continue;
+            };
+            made.fetch_add(1, Ordering::Relaxed);
+            let _ = s.set_read_timeout(Some(Duration::from_millis(200)));
+            let hello = frame(&ClientMsg::Hello(ClientHello::new("attacker")));
+            match kind {
+                // Garbage bytes.
+                0 => {
+                    let junk: Vec<u8> = (0..512)
+                        .map(|_| {
+                            seed ^= seed << 13;
+                            seed ^= seed >> 7;
+                            seed ^= seed << 17;
+                            seed as u8
+                        })
+                        .collect();
+                    let _ = s.write_all(&junk);
+                }
+                // An oversized length, after a good hello.
+                1 => {
+                    let _ = s.write_all(&hello);
+                    let _ = s.write_all(&u32::MAX.to_le_bytes());
+                }
+                // Half a frame, then close.
+                2 => {
+                    let _ = s.write_all(&hello[..hello.len() / 2]);
+                }
+                // A stalled handshake: connect and say nothing (held open until the end).
+                3 => {
+                    held.push(s);
+                    if held.len() >= 8 {
+                        thread::sleep(Duration::from_millis(50));
+                    }
+                    continue;
+                }
+                // A wrong answer to a challenge that was never sent.
+                _ => {
+                    let _ = s.write_all(&hello);
+                    let _ = s.write_all(&frame(&ClientMsg::Auth { mac: [7; AUTH_LEN] }));
+                }
+            }
+            let mut sink = [0u8; 256];
+            let _ = s.read(&mut sink);
+        }
+    })
+}
+
+fn status(pid: &ControllerProxy) -> ControlStatus {
+    pid.status().unwrap()
+}
+
+#[test]
+fn a_node_under_attack_keeps_answering_and_its_loop_keeps_time() {
+    let mut config = NodeConfig::new("lab", NamingChoice::Host);
+    config.server.handshake_timeout = Duration::from_millis(300);
+    config.server.max_connections = 32;
+    config.server.max_requests_per_s = 20_000;
+    let node = Node::start(config).unwrap();
+    let addr = node.address();
+
+    let client = Client::connect(addr, ClientConfig::new("operator")).unwrap();
+    let lab = client.node("lab").unwrap();
+    lab.create("board/sim", "sim0", "").unwrap();
+    let robot: RobotProxy = lab.create_as("robot/puma560", "arm", "").unwrap();
+    robot
+        .map_joints("sim0", &(0..6).map(|j| (j, j)).collect::<Vec<_>>())
+        .unwrap();
+    client
+        .object("/lab/boards/sim0")
+        .unwrap()
+        .configure()
+        .unwrap();
+    robot.configure().unwrap();
+    lab.create(
+        "trajectory/spline",
+        "hold",
+        "[[waypoints]]\nat_s = 0.5\npose = \"start\"\n",
+    )
+    .unwrap();
+    client
+        .object("/lab/trajectories/hold")
+        .unwrap()
+        .configure()
+        .unwrap();
+    let pid: ControllerProxy = lab.create_as("controller/joint-pid", "pid", "").unwrap();
+    pid.set_robot("arm").unwrap();
+    pid.set_trajectory("hold").unwrap();
+    pid.configure().unwrap();
+    pid.activate().unwrap();
+    thread::sleep(Duration::from_millis(500));
+
+    // Quiet window.
+    let q0 = status(&pid);
+    thread::sleep(WINDOW);
+    let q1 = status(&pid);
+
+    // Attack window of the same length: five attackers, a subscriber that never reads, and a
+    // client flooding pings beyond the rate limit.
+    let stop = Arc::new(AtomicBool::new(false));
+    let made = Arc::new(AtomicU64::new(0));
+    let attackers: Vec<_> = (0..5)
+        .map(|k| attack(addr, stop.clone(), made.clone(), k))
+        .collect();
+    let mut deaf = Connection::connect(addr, &ClientConfig::new("deaf")).unwrap();
+    assert!(matches!(
+        deaf.call(Call::Subscribe {
+            object: "pid".into(),
+            decimation: 1,
+        }),
+        Ok(Reply::Subscribed { .. })
+    ));
+    let flood_stop = stop.clone();
+    let flood = thread::spawn(move || {
+        let mut answered = 0u64;
+        let mut refused = 0u64;
+        if let Ok(mut c) = Connection::connect(addr, &ClientConfig::new("flood")) {
+            while !flood_stop.load(Ordering::Relaxed) {
+                let calls = vec![
+                    Call::Ping {
+                        payload: vec![0; 56]
+                    };
+                    256
+                ];
+                match c.call_many(calls) {
+                    Ok(results) => {
+                        for r in results {
+                            if r.is_ok() {
+                                answered += 1;
+                            } else {
+                                refused += 1;
+                            }
+                        }
+                    }
+                    Err(_) => break,
+                }
+            }
+        }
+        (answered, refused)
+    });
+    let a0 = status(&pid);
+    let started = Instant::now();
+    // The operator's own calls keep being answered during the attack.
+    let mut answered_during = 0;
+    while started.elapsed() < WINDOW {
+        if robot.joint_positions().is_ok() {
+            answered_during += 1;
+        }
+        thread::sleep(Duration::from_millis(50));
+    }
+    let a1 = status(&pid);
+    stop.store(true, Ordering::Relaxed);
+    for a in attackers {
+        a.join().unwrap();
+    }
+    let (flood_answered, flood_refused) = flood.join().unwrap();
+    drop(deaf);
+
+    let quiet_ticks = q1.ticks - q0.ticks;
+    let quiet_overruns = q1.overruns - q0.overruns;
+    let attack_ticks = a1.ticks - a0.ticks;
+    let attack_overruns = a1.overruns - a0.overruns;
+    println!(
+        "quiet: {quiet_ticks} ticks, {quiet_overruns} overruns; attack: {attack_ticks} ticks, \
+         {attack_overruns} overruns; {} attacking connections, flood {flood_answered} answered / \
+         {flood_refused} refused, operator calls answered during the attack: {answered_during}",
+        made.load(Ordering::Relaxed)
+    );
+
+    // The node still answers, the loop still runs, the controller is still active.
+    assert!(answered_during > 0);
+    assert!(made.load(Ordering::Relaxed) > 10);
+    assert!(matches!(
+        client.call_at(addr, Call::Ping { payload: vec![1, 2, 3] }),
+        Ok(Reply::Pong(p)) if p == [1, 2, 3]
+    ));
+    let after = status(&pid);
+    assert!(after.running);
+    assert!(after.last.as_ref().is_some_and(|s| s.fault.is_none()));
+    assert!(
+        attack_ticks * 2 > quiet_ticks,
+        "the loop kept ticking: {attack_ticks} vs {quiet_ticks}"
+    );
+    let tolerance = 5 + quiet_ticks / 100;
+    assert!(
+        attack_overruns <= quiet_overruns + tolerance,
+        "overruns during the attack {attack_overruns} vs quiet {quiet_overruns}"
+    );
+
+    pid.deactivate().unwrap();
+    node.shutdown();
+}
