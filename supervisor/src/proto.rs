@@ -149,6 +149,8 @@ pub enum Call {
     /// Echoes `payload` (liveness, and the remote-call round trip of `penelope bench rpc`).
     Ping {
         /// Bytes sent back unchanged.
+        // serde_bytes: the same bytes on the wire as a sequence of u8, encoded in one copy.
+        #[serde(with = "serde_bytes")]
         payload: Vec<u8>,
     },
     /// What this node is: [`Reply::Node`].
@@ -591,7 +593,7 @@ pub enum Reply {
     /// Done, nothing to return.
     Unit,
     /// The echo of [`Call::Ping`].
-    Pong(Vec<u8>),
+    Pong(#[serde(with = "serde_bytes")] Vec<u8>),
     /// The node's identity.
     Node(NodeInfo),
     /// The kinds a creator can make.
