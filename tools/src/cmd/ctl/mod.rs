@@ -1,0 +1,752 @@
+//! `penelope ctl`: talk to the nodes of a running system through the naming service.
+//!
+//! ```text
+//! penelope ctl [--naming ADDR] [--secret-file FILE] [--json] [--timeout S] VERB ...
+//! ```
+//!
+//! Objects are named by their naming path (`/lab-a/robots/slave`) or by the shorthand
+//! `NODE/NAME` (`lab-a/slave`; names are unique on a node, so it is never ambiguous).
+//!
+//! | verb | what it does |
+//! |---|---|
+//! | `ls [CONTEXT]` | the naming tree under `CONTEXT` (default `/`), with each object's kind and lifecycle state |
+//! | `kinds [NODE]` | the kinds every node (or `NODE`) can create, with their configuration keys |
+//! | `create NODE KIND NAME [--config TOML \| --config-file F] [key=value ...]` | makes an object (it starts `unconfigured`) |
+//! | `destroy PATH [--force]` | removes it; refused while an active object depends on it unless `--force` |
+//! | `configure PATH`, `activate PATH`, `deactivate PATH`, `cleanup PATH` | lifecycle transitions (ROS 2 words) |
+//! | `describe PATH` | kind, state and relations of an object |
+//! | `call PATH METHOD [ARGS...]` | any method of the object: see [`method::METHODS`] (`joint-positions`, `fk [Q]`, `jacobian`, `ik X Y Z`, `gravity`, `inertia`, `named-pose work`, `go-to work 2.0`, `read`, `bias`, `set-robot NAME`, `set-gains TOML`, `status`, `estop`, `rearm`, `reference 0.5`, `map-joints BOARD J:A ...`) |
+//! | `watch PATH [--decimation N] [--count N \| --seconds S]` | live telemetry lines: time, sequence, joints, tool position, force, safety state |
+//! | `run SCRIPT` | runs a file of these verbs, one per line (`#` comments, shell quoting), stopping at the first error with its line number; `-` reads standard input |
+//!
+//! Output is for humans unless `--json` (one JSON value per verb; for `call`, the reply as the
+//! protocol defines it; for `watch`, one JSON telemetry record per line). Bad input exits with
+//! code 2 (nothing is sent), an error from a node with code 1 and the node's message.
+
+mod method;
+mod show;
+
+use std::collections::HashMap;
+use std::io::{Read, Write};
+use std::net::{SocketAddr, ToSocketAddrs};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use clap::Parser;
+use penelope_supervisor::client::Client;
+use penelope_supervisor::net::conn::ClientConfig;
+use penelope_supervisor::proto::{
+    Call, CreatorCall, Method, NameEntry, ObjectRef, Reply, RobotMethod, object_path,
+    parse_transition,
+};
+use serde_json::json;
+
+use crate::cmd::usage;
+
+/// `println!` that returns the error instead of panicking (a closed pipe, as in `ctl ls | head`,
+/// ends the command quietly: see [`run`]).
+macro_rules! say {
+    ($($arg:tt)*) => {
+        writeln!(std::io::stdout(), $($arg)*)?
+    };
+}
+
+/// Examples shown by `penelope ctl --help`.
+const EXAMPLES: &str = "\
+Examples:
+  penelope ctl ls
+  penelope ctl kinds lab-a
+  penelope ctl create lab-a robot/puma560 slave
+  penelope ctl create lab-a board/sim sim0 axes=6
+  penelope ctl call /lab-a/robots/slave map-joints sim0 0:0 1:1 2:2 3:3 4:4 5:5
+  penelope ctl configure /lab-a/robots/slave
+  penelope ctl call lab-a/slave fk work
+  penelope ctl --json call lab-a/slave jacobian 0 0.5 -0.5 0 0 0
+  penelope ctl watch /lab-a/controllers/pid --count 20
+  penelope ctl run setup.ctl
+
+Objects are named by naming path (/lab-a/robots/slave) or NODE/NAME (lab-a/slave).
+Exit codes: 0 done, 1 a node refused or could not be reached, 2 bad input.";
+
+/// Options of `penelope ctl`.
+#[derive(clap::Args, Debug)]
+#[command(after_long_help = EXAMPLES)]
+pub struct Args {
+    /// The naming service, HOST:PORT.
+    #[arg(long, value_name = "ADDR", default_value = "127.0.0.1:7300")]
+    pub naming: String,
+    /// A file holding the shared secret of the system (its bytes, a trailing newline ignored),
+    /// as given to `penelope node` and `penelope naming`.
+    #[arg(long, value_name = "FILE")]
+    pub secret_file: Option<PathBuf>,
+    /// Print JSON instead of text (for `call`: the protocol's reply; for `watch`: one record
+    /// per line).
+    #[arg(long, global = true)]
+    pub json: bool,
+    /// Seconds to wait for a node's answer (and, in `watch`, for the first sample).
+    #[arg(long, value_name = "S", default_value_t = 5.0)]
+    pub timeout: f64,
+    /// What to do.
+    #[command(subcommand)]
+    pub verb: Verb,
+}
+
+/// The verbs of `penelope ctl`.
+#[derive(clap::Subcommand, Debug)]
+pub enum Verb {
+    /// The naming tree: contexts, objects with their kind and lifecycle state.
+    Ls {
+        /// The context to list (default: the root).
+        #[arg(default_value = "/")]
+        context: String,
+    },
+    /// The kinds each node can create, with their configuration keys (units, defaults).
+    Kinds {
+        /// Only this node.
+        node: Option<String>,
+    },
+    /// Create an object on a node; it starts unconfigured and is bound in the naming tree.
+    Create {
+        /// The node (its name in the naming tree).
+        node: String,
+        /// The kind, such as robot/puma560, board/sim, controller/joint-pid (see `kinds`).
+        kind: String,
+        /// The object's name on the node: letters, digits, `_`, `.`, `-`.
+        name: String,
+        /// Configuration as TOML text.
+        #[arg(long, value_name = "TOML", conflicts_with = "config_file")]
+        config: Option<String>,
+        /// Configuration from a TOML file.
+        #[arg(long, value_name = "FILE")]
+        config_file: Option<PathBuf>,
+        /// Settings as key=value (value in TOML; a bare word is taken as a string).
+        #[arg(value_name = "KEY=VALUE")]
+        settings: Vec<String>,
+    },
+    /// Destroy an object (refused while an active object uses it, unless --force).
+    Destroy {
+        /// The object: naming path or NODE/NAME.
+        path: String,
+        /// Stop the active objects that use it first (amplifiers off, loops stopped).
+        #[arg(long)]
+        force: bool,
+    },
+    /// unconfigured -> inactive: check the relations and build the object.
+    Configure {
+        /// The object: naming path or NODE/NAME.
+        path: String,
+    },
+    /// inactive -> active: a controller starts its real-time loop from the measured state.
+    Activate {
+        /// The object: naming path or NODE/NAME.
+        path: String,
+    },
+    /// active -> inactive: a controller stops its loop safely.
+    Deactivate {
+        /// The object: naming path or NODE/NAME.
+        path: String,
+    },
+    /// inactive -> unconfigured.
+    Cleanup {
+        /// The object: naming path or NODE/NAME.
+        path: String,
+    },
+    /// Kind, lifecycle state and relations of an object.
+    Describe {
+        /// The object: naming path or NODE/NAME.
+        path: String,
+    },
+    /// Call a method of an object (`call PATH help` lists them).
+    #[command(after_long_help = method::METHODS)]
+    Call {
+        /// The object: naming path or NODE/NAME.
+        path: String,
+        /// The method, kebab-case: joint-positions, fk, jacobian, ik, gravity, inertia,
+        /// named-pose, go-to, map-joints, read, bias, measure, set-robot, set-trajectory,
+        /// set-sensor, set-gains, status, estop, rearm, reference, duration, ...
+        method: String,
+        /// The method's arguments (numbers may be negative).
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
+    /// Live telemetry of a running controller (or the robot it drives), one line per sample.
+    Watch {
+        /// The object: naming path or NODE/NAME.
+        path: String,
+        /// Show one control tick in N.
+        #[arg(long, value_name = "N", default_value_t = 1)]
+        decimation: u32,
+        /// Stop after N samples.
+        #[arg(long, value_name = "N")]
+        count: Option<u64>,
+        /// Stop after S seconds.
+        #[arg(long, value_name = "S")]
+        seconds: Option<f64>,
+    },
+    /// Run a script: one verb per line, `#` comments, shell quoting; stops at the first error.
+    Run {
+        /// The script file, or `-` for standard input.
+        script: String,
+    },
+}
+
+/// One line of a script.
+#[derive(Parser, Debug)]
+#[command(name = "ctl", no_binary_name = true, disable_help_subcommand = true)]
+struct ScriptLine {
+    /// JSON output for this line.
+    #[arg(long, global = true)]
+    json: bool,
+    #[command(subcommand)]
+    verb: Verb,
+}
+
+/// Runs `penelope ctl`.
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    if !(args.timeout.is_finite() && args.timeout > 0.0) {
+        return Err(usage(format!(
+            "--timeout must be > 0 s, got {}",
+            args.timeout
+        )));
+    }
+    let naming = args
+        .naming
+        .to_socket_addrs()
+        .ok()
+        .and_then(|mut a| a.next())
+        .ok_or_else(|| usage(format!("--naming: `{}` is not HOST:PORT", args.naming)))?;
+    let mut config = ClientConfig::new("penelope-ctl");
+    config.timeout = Duration::from_secs_f64(args.timeout);
+    // Read exactly as `penelope node` and `penelope naming` read it.
+    config.secret = crate::cmd::naming::read_secret(args.secret_file.as_deref())?;
+    let mut ctl = Ctl {
+        naming,
+        config,
+        client: None,
+    };
+    match ctl.exec(args.verb, args.json, false) {
+        Ok(()) => Ok(ExitCode::SUCCESS),
+        // The reader went away (`penelope ctl ls | head`): nothing more to say.
+        Err(e)
+            if e.downcast_ref::<std::io::Error>()
+                .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe) =>
+        {
+            Ok(ExitCode::SUCCESS)
+        }
+        Err(e) => Err(e),
+    }
+}
+
+/// The state of one `penelope ctl` run (a script shares one client).
+struct Ctl {
+    naming: SocketAddr,
+    config: ClientConfig,
+    client: Option<Client>,
+}
+
+impl Ctl {
+    fn client(&mut self) -> anyhow::Result<Client> {
+        if let Some(c) = &self.client {
+            return Ok(c.clone());
+        }
+        let c = Client::connect(self.naming, self.config.clone())
+            .with_context(|| format!("cannot reach the naming service at {}", self.naming))?;
+        self.client = Some(c.clone());
+        Ok(c)
+    }
+
+    fn exec(&mut self, verb: Verb, json: bool, in_script: bool) -> anyhow::Result<()> {
+        match verb {
+            Verb::Ls { context } => self.ls(&context, json),
+            Verb::Kinds { node } => self.kinds(node.as_deref(), json),
+            Verb::Create {
+                node,
+                kind,
+                name,
+                config,
+                config_file,
+                settings,
+            } => {
+                let text = config_text(config, config_file.as_deref(), &settings)?;
+                let client = self.client()?;
+                let node = client.node(&node)?;
+                let info = node.create(&kind, &name, &text)?;
+                let path = node.path_of(&info);
+                if json {
+                    say!("{}", json!({ "path": path, "object": info }));
+                } else {
+                    say!("created {path} ({}): {}", info.kind, info.state);
+                }
+                Ok(())
+            }
+            Verb::Destroy { path, force } => {
+                let client = self.client()?;
+                let r = client.locate(&path)?;
+                client.node(&r.node)?.destroy(&r.name, force)?;
+                let path = path_of(&r);
+                if json {
+                    say!("{}", json!({ "destroyed": path }));
+                } else {
+                    say!("destroyed {path}");
+                }
+                Ok(())
+            }
+            Verb::Configure { path } => self.method(&path, "configure", &[], json),
+            Verb::Activate { path } => self.method(&path, "activate", &[], json),
+            Verb::Deactivate { path } => self.method(&path, "deactivate", &[], json),
+            Verb::Cleanup { path } => self.method(&path, "cleanup", &[], json),
+            Verb::Describe { path } => self.method(&path, "describe", &[], json),
+            Verb::Call { path, method, args } => {
+                // `--json` after the method's arguments is ours, not the method's.
+                let json = json || args.iter().any(|a| a == "--json");
+                let args: Vec<String> = args.into_iter().filter(|a| a != "--json").collect();
+                if method == "help" {
+                    say!("{}", method::METHODS);
+                    return Ok(());
+                }
+                self.method(&path, &method, &args, json)
+            }
+            Verb::Watch {
+                path,
+                decimation,
+                count,
+                seconds,
+            } => self.watch(&path, decimation, count, seconds, json, in_script),
+            Verb::Run { script } => {
+                if in_script {
+                    return Err(usage("`run` cannot be used inside a script"));
+                }
+                self.script(&script, json)
+            }
+        }
+    }
+
+    /// Calls a method by its kebab-case name and prints the reply.
+    fn method(
+        &mut self,
+        path: &str,
+        name: &str,
+        args: &[String],
+        json: bool,
+    ) -> anyhow::Result<()> {
+        let client = self.client()?;
+        let r = client.locate(path)?;
+        let mut lookup = |m: RobotMethod| -> anyhow::Result<Reply> {
+            Ok(client.call_ref(&r, Method::Robot(m))?)
+        };
+        let (method, hint) = method::parse(name, args, &mut lookup)?;
+        let reply = client.call_ref(&r, method)?;
+        if json {
+            say!("{}", serde_json::to_string(&reply)?);
+            return Ok(());
+        }
+        match (
+            &reply,
+            parse_transition(name).is_some() || name == "describe",
+        ) {
+            (Reply::Object(info), true) => {
+                say!("{}: {}", path_of(&r), info.state);
+                if name == "describe" {
+                    say!("kind {} ({})", info.kind, info.class);
+                    for (rel, target) in &info.relations {
+                        say!("{rel}: {target}");
+                    }
+                }
+            }
+            _ => say!("{}", show::reply(&reply, hint)),
+        }
+        Ok(())
+    }
+
+    fn ls(&mut self, context: &str, json: bool) -> anyhow::Result<()> {
+        let client = self.client()?;
+        let tree = client.naming().tree(context)?;
+        let states = object_states(&client, &tree);
+        let state_of = |r: &ObjectRef| -> Option<String> {
+            if r.class == penelope_supervisor::proto::Class::Creator {
+                None
+            } else {
+                Some(
+                    states
+                        .get(&(r.node.clone(), r.name.clone()))
+                        .cloned()
+                        .unwrap_or_else(|| "unreachable".into()),
+                )
+            }
+        };
+        if json {
+            let entries: Vec<_> = tree
+                .iter()
+                .map(|(path, depth, entry)| match entry {
+                    NameEntry::Context { .. } => {
+                        json!({ "path": path, "depth": depth, "context": true })
+                    }
+                    NameEntry::Object { reference, .. } => json!({
+                        "path": path, "depth": depth, "context": false,
+                        "reference": reference, "state": state_of(reference),
+                    }),
+                })
+                .collect();
+            say!("{}", json!({ "context": context, "entries": entries }));
+            return Ok(());
+        }
+        say!("{context}");
+        if tree.is_empty() {
+            say!("(empty)");
+            return Ok(());
+        }
+        let mut lines = Vec::new();
+        let mut open: Vec<bool> = Vec::new();
+        for (i, (_, depth, entry)) in tree.iter().enumerate() {
+            let last = tree[i + 1..]
+                .iter()
+                .find(|(_, d, _)| d <= depth)
+                .is_none_or(|(_, d, _)| d < depth);
+            open.truncate(*depth);
+            let mut prefix: String = open
+                .iter()
+                .map(|more| if *more { "│   " } else { "    " })
+                .collect();
+            prefix += if last { "└── " } else { "├── " };
+            open.push(!last);
+            let (name, detail) = match entry {
+                NameEntry::Context { name } => (format!("{name}/"), String::new()),
+                NameEntry::Object { name, reference } => {
+                    let detail = match state_of(reference) {
+                        Some(state) => format!("{:<28} {state}", reference.kind),
+                        None => format!("node {} at {}", reference.node, reference.address),
+                    };
+                    (name.clone(), detail)
+                }
+            };
+            lines.push((format!("{prefix}{name}"), detail));
+        }
+        let width = lines
+            .iter()
+            .map(|(l, _)| l.chars().count())
+            .max()
+            .unwrap_or(0);
+        for (left, detail) in lines {
+            let pad = width.saturating_sub(left.chars().count());
+            let line = format!("{left}{}  {detail}", " ".repeat(pad));
+            say!("{}", line.trim_end());
+        }
+        Ok(())
+    }
+
+    fn kinds(&mut self, node: Option<&str>, json: bool) -> anyhow::Result<()> {
+        let client = self.client()?;
+        let nodes = match node {
+            Some(n) => vec![client.node(n)?],
+            None => client.nodes()?,
+        };
+        let mut all = Vec::new();
+        for node in &nodes {
+            all.push((node, node.kinds()?));
+        }
+        if json {
+            let list: Vec<_> = all
+                .iter()
+                .map(|(n, k)| json!({ "node": n.name(), "address": n.address().to_string(), "kinds": k }))
+                .collect();
+            say!("{}", json!({ "nodes": list }));
+            return Ok(());
+        }
+        if all.is_empty() {
+            say!(
+                "no node is registered in the naming service at {}",
+                self.naming
+            );
+        }
+        for (n, kinds) in all {
+            say!("{} ({})", n.name(), n.address());
+            for k in &kinds {
+                say!("{}", show::kind(k));
+            }
+        }
+        Ok(())
+    }
+
+    fn watch(
+        &mut self,
+        path: &str,
+        decimation: u32,
+        count: Option<u64>,
+        seconds: Option<f64>,
+        json: bool,
+        in_script: bool,
+    ) -> anyhow::Result<()> {
+        if in_script && count.is_none() && seconds.is_none() {
+            return Err(usage("in a script, `watch` needs --count or --seconds"));
+        }
+        let limit = match seconds {
+            Some(s) if !(s.is_finite() && s > 0.0) => {
+                return Err(usage(format!("--seconds must be > 0, got {s}")));
+            }
+            Some(s) => Some(Duration::from_secs_f64(s)),
+            None => None,
+        };
+        let client = self.client()?;
+        let mut stream = client.subscribe(path, decimation)?;
+        if !json {
+            eprintln!(
+                "watching {} (one tick in {}){}",
+                stream.path(),
+                decimation.max(1),
+                if count.is_none() && limit.is_none() {
+                    "; Ctrl-C to stop"
+                } else {
+                    ""
+                }
+            );
+        }
+        let stall = self.config.timeout;
+        let start = Instant::now();
+        let mut last = Instant::now();
+        let mut t0 = None;
+        let mut n = 0u64;
+        let mut out = std::io::stdout().lock();
+        loop {
+            if count.is_some_and(|c| n >= c) {
+                break;
+            }
+            let mut wait = Duration::from_millis(100);
+            if let Some(limit) = limit {
+                let left = limit.saturating_sub(start.elapsed());
+                if left.is_zero() {
+                    break;
+                }
+                wait = wait.min(left);
+            }
+            match stream.recv_timeout(wait)? {
+                Some(rec) => {
+                    n += 1;
+                    last = Instant::now();
+                    let t0 = *t0.get_or_insert(rec.time_ns);
+                    if json {
+                        writeln!(out, "{}", serde_json::to_string(&rec)?)?;
+                    } else {
+                        writeln!(out, "{}", show::telemetry(&rec, t0))?;
+                    }
+                    out.flush()?;
+                }
+                None if last.elapsed() >= stall => {
+                    anyhow::bail!(
+                        "no telemetry from {} for {:.1} s: is its control loop running?",
+                        stream.path(),
+                        stall.as_secs_f64()
+                    );
+                }
+                None => {}
+            }
+        }
+        if n == 0 {
+            anyhow::bail!(
+                "no telemetry from {}: is its control loop running?",
+                stream.path()
+            );
+        }
+        if stream.dropped() > 0 && !json {
+            eprintln!(
+                "{} batch(es) dropped by the node because this side read too slowly",
+                stream.dropped()
+            );
+        }
+        Ok(())
+    }
+
+    fn script(&mut self, script: &str, json: bool) -> anyhow::Result<()> {
+        let (name, text) = if script == "-" {
+            let mut text = String::new();
+            std::io::stdin()
+                .lock()
+                .read_to_string(&mut text)
+                .map_err(|e| usage(format!("reading the script from standard input: {e}")))?;
+            ("stdin".to_string(), text)
+        } else {
+            let text = std::fs::read_to_string(script)
+                .map_err(|e| usage(format!("script {script}: {e}")))?;
+            (script.to_string(), text)
+        };
+        for (i, line) in text.lines().enumerate() {
+            let at = format!("{name}:{}", i + 1);
+            let words =
+                shlex::split(line).ok_or_else(|| usage(format!("{at}: unbalanced quotes")))?;
+            if words.is_empty() {
+                continue;
+            }
+            let parsed = ScriptLine::try_parse_from(words).map_err(|e| {
+                let text = e.to_string();
+                let first = text
+                    .lines()
+                    .find(|l| !l.trim().is_empty())
+                    .unwrap_or("cannot parse")
+                    .trim_start_matches("error: ")
+                    .to_string();
+                usage(format!("{at}: {first}"))
+            })?;
+            if !json {
+                say!("> {}", line.trim());
+            }
+            self.exec(parsed.verb, json || parsed.json, true)
+                .with_context(|| format!("{at}: {}", line.trim()))?;
+        }
+        Ok(())
+    }
+}
+
+/// The naming path of a reference.
+fn path_of(r: &ObjectRef) -> String {
+    object_path(&r.node, r.class, &r.name)
+}
+
+/// The lifecycle state of every object in `tree`, by `(node, name)`, from one creator `List`
+/// per node (nodes that do not answer are left out).
+fn object_states(
+    client: &Client,
+    tree: &[(String, usize, NameEntry)],
+) -> HashMap<(String, String), String> {
+    let mut nodes: Vec<(String, String)> = tree
+        .iter()
+        .filter_map(|(_, _, e)| match e {
+            NameEntry::Object { reference, .. } => {
+                Some((reference.node.clone(), reference.address.clone()))
+            }
+            NameEntry::Context { .. } => None,
+        })
+        .collect();
+    nodes.sort();
+    nodes.dedup();
+    let mut states = HashMap::new();
+    for (node, address) in nodes {
+        let Some(addr) = address.to_socket_addrs().ok().and_then(|mut a| a.next()) else {
+            continue;
+        };
+        if let Ok(Reply::Objects(list)) = client.call_at(addr, Call::Creator(CreatorCall::List)) {
+            for o in list {
+                states.insert((node.clone(), o.name), o.state.to_string());
+            }
+        }
+    }
+    states
+}
+
+/// The configuration text of `create`: the key=value settings, then --config or
+/// --config-file, checked to be TOML.
+fn config_text(
+    config: Option<String>,
+    file: Option<&std::path::Path>,
+    settings: &[String],
+) -> anyhow::Result<String> {
+    let mut text = String::new();
+    for s in settings {
+        let Some((key, value)) = s.split_once('=') else {
+            return Err(usage(format!("`{s}` is not KEY=VALUE")));
+        };
+        let (key, value) = (key.trim(), value.trim());
+        if key.is_empty()
+            || !key
+                .bytes()
+                .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.'))
+        {
+            return Err(usage(format!("`{key}` is not a configuration key")));
+        }
+        let value = if format!("v = {value}").parse::<toml::Table>().is_ok() {
+            value.to_string()
+        } else {
+            toml::Value::String(value.to_string()).to_string()
+        };
+        text.push_str(&format!("{key} = {value}\n"));
+    }
+    match (config, file) {
+        (Some(c), _) => text.push_str(&c),
+        (None, Some(f)) => text.push_str(
+            &std::fs::read_to_string(f)
+                .map_err(|e| usage(format!("--config-file {}: {e}", f.display())))?,
+        ),
+        (None, None) => {}
+    }
+    text.parse::<toml::Table>().map_err(|e| {
+        usage(format!(
+            "the configuration is not valid TOML: {}",
+            e.message()
+        ))
+    })?;
+    Ok(text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn settings_become_toml_and_bad_ones_are_usage_errors() {
+        let text = config_text(
+            Some("[gains]\nkp = 1.0".into()),
+            None,
+            &[
+                "axes=6".into(),
+                "device=/dev/ttyUSB0".into(),
+                "q0=[0, 0.5]".into(),
+            ],
+        )
+        .unwrap();
+        let t: toml::Table = text.parse().unwrap();
+        assert_eq!(t["axes"].as_integer(), Some(6));
+        assert_eq!(t["device"].as_str(), Some("/dev/ttyUSB0"));
+        assert_eq!(t["q0"].as_array().map(Vec::len), Some(2));
+        assert!(t["gains"]["kp"].as_float().is_some());
+        for bad in ["novalue", "bad key=1", "=3"] {
+            let e = config_text(None, None, &[bad.into()]).unwrap_err();
+            assert!(
+                e.downcast_ref::<crate::cmd::UsageError>().is_some(),
+                "{bad}"
+            );
+        }
+        let e = config_text(Some("a = [".into()), None, &[]).unwrap_err();
+        assert!(e.downcast_ref::<crate::cmd::UsageError>().is_some());
+    }
+
+    #[test]
+    fn script_lines_parse_as_verbs() {
+        let line =
+            ScriptLine::try_parse_from(shlex::split("call lab-a/slave fk 0 -0.5 0 0 0 0").unwrap())
+                .unwrap();
+        match line.verb {
+            Verb::Call { path, method, args } => {
+                assert_eq!((path.as_str(), method.as_str()), ("lab-a/slave", "fk"));
+                assert_eq!(args[1], "-0.5");
+            }
+            other => panic!("{other:?}"),
+        }
+        let line = ScriptLine::try_parse_from(
+            shlex::split("call /a/controllers/c set-gains 'kp = [1, 2]'").unwrap(),
+        )
+        .unwrap();
+        assert!(matches!(line.verb, Verb::Call { ref args, .. } if args == &["kp = [1, 2]"]));
+        assert!(ScriptLine::try_parse_from(shlex::split("frobnicate x").unwrap()).is_err());
+        assert_eq!(shlex::split("  # a comment").unwrap().len(), 0);
+    }
+
+    #[test]
+    fn the_default_naming_address_is_the_default_port() {
+        use clap::CommandFactory as _;
+        #[derive(Parser)]
+        struct Top {
+            #[command(flatten)]
+            args: Args,
+        }
+        let cmd = Top::command();
+        let naming = cmd
+            .get_arguments()
+            .find(|a| a.get_id() == "naming")
+            .and_then(|a| a.get_default_values().first().cloned())
+            .unwrap();
+        assert_eq!(
+            naming.to_str().unwrap(),
+            format!("127.0.0.1:{}", penelope_supervisor::proto::DEFAULT_PORT)
+        );
+    }
+}

@@ -1,0 +1,248 @@
+//! `penelope ctl` end to end: a `penelope naming` and a `penelope node` run as child processes
+//! on free loopback ports, and `penelope ctl` creates, configures, activates, calls, watches and
+//! destroys objects through them, by script and by single verbs.
+
+use std::net::{SocketAddr, TcpListener};
+use std::path::PathBuf;
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+const BIN: &str = env!("CARGO_BIN_EXE_penelope");
+
+/// Control period and plant sub-step, µs: slower in unoptimised builds so a tick fits.
+const PERIOD_US: u32 = if cfg!(debug_assertions) {
+    10_000
+} else {
+    2_000
+};
+const SUBSTEP_US: u32 = if cfg!(debug_assertions) { 1_000 } else { 200 };
+
+/// The child processes, killed when the test ends, passed or failed.
+struct Children(Vec<Child>);
+
+impl Drop for Children {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+fn free_port() -> SocketAddr {
+    let l = TcpListener::bind("127.0.0.1:0").unwrap();
+    l.local_addr().unwrap()
+}
+
+fn spawn(args: &[&str]) -> Child {
+    Command::new(BIN)
+        .args(args)
+        // Unoptimised builds need more than the default 2 MiB for a connection thread that
+        // builds a control loop.
+        .env("RUST_MIN_STACK", "16777216")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap()
+}
+
+fn ctl(naming: SocketAddr, args: &[&str]) -> Output {
+    Command::new(BIN)
+        .arg("ctl")
+        .arg("--naming")
+        .arg(naming.to_string())
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .unwrap()
+}
+
+fn text(o: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+fn script(name: &str, body: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("penelope-ctl-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, body).unwrap();
+    path
+}
+
+#[test]
+fn ctl_drives_a_node_through_the_naming_service() {
+    let naming = free_port();
+    let node = free_port();
+    let _children = Children(vec![
+        spawn(&["naming", "--listen", &naming.to_string()]),
+        spawn(&[
+            "node",
+            "--name",
+            "lab",
+            "--listen",
+            &node.to_string(),
+            "--naming",
+            &naming.to_string(),
+            "--priority",
+            "0",
+        ]),
+    ]);
+
+    // Wait until the node is registered.
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let o = ctl(naming, &["ls"]);
+        if o.status.success() && text(&o).0.contains("creator") {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the node never registered: {:?}",
+            text(&o)
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+
+    // Set up a PUMA 560 on a simulated board with a joint PID holding it, by script.
+    let setup = script(
+        "setup.ctl",
+        &format!(
+            "# a PUMA 560 held at its start pose\n\
+             create lab board/sim sim0 axes=6 substep_us={SUBSTEP_US}\n\
+             create lab robot/puma560 slave\n\
+             call /lab/robots/slave map-joints sim0 0:0 1:1 2:2 3:3 4:4 5:5\n\
+             configure lab/sim0\n\
+             configure /lab/robots/slave   # comments may end a line\n\
+             call lab/slave fk 0 0 0 0 0 0\n\
+             call lab/slave jacobian start\n\
+             create lab trajectory/step hold pose=start\n\
+             create lab controller/joint-pid pid --config 'period_us = {PERIOD_US}'\n\
+             call lab/pid set-robot slave\n\
+             call lab/pid set-trajectory hold\n\
+             configure lab/hold\n\
+             configure lab/pid\n\
+             \n\
+             activate lab/pid\n\
+             call lab/pid status\n\
+             watch lab/pid --count 5\n"
+        ),
+    );
+    let o = ctl(naming, &["run", setup.to_str().unwrap()]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "stdout:\n{out}\nstderr:\n{err}");
+    assert!(
+        out.contains("created /lab/robots/slave (robot/puma560): unconfigured"),
+        "{out}"
+    );
+    assert!(out.contains("/lab/robots/slave: inactive"), "{out}");
+    assert!(out.contains("/lab/controllers/pid: active"), "{out}");
+    assert!(out.contains("position (m):"), "{out}");
+    assert!(out.contains(" vx "), "{out}");
+    assert!(out.contains("loop running"), "{out}");
+    let samples = out.lines().filter(|l| l.starts_with("t ")).count();
+    assert_eq!(samples, 5, "{out}");
+
+    // Single verbs, JSON, and the tree.
+    let o = ctl(naming, &["--json", "call", "lab/slave", "gravity", "start"]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(v["Joints"].as_array().map(Vec::len), Some(6), "{out}");
+    let o = ctl(
+        naming,
+        &[
+            "call",
+            "/lab/robots/slave",
+            "ik",
+            "0.4",
+            "0.1",
+            "0.3",
+            "--json",
+        ],
+    );
+    assert!(o.status.success(), "{:?}", text(&o));
+    assert!(
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()["Solutions"].is_array()
+    );
+    let o = ctl(naming, &["ls"]);
+    let (out, _) = text(&o);
+    assert!(
+        out.contains("slave") && out.contains("robot/puma560") && out.contains("active"),
+        "{out}"
+    );
+    let o = ctl(naming, &["kinds", "lab"]);
+    assert!(
+        text(&o).0.contains("controller/joint-pid"),
+        "{:?}",
+        text(&o)
+    );
+
+    // Errors: a node's refusal exits 1, bad input exits 2.
+    let o = ctl(naming, &["destroy", "lab/slave"]);
+    assert_eq!(o.status.code(), Some(1), "{:?}", text(&o));
+    assert!(text(&o).1.contains("in use"), "{:?}", text(&o));
+    let o = ctl(naming, &["call", "/lab/robots/nobody", "joint-positions"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o).1.contains("unknown name"), "{:?}", text(&o));
+    let o = ctl(
+        naming,
+        &["call", "lab/slave", "fk", "0", "nan", "0", "0", "0", "0"],
+    );
+    assert_eq!(o.status.code(), Some(2), "{:?}", text(&o));
+    let o = ctl(naming, &["call", "lab/slave", "frobnicate"]);
+    assert_eq!(o.status.code(), Some(2));
+    let bad = script("bad.ctl", "ls\n# fine so far\nfrobnicate lab\nls\n");
+    let o = ctl(naming, &["run", bad.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).1.contains("bad.ctl:3"), "{:?}", text(&o));
+    let o = ctl("127.0.0.1:1".parse().unwrap(), &["ls"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        text(&o).1.contains("cannot reach the naming service"),
+        "{:?}",
+        text(&o)
+    );
+
+    // Tear down, the script from standard input; the tree is empty again but for the creator.
+    let teardown = "deactivate lab/pid\n\
+                    call lab/hold reference 0.5\n\
+                    destroy lab/pid\n\
+                    destroy lab/hold\n\
+                    destroy /lab/robots/slave\n\
+                    destroy lab/sim0\n";
+    let mut child = Command::new(BIN)
+        .args(["ctl", "--naming", &naming.to_string(), "run", "-"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    {
+        use std::io::Write as _;
+        child
+            .stdin
+            .take()
+            .unwrap()
+            .write_all(teardown.as_bytes())
+            .unwrap();
+    }
+    let o = child.wait_with_output().unwrap();
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "stdout:\n{out}\nstderr:\n{err}");
+    assert!(out.contains("/lab/controllers/pid: inactive"), "{out}");
+    assert!(out.contains("joint reference"), "{out}");
+    assert!(out.contains("destroyed /lab/boards/sim0"), "{out}");
+    let o = ctl(naming, &["--json", "ls"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let paths: Vec<&str> = v["entries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|e| e["path"].as_str())
+        .collect();
+    assert_eq!(paths, ["/lab", "/lab/creator"]);
+}
