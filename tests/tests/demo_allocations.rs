@@ -6,38 +6,14 @@
 //! The simulated clock runs every loop on this test's thread; the counting allocator counts
 //! every allocation of the process, so this binary holds this one test only.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use penelope_supervisor::lab::LabConfig;
 use penelope_supervisor::lab::run::{ClockMode, RunOptions, run};
-
-struct Counting;
-
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: forwards to the system allocator unchanged; only counts calls.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+use penelope_tests::{CountingAllocator, allocations};
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: CountingAllocator = CountingAllocator;
 
 #[test]
 fn one_hundred_thousand_demo_ticks_allocate_nothing() {
@@ -52,7 +28,7 @@ fn one_hundred_thousand_demo_ticks_allocate_nothing() {
     let mut last = 0;
     let mut reports = 0u32;
     let out = run(&LabConfig::demo(), &options, &mut |_| {
-        let now = ALLOCATIONS.load(Ordering::Relaxed);
+        let now = allocations();
         first.get_or_insert(now);
         last = now;
         reports += 1;

@@ -6,9 +6,6 @@
 //! The counting allocator counts every allocation of the process, so this binary holds this one
 //! test only.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicU64, Ordering};
-
 use penelope_hal::{Frame, Timestamp, Transition, Wrench};
 use penelope_rt_core::cell::Stamped;
 use penelope_rt_core::safety::SafetyState;
@@ -17,32 +14,10 @@ use penelope_supervisor::proto::{
     Call, ControllerMethod, CreatorCall, JointAxis, Method, RobotMethod,
 };
 use penelope_supervisor::service::{Outbox, Service, Session};
-
-struct Counting;
-
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: forwards to the system allocator unchanged; only counts calls.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+use penelope_tests::{CountingAllocator, allocations};
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: CountingAllocator = CountingAllocator;
 
 fn object(c: &Creator, s: &Session, name: &str, method: Method) {
     c.call(
@@ -160,11 +135,11 @@ fn fifty_thousand_node_loop_ticks_allocate_nothing() {
     for i in 0..1000 {
         step(i, &mut detached);
     }
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before = allocations();
     for i in 1000..50_000 {
         step(i, &mut detached);
     }
-    let after = ALLOCATIONS.load(Ordering::Relaxed);
+    let after = allocations();
     assert_eq!(
         after - before,
         0,

@@ -206,8 +206,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "cyclictest": theirs.json(period),
         "ratios": ratios_json(&ours.histogram.summary(), &theirs.histogram.summary()),
         "per_slice_median_ratios": {
-            "p99": finite_or_null(median_ratio(&pairs, |s| s.p99)),
-            "p999": finite_or_null(median_ratio(&pairs, |s| s.p999)),
+            "p99": super::finite_or_null(median_ratio(&pairs, |s| s.p99)),
+            "p999": super::finite_or_null(median_ratio(&pairs, |s| s.p999)),
         },
         "rates": rates.iter().map(|r| json!({
             "hz": r.hz, "ticks": r.ticks, "overruns": r.overruns, "late_by_a_period": r.late,
@@ -292,25 +292,7 @@ fn median_ratio(
     pairs: &[(LatencySummary, LatencySummary)],
     pick: impl Fn(&LatencySummary) -> Duration,
 ) -> f64 {
-    let mut r: Vec<f64> = pairs
-        .iter()
-        .map(|(a, b)| ratio(pick(a), pick(b)))
-        .filter(|x| x.is_finite())
-        .collect();
-    if r.is_empty() {
-        return f64::NAN;
-    }
-    r.sort_by(f64::total_cmp);
-    let n = r.len();
-    if n % 2 == 1 {
-        r[n / 2]
-    } else {
-        (r[n / 2 - 1] + r[n / 2]) / 2.0
-    }
-}
-
-fn finite_or_null(x: f64) -> serde_json::Value {
-    if x.is_finite() { json!(x) } else { json!(null) }
+    super::finite_median(pairs.iter().map(|(a, b)| ratio(pick(a), pick(b))))
 }
 
 fn ratio(a: Duration, b: Duration) -> f64 {

@@ -25,3 +25,27 @@ pub fn run(command: BenchCommand) -> anyhow::Result<ExitCode> {
         BenchCommand::Rpc(args) => rpc::run(args),
     }
 }
+
+/// The median of the finite values of `values` (NaN when there is none).
+pub(crate) fn finite_median(values: impl IntoIterator<Item = f64>) -> f64 {
+    let mut r: Vec<f64> = values.into_iter().filter(|x| x.is_finite()).collect();
+    if r.is_empty() {
+        return f64::NAN;
+    }
+    r.sort_by(f64::total_cmp);
+    let n = r.len();
+    if n % 2 == 1 {
+        r[n / 2]
+    } else {
+        (r[n / 2 - 1] + r[n / 2]) / 2.0
+    }
+}
+
+/// `x` as JSON, or `null` when it is NaN or infinite (JSON has no such numbers).
+pub(crate) fn finite_or_null(x: f64) -> serde_json::Value {
+    if x.is_finite() {
+        serde_json::json!(x)
+    } else {
+        serde_json::Value::Null
+    }
+}

@@ -359,26 +359,11 @@ fn measure(args: &Args, kinds: &[ProbeKind], bar: &ProgressBar) -> anyhow::Resul
 /// The median over alternation slices of `pick(a's slice) / pick(b's slice)`: robust to a
 /// background load that changes between slices.
 fn slice_median_ratio(a: &[u64], b: &[u64], slice: usize, pick: fn(&Summary) -> f64) -> f64 {
-    let mut r: Vec<f64> = a
-        .chunks(slice)
-        .zip(b.chunks(slice))
-        .filter_map(|(x, y)| Some(ratio(pick(&Summary::of(x)?), pick(&Summary::of(y)?))))
-        .filter(|x| x.is_finite())
-        .collect();
-    if r.is_empty() {
-        return f64::NAN;
-    }
-    r.sort_by(f64::total_cmp);
-    let n = r.len();
-    if n % 2 == 1 {
-        r[n / 2]
-    } else {
-        (r[n / 2 - 1] + r[n / 2]) / 2.0
-    }
-}
-
-fn finite(x: f64) -> serde_json::Value {
-    if x.is_finite() { json!(x) } else { json!(null) }
+    super::finite_median(
+        a.chunks(slice)
+            .zip(b.chunks(slice))
+            .filter_map(|(x, y)| Some(ratio(pick(&Summary::of(x)?), pick(&Summary::of(y)?)))),
+    )
 }
 
 fn document(args: &Args, runs: &[LoadRun]) -> serde_json::Value {
@@ -394,7 +379,7 @@ fn document(args: &Args, runs: &[LoadRun]) -> serde_json::Value {
             let tcp = r.summary(ProbeKind::Tcp);
             let icmp = r.summary(ProbeKind::Icmp);
             let rat = |a: Option<Summary>, b: Option<Summary>, f: fn(&Summary) -> f64| match (a, b) {
-                (Some(a), Some(b)) => finite(ratio(f(&a), f(&b))),
+                (Some(a), Some(b)) => super::finite_or_null(ratio(f(&a), f(&b))),
                 _ => json!(null),
             };
             json!({
@@ -412,8 +397,8 @@ fn document(args: &Args, runs: &[LoadRun]) -> serde_json::Value {
                     "rpc_over_tcp": { "p50": rat(rpc, tcp, |s| s.p50), "p99": rat(rpc, tcp, |s| s.p99) },
                     "rpc_over_icmp": { "p50": rat(rpc, icmp, |s| s.p50), "p99": rat(rpc, icmp, |s| s.p99) },
                     "rpc_over_tcp_median_of_slices": {
-                        "p50": finite(r.slice_ratio(args.slice, |s| s.p50)),
-                        "p99": finite(r.slice_ratio(args.slice, |s| s.p99)),
+                        "p50": super::finite_or_null(r.slice_ratio(args.slice, |s| s.p50)),
+                        "p99": super::finite_or_null(r.slice_ratio(args.slice, |s| s.p99)),
                     },
                 },
                 "throughput": r.throughput.iter().map(|t| json!({
