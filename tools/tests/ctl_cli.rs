@@ -37,9 +37,6 @@ fn free_port() -> SocketAddr {
 fn spawn(args: &[&str]) -> Child {
     Command::new(BIN)
         .args(args)
-        // Unoptimised builds need more than the default 2 MiB for a connection thread that
-        // builds a control loop.
-        .env("RUST_MIN_STACK", "16777216")
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .stderr(Stdio::null())

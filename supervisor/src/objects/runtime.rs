@@ -73,7 +73,8 @@ pub type SimBody = SimBoard<DhRobotModel, Environment>;
 /// the joints are mapped onto.
 pub enum LoopBoard {
     /// The robot's simulated body, and the offset from the loop's clock to the plant's (set at
-    /// the first call, so the plant goes on from its own time whenever a loop starts).
+    /// the first call, so the plant goes on from its own time whenever a loop starts; grown by
+    /// stalls longer than [`MAX_PLANT_STEP_NS`]).
     Sim(Box<SimBody>, Option<u64>),
     /// One or more Galil boards.
     Galil(Box<GalilSet>),
@@ -107,13 +108,23 @@ impl GalilSet {
     }
 }
 
-/// The plant's time for the loop's `now`.
+/// The longest stretch of simulated time a plant integrates in one board call, ns. A loop that
+/// stalls longer (a VM pause, a debug build) finds the simulated world paused for the rest of the
+/// stall instead of integrating all of it in its next tick: otherwise the catch-up costs time in
+/// proportion to the stall, makes the next tick later still, and the loop never recovers.
+pub const MAX_PLANT_STEP_NS: u64 = 10_000_000;
+
+/// The plant's time for the loop's `now` (at most [`MAX_PLANT_STEP_NS`] past the plant's own).
 fn plant_time(body: &SimBody, offset: &mut Option<u64>, now: Timestamp) -> Timestamp {
-    let off = *offset.get_or_insert_with(|| {
-        now.as_nanos()
-            .saturating_sub(body.plant().snapshot().time.as_nanos())
-    });
-    Timestamp::from_nanos(now.as_nanos().saturating_sub(off))
+    let plant_now = body.plant().snapshot().time.as_nanos();
+    let off = offset.get_or_insert_with(|| now.as_nanos().saturating_sub(plant_now));
+    let target = now.as_nanos().saturating_sub(*off);
+    let limit = plant_now.saturating_add(MAX_PLANT_STEP_NS);
+    if target > limit {
+        *off = off.saturating_add(target - limit);
+        return Timestamp::from_nanos(limit);
+    }
+    Timestamp::from_nanos(target)
 }
 
 /// A [`LoopBoard`] error.
@@ -1122,5 +1133,60 @@ pub fn control_body(
             t.tick(tick.deadline);
         }
         Flow::Continue
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use penelope_drivers::model::puma560;
+    use penelope_drivers::sim::board::SimBoardConfig as DriverSimConfig;
+    use penelope_drivers::sim::plant::PlantConfig;
+
+    #[test]
+    fn a_stalled_loop_finds_the_simulated_world_paused_not_fast_forwarded() {
+        let model = puma560();
+        let body = SimBody::new(
+            model.clone(),
+            PlantConfig::default(),
+            DriverSimConfig {
+                counts_per_radian: JointVector::repeat(1000.0),
+                effort_full_scale: JointVector::repeat(100.0),
+                dac_bits: 16,
+                position_kp: JointVector::repeat(100.0),
+                position_kd: JointVector::repeat(1.0),
+                velocity_cutoff_hz: 0.0,
+            },
+            Environment::new(),
+            JointVector::zeros(),
+            Timestamp::ZERO,
+        );
+        let mut board = LoopBoard::Sim(Box::new(body), None);
+        let mut out = [AxisState::default(); MAX_AXES];
+        let start = 5_000_000_000_u64;
+        board
+            .read_axes(Timestamp::from_nanos(start), &mut out[..6])
+            .unwrap();
+        let plant_ns = |b: &LoopBoard| match b {
+            LoopBoard::Sim(s, _) => s.plant().snapshot().time.as_nanos(),
+            LoopBoard::Galil(_) => unreachable!(),
+        };
+        // The first call anchors the loop's clock to the plant's.
+        assert_eq!(plant_ns(&board), 0);
+        // A 1 ms tick advances the plant by 1 ms.
+        board
+            .read_axes(Timestamp::from_nanos(start + 1_000_000), &mut out[..6])
+            .unwrap();
+        assert_eq!(plant_ns(&board), 1_000_000);
+        // A 2 s stall advances it by at most MAX_PLANT_STEP_NS...
+        board
+            .read_axes(Timestamp::from_nanos(start + 2_001_000_000), &mut out[..6])
+            .unwrap();
+        assert_eq!(plant_ns(&board), 1_000_000 + MAX_PLANT_STEP_NS);
+        // ...and the ticks after it advance it by their period again.
+        board
+            .read_axes(Timestamp::from_nanos(start + 2_002_000_000), &mut out[..6])
+            .unwrap();
+        assert_eq!(plant_ns(&board), 2_000_000 + MAX_PLANT_STEP_NS);
     }
 }
