@@ -15,9 +15,9 @@ use penelope_supervisor::client::{
 };
 use penelope_supervisor::naming::{NamingLimits, NamingService};
 use penelope_supervisor::net::conn::{ClientConfig, RpcError};
-use penelope_supervisor::net::server::{Server, ServerConfig};
-use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::proto::{NameEntry, WireError};
+use penelope_supervisor::net::server::{NetError, Server, ServerConfig};
+use penelope_supervisor::node::{NamingChoice, Node, NodeConfig, NodeError};
+use penelope_supervisor::proto::{Method, NameEntry, PoseMsg, Reply, SensorMethod, WireError};
 
 const LEASE: Duration = Duration::from_millis(400);
 
@@ -204,6 +204,93 @@ fn two_nodes_a_client_and_the_naming_tree() {
 
     // A clean shutdown unregisters at once.
     node_a.shutdown();
+    assert!(entries(&client, "/").is_empty());
+    naming_server.shutdown();
+}
+
+/// The same system behind a shared secret: the naming service and both nodes require it, the
+/// nodes use it with each other (a remote sensor read from A on B), a client without it or with
+/// another one is refused, and a node may not listen off loopback without one.
+#[test]
+fn a_system_behind_a_shared_secret() {
+    let secret = b"correct horse battery staple".to_vec();
+    let naming = Arc::new(NamingService::new("naming", NamingLimits::default()));
+    let mut naming_config = ServerConfig::new("naming");
+    naming_config.secret = Some(secret.clone());
+    let naming_server = Server::bind(loopback(), naming_config, naming.clone()).unwrap();
+    let naming_addr = naming_server.local_addr();
+
+    // A node without the secret cannot register.
+    let no_secret = NodeConfig::new("intruder", NamingChoice::Remote(naming_addr));
+    assert!(matches!(
+        Node::start(no_secret),
+        Err(NodeError::NamingUnreachable {
+            cause: RpcError::Remote(WireError::AuthFailed),
+            ..
+        })
+    ));
+    // Nor may a node listen on every interface without one.
+    let mut open = NodeConfig::new("open", NamingChoice::Host);
+    open.listen = "0.0.0.0:0".parse().unwrap();
+    assert!(matches!(
+        Node::start(open),
+        Err(NodeError::Listen(NetError::SecretRequired(_)))
+    ));
+
+    let start = |name: &str| {
+        let mut config = NodeConfig::new(name, NamingChoice::Remote(naming_addr));
+        config.secret = Some(secret.clone());
+        config.lease = LEASE;
+        Node::start(config).unwrap()
+    };
+    let node_a = start("A");
+    let node_b = start("B");
+
+    // Clients: none, a wrong and the right secret.
+    assert!(matches!(
+        Client::connect(naming_addr, ClientConfig::new("anonymous")),
+        Err(RpcError::Remote(WireError::AuthFailed))
+    ));
+    let mut wrong = ClientConfig::new("guess");
+    wrong.secret = Some(b"password".to_vec());
+    assert!(matches!(
+        Client::connect(naming_addr, wrong),
+        Err(RpcError::Remote(WireError::AuthFailed))
+    ));
+    let mut right = ClientConfig::new("operator");
+    right.secret = Some(secret.clone());
+    let client = Client::connect(naming_addr, right).unwrap();
+    assert_eq!(entries(&client, "/"), ["A/", "B/"]);
+
+    // A sensor on B, read by node A through its own authenticated link.
+    let sensor: SensorProxy = client
+        .node("B")
+        .unwrap()
+        .create_as(
+            "sensor/virtual",
+            "ft",
+            "[[shapes]]\nkind = \"plane\"\npoint = [0.0, 0.0, 0.5]\nnormal = [0.0, 0.0, 1.0]\n",
+        )
+        .unwrap();
+    sensor.configure().unwrap();
+    let probe = PoseMsg::from(&penelope_hal::Pose::translation(0.0, 0.0, 0.49));
+    let reply = node_a
+        .remote()
+        .call(
+            "/B/sensors/ft",
+            Method::Sensor(SensorMethod::Measure {
+                pose: probe,
+                velocity: [0.0; 3],
+            }),
+        )
+        .unwrap();
+    let Reply::Wrench(w) = reply else {
+        panic!("a wrench, not {reply:?}")
+    };
+    assert!(w.force[2] > 1.0, "1 cm into the plane pushes back: {w:?}");
+
+    node_a.shutdown();
+    node_b.shutdown();
     assert!(entries(&client, "/").is_empty());
     naming_server.shutdown();
 }
