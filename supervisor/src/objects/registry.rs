@@ -1686,13 +1686,27 @@ fn open_galil(cfg: &GalilConfig) -> Result<GalilBoard, WireError> {
         }
         None => GalilBoard::open(board_cfg),
     };
-    result.map_err(|e| {
-        WireError::Device(format!(
-            "galil board at {}: {e}",
-            cfg.address
-                .as_deref()
-                .or(cfg.device.as_deref())
-                .unwrap_or("?")
-        ))
-    })
+    let place = cfg
+        .address
+        .as_deref()
+        .or(cfg.device.as_deref())
+        .unwrap_or("?")
+        .to_string();
+    let board = result.map_err(|e| WireError::Device(format!("galil board at {place}: {e}")))?;
+    // Configured means ready: wait for the I/O thread's first exchange, so the encoders can be
+    // read as soon as `configure` returns.
+    let deadline = std::time::Instant::now() + FIRST_EXCHANGE_TIMEOUT;
+    while board.cycles() == 0 {
+        if board.is_faulted() || std::time::Instant::now() >= deadline {
+            return Err(WireError::Device(format!(
+                "galil board at {place}: no answer within {} ms",
+                FIRST_EXCHANGE_TIMEOUT.as_millis()
+            )));
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    Ok(board)
 }
+
+/// How long `configure` of a Galil board waits for the first exchange with the controller.
+const FIRST_EXCHANGE_TIMEOUT: Duration = Duration::from_secs(2);
