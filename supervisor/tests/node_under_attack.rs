@@ -86,6 +86,16 @@ fn attack(
     })
 }
 
+/// The process's resident memory, KiB (Linux).
+fn resident_kib() -> u64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .unwrap()
+}
+
 fn status(pid: &ControllerProxy) -> ControlStatus {
     pid.status().unwrap()
 }
@@ -131,6 +141,7 @@ fn a_node_under_attack_keeps_answering_and_its_loop_keeps_time() {
     thread::sleep(Duration::from_millis(500));
 
     // Quiet window.
+    let rss_before = resident_kib();
     let q0 = status(&pid);
     thread::sleep(WINDOW);
     let q1 = status(&pid);
@@ -195,6 +206,23 @@ fn a_node_under_attack_keeps_answering_and_its_loop_keeps_time() {
     }
     let (flood_answered, flood_refused) = flood.join().unwrap();
     drop(deaf);
+    // Every attacking connection is closed again (handshake timeout 300 ms), and the memory the
+    // attack used is given back: tens of thousands of connections must not leave a trace.
+    let settle = Instant::now();
+    while node.stats().open > 2 && settle.elapsed() < Duration::from_secs(5) {
+        thread::sleep(Duration::from_millis(50));
+    }
+    let open_after = node.stats().open;
+    let rss_after = resident_kib();
+    println!(
+        "connections open after the attack: {open_after}; resident memory {rss_before} KiB \
+         before, {rss_after} KiB after"
+    );
+    assert!(open_after <= 2, "{:?}", node.stats());
+    assert!(
+        rss_after < rss_before + 32 * 1024,
+        "resident memory grew from {rss_before} to {rss_after} KiB"
+    );
 
     let quiet_ticks = q1.ticks - q0.ticks;
     let quiet_overruns = q1.overruns - q0.overruns;
