@@ -1,8 +1,9 @@
 //! A node drives a PUMA 200 through a `board/galil` object on the Galil DMC emulator (a
 //! pseudo-terminal, as a serial port): the board opens at configure, the robot reads its joints
-//! from the encoders, a joint PID runs its loop over the serial link, the amplifiers follow the
-//! lifecycle, and a cable pulled mid-run faults the loop with a typed cause while the node keeps
-//! answering. An unreachable device is a typed error at configure.
+//! from the encoders, a joint-position law sends targets to the board's own servo over the serial
+//! link (goWork reaches the work pose), the amplifiers follow the lifecycle, and a cable pulled
+//! mid-run faults the loop with a typed cause while the node keeps answering. An unreachable
+//! device is a typed error at configure.
 
 use std::thread;
 use std::time::Duration;
@@ -71,35 +72,42 @@ fn a_node_drives_a_puma200_through_the_emulated_galil() {
         .unwrap()
         .configure()
         .unwrap();
-    // A slow loop: a 115200-baud line carries about 80-130 exchanges per second.
-    let pid: ControllerProxy = lab
+    // Joint positions as targets for the board's own servo (the DMC closes the loop): a torque
+    // loop over a 115200-baud line (about 100 exchanges per second) cannot hold a PUMA.
+    let servo: ControllerProxy = lab
         .create_as(
-            "controller/joint-pid",
-            "pid",
-            "period_us = 10000\nwatchdog_ms = 1000\n",
+            "controller/joint-position",
+            "servo",
+            "period_us = 10000\nwatchdog_ms = 1000\nmax_velocity = 1.0\n",
         )
         .unwrap();
-    pid.set_robot("slave").unwrap();
-    pid.set_trajectory("hold").unwrap();
-    pid.configure().unwrap();
-    pid.activate().unwrap();
-    thread::sleep(Duration::from_millis(1500));
-    let running = pid.status().unwrap();
-    println!("over the emulated line: {running:?}");
+    servo.set_robot("slave").unwrap();
+    servo.set_trajectory("hold").unwrap();
+    servo.configure().unwrap();
+    servo.activate().unwrap();
+    thread::sleep(Duration::from_millis(300));
+    let running = servo.status().unwrap();
     assert!(running.running);
-    assert!(running.ticks > 50, "{running:?}");
     assert!(running.last.as_ref().is_some_and(|s| s.fault.is_none()));
     assert!(board.amplifiers_enabled().unwrap());
-    // The loop commands torques through the line (tracking over a 115200-baud torque loop is
-    // not asserted: about 100 exchanges per second cannot hold a PUMA against gravity, see
-    // BENCHMARKS.md, Galil).
-    let last = running.last.as_ref().unwrap();
-    assert!(last.effort.iter().any(|e| e.abs() > 0.01), "{last:?}");
+    let held = robot.joint_positions().unwrap();
+    assert!((held - start).amax() < 0.01, "{held:?} vs {start:?}");
+    // goWork through the running servo law: a smooth joint trajectory, targets over the line.
+    robot.go_to(NamedPose::Work, 1.0).unwrap();
+    thread::sleep(Duration::from_millis(2000));
+    let work = robot.named_pose(NamedPose::Work).unwrap();
+    let reached = robot.joint_positions().unwrap();
+    println!("the servo reached {reached:?} for work {work:?}");
+    assert!(
+        (reached - work).amax() < 0.02,
+        "{reached:?} vs work {work:?}: {:?}",
+        servo.status()
+    );
 
     // The cable is pulled: the loop faults with a typed cause, the node keeps answering.
     emulator.unplug();
     thread::sleep(Duration::from_millis(1500));
-    let faulted = pid.status().unwrap();
+    let faulted = servo.status().unwrap();
     println!("after the unplug: {faulted:?}");
     assert!(
         faulted.last.as_ref().is_some_and(|s| s.fault.is_some()),
@@ -107,7 +115,7 @@ fn a_node_drives_a_puma200_through_the_emulated_galil() {
     );
     assert!(lab.info().is_ok());
 
-    pid.deactivate().unwrap();
+    servo.deactivate().unwrap();
     lab.destroy("dmc", true).unwrap();
     node.shutdown();
 }

@@ -6,8 +6,10 @@
 use penelope_hal::Controller;
 
 mod joint_pid;
+mod joint_position;
 
 pub use joint_pid::{JointPid, JointPidGains};
+pub use joint_position::JointPositionServo;
 
 /// Several controllers owned by one control loop, addressed by index. Switching is a change of
 /// index: nothing is allocated or moved.

@@ -12,7 +12,7 @@ use serde::de::DeserializeOwned;
 use crate::proto::{Class, KindInfo, WireError};
 
 /// Every kind this creator makes, in listing order.
-pub const KINDS: [&str; 12] = [
+pub const KINDS: [&str; 13] = [
     "robot/puma560",
     "robot/puma200",
     "robot/frhc",
@@ -21,6 +21,7 @@ pub const KINDS: [&str; 12] = [
     "sensor/virtual",
     "controller/joint-pid",
     "controller/cartesian-impedance",
+    "controller/joint-position",
     "trajectory/step",
     "trajectory/ramp",
     "trajectory/trapezoidal",
@@ -42,6 +43,8 @@ pub enum Kind {
     JointPid,
     /// `controller/cartesian-impedance`.
     CartesianImpedance,
+    /// `controller/joint-position`.
+    JointPosition,
     /// `trajectory/step`.
     Step,
     /// `trajectory/ramp`.
@@ -64,6 +67,7 @@ impl Kind {
             "sensor/virtual" => Kind::VirtualSensor,
             "controller/joint-pid" => Kind::JointPid,
             "controller/cartesian-impedance" => Kind::CartesianImpedance,
+            "controller/joint-position" => Kind::JointPosition,
             "trajectory/step" => Kind::Step,
             "trajectory/ramp" => Kind::Ramp,
             "trajectory/trapezoidal" => Kind::Trapezoidal,
@@ -83,6 +87,7 @@ impl Kind {
             Kind::VirtualSensor => "sensor/virtual",
             Kind::JointPid => "controller/joint-pid",
             Kind::CartesianImpedance => "controller/cartesian-impedance",
+            Kind::JointPosition => "controller/joint-position",
             Kind::Step => "trajectory/step",
             Kind::Ramp => "trajectory/ramp",
             Kind::Trapezoidal => "trajectory/trapezoidal",
@@ -96,7 +101,7 @@ impl Kind {
             Kind::Robot(_) => Class::Robot,
             Kind::SimBoard | Kind::GalilBoard => Class::Board,
             Kind::VirtualSensor => Class::Sensor,
-            Kind::JointPid | Kind::CartesianImpedance => Class::Controller,
+            Kind::JointPid | Kind::CartesianImpedance | Kind::JointPosition => Class::Controller,
             Kind::Step | Kind::Ramp | Kind::Trapezoidal | Kind::Spline => Class::Trajectory,
         }
     }
@@ -131,6 +136,10 @@ impl Kind {
             Kind::CartesianImpedance => (
                 "Cartesian impedance (spring-damper at the tool) with gravity compensation",
                 IMPEDANCE_KEYS.to_string() + LOOP_KEYS,
+            ),
+            Kind::JointPosition => (
+                "joint positions for the board's own servo (a Galil DMC closes the loop)",
+                JOINT_POSITION_KEYS.to_string() + LOOP_KEYS,
             ),
             Kind::Step => ("joint step to a goal after a delay", STEP_KEYS.to_string()),
             Kind::Ramp => (
@@ -217,6 +226,11 @@ kd = [...]                      # N·m·s/rad (default 0.5 × the joint's torque
 integral_limit = 0.0            # N·m, cap of the integral term
 gravity_compensation = true     # add g(q)
 acceleration_feedforward = false # add M(q) qdd_ref
+# plus the loop keys:
+"#;
+
+const JOINT_POSITION_KEYS: &str = r#"
+max_velocity = 1.0              # rad/s, one value or one per joint: how fast the servo's target may move
 # plus the loop keys:
 "#;
 
@@ -733,6 +747,21 @@ impl JointPidConfig {
         self.ki.check(kind, "ki", 0.0, 1e7)?;
         self.integral_limit
             .check(kind, "integral_limit", 0.0, 1e5)?;
+        self.timing(kind)
+    }
+}
+
+loop_keys!(JointPositionConfig {
+    max_velocity: PerJoint = PerJoint::One(1.0), #[doc = "Largest target speed, rad/s."]
+});
+
+impl JointPositionConfig {
+    /// Checks what does not depend on the robot.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
+        self.max_velocity.check(kind, "max_velocity", 1e-3, 100.0)?;
         self.timing(kind)
     }
 }

@@ -18,7 +18,7 @@ use penelope_hal::{
 use penelope_rt_core::control::{
     AxisBinding, ControlCommand, ControlConfig, ControlLoop, ControlPorts,
 };
-use penelope_rt_core::controller::{JointPid, JointPidGains};
+use penelope_rt_core::controller::{JointPid, JointPidGains, JointPositionServo};
 use penelope_rt_core::safety::{HoldMode, SafetyConfig};
 use penelope_rt_core::teleop::{CartesianImpedance, ImpedanceConfig};
 use penelope_rt_core::trajectory::{
@@ -26,8 +26,8 @@ use penelope_rt_core::trajectory::{
 };
 
 use super::kinds::{
-    self, GalilConfig, GoalConfig, ImpedanceConfigToml, JointPidConfig, Kind, LoopTiming,
-    RobotConfig, SensorConfig, SimBoardConfig, TrajectorySpec,
+    self, GalilConfig, GoalConfig, ImpedanceConfigToml, JointPidConfig, JointPositionConfig, Kind,
+    LoopTiming, RobotConfig, SensorConfig, SimBoardConfig, TrajectorySpec,
 };
 use super::runtime::{
     CellSensor, ControlTask, GainsUpdate, GalilSet, GoToCommand, LoopBoard, NodeController,
@@ -85,6 +85,7 @@ pub(crate) struct SensorObj {
 pub(crate) enum ControllerConfig {
     Pid(JointPidConfig),
     Impedance(ImpedanceConfigToml),
+    Position(JointPositionConfig),
 }
 
 pub(crate) struct ControllerObj {
@@ -219,6 +220,11 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
             let cfg: ImpedanceConfigToml = kinds::parse(k, config)?;
             let timing = cfg.check(k)?;
             controller_body(ControllerConfig::Impedance(cfg), timing)
+        }
+        Kind::JointPosition => {
+            let cfg: JointPositionConfig = kinds::parse(k, config)?;
+            let timing = cfg.check(k)?;
+            controller_body(ControllerConfig::Position(cfg), timing)
         }
         Kind::Step | Kind::Ramp | Kind::Trapezoidal | Kind::Spline => {
             Body::Trajectory(TrajectoryObj {
@@ -372,7 +378,9 @@ impl Registry {
                 g.board = Some(open_galil(&g.config)?);
                 Ok(())
             }
-            Kind::JointPid | Kind::CartesianImpedance => self.configure_controller(name),
+            Kind::JointPid | Kind::CartesianImpedance | Kind::JointPosition => {
+                self.configure_controller(name)
+            }
             _ => Ok(()),
         }
     }
@@ -509,6 +517,7 @@ impl Registry {
         let law = match &c.config {
             ControllerConfig::Pid(p) => ControllerConfig::Pid(p.clone()),
             ControllerConfig::Impedance(i) => ControllerConfig::Impedance(i.clone()),
+            ControllerConfig::Position(p) => ControllerConfig::Position(p.clone()),
         };
         let kind = self.get(name)?.kind.as_str();
 
@@ -611,6 +620,21 @@ impl Registry {
                     kd[j] = 0.5 * finite_effort(&model, j);
                 }
                 (NodeController::Impedance(c), (kp, kd))
+            }
+            ControllerConfig::Position(p) => {
+                let max_velocity = p
+                    .max_velocity
+                    .resolve(kind, "max_velocity", n, 1e-3, 100.0)?;
+                let mut kp = JointVector::zeros();
+                let mut kd = JointVector::zeros();
+                for j in 0..n {
+                    kp[j] = 10.0 * finite_effort(&model, j);
+                    kd[j] = 0.5 * finite_effort(&model, j);
+                }
+                (
+                    NodeController::Position(JointPositionServo::new(max_velocity)),
+                    (kp, kd),
+                )
             }
         };
 
@@ -1325,6 +1349,14 @@ impl Registry {
                             }
                             _ => None,
                         }
+                    }
+                    ControllerConfig::Position(_) => {
+                        return Err(WireError::Unsupported {
+                            kind: k.to_string(),
+                            method:
+                                "set-gains (its only setting, max_velocity, is fixed at creation)"
+                                    .into(),
+                        });
                     }
                     ControllerConfig::Impedance(i) => {
                         let new: ImpedanceConfigToml = kinds::parse(k, &gains)?;

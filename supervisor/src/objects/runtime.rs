@@ -36,7 +36,7 @@ use penelope_hal::{
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, Stamped};
 use penelope_rt_core::clock::MonotonicClock;
 use penelope_rt_core::control::{ControlLoop, NoSensor, TickOutcome};
-use penelope_rt_core::controller::{JointPid, JointPidGains};
+use penelope_rt_core::controller::{JointPid, JointPidGains, JointPositionServo};
 use penelope_rt_core::exec::{Flow, PeriodicThread};
 use penelope_rt_core::ring::{ArcConsumer, ArcProducer};
 use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
@@ -246,6 +246,8 @@ pub enum NodeController {
     Pid(JointPid),
     /// `controller/cartesian-impedance`.
     Impedance(CartesianImpedance),
+    /// `controller/joint-position`.
+    Position(JointPositionServo),
 }
 
 impl NodeController {
@@ -276,18 +278,21 @@ impl Controller for NodeController {
         match self {
             NodeController::Pid(c) => c.kind(),
             NodeController::Impedance(c) => c.kind(),
+            NodeController::Position(c) => c.kind(),
         }
     }
     fn activate(&mut self, now: Timestamp, measured: &JointState, model: &dyn RobotModel) {
         match self {
             NodeController::Pid(c) => c.activate(now, measured, model),
             NodeController::Impedance(c) => c.activate(now, measured, model),
+            NodeController::Position(c) => c.activate(now, measured, model),
         }
     }
     fn update(&mut self, input: &ControlInput<'_>) -> Result<JointCommand, ControllerError> {
         match self {
             NodeController::Pid(c) => c.update(input),
             NodeController::Impedance(c) => c.update(input),
+            NodeController::Position(c) => c.update(input),
         }
     }
 }
