@@ -1031,9 +1031,23 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_joint_position_law_checks_its_speed_limit() {
+        let k = "controller/joint-position";
+        let c: JointPositionConfig = parse(k, "max_velocity = [1, 2, 3]").unwrap();
+        assert!(c.check(k).is_ok());
+        for bad in ["max_velocity = 0.0", "max_velocity = 1000.0", "max_velocity = nan"] {
+            let c: JointPositionConfig = parse(k, bad).unwrap();
+            assert!(matches!(c.check(k), Err(WireError::BadConfig { .. })), "{bad}");
+        }
+        assert!(parse::<JointPositionConfig>(k, "kp = 1.0").is_err());
+    }
+
+    #[test]
     fn every_kind_parses_back_and_documents_its_keys() {
         let kinds = all_kinds();
-        assert_eq!(kinds.len(), 12);
+        // Every listed name parses (a name that does not would be dropped from the list).
+        assert_eq!(kinds.len(), KINDS.len());
+        assert_eq!(kinds.len(), 13);
         for k in &kinds {
             let parsed = Kind::parse(&k.kind).unwrap();
             assert_eq!(parsed.as_str(), k.kind);
