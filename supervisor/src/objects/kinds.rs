@@ -1035,9 +1035,16 @@ mod tests {
         let k = "controller/joint-position";
         let c: JointPositionConfig = parse(k, "max_velocity = [1, 2, 3]").unwrap();
         assert!(c.check(k).is_ok());
-        for bad in ["max_velocity = 0.0", "max_velocity = 1000.0", "max_velocity = nan"] {
+        for bad in [
+            "max_velocity = 0.0",
+            "max_velocity = 1000.0",
+            "max_velocity = nan",
+        ] {
             let c: JointPositionConfig = parse(k, bad).unwrap();
-            assert!(matches!(c.check(k), Err(WireError::BadConfig { .. })), "{bad}");
+            assert!(
+                matches!(c.check(k), Err(WireError::BadConfig { .. })),
+                "{bad}"
+            );
         }
         assert!(parse::<JointPositionConfig>(k, "kp = 1.0").is_err());
     }
