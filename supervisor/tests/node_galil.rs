@@ -72,6 +72,28 @@ fn a_node_drives_a_puma200_through_the_emulated_galil() {
         .unwrap()
         .configure()
         .unwrap();
+    // A torque loop first: it holds the arm where it is (the emulated axes are bare motors with
+    // no gravity to compensate). Then the same board in position mode must servo again.
+    let pid: ControllerProxy = lab
+        .create_as(
+            "controller/joint-pid",
+            "pid",
+            "period_us = 10000\nwatchdog_ms = 1000\ngravity_compensation = false\n",
+        )
+        .unwrap();
+    pid.set_robot("slave").unwrap();
+    pid.set_trajectory("hold").unwrap();
+    pid.configure().unwrap();
+    pid.activate().unwrap();
+    thread::sleep(Duration::from_millis(800));
+    let torque = pid.status().unwrap();
+    assert!(torque.ticks > 20, "{torque:?}");
+    assert!(torque.last.as_ref().is_some_and(|s| s.fault.is_none()));
+    let held = robot.joint_positions().unwrap();
+    assert!((held - start).amax() < 0.01, "{held:?} vs {start:?}");
+    pid.deactivate().unwrap();
+    assert!(!board.amplifiers_enabled().unwrap());
+
     // Joint positions as targets for the board's own servo (the DMC closes the loop): a torque
     // loop over a 115200-baud line (about 100 exchanges per second) cannot hold a PUMA.
     let servo: ControllerProxy = lab

@@ -448,6 +448,9 @@ struct Io {
     client: Option<Client<Box<dyn Link + Send>>>,
     modes: [Mode; MAX_AXES],
     gains: [[f64; 3]; MAX_AXES],
+    /// Axes whose position gains were zeroed for effort mode and not restored yet (an axis can go
+    /// effort, then off, then position: the gains must come back even though it was off).
+    gains_zeroed: [bool; MAX_AXES],
     /// Last target sent per axis (relative mode), counts.
     sent_target: [Option<i64>; MAX_AXES],
     state: [AxisState; MAX_AXES],
@@ -467,6 +470,7 @@ impl Io {
             client: None,
             modes: [Mode::Unknown; MAX_AXES],
             gains: [[0.0; 3]; MAX_AXES],
+            gains_zeroed: [false; MAX_AXES],
             sent_target: [None; MAX_AXES],
             state: [AxisState::default(); MAX_AXES],
             moving: [false; MAX_AXES],
@@ -680,7 +684,9 @@ impl Io {
             if want != Mode::Off && matches!(self.modes[i], Mode::Off | Mode::Unknown) {
                 to_on.0 |= bit.0;
             }
-            if want == Mode::Position && matches!(self.modes[i], Mode::Effort | Mode::Unknown) {
+            if want == Mode::Position
+                && (matches!(self.modes[i], Mode::Effort | Mode::Unknown) || self.gains_zeroed[i])
+            {
                 restore_gains.0 |= bit.0;
             }
         }
@@ -704,6 +710,9 @@ impl Io {
                 client.set(s, &zeros[..n]).map_err(fault)?;
             }
             client.set(Setting::Offset, &of[..n]).map_err(fault)?;
+            for i in to_effort.indices() {
+                self.gains_zeroed[i] = true;
+            }
         }
         if !to_position.is_empty() {
             let mut of = [None; MAX_AXES];
@@ -726,6 +735,9 @@ impl Io {
                     .enumerate()
                 {
                     client.set(s, &g[k][..n]).map_err(fault)?;
+                }
+                for i in restore_gains.indices() {
+                    self.gains_zeroed[i] = false;
                 }
             }
             // Servo on (holding the current position) before tracking starts.
