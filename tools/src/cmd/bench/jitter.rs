@@ -12,7 +12,7 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitCode, Stdio};
+use std::process::{Command, ExitCode, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
@@ -137,7 +137,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 
     let _load = match args.load {
         Load::None => None,
-        Load::Stress => Some(StressLoad::start(cpus)?),
+        Load::Stress => Some(start_stress(cpus)?),
     };
 
     let half = duration / 2;
@@ -642,48 +642,22 @@ fn ensure_tools(load: Load) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A stress-ng child, killed when dropped.
-struct StressLoad {
-    child: Child,
-}
-
-impl StressLoad {
-    fn start(cpus: usize) -> anyhow::Result<Self> {
-        let child = Command::new("stress-ng")
-            .args([
-                "--cpu",
-                &cpus.to_string(),
-                "--io",
-                "1",
-                "--vm",
-                "1",
-                "--vm-bytes",
-                "256M",
-                "--quiet",
-            ])
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .context("starting stress-ng")?;
-        eprintln!(
-            "load: stress-ng --cpu {cpus} --io 1 --vm 1 --vm-bytes 256M (pid {})",
-            child.id()
-        );
-        std::thread::sleep(Duration::from_secs(2));
-        Ok(StressLoad { child })
-    }
-}
-
-impl Drop for StressLoad {
-    fn drop(&mut self) {
-        // stress-ng forwards SIGTERM to its workers; plain kill() would leave them running.
-        let _ = Command::new("kill")
-            .arg("-TERM")
-            .arg(self.child.id().to_string())
-            .status();
-        let _ = self.child.wait();
-    }
+/// The jitter benchmark's load: CPU, I/O and memory workers.
+fn start_stress(cpus: usize) -> anyhow::Result<super::StressNg> {
+    let cpus = cpus.to_string();
+    let args = [
+        "--cpu",
+        &cpus,
+        "--io",
+        "1",
+        "--vm",
+        "1",
+        "--vm-bytes",
+        "256M",
+    ];
+    let child = super::StressNg::start(&args, Duration::from_secs(2))?;
+    eprintln!("load: stress-ng {} (pid {})", args.join(" "), child.id());
+    Ok(child)
 }
 
 fn plot(

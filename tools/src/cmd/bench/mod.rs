@@ -49,3 +49,46 @@ pub(crate) fn finite_or_null(x: f64) -> serde_json::Value {
         serde_json::Value::Null
     }
 }
+
+/// A running `stress-ng`, stopped (with its workers) when dropped.
+pub(crate) struct StressNg {
+    child: std::process::Child,
+}
+
+impl StressNg {
+    /// Starts `stress-ng ARGS --quiet`, waits `settle` for its workers to spin up, and fails if it
+    /// already exited (a bad option, a missing binary).
+    pub(crate) fn start(args: &[&str], settle: std::time::Duration) -> anyhow::Result<StressNg> {
+        use anyhow::Context;
+        use std::process::{Command, Stdio};
+        let mut child = Command::new("stress-ng")
+            .args(args)
+            .arg("--quiet")
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .context("starting stress-ng")?;
+        std::thread::sleep(settle);
+        if let Some(status) = child.try_wait()? {
+            anyhow::bail!("stress-ng {} exited at once ({status})", args.join(" "));
+        }
+        Ok(StressNg { child })
+    }
+
+    /// The child's process id.
+    pub(crate) fn id(&self) -> u32 {
+        self.child.id()
+    }
+}
+
+impl Drop for StressNg {
+    fn drop(&mut self) {
+        // stress-ng forwards SIGTERM to its workers; a plain kill() would leave them running.
+        let _ = std::process::Command::new("kill")
+            .arg("-TERM")
+            .arg(self.child.id().to_string())
+            .status();
+        let _ = self.child.wait();
+    }
+}

@@ -2,7 +2,7 @@
 
 use std::io::{Read, Write};
 use std::net::{Ipv4Addr, TcpListener, TcpStream};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread::JoinHandle;
@@ -45,7 +45,7 @@ impl Load {
 
 /// A running load; stopped when dropped.
 pub struct Running {
-    stress: Option<Stress>,
+    stress: Option<crate::cmd::bench::StressNg>,
     flood: Option<Flood>,
     /// What runs, for the report.
     pub description: String,
@@ -60,7 +60,10 @@ impl Running {
         let mut parts = Vec::new();
         let stress = if load.cpu() {
             parts.push(format!("stress-ng --cpu {cpu_workers}"));
-            Some(Stress::start(cpu_workers)?)
+            Some(crate::cmd::bench::StressNg::start(
+                &["--cpu", &cpu_workers.to_string()],
+                Duration::from_millis(300),
+            )?)
         } else {
             None
         };
@@ -115,39 +118,6 @@ pub fn check(load: Load) -> anyhow::Result<()> {
         }
     }
     Ok(())
-}
-
-/// A stress-ng child.
-struct Stress {
-    child: Child,
-}
-
-impl Stress {
-    fn start(workers: usize) -> anyhow::Result<Stress> {
-        let mut child = Command::new("stress-ng")
-            .args(["--cpu", &workers.to_string(), "--quiet"])
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .context("starting stress-ng")?;
-        std::thread::sleep(Duration::from_millis(300));
-        if let Some(status) = child.try_wait()? {
-            bail!("stress-ng exited at once ({status})");
-        }
-        Ok(Stress { child })
-    }
-}
-
-impl Drop for Stress {
-    fn drop(&mut self) {
-        // stress-ng forwards SIGTERM to its workers; a plain kill() would leave them running.
-        let _ = Command::new("kill")
-            .arg("-TERM")
-            .arg(self.child.id().to_string())
-            .status();
-        let _ = self.child.wait();
-    }
 }
 
 /// Sender and receiver threads blasting TCP over loopback.
