@@ -7,6 +7,12 @@
 //! thread renews the lease every third of it; when the naming service forgot the node (its lease
 //! lapsed, or the naming service restarted), the node registers again and re-binds everything.
 //!
+//! Nodes and the naming service start in any order: a node whose naming service does not answer
+//! yet (or stops answering) says so once, keeps serving, retries with a growing backoff (from
+//! [`REGISTER_RETRY_FIRST`] up to [`REGISTER_RETRY_MAX`]) and registers, binding every object it
+//! holds, as soon as the naming service answers. Only answers that cannot change by waiting end
+//! the start: a refused secret or a refused registration.
+//!
 //! The node is also how its objects reach objects of other nodes ([`Remote`]): a path is resolved
 //! in the hosted tree or by the naming service (and cached briefly), then the object is called on
 //! its node through a [`Client`] (one cached connection per node).
@@ -41,6 +47,7 @@
 use std::collections::HashMap;
 use std::fmt;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock, PoisonError, Weak};
 use std::thread::JoinHandle;
@@ -123,6 +130,11 @@ impl NodeConfig {
     }
 }
 
+/// The first wait before registering again when the naming service does not answer.
+pub const REGISTER_RETRY_FIRST: Duration = Duration::from_millis(50);
+/// The longest wait between two registration attempts (the backoff doubles up to it).
+pub const REGISTER_RETRY_MAX: Duration = Duration::from_secs(1);
+
 /// Why a node could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum NodeError {
@@ -135,9 +147,11 @@ pub enum NodeError {
     /// The server could not listen.
     #[error("cannot listen: {0}")]
     Listen(#[from] NetError),
-    /// The naming service could not be reached.
-    #[error("cannot reach the naming service at {address}: {cause}")]
-    NamingUnreachable {
+    /// The naming service answered but refused this node's credentials (no secret, or another
+    /// one): waiting cannot fix that, so the start fails. (A naming service that does not answer
+    /// yet is not an error: the node registers when it does.)
+    #[error("the naming service at {address} refused the connection: {cause}")]
+    NamingRefused {
         /// Its address.
         address: SocketAddr,
         /// What failed.
@@ -178,6 +192,10 @@ struct Shared {
     advertised: OnceLock<String>,
     /// Set once the server is bound (a client of the naming service and of the other nodes).
     client: OnceLock<Client>,
+    /// Whether the naming service holds the node's registration (as far as the node knows).
+    registered: AtomicBool,
+    /// Whether the naming service's silence was reported (reported once until it answers).
+    silence_reported: AtomicBool,
     /// The creator, for calls to this node's own objects (weak: the creator holds this as its
     /// [`Remote`]).
     creator: Weak<Creator>,
@@ -187,6 +205,20 @@ struct Shared {
     /// Resolved paths and when they were resolved.
     resolved: Mutex<HashMap<String, (ObjectRef, Instant)>>,
     resolve_ttl: Duration,
+}
+
+/// Whether a refusal by the naming service at start is final (waiting cannot change it): wrong
+/// credentials or protocol, a name taken by a live node or malformed. Busy answers (too many
+/// connections, rate limits, time-outs) are retried.
+fn refusal_is_final(refused: &WireError) -> bool {
+    matches!(
+        refused,
+        WireError::AuthFailed
+            | WireError::BadMagic
+            | WireError::VersionMismatch { .. }
+            | WireError::NameTaken(_)
+            | WireError::BadName { .. }
+    )
 }
 
 /// Most resolved paths cached at once.
@@ -215,17 +247,46 @@ impl Shared {
         self.hosted.is_some() || self.remote_naming.is_some()
     }
 
-    /// One call to the naming service (hosted or remote).
-    fn naming(&self, call: NamingCall) -> Result<Reply, WireError> {
+    fn registered(&self) -> bool {
+        self.registered.load(Ordering::Acquire)
+    }
+
+    /// One call to the naming service (hosted or remote), with transport failures kept apart
+    /// from the naming service's answers ([`RpcError::Remote`]).
+    fn naming_rpc(&self, call: NamingCall) -> Result<Reply, RpcError> {
         if let Some(service) = &self.hosted {
-            return service.handle(call);
+            return service.handle(call).map_err(RpcError::Remote);
         }
         match (self.remote_naming, self.client.get()) {
-            (Some(address), Some(client)) => client
-                .call_at(address, Call::Naming(call))
-                .map_err(WireError::from),
-            (Some(_), None) => Err(WireError::NotReady("the node is starting".into())),
-            (None, _) => Err(WireError::NoNamingService),
+            (Some(address), Some(client)) => client.call_at(address, Call::Naming(call)),
+            (Some(_), None) => Err(RpcError::Remote(WireError::NotReady(
+                "the node is starting".into(),
+            ))),
+            (None, _) => Err(RpcError::Remote(WireError::NoNamingService)),
+        }
+    }
+
+    /// One call to the naming service (hosted or remote).
+    fn naming(&self, call: NamingCall) -> Result<Reply, WireError> {
+        self.naming_rpc(call).map_err(WireError::from)
+    }
+
+    fn naming_address(&self) -> String {
+        self.remote_naming
+            .map_or_else(|| "(hosted)".to_string(), |a| a.to_string())
+    }
+
+    /// The naming service stopped answering: registering again is the registration thread's
+    /// job from now on. Said once until it answers again.
+    fn lost_naming(&self, cause: &RpcError) {
+        self.registered.store(false, Ordering::Release);
+        if !self.silence_reported.swap(true, Ordering::AcqRel) {
+            log::warn!(
+                "node {}: the naming service at {} does not answer ({cause}); serving on and \
+                 registering as soon as it answers",
+                self.name,
+                self.naming_address()
+            );
         }
     }
 
@@ -249,17 +310,25 @@ impl Shared {
         }
     }
 
+    /// Binds `info` in the naming tree. While the naming service does not answer, binding waits
+    /// for the next registration (which binds every object), so only a refusal is an error.
     fn bind(&self, info: &ObjectInfo) -> Result<(), WireError> {
-        if !self.uses_naming() {
+        if !self.uses_naming() || !self.registered() {
             return Ok(());
         }
-        self.naming(NamingCall::Bind {
+        match self.naming_rpc(NamingCall::Bind {
             path: object_path(&self.name, info.class, &info.name),
             reference: self.reference(info),
             // The node owns its context: whatever is there is a stale entry of its own.
             rebind: true,
-        })
-        .map(|_| ())
+        }) {
+            Ok(_) => Ok(()),
+            Err(RpcError::Remote(refused)) => Err(refused),
+            Err(transport) => {
+                self.lost_naming(&transport);
+                Ok(())
+            }
+        }
     }
 
     fn unbind(&self, info: &ObjectInfo) {
@@ -274,47 +343,98 @@ impl Shared {
         }
     }
 
-    /// Registers the node and binds its creator and every object (at start and after the lease
-    /// lapsed). Holds `ops`.
-    fn register(&self) -> Result<(), WireError> {
+    /// Registers the node and binds its creator and every object (at start, when the naming
+    /// service first answers, and after the lease lapsed). Holds `ops`.
+    fn register(&self) -> Result<(), RpcError> {
         if !self.uses_naming() {
             return Ok(());
         }
         let _ops = lock(&self.ops);
-        self.naming(NamingCall::Register {
+        let result = self.register_and_bind();
+        match &result {
+            Ok(()) => {
+                self.registered.store(true, Ordering::Release);
+                if self.silence_reported.swap(false, Ordering::AcqRel) {
+                    log::warn!(
+                        "node {}: registered in the naming service at {}",
+                        self.name,
+                        self.naming_address()
+                    );
+                }
+            }
+            Err(RpcError::Remote(_)) => self.registered.store(false, Ordering::Release),
+            Err(transport) => self.lost_naming(transport),
+        }
+        result
+    }
+
+    fn register_and_bind(&self) -> Result<(), RpcError> {
+        self.naming_rpc(NamingCall::Register {
             node: self.name.clone(),
             address: self.advertised().to_string(),
             lease_ms: u32::try_from(self.lease.as_millis()).unwrap_or(u32::MAX),
         })?;
-        self.naming(NamingCall::Bind {
+        self.naming_rpc(NamingCall::Bind {
             path: object_path(&self.name, Class::Creator, ""),
             reference: self.creator_reference(),
             rebind: true,
         })?;
         if let Some(creator) = self.creator.upgrade() {
             for info in creator.list() {
-                self.bind(&info)?;
+                self.naming_rpc(NamingCall::Bind {
+                    path: object_path(&self.name, info.class, &info.name),
+                    reference: self.reference(&info),
+                    rebind: true,
+                })?;
             }
         }
         Ok(())
     }
 
-    /// One renewal; registers again if the naming service forgot the node.
+    /// One renewal; registers again if the naming service forgot the node (its lease lapsed,
+    /// or it restarted).
     fn renew(&self) {
-        match self.naming(NamingCall::Renew {
+        match self.naming_rpc(NamingCall::Renew {
             node: self.name.clone(),
         }) {
             Ok(_) => {}
-            Err(WireError::UnknownName(_)) => {
+            Err(RpcError::Remote(WireError::UnknownName(_))) => {
                 log::warn!(
-                    "node {}: the naming service forgot this node (lease lapsed); registering again",
+                    "node {}: the naming service forgot this node (lease lapsed or restart); \
+                     registering again",
                     self.name
                 );
                 if let Err(e) = self.register() {
                     log::warn!("node {}: registering again failed: {e}", self.name);
                 }
             }
-            Err(e) => log::warn!("node {}: lease renewal failed: {e}", self.name),
+            Err(RpcError::Remote(e)) => {
+                log::warn!("node {}: lease renewal refused: {e}", self.name);
+            }
+            Err(transport) => self.lost_naming(&transport),
+        }
+    }
+
+    /// The registration thread: renews the lease every `period` while registered; otherwise
+    /// tries to register with a doubling backoff, until `stop` says stop.
+    fn keep_registered(&self, stop: &mpsc::Receiver<()>, period: Duration) {
+        let mut backoff = REGISTER_RETRY_FIRST;
+        loop {
+            let wait = if self.registered() { period } else { backoff };
+            match stop.recv_timeout(wait) {
+                Err(RecvTimeoutError::Timeout) => {}
+                Ok(()) | Err(RecvTimeoutError::Disconnected) => return,
+            }
+            if self.registered() {
+                self.renew();
+                backoff = REGISTER_RETRY_FIRST;
+            } else if let Err(e) = self.register() {
+                if let RpcError::Remote(refused) = &e {
+                    // A live node of the same name, or limits: may change when leases lapse.
+                    log::warn!("node {}: registration refused: {refused}", self.name);
+                }
+                backoff = (backoff * 2).min(REGISTER_RETRY_MAX.min(period.max(backoff)));
+            }
         }
     }
 
@@ -477,6 +597,8 @@ impl Node {
             remote_naming,
             advertised: OnceLock::new(),
             client: OnceLock::new(),
+            registered: AtomicBool::new(false),
+            silence_reported: AtomicBool::new(false),
             creator: Arc::downgrade(&creator),
             ops: Mutex::new(()),
             resolved: Mutex::new(HashMap::new()),
@@ -506,29 +628,29 @@ impl Node {
         client_config.secret = config.secret;
         client_config.timeout = config.call_timeout;
         let naming_address = remote_naming.unwrap_or(address);
-        let client = match Client::connect(naming_address, client_config) {
-            Ok(c) => c,
-            Err(cause) => {
+        let _ = shared
+            .client
+            .set(Client::lazy(naming_address, client_config));
+
+        // A silent naming service is waited for (the registration thread retries); a refusal
+        // is final.
+        match shared.register() {
+            Ok(()) => {}
+            Err(RpcError::Remote(refused)) if refusal_is_final(&refused) => {
                 creator.shutdown();
                 server.shutdown();
-                return Err(NodeError::NamingUnreachable {
-                    address: naming_address,
-                    cause,
+                return Err(match refused {
+                    WireError::NameTaken(_) | WireError::BadName { .. } => {
+                        NodeError::Registration(refused)
+                    }
+                    other => NodeError::NamingRefused {
+                        address: naming_address,
+                        cause: RpcError::Remote(other),
+                    },
                 });
             }
-        };
-        let _ = shared.client.set(client);
-
-        if let Err(e) = shared.register() {
-            creator.shutdown();
-            server.shutdown();
-            return Err(match e {
-                WireError::Remote(text) => NodeError::NamingUnreachable {
-                    address: naming_address,
-                    cause: RpcError::Protocol(text),
-                },
-                other => NodeError::Registration(other),
-            });
+            // Silent (said once by `lost_naming`) or busy: the registration thread retries.
+            Err(_) => {}
         }
         let reaper = hosted.as_ref().and_then(|s| {
             s.start_reaper(Duration::from_millis(100))
@@ -541,14 +663,7 @@ impl Node {
             let renewing = shared.clone();
             let spawned = std::thread::Builder::new()
                 .name(format!("lease-{name}"))
-                .spawn(move || {
-                    loop {
-                        match rx.recv_timeout(period) {
-                            Err(RecvTimeoutError::Timeout) => renewing.renew(),
-                            Ok(()) | Err(RecvTimeoutError::Disconnected) => return,
-                        }
-                    }
-                });
+                .spawn(move || renewing.keep_registered(&rx, period));
             match spawned {
                 Ok(handle) => Some((stop, handle)),
                 Err(e) => {
@@ -582,6 +697,13 @@ impl Node {
     /// The address registered in the naming service (`host:port`).
     pub fn advertised(&self) -> &str {
         self.shared.advertised()
+    }
+
+    /// Whether the naming service holds this node's registration, as far as the node knows
+    /// (false while the naming service does not answer; a node without naming is never
+    /// registered).
+    pub fn is_registered(&self) -> bool {
+        self.shared.uses_naming() && self.shared.registered()
     }
 
     /// The node's naming context, `/<name>`.
@@ -647,7 +769,7 @@ impl Node {
             server.shutdown();
         }
         self.creator.shutdown();
-        if unregister && self.shared.uses_naming() {
+        if unregister && self.shared.uses_naming() && self.shared.registered() {
             let _ops = lock(&self.shared.ops);
             match self.shared.naming(NamingCall::Unregister {
                 node: self.shared.name.clone(),

@@ -224,7 +224,7 @@ fn a_system_behind_a_shared_secret() {
     let no_secret = NodeConfig::new("intruder", NamingChoice::Remote(naming_addr));
     assert!(matches!(
         Node::start(no_secret),
-        Err(NodeError::NamingUnreachable {
+        Err(NodeError::NamingRefused {
             cause: RpcError::Remote(WireError::AuthFailed),
             ..
         })

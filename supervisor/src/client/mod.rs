@@ -91,18 +91,24 @@ impl Client {
     /// # Errors
     /// The transport's [`RpcError`] (connection refused, authentication failed, ...).
     pub fn connect(naming: SocketAddr, config: ClientConfig) -> Result<Client, RpcError> {
-        let client = Client {
-            inner: Arc::new(Inner {
-                naming,
-                config,
-                pool: Mutex::new(HashMap::new()),
-            }),
-        };
+        let client = Client::lazy(naming, config);
         let slot = client.slot(naming);
         let mut conn = lock(&slot);
         *conn = Some(Connection::connect(naming, &client.inner.config)?);
         drop(conn);
         Ok(client)
+    }
+
+    /// A client of the naming service at `naming` that connects on its first call (for a
+    /// process that must start before the naming service answers, such as a node).
+    pub fn lazy(naming: SocketAddr, config: ClientConfig) -> Client {
+        Client {
+            inner: Arc::new(Inner {
+                naming,
+                config,
+                pool: Mutex::new(HashMap::new()),
+            }),
+        }
     }
 
     /// The naming service's address.

@@ -106,7 +106,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     })?;
     let naming_text = match naming {
         NamingChoice::Host => format!("hosted here ({})", node.advertised()),
-        NamingChoice::Remote(a) => a.to_string(),
+        NamingChoice::Remote(a) if node.is_registered() => a.to_string(),
+        NamingChoice::Remote(a) => format!("{a}, not answering yet: registering when it does"),
         NamingChoice::None => "none".into(),
     };
     println!(
