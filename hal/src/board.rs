@@ -72,4 +72,18 @@ pub trait Board {
     /// # Errors
     /// As for [`write_axes`](Board::write_axes).
     fn set_enabled(&mut self, enabled: bool) -> Result<(), Self::Error>;
+
+    /// Asks a board that latched a fault of its own (a lost line, a watchdog) to leave it, once
+    /// its cause is gone; the amplifiers stay as they are until the next
+    /// [`set_enabled`](Board::set_enabled). Boards without such a latch do nothing (the default).
+    ///
+    /// # Real-time
+    /// Implementations must not block: a board that needs I/O to re-arm hands the request to
+    /// its own I/O thread.
+    ///
+    /// # Errors
+    /// As for [`write_axes`](Board::write_axes).
+    fn rearm(&mut self) -> Result<(), Self::Error> {
+        Ok(())
+    }
 }

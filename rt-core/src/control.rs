@@ -545,9 +545,36 @@ where
                 let _ = self.board.set_enabled(false);
             }
             ControlCommand::Rearm => {
+                // The board's own latch first (a Galil line fault), then the loop's.
+                if self.board.rearm().is_err() {
+                    self.safety.note(SafetyEvent::BoardError);
+                }
                 if self.safety.rearm().is_err() {
                     self.safety.note(SafetyEvent::CommandRejected);
                 }
+            }
+        }
+    }
+
+    /// Brings the robot to its safe state when the thread running this loop can no longer run
+    /// it (a tick panicked, or the communication thread died): the e-stop is latched (an
+    /// explicit re-arm is needed), and a board with its own servo
+    /// ([`HoldMode::BoardServo`]) holds the last measured position while every other board
+    /// gets zero torque and its amplifiers off.
+    ///
+    /// # Real-time
+    /// Constant time, no allocation: one board write and one `set_enabled` call.
+    pub fn fail_safe(&mut self, now: Timestamp) {
+        self.safety.estop();
+        match self.config.safety.hold {
+            HoldMode::BoardServo if self.state.position.iter().all(|x| x.is_finite()) => {
+                let q = self.state.position;
+                self.write(now, Some(JointCommand::Position(q)));
+            }
+            // No servo to hold with, or nothing sane to hold: off.
+            _ => {
+                self.write(now, None);
+                let _ = self.board.set_enabled(false);
             }
         }
     }

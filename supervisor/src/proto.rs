@@ -335,6 +335,10 @@ pub enum BoardMethod {
     ReadEncoders,
     /// Whether the amplifiers are enabled: [`Reply::Flag`].
     AmplifiersEnabled,
+    /// Asks a board that latched a fault of its own (a lost Galil line) to leave it, once its
+    /// cause is gone: [`Reply::Unit`]. A board driven by a running loop is re-armed through its
+    /// controller (`ControllerMethod::Rearm`), which re-arms the loop too.
+    Rearm,
 }
 
 /// Sensor methods.

@@ -341,6 +341,12 @@ impl GalilBoard {
         self.shared.cycles.load(Ordering::Relaxed)
     }
 
+    /// Whether the host asked for the amplifiers on (the last [`Board::set_enabled`]); the
+    /// board follows on the I/O thread's next cycle.
+    pub fn is_enabled(&self) -> bool {
+        self.enabled
+    }
+
     /// True while the I/O thread reports a fault.
     pub fn is_faulted(&self) -> bool {
         self.shared.fault.load(Ordering::Relaxed) != 0
@@ -427,6 +433,14 @@ impl Board for GalilBoard {
             enabled,
             commands: self.last,
         });
+        Ok(())
+    }
+
+    /// # Real-time
+    /// Wait-free: one atomic increment; the I/O thread re-arms on its next cycle (see
+    /// [`GalilBoard::rearm`]).
+    fn rearm(&mut self) -> Result<(), Self::Error> {
+        GalilBoard::rearm(self);
         Ok(())
     }
 }

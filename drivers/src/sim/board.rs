@@ -109,6 +109,12 @@ impl<M: RobotModel, I: Interaction> SimBoard<M, I> {
         self
     }
 
+    /// Whether the amplifiers are on (set by [`Board::set_enabled`]); off, the plant gets zero
+    /// torque.
+    pub fn is_enabled(&self) -> bool {
+        self.enabled
+    }
+
     /// The plant (ground truth).
     pub fn plant(&self) -> &RigidBodyPlant<M> {
         &self.plant

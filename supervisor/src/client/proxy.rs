@@ -666,6 +666,18 @@ impl BoardProxy {
             other => Err(unexpected("a flag", &other)),
         }
     }
+
+    /// Asks the board to leave a fault it latched itself (a lost Galil line), once the cause is
+    /// gone. A board driven by a running loop is re-armed through its controller instead.
+    ///
+    /// # Errors
+    /// As [`BoardProxy::read_encoders`]; [`WireError::NotReady`] while a loop drives it.
+    pub fn rearm(&self) -> Result<(), RpcError> {
+        match self.board(BoardMethod::Rearm)? {
+            Reply::Unit => Ok(()),
+            other => Err(unexpected("nothing", &other)),
+        }
+    }
 }
 
 /// A remote force sensor.
@@ -784,7 +796,9 @@ impl ControllerProxy {
         self.controller(ControllerMethod::EStop)
     }
 
-    /// Clears a latched fault or e-stop (activate again afterwards).
+    /// Re-arms the controller: a running loop clears its latched fault or e-stop (and its
+    /// boards' own latches) and activates again from the measured state; a loop whose threads
+    /// failed (`error`) is started anew, from the measured state.
     ///
     /// # Errors
     /// As [`ControllerProxy::estop`].

@@ -40,11 +40,13 @@ use penelope_hal::{LifecycleState, Timestamp, Transition};
 use penelope_rt_core::exec::{self, PeriodicConfig, Setting};
 
 use crate::proto::{
-    Call, Class, CreatorCall, KindInfo, Method, NodeInfo, ObjectInfo, Reply, WireError, check_name,
+    Call, Class, ControllerMethod, CreatorCall, KindInfo, Method, NodeInfo, ObjectInfo, Reply,
+    WireError, check_name,
 };
 use crate::service::{Remote, Service, Session};
+use penelope_rt_core::control::ControlCommand;
 use registry::{Body, Launch, Registry};
-use runtime::{CommTask, ControlTask, LoopShared, Running, Subscriptions};
+use runtime::{CommTask, ControlTask, LoopFault, LoopShared, Running, Subscriptions};
 
 /// Real-time settings of the control threads a creator starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -178,6 +180,7 @@ impl Creator {
 
     /// Its objects, by name.
     pub fn list(&self) -> Vec<ObjectInfo> {
+        self.reap_failed();
         self.lock()
             .map(|r| r.objects.values().map(|o| o.info()).collect())
             .unwrap_or_default()
@@ -185,6 +188,7 @@ impl Creator {
 
     /// One object.
     pub fn info(&self, name: &str) -> Option<ObjectInfo> {
+        self.reap_failed();
         self.lock().ok()?.objects.get(name).map(|o| o.info())
     }
 
@@ -355,10 +359,11 @@ impl Creator {
         };
 
         let control_stop = Arc::new(AtomicBool::new(false));
+        let fault = Arc::new(LoopFault::default());
         let (back_tx, back_rx) = sync_channel(1);
         let registry::Built {
             control,
-            mut comm,
+            comm,
             telemetry,
             commands,
             goto,
@@ -378,20 +383,44 @@ impl Creator {
                 _ => None,
             })
             .unwrap_or_default();
-        let control_thread = match exec::spawn(
+        // A thread that cannot be spawned is an error, never a silently missing part.
+        let spawned_control = exec::spawn(
             control_cfg,
-            runtime::control_body(control, control_stop.clone(), back_tx),
-        ) {
+            runtime::control_body(control, control_stop.clone(), back_tx, fault.clone()),
+        );
+        let control_thread = match spawned_control {
             Ok(t) => t,
             Err(e) => {
+                // The task (with the board) went down with the closure: configure again.
                 reg.release_users(name);
-                return Err(WireError::Internal(format!("control thread: {e}")));
+                if let Ok(o) = reg.get_mut(&robot) {
+                    o.state = LifecycleState::Unconfigured;
+                }
+                return Err(WireError::Internal(format!(
+                    "cannot start the control thread: {e}"
+                )));
             }
         };
-        let comm_thread = exec::spawn(comm_cfg, move |tick| {
-            comm.tick(tick.deadline);
-            exec::Flow::Continue
-        });
+        let comm_thread = match exec::spawn(comm_cfg, runtime::comm_body(comm, fault.clone())) {
+            Ok(t) => t,
+            Err(e) => {
+                control_stop.store(true, Ordering::Release);
+                let task = back_rx.recv_timeout(std::time::Duration::from_secs(2)).ok();
+                let _ = control_thread.join();
+                match task {
+                    Some(t) => reg.give_back(t.into_loop().into_board(), &robot),
+                    None => {
+                        if let Ok(o) = reg.get_mut(&robot) {
+                            o.state = LifecycleState::Unconfigured;
+                        }
+                    }
+                }
+                reg.release_users(name);
+                return Err(WireError::Internal(format!(
+                    "cannot start the communication thread: {e}"
+                )));
+            }
+        };
         let aux_stop = Arc::new(AtomicBool::new(false));
         let shared = Arc::new(LoopShared::default());
         let feed_stats = Arc::new(runtime::FeedStats::default());
@@ -414,55 +443,211 @@ impl Creator {
                         &stop,
                     );
                 })
-                .ok()
         };
         let feed = match (source, wrench) {
             (Some(source), Some(mut out)) => {
                 let (stop, stats) = (aux_stop.clone(), feed_stats.clone());
                 let controller = name.to_string();
                 let period = timing.sensor_period;
-                std::thread::Builder::new()
-                    .name(thread_name("sen-"))
-                    .spawn(move || {
-                        runtime::run_sensor_feed(
-                            &source,
-                            &model,
-                            &mut probe,
-                            &mut out,
-                            period,
-                            &stop,
-                            &stats,
-                            &controller,
-                        );
-                    })
-                    .ok()
+                Some(
+                    std::thread::Builder::new()
+                        .name(thread_name("sen-"))
+                        .spawn(move || {
+                            runtime::run_sensor_feed(
+                                &source,
+                                &model,
+                                &mut probe,
+                                &mut out,
+                                period,
+                                &stop,
+                                &stats,
+                                &controller,
+                            );
+                        }),
+                )
             }
+            _ => None,
+        };
+        let spawn_error = match (&pump, &feed) {
+            (Err(e), _) => Some(format!("cannot start the telemetry thread: {e}")),
+            (_, Some(Err(e))) => Some(format!("cannot start the sensor feed thread: {e}")),
             _ => None,
         };
         let running = Running {
             control: Some(control_thread),
             control_stop,
             control_back: back_rx,
-            comm: comm_thread.ok(),
+            comm: Some(comm_thread),
             commands,
             goto,
             gains,
-            pump,
+            pump: pump.ok(),
             aux_stop,
-            feed,
+            feed: feed.and_then(Result::ok),
             feed_stats,
             shared,
             fifo,
             period: timing.period,
+            fault,
         };
+        if let Some(why) = spawn_error {
+            // Stop what did start, give the board back, and say why.
+            let task = running.stop();
+            match task {
+                Some(t) => reg.give_back(t.into_loop().into_board(), &robot),
+                None => {
+                    if let Ok(o) = reg.get_mut(&robot) {
+                        o.state = LifecycleState::Unconfigured;
+                    }
+                }
+            }
+            reg.release_users(name);
+            return Err(WireError::Internal(why));
+        }
         let o = reg.get_mut(name)?;
         o.state = LifecycleState::Active;
         if let Body::Controller(c) = &mut o.body {
             c.running = Some(running);
             c.scheduling = Some(scheduling);
+            c.fault = None;
         }
-        let _ = robot;
         Ok(())
+    }
+
+    /// Takes every loop whose threads failed out of service: the control thread already
+    /// brought its robot to the safe state (amplifiers off, or the board's servo holding); here
+    /// the threads are joined, the board goes back to its objects as it is, and the controller
+    /// shows `error` with the cause until it is re-armed. Runs before every call, so what a
+    /// client sees is never a dead loop shown `active`.
+    fn reap_failed(&self) {
+        let failed: Vec<(String, String, Running)> = {
+            let Ok(mut reg) = self.lock() else { return };
+            let names: Vec<String> = reg
+                .objects
+                .values()
+                .filter(|o| {
+                    matches!(&o.body, Body::Controller(c)
+                        if c.running.as_ref().is_some_and(|r| r.failure().is_some()))
+                })
+                .map(|o| o.name.clone())
+                .collect();
+            names
+                .into_iter()
+                .filter_map(|name| {
+                    let o = reg.objects.get_mut(&name)?;
+                    let Body::Controller(c) = &mut o.body else {
+                        return None;
+                    };
+                    let robot = c.robot.clone().unwrap_or_default();
+                    Some((name, robot, c.running.take()?))
+                })
+                .collect()
+        };
+        for (name, robot, running) in failed {
+            let cause = running
+                .failure()
+                .unwrap_or_else(|| "a thread failed".into());
+            let last = running.shared.newest().map(|n| n.sample);
+            let task = running.stop_failed();
+            let Ok(mut reg) = self.lock() else { return };
+            let stopped = match task {
+                Some(t) => {
+                    let hold = t.holds_with_board_servo();
+                    reg.give_back_after_fault(t.into_loop().into_board(), &robot, hold);
+                    if hold {
+                        "held by its board's servo"
+                    } else {
+                        "zero torque, amplifiers off"
+                    }
+                }
+                None => {
+                    if let Ok(o) = reg.get_mut(&robot) {
+                        o.state = LifecycleState::Unconfigured;
+                    }
+                    "its board went down with the thread; configure the robot again"
+                }
+            };
+            log::error!(
+                "node {}: controller `{name}` failed ({cause}); robot `{robot}` stopped: {stopped}",
+                self.config.node
+            );
+            reg.release_users(&name);
+            if let Ok(o) = reg.get_mut(&name) {
+                o.state = LifecycleState::Error;
+                if let Body::Controller(c) = &mut o.body {
+                    c.fault = Some(cause);
+                    c.last = last.or(c.last);
+                    c.scheduling = None;
+                }
+            }
+        }
+    }
+
+    /// Makes a thread of controller `name`'s running loop panic in its next tick, as a bug
+    /// would (fault-injection tests of the failure path).
+    ///
+    /// # Errors
+    /// [`WireError::UnknownName`], or [`WireError::NotReady`] when it is not running.
+    #[cfg(feature = "fault-injection")]
+    pub fn inject_thread_panic(
+        &self,
+        name: &str,
+        thread: runtime::LoopThread,
+    ) -> Result<(), WireError> {
+        let reg = self.lock()?;
+        match &reg.get(name)?.body {
+            Body::Controller(c) => match &c.running {
+                Some(r) => {
+                    r.fault.inject_panic(thread);
+                    Ok(())
+                }
+                None => Err(WireError::NotReady(format!("`{name}` is not running"))),
+            },
+            _ => Err(WireError::NotReady(format!("`{name}` is not a controller"))),
+        }
+    }
+
+    /// Re-arms controller `name`: a running loop clears its latched fault or e-stop (and its
+    /// boards' own latches) and activates again from the measured state; a loop whose threads
+    /// failed (`error`) is built and started anew, from the measured state.
+    fn rearm(&self, name: &str) -> Result<Reply, WireError> {
+        let failed = {
+            let mut reg = self.lock()?;
+            let o = reg.get_mut(name)?;
+            if o.kind.class() != Class::Controller {
+                return Err(WireError::WrongClass {
+                    name: name.into(),
+                    expected: Class::Controller,
+                    found: o.kind.class(),
+                });
+            }
+            let failed = o.state == LifecycleState::Error;
+            if failed {
+                o.state = LifecycleState::Inactive;
+                if let Body::Controller(c) = &mut o.body {
+                    c.fault = None;
+                }
+            }
+            failed
+        };
+        if failed {
+            self.activate(name)?;
+            return Ok(Reply::Unit);
+        }
+        let mut reg = self.lock()?;
+        let Body::Controller(c) = &mut reg.get_mut(name)?.body else {
+            return Err(WireError::Internal("controller body".into()));
+        };
+        let run = c
+            .running
+            .as_mut()
+            .ok_or_else(|| WireError::NotReady(format!("controller `{name}` is not running")))?;
+        for cmd in [ControlCommand::Rearm, ControlCommand::Activate] {
+            run.commands
+                .push(cmd)
+                .map_err(|_| WireError::NotReady("command queue full; retry".into()))?;
+        }
+        Ok(Reply::Unit)
     }
 
     /// Stops controller `name`'s loop (amplifiers off), joins its threads and gives its boards
@@ -582,6 +767,7 @@ impl Creator {
 
     fn object_call(&self, object: &str, method: Method) -> Result<Reply, WireError> {
         match method {
+            Method::Controller(ControllerMethod::Rearm) => self.rearm(object),
             Method::Describe => self
                 .info(object)
                 .map(Reply::Object)
@@ -604,6 +790,7 @@ impl Drop for Creator {
 
 impl Service for Creator {
     fn call(&self, session: &Session, call: Call) -> Result<Reply, WireError> {
+        self.reap_failed();
         match call {
             Call::Ping { payload } => Ok(Reply::Pong(payload)),
             Call::NodeInfo => Ok(Reply::Node(NodeInfo {

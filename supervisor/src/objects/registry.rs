@@ -99,6 +99,8 @@ pub(crate) struct ControllerObj {
     pub last: Option<penelope_rt_core::telemetry::TelemetrySample>,
     /// How the control thread is scheduled (shown in `describe`).
     pub scheduling: Option<String>,
+    /// Why its loop failed (a thread panicked or died), until it is re-armed.
+    pub fault: Option<String>,
 }
 
 pub(crate) struct TrajectoryObj {
@@ -159,6 +161,9 @@ impl Object {
                 }
                 if let Some(s) = &c.scheduling {
                     relations.push(("scheduling".to_string(), s.clone()));
+                }
+                if let Some(f) = &c.fault {
+                    relations.push(("fault".to_string(), f.clone()));
                 }
             }
             _ => {}
@@ -251,6 +256,7 @@ fn controller_body(config: ControllerConfig, timing: LoopTiming) -> Body {
         running: None,
         last: None,
         scheduling: None,
+        fault: None,
     }))
 }
 
@@ -787,8 +793,17 @@ impl Registry {
     }
 
     /// Gives a stopped loop's board back to the objects it came from, amplifiers off.
-    pub fn give_back(&mut self, mut board: LoopBoard, robot: &str) {
-        let _ = board.set_enabled(false);
+    pub fn give_back(&mut self, board: LoopBoard, robot: &str) {
+        self.give_back_after_fault(board, robot, false);
+    }
+
+    /// Gives a failed loop's board back as the loop left it: still holding with its own servo
+    /// when `holding` (a position board the loop stopped at its measured pose), else with its
+    /// amplifiers off.
+    pub fn give_back_after_fault(&mut self, mut board: LoopBoard, robot: &str, holding: bool) {
+        if !holding {
+            let _ = board.set_enabled(false);
+        }
         match board {
             LoopBoard::Sim(body, _) => {
                 if let Some(Object {
@@ -1092,9 +1107,20 @@ impl Registry {
             (Body::SimBoard(s), BoardMethod::AxisCount) => Ok(Reply::Count(s.config.axes)),
             (Body::Galil(g), BoardMethod::AxisCount) => Ok(Reply::Count(g.config.axes)),
             (_, BoardMethod::AmplifiersEnabled) => {
-                // Amplifiers are on exactly while a loop drives the board and is not stopped.
+                // An idle board says what the device holds (a failed loop may leave a position
+                // board holding); a driven one, what its loop's safety state implies.
                 if !active {
-                    return Ok(Reply::Flag(false));
+                    let on = match &o.body {
+                        Body::Galil(g) => g.board.as_ref().is_some_and(GalilBoard::is_enabled),
+                        _ => self.objects.values().any(|r| match &r.body {
+                            Body::Robot(r) => {
+                                r.maps.iter().any(|(b, _)| b == name)
+                                    && r.body.as_ref().is_some_and(|b| b.is_enabled())
+                            }
+                            _ => false,
+                        }),
+                    };
+                    return Ok(Reply::Flag(on));
                 }
                 let user = o.users.iter().next().cloned().unwrap_or_default();
                 let c = self.controller_mut(&user)?;
@@ -1111,6 +1137,22 @@ impl Registry {
                     });
                 Ok(Reply::Flag(on))
             }
+            (_, BoardMethod::Rearm) if active => Err(not_ready(format!(
+                "board `{name}` is driven by `{}`: re-arm that controller (it re-arms the board \
+                 and its loop)",
+                o.users.iter().next().cloned().unwrap_or_default()
+            ))),
+            (Body::Galil(g), BoardMethod::Rearm) => match &g.board {
+                Some(b) => {
+                    b.rearm();
+                    Ok(Reply::Unit)
+                }
+                None => Err(not_ready(format!(
+                    "board `{name}` is not open (configure it)"
+                ))),
+            },
+            // A simulated board latches nothing.
+            (_, BoardMethod::Rearm) => Ok(Reply::Unit),
             (_, BoardMethod::ReadEncoders) => {
                 let axes = match &o.body {
                     Body::SimBoard(s) => s.config.axes as usize,
@@ -1371,21 +1413,20 @@ impl Registry {
                 }
                 Ok(Reply::Unit)
             }
-            ControllerMethod::EStop | ControllerMethod::Rearm => {
+            ControllerMethod::EStop => {
                 let c = self.controller_mut(name)?;
                 let run = c
                     .running
                     .as_mut()
                     .ok_or_else(|| not_ready(format!("controller `{name}` is not running")))?;
-                let cmd = if m == ControllerMethod::EStop {
-                    ControlCommand::EStop
-                } else {
-                    ControlCommand::Rearm
-                };
                 run.commands
-                    .push(cmd)
+                    .push(ControlCommand::EStop)
                     .map_err(|_| not_ready("command queue full; retry"))?;
                 Ok(Reply::Unit)
+            }
+            // Re-arming may start threads: the creator's job (`Creator::rearm`).
+            ControllerMethod::Rearm => {
+                Err(WireError::Internal("rearm is served by the creator".into()))
             }
             ControllerMethod::Status => {
                 let joints = self

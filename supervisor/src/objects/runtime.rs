@@ -219,6 +219,21 @@ impl Board for LoopBoard {
         }
     }
 
+    /// # Real-time
+    /// Wait-free: a simulated board has no latch; each Galil board takes the request to its
+    /// I/O thread.
+    fn rearm(&mut self) -> Result<(), LoopBoardError> {
+        match self {
+            LoopBoard::Sim(b, _) => b.rearm().map_err(LoopBoardError::Sim),
+            LoopBoard::Galil(g) => {
+                for (_, board) in g.boards.iter_mut() {
+                    board.rearm().map_err(LoopBoardError::Galil)?;
+                }
+                Ok(())
+            }
+        }
+    }
+
     fn set_enabled(&mut self, enabled: bool) -> Result<(), LoopBoardError> {
         match self {
             LoopBoard::Sim(b, _) => b.set_enabled(enabled).map_err(LoopBoardError::Sim),
@@ -564,6 +579,26 @@ impl ControlTask {
     /// The loop, taken out.
     pub fn into_loop(self) -> NodeLoop {
         self.lp
+    }
+
+    /// Brings the robot to its safe state after a failure ([`ControlLoop::fail_safe`]).
+    ///
+    /// # Real-time
+    /// Constant time, no allocation.
+    pub fn fail_safe(&mut self, now: Timestamp) {
+        match &mut self.lp {
+            NodeLoop::Plain(l) => l.fail_safe(now),
+            NodeLoop::Sensed(l) => l.fail_safe(now),
+        }
+    }
+
+    /// Whether the loop holds its robot with the board's own servo (rather than with torques).
+    pub fn holds_with_board_servo(&self) -> bool {
+        let hold = match &self.lp {
+            NodeLoop::Plain(l) => l.config().safety.hold,
+            NodeLoop::Sensed(l) => l.config().safety.hold,
+        };
+        matches!(hold, penelope_rt_core::safety::HoldMode::BoardServo)
     }
 }
 
@@ -1082,6 +1117,8 @@ pub struct Running {
     pub fifo: bool,
     /// The control period.
     pub period: Duration,
+    /// Where the loop's threads report a failure.
+    pub fault: Arc<LoopFault>,
 }
 
 impl Running {
@@ -1093,15 +1130,48 @@ impl Running {
             .map_or(0, |l| l.overruns)
     }
 
-    /// Stops everything: `Deactivate` to the loop (amplifiers off), a few periods for it to take
-    /// effect, then the threads are joined. Returns the control task (`None` if its thread died).
-    pub fn stop(mut self) -> Option<ControlTask> {
-        let _ = self
-            .commands
-            .push(penelope_rt_core::control::ControlCommand::Deactivate);
-        std::thread::sleep((self.period * 4).max(Duration::from_millis(5)));
-        self.control_stop.store(true, Ordering::Release);
+    /// Why the loop failed, if it did: a thread reported a panic, or a thread ended although
+    /// nobody asked it to.
+    pub fn failure(&self) -> Option<String> {
+        if self.fault.is_failed() {
+            return Some(
+                self.fault
+                    .cause()
+                    .unwrap_or_else(|| "a thread failed".into()),
+            );
+        }
+        if self.control_stop.load(Ordering::Acquire) {
+            return None;
+        }
+        if self
+            .control
+            .as_ref()
+            .is_some_and(PeriodicThread::is_finished)
+        {
+            return Some("the control thread ended unexpectedly".into());
+        }
+        if self.comm.as_ref().is_some_and(PeriodicThread::is_finished) {
+            return Some("the communication thread ended unexpectedly".into());
+        }
+        None
+    }
+
+    /// Stops the threads of a loop that failed (its control thread already brought the robot
+    /// to its safe state, or is told to now) and returns the control task (`None` if its
+    /// thread died with it).
+    pub fn stop_failed(mut self) -> Option<ControlTask> {
+        if let Some(cause) = self.failure() {
+            self.fault.record(cause);
+        }
+        // The control thread sees the failure on its next tick, stops the robot and hands
+        // the task back.
         let task = self.control_back.recv_timeout(Duration::from_secs(2)).ok();
+        self.control_stop.store(true, Ordering::Release);
+        self.join_all();
+        task
+    }
+
+    fn join_all(&mut self) {
         if let Some(t) = self.control.take() {
             let _ = t.join();
         }
@@ -1115,29 +1185,167 @@ impl Running {
         if let Some(t) = self.pump.take() {
             let _ = t.join();
         }
+    }
+
+    /// Stops everything: `Deactivate` to the loop (amplifiers off), a few periods for it to take
+    /// effect, then the threads are joined. Returns the control task (`None` if its thread died).
+    pub fn stop(mut self) -> Option<ControlTask> {
+        let _ = self
+            .commands
+            .push(penelope_rt_core::control::ControlCommand::Deactivate);
+        std::thread::sleep((self.period * 4).max(Duration::from_millis(5)));
+        self.control_stop.store(true, Ordering::Release);
+        let task = self.control_back.recv_timeout(Duration::from_secs(2)).ok();
+        self.join_all();
         task
     }
 }
 
+/// How the threads of a running loop report that one of them failed (a panic, or an exit
+/// nobody asked for). The control thread reads [`is_failed`](Self::is_failed) every tick; the
+/// cause is written once, on the failure path only.
+#[derive(Debug, Default)]
+pub struct LoopFault {
+    failed: AtomicBool,
+    cause: Mutex<Option<String>>,
+    /// A panic asked for by a fault-injection test: 0 none, else a [`LoopThread`] + 1.
+    #[cfg(feature = "fault-injection")]
+    inject: std::sync::atomic::AtomicU8,
+}
+
+/// The threads of a running loop.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LoopThread {
+    /// The control thread.
+    Control,
+    /// The communication thread.
+    Communication,
+}
+
+impl LoopFault {
+    /// Makes `thread` panic in its next tick, as a bug would (fault-injection tests only).
+    #[cfg(feature = "fault-injection")]
+    pub fn inject_panic(&self, thread: LoopThread) {
+        self.inject.store(thread as u8 + 1, Ordering::Release);
+    }
+
+    /// Panics if a panic of `thread` was injected (nothing without the `fault-injection`
+    /// feature).
+    #[inline(always)]
+    fn injected(&self, thread: LoopThread) {
+        #[cfg(feature = "fault-injection")]
+        if self.inject.load(Ordering::Acquire) == thread as u8 + 1 {
+            panic!("injected fault");
+        }
+        let _ = thread;
+    }
+}
+
+impl LoopFault {
+    /// Records a failure (the first cause is kept).
+    pub fn record(&self, cause: String) {
+        if let Ok(mut c) = self.cause.lock() {
+            c.get_or_insert(cause);
+        }
+        self.failed.store(true, Ordering::Release);
+    }
+
+    /// True once a thread of the loop failed.
+    ///
+    /// # Real-time
+    /// One atomic load.
+    pub fn is_failed(&self) -> bool {
+        self.failed.load(Ordering::Acquire)
+    }
+
+    /// The first failure's cause.
+    pub fn cause(&self) -> Option<String> {
+        self.cause.lock().ok().and_then(|c| c.clone())
+    }
+}
+
+/// The text of a panic's payload.
+fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| (*s).to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a panic without a message".to_string())
+}
+
+/// Runs `f`; a panic in it becomes `Err(its message)` instead of unwinding further.
+///
+/// # Real-time
+/// Free when `f` does not panic (unwinding costs only on the failure path).
+pub fn guarded<T>(f: impl FnOnce() -> T) -> Result<T, String> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).map_err(|p| panic_text(p.as_ref()))
+}
+
 /// The body of a control thread: ticks `task` until `stop`, then hands it back through `back`.
+///
+/// A tick that panics, or a failure of the loop's other threads reported through `fault`,
+/// brings the robot to its safe state ([`ControlLoop::fail_safe`]: e-stop latched, amplifiers
+/// off or the board's servo holding), records the cause, hands the task back and ends the
+/// thread; the creator then shows the controller in `error`.
 pub fn control_body(
     task: ControlTask,
     stop: Arc<AtomicBool>,
     back: SyncSender<ControlTask>,
+    fault: Arc<LoopFault>,
 ) -> impl FnMut(penelope_rt_core::exec::Tick) -> Flow + Send + 'static {
     let mut task = Some(task);
     move |tick| {
+        let Some(t) = task.as_mut() else {
+            return Flow::Stop;
+        };
         if stop.load(Ordering::Acquire) {
             if let Some(t) = task.take() {
                 let _ = back.try_send(t);
             }
             return Flow::Stop;
         }
-        if let Some(t) = task.as_mut() {
-            t.note_timing(tick.latency(), tick.previous_exec);
-            t.tick(tick.deadline);
+        let failed = fault.is_failed()
+            || match guarded(|| {
+                fault.injected(LoopThread::Control);
+                t.note_timing(tick.latency(), tick.previous_exec);
+                t.tick(tick.deadline)
+            }) {
+                Ok(_) => false,
+                Err(why) => {
+                    fault.record(format!("the control thread panicked: {why}"));
+                    true
+                }
+            };
+        if failed {
+            if let Err(why) = guarded(|| t.fail_safe(tick.deadline)) {
+                // The loop cannot even stop itself: the creator turns the board off when it
+                // takes it back.
+                log::error!("stopping a failed loop panicked too: {why}");
+            }
+            if let Some(t) = task.take() {
+                let _ = back.try_send(t);
+            }
+            return Flow::Stop;
         }
         Flow::Continue
+    }
+}
+
+/// The body of a communication thread: ticks `comm` until stopped; a panicking tick records
+/// the cause in `fault` (the control thread then stops the robot safely) and ends the thread.
+pub fn comm_body(
+    mut comm: CommTask,
+    fault: Arc<LoopFault>,
+) -> impl FnMut(penelope_rt_core::exec::Tick) -> Flow + Send + 'static {
+    move |tick| match guarded(|| {
+        fault.injected(LoopThread::Communication);
+        comm.tick(tick.deadline)
+    }) {
+        Ok(()) => Flow::Continue,
+        Err(why) => {
+            fault.record(format!("the communication thread panicked: {why}"));
+            Flow::Stop
+        }
     }
 }
 

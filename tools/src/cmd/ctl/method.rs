@@ -44,6 +44,7 @@ Robots (Q: joint values in rad, space- or comma-separated, or a pose name nest|s
   map-joints BOARD J:A [J:A...]     drive joint J by axis A of BOARD (0-based)
 Boards:
   axis-count | read-encoders | amplifiers-enabled
+  rearm                             leave a fault the board latched (a lost Galil line)
 Sensors:
   read | bias                       newest wrench (N, N m); take the current reading as zero
   set-probe X Y Z [VX VY VZ]        probe position (m) and velocity (m/s) of a virtual sensor

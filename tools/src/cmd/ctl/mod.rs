@@ -38,8 +38,8 @@ use clap::Parser;
 use penelope_supervisor::client::Client;
 use penelope_supervisor::net::conn::ClientConfig;
 use penelope_supervisor::proto::{
-    Call, CreatorCall, Method, NameEntry, ObjectRef, Reply, RobotMethod, object_path,
-    parse_transition,
+    BoardMethod, Call, Class, ControllerMethod, CreatorCall, Method, NameEntry, ObjectRef, Reply,
+    RobotMethod, object_path, parse_transition,
 };
 use serde_json::json;
 
@@ -151,6 +151,18 @@ pub enum Verb {
     /// inactive -> unconfigured.
     Cleanup {
         /// The object: naming path or NODE/NAME.
+        path: String,
+    },
+    /// Latch the emergency stop of a running controller (amplifiers off until re-armed).
+    Estop {
+        /// The controller: naming path or NODE/NAME.
+        path: String,
+    },
+    /// Re-arm, once the cause is gone: a controller after a fault, an e-stop or a failed thread
+    /// (its loop restarts from the measured state, no jump), or a board that latched a fault of
+    /// its own (a lost Galil line).
+    Rearm {
+        /// The controller or board: naming path or NODE/NAME.
         path: String,
     },
     /// Kind, lifecycle state and relations of an object.
@@ -298,6 +310,8 @@ impl Ctl {
             Verb::Deactivate { path } => self.method(&path, "deactivate", &[], json),
             Verb::Cleanup { path } => self.method(&path, "cleanup", &[], json),
             Verb::Describe { path } => self.method(&path, "describe", &[], json),
+            Verb::Estop { path } => self.method(&path, "estop", &[], json),
+            Verb::Rearm { path } => self.method(&path, "rearm", &[], json),
             Verb::Call { path, method, args } => {
                 // `--json` after the method's arguments is ours, not the method's.
                 let json = json || args.iter().any(|a| a == "--json");
@@ -337,6 +351,13 @@ impl Ctl {
             Ok(client.call_ref(&r, Method::Robot(m))?)
         };
         let (method, hint) = method::parse(name, args, &mut lookup)?;
+        // `rearm` means the board's own latch when the object is a board.
+        let method = match (method, r.class) {
+            (Method::Controller(ControllerMethod::Rearm), Class::Board) => {
+                Method::Board(BoardMethod::Rearm)
+            }
+            (m, _) => m,
+        };
         let reply = client.call_ref(&r, method)?;
         if json {
             say!("{}", serde_json::to_string(&reply)?);
