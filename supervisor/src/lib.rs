@@ -10,6 +10,7 @@
 //!   trajectories), their lifecycle and their real-time loops.
 //! - [`naming`]: the naming service (a tree of contexts with leases per node).
 //! - [`node`]: a node: creator, objects and optionally the naming service behind one server.
+//! - [`system`]: the system file: every object, its configuration, relations and node.
 //! - [`client`]: the naming-aware client and the proxies of remote objects.
 #![warn(missing_docs)]
 
@@ -21,3 +22,4 @@ pub mod node;
 pub mod objects;
 pub mod proto;
 pub mod service;
+pub mod system;

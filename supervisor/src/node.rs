@@ -17,32 +17,9 @@
 //! in the hosted tree or by the naming service (and cached briefly), then the object is called on
 //! its node through a [`Client`] (one cached connection per node).
 //!
-//! # A node file
-//! `penelope node --config FILE` (and [`NodeFile`]) brings objects up at start. The file is TOML:
-//! a list of `[[object]]` tables, created in file order; then the relations of every object are
-//! set in file order; then the transitions of every object are run in file order.
-//!
-//! ```toml
-//! [[object]]
-//! kind = "board/sim"            # class/kind, as `penelope ctl kinds` lists
-//! name = "sim0"                 # name on this node
-//! transitions = ["configure"]   # run after every object exists and is related
-//!
-//! [[object]]
-//! kind = "robot/puma560"
-//! name = "slave"
-//! config = { }                  # the kind's settings: a table, or TOML text in a string
-//! map = [{ board = "sim0", joints = [0, 1, 2, 3, 4, 5] }]  # joint i on axis axes[i] (default: same)
-//! transitions = ["configure"]
-//!
-//! [[object]]
-//! kind = "controller/joint-pid"
-//! name = "pid"
-//! robot = "slave"               # controller relations: local names,
-//! trajectory = "hold"
-//! sensor = "/lab-b/sensors/ft"  # or a naming path for a sensor on another node
-//! transitions = ["configure", "activate"]
-//! ```
+//! # Objects at start
+//! `penelope node --config FILE` brings up the objects a system file places on the node: see
+//! [`crate::system`].
 
 use std::collections::HashMap;
 use std::fmt;
@@ -53,17 +30,14 @@ use std::sync::{Arc, Mutex, MutexGuard, OnceLock, PoisonError, Weak};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use serde::Deserialize;
-
 use crate::client::Client;
 use crate::naming::{NamingLimits, NamingService, Reaper};
 use crate::net::conn::{ClientConfig, RpcError};
 use crate::net::server::{NetError, Server, ServerConfig, ServerStats};
 use crate::objects::{Creator, CreatorConfig};
 use crate::proto::{
-    Call, Class, ControllerMethod, CreatorCall, JointAxis, Method, NamingCall, NodeInfo,
-    ObjectInfo, ObjectRef, Reply, RobotMethod, WireError, check_name, object_path,
-    parse_transition,
+    Call, Class, CreatorCall, Method, NamingCall, NodeInfo, ObjectInfo, ObjectRef, Reply,
+    WireError, check_name, object_path,
 };
 use crate::service::{Outbox, Remote, Service, Session};
 
@@ -792,226 +766,6 @@ impl Drop for Node {
     }
 }
 
-// ---------------------------------------------------------------------------------------------
-// Node files
-// ---------------------------------------------------------------------------------------------
-
-/// A node file: the objects to bring up at start (format in the [module docs](self)).
-#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct NodeFile {
-    /// The objects, in creation order.
-    #[serde(default)]
-    pub object: Vec<NodeObject>,
-}
-
-/// One object of a [`NodeFile`].
-#[derive(Clone, Debug, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct NodeObject {
-    /// `class/kind`.
-    pub kind: String,
-    /// The object's name on the node.
-    pub name: String,
-    /// The kind's settings: a TOML table, or TOML text in a string (absent: the defaults).
-    #[serde(default)]
-    pub config: Option<toml::Value>,
-    /// Robots: joints mapped onto board axes.
-    #[serde(default)]
-    pub map: Vec<JointMap>,
-    /// Controllers: the robot (a local name).
-    #[serde(default)]
-    pub robot: Option<String>,
-    /// Controllers: the trajectory (a local name).
-    #[serde(default)]
-    pub trajectory: Option<String>,
-    /// Controllers: the force sensor (a local name or a naming path).
-    #[serde(default)]
-    pub sensor: Option<String>,
-    /// Lifecycle transitions to run at start, in order (`configure`, `activate`, ...).
-    #[serde(default)]
-    pub transitions: Vec<String>,
-}
-
-/// Joints of a robot on one board's axes.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct JointMap {
-    /// The board's name on this node.
-    pub board: String,
-    /// The joints (0-based).
-    pub joints: Vec<u8>,
-    /// The board axis of each joint (absent: the same numbers as `joints`).
-    #[serde(default)]
-    pub axes: Option<Vec<u8>>,
-}
-
-/// Why a node file could not be read or applied.
-#[derive(Debug, thiserror::Error)]
-pub enum NodeFileError {
-    /// Not valid TOML, or not a node file.
-    #[error("not a node file: {0}")]
-    Parse(String),
-    /// A value is wrong (before anything was created).
-    #[error("object `{object}`: {message}")]
-    Invalid {
-        /// The object.
-        object: String,
-        /// What is wrong.
-        message: String,
-    },
-    /// The node refused a step.
-    #[error("object `{object}`: {step}: {error}")]
-    Step {
-        /// The object.
-        object: String,
-        /// The step (`create`, `set robot`, `configure`, ...).
-        step: String,
-        /// The node's error.
-        error: WireError,
-    },
-}
-
-impl NodeFile {
-    /// Parses and checks a node file.
-    ///
-    /// # Errors
-    /// [`NodeFileError::Parse`] or [`NodeFileError::Invalid`] (unknown transition, a map whose
-    /// `axes` and `joints` differ in length, a config that is neither a table nor a string).
-    pub fn parse(text: &str) -> Result<NodeFile, NodeFileError> {
-        let file: NodeFile =
-            toml::from_str(text).map_err(|e| NodeFileError::Parse(e.to_string()))?;
-        for o in &file.object {
-            let invalid = |message: String| NodeFileError::Invalid {
-                object: o.name.clone(),
-                message,
-            };
-            check_name(&o.name).map_err(|e| invalid(e.to_string()))?;
-            o.config_text().map_err(invalid)?;
-            for t in &o.transitions {
-                if parse_transition(t).is_none() {
-                    return Err(invalid(format!(
-                        "unknown transition `{t}` (configure, activate, deactivate, cleanup, shutdown, reset)"
-                    )));
-                }
-            }
-            for m in &o.map {
-                if m.axes.as_ref().is_some_and(|a| a.len() != m.joints.len()) {
-                    return Err(invalid(format!(
-                        "map onto `{}`: {} joints but {} axes",
-                        m.board,
-                        m.joints.len(),
-                        m.axes.as_ref().map_or(0, Vec::len)
-                    )));
-                }
-            }
-        }
-        Ok(file)
-    }
-
-    /// Creates the objects on `node`, sets their relations, runs their transitions; stops at the
-    /// first refusal. Returns the objects created.
-    ///
-    /// # Errors
-    /// [`NodeFileError::Step`] naming the object and the step that failed.
-    pub fn apply(&self, node: &Node) -> Result<Vec<ObjectInfo>, NodeFileError> {
-        let step = |o: &NodeObject, step: &str, call: Call| {
-            node.call(call).map_err(|error| NodeFileError::Step {
-                object: o.name.clone(),
-                step: step.to_string(),
-                error,
-            })
-        };
-        let mut created = Vec::new();
-        for o in &self.object {
-            let config = o.config_text().map_err(|message| NodeFileError::Invalid {
-                object: o.name.clone(),
-                message,
-            })?;
-            let reply = step(
-                o,
-                "create",
-                Call::Creator(CreatorCall::Create {
-                    kind: o.kind.clone(),
-                    name: o.name.clone(),
-                    config,
-                }),
-            )?;
-            if let Reply::Object(info) = reply {
-                created.push(info);
-            }
-        }
-        let object = |o: &NodeObject, method: Method| Call::Object {
-            object: o.name.clone(),
-            method,
-        };
-        for o in &self.object {
-            for m in &o.map {
-                let axes = m.axes.clone().unwrap_or_else(|| m.joints.clone());
-                let joints = m
-                    .joints
-                    .iter()
-                    .zip(axes)
-                    .map(|(&joint, axis)| JointAxis { joint, axis })
-                    .collect();
-                step(
-                    o,
-                    "map joints",
-                    object(
-                        o,
-                        Method::Robot(RobotMethod::MapJoints {
-                            board: m.board.clone(),
-                            joints,
-                        }),
-                    ),
-                )?;
-            }
-            if let Some(robot) = &o.robot {
-                let m = ControllerMethod::SetRobot {
-                    robot: robot.clone(),
-                };
-                step(o, "set robot", object(o, Method::Controller(m)))?;
-            }
-            if let Some(trajectory) = &o.trajectory {
-                let m = ControllerMethod::SetTrajectory {
-                    trajectory: trajectory.clone(),
-                };
-                step(o, "set trajectory", object(o, Method::Controller(m)))?;
-            }
-            if let Some(sensor) = &o.sensor {
-                let m = ControllerMethod::SetSensor {
-                    sensor: sensor.clone(),
-                };
-                step(o, "set sensor", object(o, Method::Controller(m)))?;
-            }
-        }
-        for o in &self.object {
-            for t in &o.transitions {
-                // Checked by `parse`.
-                let Some(transition) = parse_transition(t) else {
-                    continue;
-                };
-                step(o, t, object(o, Method::Transition(transition)))?;
-            }
-        }
-        Ok(created)
-    }
-}
-
-impl NodeObject {
-    fn config_text(&self) -> Result<String, String> {
-        match &self.config {
-            None => Ok(String::new()),
-            Some(toml::Value::String(s)) => Ok(s.clone()),
-            Some(toml::Value::Table(t)) => toml::to_string(t).map_err(|e| e.to_string()),
-            Some(other) => Err(format!(
-                "config must be a table or TOML text, not a {}",
-                other.type_str()
-            )),
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1081,46 +835,5 @@ mod tests {
         config.naming = NamingChoice::Host;
         config.lease = Duration::from_millis(1);
         assert!(matches!(Node::start(config), Err(NodeError::BadLease(_))));
-    }
-
-    #[test]
-    fn node_files_parse_and_bad_ones_are_refused() {
-        let example = include_str!("../../config/node-example.toml");
-        let file = NodeFile::parse(example).unwrap();
-        assert_eq!(file.object.len(), 4);
-        assert_eq!(
-            file.object[1].config_text().unwrap().trim(),
-            "start = \"start\""
-        );
-        assert!(
-            file.object[2]
-                .config_text()
-                .unwrap()
-                .contains("[[waypoints]]")
-        );
-        for bad in [
-            "[[object]]\nkind = \"board/sim\"\nname = \"a b\"\n",
-            "[[object]]\nkind = \"board/sim\"\nname = \"b\"\ntransitions = [\"fly\"]\n",
-            "[[object]]\nkind = \"robot/puma560\"\nname = \"r\"\nmap = [{ board = \"b\", joints = [0, 1], axes = [0] }]\n",
-            "[[object]]\nkind = \"board/sim\"\nname = \"b\"\nconfig = 3\n",
-            "[[object]]\nkind = \"board/sim\"\nname = \"b\"\ncolour = \"red\"\n",
-        ] {
-            assert!(NodeFile::parse(bad).is_err(), "{bad}");
-        }
-        // Applying stops at the first refusal, naming the object and the step.
-        let node = Node::start(NodeConfig::new("lab-b", NamingChoice::None)).unwrap();
-        let file = NodeFile::parse("[[object]]\nkind = \"robot/nope\"\nname = \"r\"\n").unwrap();
-        match file.apply(&node) {
-            Err(NodeFileError::Step {
-                object,
-                step,
-                error,
-            }) => {
-                assert_eq!((object.as_str(), step.as_str()), ("r", "create"));
-                assert!(matches!(error, WireError::UnknownKind(_)));
-            }
-            other => panic!("{other:?}"),
-        }
-        node.shutdown();
     }
 }

@@ -169,7 +169,7 @@ fn the_fpga_kinematics_drive_the_master_when_configured() {
     let out = run(&lab, &options, &mut |_| {}).unwrap();
     assert!(matches!(
         out.info.master_model,
-        penelope_supervisor::lab::model::LabModel::Fpga { .. }
+        penelope_supervisor::objects::kinematics::RobotKinematics::Fpga { .. }
     ));
     let r = report(&out);
     assert!(r.faults.is_empty(), "{:?}", r.faults);

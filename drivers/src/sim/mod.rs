@@ -11,6 +11,9 @@
 //!   frame, with bias, noise and a low-pass filter.
 //! - [`tap`]: the lock-free hand-off of the plant's interaction wrench to the sensor and the
 //!   telemetry.
+//! - [`scripts`]: the operator's built-in scripts (the demo's), by name.
+//! - [`ToolContact`]: what touches a robot's tool, whatever the robot: nothing, the environment,
+//!   or the operator's hand.
 //!
 //! Determinism: nothing here reads a clock or an unseeded random source; every call takes the
 //! time, and noise comes from a seeded generator.
@@ -20,11 +23,16 @@ pub mod environment;
 pub mod force_sensor;
 pub mod operator;
 pub mod plant;
+pub mod scripts;
 pub mod tap;
 
-use penelope_hal::{Pose, Twist, Wrench};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
-use penelope_hal::Timestamp;
+use penelope_hal::{Frame, Pose, Timestamp, Twist, Wrench};
+
+use environment::Environment;
+use operator::VirtualOperator;
 
 /// Something that pushes on a robot's tool: the environment the slave touches, or the hand that
 /// holds the master.
@@ -45,5 +53,39 @@ pub struct FreeSpace;
 impl Interaction for FreeSpace {
     fn wrench_on_tool(&mut self, _now: Timestamp, _tool: &Pose, _twist: &Twist) -> Wrench {
         Wrench::zero(penelope_hal::Frame::Base)
+    }
+}
+
+/// What touches a simulated robot's tool: nothing, the environment (the slave's wall), or the
+/// operator's hand holding the handle (the master), one type for any robot.
+// One per simulated robot, built once: the size difference costs nothing worth a box.
+#[allow(clippy::large_enum_variant)]
+pub enum ToolContact {
+    /// Free motion.
+    Free,
+    /// The environment's contact models.
+    Environment(Environment),
+    /// The operator's hand; its clutch button's state is published to `clutch` at every
+    /// sub-step (as a handle's switch would be read), lock-free.
+    Hand {
+        /// The hand.
+        operator: VirtualOperator,
+        /// Whether the clutch is held, for whoever sends the master's pose.
+        clutch: Arc<AtomicBool>,
+    },
+}
+
+impl Interaction for ToolContact {
+    /// # Real-time
+    /// As the variant's own model; the clutch is one atomic store.
+    fn wrench_on_tool(&mut self, now: Timestamp, tool: &Pose, twist: &Twist) -> Wrench {
+        match self {
+            ToolContact::Free => Wrench::zero(Frame::Base),
+            ToolContact::Environment(e) => e.wrench_on_tool(now, tool, twist),
+            ToolContact::Hand { operator, clutch } => {
+                clutch.store(operator.clutch(now), Ordering::Relaxed);
+                operator.wrench_on_tool(now, tool, twist)
+            }
+        }
     }
 }

@@ -27,44 +27,21 @@ use penelope_drivers::galil::{
     GalilBoard, GalilBoardConfig, GalilBoardError, GalilError, axis_bindings,
 };
 use penelope_drivers::model::{DhRobot, DhRobotModel};
-use penelope_drivers::sim::Interaction;
+use penelope_drivers::sim::ToolContact;
 use penelope_drivers::sim::board::{SimBoard, SimBoardError};
-use penelope_drivers::sim::environment::Environment;
-use penelope_drivers::sim::operator::VirtualOperator;
 use penelope_hal::{
-    AxisCommand, AxisState, Board, Error, ErrorKind, Frame, JointVector, Kinematics, MAX_AXES,
-    MAX_JOINTS, Pose, RobotModel, Timestamp, Twist, Wrench,
+    AxisCommand, AxisState, Board, Error, ErrorKind, JointVector, Kinematics, MAX_AXES, MAX_JOINTS,
+    RobotModel, Timestamp,
 };
 use penelope_rt_core::control::AxisBinding;
 
 use super::config::{BoardConfig, BoardKind};
-use super::model::LabModel;
-
-/// What pushes on a simulated robot's tool.
-#[allow(clippy::large_enum_variant)] // one per robot, built once
-pub enum LabInteraction {
-    /// Nothing.
-    Free,
-    /// The slave's environment.
-    Environment(Environment),
-    /// The operator's hand on the master.
-    Operator(VirtualOperator),
-}
-
-impl Interaction for LabInteraction {
-    fn wrench_on_tool(&mut self, now: Timestamp, tool: &Pose, twist: &Twist) -> Wrench {
-        match self {
-            LabInteraction::Free => Wrench::zero(Frame::Base),
-            LabInteraction::Environment(e) => e.wrench_on_tool(now, tool, twist),
-            LabInteraction::Operator(o) => o.wrench_on_tool(now, tool, twist),
-        }
-    }
-}
+use crate::objects::kinematics::RobotKinematics;
 
 /// Any board the lab can drive.
 pub enum LabBoard {
     /// A simulated board with its plant.
-    Sim(Box<SimBoard<LabModel, LabInteraction>>),
+    Sim(Box<SimBoard<RobotKinematics, ToolContact>>),
     /// A Galil DMC on a serial line (no plant behind it in this process).
     Galil(Box<LabGalilBoard>),
 }

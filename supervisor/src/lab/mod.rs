@@ -2,9 +2,7 @@
 
 pub mod config;
 pub mod devices;
-pub mod model;
 pub mod report;
 pub mod run;
-pub mod script;
 
 pub use config::{ConfigError, LabConfig, Law};

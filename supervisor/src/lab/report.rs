@@ -12,7 +12,7 @@ use penelope_rt_core::telemetry::ReferenceKind;
 use serde::Serialize;
 
 use super::run::{ClockMode, LabSample, RunInfo, RunOutput, sensor_to_base};
-use super::script::{CONTACT_PHASE, FREE_MOTION_PHASES, INDEX_PHASE, TAP_PHASE};
+use penelope_drivers::sim::scripts::{CONTACT_PHASE, FREE_MOTION_PHASES, INDEX_PHASE, TAP_PHASE};
 
 /// Position tracking in free motion.
 #[derive(Clone, Debug, Serialize, PartialEq)]

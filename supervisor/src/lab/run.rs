@@ -47,9 +47,10 @@ use penelope_rt_core::teleop::{
 use super::config::{
     BoardKind, ConfigError, ControllerKind, KinematicsChoice, LabConfig, Law, Role, ShapeKind,
 };
-use super::devices::{GalilSetup, LabBoard, LabInteraction, LinkMonitor, galil_board};
-use super::model::LabModel;
-use super::script;
+use super::devices::{GalilSetup, LabBoard, LinkMonitor, galil_board};
+use crate::objects::kinematics::RobotKinematics;
+use penelope_drivers::sim::ToolContact;
+use penelope_drivers::sim::scripts as script;
 
 /// Samples buffered between a control thread and the logger.
 pub const TELEMETRY_CAPACITY: usize = 8192;
@@ -155,7 +156,15 @@ struct Built {
     end: Timestamp,
     control_period: Duration,
     comm_period: Duration,
-    master: ControlLoop<LabBoard, LabModel, ControllerBox, RefReader, LabSink, Commands, NoSensor>,
+    master: ControlLoop<
+        LabBoard,
+        RobotKinematics,
+        ControllerBox,
+        RefReader,
+        LabSink,
+        Commands,
+        NoSensor,
+    >,
     slave: SlaveLoop,
     master_comm: MasterComm,
     slave_comm: SlaveComm,
@@ -172,7 +181,7 @@ enum SlaveLoop {
         Box<
             ControlLoop<
                 LabBoard,
-                LabModel,
+                RobotKinematics,
                 ControllerBox,
                 RefReader,
                 LabSink,
@@ -182,7 +191,17 @@ enum SlaveLoop {
         >,
     ),
     Unsensed(
-        Box<ControlLoop<LabBoard, LabModel, ControllerBox, RefReader, LabSink, Commands, NoSensor>>,
+        Box<
+            ControlLoop<
+                LabBoard,
+                RobotKinematics,
+                ControllerBox,
+                RefReader,
+                LabSink,
+                Commands,
+                NoSensor,
+            >,
+        >,
     ),
 }
 
@@ -234,9 +253,9 @@ pub struct RunInfo {
     /// The operator's script.
     pub script: OperatorScript,
     /// The master's model, for post-processing poses.
-    pub master_model: LabModel,
+    pub master_model: RobotKinematics,
     /// The slave's model.
-    pub slave_model: LabModel,
+    pub slave_model: RobotKinematics,
     /// The environment.
     pub environment: Environment,
     /// The sensor's mount in the slave's tool frame.
@@ -252,7 +271,7 @@ pub struct RunInfo {
 /// samples into the master's channel.
 struct MasterComm {
     comm: CommLoop<TeleopChannel, RefWriter>,
-    model: LabModel,
+    model: RobotKinematics,
     state: ArcLatestReader<TelemetrySample>,
     to_slave: ArcLatestWriter<TeleopSample>,
     from_slave: ArcLatestReader<TeleopSample>,
@@ -291,7 +310,7 @@ impl MasterComm {
 /// the slave's pose and sensor wrench (base frame) back.
 struct SlaveComm {
     comm: CommLoop<TeleopChannel, RefWriter>,
-    model: LabModel,
+    model: RobotKinematics,
     state: ArcLatestReader<TelemetrySample>,
     to_master: ArcLatestWriter<TeleopSample>,
     from_master: ArcLatestReader<TeleopSample>,
@@ -405,12 +424,12 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
     let slave_tool = slave_model.forward(&q_slave);
     // What the controllers compute with: float kinematics, or the FPGA model where configured.
     // The plants behind the simulated boards are physics and always use the float model.
-    let master_kin = LabModel::new(
+    let master_kin = RobotKinematics::new(
         master_model.clone(),
         master_cfg.kinematics == KinematicsChoice::Fpga,
     )
     .map_err(setup(master_name))?;
-    let slave_kin = LabModel::new(
+    let slave_kin = RobotKinematics::new(
         slave_model.clone(),
         slave_cfg.kinematics == KinematicsChoice::Fpga,
     )
@@ -467,10 +486,13 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
         ..PlantConfig::default()
     };
     let master_board = SimBoard::new(
-        LabModel::Float(master_model.clone()),
+        RobotKinematics::Float(master_model.clone()),
         master_plant,
         sim_board_config(&master_model, master_board_cfg.dac_bits),
-        LabInteraction::Operator(operator),
+        ToolContact::Hand {
+            operator,
+            clutch: std::sync::Arc::default(),
+        },
         q_master,
         start,
     )
@@ -509,10 +531,10 @@ fn build(lab: &LabConfig, options: &RunOptions, start: Timestamp) -> Result<Buil
                 ..PlantConfig::default()
             };
             let slave_board = SimBoard::new(
-                LabModel::Float(slave_model.clone()),
+                RobotKinematics::Float(slave_model.clone()),
                 slave_plant,
                 sim_board_config(&slave_model, slave_board_cfg.dac_bits),
-                LabInteraction::Environment(environment.clone()),
+                ToolContact::Environment(environment.clone()),
                 q_slave,
                 start,
             )

@@ -9,23 +9,34 @@ use penelope_hal::{JointVector, MAX_AXES, MAX_JOINTS, NamedPose};
 use serde::Deserialize;
 use serde::de::DeserializeOwned;
 
+use penelope_rt_core::safety::Role;
+
+use super::teleop::{
+    FORCE_DISPLAY_KEYS, HAND_KEYS, POSITION_ERROR_KEYS, SLAVE_TRACKING_KEYS, TELEOP_KEYS,
+};
 use crate::proto::{Class, KindInfo, WireError};
 
 /// Every kind this creator makes, in listing order.
-pub const KINDS: [&str; 13] = [
+pub const KINDS: [&str; 19] = [
     "robot/puma560",
     "robot/puma200",
     "robot/frhc",
     "board/sim",
     "board/galil",
     "sensor/virtual",
+    "sensor/operator-hand",
     "controller/joint-pid",
     "controller/cartesian-impedance",
     "controller/joint-position",
+    "controller/force-display",
+    "controller/position-error-master",
+    "controller/slave-tracking",
+    "controller/slave-position",
     "trajectory/step",
     "trajectory/ramp",
     "trajectory/trapezoidal",
     "trajectory/spline",
+    "trajectory/teleop",
 ];
 
 /// A kind, parsed.
@@ -39,12 +50,22 @@ pub enum Kind {
     GalilBoard,
     /// `sensor/virtual`.
     VirtualSensor,
+    /// `sensor/operator-hand`.
+    OperatorHand,
     /// `controller/joint-pid`.
     JointPid,
     /// `controller/cartesian-impedance`.
     CartesianImpedance,
     /// `controller/joint-position`.
     JointPosition,
+    /// `controller/force-display`: the master half of position-forward / force-back.
+    ForceDisplay,
+    /// `controller/position-error-master`: the master half of position-error.
+    PositionErrorMaster,
+    /// `controller/slave-tracking`: the slave half (computed torque to the mapped master pose).
+    SlaveTracking,
+    /// `controller/slave-position`: the slave half for a board with its own servo.
+    SlavePosition,
     /// `trajectory/step`.
     Step,
     /// `trajectory/ramp`.
@@ -53,6 +74,8 @@ pub enum Kind {
     Trapezoidal,
     /// `trajectory/spline`.
     Spline,
+    /// `trajectory/teleop`: the channel between a master and a slave.
+    Teleop,
 }
 
 impl Kind {
@@ -65,13 +88,19 @@ impl Kind {
             "board/sim" => Kind::SimBoard,
             "board/galil" => Kind::GalilBoard,
             "sensor/virtual" => Kind::VirtualSensor,
+            "sensor/operator-hand" => Kind::OperatorHand,
             "controller/joint-pid" => Kind::JointPid,
             "controller/cartesian-impedance" => Kind::CartesianImpedance,
             "controller/joint-position" => Kind::JointPosition,
+            "controller/force-display" => Kind::ForceDisplay,
+            "controller/position-error-master" => Kind::PositionErrorMaster,
+            "controller/slave-tracking" => Kind::SlaveTracking,
+            "controller/slave-position" => Kind::SlavePosition,
             "trajectory/step" => Kind::Step,
             "trajectory/ramp" => Kind::Ramp,
             "trajectory/trapezoidal" => Kind::Trapezoidal,
             "trajectory/spline" => Kind::Spline,
+            "trajectory/teleop" => Kind::Teleop,
             _ => return None,
         })
     }
@@ -85,13 +114,19 @@ impl Kind {
             Kind::SimBoard => "board/sim",
             Kind::GalilBoard => "board/galil",
             Kind::VirtualSensor => "sensor/virtual",
+            Kind::OperatorHand => "sensor/operator-hand",
             Kind::JointPid => "controller/joint-pid",
             Kind::CartesianImpedance => "controller/cartesian-impedance",
             Kind::JointPosition => "controller/joint-position",
+            Kind::ForceDisplay => "controller/force-display",
+            Kind::PositionErrorMaster => "controller/position-error-master",
+            Kind::SlaveTracking => "controller/slave-tracking",
+            Kind::SlavePosition => "controller/slave-position",
             Kind::Step => "trajectory/step",
             Kind::Ramp => "trajectory/ramp",
             Kind::Trapezoidal => "trajectory/trapezoidal",
             Kind::Spline => "trajectory/spline",
+            Kind::Teleop => "trajectory/teleop",
         }
     }
 
@@ -100,9 +135,17 @@ impl Kind {
         match self {
             Kind::Robot(_) => Class::Robot,
             Kind::SimBoard | Kind::GalilBoard => Class::Board,
-            Kind::VirtualSensor => Class::Sensor,
-            Kind::JointPid | Kind::CartesianImpedance | Kind::JointPosition => Class::Controller,
-            Kind::Step | Kind::Ramp | Kind::Trapezoidal | Kind::Spline => Class::Trajectory,
+            Kind::VirtualSensor | Kind::OperatorHand => Class::Sensor,
+            Kind::JointPid
+            | Kind::CartesianImpedance
+            | Kind::JointPosition
+            | Kind::ForceDisplay
+            | Kind::PositionErrorMaster
+            | Kind::SlaveTracking
+            | Kind::SlavePosition => Class::Controller,
+            Kind::Step | Kind::Ramp | Kind::Trapezoidal | Kind::Spline | Kind::Teleop => {
+                Class::Trajectory
+            }
         }
     }
 
@@ -128,6 +171,33 @@ impl Kind {
             Kind::VirtualSensor => (
                 "6-axis force sensor: an environment contact model fed by a probe pose",
                 SENSOR_KEYS.to_string() + SHAPE_KEYS,
+            ),
+            Kind::OperatorHand => (
+                "the operator's hand on a simulated master: a scripted impedance that pushes the \
+                 handle and holds the clutch",
+                HAND_KEYS.to_string(),
+            ),
+            Kind::ForceDisplay => (
+                "teleoperation master, position-forward / force-back: displays the mapped slave \
+                 force (tau = J^T F), capped",
+                FORCE_DISPLAY_KEYS.to_string() + LOOP_KEYS,
+            ),
+            Kind::PositionErrorMaster => (
+                "teleoperation master, position-error: a spring-damper to the mapped slave pose",
+                POSITION_ERROR_KEYS.to_string() + LOOP_KEYS,
+            ),
+            Kind::SlaveTracking => (
+                "teleoperation slave: follows the mapped master pose (IK, computed torque)",
+                SLAVE_TRACKING_KEYS.to_string() + LOOP_KEYS,
+            ),
+            Kind::SlavePosition => (
+                "teleoperation slave for a board with its own servo: IK, then position targets",
+                SLAVE_TRACKING_KEYS.to_string() + LOOP_KEYS,
+            ),
+            Kind::Teleop => (
+                "the channel between a master and a slave: the master's pose forward (scaled, \
+                 rotated, clutched), the slave's pose and wrench back",
+                TELEOP_KEYS.to_string(),
             ),
             Kind::JointPid => (
                 "joint-space PID with gravity compensation",
@@ -174,8 +244,14 @@ pub fn all_kinds() -> Vec<KindInfo> {
 }
 
 const ROBOT_KEYS: &str = r#"
-start = "start"   # named pose (nest, start, work) where a simulated body starts and where
-                  # Galil encoders read zero (the arm is parked there at power-up)
+start = "start"       # named pose (nest, start, work) where a simulated body starts and where
+                      # Galil encoders read zero (the arm is parked there at power-up)
+kinematics = "float"  # "float", or "fpga": forward kinematics and Jacobian from the bit-exact
+                      # model of the FRHC's FPGA board (frhc only; dynamics stay float)
+role = "slave"        # "master" (a hand controller: force and moment caps, zero force on a
+                      # fault) or "slave" (holds its pose); default: master for frhc, else slave
+max_force_n = 10.0    # a master's largest displayed force, N (the FRHC's)
+max_moment_nm = 0.5   # a master's largest displayed moment, N·m
 "#;
 
 const SHAPE_KEYS: &str = r#"
@@ -299,7 +375,7 @@ fn check_range(kind: &str, key: &str, v: f64, lo: f64, hi: f64) -> Result<(), Wi
     }
 }
 
-fn check_int(kind: &str, key: &str, v: u64, lo: u64, hi: u64) -> Result<(), WireError> {
+pub(crate) fn check_int(kind: &str, key: &str, v: u64, lo: u64, hi: u64) -> Result<(), WireError> {
     if (lo..=hi).contains(&v) {
         Ok(())
     } else {
@@ -468,17 +544,69 @@ pub fn environment(kind: &str, shapes: &[ShapeConfig]) -> Result<Environment, Wi
 pub struct RobotConfig {
     /// The named pose a simulated body starts in, and where Galil encoders read zero.
     pub start: String,
+    /// `float`, or `fpga` (the FRHC's FPGA board model).
+    pub kinematics: String,
+    /// `master` or `slave` (`None`: master for the FRHC, else slave).
+    pub role: Option<String>,
+    /// A master's largest displayed force, N.
+    pub max_force_n: f64,
+    /// A master's largest displayed moment, N·m.
+    pub max_moment_nm: f64,
 }
 
 impl Default for RobotConfig {
     fn default() -> Self {
         RobotConfig {
             start: "start".into(),
+            kinematics: "float".into(),
+            role: None,
+            max_force_n: 10.0,
+            max_moment_nm: 0.5,
         }
     }
 }
 
 impl RobotConfig {
+    /// Whether the FPGA kinematics were chosen.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for a word other than float or fpga.
+    pub fn fpga(&self, kind: &str) -> Result<bool, WireError> {
+        match self.kinematics.as_str() {
+            "float" => Ok(false),
+            "fpga" => Ok(true),
+            other => Err(bad(
+                kind,
+                format!("`kinematics` = {other:?} is not \"float\" or \"fpga\""),
+            )),
+        }
+    }
+
+    /// The robot's role, defaulting by model (`frhc` is a master), and its checked caps.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for a word other than master or slave, or caps that are not
+    /// positive.
+    pub fn role(&self, kind: &str) -> Result<Role, WireError> {
+        for (key, v) in [
+            ("max_force_n", self.max_force_n),
+            ("max_moment_nm", self.max_moment_nm),
+        ] {
+            if v.is_nan() || v <= 0.0 {
+                return Err(bad(kind, format!("`{key}` must be > 0 (inf: no cap)")));
+            }
+        }
+        match self.role.as_deref() {
+            None if kind == "robot/frhc" => Ok(Role::Master),
+            None | Some("slave") => Ok(Role::Slave),
+            Some("master") => Ok(Role::Master),
+            Some(other) => Err(bad(
+                kind,
+                format!("`role` = {other:?} is not \"master\" or \"slave\""),
+            )),
+        }
+    }
+
     /// The start pose.
     ///
     /// # Errors
@@ -657,7 +785,7 @@ pub struct LoopTiming {
 macro_rules! loop_keys {
     ($name:ident { $($field:ident : $ty:ty = $default:expr, #[$doc:meta])* }) => {
         /// A controller's configuration.
-        #[derive(Clone, Debug, PartialEq, Deserialize)]
+        #[derive(Clone, Debug, PartialEq, ::serde::Deserialize)]
         #[serde(deny_unknown_fields, default)]
         pub struct $name {
             $(#[$doc] pub $field: $ty,)*
@@ -694,25 +822,27 @@ macro_rules! loop_keys {
             ///
             /// # Errors
             /// [`WireError::BadConfig`].
-            pub fn timing(&self, kind: &str) -> Result<LoopTiming, WireError> {
-                check_int(kind, "period_us", self.period_us, 250, 20_000)?;
-                check_int(kind, "comm_period_us", self.comm_period_us, 250, 100_000)?;
-                check_int(kind, "watchdog_ms", self.watchdog_ms, 1, 10_000)?;
-                check_int(kind, "sensor_period_ms", self.sensor_period_ms, 1, 1000)?;
-                check_int(kind, "sensor_timeout_ms", self.sensor_timeout_ms, 1, 10_000)?;
-                check_int(kind, "telemetry_period_ms", self.telemetry_period_ms, 1, 1000)?;
-                Ok(LoopTiming {
-                    period: Duration::from_micros(self.period_us),
-                    comm_period: Duration::from_micros(self.comm_period_us),
-                    watchdog: Duration::from_millis(self.watchdog_ms),
-                    sensor_period: Duration::from_millis(self.sensor_period_ms),
-                    sensor_timeout: Duration::from_millis(self.sensor_timeout_ms),
-                    telemetry_period: Duration::from_millis(self.telemetry_period_ms),
+            pub fn timing(&self, kind: &str) -> Result<$crate::objects::kinds::LoopTiming, $crate::proto::WireError> {
+                $crate::objects::kinds::check_int(kind, "period_us", self.period_us, 250, 20_000)?;
+                $crate::objects::kinds::check_int(kind, "comm_period_us", self.comm_period_us, 250, 100_000)?;
+                $crate::objects::kinds::check_int(kind, "watchdog_ms", self.watchdog_ms, 1, 10_000)?;
+                $crate::objects::kinds::check_int(kind, "sensor_period_ms", self.sensor_period_ms, 1, 1000)?;
+                $crate::objects::kinds::check_int(kind, "sensor_timeout_ms", self.sensor_timeout_ms, 1, 10_000)?;
+                $crate::objects::kinds::check_int(kind, "telemetry_period_ms", self.telemetry_period_ms, 1, 1000)?;
+                Ok($crate::objects::kinds::LoopTiming {
+                    period: ::std::time::Duration::from_micros(self.period_us),
+                    comm_period: ::std::time::Duration::from_micros(self.comm_period_us),
+                    watchdog: ::std::time::Duration::from_millis(self.watchdog_ms),
+                    sensor_period: ::std::time::Duration::from_millis(self.sensor_period_ms),
+                    sensor_timeout: ::std::time::Duration::from_millis(self.sensor_timeout_ms),
+                    telemetry_period: ::std::time::Duration::from_millis(self.telemetry_period_ms),
                 })
             }
         }
     };
 }
+
+pub(crate) use loop_keys;
 
 loop_keys!(JointPidConfig {
     kp: Option<PerJoint> = None, #[doc = "Proportional gain, N·m/rad (default 10 × torque limit)."]
@@ -1054,7 +1184,7 @@ mod tests {
         let kinds = all_kinds();
         // Every listed name parses (a name that does not would be dropped from the list).
         assert_eq!(kinds.len(), KINDS.len());
-        assert_eq!(kinds.len(), 13);
+        assert_eq!(kinds.len(), 19);
         for k in &kinds {
             let parsed = Kind::parse(&k.kind).unwrap();
             assert_eq!(parsed.as_str(), k.kind);

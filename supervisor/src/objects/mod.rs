@@ -2,9 +2,12 @@
 //! (DESIGN.md section 1), their relations, their lifecycles, and the real-time loops of the
 //! active controllers.
 //!
+//! - [`kinematics`]: the model a robot's loops compute with (float, or the FPGA board's).
 //! - [`kinds`]: every kind and its TOML configuration (keys, units, defaults, ranges).
 //! - [`runtime`]: what runs while a controller is active: the control task (SCHED_FIFO), the
 //!   communication task (trajectory to reference cell), the sensor feed and the telemetry pump.
+//! - [`teleop`]: the teleoperation channel, its ends, the operator's hand and the halves of
+//!   the bilateral laws.
 //! - `registry` (private): the objects, relations, lifecycles and methods.
 //!
 //! # Relations are data
@@ -29,8 +32,10 @@
 //! joins the threads and gives the boards back.
 
 pub mod kinds;
+pub mod kinematics;
 mod registry;
 pub mod runtime;
+pub mod teleop;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::sync_channel;
@@ -359,8 +364,10 @@ impl Creator {
         };
 
         let control_stop = Arc::new(AtomicBool::new(false));
+        let comm_stop = Arc::new(AtomicBool::new(false));
         let fault = Arc::new(LoopFault::default());
         let (back_tx, back_rx) = sync_channel(1);
+        let (comm_back_tx, comm_back_rx) = sync_channel(1);
         let registry::Built {
             control,
             comm,
@@ -375,14 +382,6 @@ impl Creator {
             joints,
             timing,
         } = built;
-        let robot = reg
-            .objects
-            .get(name)
-            .and_then(|o| match &o.body {
-                Body::Controller(c) => c.robot.clone(),
-                _ => None,
-            })
-            .unwrap_or_default();
         // A thread that cannot be spawned is an error, never a silently missing part.
         let spawned_control = exec::spawn(
             control_cfg,
@@ -392,30 +391,38 @@ impl Creator {
             Ok(t) => t,
             Err(e) => {
                 // The task (with the board) went down with the closure: configure again.
-                reg.release_users(name);
-                if let Ok(o) = reg.get_mut(&robot) {
-                    o.state = LifecycleState::Unconfigured;
-                }
+                let comm = Some(comm);
+                reg.take_back(
+                    runtime::StoppedLoop {
+                        control: None,
+                        comm,
+                    },
+                    name,
+                    false,
+                );
                 return Err(WireError::Internal(format!(
                     "cannot start the control thread: {e}"
                 )));
             }
         };
-        let comm_thread = match exec::spawn(comm_cfg, runtime::comm_body(comm, fault.clone())) {
+        let spawned_comm = exec::spawn(
+            comm_cfg,
+            runtime::comm_body(comm, fault.clone(), comm_stop.clone(), comm_back_tx),
+        );
+        let comm_thread = match spawned_comm {
             Ok(t) => t,
             Err(e) => {
                 control_stop.store(true, Ordering::Release);
-                let task = back_rx.recv_timeout(std::time::Duration::from_secs(2)).ok();
+                let control = back_rx.recv_timeout(std::time::Duration::from_secs(2)).ok();
                 let _ = control_thread.join();
-                match task {
-                    Some(t) => reg.give_back(t.into_loop().into_board(), &robot),
-                    None => {
-                        if let Ok(o) = reg.get_mut(&robot) {
-                            o.state = LifecycleState::Unconfigured;
-                        }
-                    }
-                }
-                reg.release_users(name);
+                reg.take_back(
+                    runtime::StoppedLoop {
+                        control,
+                        comm: None,
+                    },
+                    name,
+                    false,
+                );
                 return Err(WireError::Internal(format!(
                     "cannot start the communication thread: {e}"
                 )));
@@ -478,6 +485,8 @@ impl Creator {
             control_stop,
             control_back: back_rx,
             comm: Some(comm_thread),
+            comm_stop,
+            comm_back: comm_back_rx,
             commands,
             goto,
             gains,
@@ -492,16 +501,8 @@ impl Creator {
         };
         if let Some(why) = spawn_error {
             // Stop what did start, give the board back, and say why.
-            let task = running.stop();
-            match task {
-                Some(t) => reg.give_back(t.into_loop().into_board(), &robot),
-                None => {
-                    if let Ok(o) = reg.get_mut(&robot) {
-                        o.state = LifecycleState::Unconfigured;
-                    }
-                }
-            }
-            reg.release_users(name);
+            let stopped = running.stop();
+            reg.take_back(stopped, name, false);
             return Err(WireError::Internal(why));
         }
         let o = reg.get_mut(name)?;
@@ -548,30 +549,13 @@ impl Creator {
                 .failure()
                 .unwrap_or_else(|| "a thread failed".into());
             let last = running.shared.newest().map(|n| n.sample);
-            let task = running.stop_failed();
+            let stopped = running.stop_failed();
             let Ok(mut reg) = self.lock() else { return };
-            let stopped = match task {
-                Some(t) => {
-                    let hold = t.holds_with_board_servo();
-                    reg.give_back_after_fault(t.into_loop().into_board(), &robot, hold);
-                    if hold {
-                        "held by its board's servo"
-                    } else {
-                        "zero torque, amplifiers off"
-                    }
-                }
-                None => {
-                    if let Ok(o) = reg.get_mut(&robot) {
-                        o.state = LifecycleState::Unconfigured;
-                    }
-                    "its board went down with the thread; configure the robot again"
-                }
-            };
+            let stopped = reg.take_back(stopped, &name, true);
             log::error!(
                 "node {}: controller `{name}` failed ({cause}); robot `{robot}` stopped: {stopped}",
                 self.config.node
             );
-            reg.release_users(&name);
             if let Ok(o) = reg.get_mut(&name) {
                 o.state = LifecycleState::Error;
                 if let Body::Controller(c) = &mut o.body {
@@ -654,30 +638,24 @@ impl Creator {
     /// back. The registry lock is not held while threads are joined (a sensor feed may be calling
     /// back into this node).
     fn deactivate(&self, name: &str) -> Result<(), WireError> {
-        let (running, robot) = {
+        let running = {
             let mut reg = self.lock()?;
             let o = reg.get_mut(name)?;
             match &mut o.body {
-                Body::Controller(c) => (c.running.take(), c.robot.clone().unwrap_or_default()),
+                Body::Controller(c) => c.running.take(),
                 _ => return Err(WireError::Internal("not a controller".into())),
             }
         };
         let mut last = None;
-        let task = running.and_then(|r| {
+        let stopped = running.map(|r| {
             let shared = r.shared.clone();
-            let task = r.stop();
+            let stopped = r.stop();
             last = shared.newest().map(|n| n.sample);
-            task
+            stopped
         });
         let mut reg = self.lock()?;
-        match task {
-            Some(t) => reg.give_back(t.into_loop().into_board(), &robot),
-            None => {
-                // The control thread died with the board: the robot must be configured again.
-                if let Ok(o) = reg.get_mut(&robot) {
-                    o.state = LifecycleState::Unconfigured;
-                }
-            }
+        if let Some(stopped) = stopped {
+            reg.take_back(stopped, name, false);
         }
         reg.release_users(name);
         let o = reg.get_mut(name)?;

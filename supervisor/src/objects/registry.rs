@@ -9,7 +9,9 @@ use nalgebra::Vector3;
 use penelope_drivers::galil::board::LinkFactory;
 use penelope_drivers::galil::{GalilBoard, GalilBoardConfig, Link, TcpLink};
 use penelope_drivers::model::{self as models, DhRobotModel};
+use penelope_drivers::sim::ToolContact;
 use penelope_drivers::sim::board::{SimBoard, SimBoardConfig as DriverSimConfig};
+use penelope_drivers::sim::operator::VirtualOperator;
 use penelope_drivers::sim::plant::PlantConfig;
 use penelope_hal::{
     AxisState, Board, Dynamics, Frame, InverseKinematics, JacobianFrame, JointState, JointVector,
@@ -19,7 +21,7 @@ use penelope_rt_core::control::{
     AxisBinding, ControlCommand, ControlConfig, ControlLoop, ControlPorts,
 };
 use penelope_rt_core::controller::{JointPid, JointPidGains, JointPositionServo};
-use penelope_rt_core::safety::{HoldMode, SafetyConfig};
+use penelope_rt_core::safety::{HoldMode, Role, SafetyConfig};
 use penelope_rt_core::teleop::{CartesianImpedance, ImpedanceConfig};
 use penelope_rt_core::trajectory::{
     CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
@@ -29,9 +31,14 @@ use super::kinds::{
     self, GalilConfig, GoalConfig, ImpedanceConfigToml, JointPidConfig, JointPositionConfig, Kind,
     LoopTiming, RobotConfig, SensorConfig, SimBoardConfig, TrajectorySpec,
 };
+use super::kinematics::RobotKinematics;
 use super::runtime::{
     CellSensor, ControlTask, GainsUpdate, GalilSet, GoToCommand, LoopBoard, NodeController,
     NodeLoop, NodeSink, NodeTrajectory, SimBody, VirtualSensor,
+};
+use super::teleop::{
+    ForceDisplayToml, HandConfig, HandObj, PositionErrorToml, Side, SlaveTrackingToml, TeleopComm,
+    TeleopConfig, TeleopLink,
 };
 use crate::proto::{
     BoardMethod, Class, ControlStatus, ControllerMethod, JointAxis, Joints, MatrixMsg, ObjectInfo,
@@ -58,10 +65,25 @@ pub(crate) enum Body {
     Sensor(SensorObj),
     Controller(Box<ControllerObj>),
     Trajectory(TrajectoryObj),
+    Hand(Box<HandObj>),
+    Teleop(Box<TeleopObj>),
+}
+
+/// A `trajectory/teleop`: its settings, and its cells once configured.
+pub(crate) struct TeleopObj {
+    pub config: TeleopConfig,
+    pub link: Option<TeleopLink>,
 }
 
 pub(crate) struct RobotObj {
+    /// The float model: dynamics, named poses, encoder scaling, and the simulated body.
     pub model: DhRobotModel,
+    /// What the robot's loops and kinematic methods compute with.
+    pub kinematics: RobotKinematics,
+    /// Master or slave: what its loops' safety does.
+    pub role: Role,
+    /// A master's display caps, N and N·m.
+    pub caps: (f64, f64),
     pub start: NamedPose,
     /// `(board, joints)` in the order given.
     pub maps: Vec<(String, Vec<JointAxis>)>,
@@ -82,10 +104,28 @@ pub(crate) struct SensorObj {
     pub state: Arc<Mutex<VirtualSensor>>,
 }
 
+#[derive(Clone)]
 pub(crate) enum ControllerConfig {
     Pid(JointPidConfig),
     Impedance(ImpedanceConfigToml),
     Position(JointPositionConfig),
+    ForceDisplay(ForceDisplayToml),
+    PositionError(PositionErrorToml),
+    /// The slave half: torques, or position targets for the board's servo (`true`).
+    Tracking(SlaveTrackingToml, bool),
+}
+
+impl ControllerConfig {
+    /// The side of a teleoperation channel the law runs, if it is a teleoperation law.
+    pub fn teleop_side(&self) -> Option<Side> {
+        match self {
+            ControllerConfig::ForceDisplay(_) | ControllerConfig::PositionError(_) => {
+                Some(Side::Master)
+            }
+            ControllerConfig::Tracking(..) => Some(Side::Slave),
+            _ => None,
+        }
+    }
 }
 
 pub(crate) struct ControllerObj {
@@ -149,6 +189,11 @@ impl Object {
                     relations.push(("board".to_string(), format!("{b} [{}]", list.join(" "))));
                 }
             }
+            Body::Hand(h) => relations.push(("robot".to_string(), h.config.robot.clone())),
+            Body::Teleop(t) => {
+                relations.push(("master".to_string(), t.config.master.clone()));
+                relations.push(("slave".to_string(), t.config.slave.clone()));
+            }
             Body::Controller(c) => {
                 for (k, v) in [
                     ("robot", &c.robot),
@@ -188,9 +233,19 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
         Kind::Robot(model) => {
             let cfg: RobotConfig = kinds::parse(k, config)?;
             let start = cfg.start_pose(k)?;
+            let role = cfg.role(k)?;
             let model = models::by_name(model).ok_or_else(|| WireError::UnknownKind(k.into()))?;
+            let kinematics = RobotKinematics::new(model.clone(), cfg.fpga(k)?).map_err(|e| {
+                WireError::BadConfig {
+                    kind: k.into(),
+                    message: e.to_string(),
+                }
+            })?;
             Body::Robot(Box::new(RobotObj {
                 model,
+                kinematics,
+                role,
+                caps: (cfg.max_force_n, cfg.max_moment_nm),
                 start,
                 maps: Vec::new(),
                 body: None,
@@ -230,6 +285,42 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
             let cfg: JointPositionConfig = kinds::parse(k, config)?;
             let timing = cfg.check(k)?;
             controller_body(ControllerConfig::Position(cfg), timing)
+        }
+        Kind::OperatorHand => {
+            let cfg: HandConfig = kinds::parse(k, config)?;
+            let script = cfg.check(k)?;
+            Body::Hand(Box::new(HandObj {
+                config: cfg,
+                script,
+                clutch: Arc::default(),
+            }))
+        }
+        Kind::Teleop => {
+            let cfg: TeleopConfig = kinds::parse(k, config)?;
+            cfg.check(k)?;
+            Body::Teleop(Box::new(TeleopObj {
+                config: cfg,
+                link: None,
+            }))
+        }
+        Kind::ForceDisplay => {
+            let cfg: ForceDisplayToml = kinds::parse(k, config)?;
+            cfg.law(k)?;
+            let timing = cfg.timing(k)?;
+            controller_body(ControllerConfig::ForceDisplay(cfg), timing)
+        }
+        Kind::PositionErrorMaster => {
+            let cfg: PositionErrorToml = kinds::parse(k, config)?;
+            cfg.law(k)?;
+            let timing = cfg.timing(k)?;
+            controller_body(ControllerConfig::PositionError(cfg), timing)
+        }
+        Kind::SlaveTracking | Kind::SlavePosition => {
+            let cfg: SlaveTrackingToml = kinds::parse(k, config)?;
+            let servo = kind == Kind::SlavePosition;
+            cfg.law(k, servo)?;
+            let timing = cfg.timing(k)?;
+            controller_body(ControllerConfig::Tracking(cfg, servo), timing)
         }
         Kind::Step | Kind::Ramp | Kind::Trapezoidal | Kind::Spline => {
             Body::Trajectory(TrajectoryObj {
@@ -363,6 +454,7 @@ impl Registry {
         if let Some(o) = self.objects.get_mut(name) {
             match &mut o.body {
                 Body::Robot(r) => r.body = None,
+                Body::Teleop(t) => t.link = None,
                 Body::Galil(g) => {
                     if let Some(mut b) = g.board.take() {
                         let _ = b.set_enabled(false);
@@ -384,9 +476,8 @@ impl Registry {
                 g.board = Some(open_galil(&g.config)?);
                 Ok(())
             }
-            Kind::JointPid | Kind::CartesianImpedance | Kind::JointPosition => {
-                self.configure_controller(name)
-            }
+            Kind::Teleop => self.configure_teleop(name),
+            _ if kind.class() == Class::Controller => self.configure_controller(name),
             _ => Ok(()),
         }
     }
@@ -472,10 +563,51 @@ impl Registry {
                 position_kd: full * 4.0,
                 velocity_cutoff_hz: 150.0,
             };
-            let body = SimBoard::new(model, plant, board_cfg, env, q0, Timestamp::ZERO);
+            // The operator's hand holds a master's handle; anything else meets the board's
+            // environment (free space without shapes).
+            let hand = self.objects.values().find_map(|o| match &o.body {
+                Body::Hand(h) if h.config.robot == name => Some(h),
+                _ => None,
+            });
+            let contact = match hand {
+                Some(h) => ToolContact::Hand {
+                    operator: VirtualOperator::new(
+                        h.script.clone(),
+                        h.config.impedance(),
+                        model.forward(&q0),
+                        Timestamp::ZERO,
+                    ),
+                    clutch: h.clutch.clone(),
+                },
+                None => ToolContact::Environment(env),
+            };
+            let body = SimBoard::new(model, plant, board_cfg, contact, q0, Timestamp::ZERO);
             if let Body::Robot(r) = &mut self.get_mut(name)?.body {
                 r.body = Some(Box::new(body));
             }
+        }
+        Ok(())
+    }
+
+    fn configure_teleop(&mut self, name: &str) -> Result<(), WireError> {
+        let Body::Teleop(t) = &self.get(name)?.body else {
+            return Err(WireError::Internal("teleop body".into()));
+        };
+        let (master, slave, mapping) = (
+            t.config.master.clone(),
+            t.config.slave.clone(),
+            t.config.mapping(),
+        );
+        self.expect_class(&master, Class::Robot)?;
+        self.expect_class(&slave, Class::Robot)?;
+        penelope_rt_core::teleop::WorkspaceMapping::new(mapping).map_err(|e| {
+            WireError::BadConfig {
+                kind: "trajectory/teleop".into(),
+                message: format!("{e:?}"),
+            }
+        })?;
+        if let Body::Teleop(t) = &mut self.get_mut(name)?.body {
+            t.link = Some(TeleopLink::new());
         }
         Ok(())
     }
@@ -520,11 +652,7 @@ impl Registry {
         let robot_name = c.robot.clone().unwrap_or_default();
         let traj_name = c.trajectory.clone().unwrap_or_default();
         let sensor_name = c.sensor.clone();
-        let law = match &c.config {
-            ControllerConfig::Pid(p) => ControllerConfig::Pid(p.clone()),
-            ControllerConfig::Impedance(i) => ControllerConfig::Impedance(i.clone()),
-            ControllerConfig::Position(p) => ControllerConfig::Position(p.clone()),
-        };
+        let law = c.config.clone();
         let kind = self.get(name)?.kind.as_str();
 
         // The robot and its boards: configured, and no axis driven by another loop.
@@ -593,13 +721,31 @@ impl Registry {
 
         let r = self.robot(&robot_name)?;
         let model = r.model.clone();
+        let kinematics = r.kinematics.clone();
+        let (role, caps) = (r.role, r.caps);
         let n = model.joint_count();
         let start = r.start;
-        let spec = match &self.get(&traj_name)?.body {
-            Body::Trajectory(t) => t.spec.clone(),
+        // A trajectory, or one end of a teleoperation channel for the halves of the laws.
+        let (trajectory, teleop) = match (&self.get(&traj_name)?.body, law.teleop_side()) {
+            (Body::Trajectory(t), None) => (Some(build_trajectory(&t.spec, &model, kind)?), None),
+            (Body::Teleop(t), Some(side)) => {
+                check_teleop_end(&traj_name, t, side, &robot_name)?;
+                (None, Some((side, t.config.mapping())))
+            }
+            (Body::Teleop(_), None) => {
+                return Err(bad_arg(format!(
+                    "`{traj_name}` is a teleoperation channel: it is followed by the halves of \
+                     the teleoperation laws (force-display, position-error-master, \
+                     slave-tracking, slave-position), not by {kind}"
+                )));
+            }
+            (_, Some(_)) => {
+                return Err(bad_arg(format!(
+                    "{kind} follows a trajectory/teleop channel; `{traj_name}` is not one"
+                )));
+            }
             _ => return Err(WireError::Internal("trajectory body".into())),
         };
-        let trajectory = build_trajectory(&spec, &model, kind)?;
 
         // Controller.
         let (controller, hold) = match &law {
@@ -642,10 +788,30 @@ impl Registry {
                     (kp, kd),
                 )
             }
+            ControllerConfig::ForceDisplay(c) => (
+                NodeController::ForceDisplay(c.law(kind)?),
+                slave_hold(&model, n),
+            ),
+            ControllerConfig::PositionError(c) => (
+                NodeController::PositionErrorMaster(c.law(kind)?),
+                slave_hold(&model, n),
+            ),
+            ControllerConfig::Tracking(c, servo) => (
+                NodeController::SlaveTracking(c.law(kind, *servo)?),
+                slave_hold(&model, n),
+            ),
         };
 
-        // Safety and axis bindings.
-        let mut safety = SafetyConfig::slave(n, *model.limits());
+        // Safety by role (a master: display caps, zero force on a stale reference, amplifiers
+        // off on a fault; a slave holds its pose), and axis bindings.
+        let mut safety = match role {
+            Role::Master => {
+                let mut s = SafetyConfig::master(n, *model.limits());
+                (s.max_force, s.max_moment) = caps;
+                s
+            }
+            Role::Slave => SafetyConfig::slave(n, *model.limits()),
+        };
         safety.watchdog = timing.watchdog;
         let mut config = ControlConfig::new(timing.period, safety);
         let r = self.robot(&robot_name)?;
@@ -725,7 +891,7 @@ impl Registry {
             commands: cmd_r,
         };
         let cartesian = controller.is_cartesian();
-        let lp = match ControlLoop::new(config, board, model.clone(), [controller], ports) {
+        let lp = match ControlLoop::new(config, board, kinematics.clone(), [controller], ports) {
             Ok(l) => l,
             Err(e) => return Err(WireError::Internal(format!("control loop: {e}"))),
         };
@@ -741,14 +907,44 @@ impl Registry {
             (NodeLoop::Plain(Box::new(lp)), None)
         };
         let _ = cmd_w.push(ControlCommand::Activate);
-        let comm = super::runtime::CommTask::new(
-            trajectory,
-            ref_w,
-            comm_r,
-            goto_r,
-            model.clone(),
-            cartesian,
-        );
+        let comm = match (trajectory, teleop) {
+            (Some(trajectory), _) => super::runtime::CommTask::new(
+                trajectory,
+                ref_w,
+                comm_r,
+                goto_r,
+                kinematics.clone(),
+                cartesian,
+            ),
+            (None, Some((side, mapping))) => {
+                // The master's clutch is its operator's hand's button, if a hand holds it.
+                let clutch = self.objects.values().find_map(|o| match &o.body {
+                    Body::Hand(h) if side == Side::Master && h.config.robot == robot_name => {
+                        Some(h.clutch.clone())
+                    }
+                    _ => None,
+                });
+                let Some(Body::Teleop(t)) = self.objects.get_mut(&traj_name).map(|o| &mut o.body)
+                else {
+                    return Err(WireError::Internal("teleop body".into()));
+                };
+                let link = t
+                    .link
+                    .as_mut()
+                    .ok_or_else(|| WireError::Internal("teleop link".into()))?;
+                let end = link
+                    .take(side)
+                    .ok_or_else(|| WireError::Internal("teleop end".into()))?;
+                super::runtime::CommTask::teleop(
+                    TeleopComm::new(end, mapping, kinematics.clone())?.with_clutch(clutch),
+                    ref_w,
+                    comm_r,
+                    goto_r,
+                    kinematics.clone(),
+                )?
+            }
+            (None, None) => return Err(WireError::Internal("no reference source".into())),
+        };
         let source = match (&sensor_name, local_sensor) {
             (Some(path), None) => {
                 launch
@@ -786,10 +982,65 @@ impl Registry {
             probe: probe_r,
             wrench: wrench_w,
             source,
-            model,
+            model: kinematics,
             joints: n,
             timing,
         })
+    }
+
+    /// Takes a stopped loop of `controller` back: its board to the robot's objects (amplifiers
+    /// off, or, `after_fault` on a board with its own servo, still holding), its teleoperation
+    /// channel's end to the channel, and clears the users. What a thread took down with it is
+    /// marked `unconfigured` (configure it again). Returns how the robot was left, in words.
+    pub fn take_back(
+        &mut self,
+        stopped: super::runtime::StoppedLoop,
+        controller: &str,
+        after_fault: bool,
+    ) -> &'static str {
+        let (robot, trajectory) = match self.objects.get(controller).map(|o| &o.body) {
+            Some(Body::Controller(c)) => (
+                c.robot.clone().unwrap_or_default(),
+                c.trajectory.clone().unwrap_or_default(),
+            ),
+            _ => (String::new(), String::new()),
+        };
+        let said = match stopped.control {
+            Some(t) => {
+                let hold = after_fault && t.holds_with_board_servo();
+                self.give_back_after_fault(t.into_loop().into_board(), &robot, hold);
+                if hold {
+                    "held by its board's servo"
+                } else {
+                    "zero torque, amplifiers off"
+                }
+            }
+            None => {
+                if let Ok(o) = self.get_mut(&robot) {
+                    o.state = LifecycleState::Unconfigured;
+                }
+                "its board went down with the thread; configure the robot again"
+            }
+        };
+        let end = stopped.comm.and_then(|c| c.into_teleop_end());
+        if let Some(Object {
+            body: Body::Teleop(t),
+            state,
+            ..
+        }) = self.objects.get_mut(&trajectory)
+            && let Some(link) = t.link.as_mut()
+        {
+            match end {
+                Some(end) => link.put_back(end),
+                None => {
+                    // The end went down with its thread: new cells at the next configure.
+                    t.link = None;
+                    *state = LifecycleState::Unconfigured;
+                }
+            }
+        }
+        self.release_users(controller);
+        said
     }
 
     /// Gives a stopped loop's board back to the objects it came from, amplifiers off.
@@ -958,12 +1209,15 @@ impl Registry {
             RobotMethod::ForwardKinematics { q } => {
                 let q = self.q_or_measured(name, &q)?;
                 Ok(Reply::Pose(PoseMsg::from(
-                    &self.robot(name)?.model.forward(&q),
+                    &self.robot(name)?.kinematics.forward(&q),
                 )))
             }
             RobotMethod::Jacobian { q } => {
                 let q = self.q_or_measured(name, &q)?;
-                let j = self.robot(name)?.model.jacobian(&q, JacobianFrame::Base);
+                let j = self
+                    .robot(name)?
+                    .kinematics
+                    .jacobian(&q, JacobianFrame::Base);
                 Ok(Reply::Matrix(MatrixMsg::from_block(&j, 6, n)))
             }
             RobotMethod::JacobianInverse { q, damping } => {
@@ -1048,6 +1302,12 @@ impl Registry {
                     ))
                 })?;
                 let c = self.controller_mut(&driver)?;
+                if c.config.teleop_side().is_some() {
+                    return Err(not_ready(format!(
+                        "robot `{name}` follows a teleoperation channel (`{driver}`): it goes \
+                         where the other side takes it"
+                    )));
+                }
                 let run = c
                     .running
                     .as_mut()
@@ -1227,8 +1487,19 @@ impl Registry {
         if o.state == LifecycleState::Unconfigured {
             return Err(not_ready(format!("sensor `{name}` is not configured")));
         }
-        let Body::Sensor(s) = &o.body else {
-            return Err(WireError::Internal("sensor body".into()));
+        let s = match &o.body {
+            Body::Sensor(s) => s,
+            Body::Hand(h) => {
+                return Err(WireError::Unsupported {
+                    kind: o.kind.as_str().into(),
+                    method: format!(
+                        "{m:?} (the hand pushes `{}`'s simulated handle; what it feels is in \
+                         that robot's telemetry)",
+                        h.config.robot
+                    ),
+                });
+            }
+            _ => return Err(WireError::Internal("sensor body".into())),
         };
         let state = s.state.clone();
         let mut st = state
@@ -1260,8 +1531,17 @@ impl Registry {
         m: TrajectoryMethod,
     ) -> Result<Reply, WireError> {
         let o = self.expect_class(name, Class::Trajectory)?;
-        let Body::Trajectory(t) = &o.body else {
-            return Err(WireError::Internal("trajectory body".into()));
+        let t = match &o.body {
+            Body::Trajectory(t) => t,
+            Body::Teleop(_) => {
+                return Err(WireError::Unsupported {
+                    kind: o.kind.as_str().into(),
+                    method: format!(
+                        "{m:?} (a teleoperation channel's reference is what the other side sends)"
+                    ),
+                });
+            }
+            _ => return Err(WireError::Internal("trajectory body".into())),
         };
         let spec = t.spec.clone();
         let kind = o.kind.as_str();
@@ -1400,6 +1680,16 @@ impl Registry {
                                     .into(),
                         });
                     }
+                    ControllerConfig::ForceDisplay(_)
+                    | ControllerConfig::PositionError(_)
+                    | ControllerConfig::Tracking(..) => {
+                        return Err(WireError::Unsupported {
+                            kind: k.to_string(),
+                            method: "set-gains (a teleoperation law's gains are set at creation, \
+                                     in its configuration)"
+                                .into(),
+                        });
+                    }
                     ControllerConfig::Impedance(i) => {
                         let new: ImpedanceConfigToml = kinds::parse(k, &gains)?;
                         new.check(k)?;
@@ -1465,6 +1755,45 @@ impl Registry {
     }
 }
 
+/// The default gains a loop on a simulated body holds its pose with.
+fn slave_hold(model: &DhRobotModel, n: usize) -> (JointVector, JointVector) {
+    let mut kp = JointVector::zeros();
+    let mut kd = JointVector::zeros();
+    for j in 0..n {
+        kp[j] = 10.0 * finite_effort(model, j);
+        kd[j] = 0.5 * finite_effort(model, j);
+    }
+    (kp, kd)
+}
+
+/// Checks that the controller on `robot` may run `side` of channel `name`, and that the end is
+/// free.
+fn check_teleop_end(name: &str, t: &TeleopObj, side: Side, robot: &str) -> Result<(), WireError> {
+    let (expected, word) = match side {
+        Side::Master => (&t.config.master, "master"),
+        Side::Slave => (&t.config.slave, "slave"),
+    };
+    if expected != robot {
+        return Err(bad_arg(format!(
+            "this law is a {word} half, and the {word} of `{name}` is `{expected}`, not `{robot}`"
+        )));
+    }
+    let link = t
+        .link
+        .as_ref()
+        .ok_or_else(|| not_ready(format!("channel `{name}` is not configured")))?;
+    let free = match side {
+        Side::Master => link.master.is_some(),
+        Side::Slave => link.slave.is_some(),
+    };
+    if !free {
+        return Err(not_ready(format!(
+            "the {word} end of `{name}` is held by a running loop"
+        )));
+    }
+    Ok(())
+}
+
 fn unreachable_body<T>() -> Result<T, WireError> {
     Err(WireError::Internal("object body changed".into()))
 }
@@ -1497,7 +1826,7 @@ pub(crate) struct Built {
         >,
     >,
     pub source: Option<super::runtime::SensorSource>,
-    pub model: DhRobotModel,
+    pub model: RobotKinematics,
     pub joints: usize,
     pub timing: LoopTiming,
 }

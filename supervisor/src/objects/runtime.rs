@@ -25,6 +25,7 @@ use std::time::Duration;
 use nalgebra::Vector3;
 use penelope_drivers::galil::{GalilBoard, GalilBoardError};
 use penelope_drivers::model::DhRobotModel;
+use penelope_drivers::sim::ToolContact;
 use penelope_drivers::sim::board::{SimBoard, SimBoardError};
 use penelope_drivers::sim::environment::Environment;
 use penelope_hal::{
@@ -40,11 +41,15 @@ use penelope_rt_core::controller::{JointPid, JointPidGains, JointPositionServo};
 use penelope_rt_core::exec::{Flow, PeriodicThread};
 use penelope_rt_core::ring::{ArcConsumer, ArcProducer};
 use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
-use penelope_rt_core::teleop::{CartesianImpedance, ImpedanceConfig};
+use penelope_rt_core::teleop::{
+    CartesianImpedance, ForceDisplay, ImpedanceConfig, PositionErrorMaster, SlaveTracking,
+};
 use penelope_rt_core::trajectory::{
     CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
 };
 
+use super::kinematics::RobotKinematics;
+use super::teleop::TeleopComm;
 use crate::proto::{
     Method, PoseMsg, Reply, SensorMethod, ServerMsg, TelemetryBatch, TelemetryRecord, WireError,
     WrenchMsg, joints_from_vector,
@@ -63,7 +68,7 @@ pub const SPLINE_CAPACITY: usize = crate::objects::kinds::MAX_WAYPOINTS;
 /// A robot's simulated body: the rigid-body plant of its whole chain behind a simulated board
 /// whose axes are the robot's joints in order (joints are dynamically coupled, so a robot whose
 /// joints are spread over several simulated boards is still one plant).
-pub type SimBody = SimBoard<DhRobotModel, Environment>;
+pub type SimBody = SimBoard<DhRobotModel, ToolContact>;
 
 // ---------------------------------------------------------------------------------------------
 // The board a loop drives
@@ -254,7 +259,9 @@ impl Board for LoopBoard {
 // Controllers
 // ---------------------------------------------------------------------------------------------
 
-/// The control laws a node runs.
+/// The control laws a node runs. Inline, not boxed: one per loop, built before its thread
+/// starts, and the control thread must reach it without a pointer chase.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum NodeController {
     /// `controller/joint-pid`.
@@ -263,12 +270,30 @@ pub enum NodeController {
     Impedance(CartesianImpedance),
     /// `controller/joint-position`.
     Position(JointPositionServo),
+    /// `controller/force-display`.
+    ForceDisplay(ForceDisplay),
+    /// `controller/position-error-master`.
+    PositionErrorMaster(PositionErrorMaster),
+    /// `controller/slave-tracking` and `controller/slave-position`.
+    SlaveTracking(SlaveTracking),
 }
 
 impl NodeController {
     /// True when the law follows Cartesian references.
     pub fn is_cartesian(&self) -> bool {
         matches!(self, NodeController::Impedance(_))
+    }
+
+    /// The law's inner controller.
+    fn inner(&mut self) -> &mut dyn Controller {
+        match self {
+            NodeController::Pid(c) => c,
+            NodeController::Impedance(c) => c,
+            NodeController::Position(c) => c,
+            NodeController::ForceDisplay(c) => c,
+            NodeController::PositionErrorMaster(c) => c,
+            NodeController::SlaveTracking(c) => c,
+        }
     }
 
     /// Applies new gains of the same law (others are ignored).
@@ -294,21 +319,16 @@ impl Controller for NodeController {
             NodeController::Pid(c) => c.kind(),
             NodeController::Impedance(c) => c.kind(),
             NodeController::Position(c) => c.kind(),
+            NodeController::ForceDisplay(c) => c.kind(),
+            NodeController::PositionErrorMaster(c) => c.kind(),
+            NodeController::SlaveTracking(c) => c.kind(),
         }
     }
     fn activate(&mut self, now: Timestamp, measured: &JointState, model: &dyn RobotModel) {
-        match self {
-            NodeController::Pid(c) => c.activate(now, measured, model),
-            NodeController::Impedance(c) => c.activate(now, measured, model),
-            NodeController::Position(c) => c.activate(now, measured, model),
-        }
+        self.inner().activate(now, measured, model);
     }
     fn update(&mut self, input: &ControlInput<'_>) -> Result<JointCommand, ControllerError> {
-        match self {
-            NodeController::Pid(c) => c.update(input),
-            NodeController::Impedance(c) => c.update(input),
-            NodeController::Position(c) => c.update(input),
-        }
+        self.inner().update(input)
     }
 }
 
@@ -502,7 +522,7 @@ impl Sensor for CellSensor {
 // ---------------------------------------------------------------------------------------------
 
 type Loop<F> =
-    ControlLoop<LoopBoard, DhRobotModel, [NodeController; 1], RefReader, NodeSink, Commands, F>;
+    ControlLoop<LoopBoard, RobotKinematics, [NodeController; 1], RefReader, NodeSink, Commands, F>;
 
 /// A node's control loop, with or without a force sensor.
 pub enum NodeLoop {
@@ -611,11 +631,13 @@ impl ControlTask {
 /// converts joint references to Cartesian ones for a Cartesian law (forward kinematics and
 /// `J qd`), and publishes the stamped reference. Like rt-core's `CommLoop`, plus the conversion.
 pub struct CommTask {
+    /// A teleoperation channel's end, when the trajectory is a `trajectory/teleop`.
+    teleop: Option<Box<TeleopComm>>,
     trajectory: NodeTrajectory,
     writer: RefWriter,
     state: ArcLatestReader<TelemetrySample>,
     goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
-    model: DhRobotModel,
+    model: RobotKinematics,
     cartesian: bool,
     started: bool,
     last: Option<JointReference>,
@@ -630,10 +652,11 @@ impl CommTask {
         writer: RefWriter,
         state: ArcLatestReader<TelemetrySample>,
         goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
-        model: DhRobotModel,
+        model: RobotKinematics,
         cartesian: bool,
     ) -> Self {
         CommTask {
+            teleop: None,
             trajectory,
             writer,
             state,
@@ -645,6 +668,30 @@ impl CommTask {
             measured: None,
             published: 0,
         }
+    }
+
+    /// A task running one end of a teleoperation channel instead of a trajectory (GoTo
+    /// requests are refused by the creator before they reach it).
+    ///
+    /// # Errors
+    /// None in practice (the idle trajectory is built from constants); typed all the same.
+    pub fn teleop(
+        teleop: TeleopComm,
+        writer: RefWriter,
+        state: ArcLatestReader<TelemetrySample>,
+        goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
+        model: RobotKinematics,
+    ) -> Result<Self, WireError> {
+        // Never ticked: the channel end produces the references.
+        let idle = NodeTrajectory::go_to(JointVector::zeros(), Duration::from_secs(1))?;
+        let mut task = CommTask::new(idle, writer, state, goto, model, true);
+        task.teleop = Some(Box::new(teleop));
+        Ok(task)
+    }
+
+    /// The teleoperation channel's end, given back when the loop stops.
+    pub fn into_teleop_end(self) -> Option<super::teleop::TeleopEnd> {
+        self.teleop.map(|t| t.into_end())
     }
 
     fn from(&self) -> Reference {
@@ -659,6 +706,12 @@ impl CommTask {
     /// # Real-time
     /// No allocation, no locks: cell reads and writes, one ring pop, bounded spline set-up.
     pub fn tick(&mut self, now: Timestamp) {
+        if let Some(t) = self.teleop.as_mut() {
+            let state = self.state.latest();
+            t.tick(now, state, &mut self.writer);
+            self.published += 1;
+            return;
+        }
         if let Some(s) = self.state.latest() {
             self.measured = Some(s.q);
         }
@@ -833,7 +886,7 @@ pub struct FeedStats {
 #[allow(clippy::too_many_arguments)]
 pub fn run_sensor_feed(
     source: &SensorSource,
-    model: &DhRobotModel,
+    model: &RobotKinematics,
     state: &mut ArcLatestReader<TelemetrySample>,
     out: &mut ArcLatestWriter<Stamped<Wrench>>,
     period: Duration,
@@ -1097,6 +1150,10 @@ pub struct Running {
     pub control_back: Receiver<ControlTask>,
     /// The communication thread.
     pub comm: Option<PeriodicThread>,
+    /// Asks the communication thread to hand its task back and stop.
+    pub comm_stop: Arc<AtomicBool>,
+    /// Where the communication thread hands its task back.
+    pub comm_back: Receiver<CommTask>,
     /// Commands to the loop.
     pub commands: ArcProducer<penelope_rt_core::control::ControlCommand, COMMAND_CAPACITY>,
     /// GoTo requests to the communication task.
@@ -1159,25 +1216,36 @@ impl Running {
     /// Stops the threads of a loop that failed (its control thread already brought the robot
     /// to its safe state, or is told to now) and returns the control task (`None` if its
     /// thread died with it).
-    pub fn stop_failed(mut self) -> Option<ControlTask> {
+    pub fn stop_failed(mut self) -> StoppedLoop {
         if let Some(cause) = self.failure() {
             self.fault.record(cause);
         }
         // The control thread sees the failure on its next tick, stops the robot and hands
         // the task back.
-        let task = self.control_back.recv_timeout(Duration::from_secs(2)).ok();
+        let control = self.control_back.recv_timeout(Duration::from_secs(2)).ok();
         self.control_stop.store(true, Ordering::Release);
-        self.join_all();
-        task
+        let comm = self.join_all();
+        StoppedLoop { control, comm }
     }
 
-    fn join_all(&mut self) {
+    /// Joins every thread; returns the communication task if its thread handed it back.
+    fn join_all(&mut self) -> Option<CommTask> {
         if let Some(t) = self.control.take() {
             let _ = t.join();
         }
-        if let Some(t) = self.comm.take() {
-            let _ = t.stop_and_join();
-        }
+        self.comm_stop.store(true, Ordering::Release);
+        let comm = match self.comm.take() {
+            Some(t) if !t.is_finished() => {
+                let task = self.comm_back.recv_timeout(Duration::from_secs(2)).ok();
+                let _ = t.join();
+                task
+            }
+            Some(t) => {
+                let _ = t.join();
+                self.comm_back.try_recv().ok()
+            }
+            None => None,
+        };
         self.aux_stop.store(true, Ordering::Release);
         if let Some(t) = self.feed.take() {
             let _ = t.join();
@@ -1185,19 +1253,20 @@ impl Running {
         if let Some(t) = self.pump.take() {
             let _ = t.join();
         }
+        comm
     }
 
     /// Stops everything: `Deactivate` to the loop (amplifiers off), a few periods for it to take
-    /// effect, then the threads are joined. Returns the control task (`None` if its thread died).
-    pub fn stop(mut self) -> Option<ControlTask> {
+    /// effect, then the threads are joined. Returns the tasks (`None` where a thread died).
+    pub fn stop(mut self) -> StoppedLoop {
         let _ = self
             .commands
             .push(penelope_rt_core::control::ControlCommand::Deactivate);
         std::thread::sleep((self.period * 4).max(Duration::from_millis(5)));
         self.control_stop.store(true, Ordering::Release);
-        let task = self.control_back.recv_timeout(Duration::from_secs(2)).ok();
-        self.join_all();
-        task
+        let control = self.control_back.recv_timeout(Duration::from_secs(2)).ok();
+        let comm = self.join_all();
+        StoppedLoop { control, comm }
     }
 }
 
@@ -1331,22 +1400,46 @@ pub fn control_body(
     }
 }
 
-/// The body of a communication thread: ticks `comm` until stopped; a panicking tick records
-/// the cause in `fault` (the control thread then stops the robot safely) and ends the thread.
+/// The body of a communication thread: ticks `comm` until `stop`, then hands it back through
+/// `back` (it may hold a teleoperation channel's end); a panicking tick records the cause in
+/// `fault` (the control thread then stops the robot safely) and ends the thread.
 pub fn comm_body(
-    mut comm: CommTask,
+    comm: CommTask,
     fault: Arc<LoopFault>,
+    stop: Arc<AtomicBool>,
+    back: SyncSender<CommTask>,
 ) -> impl FnMut(penelope_rt_core::exec::Tick) -> Flow + Send + 'static {
-    move |tick| match guarded(|| {
-        fault.injected(LoopThread::Communication);
-        comm.tick(tick.deadline)
-    }) {
-        Ok(()) => Flow::Continue,
-        Err(why) => {
-            fault.record(format!("the communication thread panicked: {why}"));
-            Flow::Stop
+    let mut comm = Some(comm);
+    move |tick| {
+        let Some(c) = comm.as_mut() else {
+            return Flow::Stop;
+        };
+        if stop.load(Ordering::Acquire) {
+            if let Some(c) = comm.take() {
+                let _ = back.try_send(c);
+            }
+            return Flow::Stop;
+        }
+        match guarded(|| {
+            fault.injected(LoopThread::Communication);
+            c.tick(tick.deadline)
+        }) {
+            Ok(()) => Flow::Continue,
+            Err(why) => {
+                fault.record(format!("the communication thread panicked: {why}"));
+                Flow::Stop
+            }
         }
     }
+}
+
+/// What a stopped loop hands back: its control task (with the board) and its communication
+/// task (with a teleoperation channel's end), each `None` if its thread died with it.
+pub struct StoppedLoop {
+    /// The control task.
+    pub control: Option<ControlTask>,
+    /// The communication task.
+    pub comm: Option<CommTask>,
 }
 
 #[cfg(test)]
@@ -1370,7 +1463,7 @@ mod tests {
                 position_kd: JointVector::repeat(1.0),
                 velocity_cutoff_hz: 0.0,
             },
-            Environment::new(),
+            ToolContact::Environment(Environment::new()),
             JointVector::zeros(),
             Timestamp::ZERO,
         );

@@ -3,16 +3,17 @@
 //! ```text
 //! penelope node --name lab-a --host-naming                     # hosts the naming service on :7300
 //! penelope node --name lab-b --naming 127.0.0.1:7300           # registers in it
-//! penelope node --name lab-b --config config/node-example.toml # objects up at start
+//! penelope node --name lab --config config/teleop.toml       # objects up at start
 //! penelope node --name lab-c --listen 0.0.0.0:7302 --advertise 10.0.0.3:7302 \
 //!     --naming 10.0.0.1:7300 --secret-file lab.secret          # a LAN needs the shared secret
 //! ```
 //!
 //! At start only the node's creator exists, bound at `/<name>/creator`. With `--config`, the
-//! objects of a node file are created, related and brought to their states; the format is
-//! documented in [`penelope_supervisor::node`] (`NodeFile`), with an example at
-//! `config/node-example.toml`. The node runs until Ctrl-C or SIGTERM, then deactivates every loop
-//! (amplifiers off) and unregisters from the naming service.
+//! objects a system file places on this node are created, related, configured and activated;
+//! the format is documented in [`penelope_supervisor::system`], with examples at
+//! `config/teleop.toml` (the paper's task) and `config/node-example.toml`. The node runs until
+//! Ctrl-C or SIGTERM, then deactivates every loop (amplifiers off) and unregisters from the
+//! naming service.
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -20,8 +21,9 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::Context as _;
-use penelope_supervisor::node::{NamingChoice, Node, NodeConfig, NodeFile};
+use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::proto::DEFAULT_PORT;
+use penelope_supervisor::system::SystemFile;
 
 use super::naming::{block_stop_signals, read_secret, refuse_open_listen, wait_for_stop};
 
@@ -45,15 +47,17 @@ pub struct Args {
     /// Host the naming service in this node.
     #[arg(long)]
     pub host_naming: bool,
-    /// A node file: objects to create, relate and bring up at start.
+    /// A system file: the objects it places on this node are created, related, configured and
+    /// activated at start (its `[nodes.NAME]` real-time policy applies unless overridden here).
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
     /// File holding the shared secret of the system (its bytes, a trailing newline ignored).
     #[arg(long, value_name = "FILE")]
     pub secret_file: Option<PathBuf>,
-    /// SCHED_FIFO priority of the control threads (1-99; 0: normal scheduling).
-    #[arg(long, value_name = "N", default_value_t = 80, value_parser = clap::value_parser!(u8).range(0..=99))]
-    pub priority: u8,
+    /// SCHED_FIFO priority of the control threads (1-99; 0: normal scheduling) [default: the
+    /// system file's, else 80].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(0..=99))]
+    pub priority: Option<u8>,
     /// Pin the control threads to this CPU.
     #[arg(long, value_name = "N")]
     pub cpu: Option<usize>,
@@ -76,10 +80,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let file = match &args.config {
         Some(path) => {
             let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading the node file {}", path.display()))?;
+                .with_context(|| format!("reading the system file {}", path.display()))?;
             Some(
-                NodeFile::parse(&text)
-                    .map_err(|e| crate::cmd::usage(format!("node file {}: {e}", path.display())))?,
+                SystemFile::parse(&text)
+                    .map_err(|e| crate::cmd::usage(format!("{}: {e}", path.display())))?,
             )
         }
         None => None,
@@ -94,9 +98,18 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     config.advertise = args.advertise;
     config.secret = secret;
     config.lease = Duration::from_millis(args.lease_ms);
-    config.creator.rt.priority = (args.priority > 0).then_some(args.priority);
-    config.creator.rt.cpu = args.cpu;
-    config.creator.rt.lock_memory = args.lock_memory;
+    // The system file's policy for this node, then what the command line says.
+    let mut rt = file.as_ref().map_or(config.creator.rt, |f| {
+        f.policy(&args.name, config.creator.rt)
+    });
+    if let Some(p) = args.priority {
+        rt.priority = (p > 0).then_some(p);
+    }
+    if args.cpu.is_some() {
+        rt.cpu = args.cpu;
+    }
+    rt.lock_memory |= args.lock_memory;
+    config.creator.rt = rt;
 
     let signals = block_stop_signals()?;
     let node = Node::start(config).map_err(|e| match e {
@@ -129,7 +142,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             }
             Err(e) => {
                 node.shutdown();
-                return Err(anyhow::Error::new(e).context("applying the node file"));
+                return Err(anyhow::Error::new(e).context("applying the system file"));
             }
         }
     }

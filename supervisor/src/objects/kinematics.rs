@@ -1,5 +1,6 @@
-//! The robot model a lab robot runs on: the float model, or (for the FRHC) the bit-exact FPGA
-//! kinematics with the float dynamics.
+//! The model a robot's loops compute with, chosen by the robot's `kinematics` key: the float
+//! model, or (for the FRHC) the bit-exact FPGA kinematics with the float dynamics. Plants behind
+//! simulated boards are physics and always use the float model.
 
 use penelope_drivers::model::DhRobotModel;
 use penelope_fpga::FpgaKinematics;
@@ -8,9 +9,9 @@ use penelope_hal::{
     JointSpaceMatrix, JointVector, Kinematics, KinematicsError, Pose, RobotModel,
 };
 
-/// A robot model chosen by configuration.
+/// A robot model with the kinematics its configuration chose.
 #[derive(Clone, Debug)]
-pub enum LabModel {
+pub enum RobotKinematics {
     /// Float kinematics and dynamics.
     Float(DhRobotModel),
     /// Forward kinematics and Jacobian from the bit-exact model of the FPGA board; inverse
@@ -39,19 +40,19 @@ impl std::fmt::Display for NoFpgaModel {
 
 impl std::error::Error for NoFpgaModel {}
 
-impl LabModel {
+impl RobotKinematics {
     /// The model for `float` with the kinematics the configuration chose.
     ///
     /// # Errors
     /// [`NoFpgaModel`] when `fpga` is asked for a robot other than the FRHC.
     pub fn new(float: DhRobotModel, fpga: bool) -> Result<Self, NoFpgaModel> {
         if !fpga {
-            return Ok(LabModel::Float(float));
+            return Ok(RobotKinematics::Float(float));
         }
         if float.name() != "frhc" {
             return Err(NoFpgaModel(float.name().to_string()));
         }
-        Ok(LabModel::Fpga {
+        Ok(RobotKinematics::Fpga {
             fpga: Box::new(FpgaKinematics::frhc()),
             float,
         })
@@ -60,31 +61,31 @@ impl LabModel {
     /// The underlying float model (dynamics, named poses, encoder scaling).
     pub fn float(&self) -> &DhRobotModel {
         match self {
-            LabModel::Float(m) => m,
-            LabModel::Fpga { float, .. } => float,
+            RobotKinematics::Float(m) => m,
+            RobotKinematics::Fpga { float, .. } => float,
         }
     }
 }
 
-impl Kinematics for LabModel {
+impl Kinematics for RobotKinematics {
     fn joint_count(&self) -> usize {
         self.float().joint_count()
     }
     fn forward(&self, q: &JointVector) -> Pose {
         match self {
-            LabModel::Float(m) => m.forward(q),
-            LabModel::Fpga { fpga, .. } => fpga.forward(q),
+            RobotKinematics::Float(m) => m.forward(q),
+            RobotKinematics::Fpga { fpga, .. } => fpga.forward(q),
         }
     }
     fn jacobian(&self, q: &JointVector, frame: JacobianFrame) -> Jacobian {
         match self {
-            LabModel::Float(m) => m.jacobian(q, frame),
-            LabModel::Fpga { fpga, .. } => fpga.jacobian(q, frame),
+            RobotKinematics::Float(m) => m.jacobian(q, frame),
+            RobotKinematics::Fpga { fpga, .. } => fpga.jacobian(q, frame),
         }
     }
 }
 
-impl InverseKinematics for LabModel {
+impl InverseKinematics for RobotKinematics {
     fn inverse_all(&self, target: &Pose, out: &mut IkSolutions) -> Result<usize, KinematicsError> {
         self.float().inverse_all(target, out)
     }
@@ -97,7 +98,7 @@ impl InverseKinematics for LabModel {
     }
 }
 
-impl Dynamics for LabModel {
+impl Dynamics for RobotKinematics {
     fn gravity(&self, q: &JointVector) -> JointVector {
         self.float().gravity(q)
     }
@@ -117,7 +118,7 @@ impl Dynamics for LabModel {
     }
 }
 
-impl RobotModel for LabModel {
+impl RobotModel for RobotKinematics {
     fn limits(&self) -> &JointLimits {
         self.float().limits()
     }

@@ -1,9 +1,9 @@
-//! The virtual operator's built-in scripts.
+//! The virtual operator's built-in scripts (the demo's, by name), and the names of their phases.
 
 use core::time::Duration;
 
+use super::operator::{Motion, OperatorScript, Segment};
 use nalgebra::Vector3;
-use penelope_drivers::sim::operator::{Motion, OperatorScript, Segment};
 
 /// Phases in which the slave moves freely (no contact, no clutch): where tracking and drag are
 /// measured.

@@ -1,0 +1,546 @@
+//! Teleoperation as objects: the channel between a master and a slave (`trajectory/teleop`,
+//! the paper's Trajectory object that links the two sides), the communication-thread end each
+//! side runs, and the operator's hand that holds a simulated master (`sensor/operator-hand`).
+//!
+//! ```text
+//!  master comm: pose + clutch ──master_to_slave cell──> slave comm: TeleopChannel (MasterToSlave)
+//!  master comm: TeleopChannel (SlaveToMaster) <──slave_to_master cell── slave comm: pose + wrench
+//! ```
+//!
+//! One channel object holds both directions; a controller on its master robot takes the master
+//! end, a controller on its slave robot the slave end. Each end is a pair of lock-free latest-
+//! value cells (newest wins, as on the UDP data plane between nodes); the communication thread
+//! that holds it gives it back when its loop stops, so the channel can be used again.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use nalgebra::UnitQuaternion;
+use penelope_drivers::sim::operator::{HandImpedance, OperatorScript};
+use penelope_drivers::sim::scripts;
+use penelope_hal::{
+    CartesianReference, Frame, HybridReference, Kinematics, Reference, Timestamp, Twist, Wrench,
+};
+use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, Stamped, latest};
+use penelope_rt_core::telemetry::TelemetrySample;
+use penelope_rt_core::teleop::{
+    ChannelConfig, ChannelDirection, ForceDisplay, ForceDisplayConfig, ImpedanceConfig,
+    MappingConfig, PositionErrorMaster, SlaveTracking, TeleopChannel, TeleopSample, TrackingConfig,
+    TrackingOutput,
+};
+use serde::Deserialize;
+
+use super::kinematics::RobotKinematics;
+use crate::proto::WireError;
+
+/// `trajectory/teleop` configuration.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TeleopConfig {
+    /// The master robot (a name on this node).
+    pub master: String,
+    /// The slave robot (a name on this node).
+    pub slave: String,
+    /// Slave motion = scale × master motion.
+    pub scale: f64,
+    /// Displayed force = force_gain × mapped slave force.
+    pub force_gain: f64,
+    /// Displayed moment = torque_gain × mapped slave moment.
+    pub torque_gain: f64,
+    /// Master base frame to slave base frame, roll-pitch-yaw, degrees.
+    pub rotation_rpy_deg: [f64; 3],
+}
+
+impl Default for TeleopConfig {
+    fn default() -> Self {
+        TeleopConfig {
+            master: String::new(),
+            slave: String::new(),
+            scale: 1.0,
+            force_gain: 0.5,
+            torque_gain: 0.5,
+            rotation_rpy_deg: [0.0; 3],
+        }
+    }
+}
+
+/// What `ctl kinds` lists for `trajectory/teleop`.
+pub const TELEOP_KEYS: &str = r#"
+master = "frhc"                     # the master robot (a name on this node)
+slave = "puma"                      # the slave robot
+scale = 1.0                         # slave motion = scale x master motion
+force_gain = 0.5                    # displayed force = force_gain x mapped sensor force
+torque_gain = 0.5                   # displayed moment = torque_gain x mapped sensor moment
+rotation_rpy_deg = [0.0, 0.0, 0.0]  # master base frame -> slave base frame
+"#;
+
+impl TeleopConfig {
+    /// Checks the keys.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<(), WireError> {
+        let bad = |message: String| WireError::BadConfig {
+            kind: kind.into(),
+            message,
+        };
+        if self.master.is_empty() || self.slave.is_empty() {
+            return Err(bad("needs `master` and `slave` (robot names)".into()));
+        }
+        if self.master == self.slave {
+            return Err(bad("`master` and `slave` are the same robot".into()));
+        }
+        for (key, v, lo, hi) in [
+            ("scale", self.scale, 1e-3, 1e3),
+            ("force_gain", self.force_gain, 0.0, 1e3),
+            ("torque_gain", self.torque_gain, 0.0, 1e3),
+        ] {
+            if !(v.is_finite() && v >= lo && v <= hi) {
+                return Err(bad(format!("`{key}` = {v} is outside {lo}..={hi}")));
+            }
+        }
+        if self.rotation_rpy_deg.iter().any(|a| !a.is_finite()) {
+            return Err(bad("`rotation_rpy_deg` must be finite".into()));
+        }
+        Ok(())
+    }
+
+    /// The workspace mapping.
+    pub fn mapping(&self) -> MappingConfig {
+        let [r, p, y] = self.rotation_rpy_deg.map(f64::to_radians);
+        MappingConfig {
+            scale: self.scale,
+            rotation: UnitQuaternion::from_euler_angles(r, p, y),
+            force_gain: self.force_gain,
+            torque_gain: self.torque_gain,
+            // A node's sensors report the world pushing on the robot (`sensor/virtual`), which
+            // is what the operator should feel: no sign change.
+            negate_wrench: false,
+            ..MappingConfig::default()
+        }
+    }
+}
+
+/// Which side of a channel a loop runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Side {
+    /// Sends the master's tool pose and clutch; receives the slave's pose and wrench.
+    Master,
+    /// Sends the slave's tool pose and sensed wrench; receives the master's pose and clutch.
+    Slave,
+}
+
+/// One side's cells: what it sends, what it receives.
+pub struct TeleopEnd {
+    /// Its side.
+    pub side: Side,
+    send: ArcLatestWriter<TeleopSample>,
+    receive: ArcLatestReader<TeleopSample>,
+}
+
+/// The cells of a configured channel; each end is lent to the loop that runs it.
+pub struct TeleopLink {
+    /// The master's end, while no loop holds it.
+    pub master: Option<TeleopEnd>,
+    /// The slave's end, while no loop holds it.
+    pub slave: Option<TeleopEnd>,
+}
+
+impl TeleopLink {
+    /// New cells, both ends free.
+    pub fn new() -> Self {
+        let (m2s_w, m2s_r) = latest::<TeleopSample>();
+        let (s2m_w, s2m_r) = latest::<TeleopSample>();
+        TeleopLink {
+            master: Some(TeleopEnd {
+                side: Side::Master,
+                send: m2s_w,
+                receive: s2m_r,
+            }),
+            slave: Some(TeleopEnd {
+                side: Side::Slave,
+                send: s2m_w,
+                receive: m2s_r,
+            }),
+        }
+    }
+
+    /// Takes `side`'s end.
+    pub fn take(&mut self, side: Side) -> Option<TeleopEnd> {
+        match side {
+            Side::Master => self.master.take(),
+            Side::Slave => self.slave.take(),
+        }
+    }
+
+    /// Gives an end back.
+    pub fn put_back(&mut self, end: TeleopEnd) {
+        match end.side {
+            Side::Master => self.master = Some(end),
+            Side::Slave => self.slave = Some(end),
+        }
+    }
+}
+
+impl Default for TeleopLink {
+    fn default() -> Self {
+        TeleopLink::new()
+    }
+}
+
+/// The communication-thread end of one side: publishes this robot's state to the other side,
+/// feeds the other side's samples into this side's [`TeleopChannel`], and the channel's
+/// reference into the loop's reference cell.
+pub struct TeleopComm {
+    end: TeleopEnd,
+    channel: TeleopChannel,
+    model: RobotKinematics,
+    /// The clutch button of the operator's hand on this (master) robot, if one holds it.
+    clutch: Option<Arc<AtomicBool>>,
+    started: bool,
+    sequence: u64,
+}
+
+impl TeleopComm {
+    /// The end `end` with the channel's `mapping`, for a robot computed with `model`.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for a mapping the channel refuses.
+    pub fn new(
+        end: TeleopEnd,
+        mapping: MappingConfig,
+        model: RobotKinematics,
+    ) -> Result<Self, WireError> {
+        let direction = match end.side {
+            Side::Master => ChannelDirection::SlaveToMaster,
+            Side::Slave => ChannelDirection::MasterToSlave,
+        };
+        let channel = TeleopChannel::new(ChannelConfig {
+            direction,
+            mapping,
+            ..ChannelConfig::default()
+        })
+        .map_err(|e| WireError::BadConfig {
+            kind: "trajectory/teleop".into(),
+            message: format!("{e:?}"),
+        })?;
+        Ok(TeleopComm {
+            end,
+            channel,
+            model,
+            clutch: None,
+            started: false,
+            sequence: 0,
+        })
+    }
+
+    /// Reads the master's clutch button from `clutch` (an operator's hand), if any.
+    pub fn with_clutch(mut self, clutch: Option<Arc<AtomicBool>>) -> Self {
+        self.clutch = clutch;
+        self
+    }
+
+    /// The end, given back when the loop stops.
+    pub fn into_end(self) -> TeleopEnd {
+        self.end
+    }
+
+    /// The channel's counters (accepted, stale, rejected samples).
+    pub fn channel(&self) -> &TeleopChannel {
+        &self.channel
+    }
+
+    /// One communication tick at `now`, with the loop's newest sample `state`: send, receive,
+    /// publish the reference into `out`.
+    ///
+    /// # Real-time
+    /// No allocation, no locks: cell reads and writes, kinematics, the channel's bounded work.
+    pub fn tick(
+        &mut self,
+        now: Timestamp,
+        state: Option<TelemetrySample>,
+        out: &mut ArcLatestWriter<Stamped<Reference>>,
+    ) {
+        let Some(sample) = state else {
+            return; // nothing measured yet: the channel starts from the measured pose
+        };
+        let pose = self.model.forward(&sample.q);
+        if !self.started {
+            penelope_hal::Trajectory::start(
+                &mut self.channel,
+                now,
+                &Reference::Cartesian(CartesianReference {
+                    pose,
+                    twist: Twist::default(),
+                }),
+            );
+            self.started = true;
+        }
+        self.sequence += 1;
+        let (clutch, reference) = match self.end.side {
+            Side::Master => {
+                let clutch = self
+                    .clutch
+                    .as_ref()
+                    .is_some_and(|c| c.load(Ordering::Relaxed));
+                self.channel.track_master(now, &pose, clutch);
+                (
+                    clutch,
+                    Reference::Cartesian(CartesianReference {
+                        pose,
+                        twist: Twist::default(),
+                    }),
+                )
+            }
+            Side::Slave => {
+                // The loop's wrench is in the base frame (a sensor feed's), or in the tool
+                // frame, rotated here.
+                let w = sample.wrench;
+                let wrench = match w.frame {
+                    Frame::Base => w,
+                    _ => Wrench {
+                        force: pose.rotation * w.force,
+                        torque: pose.rotation * w.torque,
+                        frame: Frame::Base,
+                    },
+                };
+                (
+                    false,
+                    Reference::Hybrid(HybridReference {
+                        motion: CartesianReference {
+                            pose,
+                            twist: Twist::default(),
+                        },
+                        wrench,
+                        force_axes: [true; 6],
+                    }),
+                )
+            }
+        };
+        self.end.send.write(TeleopSample {
+            sequence: self.sequence,
+            sent: now,
+            clutch,
+            reference,
+        });
+        if let Fresh::New(received) = self.end.receive.read() {
+            // A stale or malformed sample is counted by the channel and dropped.
+            let _ = self.channel.receive(received);
+        }
+        if let Ok(r) = penelope_hal::Trajectory::reference(&mut self.channel, now)
+            && r.is_finite()
+        {
+            out.write(Stamped {
+                stamp: now,
+                value: r,
+            });
+        }
+    }
+}
+
+/// `sensor/operator-hand` configuration: a scripted operator's hand holding a simulated master.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HandConfig {
+    /// The master robot whose handle it holds (a name on this node; the robot must be on a
+    /// simulated board, and configured after the hand is created).
+    pub robot: String,
+    /// The script it plays (`demo`).
+    pub script: String,
+    /// The hand's translational stiffness, N/m.
+    pub stiffness_n_per_m: f64,
+    /// The hand's translational damping, N·s/m.
+    pub damping_ns_per_m: f64,
+}
+
+impl Default for HandConfig {
+    fn default() -> Self {
+        HandConfig {
+            robot: String::new(),
+            script: "demo".into(),
+            stiffness_n_per_m: 400.0,
+            damping_ns_per_m: 12.0,
+        }
+    }
+}
+
+/// What `ctl kinds` lists for `sensor/operator-hand`.
+pub const HAND_KEYS: &str = r#"
+robot = "frhc"                # the master whose handle it holds (create the hand, then
+                              # configure the robot: its simulated body gets the hand)
+script = "demo"               # what the hand does: reach, sweeps, clutch, push, tap, release
+stiffness_n_per_m = 400.0     # the hand's grip: an impedance towards the scripted point
+damping_ns_per_m = 12.0
+"#;
+
+impl HandConfig {
+    /// Checks the keys and finds the script.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<OperatorScript, WireError> {
+        let bad = |message: String| WireError::BadConfig {
+            kind: kind.into(),
+            message,
+        };
+        if self.robot.is_empty() {
+            return Err(bad("needs `robot` (the master it holds)".into()));
+        }
+        for (key, v) in [
+            ("stiffness_n_per_m", self.stiffness_n_per_m),
+            ("damping_ns_per_m", self.damping_ns_per_m),
+        ] {
+            if !(v.is_finite() && (0.0..=1e5).contains(&v)) {
+                return Err(bad(format!("`{key}` = {v} is outside 0..=100000")));
+            }
+        }
+        scripts::by_name(&self.script)
+            .ok_or_else(|| bad(format!("unknown script `{}` (demo)", self.script)))
+    }
+
+    /// The hand's impedance.
+    pub fn impedance(&self) -> HandImpedance {
+        HandImpedance {
+            stiffness: self.stiffness_n_per_m,
+            damping: self.damping_ns_per_m,
+            ..HandImpedance::default()
+        }
+    }
+}
+
+/// A `sensor/operator-hand` object: its settings, script, and the clutch button its simulated
+/// master's communication thread reads.
+pub struct HandObj {
+    /// The settings.
+    pub config: HandConfig,
+    /// The script.
+    pub script: OperatorScript,
+    /// Whether the clutch is held (written by the plant's contact model, read by the master's
+    /// communication thread).
+    pub clutch: Arc<AtomicBool>,
+}
+
+// ---------------------------------------------------------------------------------------------
+// The two halves of the laws
+// ---------------------------------------------------------------------------------------------
+
+crate::objects::kinds::loop_keys!(ForceDisplayToml {
+    max_force: f64 = ForceDisplayConfig::default().max_force, #[doc = "Largest displayed force, N."]
+    max_torque: f64 = ForceDisplayConfig::default().max_torque, #[doc = "Largest displayed moment, N·m."]
+    damping: [f64; 6] = ForceDisplayConfig::default().damping, #[doc = "Added damping on the tool twist, N·s/m then N·m·s/rad."]
+    force_deadband: f64 = ForceDisplayConfig::default().force_deadband, #[doc = "Forces below this are not displayed, N."]
+    torque_deadband: f64 = ForceDisplayConfig::default().torque_deadband, #[doc = "Moments below this are not displayed, N·m."]
+    filter_cutoff_hz: f64 = ForceDisplayConfig::default().filter_cutoff_hz, #[doc = "Low-pass on the displayed wrench, Hz (0: none)."]
+    gravity_compensation: bool = true, #[doc = "Add g(q)."]
+});
+
+crate::objects::kinds::loop_keys!(PositionErrorToml {
+    stiffness: [f64; 6] = ImpedanceConfig::master().stiffness, #[doc = "Spring to the mapped slave pose, N/m then N·m/rad."]
+    damping: [f64; 6] = ImpedanceConfig::master().damping, #[doc = "N·s/m then N·m·s/rad."]
+    max_force: f64 = ImpedanceConfig::master().max_force, #[doc = "Force cap, N."]
+    max_torque: f64 = ImpedanceConfig::master().max_torque, #[doc = "Moment cap, N·m."]
+    gravity_compensation: bool = true, #[doc = "Add g(q)."]
+});
+
+crate::objects::kinds::loop_keys!(SlaveTrackingToml {
+    kp: [f64; 6] = TrackingConfig::default().kp, #[doc = "Position gain per joint, 1/s²."]
+    kd: [f64; 6] = TrackingConfig::default().kd, #[doc = "Velocity gain per joint, 1/s."]
+    ki: [f64; 6] = TrackingConfig::default().ki, #[doc = "Integral gain per joint, 1/s³."]
+});
+
+/// What `ctl kinds` lists for `controller/force-display`.
+pub const FORCE_DISPLAY_KEYS: &str = r#"
+max_force = 10.0          # N, the largest displayed force (the robot's role caps it too)
+max_torque = 0.5          # N·m
+damping = [2.0, 2.0, 2.0, 0.02, 0.02, 0.02]  # added damping on the tool twist
+force_deadband = 0.2      # N: smaller forces (sensor noise) are not displayed
+torque_deadband = 0.01    # N·m
+filter_cutoff_hz = 30.0   # low-pass on the displayed wrench (0: none)
+gravity_compensation = true
+# trajectory: a trajectory/teleop whose master is this robot; plus the loop keys:
+"#;
+
+/// What `ctl kinds` lists for `controller/position-error-master`.
+pub const POSITION_ERROR_KEYS: &str = r#"
+stiffness = [200.0, 200.0, 200.0, 2.0, 2.0, 2.0]  # spring to the mapped slave pose
+damping = [5.0, 5.0, 5.0, 0.05, 0.05, 0.05]
+max_force = 10.0          # N
+max_torque = 0.5          # N·m
+gravity_compensation = true
+# trajectory: a trajectory/teleop whose master is this robot; plus the loop keys:
+"#;
+
+/// What `ctl kinds` lists for `controller/slave-tracking` and `controller/slave-position`.
+pub const SLAVE_TRACKING_KEYS: &str = r#"
+kp = [6400.0, 6400.0, 6400.0, 6400.0, 6400.0, 6400.0]  # 1/s², computed-torque position gain ((80 rad/s)²)
+kd = [160.0, 160.0, 160.0, 160.0, 160.0, 160.0]        # 1/s (critically damped)
+ki = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]                    # 1/s³
+# trajectory: a trajectory/teleop whose slave is this robot; plus the loop keys:
+"#;
+
+fn bad_law(kind: &str, e: impl std::fmt::Debug) -> WireError {
+    WireError::BadConfig {
+        kind: kind.into(),
+        message: format!("{e:?}"),
+    }
+}
+
+impl ForceDisplayToml {
+    /// The law, checked.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<ForceDisplay, WireError> {
+        ForceDisplay::new(ForceDisplayConfig {
+            max_force: self.max_force,
+            max_torque: self.max_torque,
+            damping: self.damping,
+            force_deadband: self.force_deadband,
+            torque_deadband: self.torque_deadband,
+            filter_cutoff_hz: self.filter_cutoff_hz,
+            gravity_compensation: self.gravity_compensation,
+            ..ForceDisplayConfig::default()
+        })
+        .map_err(|e| bad_law(kind, e))
+    }
+}
+
+impl PositionErrorToml {
+    /// The law, checked.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<PositionErrorMaster, WireError> {
+        PositionErrorMaster::new(ImpedanceConfig {
+            stiffness: self.stiffness,
+            damping: self.damping,
+            max_force: self.max_force,
+            max_torque: self.max_torque,
+            gravity_compensation: self.gravity_compensation,
+            ..ImpedanceConfig::master()
+        })
+        .map_err(|e| bad_law(kind, e))
+    }
+}
+
+impl SlaveTrackingToml {
+    /// The law, checked: torques (`board_servo` false) or position targets for a board's own
+    /// servo.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn law(&self, kind: &str, board_servo: bool) -> Result<SlaveTracking, WireError> {
+        SlaveTracking::new(TrackingConfig {
+            kp: self.kp,
+            kd: self.kd,
+            ki: self.ki,
+            output: if board_servo {
+                TrackingOutput::BoardServo
+            } else {
+                TrackingOutput::Torque
+            },
+            ..TrackingConfig::default()
+        })
+        .map_err(|e| bad_law(kind, e))
+    }
+}

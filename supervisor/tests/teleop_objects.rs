@@ -1,0 +1,295 @@
+//! The paper's task made of objects on a node: an FRHC held by the scripted operator's hand
+//! (`sensor/operator-hand`), a PUMA 200 over a wall with a wrist sensor, the channel between
+//! them (`trajectory/teleop`) and the two halves of position-forward / force-back
+//! (`controller/force-display`, `controller/slave-tracking`), created, related and configured
+//! through the creator exactly as `ctl` would, then the loops the creator builds stepped on a
+//! simulated clock (communication every 2 ms, control every 1 ms, the sensor feed's work done
+//! by the test each 2 ms).
+
+use penelope_drivers::sim::scripts::{self, CONTACT_PHASE, FREE_MOTION_PHASES, INDEX_PHASE};
+use penelope_hal::{Frame, Timestamp, Transition};
+use penelope_rt_core::cell::Stamped;
+use penelope_rt_core::telemetry::TelemetrySample;
+use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
+use penelope_supervisor::proto::{
+    Call, ControllerMethod, CreatorCall, JointAxis, Method, PoseMsg, Reply, RobotMethod,
+    SensorMethod, WireError,
+};
+use penelope_supervisor::service::{Outbox, Service, Session};
+
+fn session() -> Session {
+    let (outbox, _rx) = Outbox::bounded(16);
+    Session {
+        id: 1,
+        peer: "127.0.0.1:1".parse().unwrap(),
+        client: "test".into(),
+        outbox,
+    }
+}
+
+fn create(c: &Creator, kind: &str, name: &str, config: &str) {
+    c.call(
+        &session(),
+        Call::Creator(CreatorCall::Create {
+            kind: kind.into(),
+            name: name.into(),
+            config: config.into(),
+        }),
+    )
+    .unwrap_or_else(|e| panic!("create {name}: {e}"));
+}
+
+fn call(c: &Creator, name: &str, method: Method) -> Result<Reply, WireError> {
+    c.call(
+        &session(),
+        Call::Object {
+            object: name.into(),
+            method,
+        },
+    )
+}
+
+fn ok(c: &Creator, name: &str, method: Method) -> Reply {
+    call(c, name, method).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+fn map_all(c: &Creator, robot: &str, board: &str) {
+    ok(
+        c,
+        robot,
+        Method::Robot(RobotMethod::MapJoints {
+            board: board.into(),
+            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
+        }),
+    );
+}
+
+fn relate(c: &Creator, controller: &str, robot: &str, trajectory: &str, sensor: Option<&str>) {
+    let mut methods = vec![
+        ControllerMethod::SetRobot {
+            robot: robot.into(),
+        },
+        ControllerMethod::SetTrajectory {
+            trajectory: trajectory.into(),
+        },
+    ];
+    if let Some(s) = sensor {
+        methods.push(ControllerMethod::SetSensor { sensor: s.into() });
+    }
+    for m in methods {
+        ok(c, controller, Method::Controller(m));
+    }
+}
+
+/// The task's objects, configured; the wall 4 cm below the slave's tool at its start pose.
+fn the_task() -> Creator {
+    let mut config = CreatorConfig::new("lab");
+    config.rt.priority = None;
+    let c = Creator::new(config);
+    create(&c, "robot/puma200", "puma", "");
+    let start = match ok(
+        &c,
+        "puma",
+        Method::Robot(RobotMethod::NamedPose {
+            pose: penelope_hal::NamedPose::Start,
+        }),
+    ) {
+        Reply::Joints(q) => q,
+        other => panic!("named pose answered {other:?}"),
+    };
+    let tool = match ok(
+        &c,
+        "puma",
+        Method::Robot(RobotMethod::ForwardKinematics { q: Some(start) }),
+    ) {
+        Reply::Pose(p) => p.position,
+        other => panic!("fk answered {other:?}"),
+    };
+    let wall = format!(
+        "[[shapes]]\nkind = \"plane\"\npoint = [{}, {}, {}]\nnormal = [0.0, 0.0, 1.0]\n\
+         stiffness = 4000.0\ndamping = 20.0\n",
+        tool[0],
+        tool[1],
+        tool[2] - 0.04
+    );
+    create(&c, "board/sim", "puma-io", &wall);
+    create(&c, "sensor/virtual", "wrist", &wall);
+    create(&c, "robot/frhc", "frhc", "");
+    create(&c, "board/sim", "frhc-io", "");
+    create(&c, "sensor/operator-hand", "hand", "robot = \"frhc\"");
+    create(
+        &c,
+        "trajectory/teleop",
+        "link",
+        "master = \"frhc\"\nslave = \"puma\"\nforce_gain = 0.5",
+    );
+    create(&c, "controller/force-display", "display", "");
+    create(&c, "controller/slave-tracking", "follow", "");
+    map_all(&c, "frhc", "frhc-io");
+    map_all(&c, "puma", "puma-io");
+    relate(&c, "display", "frhc", "link", None);
+    relate(&c, "follow", "puma", "link", Some("wrist"));
+    for name in [
+        "frhc-io", "puma-io", "wrist", "hand", "frhc", "puma", "link", "display", "follow",
+    ] {
+        ok(&c, name, Method::Transition(Transition::Configure));
+    }
+    c
+}
+
+/// Every control tick of both sides over `seconds` of simulated time.
+fn run(c: &Creator, seconds: f64) -> (Vec<TelemetrySample>, Vec<TelemetrySample>) {
+    let mut master: DetachedLoop = c.detach_loop("display").expect("the master's loop builds");
+    let mut slave: DetachedLoop = c.detach_loop("follow").expect("the slave's loop builds");
+    let mut wrench = slave.wrench.take().expect("a sensor is bound");
+    let (mut m_rows, mut s_rows) = (Vec::new(), Vec::new());
+    let ticks = (seconds * 1000.0) as u64;
+    for i in 1..=ticks {
+        let now = Timestamp::from_nanos(i * 1_000_000);
+        if i % 2 == 1 {
+            // What the communication threads and the sensor feed do each period.
+            master.comm.tick(now);
+            slave.comm.tick(now);
+            if let Some(s) = slave.probe.latest() {
+                let pose = match ok(
+                    c,
+                    "puma",
+                    Method::Robot(RobotMethod::ForwardKinematics {
+                        q: Some(s.q.iter().take(6).copied().collect()),
+                    }),
+                ) {
+                    Reply::Pose(p) => p,
+                    other => panic!("fk answered {other:?}"),
+                };
+                let measured = ok(
+                    c,
+                    "wrist",
+                    Method::Sensor(SensorMethod::Measure {
+                        pose: PoseMsg { ..pose },
+                        velocity: [0.0; 3],
+                    }),
+                );
+                if let Reply::Wrench(w) = measured {
+                    wrench.write(Stamped {
+                        stamp: now,
+                        value: w.to_wrench(Frame::Base).unwrap(),
+                    });
+                }
+            }
+        }
+        master.control.tick(now);
+        slave.control.tick(now);
+        while let Some(s) = master.telemetry.pop() {
+            m_rows.push(s);
+        }
+        while let Some(s) = slave.telemetry.pop() {
+            s_rows.push(s);
+        }
+    }
+    (m_rows, s_rows)
+}
+
+fn phase(t: Timestamp) -> &'static str {
+    scripts::demo()
+        .segment_at(std::time::Duration::from_nanos(t.as_nanos()))
+        .map_or("", |(_, s, _)| s.label)
+}
+
+#[test]
+fn a_node_runs_the_papers_task_from_objects() {
+    let c = the_task();
+    let (master, slave) = run(&c, 14.5);
+    assert!(master.len() > 14_000 && slave.len() > 14_000);
+
+    // Free motion: the slave follows its reference (the mapped master pose) closely, and it
+    // really moves (the hand's reach and sweeps).
+    let free: Vec<&TelemetrySample> = slave
+        .iter()
+        .filter(|s| {
+            FREE_MOTION_PHASES.contains(&phase(s.time)) && s.time.as_nanos() > 1_500_000_000
+        })
+        .collect();
+    assert!(free.len() > 5_000);
+    let rms = (free
+        .iter()
+        .map(|s| (s.reference_position - s.tool_position).norm_squared())
+        .sum::<f64>()
+        / free.len() as f64)
+        .sqrt();
+    let span = |axis: usize| {
+        let v: Vec<f64> = free.iter().map(|s| s.tool_position[axis]).collect();
+        v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min)
+    };
+    assert!(rms < 0.002, "free-motion tracking RMS {:.3} mm", rms * 1e3);
+    assert!(span(0) > 0.03 && span(1) > 0.06, "the slave hardly moved");
+
+    // The clutch: while indexing, the hand rises 2 cm and the slave stays put.
+    let index: Vec<&TelemetrySample> = slave
+        .iter()
+        .filter(|s| phase(s.time) == INDEX_PHASE)
+        .collect();
+    let rise = index.last().unwrap().reference_position.z - index[0].reference_position.z;
+    assert!(
+        rise.abs() < 0.002,
+        "the slave followed the hand while clutched: {rise} m"
+    );
+
+    // Steady contact: the slave senses the wall and the master displays gain x that force.
+    let contact = |rows: &[TelemetrySample]| -> Vec<TelemetrySample> {
+        rows.iter()
+            .filter(|s| phase(s.time) == CONTACT_PHASE)
+            .skip(500)
+            .copied()
+            .collect()
+    };
+    let (mc, sc) = (contact(&master), contact(&slave));
+    let mean = |v: &[TelemetrySample], f: &dyn Fn(&TelemetrySample) -> f64| {
+        v.iter().map(f).sum::<f64>() / v.len() as f64
+    };
+    let sensed = mean(&sc, &|s| s.wrench.force.z);
+    let displayed = mean(&mc, &|s| s.commanded_wrench.force.z);
+    // The wall pushes the slave up; the operator's hand is pushed up as much, scaled.
+    println!(
+        "free-motion RMS {:.3} mm over {} ticks; clutch drift {:.3} mm; contact: sensed \
+         {sensed:.2} N, displayed {displayed:.2} N",
+        rms * 1e3,
+        free.len(),
+        rise * 1e3
+    );
+    assert!(sensed > 2.0, "the slave never pressed the wall: {sensed} N");
+    let expected = 0.5 * sensed;
+    assert!(
+        (displayed - expected).abs() < 0.1 * expected.abs(),
+        "displayed {displayed:.2} N, expected {expected:.2} N (0.5 x {sensed:.2} N)"
+    );
+}
+
+#[test]
+fn the_task_runs_the_same_twice_and_its_channel_is_guarded() {
+    let (a, b) = (run(&the_task(), 3.0), run(&the_task(), 3.0));
+    assert_eq!(a.1.len(), b.1.len());
+    assert!(
+        a.1.iter()
+            .zip(&b.1)
+            .all(|(x, y)| x.q == y.q && x.effort == y.effort),
+        "two runs of the same objects differ"
+    );
+
+    // A teleoperation law needs a channel whose side it runs, and a joint law no channel.
+    let c = the_task();
+    create(&c, "controller/slave-tracking", "wrong-side", "");
+    relate(&c, "wrong-side", "frhc", "link", None);
+    ok(&c, "wrong-side", Method::Transition(Transition::Configure));
+    let refused = call(&c, "wrong-side", Method::Transition(Transition::Activate));
+    assert!(
+        matches!(&refused, Err(WireError::BadArgument(m)) if m.contains("slave of `link` is `puma`")),
+        "{refused:?}"
+    );
+    create(&c, "controller/joint-pid", "pid", "");
+    relate(&c, "pid", "puma", "link", None);
+    ok(&c, "pid", Method::Transition(Transition::Configure));
+    assert!(matches!(
+        call(&c, "pid", Method::Transition(Transition::Activate)),
+        Err(WireError::BadArgument(_))
+    ));
+}
