@@ -54,6 +54,7 @@ pub struct PlantSnapshot {
 /// `M(q) qdd = tau_motor + Jᵀ F_interaction + tau_friction(qd) - (C(q, qd) qd + g(q))`.
 ///
 /// The motor torque is held constant between calls (zero-order hold), as a DAC holds its output.
+#[derive(Clone, Debug)]
 pub struct RigidBodyPlant<M> {
     model: M,
     config: PlantConfig,

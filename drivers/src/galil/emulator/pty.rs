@@ -3,8 +3,8 @@
 
 use std::os::fd::{AsFd, OwnedFd};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -16,7 +16,7 @@ use nix::sys::termios::{SetArg, cfmakeraw, tcgetattr, tcsetattr};
 use super::{Dmc, DmcConfig};
 
 /// How to run the emulator.
-#[derive(Clone, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Debug, PartialEq, Default)]
 pub struct PtyOptions {
     /// The emulated controller.
     pub dmc: DmcConfig,
@@ -36,10 +36,15 @@ struct Shared {
 }
 
 /// An emulated DMC on a pseudo-terminal, served by its own thread until stopped or dropped.
+///
+/// The controller keeps running (servo samples, programs, the arm) whether or not a host talks
+/// to it, and after [`unplug`](PtyEmulator::unplug); [`inspect`](PtyEmulator::inspect) reads
+/// it at any time.
 #[derive(Debug)]
 pub struct PtyEmulator {
     path: PathBuf,
     shared: Arc<Shared>,
+    dmc: Arc<Mutex<Dmc>>,
     thread: Option<JoinHandle<()>>,
 }
 
@@ -60,14 +65,23 @@ impl PtyEmulator {
             .map_err(std::io::Error::from)?;
         let shared = Arc::new(Shared::default());
         let thread_shared = Arc::clone(&shared);
+        let dmc = Arc::new(Mutex::new(Dmc::new(options.dmc.clone())));
+        let thread_dmc = Arc::clone(&dmc);
         let thread = std::thread::Builder::new()
             .name("galil-sim".into())
-            .spawn(move || serve(pty.master, pty.slave, options, &thread_shared))?;
+            .spawn(move || serve(pty.master, pty.slave, options, &thread_shared, &thread_dmc))?;
         Ok(PtyEmulator {
             path,
             shared,
+            dmc,
             thread: Some(thread),
         })
+    }
+
+    /// Reads the emulated controller (its clock, axes, variables, arm) as it is now.
+    pub fn inspect<T>(&self, f: impl FnOnce(&Dmc) -> T) -> T {
+        let dmc = self.dmc.lock().unwrap_or_else(PoisonError::into_inner);
+        f(&dmc)
     }
 
     /// The device path to open (`/dev/pts/N`).
@@ -75,8 +89,9 @@ impl PtyEmulator {
         &self.path
     }
 
-    /// Makes the device disappear: the pseudo-terminal is closed, as when a USB adapter is
-    /// pulled. Clients see a hang-up on their next read or write.
+    /// Makes the device disappear: the pseudo-terminal is closed, as when a USB adapter or the
+    /// cable is pulled. Clients see a hang-up on their next read or write; the controller itself
+    /// keeps running (a board program still turns motors off).
     pub fn unplug(&self) {
         self.shared.unplug.store(true, Ordering::SeqCst);
     }
@@ -125,9 +140,9 @@ fn sleep_until(t: Instant) {
     }
 }
 
-fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared) {
+fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared, dmc: &Mutex<Dmc>) {
     let start = Instant::now();
-    let mut dmc = Dmc::new(options.dmc.clone());
+    let lock = || dmc.lock().unwrap_or_else(PoisonError::into_inner);
     let mut buf = [0u8; 512];
     let mut out = Vec::new();
     let mut rx_clock = start;
@@ -141,7 +156,10 @@ fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared) 
             break;
         }
         let mut fds = [PollFd::new(master.as_fd(), PollFlags::POLLIN)];
-        let ready = poll(&mut fds, PollTimeout::from(5u8)).unwrap_or(0);
+        let ready = poll(&mut fds, PollTimeout::from(2u8)).unwrap_or(0);
+        let mut dmc = lock();
+        // The controller runs on its own: servo samples and programs, talked to or not.
+        dmc.advance(start.elapsed());
         if ready > 0 {
             match nix::unistd::read(master.as_fd(), &mut buf) {
                 Ok(n) if n > 0 => {
@@ -153,7 +171,11 @@ fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared) 
                     dmc.input(&buf[..n], start.elapsed(), &mut out);
                 }
                 // No client has the device open, or a spurious wake-up.
-                _ => std::thread::sleep(Duration::from_millis(5)),
+                _ => {
+                    drop(dmc);
+                    std::thread::sleep(Duration::from_millis(2));
+                    continue;
+                }
             }
         } else if dmc.idle() {
             // Quiet line: queued unsolicited output goes out on its own.
@@ -165,6 +187,7 @@ fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared) 
             dmc.queue_unsolicited(msg);
             next_unsolicited = Some(due.max(Instant::now() - *period) + *period);
         }
+        drop(dmc);
         if !out.is_empty() {
             write_out(&master, &out, options.baud, &mut tx_clock, shared);
             out.clear();
@@ -172,6 +195,11 @@ fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared) 
     }
     drop(master);
     drop(slave);
+    // Unplugged (or stopping): the controller runs on without a line until stopped.
+    while !shared.stop.load(Ordering::SeqCst) {
+        lock().advance(start.elapsed());
+        std::thread::sleep(Duration::from_millis(1));
+    }
 }
 
 /// Writes `out` to the master side, paced when asked; gives up on output nobody reads for 1 s.
