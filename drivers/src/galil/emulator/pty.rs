@@ -31,6 +31,7 @@ pub struct PtyOptions {
 struct Shared {
     stop: AtomicBool,
     unplug: AtomicBool,
+    line_closed: AtomicBool,
     bytes_in: AtomicU64,
     bytes_out: AtomicU64,
 }
@@ -102,6 +103,12 @@ impl PtyEmulator {
             self.shared.bytes_in.load(Ordering::Relaxed),
             self.shared.bytes_out.load(Ordering::Relaxed),
         )
+    }
+
+    /// True while the pseudo-terminal is open (until [`unplug`](PtyEmulator::unplug) took
+    /// effect).
+    pub fn is_plugged(&self) -> bool {
+        !self.shared.line_closed.load(Ordering::SeqCst)
     }
 
     /// True while the serving thread runs.
@@ -195,6 +202,7 @@ fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared, 
     }
     drop(master);
     drop(slave);
+    shared.line_closed.store(true, Ordering::SeqCst);
     // Unplugged (or stopping): the controller runs on without a line until stopped.
     while !shared.stop.load(Ordering::SeqCst) {
         lock().advance(start.elapsed());

@@ -1,439 +1,29 @@
-//! [`GalilBoard`]: the `hal::Board` for a DMC on a serial line.
-//!
-//! The serial line is slow and blocks, so it never meets the control thread. The board owns an
-//! I/O thread that runs the protocol [`Client`] as fast as the line allows and meets the control
-//! thread only through lock-free latest-value cells (`penelope_rt_core::cell`):
-//!
-//! ```text
-//! control thread                         I/O thread (owns the Client and the link)
-//! write_axes / set_enabled --[commands]--> mode changes (SH, MO, gains, PT 1), then each cycle
-//!                                           "PA t1,..,tn;TP;TE" (and "OF v.." for efforts),
-//! read_axes <----------------[state]------ every few cycles "TV;TT;TS"; exchange rate measured
-//! ```
-//!
-//! Per axis: [`AxisCommand::Position`] streams targets in position-tracking mode (`PT 1` + `PA`,
-//! the board's own servo follows each new target at once) or, in [`TargetMode::Relative`], as
-//! profiled relative moves (`PR` + `BG` when the previous move ended); [`AxisCommand::Effort`]
-//! zeroes that axis' gains and writes the torque as `OF` volts (effort × volts per N·m, clamped to
-//! the torque limit); [`AxisCommand::Off`] sends `MO`. Leaving effort mode restores the gains.
-//! Encoder counts become radians in the control loop through each joint's
-//! `AxisBinding` (see [`axis_bindings`]).
-//!
-//! # Faults
-//! Any line fault (device gone, garbage, timeout) or a rejected command puts the board in the
-//! error state: the I/O thread sends `ST` if the line still works (the board's own servo then
-//! holds position), publishes the fault, and [`read_axes`](Board::read_axes) returns it, so the
-//! controller holds or stops. A state older than [`GalilBoardConfig::stale_after`] is a timeout
-//! too. Re-arming is explicit: [`GalilBoard::rearm`] reopens and re-initialises the line.
-//! *NOTE*: while faulted, the board keeps the physical state the last good commands left,
-//! except that an explicit `set_enabled(false)` still sends `MO` when the line allows.
+//! The board's I/O thread: owns the protocol client, runs the exchange cycle, supervises the
+//! board-side watchdog and makes every fault end safe.
 
 // Several per-axis arrays (commands, modes, replies, state) are walked in step by axis index.
 #![allow(clippy::needless_range_loop)]
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
-use std::thread::JoinHandle;
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use penelope_hal::board::{AxisCommand, AxisState, Board, MAX_AXES};
-use penelope_hal::error::{Error as HalError, ErrorKind};
-use penelope_hal::robot::Robot;
-use penelope_hal::time::Timestamp;
-use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, latest};
-use penelope_rt_core::control::AxisBinding;
+use penelope_hal::board::{AxisCommand, AxisState, MAX_AXES};
+use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter};
 
-use super::client::{BoardInfo, Client, ClientConfig, Reply};
-use super::command::{Axes, Command, MAX_GALIL_AXES, Setting, Tell, encode_line};
-use super::error::GalilError;
-use super::link::{Link, SerialLink, SerialSettings};
-use super::number::{parse_numbers, to_counts};
-
-/// The largest output a DMC-40x0 drives, volts.
-pub const MAX_VOLTS: f64 = 9.9982;
-
-/// How position targets are sent.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum TargetMode {
-    /// `PT 1` + `PA`: the board follows each new target at once (teleoperation).
-    #[default]
-    PositionTracking,
-    /// `PR` + `BG`: a profiled relative move toward the target whenever the previous one ended.
-    Relative,
-}
-
-/// Everything needed to run a Galil board.
-#[derive(Clone, Debug, PartialEq)]
-pub struct GalilBoardConfig {
-    /// The serial line.
-    pub serial: SerialSettings,
-    /// How many axes to drive (the first `axes` of the board), 1..=8.
-    pub axes: usize,
-    /// Effort-to-command scaling per axis: `OF` volts per N·m of joint torque (amplifier gain,
-    /// motor constant and gear ratio folded together). Zero makes efforts on that axis no-ops.
-    pub volts_per_newton_metre: [f64; MAX_AXES],
-    /// Position-loop gains (`KP`, `KI`, `KD`) per axis to send at start and restore after effort
-    /// mode; `None` keeps (and remembers) what the board has.
-    pub gains: Option<[[f64; 3]; MAX_AXES]>,
-    /// `TL` per axis, volts; `None` leaves the board's.
-    pub torque_limit_volts: Option<[f64; MAX_AXES]>,
-    /// `ER` per axis, counts; `None` leaves the board's.
-    pub error_limit_counts: Option<[f64; MAX_AXES]>,
-    /// `OE` for every axis (0..3); `None` leaves the board's.
-    pub off_on_error: Option<u8>,
-    /// How position targets are sent.
-    pub target_mode: TargetMode,
-    /// Protocol client settings (timeouts, `CW1`).
-    pub client: ClientConfig,
-    /// `read_axes` fails with a timeout when no new state arrived for this long (on the caller's
-    /// clock).
-    pub stale_after: Duration,
-    /// Read velocity, torque and switches (`TV;TT;TS`) every this many cycles (at least 1).
-    pub status_every: u32,
-    /// Shortest cycle of the I/O thread (zero: as fast as the line goes).
-    pub min_cycle: Duration,
-}
-
-impl GalilBoardConfig {
-    /// A board on `path` at 115200 baud with `axes` axes and the given effort scaling (volts per
-    /// N·m, one per axis; missing entries are zero).
-    pub fn new(path: impl Into<String>, axes: usize, volts_per_newton_metre: &[f64]) -> Self {
-        let mut scale = [0.0; MAX_AXES];
-        for (s, v) in scale.iter_mut().zip(volts_per_newton_metre) {
-            *s = *v;
-        }
-        GalilBoardConfig {
-            serial: SerialSettings::new(path, 115_200),
-            axes,
-            volts_per_newton_metre: scale,
-            gains: None,
-            torque_limit_volts: None,
-            error_limit_counts: None,
-            off_on_error: None,
-            target_mode: TargetMode::PositionTracking,
-            client: ClientConfig::default(),
-            stale_after: Duration::from_millis(500),
-            status_every: 5,
-            min_cycle: Duration::ZERO,
-        }
-    }
-}
-
-/// Joint-to-axis bindings from a robot model's encoder scaling: joint `j` on axis `j` with the
-/// model's counts per radian and zero offset.
-pub fn axis_bindings<R: Robot + ?Sized>(
-    robot: &R,
-) -> [AxisBinding; penelope_hal::joint::MAX_JOINTS] {
-    let mut out = [AxisBinding::new(0, 1.0); penelope_hal::joint::MAX_JOINTS];
-    for (j, b) in out.iter_mut().enumerate().take(robot.joint_count()) {
-        *b = AxisBinding::new(j as u8, robot.counts_per_radian(j));
-    }
-    out
-}
-
-/// What put the board in the error state.
-#[non_exhaustive]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum BoardFault {
-    /// No reply in time.
-    Timeout,
-    /// The device went away.
-    Closed,
-    /// An operating-system error on the line.
-    Io,
-    /// Garbage or lost framing.
-    Garbled,
-    /// The board rejected a command with this Galil code.
-    Rejected(u16),
-    /// An axis that should be on was switched off by the board (off-on-error, limit).
-    MotorOff(u8),
-    /// The board has fewer axes than configured.
-    TooFewAxes,
-}
-
-impl BoardFault {
-    fn from_error(e: &GalilError) -> BoardFault {
-        match e {
-            GalilError::Timeout(_) => BoardFault::Timeout,
-            GalilError::Closed => BoardFault::Closed,
-            GalilError::Io(_) => BoardFault::Io,
-            GalilError::Rejected { code, .. } => BoardFault::Rejected(*code),
-            GalilError::RejectedUnexplained => BoardFault::Rejected(0),
-            _ => BoardFault::Garbled,
-        }
-    }
-
-    fn encode(self) -> u8 {
-        match self {
-            BoardFault::Timeout => 1,
-            BoardFault::Closed => 2,
-            BoardFault::Io => 3,
-            BoardFault::Garbled => 4,
-            BoardFault::Rejected(_) => 5,
-            BoardFault::MotorOff(_) => 6,
-            BoardFault::TooFewAxes => 7,
-        }
-    }
-}
-
-/// Errors of [`GalilBoard`]: small, `Copy`, no heap.
-#[non_exhaustive]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum GalilBoardError {
-    /// The board is in the error state (see [`GalilBoard::rearm`]).
-    Fault(BoardFault),
-    /// No new state for longer than `stale_after`.
-    Stale,
-    /// No state has arrived yet.
-    NoData,
-    /// A slice shorter than the axis count.
-    WrongLength,
-    /// A NaN or infinite effort.
-    NonFinite,
-}
-
-impl core::fmt::Display for GalilBoardError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            GalilBoardError::Fault(fault) => write!(f, "galil board fault: {fault:?}"),
-            GalilBoardError::Stale => f.write_str("galil board state is stale"),
-            GalilBoardError::NoData => f.write_str("no state from the galil board yet"),
-            GalilBoardError::WrongLength => f.write_str("slice shorter than the axis count"),
-            GalilBoardError::NonFinite => f.write_str("non-finite effort"),
-        }
-    }
-}
-
-impl std::error::Error for GalilBoardError {}
-
-impl HalError for GalilBoardError {
-    fn kind(&self) -> ErrorKind {
-        match self {
-            GalilBoardError::Fault(BoardFault::Timeout) | GalilBoardError::Stale => {
-                ErrorKind::Timeout
-            }
-            GalilBoardError::Fault(BoardFault::Rejected(_) | BoardFault::MotorOff(_)) => {
-                ErrorKind::Device
-            }
-            GalilBoardError::Fault(BoardFault::TooFewAxes) => ErrorKind::InvalidInput,
-            GalilBoardError::Fault(_) => ErrorKind::Communication,
-            GalilBoardError::NoData => ErrorKind::WrongState,
-            GalilBoardError::WrongLength => ErrorKind::InvalidInput,
-            GalilBoardError::NonFinite => ErrorKind::NonFinite,
-        }
-    }
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct CommandFrame {
-    enabled: bool,
-    commands: [AxisCommand; MAX_AXES],
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct StateFrame {
-    axes: [AxisState; MAX_AXES],
-    fault: Option<BoardFault>,
-}
-
-/// Counters shared with the non-real-time side.
-#[derive(Debug, Default)]
-struct Shared {
-    stop: AtomicBool,
-    rearm: AtomicU64,
-    cycles: AtomicU64,
-    /// Exchange rate, Hz, as f64 bits.
-    rate_bits: AtomicU64,
-    fault: AtomicU8,
-}
-
-/// Opens (or reopens) the line.
-pub type LinkFactory = Box<dyn FnMut() -> Result<Box<dyn Link + Send>, GalilError> + Send>;
-
-/// A Galil DMC as a `hal::Board`, its serial I/O in its own thread.
-pub struct GalilBoard {
-    axes: usize,
-    info: BoardInfo,
-    enabled: bool,
-    last: [AxisCommand; MAX_AXES],
-    commands: ArcLatestWriter<CommandFrame>,
-    state: ArcLatestReader<StateFrame>,
-    last_new: Option<Timestamp>,
-    stale_after: Duration,
-    shared: Arc<Shared>,
-    thread: Option<JoinHandle<()>>,
-}
-
-impl core::fmt::Debug for GalilBoard {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("GalilBoard")
-            .field("axes", &self.axes)
-            .field("info", &self.info)
-            .finish_non_exhaustive()
-    }
-}
-
-impl GalilBoard {
-    /// Opens the serial port, initialises the board and starts the I/O thread.
-    ///
-    /// # Errors
-    /// When the port cannot be opened, the board does not answer, or has fewer axes than asked.
-    pub fn open(config: GalilBoardConfig) -> Result<GalilBoard, GalilError> {
-        let serial = config.serial.clone();
-        let factory: LinkFactory = Box::new(move || {
-            SerialLink::open(&serial).map(|l| Box::new(l) as Box<dyn Link + Send>)
-        });
-        GalilBoard::with_link_factory(config, factory)
-    }
-
-    /// As [`open`](GalilBoard::open), over links made by `factory` (a TCP socket, a mock); the
-    /// factory is called again on [`rearm`](GalilBoard::rearm) when the line was lost.
-    ///
-    /// # Errors
-    /// As `open`.
-    pub fn with_link_factory(
-        config: GalilBoardConfig,
-        mut factory: LinkFactory,
-    ) -> Result<GalilBoard, GalilError> {
-        if config.axes == 0 || config.axes > MAX_AXES.min(MAX_GALIL_AXES) {
-            return Err(GalilError::InvalidArgument("axes must be 1..=8"));
-        }
-        if config.volts_per_newton_metre.iter().any(|v| !v.is_finite()) {
-            return Err(GalilError::InvalidArgument("non-finite effort scaling"));
-        }
-        let link = factory()?;
-        let mut io = Io::new(config.clone(), factory);
-        let info = io.connect(link)?;
-        let (cmd_w, cmd_r) = latest::<CommandFrame>();
-        let (state_w, state_r) = latest::<StateFrame>();
-        let shared = Arc::new(Shared::default());
-        let thread_shared = Arc::clone(&shared);
-        let thread = std::thread::Builder::new()
-            .name("galil-io".into())
-            .spawn(move || io.run(cmd_r, state_w, &thread_shared))
-            .map_err(|e| GalilError::Io(e.kind()))?;
-        Ok(GalilBoard {
-            axes: config.axes,
-            info,
-            enabled: false,
-            last: [AxisCommand::Off; MAX_AXES],
-            commands: cmd_w,
-            state: state_r,
-            last_new: None,
-            stale_after: config.stale_after,
-            shared,
-            thread: Some(thread),
-        })
-    }
-
-    /// Model, firmware and record layout found at start.
-    pub fn info(&self) -> &BoardInfo {
-        &self.info
-    }
-
-    /// Command/reply cycles per second the I/O thread achieves (over the last half second).
-    pub fn exchange_rate_hz(&self) -> f64 {
-        f64::from_bits(self.shared.rate_bits.load(Ordering::Relaxed))
-    }
-
-    /// Cycles completed since start.
-    pub fn cycles(&self) -> u64 {
-        self.shared.cycles.load(Ordering::Relaxed)
-    }
-
-    /// True while the I/O thread reports a fault.
-    pub fn is_faulted(&self) -> bool {
-        self.shared.fault.load(Ordering::Relaxed) != 0
-    }
-
-    /// Asks the I/O thread to leave the error state: reopen the line if it was lost,
-    /// re-initialise, and start exchanging again. Axes come back as they were on the board; the
-    /// next commands decide.
-    pub fn rearm(&self) {
-        self.shared.rearm.fetch_add(1, Ordering::SeqCst);
-    }
-}
-
-impl Drop for GalilBoard {
-    fn drop(&mut self) {
-        self.shared.stop.store(true, Ordering::SeqCst);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-impl Board for GalilBoard {
-    type Error = GalilBoardError;
-
-    fn axis_count(&self) -> usize {
-        self.axes
-    }
-
-    /// # Real-time
-    /// Wait-free: one cell read and a copy. No allocation, lock or system call.
-    fn read_axes(&mut self, now: Timestamp, out: &mut [AxisState]) -> Result<(), Self::Error> {
-        let out = out
-            .get_mut(..self.axes)
-            .ok_or(GalilBoardError::WrongLength)?;
-        let frame = match self.state.read() {
-            Fresh::NoData => return Err(GalilBoardError::NoData),
-            Fresh::New(f) => {
-                self.last_new = Some(now);
-                f
-            }
-            Fresh::Old(f) => {
-                let since = self
-                    .last_new
-                    .map_or(Duration::ZERO, |t| now.saturating_since(t));
-                if since > self.stale_after {
-                    return Err(GalilBoardError::Stale);
-                }
-                f
-            }
-        };
-        if let Some(fault) = frame.fault {
-            return Err(GalilBoardError::Fault(fault));
-        }
-        out.copy_from_slice(&frame.axes[..self.axes]);
-        Ok(())
-    }
-
-    /// # Real-time
-    /// Wait-free: one cell write. No allocation, lock or system call.
-    fn write_axes(&mut self, _now: Timestamp, commands: &[AxisCommand]) -> Result<(), Self::Error> {
-        let commands = commands
-            .get(..self.axes)
-            .ok_or(GalilBoardError::WrongLength)?;
-        if commands
-            .iter()
-            .any(|c| matches!(c, AxisCommand::Effort(t) if !t.is_finite()))
-        {
-            return Err(GalilBoardError::NonFinite);
-        }
-        self.last[..self.axes].copy_from_slice(commands);
-        self.commands.write(CommandFrame {
-            enabled: self.enabled,
-            commands: self.last,
-        });
-        Ok(())
-    }
-
-    /// # Real-time
-    /// Wait-free: one cell write. The I/O thread sends `SH`/`MO` on its next cycle.
-    fn set_enabled(&mut self, enabled: bool) -> Result<(), Self::Error> {
-        self.enabled = enabled;
-        self.commands.write(CommandFrame {
-            enabled,
-            commands: self.last,
-        });
-        Ok(())
-    }
-}
+use super::super::client::{BoardInfo, Client, Reply};
+use super::super::command::{Axes, Command, MAX_GALIL_AXES, Setting, Tell, encode_line};
+use super::super::error::GalilError;
+use super::super::link::Link;
+use super::super::number::{parse_numbers, to_counts};
+use super::watchdog::{self, HEARTBEAT, TRIPPED, WATCHDOG_LABEL, WATCHDOG_THREAD};
+use super::{
+    BoardFault, CommandFrame, GalilBoardConfig, LinkFactory, MAX_VOLTS, Shared, StateFrame,
+    TargetMode,
+};
 
 /// What an axis is currently set up for on the board.
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum Mode {
+pub(super) enum Mode {
     /// Not known (at start: whatever the board was doing).
     Unknown,
     Off,
@@ -442,7 +32,7 @@ enum Mode {
 }
 
 /// The I/O thread's state.
-struct Io {
+pub(super) struct Io {
     config: GalilBoardConfig,
     factory: LinkFactory,
     client: Option<Client<Box<dyn Link + Send>>>,
@@ -459,10 +49,12 @@ struct Io {
     /// The axes argument of reports: empty (all, the shortest line) when every board axis is
     /// driven.
     report_axes: Axes,
+    /// The heartbeat value sent last (the watchdog looks for changes).
+    beat: u32,
 }
 
 impl Io {
-    fn new(config: GalilBoardConfig, factory: LinkFactory) -> Self {
+    pub(super) fn new(config: GalilBoardConfig, factory: LinkFactory) -> Self {
         let n = config.axes;
         Io {
             config,
@@ -476,6 +68,7 @@ impl Io {
             moving: [false; MAX_AXES],
             cycle: 0,
             report_axes: Axes::first(n),
+            beat: 0,
         }
     }
 
@@ -484,7 +77,7 @@ impl Io {
     }
 
     /// Initialises the board over `link` and sends the configured limits.
-    fn connect(&mut self, link: Box<dyn Link + Send>) -> Result<BoardInfo, GalilError> {
+    pub(super) fn connect(&mut self, link: Box<dyn Link + Send>) -> Result<BoardInfo, GalilError> {
         let mut client = Client::new(link, self.config.client.clone());
         let info = client.initialize()?;
         let n = self.n();
@@ -542,11 +135,14 @@ impl Io {
         } else {
             Axes::first(n)
         };
+        if let Some(timeout) = self.config.watchdog {
+            start_watchdog(&mut client, timeout, n)?;
+        }
         self.client = Some(client);
         Ok(info)
     }
 
-    fn run(
+    pub(super) fn run(
         mut self,
         mut commands: ArcLatestReader<CommandFrame>,
         mut state: ArcLatestWriter<StateFrame>,
@@ -572,6 +168,11 @@ impl Io {
                     if let Some(c) = self.client.as_mut() {
                         let _ = c.ack(&Command::MotorOff(Axes::first(self.config.axes)));
                     }
+                }
+                // A fault the line survived (a rejection, an axis switched off) leaves the host
+                // alive: keep the watchdog fed so a held position stays held.
+                if !f.is_link_fault() {
+                    self.heartbeat();
                 }
                 let r = shared.rearm.load(Ordering::SeqCst);
                 if r != rearm_seen {
@@ -603,13 +204,9 @@ impl Io {
                     }
                 }
                 Err(f) => {
+                    let f = self.classify(f);
                     log::warn!("galil board fault: {f:?}");
-                    // Hold: stop motion if the line still works; the board servo keeps position.
-                    if !matches!(f, BoardFault::Closed)
-                        && let Some(c) = self.client.as_mut()
-                    {
-                        let _ = c.ack(&Command::Stop(Axes::first(self.config.axes)));
-                    }
+                    self.fail_safe(f);
                     fault = Some(f);
                 }
             }
@@ -618,12 +215,103 @@ impl Io {
                 std::thread::sleep(self.config.min_cycle - spent);
             }
         }
-        // Shutting down: stop motion, leave amplifiers as they are (a robot arm may need its
-        // brakes or servo; the owner decides with set_enabled(false) before dropping).
-        if fault.is_none()
-            && let Some(c) = self.client.as_mut()
-        {
-            let _ = c.ack(&Command::Stop(Axes::first(self.config.axes)));
+        self.release(fault);
+    }
+
+    /// A motor the board switched off is the watchdog's doing when its trip flag says so.
+    fn classify(&mut self, f: BoardFault) -> BoardFault {
+        if !matches!(f, BoardFault::MotorOff(_)) || self.config.watchdog.is_none() {
+            return f;
+        }
+        let Some(c) = self.client.as_mut() else {
+            return f;
+        };
+        let mut line = heapless::String::<16>::new();
+        let _ = line.push_str("MG ");
+        let _ = line.push_str(TRIPPED);
+        match c.command(&Command::Raw(&line)) {
+            Ok(r) => match super::super::number::parse_number(&r.text) {
+                Ok(v) if v == 1.0 => BoardFault::Watchdog,
+                _ => f,
+            },
+            Err(_) => f,
+        }
+    }
+
+    /// Makes a fault end safe while the line still answers: axes in effort mode get `OF 0` then
+    /// `MO` (no torque may stay on), axes in position mode `ST` (the board's servo holds).
+    /// Nothing is sent on a closed line; the board's watchdog turns the motors off then.
+    fn fail_safe(&mut self, f: BoardFault) {
+        if matches!(f, BoardFault::Closed | BoardFault::Io) {
+            return;
+        }
+        let n = self.n();
+        let Some(c) = self.client.as_mut() else {
+            return;
+        };
+        let mut effort = Axes::NONE;
+        let mut position = Axes::NONE;
+        for i in 0..n {
+            match self.modes[i] {
+                Mode::Effort => effort.0 |= 1 << i,
+                Mode::Position => position.0 |= 1 << i,
+                _ => {}
+            }
+        }
+        if !effort.is_empty() {
+            let mut zeros = [None; MAX_AXES];
+            for i in effort.indices() {
+                zeros[i] = Some(0.0);
+            }
+            // The line may be gone after all: one failure ends the attempt.
+            if c.set(Setting::Offset, &zeros[..n]).is_err() {
+                let _ = c.ack(&Command::MotorOff(effort));
+                return;
+            }
+            if c.ack(&Command::MotorOff(effort)).is_err() {
+                return;
+            }
+            for i in effort.indices() {
+                self.modes[i] = Mode::Off;
+                self.state[i].effort = 0.0;
+            }
+        }
+        if !position.is_empty() {
+            let _ = c.ack(&Command::Stop(position));
+        }
+    }
+
+    /// The board is released (dropped): amplifiers off on every driven axis (`OF 0`, `MO`), the
+    /// watchdog halted, when the line still answers. A line that is gone leaves it to the
+    /// watchdog.
+    fn release(&mut self, fault: Option<BoardFault>) {
+        if fault.is_some_and(|f| matches!(f, BoardFault::Closed | BoardFault::Io)) {
+            return;
+        }
+        let n = self.n();
+        let Some(c) = self.client.as_mut() else {
+            return;
+        };
+        let zeros = [Some(0.0); MAX_AXES];
+        if c.set(Setting::Offset, &zeros[..n]).is_err() && fault.is_some() {
+            return;
+        }
+        if c.ack(&Command::MotorOff(Axes::first(n))).is_err() {
+            return;
+        }
+        if self.config.watchdog.is_some() {
+            let _ = c.ack(&Command::Halt(Some(WATCHDOG_THREAD)));
+        }
+    }
+
+    /// Writes a new heartbeat value (best effort; used while faulted).
+    fn heartbeat(&mut self) {
+        if self.config.watchdog.is_none() {
+            return;
+        }
+        self.beat = next_beat(self.beat);
+        if let Some(c) = self.client.as_mut() {
+            let _ = c.ack(&Command::Assign(HEARTBEAT, f64::from(self.beat)));
         }
     }
 
@@ -792,7 +480,12 @@ impl Io {
                 _ => {}
             }
         }
-        let mut parts: heapless::Vec<Command<'_>, 6> = heapless::Vec::new();
+        let watchdog = self.config.watchdog.is_some();
+        if watchdog {
+            self.beat = next_beat(self.beat);
+        }
+        let mut parts: heapless::Vec<Command<'_>, 7> = heapless::Vec::new();
+        let _ = parts.push(Command::Assign(HEARTBEAT, f64::from(self.beat)));
         let target_setting = if relative {
             Setting::PositionRelative
         } else {
@@ -808,6 +501,7 @@ impl Io {
         let _ = parts.push(Command::Tell(Tell::Error, report));
         let _ = parts.push(Command::Tell(Tell::Switches, report));
         let used = [
+            watchdog,
             has_targets,
             has_offsets,
             !begin.is_empty(),
@@ -815,13 +509,13 @@ impl Io {
             true,
             relative_mode,
         ];
-        let mut line: heapless::Vec<Command<'_>, 6> = heapless::Vec::new();
+        let mut line: heapless::Vec<Command<'_>, 7> = heapless::Vec::new();
         for (c, u) in parts.iter().zip(used) {
             if u {
                 let _ = line.push(*c);
             }
         }
-        let mut replies: [Reply; 6] = Default::default();
+        let mut replies: [Reply; 7] = Default::default();
         let reads = line.len() - usize::from(relative_mode) - 2;
         if encode_line(&line).is_ok() {
             client.transact(&line, &mut replies).map_err(fault)?;
@@ -898,4 +592,24 @@ impl Io {
         }
         Ok(())
     }
+}
+
+/// The heartbeat after `beat` (1..=30000, then around again).
+fn next_beat(beat: u32) -> u32 {
+    beat % 30_000 + 1
+}
+
+/// Halts every program thread, downloads the watchdog and starts it in its thread.
+fn start_watchdog(
+    client: &mut Client<Box<dyn Link + Send>>,
+    timeout: Duration,
+    axes: usize,
+) -> Result<(), GalilError> {
+    let tm = client.servo_period()?;
+    let period = tm * 1e-6 * (1000.0 / 1024.0);
+    client.ack(&Command::Halt(None))?;
+    client.download(&watchdog::program(timeout, period, axes))?;
+    client.ack(&Command::Assign(HEARTBEAT, 0.0))?;
+    client.ack(&Command::Assign(TRIPPED, 0.0))?;
+    client.ack(&Command::Execute(WATCHDOG_LABEL, WATCHDOG_THREAD))
 }
