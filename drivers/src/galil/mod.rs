@@ -43,7 +43,8 @@ pub mod number;
 pub mod record;
 
 pub use board::{
-    BoardFault, GalilBoard, GalilBoardConfig, GalilBoardError, TargetMode, axis_bindings,
+    BoardFault, DEFAULT_WATCHDOG, GalilBoard, GalilBoardConfig, GalilBoardError, TargetMode,
+    axis_bindings,
 };
 pub use client::{AxisValues, BoardInfo, Client, ClientConfig, Identity, LinkStats, Reply};
 pub use command::{Axes, Command, Operand, ReplyKind, Setting, Tell, UnsolicitedMode};

@@ -89,6 +89,15 @@ impl<M: RobotModel> RigidBodyPlant<M> {
         &self.snapshot
     }
 
+    /// Puts joint `j` at `position`, at rest (a brake holding it; a reset). Does nothing past
+    /// the joint count.
+    pub fn hold_joint(&mut self, j: usize, position: f64) {
+        if j < self.model.joint_count().min(MAX_JOINTS) && position.is_finite() {
+            self.snapshot.joints.position[j] = position;
+            self.snapshot.joints.velocity[j] = 0.0;
+        }
+    }
+
     /// Advances the plant to `now` with motor torques `tau` (N·m, clipped at the motor limits)
     /// held constant, the interaction evaluated at every sub-step. Does nothing if `now` is not
     /// later than the plant's time.

@@ -5,6 +5,10 @@
 //! drives the encoder count up. So the joint torque is `volts × newton_metres_per_volt ×
 //! sign(counts per radian)` (the sign is the gear's and the encoder's direction), and the
 //! encoder reads `(q - zero) × counts per radian` — the model's own scaling.
+//!
+//! With [`ArmConfig::brakes`], a joint whose amplifier is off is held by its brake, as a PUMA's
+//! arm-power brakes hold it: the arm does not fall while the board is configured or after a
+//! watchdog trip.
 
 use std::time::Duration;
 
@@ -29,6 +33,8 @@ pub struct ArmConfig {
     pub newton_metres_per_volt: [f64; MAX_GALIL_AXES],
     /// Include the model's joint friction.
     pub friction: bool,
+    /// A joint whose amplifier is off is held still by a brake.
+    pub brakes: bool,
 }
 
 impl ArmConfig {
@@ -39,6 +45,7 @@ impl ArmConfig {
             zero,
             newton_metres_per_volt: [newton_metres_per_volt; MAX_GALIL_AXES],
             friction: true,
+            brakes: true,
         }
     }
 }
@@ -49,6 +56,8 @@ pub(super) struct Arm {
     config: ArmConfig,
     plant: RigidBodyPlant<DhRobotModel>,
     joints: usize,
+    /// Where each braked joint is held.
+    braked: [Option<f64>; MAX_JOINTS],
 }
 
 impl Arm {
@@ -69,6 +78,7 @@ impl Arm {
             config,
             plant,
             joints,
+            braked: [None; MAX_JOINTS],
         }
     }
 
@@ -77,15 +87,29 @@ impl Arm {
         self.joints
     }
 
-    /// Applies `volts` on the axes up to simulated time `now` (seconds).
-    pub(super) fn advance(&mut self, now: f64, volts: &[f64]) {
+    /// Applies `volts` on the axes up to simulated time `now` (seconds); `on[j]`: joint `j`'s
+    /// amplifier is on (off and braked: held still).
+    pub(super) fn advance(&mut self, now: f64, volts: &[f64], on: &[bool]) {
         let mut tau = JointVector::zeros();
-        for (j, v) in volts.iter().enumerate().take(self.joints) {
+        let position = self.plant.snapshot().joints.position;
+        for j in 0..self.joints {
+            let powered = on.get(j).copied().unwrap_or(false);
+            if self.config.brakes && !powered {
+                self.braked[j].get_or_insert(position[j]);
+                continue;
+            }
+            self.braked[j] = None;
+            let v = volts.get(j).copied().unwrap_or(0.0);
             let direction = self.config.model.counts_per_radian(j).signum();
             tau[j] = v * self.config.newton_metres_per_volt[j] * direction;
         }
         let t = Timestamp::from_nanos((now.max(0.0) * 1e9) as u64);
         self.plant.advance_to(t, &tau, &mut FreeSpace);
+        for (j, held) in self.braked.iter().enumerate() {
+            if let Some(q) = held {
+                self.plant.hold_joint(j, *q);
+            }
+        }
     }
 
     /// Encoder position (counts) and velocity (counts/s) of joint `j`.

@@ -113,6 +113,8 @@ pub struct AxisSnapshot {
     pub offset: f64,
     /// When the amplifier last went from on to off, on the emulator's clock.
     pub off_at: Option<Duration>,
+    /// How long the host had been silent (no command received) at that instant.
+    pub host_silent_at_off: Option<Duration>,
 }
 
 /// The emulated controller.
@@ -145,6 +147,7 @@ pub struct Dmc {
     /// Amplifier state seen last, and when each went off.
     was_on: Vec<bool>,
     off_at: Vec<Option<f64>>,
+    silent_at_off: Vec<Option<f64>>,
     last_command_at: Option<f64>,
 }
 
@@ -199,6 +202,7 @@ impl Dmc {
             arm: None,
             was_on: vec![false; n],
             off_at: vec![None; n],
+            silent_at_off: vec![None; n],
             last_command_at: None,
         }
         .with_arm()
@@ -258,6 +262,7 @@ impl Dmc {
             output: a.output,
             offset: a.of,
             off_at: self.off_at[i].map(Duration::from_secs_f64),
+            host_silent_at_off: self.silent_at_off[i].map(Duration::from_secs_f64),
         })
     }
 
@@ -286,10 +291,12 @@ impl Dmc {
             }
             if let Some(arm) = &mut self.arm {
                 let mut volts = [0.0; MAX_GALIL_AXES];
-                for (v, a) in volts.iter_mut().zip(&self.axes) {
+                let mut on = [false; MAX_GALIL_AXES];
+                for ((v, o), a) in volts.iter_mut().zip(&mut on).zip(&self.axes) {
                     *v = a.output;
+                    *o = a.motor_on;
                 }
-                arm.advance(t, &volts);
+                arm.advance(t, &volts, &on);
             }
             self.sync_arm();
             self.sim_time = t;
@@ -304,6 +311,7 @@ impl Dmc {
         for (i, a) in self.axes.iter().enumerate() {
             if self.was_on[i] && !a.motor_on {
                 self.off_at[i] = Some(self.sim_time);
+                self.silent_at_off[i] = self.last_command_at.map(|t| self.sim_time - t);
             }
             self.was_on[i] = a.motor_on;
         }
@@ -542,9 +550,10 @@ impl Dmc {
                 let keep = self.pending_unsolicited.clone();
                 let arm = self.arm.take();
                 let (time, ticks) = (self.sim_time, self.ticks);
-                let (was_on, off_at, last) = (
+                let (was_on, off_at, silent, last) = (
                     self.was_on.clone(),
                     self.off_at.clone(),
+                    self.silent_at_off.clone(),
                     self.last_command_at,
                 );
                 *self = Dmc::new(self.config.clone());
@@ -553,6 +562,7 @@ impl Dmc {
                 self.pending_unsolicited = keep;
                 self.was_on = was_on;
                 self.off_at = off_at;
+                self.silent_at_off = silent;
                 self.last_command_at = last;
                 if arm.is_some() {
                     self.arm = arm;
