@@ -23,7 +23,11 @@ fn pd_on_the_arm(orient: bool, run: Duration, give_up: f64) -> (f64, f64) {
     let start = model.named_pose(NamedPose::Start);
     let emu = PtyEmulator::spawn(PtyOptions {
         dmc: DmcConfig {
-            arm: Some(ArmConfig::new(model.clone(), start, 1.0 / VOLTS_PER_NM)),
+            // Friction off: no stiction band, so convergence is to the goal itself.
+            arm: Some(ArmConfig {
+                friction: false,
+                ..ArmConfig::new(model.clone(), start, 1.0 / VOLTS_PER_NM)
+            }),
             ..DmcConfig::default()
         },
         ..PtyOptions::default()
@@ -96,14 +100,14 @@ fn pd_on_the_arm(orient: bool, run: Duration, give_up: f64) -> (f64, f64) {
 #[test]
 fn a_gravity_compensated_pd_converges_with_the_model_s_torque_directions() {
     let (initial, error) = pd_on_the_arm(true, Duration::from_secs(3), 1.0);
-    println!("PD + gravity, oriented: error {initial:.3} rad -> {error:.4} rad");
-    assert!(error < 0.01, "{error}");
+    println!("PD + gravity, oriented: error {initial:.3} rad -> {error:.1e} rad");
+    assert!(error < 2e-3, "{error}");
 }
 
 #[test]
 fn the_same_pd_runs_away_with_one_sign_for_every_axis() {
     let (initial, error) = pd_on_the_arm(false, Duration::from_secs(3), 0.5);
-    println!("PD + gravity, one sign: error {initial:.3} rad -> {error:.4} rad");
+    println!("PD + gravity, one sign: error {initial:.3} rad -> {error:.1e} rad");
     assert!(error > 4.0 * initial, "{error}");
 }
 
