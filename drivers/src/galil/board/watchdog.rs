@@ -73,6 +73,6 @@ mod tests {
         assert_eq!(limit_samples(Duration::from_millis(1), 976.5625e-6), 1);
         let p = program(DEFAULT_WATCHDOG, 976.5625e-6, 6);
         assert!(p.contains("MO ABCDEF;OF 0,0,0,0,0,0"));
-        assert!(p.lines().all(|l| l.len() <= 80));
+        assert!(p.split('\r').all(|l| l.len() <= 80));
     }
 }
