@@ -231,7 +231,7 @@ impl Io {
         let _ = line.push_str(TRIPPED);
         match c.command(&Command::Raw(&line)) {
             Ok(r) => match super::super::number::parse_number(&r.text) {
-                Ok(v) if v == 1.0 => BoardFault::Watchdog,
+                Ok(1.0) => BoardFault::Watchdog,
                 _ => f,
             },
             Err(_) => f,
@@ -263,9 +263,11 @@ impl Io {
             for i in effort.indices() {
                 zeros[i] = Some(0.0);
             }
-            // The line may be gone after all: one failure ends the attempt.
-            if c.set(Setting::Offset, &zeros[..n]).is_err() {
-                let _ = c.ack(&Command::MotorOff(effort));
+            // The line may be gone after all: a link failure ends the attempt (each would cost
+            // a timeout); a rejected `OF` still leaves `MO` worth sending.
+            if let Err(e) = c.set(Setting::Offset, &zeros[..n])
+                && e.is_link_fault()
+            {
                 return;
             }
             if c.ack(&Command::MotorOff(effort)).is_err() {

@@ -1,7 +1,7 @@
 //! [`GalilBoard`]: the `hal::Board` for a DMC on a serial line.
 //!
 //! The serial line is slow and blocks, so it never meets the control thread. The board owns an
-//! I/O thread that runs the protocol [`Client`] as fast as the line allows and meets the control
+//! I/O thread that runs the protocol [`Client`](super::Client) as fast as the line allows and meets the control
 //! thread only through lock-free latest-value cells (`penelope_rt_core::cell`):
 //!
 //! ```text
