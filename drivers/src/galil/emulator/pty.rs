@@ -135,6 +135,40 @@ impl Drop for PtyEmulator {
     }
 }
 
+/// The longest step the emulated controller's clock takes between two looks of its thread.
+/// A thread that stalled longer (a loaded machine) pauses the emulated controller for the rest
+/// of the stall: otherwise its watchdog timers would count the emulator's own stall as host
+/// silence, which a real DMC, never descheduled, does not see.
+const MAX_CLOCK_STEP: Duration = Duration::from_millis(10);
+
+/// The emulated controller's clock: wall time since the start, minus the stalls of the serving
+/// thread beyond [`MAX_CLOCK_STEP`].
+struct EmulatorClock {
+    start: Instant,
+    paused: Duration,
+    last: Duration,
+}
+
+impl EmulatorClock {
+    fn new() -> Self {
+        EmulatorClock {
+            start: Instant::now(),
+            paused: Duration::ZERO,
+            last: Duration::ZERO,
+        }
+    }
+
+    fn now(&mut self) -> Duration {
+        let mut now = self.start.elapsed().saturating_sub(self.paused);
+        if now > self.last + MAX_CLOCK_STEP {
+            self.paused += now - self.last - MAX_CLOCK_STEP;
+            now = self.last + MAX_CLOCK_STEP;
+        }
+        self.last = now;
+        now
+    }
+}
+
 /// Seconds per byte on a line at `baud` (start + 8 data + stop bits).
 fn byte_time(baud: u32) -> Duration {
     Duration::from_secs_f64(10.0 / f64::from(baud.max(1)))
@@ -149,6 +183,7 @@ fn sleep_until(t: Instant) {
 
 fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared, dmc: &Mutex<Dmc>) {
     let start = Instant::now();
+    let mut clock = EmulatorClock::new();
     let lock = || dmc.lock().unwrap_or_else(PoisonError::into_inner);
     let mut buf = [0u8; 512];
     let mut out = Vec::new();
@@ -166,7 +201,7 @@ fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared, 
         let ready = poll(&mut fds, PollTimeout::from(2u8)).unwrap_or(0);
         let mut dmc = lock();
         // The controller runs on its own: servo samples and programs, talked to or not.
-        dmc.advance(start.elapsed());
+        dmc.advance(clock.now());
         if ready > 0 {
             match nix::unistd::read(master.as_fd(), &mut buf) {
                 Ok(n) if n > 0 => {
@@ -175,7 +210,7 @@ fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared, 
                         rx_clock = rx_clock.max(Instant::now()) + byte_time(baud) * n as u32;
                         sleep_until(rx_clock);
                     }
-                    dmc.input(&buf[..n], start.elapsed(), &mut out);
+                    dmc.input(&buf[..n], clock.now(), &mut out);
                 }
                 // No client has the device open, or a spurious wake-up.
                 _ => {
@@ -205,7 +240,7 @@ fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared, 
     shared.line_closed.store(true, Ordering::SeqCst);
     // Unplugged (or stopping): the controller runs on without a line until stopped.
     while !shared.stop.load(Ordering::SeqCst) {
-        lock().advance(start.elapsed());
+        lock().advance(clock.now());
         std::thread::sleep(Duration::from_millis(1));
     }
 }
