@@ -475,6 +475,9 @@ impl Board for GalilBoard {
         Ok(())
     }
 
+    /// Efforts are joint torques: each is signed with its axis' direction
+    /// ([`GalilBoard::orient`]) before it becomes `OF` volts.
+    ///
     /// # Real-time
     /// Wait-free: one cell write. No allocation, lock or system call.
     fn write_axes(&mut self, _now: Timestamp, commands: &[AxisCommand]) -> Result<(), Self::Error> {
