@@ -203,7 +203,7 @@ impl Expr {
         let bad = CODE_BAD_PROGRAM;
         match self.0.get(*pos) {
             Some(Token::Num(_) | Token::Name(_) | Token::Operand(..)) => *pos += 1,
-            Some(Token::Op(Op::Sub)) => {
+            Some(Token::Op(Op::Sub)) if depth <= 16 => {
                 *pos += 1;
                 self.shape_term(pos, depth + 1)?;
             }
