@@ -246,3 +246,75 @@ fn emulator_never_panics_on_garbage() {
         );
     }
 }
+
+#[test]
+fn emulator_programs_never_panic_on_garbage() {
+    const WORDS: &[&[u8]] = &[
+        b"DL\r",
+        b"\\",
+        b"\x1a",
+        b"#A",
+        b"#B1",
+        b"XQ #A",
+        b"XQ #B1,3",
+        b"XQ",
+        b"HX",
+        b"HX 3",
+        b"IF (",
+        b"IF x<>y",
+        b"ELSE",
+        b"ENDIF",
+        b"JP #A",
+        b"JP #B1,(TIME>3)",
+        b"x=",
+        b"y=x+1",
+        b"TIME",
+        b"WT 2",
+        b"EN",
+        b"MO",
+        b"OF 1",
+        b"SH",
+        b"MG x",
+        b"_TPA",
+        b"(",
+        b")",
+        b"-",
+        b"*",
+        b"/0",
+        b"\r",
+        b";",
+        b"\xc3\xa9",
+    ];
+    for seed in 0..2000u64 {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut dmc = Dmc::new(DmcConfig::default());
+        let mut out = Vec::new();
+        let mut t = 0.0;
+        for _ in 0..30 {
+            let mut bytes = Vec::new();
+            for _ in 0..rng.random_range(0..12usize) {
+                if rng.random_range(0..4) > 0 {
+                    bytes.extend_from_slice(WORDS[rng.random_range(0..WORDS.len())]);
+                } else {
+                    bytes.push(rng.random::<u8>());
+                }
+            }
+            t += rng.random_range(0.0..0.02);
+            dmc.input(&bytes, Duration::from_secs_f64(t), &mut out);
+        }
+        // End any download, halt every program, drop what programs printed: the controller
+        // answers cleanly.
+        dmc.input(b"\\\rEO0\rHX\r", Duration::from_secs_f64(t), &mut out);
+        dmc.flush_unsolicited(&mut out);
+        out.clear();
+        dmc.input(b"MG 7\r", Duration::from_secs_f64(t), &mut out);
+        let text = out.strip_suffix(b"\r\n:").unwrap_or(b"");
+        assert_eq!(
+            penelope_drivers::galil::number::parse_number(text),
+            Ok(7.0),
+            "seed {seed}: {:?}",
+            String::from_utf8_lossy(&out)
+        );
+        assert!((0..8).all(|i| !dmc.thread_running(i)), "seed {seed}");
+    }
+}

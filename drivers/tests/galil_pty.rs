@@ -122,7 +122,7 @@ fn device_disappearing_mid_exchange() {
     assert_eq!(c.initialize().unwrap().layout.axes, 4);
     assert_eq!(c.positions().unwrap().len(), 4);
     emu.unplug();
-    wait_until(|| !emu.is_running());
+    wait_until(|| !emu.is_plugged());
     let err = c.positions().unwrap_err();
     assert!(err.is_link_fault(), "{err:?}");
     // Every later call fails cleanly, never hangs for long and never panics.

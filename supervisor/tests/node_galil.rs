@@ -4,11 +4,17 @@
 //! link (goWork reaches the work pose), the amplifiers follow the lifecycle, and a cable pulled
 //! mid-run faults the loop with a typed cause while the node keeps answering. An unreachable
 //! device is a typed error at configure.
+//!
+//! With the emulator's axes driving the PUMA 200's rigid-body plant (gravity included), a joint
+//! PID with gravity compensation on the node, started away from its target, converges on the
+//! arm itself (torque signs from the model: the waist and elbow gears are negative), and a cable
+//! pulled then leaves the motors off within the board's watchdog time.
 
 use std::thread;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-use penelope_drivers::galil::emulator::{PtyEmulator, PtyOptions};
+use penelope_drivers::galil::DEFAULT_WATCHDOG;
+use penelope_drivers::galil::emulator::{ArmConfig, DmcConfig, PtyEmulator, PtyOptions};
 use penelope_hal::NamedPose;
 use penelope_supervisor::client::{BoardProxy, Client, ControllerProxy, Lifecycle, RobotProxy};
 use penelope_supervisor::net::conn::{ClientConfig, RpcError};
@@ -138,6 +144,133 @@ fn a_node_drives_a_puma200_through_the_emulated_galil() {
     assert!(lab.info().is_ok());
 
     servo.deactivate().unwrap();
+    lab.destroy("dmc", true).unwrap();
+    node.shutdown();
+}
+
+#[test]
+fn a_gravity_compensated_joint_pid_on_the_node_converges_on_the_emulated_puma200() {
+    let model = penelope_drivers::model::puma200();
+    let start = model.named_pose(NamedPose::Start);
+    // 0.1 V per N·m at the node (its default), so 10 N·m per volt at the emulated amplifiers.
+    // Friction off: a PD with exact gravity compensation then has no stiction band, so it
+    // converges on the goal itself (the waist's Coulomb friction through its 60:1 gear would
+    // leave up to 0.03 rad).
+    let arm_config = ArmConfig {
+        friction: false,
+        ..ArmConfig::new(model.clone(), start, 10.0)
+    };
+    let emulator = PtyEmulator::spawn(PtyOptions {
+        dmc: DmcConfig {
+            arm: Some(arm_config),
+            ..DmcConfig::default()
+        },
+        ..PtyOptions::default()
+    })
+    .expect("a pseudo-terminal");
+    let node = Node::start(NodeConfig::new("lab", NamingChoice::Host)).unwrap();
+    let client = Client::connect(node.address(), ClientConfig::new("test")).unwrap();
+    let lab = client.node("lab").unwrap();
+    let board: BoardProxy = lab
+        .create_as(
+            "board/galil",
+            "dmc",
+            &format!("device = \"{}\"", emulator.path().display()),
+        )
+        .unwrap();
+    board.configure().unwrap();
+    let robot: RobotProxy = lab.create_as("robot/puma200", "slave", "").unwrap();
+    robot
+        .map_joints("dmc", &(0..6).map(|j| (j, j)).collect::<Vec<_>>())
+        .unwrap();
+    robot.configure().unwrap();
+
+    // A target 0.05 rad away from where the arm is, on every joint.
+    let mut goal = start;
+    for j in 0..6 {
+        goal[j] += if j % 2 == 0 { 0.05 } else { -0.05 };
+    }
+    let list: Vec<String> = (0..6).map(|j| format!("{:.6}", goal[j])).collect();
+    lab.create(
+        "trajectory/step",
+        "away",
+        &format!("goal = [{}]\n", list.join(", ")),
+    )
+    .unwrap();
+    client
+        .object("/lab/trajectories/away")
+        .unwrap()
+        .configure()
+        .unwrap();
+    let pid: ControllerProxy = lab
+        .create_as(
+            "controller/joint-pid",
+            "pid",
+            "period_us = 5000\nwatchdog_ms = 1000\ngravity_compensation = true\n",
+        )
+        .unwrap();
+    pid.set_robot("slave").unwrap();
+    pid.set_trajectory("away").unwrap();
+    pid.configure().unwrap();
+    pid.activate().unwrap();
+
+    // The arm itself (the emulator's plant), not the encoders' report of it, settles on the
+    // goal and stays there.
+    let arm = || emulator.inspect(|d| d.arm_joints()).unwrap();
+    let end = Instant::now() + Duration::from_secs(20);
+    let mut settled_since: Option<Instant> = None;
+    loop {
+        let error = (arm() - goal).amax();
+        if error < 2e-3 {
+            let since = *settled_since.get_or_insert_with(Instant::now);
+            if since.elapsed() > Duration::from_millis(500) {
+                break;
+            }
+        } else {
+            settled_since = None;
+        }
+        assert!(
+            Instant::now() < end,
+            "no convergence: arm {:?} vs goal {goal:?}: {:?}",
+            arm(),
+            pid.status()
+        );
+        thread::sleep(Duration::from_millis(10));
+    }
+    let status = pid.status().unwrap();
+    assert!(
+        status.last.as_ref().is_some_and(|s| s.fault.is_none()),
+        "{status:?}"
+    );
+    println!(
+        "joint PID + gravity on the emulated PUMA 200: {:.1e} rad from the goal (started 0.05 \
+         away), per joint {:?}",
+        (arm() - goal).amax(),
+        (arm() - goal).as_slice()
+    );
+
+    // The cable is pulled while the PID holds the arm against gravity: the DMC's own watchdog
+    // turns the motors off (the brakes then hold the arm).
+    emulator.unplug();
+    let end = Instant::now() + Duration::from_secs(10);
+    while emulator.inspect(|d| (0..6).any(|i| d.axis(i).unwrap().motor_on)) {
+        assert!(Instant::now() < end, "the motors stayed on");
+        thread::sleep(Duration::from_millis(2));
+    }
+    let silence = emulator.inspect(|d| {
+        (0..6)
+            .filter_map(|i| d.axis(i).unwrap().host_silent_at_off)
+            .max()
+            .unwrap()
+    });
+    println!(
+        "motors off {:.2} ms after the host's last command (watchdog {} ms)",
+        silence.as_secs_f64() * 1e3,
+        DEFAULT_WATCHDOG.as_millis()
+    );
+    assert!(silence <= DEFAULT_WATCHDOG, "{silence:?}");
+    assert!(lab.info().is_ok());
+    pid.deactivate().unwrap();
     lab.destroy("dmc", true).unwrap();
     node.shutdown();
 }

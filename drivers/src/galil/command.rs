@@ -306,6 +306,14 @@ pub enum Command<'a> {
     Record,
     /// Any other command text, sent as is (one command: `;`, CR and LF are refused).
     Raw(&'a str),
+    /// `name=value`: sets a program variable (a letter, then up to seven letters or digits; a
+    /// name starting with two capitals would read as a command and is refused).
+    Assign(&'a str, f64),
+    /// `XQ #LABEL,t`: runs the downloaded program from `label` (without `#`) in thread `t`
+    /// (0..=7).
+    Execute(&'a str, u8),
+    /// `HX t` (one thread) or `HX` (all): halts programs.
+    Halt(Option<u8>),
 }
 
 impl Command<'_> {
@@ -417,6 +425,30 @@ impl Command<'_> {
                 }
                 line.push_str(text).map_err(too_long)
             }
+            Command::Assign(name, value) => {
+                if !is_name(name, 8) || name.bytes().take(2).all(|b| b.is_ascii_uppercase()) {
+                    return Err(GalilError::InvalidArgument("not a variable name"));
+                }
+                line.push_str(name).map_err(too_long)?;
+                line.push('=').map_err(too_long)?;
+                write_number(line, value, false)
+            }
+            Command::Execute(label, thread) => {
+                if !is_name(label, 7) || label.bytes().any(|b| b.is_ascii_lowercase()) {
+                    return Err(GalilError::InvalidArgument("not a label"));
+                }
+                if thread > 7 {
+                    return Err(GalilError::InvalidArgument("thread out of 0..=7"));
+                }
+                write!(line, "XQ #{label},{thread}").map_err(too_long)
+            }
+            Command::Halt(None) => line.push_str("HX").map_err(too_long),
+            Command::Halt(Some(thread)) => {
+                if thread > 7 {
+                    return Err(GalilError::InvalidArgument("thread out of 0..=7"));
+                }
+                write!(line, "HX {thread}").map_err(too_long)
+            }
         }
     }
 }
@@ -439,6 +471,15 @@ pub fn encode_line(commands: &[Command<'_>]) -> Result<Line, GalilError> {
 /// Maps any capacity or formatting error onto [`GalilError::LineTooLong`].
 fn too_long<E>(_: E) -> GalilError {
     GalilError::LineTooLong
+}
+
+/// A letter, then letters or digits, at most `max` characters.
+fn is_name(s: &str, max: usize) -> bool {
+    let b = s.as_bytes();
+    !b.is_empty()
+        && b.len() <= max
+        && b[0].is_ascii_alphabetic()
+        && b.iter().all(u8::is_ascii_alphanumeric)
 }
 
 fn check_text(text: &str) -> Result<(), GalilError> {
@@ -568,6 +609,14 @@ mod tests {
         );
         assert!(enc(Command::Set(Setting::PositionAbsolute, &[Some(1e10)])).is_err());
         assert!(enc(Command::Raw("TP;TE")).is_err());
+        assert_eq!(enc(Command::Assign("hbeat", 12.0)).unwrap(), "hbeat=12");
+        assert!(enc(Command::Assign("KPA", 1.0)).is_err());
+        assert!(enc(Command::Assign("toolongname", 1.0)).is_err());
+        assert_eq!(enc(Command::Execute("PNWDOG", 7)).unwrap(), "XQ #PNWDOG,7");
+        assert!(enc(Command::Execute("wd", 1)).is_err());
+        assert!(enc(Command::Execute("WD", 8)).is_err());
+        assert_eq!(enc(Command::Halt(Some(7))).unwrap(), "HX 7");
+        assert_eq!(enc(Command::Halt(None)).unwrap(), "HX");
         assert!(enc(Command::Raw("TP\r")).is_err());
         assert!(enc(Command::Echoed("a\"b")).is_err());
         assert!(enc(Command::Message(Operand::Position, 8)).is_err());

@@ -13,10 +13,12 @@
 //!   pseudo-terminal) or a TCP socket ([`TcpLink`]); [`mock`] has a scripted one for tests.
 //! - [`client`]: the protocol client ([`Client`]): one request in flight, `TC1` after every `?`,
 //!   timeouts with resynchronisation, initialisation, identification.
-//! - [`emulator`]: a DMC-40x0 emulator ([`emulator::Dmc`]) and its pseudo-terminal runner
+//! - [`emulator`]: a DMC-40x0 emulator ([`emulator::Dmc`]: commands, programs and threads, an
+//!   optional robot arm behind the axes) and its pseudo-terminal runner
 //!   ([`emulator::PtyEmulator`]), for users without hardware and for end-to-end tests.
 //! - [`board`]: [`GalilBoard`], the `hal::Board` over all of this, with its serial I/O in its own
-//!   thread.
+//!   thread, a board-side watchdog ([`board::watchdog`]), amplifiers off on every fault and on
+//!   release, and torque directions from the robot model ([`GalilBoard::orient`]).
 //!
 //! # Example
 //!
@@ -43,7 +45,8 @@ pub mod number;
 pub mod record;
 
 pub use board::{
-    BoardFault, GalilBoard, GalilBoardConfig, GalilBoardError, TargetMode, axis_bindings,
+    BoardFault, DEFAULT_WATCHDOG, GalilBoard, GalilBoardConfig, GalilBoardError, TargetMode,
+    axis_bindings,
 };
 pub use client::{AxisValues, BoardInfo, Client, ClientConfig, Identity, LinkStats, Reply};
 pub use command::{Axes, Command, Operand, ReplyKind, Setting, Tell, UnsolicitedMode};

@@ -54,6 +54,7 @@ pub struct PlantSnapshot {
 /// `M(q) qdd = tau_motor + Jᵀ F_interaction + tau_friction(qd) - (C(q, qd) qd + g(q))`.
 ///
 /// The motor torque is held constant between calls (zero-order hold), as a DAC holds its output.
+#[derive(Clone, Debug)]
 pub struct RigidBodyPlant<M> {
     model: M,
     config: PlantConfig,
@@ -86,6 +87,15 @@ impl<M: RobotModel> RigidBodyPlant<M> {
     /// The current physical state.
     pub fn snapshot(&self) -> &PlantSnapshot {
         &self.snapshot
+    }
+
+    /// Puts joint `j` at `position`, at rest (a brake holding it; a reset). Does nothing past
+    /// the joint count.
+    pub fn hold_joint(&mut self, j: usize, position: f64) {
+        if j < self.model.joint_count().min(MAX_JOINTS) && position.is_finite() {
+            self.snapshot.joints.position[j] = position;
+            self.snapshot.joints.velocity[j] = 0.0;
+        }
     }
 
     /// Advances the plant to `now` with motor torques `tau` (N·m, clipped at the motor limits)

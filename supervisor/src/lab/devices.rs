@@ -14,8 +14,9 @@
 //!   emulated PUMA starts in its `start` pose. Counts away from zero are motion since power-up.
 //! - **±10 V at the effort limit.** The DMC's `OF` output is a ±10 V amplifier command; the
 //!   lab assumes the amplifiers are scaled so that 10 V is the joint's `effort_max` (the model's
-//!   torque limit, 100 N·m when the model has none), with the sign of the joint's counts per
-//!   radian (a positive command drives the encoder count up).
+//!   torque limit, 100 N·m when the model has none); the driver signs each axis from the joint's
+//!   counts per radian ([`GalilBoard::orient`]: a positive volt drives the encoder count up).
+//! - Releasing the board (dropping it) is the driver's: amplifiers off and the watchdog halted.
 //! - Joint `j` is on board axis `axes[j]` (default `j`); the board drives its first
 //!   `max(axes) + 1` axes, and an axis no joint uses is switched off (`MO`).
 
@@ -153,7 +154,7 @@ impl LinkMonitor {
 }
 
 /// A [`GalilBoard`] as the lab drives it: its link counters go to a [`LinkMonitor`] at every
-/// read, and dropping it switches the amplifiers off.
+/// read; dropping it releases the board (the driver switches the amplifiers off).
 pub struct LabGalilBoard {
     board: GalilBoard,
     monitor: LinkMonitor,
@@ -168,30 +169,6 @@ impl LabGalilBoard {
     /// The link counters (a handle on the same counters).
     pub fn monitor(&self) -> LinkMonitor {
         self.monitor.clone()
-    }
-}
-
-impl Drop for LabGalilBoard {
-    /// Switches the amplifiers off (`MO`) before the driver stops its I/O thread: the driver
-    /// itself leaves them as they were, and an axis left in effort mode would keep its last
-    /// torque. Waits up to 200 ms for the I/O thread to pass the command on.
-    ///
-    /// Not real-time: called once, when the control loop that owned the board is dropped.
-    fn drop(&mut self) {
-        let _ = self.board.set_enabled(false);
-        let cycles = self.board.cycles();
-        let deadline = Instant::now() + Duration::from_millis(200);
-        while Instant::now() < deadline {
-            // A faulted I/O thread honours the disable within one of its 10 ms waits.
-            if self.board.is_faulted() {
-                std::thread::sleep(Duration::from_millis(30));
-                break;
-            }
-            if self.board.cycles() >= cycles + 2 {
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(1));
-        }
     }
 }
 
@@ -298,7 +275,7 @@ pub const FIRST_STATE_TIMEOUT: Duration = Duration::from_secs(2);
 /// Axes: joint `j` on `cfg.axes[j]` (default `j`); the board drives its first `max + 1` axes.
 /// Scaling: the model's counts per radian (as [`axis_bindings`]), encoder zero at `zero_pose`
 /// (the robot's configured `start` pose, see the [module docs](self)), and `OF` volts per N·m of
-/// `±10 V / effort_max` signed like the counts per radian. Serial line: `cfg.port` at `cfg.baud`.
+/// `10 V / effort_max`, signed by the driver from the counts per radian. Serial line: `cfg.port` at `cfg.baud`.
 ///
 /// Blocks (not real-time) until the board's I/O thread published its first state, at most
 /// [`FIRST_STATE_TIMEOUT`]; `now` stamps that first read.
@@ -370,19 +347,19 @@ pub fn galil_board(
         } else {
             DEFAULT_EFFORT_FULL_SCALE
         };
-        volts[usize::from(map[j])] = GALIL_FULL_SCALE_VOLTS / full_scale * cpr.signum();
+        volts[usize::from(map[j])] = GALIL_FULL_SCALE_VOLTS / full_scale;
     }
     let mut config = GalilBoardConfig::new(port.clone(), driven, &volts);
     config.serial.baud = cfg.baud;
-    let board = GalilBoard::open(config).map_err(|source| GalilSetupError::Open {
+    let mut board = GalilBoard::open(config).map_err(|source| GalilSetupError::Open {
         port: port.clone(),
         source,
     })?;
+    board.orient(&bindings[..n]);
 
     // The I/O thread publishes its first state after one exchange cycle.
     let mut axes = [AxisState::default(); MAX_AXES];
     let waited = Instant::now();
-    let mut board = board;
     loop {
         match board.read_axes(now, &mut axes[..driven]) {
             Ok(()) => break,

@@ -277,8 +277,10 @@ device = "/dev/ttyUSB0"        # serial device, or else:
 address = "127.0.0.1:7400"     # TCP address of a DMC or of `penelope galil-sim` (one of the two is required)
 baud = 115200                  # serial baud rate, 1200..=921600
 axes = 6                       # axes driven, 1..=8
-volts_per_newton_metre = 0.1   # amplifier scaling, V per N·m of joint torque: one value or one per axis (|v| <= 10)
+volts_per_newton_metre = 0.1   # amplifier scaling, V per N·m of joint torque: one value or one per axis (|v| <= 10);
+                               # the sign per joint comes from the robot's gear and encoder (negative flips a reversed amplifier)
 connect_timeout_ms = 1000      # TCP connect timeout, 10..=60000 ms
+watchdog_ms = 30               # the DMC turns its motors off when no exchange reached it for this long, 5..=1000 ms (0: no watchdog)
 "#;
 
 const SENSOR_KEYS: &str = r#"
@@ -678,6 +680,8 @@ pub struct GalilConfig {
     pub volts_per_newton_metre: PerJoint,
     /// TCP connect timeout, ms.
     pub connect_timeout_ms: u64,
+    /// The board-side watchdog time, ms (0: none).
+    pub watchdog_ms: u64,
 }
 
 impl Default for GalilConfig {
@@ -689,6 +693,7 @@ impl Default for GalilConfig {
             axes: 6,
             volts_per_newton_metre: PerJoint::One(0.1),
             connect_timeout_ms: 1000,
+            watchdog_ms: penelope_drivers::galil::DEFAULT_WATCHDOG.as_millis() as u64,
         }
     }
 }
@@ -727,6 +732,9 @@ impl GalilConfig {
             10,
             60_000,
         )?;
+        if self.watchdog_ms != 0 {
+            check_int(kind, "watchdog_ms", self.watchdog_ms, 5, 1000)?;
+        }
         self.volts_per_newton_metre
             .check(kind, "volts_per_newton_metre", -10.0, 10.0)?;
         if let PerJoint::Each(v) = &self.volts_per_newton_metre

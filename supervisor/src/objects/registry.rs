@@ -456,8 +456,9 @@ impl Registry {
                 Body::Robot(r) => r.body = None,
                 Body::Teleop(t) => t.link = None,
                 Body::Galil(g) => {
-                    if let Some(mut b) = g.board.take() {
-                        let _ = b.set_enabled(false);
+                    // The driver's release: amplifiers off, watchdog halted.
+                    if let Some(b) = g.board.take() {
+                        b.release();
                     }
                 }
                 _ => {}
@@ -858,7 +859,7 @@ impl Registry {
                 let Body::Galil(g) = &mut self.get_mut(board)?.body else {
                     return Err(WireError::Internal("galil body".into()));
                 };
-                let Some(b) = g.board.take() else {
+                let Some(mut b) = g.board.take() else {
                     // Put back what was taken before refusing.
                     self.give_back(
                         LoopBoard::Galil(Box::new(GalilSet::new(boards, map, n))),
@@ -866,6 +867,12 @@ impl Registry {
                     );
                     return Err(not_ready(format!("board `{board}` is not open")));
                 };
+                // Torque directions from the model: the driver signs each axis' effort.
+                let bindings: Vec<AxisBinding> = joints
+                    .iter()
+                    .map(|ja| AxisBinding::new(ja.axis, model.counts_per_radian(ja.joint.into())))
+                    .collect();
+                b.orient(&bindings);
                 boards.push((board.clone(), b));
                 for ja in joints {
                     map[usize::from(ja.joint)] = (index, ja.axis);
@@ -2069,6 +2076,7 @@ fn open_galil(cfg: &GalilConfig) -> Result<GalilBoard, WireError> {
     let path = cfg.device.clone().unwrap_or_else(|| "tcp".into());
     let mut board_cfg = GalilBoardConfig::new(path.clone(), cfg.axes as usize, &volts);
     board_cfg.serial.baud = cfg.baud;
+    board_cfg.watchdog = (cfg.watchdog_ms > 0).then(|| Duration::from_millis(cfg.watchdog_ms));
     let result = match &cfg.address {
         Some(address) => {
             let address = address.clone();

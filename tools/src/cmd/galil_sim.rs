@@ -6,7 +6,9 @@
 use std::process::ExitCode;
 use std::time::Duration;
 
-use penelope_drivers::galil::emulator::{DmcConfig, PtyEmulator, PtyOptions};
+use penelope_drivers::galil::emulator::{ArmConfig, DmcConfig, PtyEmulator, PtyOptions};
+use penelope_hal::NamedPose;
+use penelope_hal::robot::RobotModel as _;
 
 /// Options.
 #[derive(clap::Args, Debug)]
@@ -32,6 +34,15 @@ pub struct Args {
     /// Stop after this many seconds (default: run until interrupted).
     #[arg(long, value_name = "S")]
     pub duration: Option<f64>,
+    /// Drive a built-in robot's rigid-body plant (gravity, friction, brakes while an amplifier is
+    /// off) instead of bare motors: `puma200`, `puma560` or `frhc`. The encoders read zero at its
+    /// `start` pose.
+    #[arg(long, value_name = "ROBOT")]
+    pub arm: Option<String>,
+    /// With `--arm`: joint torque per output volt, N·m/V, for every axis (default: each joint's
+    /// torque limit at 10 V, the demo's convention; 10 N·m/V matches a node's default 0.1 V/N·m).
+    #[arg(long, value_name = "NM_PER_V")]
+    pub newton_metres_per_volt: Option<f64>,
 }
 
 /// Runs the subcommand.
@@ -59,10 +70,39 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         text.extend_from_slice(b"\r\n");
         (Duration::from_millis(ms.max(1)), text)
     });
+    let arm = match &args.arm {
+        None => None,
+        Some(name) => {
+            let Some(robot) = penelope_drivers::model::by_name(name) else {
+                return Err(crate::cmd::usage("--arm must be puma200, puma560 or frhc"));
+            };
+            let start = robot.named_pose(NamedPose::Start);
+            let mut arm = ArmConfig::new(robot.clone(), start, 1.0);
+            for (j, k) in arm.newton_metres_per_volt.iter_mut().enumerate() {
+                let limit = robot.limits().effort_max[j.min(penelope_hal::MAX_JOINTS - 1)];
+                *k = match args.newton_metres_per_volt {
+                    Some(v) => v,
+                    None if limit.is_finite() && limit > 0.0 => limit / 10.0,
+                    None => 10.0,
+                };
+            }
+            if !arm
+                .newton_metres_per_volt
+                .iter()
+                .all(|v| v.is_finite() && *v > 0.0)
+            {
+                return Err(crate::cmd::usage(
+                    "--newton-metres-per-volt must be positive",
+                ));
+            }
+            Some(arm)
+        }
+    };
     let emu = PtyEmulator::spawn(PtyOptions {
         dmc: DmcConfig {
             axes: args.axes,
             model: args.model.clone(),
+            arm,
             ..DmcConfig::default()
         },
         baud: args.baud,

@@ -26,20 +26,50 @@
 //!   bits: 7 moving, 5 motor off, 3 and 2
 //!   the limit switches (1 = inactive, as wired on a DMC-40x0 without switches).
 //!
+//! - Programs ([`program`]): `DL` downloads text up to `\` (or Ctrl-Z), parsed at once (a
+//!   program that does not parse is refused with `?`); `XQ #LABEL,t` runs it in thread `t`
+//!   (0..7), `HX t` / `HX` halts threads; host assignments `name=value` and `MG name` read and
+//!   write the same variables; `TIME` counts servo samples. Threads run at the servo rate, so a
+//!   watchdog program keeps time on the emulator's own clock whether or not a host talks to it.
+//! - An arm ([`ArmConfig`]): the axes can drive a robot's rigid-body plant (gravity included)
+//!   instead of bare motors.
+//!
+//! The emulator records when each amplifier went off and when the host last sent a command, on
+//! its own clock ([`Dmc::now`]), so tests can bound a watchdog against the emulator's time.
+//!
 //! The emulator allocates freely: it stands in for hardware and never runs in the control thread.
 
+mod arm;
+mod axis;
+pub mod program;
 mod pty;
+mod threads;
 
+pub use arm::ArmConfig;
 pub use pty::{PtyEmulator, PtyOptions};
 
-use std::collections::VecDeque;
+use std::collections::{HashMap, VecDeque};
+use std::sync::Arc;
 use std::time::Duration;
+
+use axis::{AxisSim, Profile, axis_record};
+use program::{Program, Thread};
 
 use super::command::{AXIS_LETTERS, MAX_GALIL_AXES, MAX_LINE, Setting};
 use super::record::{AxisRecord, RecordLayout, encode_record};
 
+/// Threads a DMC-40x0 runs programs in.
+pub const THREADS: usize = 8;
+
+/// Variables a DMC-40x0 holds.
+pub const MAX_VARIABLES: usize = 510;
+
+/// The largest program `DL` takes, bytes (a DMC-40x0 holds 4000 lines of 80 characters; the
+/// emulator is stricter).
+pub const MAX_PROGRAM: usize = 64 * 1024;
+
 /// How the emulator presents itself.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct DmcConfig {
     /// Number of axes, 1..=8.
     pub axes: usize,
@@ -47,6 +77,8 @@ pub struct DmcConfig {
     pub model: String,
     /// Firmware revision string.
     pub firmware: String,
+    /// A robot arm the axes drive; `None`: each axis is a bare motor.
+    pub arm: Option<ArmConfig>,
 }
 
 impl Default for DmcConfig {
@@ -55,6 +87,7 @@ impl Default for DmcConfig {
             axes: 6,
             model: "DMC4060".into(),
             firmware: "1.2h1-SIN".into(),
+            arm: None,
         }
     }
 }
@@ -74,367 +107,14 @@ pub struct AxisSnapshot {
     pub stop_code: u8,
     /// Position tracking mode on.
     pub tracking: bool,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Profile {
-    Idle,
-    Move { target: f64 },
-    Jog,
-    Tracking { target: f64 },
-    Stopping,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Pending {
-    None,
-    Relative,
-    Absolute,
-    Jog,
-}
-
-#[derive(Clone, Copy, Debug)]
-struct AxisSim {
-    motor_on: bool,
-    pos: f64,
-    vel: f64,
-    ref_pos: f64,
-    ref_vel: f64,
-    profile: Profile,
-    pending: Pending,
-    stop_code: u8,
-    output: f64,
-    // settings
-    pr: f64,
-    pa: f64,
-    sp: f64,
-    ac: f64,
-    dc: f64,
-    jg: f64,
-    kp: f64,
-    ki: f64,
-    kd: f64,
-    of: f64,
-    tl: f64,
-    er: f64,
-    oe: f64,
-    pt: f64,
-}
-
-impl AxisSim {
-    fn new() -> Self {
-        AxisSim {
-            motor_on: false,
-            pos: 0.0,
-            vel: 0.0,
-            ref_pos: 0.0,
-            ref_vel: 0.0,
-            profile: Profile::Idle,
-            pending: Pending::None,
-            stop_code: 0,
-            output: 0.0,
-            pr: 0.0,
-            pa: 0.0,
-            sp: 25_000.0,
-            ac: 256_000.0,
-            dc: 256_000.0,
-            jg: 25_000.0,
-            kp: 6.0,
-            ki: 0.0,
-            kd: 64.0,
-            of: 0.0,
-            tl: 9.9982,
-            er: 16_384.0,
-            oe: 0.0,
-            pt: 0.0,
-        }
-    }
-
-    fn moving(&self) -> bool {
-        self.profile != Profile::Idle
-    }
-
-    fn torque_mode(&self) -> bool {
-        self.kp == 0.0 && self.ki == 0.0 && self.kd == 0.0
-    }
-
-    fn switches(&self) -> u8 {
-        let mut ts = 0b1100; // limit switches inactive
-        if self.moving() {
-            ts |= 0x80;
-        }
-        if !self.motor_on {
-            ts |= 0x20;
-        }
-        ts
-    }
-
-    fn get(&self, s: Setting) -> f64 {
-        match s {
-            Setting::PositionRelative => self.pr,
-            Setting::PositionAbsolute => self.pa,
-            Setting::Speed => self.sp,
-            Setting::Acceleration => self.ac,
-            Setting::Deceleration => self.dc,
-            Setting::Jog => self.jg,
-            Setting::Kp => self.kp,
-            Setting::Ki => self.ki,
-            Setting::Kd => self.kd,
-            Setting::Offset => self.of,
-            Setting::TorqueLimit => self.tl,
-            Setting::ErrorLimit => self.er,
-            Setting::OffOnError => self.oe,
-            Setting::PositionTracking => self.pt,
-        }
-    }
-
-    /// Applies one setting; the error is a Galil code.
-    fn set(&mut self, s: Setting, v: f64) -> Result<(), u16> {
-        let in_range = |lo: f64, hi: f64| {
-            if (lo..=hi).contains(&v) {
-                Ok(v)
-            } else {
-                Err(6u16)
-            }
-        };
-        const POS: f64 = 2_147_483_647.0;
-        match s {
-            Setting::PositionRelative => {
-                let v = in_range(-POS, POS)?;
-                if matches!(self.profile, Profile::Move { .. } | Profile::Jog) {
-                    return Err(7);
-                }
-                self.pr = v.round();
-                self.pending = Pending::Relative;
-            }
-            Setting::PositionAbsolute => {
-                let v = in_range(-POS, POS)?.round();
-                match self.profile {
-                    Profile::Tracking { .. } => self.profile = Profile::Tracking { target: v },
-                    Profile::Move { .. } | Profile::Jog => return Err(7),
-                    _ if self.pt != 0.0 && self.motor_on => {
-                        self.profile = Profile::Tracking { target: v };
-                        self.stop_code = 0;
-                    }
-                    _ => self.pending = Pending::Absolute,
-                }
-                self.pa = v;
-            }
-            Setting::Speed => self.sp = in_range(0.0, 22_000_000.0)?.round(),
-            Setting::Acceleration => {
-                self.ac = (in_range(1024.0, 1_073_740_800.0)? / 1024.0).floor() * 1024.0;
-            }
-            Setting::Deceleration => {
-                self.dc = (in_range(1024.0, 1_073_740_800.0)? / 1024.0).floor() * 1024.0;
-            }
-            Setting::Jog => {
-                self.jg = in_range(-22_000_000.0, 22_000_000.0)?.round();
-                if self.profile != Profile::Jog {
-                    self.pending = Pending::Jog;
-                }
-            }
-            Setting::Kp => self.kp = in_range(0.0, 1023.875)?,
-            Setting::Ki => self.ki = in_range(0.0, 255.999)?,
-            Setting::Kd => self.kd = in_range(0.0, 4095.875)?,
-            Setting::Offset => self.of = in_range(-9.9982, 9.9982)?,
-            Setting::TorqueLimit => self.tl = in_range(0.0, 9.9982)?,
-            Setting::ErrorLimit => self.er = in_range(0.0, POS)?.round(),
-            Setting::OffOnError => {
-                let v = in_range(0.0, 3.0)?;
-                if v.fract() != 0.0 {
-                    return Err(6);
-                }
-                self.oe = v;
-            }
-            Setting::PositionTracking => {
-                let v = in_range(0.0, 1.0)?;
-                if v.fract() != 0.0 {
-                    return Err(6);
-                }
-                self.pt = v;
-                if v == 0.0 {
-                    if let Profile::Tracking { target } = self.profile {
-                        // Leaving tracking: finish the way to the last target as a move.
-                        if self.ref_pos == target && self.ref_vel == 0.0 {
-                            self.profile = Profile::Idle;
-                            self.stop_code = 1;
-                        } else {
-                            self.profile = Profile::Move { target };
-                        }
-                    }
-                } else if self.motor_on {
-                    if matches!(self.profile, Profile::Move { .. } | Profile::Jog) {
-                        return Err(7);
-                    }
-                    self.profile = Profile::Tracking {
-                        target: self.ref_pos.round(),
-                    };
-                    self.stop_code = 0;
-                }
-            }
-        }
-        Ok(())
-    }
-
-    fn begin(&mut self) -> Result<(), u16> {
-        if !self.motor_on {
-            return Err(20);
-        }
-        if self.moving() {
-            return Err(21);
-        }
-        match self.pending {
-            Pending::Relative => {
-                self.profile = Profile::Move {
-                    target: self.ref_pos.round() + self.pr,
-                }
-            }
-            Pending::Absolute => self.profile = Profile::Move { target: self.pa },
-            Pending::Jog => self.profile = Profile::Jog,
-            Pending::None => return Ok(()),
-        }
-        self.stop_code = 0;
-        Ok(())
-    }
-
-    fn servo_here(&mut self) {
-        self.motor_on = true;
-        self.ref_pos = self.pos.round();
-        self.ref_vel = 0.0;
-        self.vel = 0.0;
-        self.profile = if self.pt != 0.0 {
-            Profile::Tracking {
-                target: self.ref_pos,
-            }
-        } else {
-            Profile::Idle
-        };
-    }
-
-    fn motor_off(&mut self) {
-        self.motor_on = false;
-        if self.moving() {
-            self.profile = Profile::Idle;
-        }
-    }
-
-    fn stop(&mut self) {
-        if self.moving() {
-            self.profile = Profile::Stopping;
-            self.pt = 0.0;
-        }
-    }
-
-    fn abort(&mut self) {
-        if self.moving() {
-            self.profile = Profile::Idle;
-            self.stop_code = 7;
-        }
-        self.pt = 0.0;
-        self.ref_vel = 0.0;
-        self.ref_pos = self.pos.round();
-        if self.oe >= 1.0 {
-            self.motor_on = false;
-        }
-    }
-
-    /// One servo period of `dt` seconds.
-    fn step(&mut self, dt: f64) {
-        if !self.motor_on {
-            self.vel *= (-5.0 * dt).exp();
-            self.pos += self.vel * dt;
-            self.ref_pos = self.pos;
-            self.ref_vel = 0.0;
-            self.output = 0.0;
-            return;
-        }
-        let ref_vel_before = self.ref_vel;
-        // Profiler.
-        let approach = |ref_pos: f64, ref_vel: f64, target: f64, sp: f64, ac: f64, dc: f64| {
-            let d = target - ref_pos;
-            let v_des = d.signum() * sp.min((2.0 * dc * d.abs()).sqrt());
-            let accel = if v_des.abs() > ref_vel.abs() { ac } else { dc };
-            let dv = (v_des - ref_vel).clamp(-accel * dt, accel * dt);
-            let v = ref_vel + dv;
-            let p = ref_pos + v * dt;
-            // Arrived (or would overshoot): snap.
-            if (target - p).signum() != d.signum() || (d.abs() < 0.5 && v.abs() <= dc * dt) {
-                (target, 0.0, true)
-            } else {
-                (p, v, false)
-            }
-        };
-        match self.profile {
-            Profile::Idle => self.ref_vel = 0.0,
-            Profile::Move { target } => {
-                let (p, v, done) = approach(
-                    self.ref_pos,
-                    self.ref_vel,
-                    target,
-                    self.sp,
-                    self.ac,
-                    self.dc,
-                );
-                self.ref_pos = p;
-                self.ref_vel = v;
-                if done {
-                    self.profile = Profile::Idle;
-                    self.stop_code = 1;
-                }
-            }
-            Profile::Tracking { target } => {
-                let (p, v, _) = approach(
-                    self.ref_pos,
-                    self.ref_vel,
-                    target,
-                    self.sp,
-                    self.ac,
-                    self.dc,
-                );
-                self.ref_pos = p;
-                self.ref_vel = v;
-            }
-            Profile::Jog => {
-                let accel = if self.jg.abs() > self.ref_vel.abs() {
-                    self.ac
-                } else {
-                    self.dc
-                };
-                self.ref_vel += (self.jg - self.ref_vel).clamp(-accel * dt, accel * dt);
-                self.ref_pos += self.ref_vel * dt;
-            }
-            Profile::Stopping => {
-                self.ref_vel -= self.ref_vel.clamp(-self.dc * dt, self.dc * dt);
-                self.ref_pos += self.ref_vel * dt;
-                if self.ref_vel == 0.0 {
-                    self.profile = Profile::Idle;
-                    self.stop_code = 4;
-                }
-            }
-        }
-        // Motor and servo loop.
-        let e = self.ref_pos - self.pos;
-        if self.torque_mode() {
-            self.output = self.of.clamp(-self.tl, self.tl);
-            let acc = 10_000.0 * self.output - 5.0 * self.vel;
-            self.vel += acc * dt;
-        } else {
-            let wn = 2.0 * std::f64::consts::PI * 20.0;
-            // Acceleration feed-forward plus a critically damped correction.
-            let ref_acc = (self.ref_vel - ref_vel_before) / dt;
-            let acc = ref_acc + wn * wn * e + 2.0 * wn * (self.ref_vel - self.vel);
-            self.vel += acc * dt;
-            self.output = (self.of + self.kp * e * 10.0 / 32_768.0).clamp(-self.tl, self.tl);
-        }
-        self.pos += self.vel * dt;
-        // Off on error.
-        if self.oe >= 1.0 && (self.ref_pos - self.pos).abs() > self.er {
-            self.motor_on = false;
-            self.profile = Profile::Idle;
-            self.stop_code = 8;
-            self.pt = 0.0;
-        }
-    }
+    /// Output (DAC) volts.
+    pub output: f64,
+    /// `OF` setting, volts.
+    pub offset: f64,
+    /// When the amplifier last went from on to off, on the emulator's clock.
+    pub off_at: Option<Duration>,
+    /// How long the host had been silent (no command received) at that instant.
+    pub host_silent_at_off: Option<Duration>,
 }
 
 /// The emulated controller.
@@ -454,6 +134,21 @@ pub struct Dmc {
     line_too_long: bool,
     parts_in_line: usize,
     pending_unsolicited: VecDeque<Vec<u8>>,
+    /// Servo samples since power-up (`TIME`).
+    ticks: u64,
+    variables: HashMap<String, f64>,
+    program: Option<Arc<Program>>,
+    threads: [Option<Thread>; THREADS],
+    /// Threads halted (`HX`) while one of them was running, one bit each.
+    halted: u8,
+    /// Program text being received after `DL`.
+    download: Option<Vec<u8>>,
+    arm: Option<arm::Arm>,
+    /// Amplifier state seen last, and when each went off.
+    was_on: Vec<bool>,
+    off_at: Vec<Option<f64>>,
+    silent_at_off: Vec<Option<f64>>,
+    last_command_at: Option<f64>,
 }
 
 /// Galil's text for the error codes the emulator produces.
@@ -498,7 +193,51 @@ impl Dmc {
             line_too_long: false,
             parts_in_line: 0,
             pending_unsolicited: VecDeque::new(),
+            ticks: 0,
+            variables: HashMap::new(),
+            program: None,
+            threads: Default::default(),
+            halted: 0,
+            download: None,
+            arm: None,
+            was_on: vec![false; n],
+            off_at: vec![None; n],
+            silent_at_off: vec![None; n],
+            last_command_at: None,
         }
+        .with_arm()
+    }
+
+    fn with_arm(mut self) -> Self {
+        let period = self.servo_period();
+        self.arm = self.config.arm.clone().map(|a| arm::Arm::new(a, period));
+        self.sync_arm();
+        self
+    }
+
+    /// Axes read the arm's encoders.
+    fn sync_arm(&mut self) {
+        if let Some(arm) = &self.arm {
+            for (j, a) in self.axes.iter_mut().enumerate().take(arm.joints()) {
+                let (p, v) = arm.encoder(j);
+                a.moved(p, v);
+            }
+        }
+    }
+
+    /// The emulator's clock: simulated time since power-up.
+    pub fn now(&self) -> Duration {
+        Duration::from_secs_f64(self.sim_time)
+    }
+
+    /// When the host last sent a command (any part of a line), on the emulator's clock.
+    pub fn last_command_at(&self) -> Option<Duration> {
+        self.last_command_at.map(Duration::from_secs_f64)
+    }
+
+    /// The arm's joint positions, rad, when the axes drive an arm.
+    pub fn arm_joints(&self) -> Option<penelope_hal::JointVector> {
+        self.arm.as_ref().map(arm::Arm::joint_positions)
     }
 
     /// The configuration (axes clamped to 1..=8).
@@ -520,6 +259,10 @@ impl Dmc {
             motor_on: a.motor_on,
             stop_code: a.stop_code,
             tracking: matches!(a.profile, Profile::Tracking { .. }),
+            output: a.output,
+            offset: a.of,
+            off_at: self.off_at[i].map(Duration::from_secs_f64),
+            host_silent_at_off: self.silent_at_off[i].map(Duration::from_secs_f64),
         })
     }
 
@@ -536,11 +279,41 @@ impl Dmc {
             self.sim_time = now - MAX_CATCH_UP;
         }
         while self.sim_time + dt <= now {
-            for a in &mut self.axes {
-                a.step(dt);
+            self.run_threads();
+            let t = self.sim_time + dt;
+            let driven = self.arm.as_ref().map_or(0, arm::Arm::joints);
+            for (i, a) in self.axes.iter_mut().enumerate() {
+                if i < driven {
+                    a.step_output(dt);
+                } else {
+                    a.step(dt);
+                }
             }
-            self.sim_time += dt;
+            if let Some(arm) = &mut self.arm {
+                let mut volts = [0.0; MAX_GALIL_AXES];
+                let mut on = [false; MAX_GALIL_AXES];
+                for ((v, o), a) in volts.iter_mut().zip(&mut on).zip(&self.axes) {
+                    *v = a.output;
+                    *o = a.motor_on;
+                }
+                arm.advance(t, &volts, &on);
+            }
+            self.sync_arm();
+            self.sim_time = t;
+            self.ticks += 1;
             self.sample = self.sample.wrapping_add(1);
+            self.note_motors();
+        }
+    }
+
+    /// Records amplifiers that went off since the last look.
+    fn note_motors(&mut self) {
+        for (i, a) in self.axes.iter().enumerate() {
+            if self.was_on[i] && !a.motor_on {
+                self.off_at[i] = Some(self.sim_time);
+                self.silent_at_off[i] = self.last_command_at.map(|t| self.sim_time - t);
+            }
+            self.was_on[i] = a.motor_on;
         }
     }
 
@@ -570,6 +343,10 @@ impl Dmc {
     pub fn input(&mut self, bytes: &[u8], now: Duration, out: &mut Vec<u8>) {
         self.advance(now);
         for &b in bytes {
+            if self.download.is_some() {
+                self.download_byte(b, out);
+                continue;
+            }
             if self.echo {
                 out.push(b);
             }
@@ -603,12 +380,14 @@ impl Dmc {
             return;
         }
         self.parts_in_line += 1;
+        self.last_command_at = Some(self.sim_time);
         let start = out.len();
         let result = if too_long {
             Err(1)
         } else {
             self.execute(text, out)
         };
+        self.note_motors();
         let binary = matches!(result, Ok(Reply::Binary));
         match result {
             Ok(Reply::Ack) => out.push(b':'),
@@ -617,6 +396,7 @@ impl Dmc {
                 out.extend_from_slice(b"\r\n:");
             }
             Ok(Reply::Binary) => out.push(b':'),
+            Ok(Reply::Later) => {}
             Err(code) => {
                 self.error_code = code;
                 out.push(b'?');
@@ -700,6 +480,9 @@ impl Dmc {
                 self.config.model, self.config.firmware
             )));
         }
+        if let Some(reply) = self.assignment(text) {
+            return reply;
+        }
         let bytes = text.as_bytes();
         if bytes.len() < 2 || !bytes[0].is_ascii_uppercase() || !bytes[1].is_ascii_uppercase() {
             return Err(1);
@@ -707,6 +490,9 @@ impl Dmc {
         let (mnemonic, rest) = text.split_at(2);
         let rest = rest.trim();
         match mnemonic {
+            "DL" => self.begin_download(rest),
+            "XQ" => self.execute_thread(rest).map(|()| Reply::Ack),
+            "HX" => self.halt_threads(rest).map(|()| Reply::Ack),
             "EO" => {
                 self.echo = flag(rest)?;
                 Ok(Reply::Ack)
@@ -759,11 +545,30 @@ impl Dmc {
                 if !rest.is_empty() {
                     return Err(1);
                 }
+                // A reset controller: programs and variables gone, motors off; the clock, the
+                // arm and the record of motor-off instants carry on.
                 let keep = self.pending_unsolicited.clone();
-                let time = self.sim_time;
+                let arm = self.arm.take();
+                let (time, ticks) = (self.sim_time, self.ticks);
+                let (was_on, off_at, silent, last) = (
+                    self.was_on.clone(),
+                    self.off_at.clone(),
+                    self.silent_at_off.clone(),
+                    self.last_command_at,
+                );
                 *self = Dmc::new(self.config.clone());
                 self.sim_time = time;
+                self.ticks = ticks;
                 self.pending_unsolicited = keep;
+                self.was_on = was_on;
+                self.off_at = off_at;
+                self.silent_at_off = silent;
+                self.last_command_at = last;
+                if arm.is_some() {
+                    self.arm = arm;
+                    self.sync_arm();
+                }
+                self.note_motors();
                 Ok(Reply::Ack)
             }
             "QZ" => Ok(Reply::Text(format!(
@@ -852,6 +657,11 @@ impl Dmc {
                     return Err(1);
                 }
                 parts.push(self.fmt_dec(self.operand(name, axis)));
+            } else if arg == "TIME" {
+                parts.push(self.fmt_dec(self.ticks as f64));
+            } else if program::is_variable_name(arg) {
+                let v = self.variables.get(arg).copied().ok_or(1u16)?;
+                parts.push(self.fmt_dec(v));
             } else {
                 parts.push(self.fmt_dec(number(arg)?));
             }
@@ -924,6 +734,8 @@ enum Reply {
     Ack,
     Text(String),
     Binary,
+    /// The reply comes later (`DL`: after the program text).
+    Later,
 }
 
 fn flag(rest: &str) -> Result<bool, u16> {
@@ -957,134 +769,5 @@ fn split_args(s: &str) -> Vec<&str> {
     out
 }
 
-fn axis_record(a: &AxisSim) -> AxisRecord {
-    let clamp = |v: f64| v.round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32;
-    AxisRecord {
-        status: if a.moving() { 0x8000 } else { 0 },
-        switches: a.switches(),
-        stop_code: a.stop_code,
-        reference_position: clamp(a.ref_pos),
-        position: clamp(a.pos),
-        position_error: clamp(a.ref_pos - a.pos),
-        aux_position: 0,
-        velocity: clamp(a.vel),
-        torque: clamp(a.output / 10.0 * 32_767.0),
-    }
-}
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn send(dmc: &mut Dmc, t: f64, text: &str) -> String {
-        let mut out = Vec::new();
-        dmc.input(text.as_bytes(), Duration::from_secs_f64(t), &mut out);
-        String::from_utf8_lossy(&out).into_owned()
-    }
-
-    fn quiet() -> Dmc {
-        let mut d = Dmc::new(DmcConfig::default());
-        assert_eq!(send(&mut d, 0.0, "EO0\r"), "EO0\r:");
-        d
-    }
-
-    #[test]
-    fn grammar_and_errors() {
-        let mut d = quiet();
-        assert_eq!(send(&mut d, 0.0, "\r"), ":");
-        assert_eq!(send(&mut d, 0.0, "TP\r"), " 0, 0, 0, 0, 0, 0\r\n:");
-        assert_eq!(send(&mut d, 0.0, "tp\r"), "?");
-        assert_eq!(send(&mut d, 0.0, "TC1\r"), "1 Unrecognized command\r\n:");
-        assert_eq!(send(&mut d, 0.0, "TC1\r"), "0\r\n:");
-        assert_eq!(send(&mut d, 0.0, "BG A\r"), "?");
-        assert_eq!(
-            send(&mut d, 0.0, "TC1\r"),
-            "20 Begin not valid with motor off\r\n:"
-        );
-        assert_eq!(send(&mut d, 0.0, "OE 5\r"), "?");
-        assert_eq!(send(&mut d, 0.0, "TC0\r"), "6\r\n:");
-        assert_eq!(send(&mut d, 0.0, "SH;TPA;XX\r"), ": 0\r\n:?");
-        assert_eq!(send(&mut d, 0.0, "LZ0;TPA\r"), ": 0000000000\r\n:");
-        assert_eq!(send(&mut d, 0.0, "QZ\r"), "6, 52, 26, 36\r\n:");
-        assert_eq!(
-            send(&mut d, 0.0, "KP ?,?\r"),
-            " 0000000006.0000, 0000000006.0000\r\n:"
-        );
-        assert_eq!(
-            send(&mut d, 0.0, "\u{12}\u{16}\r"),
-            "DMC4060 Rev 1.2h1-SIN\r\n:"
-        );
-        assert_eq!(send(&mut d, 0.0, "ACA=?\r"), " 0000256000\r\n:");
-        assert_eq!(send(&mut d, 0.0, &format!("{}\r", "T".repeat(90))), "?");
-    }
-
-    #[test]
-    fn profiled_move_and_stop_codes() {
-        let mut d = quiet();
-        send(&mut d, 0.0, "SH;PR 1000;BG A\r");
-        assert_eq!(send(&mut d, 0.001, "BG A\r"), "?");
-        assert_eq!(
-            send(&mut d, 0.002, "TC1\r"),
-            "21 Begin not valid while running\r\n:"
-        );
-        assert_eq!(send(&mut d, 1.0, "MG _BGA, _SCA\r"), " 0.0000 1.0000\r\n:");
-        let a = d.axis(0).unwrap();
-        assert!((a.position - 1000.0).abs() < 2.0, "{a:?}");
-        // Jog then stop.
-        send(&mut d, 1.0, "JG ,5000;BG B\r");
-        send(&mut d, 1.5, "ST B\r");
-        assert_eq!(send(&mut d, 2.0, "SC B\r"), " 4\r\n:");
-        // Abort with OE1 turns the motor off.
-        send(&mut d, 2.0, "OE 1,1,1,1,1,1;JG ,3000;BG B\r");
-        send(&mut d, 2.1, "AB\r");
-        assert_eq!(send(&mut d, 2.2, "SC B;TS B\r"), " 7\r\n: 44\r\n:");
-    }
-
-    #[test]
-    fn tracking_and_off_on_error() {
-        let mut d = quiet();
-        send(&mut d, 0.0, "SH;PT 1,1\r");
-        send(&mut d, 0.0, "PA 500,-500\r");
-        send(&mut d, 1.0, "\r");
-        let (a, b) = (d.axis(0).unwrap(), d.axis(1).unwrap());
-        assert!(a.tracking && (a.position - 500.0).abs() < 2.0, "{a:?}");
-        assert!((b.position + 500.0).abs() < 2.0, "{b:?}");
-        // A huge jump with a tight error limit trips off-on-error.
-        send(
-            &mut d,
-            1.0,
-            "ER 10;OE 1;SP 1000000;AC 100000000;DC 100000000;PA 100000\r",
-        );
-        send(&mut d, 1.5, "\r");
-        let a = d.axis(0).unwrap();
-        assert!(!a.motor_on);
-        assert_eq!(a.stop_code, 8);
-    }
-
-    #[test]
-    fn torque_mode_follows_offset() {
-        let mut d = quiet();
-        send(&mut d, 0.0, "KP 0;KI 0;KD 0;SH A;OF 1\r");
-        send(&mut d, 0.5, "\r");
-        assert!(d.axis(0).unwrap().velocity > 100.0);
-        assert_eq!(send(&mut d, 0.5, "TT A\r"), " 1.0000\r\n:");
-    }
-
-    #[test]
-    fn unsolicited_is_marked_under_cw1_and_interleaves() {
-        let mut d = quiet();
-        send(&mut d, 0.0, "CW1\r");
-        d.queue_unsolicited(b"hi:\r\n");
-        let out = {
-            let mut out = Vec::new();
-            d.input(b"TPA\r", Duration::ZERO, &mut out);
-            out
-        };
-        assert_eq!(out[0], b' ');
-        assert_eq!(
-            &out[1..6],
-            &[b'h' | 0x80, b'i' | 0x80, b':' | 0x80, 0x8D, 0x8A]
-        );
-        assert_eq!(&out[6..], b"0\r\n:");
-    }
-}
+mod tests;

@@ -3,8 +3,8 @@
 
 use std::os::fd::{AsFd, OwnedFd};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -16,7 +16,7 @@ use nix::sys::termios::{SetArg, cfmakeraw, tcgetattr, tcsetattr};
 use super::{Dmc, DmcConfig};
 
 /// How to run the emulator.
-#[derive(Clone, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Debug, PartialEq, Default)]
 pub struct PtyOptions {
     /// The emulated controller.
     pub dmc: DmcConfig,
@@ -31,15 +31,21 @@ pub struct PtyOptions {
 struct Shared {
     stop: AtomicBool,
     unplug: AtomicBool,
+    line_closed: AtomicBool,
     bytes_in: AtomicU64,
     bytes_out: AtomicU64,
 }
 
 /// An emulated DMC on a pseudo-terminal, served by its own thread until stopped or dropped.
+///
+/// The controller keeps running (servo samples, programs, the arm) whether or not a host talks
+/// to it, and after [`unplug`](PtyEmulator::unplug); [`inspect`](PtyEmulator::inspect) reads
+/// it at any time.
 #[derive(Debug)]
 pub struct PtyEmulator {
     path: PathBuf,
     shared: Arc<Shared>,
+    dmc: Arc<Mutex<Dmc>>,
     thread: Option<JoinHandle<()>>,
 }
 
@@ -60,14 +66,23 @@ impl PtyEmulator {
             .map_err(std::io::Error::from)?;
         let shared = Arc::new(Shared::default());
         let thread_shared = Arc::clone(&shared);
+        let dmc = Arc::new(Mutex::new(Dmc::new(options.dmc.clone())));
+        let thread_dmc = Arc::clone(&dmc);
         let thread = std::thread::Builder::new()
             .name("galil-sim".into())
-            .spawn(move || serve(pty.master, pty.slave, options, &thread_shared))?;
+            .spawn(move || serve(pty.master, pty.slave, options, &thread_shared, &thread_dmc))?;
         Ok(PtyEmulator {
             path,
             shared,
+            dmc,
             thread: Some(thread),
         })
+    }
+
+    /// Reads the emulated controller (its clock, axes, variables, arm) as it is now.
+    pub fn inspect<T>(&self, f: impl FnOnce(&Dmc) -> T) -> T {
+        let dmc = self.dmc.lock().unwrap_or_else(PoisonError::into_inner);
+        f(&dmc)
     }
 
     /// The device path to open (`/dev/pts/N`).
@@ -75,8 +90,9 @@ impl PtyEmulator {
         &self.path
     }
 
-    /// Makes the device disappear: the pseudo-terminal is closed, as when a USB adapter is
-    /// pulled. Clients see a hang-up on their next read or write.
+    /// Makes the device disappear: the pseudo-terminal is closed, as when a USB adapter or the
+    /// cable is pulled. Clients see a hang-up on their next read or write; the controller itself
+    /// keeps running (a board program still turns motors off).
     pub fn unplug(&self) {
         self.shared.unplug.store(true, Ordering::SeqCst);
     }
@@ -87,6 +103,12 @@ impl PtyEmulator {
             self.shared.bytes_in.load(Ordering::Relaxed),
             self.shared.bytes_out.load(Ordering::Relaxed),
         )
+    }
+
+    /// True while the pseudo-terminal is open (until [`unplug`](PtyEmulator::unplug) took
+    /// effect).
+    pub fn is_plugged(&self) -> bool {
+        !self.shared.line_closed.load(Ordering::SeqCst)
     }
 
     /// True while the serving thread runs.
@@ -113,6 +135,40 @@ impl Drop for PtyEmulator {
     }
 }
 
+/// The longest step the emulated controller's clock takes between two looks of its thread.
+/// A thread that stalled longer (a loaded machine) pauses the emulated controller for the rest
+/// of the stall: otherwise its watchdog timers would count the emulator's own stall as host
+/// silence, which a real DMC, never descheduled, does not see.
+const MAX_CLOCK_STEP: Duration = Duration::from_millis(10);
+
+/// The emulated controller's clock: wall time since the start, minus the stalls of the serving
+/// thread beyond [`MAX_CLOCK_STEP`].
+struct EmulatorClock {
+    start: Instant,
+    paused: Duration,
+    last: Duration,
+}
+
+impl EmulatorClock {
+    fn new() -> Self {
+        EmulatorClock {
+            start: Instant::now(),
+            paused: Duration::ZERO,
+            last: Duration::ZERO,
+        }
+    }
+
+    fn now(&mut self) -> Duration {
+        let mut now = self.start.elapsed().saturating_sub(self.paused);
+        if now > self.last + MAX_CLOCK_STEP {
+            self.paused += now - self.last - MAX_CLOCK_STEP;
+            now = self.last + MAX_CLOCK_STEP;
+        }
+        self.last = now;
+        now
+    }
+}
+
 /// Seconds per byte on a line at `baud` (start + 8 data + stop bits).
 fn byte_time(baud: u32) -> Duration {
     Duration::from_secs_f64(10.0 / f64::from(baud.max(1)))
@@ -125,9 +181,10 @@ fn sleep_until(t: Instant) {
     }
 }
 
-fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared) {
+fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared, dmc: &Mutex<Dmc>) {
     let start = Instant::now();
-    let mut dmc = Dmc::new(options.dmc.clone());
+    let mut clock = EmulatorClock::new();
+    let lock = || dmc.lock().unwrap_or_else(PoisonError::into_inner);
     let mut buf = [0u8; 512];
     let mut out = Vec::new();
     let mut rx_clock = start;
@@ -141,7 +198,10 @@ fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared) 
             break;
         }
         let mut fds = [PollFd::new(master.as_fd(), PollFlags::POLLIN)];
-        let ready = poll(&mut fds, PollTimeout::from(5u8)).unwrap_or(0);
+        let ready = poll(&mut fds, PollTimeout::from(2u8)).unwrap_or(0);
+        let mut dmc = lock();
+        // The controller runs on its own: servo samples and programs, talked to or not.
+        dmc.advance(clock.now());
         if ready > 0 {
             match nix::unistd::read(master.as_fd(), &mut buf) {
                 Ok(n) if n > 0 => {
@@ -150,10 +210,14 @@ fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared) 
                         rx_clock = rx_clock.max(Instant::now()) + byte_time(baud) * n as u32;
                         sleep_until(rx_clock);
                     }
-                    dmc.input(&buf[..n], start.elapsed(), &mut out);
+                    dmc.input(&buf[..n], clock.now(), &mut out);
                 }
                 // No client has the device open, or a spurious wake-up.
-                _ => std::thread::sleep(Duration::from_millis(5)),
+                _ => {
+                    drop(dmc);
+                    std::thread::sleep(Duration::from_millis(2));
+                    continue;
+                }
             }
         } else if dmc.idle() {
             // Quiet line: queued unsolicited output goes out on its own.
@@ -165,6 +229,7 @@ fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared) 
             dmc.queue_unsolicited(msg);
             next_unsolicited = Some(due.max(Instant::now() - *period) + *period);
         }
+        drop(dmc);
         if !out.is_empty() {
             write_out(&master, &out, options.baud, &mut tx_clock, shared);
             out.clear();
@@ -172,6 +237,12 @@ fn serve(master: OwnedFd, slave: OwnedFd, options: PtyOptions, shared: &Shared) 
     }
     drop(master);
     drop(slave);
+    shared.line_closed.store(true, Ordering::SeqCst);
+    // Unplugged (or stopping): the controller runs on without a line until stopped.
+    while !shared.stop.load(Ordering::SeqCst) {
+        lock().advance(clock.now());
+        std::thread::sleep(Duration::from_millis(1));
+    }
 }
 
 /// Writes `out` to the master side, paced when asked; gives up on output nobody reads for 1 s.

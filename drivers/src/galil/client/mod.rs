@@ -25,6 +25,8 @@ use super::link::Link;
 use super::number::{parse_exact, parse_number, parse_numbers, to_counts, trim};
 use super::record::{DataRecord, RecordLayout};
 
+mod download;
+
 /// The most commands one line may carry through [`Client::transact`].
 pub const MAX_PARTS: usize = 8;
 
