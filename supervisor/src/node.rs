@@ -234,6 +234,7 @@ fn local_session(name: &str) -> Session {
         id: u64::MAX,
         peer: SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0),
         client: name.to_string(),
+        identity: crate::service::Identity::LOCAL_NODE,
         outbox,
     }
 }
@@ -519,7 +520,7 @@ impl Service for NodeService {
         let shared = &self.shared;
         match call {
             Call::Naming(c) => match &shared.hosted {
-                Some(service) => service.handle(c),
+                Some(service) => service.handle_for(session, c),
                 None => Err(WireError::NoNamingService),
             },
             Call::NodeInfo => Ok(Reply::Node(NodeInfo {
@@ -624,7 +625,7 @@ impl Node {
         });
         let _ = shared.advertised.set(advertised);
 
-        let mut client_config = ClientConfig::new(name.clone());
+        let mut client_config = ClientConfig::node(name.clone());
         client_config.secret = config.secret;
         client_config.timeout = config.call_timeout;
         let naming_address = remote_naming.unwrap_or(address);

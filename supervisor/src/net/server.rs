@@ -1,8 +1,9 @@
 //! The TCP server of a node.
 //!
 //! # Threads
-//! - one accept thread (`pnlp-accept`), which refuses connections over
-//!   [`ServerConfig::max_connections`] with [`WireError::TooManyConnections`];
+//! - one accept thread (`pnlp-accept`), which admits connections as [`crate::net::limits`]
+//!   says (a pending pool that evicts its oldest, sessions up to
+//!   [`ServerConfig::max_connections`]);
 //! - per connection, a reader thread (`pnlp-conn-N`) that does the handshake, decodes requests,
 //!   calls the [`Service`] and writes each response itself (no hand-off to another thread on the
 //!   request path: the round trip costs the same context switches as a raw TCP echo), and a
@@ -22,8 +23,16 @@
 //! real-time side's problem). Requests are limited by a token bucket per connection
 //! (`max_requests_per_s`, bursts up to one second's worth): over it a request is answered with
 //! [`WireError::RateLimited`]; [`ABUSE_STRIKES`] refused requests in a row close the connection.
-//! Malformed or oversized frames, a wrong hello, a failed authentication, a silent handshake or
-//! an idle connection get a [`ServerMsg::Error`] and are closed. [`Service::closed`] runs at every
+//! Malformed or oversized frames, a wrong hello, a failed authentication, a frame that fails to
+//! open, a silent handshake or an idle connection get a [`ServerMsg::Error`] and are closed. The
+//! whole handshake must end within `handshake_timeout` (a deadline, not an idle time: trickling
+//! bytes does not extend it).
+//!
+//! # Authentication
+//! With a secret, the handshake is the Noise handshake of [`crate::net::auth`]; the session's
+//! [`Identity`] is the role the client's hello claimed (an admin claim needs the admin secret),
+//! and every later frame both ways is sealed: responses and telemetry are sealed under the
+//! socket's write lock, in the order they are written. [`Service::closed`] runs at every
 //! end of a session that passed its handshake.
 
 use std::collections::HashMap;
@@ -39,12 +48,14 @@ use std::time::{Duration, Instant};
 
 use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
 
-use crate::net::auth;
-use crate::net::frame::{FrameDecoder, FrameError, encode_into};
+use crate::net::auth::{self, Opener, PSK_LEN, SealError, Sealer};
+use crate::net::frame::{FrameDecoder, FrameError, decode_body, encode_into};
+use crate::net::limits::{Admission, TokenBucket};
 use crate::proto::{
-    ClientMsg, DEFAULT_MAX_FRAME, MAGIC, PROTOCOL_VERSION, ServerHello, ServerMsg, WireError,
+    ClientMsg, DEFAULT_MAX_FRAME, MAGIC, PROTOCOL_VERSION, Role, Security, ServerHello, ServerMsg,
+    WireError,
 };
-use crate::service::{Outbox, OutboxReceiver, Service, Session};
+use crate::service::{Identity, Outbox, OutboxReceiver, Service, Session};
 
 /// Refused requests in a row (rate limit) after which a connection is closed.
 pub const ABUSE_STRIKES: u32 = 1000;
@@ -65,12 +76,22 @@ pub struct ServerConfig {
     /// The node's name (sent in the hello).
     pub node: String,
     /// The shared secret; required to bind anything but loopback. When set (even on loopback),
-    /// every client must authenticate.
+    /// every client must authenticate and every frame is sealed.
     pub secret: Option<Vec<u8>>,
+    /// The admin secret (used only with `secret`): a client claiming [`Role::Admin`] must prove
+    /// it. Without it, such clients are served as readers.
+    pub admin_secret: Option<Vec<u8>>,
     /// Largest frame accepted (and sent), bytes of body.
     pub max_frame: usize,
-    /// Connections served at once.
+    /// Sessions (connections past their handshake) served at once.
     pub max_connections: u32,
+    /// Of `max_connections`, the sessions kept for [`Role::Admin`] clients.
+    pub admin_reserve: u32,
+    /// Connections in their handshake at once; at the bound the oldest is evicted.
+    pub max_handshakes: u32,
+    /// Connections in their handshake at once from one IP address; at the bound that address's
+    /// oldest is evicted.
+    pub max_handshakes_per_peer: u32,
     /// Requests per second per connection (token bucket; bursts up to one second's worth).
     pub max_requests_per_s: u32,
     /// Time allowed for the hello (and authentication).
@@ -84,14 +105,19 @@ pub struct ServerConfig {
 }
 
 impl ServerConfig {
-    /// Defaults for `node`: 256 KiB frames, 64 connections, 200 000 requests/s per connection,
-    /// 5 s handshake, 300 s idle, 5 s write timeout, 256 queued frames.
+    /// Defaults for `node`: 256 KiB frames, 64 sessions (4 of them for administrators), 32
+    /// handshakes at once (8 per address), 200 000 requests/s per connection, 5 s handshake,
+    /// 300 s idle, 5 s write timeout, 256 queued frames.
     pub fn new(node: impl Into<String>) -> Self {
         ServerConfig {
             node: node.into(),
             secret: None,
+            admin_secret: None,
             max_frame: DEFAULT_MAX_FRAME,
             max_connections: 64,
+            admin_reserve: 4,
+            max_handshakes: 32,
+            max_handshakes_per_peer: 8,
             max_requests_per_s: 200_000,
             handshake_timeout: Duration::from_secs(5),
             idle_timeout: Duration::from_secs(300),
@@ -119,7 +145,7 @@ pub enum NetError {
 pub struct ServerStats {
     /// Connections accepted.
     pub accepted: u64,
-    /// Connections refused (limit).
+    /// Connections refused or evicted (limits).
     pub refused: u64,
     /// Connections open now.
     pub open: u64,
@@ -134,7 +160,7 @@ pub struct ServerStats {
     pub frames_in: u64,
     /// Frames sent.
     pub frames_out: u64,
-    /// Malformed frames and wrong hellos.
+    /// Malformed frames, wrong hellos and frames that failed to open.
     pub malformed: u64,
     /// Frames refused for their announced length.
     pub too_large: u64,
@@ -175,6 +201,9 @@ fn add(c: &AtomicU64, n: u64) {
 
 struct Shared {
     config: ServerConfig,
+    admission: Admission,
+    /// The pre-shared keys of members and (if an admin secret is set) administrators.
+    psk: Option<([u8; PSK_LEN], Option<[u8; PSK_LEN]>)>,
     service: Arc<dyn Service>,
     stop: AtomicBool,
     counters: Counters,
@@ -228,7 +257,19 @@ impl Server {
         }
         let listener = TcpListener::bind(addr)?;
         let addr = listener.local_addr()?;
+        let psk = config.secret.as_deref().filter(|s| !s.is_empty()).map(|s| {
+            let admin = config.admin_secret.as_deref().filter(|a| !a.is_empty());
+            (auth::member_psk(s), admin.map(|a| auth::admin_psk(s, a)))
+        });
+        let admission = Admission::new(
+            config.max_connections,
+            config.admin_reserve,
+            config.max_handshakes,
+            config.max_handshakes_per_peer,
+        );
         let shared = Arc::new(Shared {
+            admission,
+            psk,
             config,
             service,
             stop: AtomicBool::new(false),
@@ -358,33 +399,31 @@ fn reap(shared: &Shared) {
 
 fn admit(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr) {
     let c = &shared.counters;
-    let limit = shared.config.max_connections;
-    if c.open.load(Ordering::Relaxed) >= u64::from(limit) {
-        bump(&c.refused);
-        log::warn!("refusing {peer}: {limit} connections open");
-        refuse(
-            stream,
-            &WireError::TooManyConnections { limit },
-            shared.config.max_frame,
-        );
-        return;
-    }
     let id = shared.next_session.fetch_add(1, Ordering::Relaxed);
-    let handle = match stream.try_clone() {
-        Ok(h) => h,
-        Err(e) => {
+    let (handle, for_admission) = match (stream.try_clone(), stream.try_clone()) {
+        (Ok(h), Ok(a)) => (h, a),
+        (Err(e), _) | (_, Err(e)) => {
             log::warn!("cannot serve {peer}: {e}");
             return;
         }
     };
+    let admitted = shared.admission.admit(id, peer.ip(), for_admission);
+    if admitted.evictions > 0 {
+        add(&c.refused, u64::from(admitted.evictions));
+        log::warn!(
+            "{} connection(s) in their handshake evicted to admit {peer}",
+            admitted.evictions
+        );
+    }
     bump(&c.accepted);
     bump(&c.open);
     lock(&shared.streams).insert(id, handle);
     let s = shared.clone();
+    let evicted = admitted.evicted;
     let spawned = std::thread::Builder::new()
         .name(format!("pnlp-conn-{id}"))
         .spawn(move || {
-            serve(&s, stream, peer, id);
+            serve(&s, stream, peer, id, evicted);
             lock(&s.streams).remove(&id);
             s.counters.open.fetch_sub(1, Ordering::Relaxed);
         });
@@ -392,8 +431,15 @@ fn admit(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr) {
         Ok(t) => lock(&shared.threads).push(t),
         Err(e) => {
             log::error!("cannot start a thread for {peer}: {e}");
+            shared.admission.abandon(id);
             if let Some(s) = lock(&shared.streams).remove(&id) {
-                let _ = s.shutdown(Shutdown::Both);
+                refuse(
+                    s,
+                    &WireError::TooManyConnections {
+                        limit: shared.config.max_connections,
+                    },
+                    shared.config.max_frame,
+                );
             }
             c.open.fetch_sub(1, Ordering::Relaxed);
         }
@@ -437,16 +483,33 @@ enum End {
 struct Wire {
     stream: TcpStream,
     failed: bool,
+    /// After an authenticated handshake: seals every frame, in write order.
+    sealer: Option<Sealer>,
+    /// Sealed frames being written.
+    sealed: Vec<u8>,
 }
 
 impl Wire {
-    /// Writes whole frames; `false` once the socket has failed (timeout: a client that does not
-    /// read).
+    /// Writes whole frames (plain ones, sealed here when the session is); `false` once the
+    /// socket has failed (timeout: a client that does not read).
     fn send(&mut self, bytes: &[u8]) -> bool {
         if self.failed {
             return false;
         }
-        if let Err(e) = self.stream.write_all(bytes) {
+        let result = match &mut self.sealer {
+            None => self.stream.write_all(bytes),
+            Some(sealer) => {
+                self.sealed.clear();
+                match sealer.seal_frames(bytes, &mut self.sealed) {
+                    Ok(_) => self.stream.write_all(&self.sealed),
+                    Err(e) => Err(io::Error::other(e)),
+                }
+            }
+        };
+        if self.sealed.capacity() > 4 * OUT_FLUSH_AT {
+            self.sealed = Vec::new();
+        }
+        if let Err(e) = result {
             log::debug!("write failed: {e}");
             self.failed = true;
             let _ = self.stream.shutdown(Shutdown::Both);
@@ -461,6 +524,10 @@ struct Conn<'a> {
     peer: SocketAddr,
     stream: TcpStream,
     decoder: FrameDecoder,
+    /// After an authenticated handshake: opens every frame of the client.
+    opener: Option<Opener>,
+    /// Set by admission when this connection is evicted from the pending pool.
+    evicted: Arc<AtomicBool>,
     wire: Arc<Mutex<Wire>>,
     /// Responses not yet written.
     out: Vec<u8>,
@@ -574,14 +641,37 @@ impl Conn<'_> {
     /// Reads until the next message; `Err(end)` when the connection must end. `deadline` bounds
     /// the wait (the handshake); otherwise the idle timeout does.
     fn next_msg(&mut self, deadline: Option<Instant>) -> Result<ClientMsg, End> {
+        self.next_frame(deadline, false).map(|(m, _)| m)
+    }
+
+    /// [`next_msg`](Self::next_msg), with the frame's (plain) body when `keep_body`.
+    fn next_frame(
+        &mut self,
+        deadline: Option<Instant>,
+        keep_body: bool,
+    ) -> Result<(ClientMsg, Vec<u8>), End> {
         loop {
-            match self.decoder.next::<ClientMsg>() {
+            let opener = &mut self.opener;
+            let next = self.decoder.next_with(|sealed| {
+                let body = match opener {
+                    None => sealed,
+                    Some(o) => o
+                        .open(sealed)
+                        .map_err(|e| FrameError::Malformed(e.to_string()))?,
+                };
+                let msg = decode_body::<ClientMsg>(body)?;
+                Ok((msg, if keep_body { body.to_vec() } else { Vec::new() }))
+            });
+            match next {
                 Ok(Some(m)) => {
                     bump(&self.shared.counters.frames_in);
                     return Ok(m);
                 }
                 Ok(None) => {}
                 Err(e) => return Err(self.frame_error(e)),
+            }
+            if self.evicted.load(Ordering::Acquire) {
+                return Err(self.evict());
             }
             if !self.flush() {
                 return Err(self.dropped_writer());
@@ -590,6 +680,9 @@ impl Conn<'_> {
                 Ok(0) => {
                     if self.shared.stop.load(Ordering::Acquire) {
                         return Err(End::Shutdown);
+                    }
+                    if self.evicted.load(Ordering::Acquire) {
+                        return Err(self.evict());
                     }
                     let e = self.decoder.eof_error();
                     return Err(self.frame_error(e));
@@ -631,6 +724,12 @@ impl Conn<'_> {
         }
     }
 
+    /// Admission evicted this connection from the pending pool (newer ones needed the room).
+    fn evict(&mut self) -> End {
+        let limit = self.shared.config.max_handshakes;
+        self.fail(WireError::TooManyConnections { limit })
+    }
+
     fn dropped_writer(&self) -> End {
         if self.shared.stop.load(Ordering::Acquire) {
             return End::Shutdown;
@@ -645,8 +744,9 @@ impl Conn<'_> {
         End::Dropped
     }
 
-    /// Hello (and authentication): the client's name, or how it ended.
-    fn handshake(&mut self) -> Result<String, End> {
+    /// Hello (and, with a secret, the Noise handshake): the client's name and identity, or how
+    /// it ended.
+    fn handshake(&mut self) -> Result<(String, Identity), End> {
         let config = &self.shared.config;
         let deadline = Instant::now() + config.handshake_timeout;
         let _ = self.stream.set_read_timeout(Some(
@@ -654,9 +754,9 @@ impl Conn<'_> {
                 .handshake_timeout
                 .clamp(Duration::from_millis(1), POLL_EVERY),
         ));
-        let hello = match self.next_msg(Some(deadline))? {
-            ClientMsg::Hello(h) => h,
-            other => {
+        let (hello, client_body) = match self.next_frame(Some(deadline), true)? {
+            (ClientMsg::Hello(h), body) => (h, body),
+            (other, _) => {
                 bump(&self.shared.counters.malformed);
                 return Err(self.fail(WireError::Unexpected(format!(
                     "{} before the hello",
@@ -675,29 +775,89 @@ impl Conn<'_> {
                 theirs: hello.version,
             }));
         }
-        let secret = self.shared.config.secret.clone().filter(|s| !s.is_empty());
-        let challenge = secret.as_ref().map(|_| auth::challenge());
-        self.queue(&ServerMsg::Hello(ServerHello {
+        let psk = self.shared.psk;
+        let security = match &psk {
+            None => Security::Plain,
+            Some((_, admin)) => Security::Noise {
+                admin: admin.is_some(),
+            },
+        };
+        let ours = ServerMsg::Hello(ServerHello {
             magic: MAGIC,
             version: PROTOCOL_VERSION,
             node: self.shared.config.node.clone(),
-            challenge,
-        }));
-        if let (Some(secret), Some(challenge)) = (secret, challenge) {
-            let ok = match self.next_msg(Some(deadline))? {
-                ClientMsg::Auth { mac } => auth::verify(&secret, &challenge, &hello.client, &mac),
-                _ => false,
-            };
-            if !ok {
-                bump(&self.shared.counters.auth_failures);
-                return Err(self.fail(WireError::AuthFailed));
+            security,
+        });
+        self.queue(&ours);
+        let identity = match psk {
+            None => Identity {
+                role: hello.role,
+                proven: false,
+            },
+            Some((member, admin)) => {
+                let (role, psk) = match (hello.role, admin) {
+                    (Role::Admin, Some(admin)) => (Role::Admin, admin),
+                    (Role::Admin, None) => (Role::Reader, member),
+                    (role, _) => (role, member),
+                };
+                let server_body = postcard::to_stdvec(&ours).unwrap_or_default();
+                self.authenticate(&psk, &client_body, &server_body, deadline)?;
+                Identity { role, proven: true }
             }
-            self.queue(&ServerMsg::AuthOk);
-        }
+        };
         if !self.flush() {
             return Err(self.dropped_writer());
         }
-        Ok(hello.client)
+        Ok((hello.client, identity))
+    }
+
+    /// The Noise handshake (after the hellos, which are its prologue): checks the client's
+    /// message, answers, and seals the connection from then on.
+    fn authenticate(
+        &mut self,
+        psk: &[u8; PSK_LEN],
+        client_hello: &[u8],
+        server_hello: &[u8],
+        deadline: Instant,
+    ) -> Result<(), End> {
+        if !self.flush() {
+            return Err(self.dropped_writer());
+        }
+        let first = match self.next_msg(Some(deadline))? {
+            ClientMsg::Handshake { noise } => noise,
+            other => {
+                log::info!(
+                    "connection {} from {}: {} instead of the handshake",
+                    self.id,
+                    self.peer,
+                    msg_name(&other)
+                );
+                Vec::new()
+            }
+        };
+        let prologue = auth::prologue(client_hello, server_hello);
+        match auth::answer(psk, &prologue, &first) {
+            Ok((second, keys)) => {
+                self.queue(&ServerMsg::Handshake { noise: second });
+                if !self.flush() {
+                    return Err(self.dropped_writer());
+                }
+                let (sealer, opener) = keys.split();
+                lock(&self.wire).sealer = Some(sealer);
+                self.opener = Some(opener);
+                self.decoder
+                    .set_max(auth::sealed_len(self.shared.config.max_frame));
+                Ok(())
+            }
+            Err(SealError::Handshake) => {
+                bump(&self.shared.counters.auth_failures);
+                Err(self.fail(WireError::AuthFailed))
+            }
+            Err(e) => {
+                log::error!("noise handshake failed: {e}");
+                Err(self.fail(WireError::Internal("handshake failed".into())))
+            }
+        }
     }
 
     /// Serves requests until the connection ends.
@@ -762,44 +922,20 @@ impl Conn<'_> {
 fn msg_name(m: &ClientMsg) -> &'static str {
     match m {
         ClientMsg::Hello(_) => "hello",
-        ClientMsg::Auth { .. } => "auth",
+        ClientMsg::Handshake { .. } => "handshake",
         ClientMsg::Request { .. } => "request",
         ClientMsg::Bye => "bye",
     }
 }
 
-/// Requests per second with bursts up to one second's worth.
-struct TokenBucket {
-    rate: u32,
-    tokens: f64,
-    last: Instant,
-}
-
-impl TokenBucket {
-    fn new(rate: u32) -> Self {
-        TokenBucket {
-            rate,
-            tokens: f64::from(rate.max(1)),
-            last: Instant::now(),
-        }
-    }
-
-    fn take(&mut self, now: Instant) -> bool {
-        let rate = f64::from(self.rate.max(1));
-        let dt = now.saturating_duration_since(self.last).as_secs_f64();
-        self.last = now;
-        self.tokens = (self.tokens + dt * rate).min(rate);
-        if self.tokens >= 1.0 {
-            self.tokens -= 1.0;
-            true
-        } else {
-            false
-        }
-    }
-}
-
 /// The connection thread: handshake, then the writer thread and the requests.
-fn serve(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr, id: u64) {
+fn serve(
+    shared: &Arc<Shared>,
+    stream: TcpStream,
+    peer: SocketAddr,
+    id: u64,
+    evicted: Arc<AtomicBool>,
+) {
     let config = &shared.config;
     let _ = stream.set_nodelay(true);
     let _ = stream.set_write_timeout(Some(config.write_timeout.max(Duration::from_millis(1))));
@@ -813,6 +949,8 @@ fn serve(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr, id: u64) {
     let wire = Arc::new(Mutex::new(Wire {
         stream: write_half,
         failed: false,
+        sealer: None,
+        sealed: Vec::new(),
     }));
     let mut conn = Conn {
         shared,
@@ -820,6 +958,8 @@ fn serve(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr, id: u64) {
         peer,
         stream,
         decoder: FrameDecoder::new(config.max_frame),
+        opener: None,
+        evicted,
         wire: wire.clone(),
         out: Vec::with_capacity(4096),
         out_frames: 0,
@@ -827,20 +967,36 @@ fn serve(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr, id: u64) {
         now: Instant::now(),
     };
     conn.touch();
-    let client = match conn.handshake() {
+    let (client, identity) = match conn.handshake() {
         Ok(c) => c,
         Err(_) => {
+            shared.admission.abandon(id);
             let _ = conn.stream.shutdown(Shutdown::Both);
             return;
         }
     };
-    log::info!("connection {id} from {peer}: client {client:?}");
+    if let Err(e) = shared.admission.open_session(id, identity.role) {
+        bump(&shared.counters.refused);
+        conn.fail(e);
+        let _ = conn.stream.shutdown(Shutdown::Both);
+        return;
+    }
+    log::info!(
+        "connection {id} from {peer}: client {client:?} as {:?}{}",
+        identity.role,
+        if identity.proven {
+            " (authenticated)"
+        } else {
+            ""
+        }
+    );
     bump(&shared.counters.sessions);
     let (outbox, receiver) = Outbox::bounded(config.outbox_capacity);
     let session = Session {
         id,
         peer,
         client,
+        identity,
         outbox: outbox.clone(),
     };
     let closing = Arc::new(AtomicBool::new(false));
@@ -860,7 +1016,7 @@ fn serve(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr, id: u64) {
     };
     closing.store(true, Ordering::Release);
     // Wake the writer (it ignores everything once closing is set).
-    let _ = outbox.try_push(ServerMsg::AuthOk);
+    let _ = outbox.try_push(ServerMsg::Error(WireError::Timeout("closing".into())));
     let _ = conn.stream.shutdown(Shutdown::Both);
     if let Ok(h) = writer {
         let _ = h.join();
@@ -869,6 +1025,7 @@ fn serve(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr, id: u64) {
     if catch_unwind(AssertUnwindSafe(|| service.closed(&session))).is_err() {
         log::error!("the service panicked closing session {id}");
     }
+    shared.admission.close_session();
     let how = match end {
         End::Client => "closed by the client",
         End::Shutdown => "closed by the server's shutdown",
@@ -965,7 +1122,12 @@ mod tests {
         let mut s = TcpStream::connect(server.local_addr()).unwrap();
         let max = DEFAULT_MAX_FRAME;
         let mut batch = Vec::new();
-        encode_into(&ClientMsg::Hello(ClientHello::new("t")), max, &mut batch).unwrap();
+        encode_into(
+            &ClientMsg::Hello(ClientHello::new("t", Role::Reader)),
+            max,
+            &mut batch,
+        )
+        .unwrap();
         for id in 0..50u64 {
             let call = Call::Ping {
                 payload: vec![id as u8; id as usize],
@@ -975,7 +1137,7 @@ mod tests {
         s.write_all(&batch).unwrap();
         let hello: ServerMsg = read_frame(&mut s, max).unwrap();
         assert!(
-            matches!(hello, ServerMsg::Hello(ServerHello { ref node, challenge: None, .. }) if node == "unit")
+            matches!(hello, ServerMsg::Hello(ServerHello { ref node, security: Security::Plain, .. }) if node == "unit")
         );
         for id in 0..50u64 {
             let r: ServerMsg = read_frame(&mut s, max).unwrap();
@@ -996,16 +1158,5 @@ mod tests {
         assert_eq!(st.requests, 50);
         assert_eq!(st.accepted, 1);
         server.shutdown();
-    }
-
-    #[test]
-    fn the_token_bucket_allows_a_burst_then_the_rate() {
-        let t0 = Instant::now();
-        let mut b = TokenBucket::new(10);
-        b.last = t0;
-        let allowed = (0..20).filter(|_| b.take(t0)).count();
-        assert_eq!(allowed, 10);
-        assert!(b.take(t0 + Duration::from_millis(150)));
-        assert!(!b.take(t0 + Duration::from_millis(150)));
     }
 }
