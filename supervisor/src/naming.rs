@@ -40,7 +40,7 @@
 //!
 //! # Authorization
 //! Calls that come over a connection go through [`NamingService::handle_for`], which checks the
-//! session's [`Identity`](crate::service::Identity) with [`authorize`] first:
+//! session's [`Identity`] with [`authorize`] first:
 //! - anyone may `Resolve` and `List`;
 //! - a [`Role::Node`] session named `n` (its hello's name) may `Register`, `Renew` and
 //!   `Unregister` only `n`, and `Bind` (rebind included) and `Unbind` only paths under `/n/`;

@@ -12,15 +12,15 @@
 //! # A session
 //! 1. The client sends [`ClientMsg::Hello`] (magic, protocol version, its name and the [`Role`]
 //!    it claims).
-//! 2. The node answers [`ServerMsg::Hello`] with its [`Security`].
-//! 2a. Under [`Security::Noise`] (the node has the shared secret) both sides run the Noise
-//!    handshake [`NOISE_PATTERN`] with a pre-shared key derived from the secret, the two hellos as
-//!    its prologue: the client sends [`ClientMsg::Handshake`], which only a holder of the secret
-//!    can make; the node answers [`ServerMsg::Handshake`], which only a holder of the secret can
-//!    make. From then on every frame's body, both ways, is sealed (ChaCha20-Poly1305 under the
-//!    session's keys, implicit counters as nonces): a replayed, reordered or altered frame fails
-//!    to open and the connection closes. A client that holds the secret sends no request to a
-//!    node that answers [`Security::Plain`]. See `crate::net::auth`.
+//! 2. The node answers [`ServerMsg::Hello`] with its [`Security`]. Under [`Security::Noise`]
+//!    (the node has the shared secret) both sides then run the Noise handshake [`NOISE_PATTERN`]
+//!    with a pre-shared key derived from the secret, the two hellos as its prologue: the client
+//!    sends [`ClientMsg::Handshake`], which only a holder of the secret can make; the node
+//!    answers [`ServerMsg::Handshake`], which only a holder of the secret can make. From then on
+//!    every frame's body, both ways, is sealed (ChaCha20-Poly1305 under the session's keys,
+//!    counted nonces): a replayed, reordered or altered frame fails to open and the connection
+//!    closes. A client that holds the secret sends no request to a node that answers
+//!    [`Security::Plain`]. See `crate::net::auth`.
 //! 3. The client sends [`ClientMsg::Request`]s, each with an id of its choice; the node answers each
 //!    with a [`ServerMsg::Response`] carrying the same id. Requests may be pipelined (sent before
 //!    earlier answers arrive); answers come back in request order.

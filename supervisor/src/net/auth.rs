@@ -1,5 +1,5 @@
 //! Authentication of both ends and of every frame: the Noise protocol
-//! [`NOISE_PATTERN`](crate::proto::NOISE_PATTERN) (`Noise_NNpsk0_25519_ChaChaPoly_BLAKE2s`) with a
+//! [`NOISE_PATTERN`] (`Noise_NNpsk0_25519_ChaChaPoly_BLAKE2s`) with a
 //! pre-shared key derived from the shared secret, through the `snow` crate.
 //!
 //! # Why NNpsk0

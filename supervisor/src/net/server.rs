@@ -26,14 +26,15 @@
 //! Malformed or oversized frames, a wrong hello, a failed authentication, a frame that fails to
 //! open, a silent handshake or an idle connection get a [`ServerMsg::Error`] and are closed. The
 //! whole handshake must end within `handshake_timeout` (a deadline, not an idle time: trickling
-//! bytes does not extend it).
+//! bytes does not extend it). [`Service::closed`] runs at every end of a session that passed its
+//! handshake. Admission (how many connections, for whom) is [`crate::net::limits`].
 //!
 //! # Authentication
-//! With a secret, the handshake is the Noise handshake of [`crate::net::auth`]; the session's
-//! [`Identity`] is the role the client's hello claimed (an admin claim needs the admin secret),
-//! and every later frame both ways is sealed: responses and telemetry are sealed under the
-//! socket's write lock, in the order they are written. [`Service::closed`] runs at every
-//! end of a session that passed its handshake.
+//! With a secret, the handshake is the Noise handshake of [`crate::net::auth`] (in
+//! `server/handshake.rs`); the session's [`Identity`](crate::service::Identity) is the role the
+//! client's hello claimed (an admin claim needs the admin secret), and every later frame both ways
+//! is sealed: responses and telemetry are sealed under the socket's write lock, in the order they
+//! are written.
 
 use std::collections::HashMap;
 use std::io::{self, Read, Write};
@@ -48,14 +49,13 @@ use std::time::{Duration, Instant};
 
 use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
 
-use crate::net::auth::{self, Opener, PSK_LEN, SealError, Sealer};
+use crate::net::auth::{self, Opener, PSK_LEN, Sealer};
 use crate::net::frame::{FrameDecoder, FrameError, decode_body, encode_into};
 use crate::net::limits::{Admission, TokenBucket};
-use crate::proto::{
-    ClientMsg, DEFAULT_MAX_FRAME, MAGIC, PROTOCOL_VERSION, Role, Security, ServerHello, ServerMsg,
-    WireError,
-};
-use crate::service::{Identity, Outbox, OutboxReceiver, Service, Session};
+use crate::proto::{ClientMsg, DEFAULT_MAX_FRAME, ServerMsg, WireError};
+use crate::service::{Outbox, OutboxReceiver, Service, Session};
+
+mod handshake;
 
 /// Refused requests in a row (rate limit) after which a connection is closed.
 pub const ABUSE_STRIKES: u32 = 1000;
@@ -78,14 +78,16 @@ pub struct ServerConfig {
     /// The shared secret; required to bind anything but loopback. When set (even on loopback),
     /// every client must authenticate and every frame is sealed.
     pub secret: Option<Vec<u8>>,
-    /// The admin secret (used only with `secret`): a client claiming [`Role::Admin`] must prove
-    /// it. Without it, such clients are served as readers.
+    /// The admin secret (used only with `secret`): a client claiming
+    /// [`Role::Admin`](crate::proto::Role::Admin) must prove it. Without it, such clients are
+    /// served as readers.
     pub admin_secret: Option<Vec<u8>>,
     /// Largest frame accepted (and sent), bytes of body.
     pub max_frame: usize,
     /// Sessions (connections past their handshake) served at once.
     pub max_connections: u32,
-    /// Of `max_connections`, the sessions kept for [`Role::Admin`] clients.
+    /// Of `max_connections`, the sessions kept for [`Role::Admin`](crate::proto::Role::Admin)
+    /// clients.
     pub admin_reserve: u32,
     /// Connections in their handshake at once; at the bound the oldest is evicted.
     pub max_handshakes: u32,
@@ -744,122 +746,6 @@ impl Conn<'_> {
         End::Dropped
     }
 
-    /// Hello (and, with a secret, the Noise handshake): the client's name and identity, or how
-    /// it ended.
-    fn handshake(&mut self) -> Result<(String, Identity), End> {
-        let config = &self.shared.config;
-        let deadline = Instant::now() + config.handshake_timeout;
-        let _ = self.stream.set_read_timeout(Some(
-            config
-                .handshake_timeout
-                .clamp(Duration::from_millis(1), POLL_EVERY),
-        ));
-        let (hello, client_body) = match self.next_frame(Some(deadline), true)? {
-            (ClientMsg::Hello(h), body) => (h, body),
-            (other, _) => {
-                bump(&self.shared.counters.malformed);
-                return Err(self.fail(WireError::Unexpected(format!(
-                    "{} before the hello",
-                    msg_name(&other)
-                ))));
-            }
-        };
-        if hello.magic != MAGIC {
-            bump(&self.shared.counters.malformed);
-            return Err(self.fail(WireError::BadMagic));
-        }
-        if hello.version != PROTOCOL_VERSION {
-            bump(&self.shared.counters.malformed);
-            return Err(self.fail(WireError::VersionMismatch {
-                ours: PROTOCOL_VERSION,
-                theirs: hello.version,
-            }));
-        }
-        let psk = self.shared.psk;
-        let security = match &psk {
-            None => Security::Plain,
-            Some((_, admin)) => Security::Noise {
-                admin: admin.is_some(),
-            },
-        };
-        let ours = ServerMsg::Hello(ServerHello {
-            magic: MAGIC,
-            version: PROTOCOL_VERSION,
-            node: self.shared.config.node.clone(),
-            security,
-        });
-        self.queue(&ours);
-        let identity = match psk {
-            None => Identity {
-                role: hello.role,
-                proven: false,
-            },
-            Some((member, admin)) => {
-                let (role, psk) = match (hello.role, admin) {
-                    (Role::Admin, Some(admin)) => (Role::Admin, admin),
-                    (Role::Admin, None) => (Role::Reader, member),
-                    (role, _) => (role, member),
-                };
-                let server_body = postcard::to_stdvec(&ours).unwrap_or_default();
-                self.authenticate(&psk, &client_body, &server_body, deadline)?;
-                Identity { role, proven: true }
-            }
-        };
-        if !self.flush() {
-            return Err(self.dropped_writer());
-        }
-        Ok((hello.client, identity))
-    }
-
-    /// The Noise handshake (after the hellos, which are its prologue): checks the client's
-    /// message, answers, and seals the connection from then on.
-    fn authenticate(
-        &mut self,
-        psk: &[u8; PSK_LEN],
-        client_hello: &[u8],
-        server_hello: &[u8],
-        deadline: Instant,
-    ) -> Result<(), End> {
-        if !self.flush() {
-            return Err(self.dropped_writer());
-        }
-        let first = match self.next_msg(Some(deadline))? {
-            ClientMsg::Handshake { noise } => noise,
-            other => {
-                log::info!(
-                    "connection {} from {}: {} instead of the handshake",
-                    self.id,
-                    self.peer,
-                    msg_name(&other)
-                );
-                Vec::new()
-            }
-        };
-        let prologue = auth::prologue(client_hello, server_hello);
-        match auth::answer(psk, &prologue, &first) {
-            Ok((second, keys)) => {
-                self.queue(&ServerMsg::Handshake { noise: second });
-                if !self.flush() {
-                    return Err(self.dropped_writer());
-                }
-                let (sealer, opener) = keys.split();
-                lock(&self.wire).sealer = Some(sealer);
-                self.opener = Some(opener);
-                self.decoder
-                    .set_max(auth::sealed_len(self.shared.config.max_frame));
-                Ok(())
-            }
-            Err(SealError::Handshake) => {
-                bump(&self.shared.counters.auth_failures);
-                Err(self.fail(WireError::AuthFailed))
-            }
-            Err(e) => {
-                log::error!("noise handshake failed: {e}");
-                Err(self.fail(WireError::Internal("handshake failed".into())))
-            }
-        }
-    }
-
     /// Serves requests until the connection ends.
     fn requests(&mut self, session: &Session) -> End {
         let config = &self.shared.config;
@@ -1083,80 +969,4 @@ fn drain_outbox(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::net::frame::{read_frame, write_frame};
-    use crate::proto::{Call, ClientHello, Reply};
-
-    struct Echo;
-
-    impl Service for Echo {
-        fn call(&self, _: &Session, call: Call) -> Result<Reply, WireError> {
-            match call {
-                Call::Ping { payload } => Ok(Reply::Pong(payload)),
-                _ => Err(WireError::NotReady("echo only".into())),
-            }
-        }
-    }
-
-    fn local() -> SocketAddr {
-        "127.0.0.1:0".parse().unwrap()
-    }
-
-    #[test]
-    fn a_non_loopback_bind_needs_a_secret() {
-        let any: SocketAddr = "0.0.0.0:0".parse().unwrap();
-        let e = Server::bind(any, ServerConfig::new("n"), Arc::new(Echo)).unwrap_err();
-        assert!(matches!(e, NetError::SecretRequired(_)), "{e}");
-        let mut c = ServerConfig::new("n");
-        c.secret = Some(Vec::new());
-        assert!(matches!(
-            Server::bind(any, c, Arc::new(Echo)),
-            Err(NetError::SecretRequired(_))
-        ));
-    }
-
-    #[test]
-    fn hello_then_pipelined_requests_are_answered_in_order() {
-        let server = Server::bind(local(), ServerConfig::new("unit"), Arc::new(Echo)).unwrap();
-        let mut s = TcpStream::connect(server.local_addr()).unwrap();
-        let max = DEFAULT_MAX_FRAME;
-        let mut batch = Vec::new();
-        encode_into(
-            &ClientMsg::Hello(ClientHello::new("t", Role::Reader)),
-            max,
-            &mut batch,
-        )
-        .unwrap();
-        for id in 0..50u64 {
-            let call = Call::Ping {
-                payload: vec![id as u8; id as usize],
-            };
-            encode_into(&ClientMsg::Request { id, call }, max, &mut batch).unwrap();
-        }
-        s.write_all(&batch).unwrap();
-        let hello: ServerMsg = read_frame(&mut s, max).unwrap();
-        assert!(
-            matches!(hello, ServerMsg::Hello(ServerHello { ref node, security: Security::Plain, .. }) if node == "unit")
-        );
-        for id in 0..50u64 {
-            let r: ServerMsg = read_frame(&mut s, max).unwrap();
-            assert_eq!(
-                r,
-                ServerMsg::Response {
-                    id,
-                    result: Ok(Reply::Pong(vec![id as u8; id as usize]))
-                }
-            );
-        }
-        write_frame(&mut s, &ClientMsg::Bye, max).unwrap();
-        assert!(matches!(
-            read_frame::<_, ServerMsg>(&mut s, max),
-            Err(FrameError::Closed)
-        ));
-        let st = server.stats();
-        assert_eq!(st.requests, 50);
-        assert_eq!(st.accepted, 1);
-        server.shutdown();
-    }
-}
+mod tests;
