@@ -306,6 +306,82 @@ fn a_tampered_replayed_or_reordered_frame_closes_the_connection() {
     server.shutdown();
 }
 
+/// A relay between one client and `node` that flips the last bit of the node's frame number
+/// `flip` (0: its hello, 1: its handshake answer, 2: the first sealed frame).
+fn tampering_relay(node: SocketAddr, flip: usize) -> SocketAddr {
+    let l = TcpListener::bind(local()).unwrap();
+    let addr = l.local_addr().unwrap();
+    thread::spawn(move || {
+        let (client, _) = l.accept().unwrap();
+        let upstream = TcpStream::connect(node).unwrap();
+        for s in [&client, &upstream] {
+            s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+        }
+        let (mut c_in, mut u_out) = (client.try_clone().unwrap(), upstream.try_clone().unwrap());
+        let up = thread::spawn(move || {
+            let mut buf = [0u8; 4096];
+            while let Ok(n) = c_in.read(&mut buf) {
+                if n == 0 || u_out.write_all(&buf[..n]).is_err() {
+                    break;
+                }
+            }
+            let _ = u_out.shutdown(std::net::Shutdown::Write);
+        });
+        let (mut u_in, mut c_out) = (upstream, client);
+        for i in 0.. {
+            let mut header = [0u8; 4];
+            if u_in.read_exact(&mut header).is_err() {
+                break;
+            }
+            let mut body = vec![0u8; u32::from_le_bytes(header) as usize];
+            if u_in.read_exact(&mut body).is_err() {
+                break;
+            }
+            if i == flip
+                && let Some(last) = body.last_mut()
+            {
+                *last ^= 1;
+            }
+            if c_out.write_all(&header).is_err() || c_out.write_all(&body).is_err() {
+                break;
+            }
+        }
+        let _ = c_out.shutdown(std::net::Shutdown::Both);
+        let _ = up.join();
+    });
+    addr
+}
+
+#[test]
+fn the_client_refuses_a_tampered_frame_of_the_node() {
+    let service = Arc::new(Counting::default());
+    let server = secured(service.clone());
+    let cfg = with_secret(ClientConfig::new("ctl"));
+
+    // A changed hello (the node's `Security`): the handshake fails on both sides.
+    let relay = tampering_relay(server.local_addr(), 0);
+    assert!(Connection::connect(relay, &cfg).is_err());
+
+    // A changed handshake answer: the client sends no request.
+    let relay = tampering_relay(server.local_addr(), 1);
+    assert!(matches!(
+        Connection::connect(relay, &cfg),
+        Err(RpcError::Unauthenticated(_))
+    ));
+    assert_eq!(service.calls.load(Ordering::SeqCst), 0);
+
+    // A changed response: the call fails and the connection is unusable.
+    let relay = tampering_relay(server.local_addr(), 2);
+    let mut c = Connection::connect(relay, &cfg).unwrap();
+    assert!(matches!(
+        c.call(Call::Ping { payload: vec![1] }),
+        Err(RpcError::Frame(_))
+    ));
+    assert!(!c.is_usable());
+    drop(c);
+    server.shutdown();
+}
+
 fn naming_server(admin_secret: Option<&[u8]>) -> (Server, Arc<NamingService>) {
     let service = Arc::new(NamingService::new("naming", NamingLimits::default()));
     let mut c = ServerConfig::new("naming");

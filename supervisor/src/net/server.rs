@@ -137,6 +137,10 @@ pub enum NetError {
         "refusing to listen on {0} without a shared secret (use a loopback address or give a secret)"
     )]
     SecretRequired(SocketAddr),
+    /// An admin secret without the system secret: nobody could prove it (the plain protocol
+    /// takes roles on trust), so the configuration is refused rather than silently weaker.
+    #[error("an admin secret needs the shared secret too (give both, or neither)")]
+    AdminSecretWithoutSecret,
     /// The socket failed.
     #[error("i/o: {0}")]
     Io(#[from] std::io::Error),
@@ -246,8 +250,8 @@ impl Server {
     ///
     /// # Errors
     /// [`NetError::SecretRequired`] for a non-loopback address (such as `0.0.0.0`) without a
-    /// non-empty secret; [`NetError::Io`] if the socket cannot be bound or the accept thread
-    /// cannot start.
+    /// non-empty secret; [`NetError::AdminSecretWithoutSecret`] for an admin secret without a
+    /// secret; [`NetError::Io`] if the socket cannot be bound or the accept thread cannot start.
     pub fn bind(
         addr: SocketAddr,
         config: ServerConfig,
@@ -256,6 +260,9 @@ impl Server {
         let has_secret = config.secret.as_ref().is_some_and(|s| !s.is_empty());
         if !addr.ip().is_loopback() && !has_secret {
             return Err(NetError::SecretRequired(addr));
+        }
+        if !has_secret && config.admin_secret.as_ref().is_some_and(|a| !a.is_empty()) {
+            return Err(NetError::AdminSecretWithoutSecret);
         }
         let listener = TcpListener::bind(addr)?;
         let addr = listener.local_addr()?;

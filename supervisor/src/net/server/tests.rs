@@ -30,6 +30,12 @@ fn a_non_loopback_bind_needs_a_secret() {
         Server::bind(any, c, Arc::new(Echo)),
         Err(NetError::SecretRequired(_))
     ));
+    let mut c = ServerConfig::new("n");
+    c.admin_secret = Some(b"admin".to_vec());
+    assert!(matches!(
+        Server::bind(local(), c, Arc::new(Echo)),
+        Err(NetError::AdminSecretWithoutSecret)
+    ));
 }
 
 #[test]
