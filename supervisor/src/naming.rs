@@ -1093,6 +1093,57 @@ mod tests {
     }
 
     #[test]
+    fn authorization_follows_the_role_and_the_own_context() {
+        let node = Identity {
+            role: Role::Node,
+            proven: true,
+        };
+        let reader = Identity {
+            role: Role::Reader,
+            proven: true,
+        };
+        let admin = Identity {
+            role: Role::Admin,
+            proven: true,
+        };
+        let bind = |path: &str| NamingCall::Bind {
+            path: path.into(),
+            reference: r("a", "x"),
+            rebind: true,
+        };
+        let unbind = |path: &str| NamingCall::Unbind { path: path.into() };
+        let unregister = |n: &str| NamingCall::Unregister { node: n.into() };
+        let list = NamingCall::List {
+            context: "/b".into(),
+        };
+        for who in [node, reader, admin] {
+            assert!(authorize(who, "a", &list).is_ok());
+        }
+        assert!(authorize(node, "a", &bind("/a/robots/x")).is_ok());
+        assert!(authorize(node, "a", &unbind("/a/x")).is_ok());
+        assert!(authorize(node, "a", &unregister("a")).is_ok());
+        for call in [
+            bind("/b/robots/x"),
+            bind("/ab/x"),
+            bind("/a"),
+            bind("a/x"),
+            bind("/"),
+            unbind("/b/x"),
+            unregister("b"),
+        ] {
+            assert!(
+                matches!(authorize(node, "a", &call), Err(WireError::Forbidden(_))),
+                "{call:?}"
+            );
+            assert!(matches!(
+                authorize(reader, "a", &call),
+                Err(WireError::Forbidden(_))
+            ));
+            assert!(authorize(admin, "a", &call).is_ok());
+        }
+    }
+
+    #[test]
     fn the_reaper_expires_without_calls() {
         let s = Arc::new(NamingService::new("naming", NamingLimits::default()));
         s.handle(NamingCall::Register {
