@@ -218,6 +218,7 @@ fn refusal_is_final(refused: &WireError) -> bool {
             | WireError::VersionMismatch { .. }
             | WireError::NameTaken(_)
             | WireError::BadName { .. }
+            | WireError::Forbidden(_)
     )
 }
 
@@ -648,6 +649,15 @@ impl Node {
                         address: naming_address,
                         cause: RpcError::Remote(other),
                     },
+                });
+            }
+            // It does not prove the secret this node holds: nothing was sent, waiting cannot fix it.
+            Err(cause @ RpcError::Unauthenticated(_)) => {
+                creator.shutdown();
+                server.shutdown();
+                return Err(NodeError::NamingRefused {
+                    address: naming_address,
+                    cause,
                 });
             }
             // Silent (said once by `lost_naming`) or busy: the registration thread retries.

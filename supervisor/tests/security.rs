@@ -15,6 +15,7 @@ use penelope_supervisor::net::auth::{self, ClientHandshake, Opener, Sealer};
 use penelope_supervisor::net::conn::{ClientConfig, Connection, RpcError};
 use penelope_supervisor::net::frame::{FrameDecoder, decode_body, encode, read_frame};
 use penelope_supervisor::net::server::{Server, ServerConfig};
+use penelope_supervisor::node::{NamingChoice, Node, NodeConfig, NodeError};
 use penelope_supervisor::proto::{
     Call, Class, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, MAGIC, NamingCall, ObjectRef,
     PROTOCOL_VERSION, Reply, Role, Security, ServerHello, ServerMsg, WireError,
@@ -119,6 +120,21 @@ fn a_node_that_never_proves_the_secret_gets_no_request() {
     let (addr, seen) = fake_node(Security::Plain);
     let client = Client::connect(addr, with_secret(ClientConfig::new("ctl")));
     assert!(matches!(client, Err(RpcError::Unauthenticated(_))));
+    assert!(seen.join().unwrap().is_empty());
+
+    // A node with the secret does not register with such a naming service: its start fails at
+    // once (waiting cannot fix it), having sent nothing.
+    let (addr, seen) = fake_node(Security::Plain);
+    let mut config = NodeConfig::new("lab-a", NamingChoice::Remote(addr));
+    config.secret = Some(SECRET.to_vec());
+    match Node::start(config) {
+        Err(NodeError::NamingRefused {
+            cause: RpcError::Unauthenticated(_),
+            ..
+        }) => {}
+        Err(other) => panic!("expected NamingRefused(Unauthenticated), got {other}"),
+        Ok(_) => panic!("the node started against a naming service that never proved the secret"),
+    }
     assert!(seen.join().unwrap().is_empty());
 }
 
