@@ -397,6 +397,29 @@ impl Opener {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// Arbitrary bytes never open (and never panic), as a sealed frame or as a handshake
+        /// message; a genuine frame still opens after them (a failed piece takes no nonce).
+        #[test]
+        fn arbitrary_bytes_never_open(bytes in proptest::collection::vec(any::<u8>(), 0..2000)) {
+            let psk = member_psk(b"k");
+            let (c, n) = pair(&psk, &psk).unwrap();
+            let (mut tx, _) = c.split();
+            let (_, mut rx) = n.split();
+            prop_assert!(rx.open(&bytes).is_err());
+            let mut frame = Vec::new();
+            tx.seal_body(b"after", &mut frame).unwrap();
+            prop_assert_eq!(rx.open(&frame[4..]).unwrap(), b"after");
+            let p = prologue(b"x", b"y");
+            prop_assert!(answer(&psk, &p, &bytes).is_err());
+            let (hs, _) = ClientHandshake::start(&psk, &p).unwrap();
+            prop_assert!(hs.finish(&bytes).is_err());
+        }
+    }
 
     fn pair(
         client: &[u8; PSK_LEN],
