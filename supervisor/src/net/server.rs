@@ -428,11 +428,11 @@ fn admit(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr) {
     bump(&c.open);
     lock(&shared.streams).insert(id, handle);
     let s = shared.clone();
-    let evicted = admitted.evicted;
+    let (evicted, greeted) = (admitted.evicted, admitted.greeted);
     let spawned = std::thread::Builder::new()
         .name(format!("pnlp-conn-{id}"))
         .spawn(move || {
-            serve(&s, stream, peer, id, evicted);
+            serve(&s, stream, peer, id, evicted, greeted);
             lock(&s.streams).remove(&id);
             s.counters.open.fetch_sub(1, Ordering::Relaxed);
         });
@@ -537,6 +537,8 @@ struct Conn<'a> {
     opener: Option<Opener>,
     /// Set by admission when this connection is evicted from the pending pool.
     evicted: Arc<AtomicBool>,
+    /// Set once the client said a valid hello (admission then evicts silent ones first).
+    greeted: Arc<AtomicBool>,
     wire: Arc<Mutex<Wire>>,
     /// Responses not yet written.
     out: Vec<u8>,
@@ -828,6 +830,7 @@ fn serve(
     peer: SocketAddr,
     id: u64,
     evicted: Arc<AtomicBool>,
+    greeted: Arc<AtomicBool>,
 ) {
     let config = &shared.config;
     let _ = stream.set_nodelay(true);
@@ -853,6 +856,7 @@ fn serve(
         decoder: FrameDecoder::new(config.max_frame),
         opener: None,
         evicted,
+        greeted,
         wire: wire.clone(),
         out: Vec::with_capacity(4096),
         out_frames: 0,

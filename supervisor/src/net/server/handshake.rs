@@ -1,6 +1,7 @@
 //! The handshake of a connection: the hellos and, with a secret, the Noise handshake of
 //! [`crate::net::auth`], after which the connection is sealed.
 
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use super::{Conn, End, POLL_EVERY, bump, lock, msg_name};
@@ -42,6 +43,7 @@ impl Conn<'_> {
                 theirs: hello.version,
             }));
         }
+        self.greeted.store(true, Ordering::Release);
         let psk = self.shared.psk;
         let security = match &psk {
             None => Security::Plain,
