@@ -202,7 +202,7 @@ fn victim(s: &State, peer: IpAddr, now: Instant) -> usize {
     let old = |p: &Pending| now.saturating_duration_since(p.since) >= GRACE;
     of_peer()
         .find(|(_, p)| silent(p) && old(p))
-        .or_else(|| of_peer().filter(|(_, p)| silent(p)).last())
+        .or_else(|| of_peer().rfind(|(_, p)| silent(p)))
         .or_else(|| of_peer().find(|(_, p)| !greeted(p)))
         .or_else(|| of_peer().next())
         .map_or(0, |(at, _)| at)
