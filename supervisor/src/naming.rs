@@ -37,6 +37,18 @@
 //! - [`NamingTree::register`] starts (or restarts) a node: its context is created, or emptied if
 //!   it exists (entries of a previous run are stale). A live node's name cannot be taken by a
 //!   node at another address until its lease lapses.
+//!
+//! # Authorization
+//! Calls that come over a connection go through [`NamingService::handle_for`], which checks the
+//! session's [`Identity`] with [`authorize`] first:
+//! - anyone may `Resolve` and `List`;
+//! - a [`Role::Node`] session named `n` (its hello's name) may `Register`, `Renew` and
+//!   `Unregister` only `n`, and `Bind` (rebind included) and `Unbind` only paths under `/n/`;
+//! - a [`Role::Admin`] session may do everything;
+//! - a [`Role::Reader`] session may not write the tree.
+//!
+//! Refusals are [`WireError::Forbidden`]. A node's own calls to the naming service it hosts do
+//! not cross a connection and are not checked (it is the node).
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -45,9 +57,9 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use crate::proto::{
-    Call, NameEntry, NamingCall, NodeInfo, ObjectRef, Reply, WireError, check_name,
+    Call, NameEntry, NamingCall, NodeInfo, ObjectRef, Reply, Role, WireError, check_name,
 };
-use crate::service::{Service, Session};
+use crate::service::{Identity, Service, Session};
 
 /// Longest `address` of a node or of an [`ObjectRef`], bytes.
 pub const MAX_ADDRESS_LEN: usize = 256;
@@ -678,6 +690,16 @@ impl NamingService {
         tree.apply(call, now)
     }
 
+    /// Serves one naming call of a connection's `session`, after [`authorize`] allowed it.
+    ///
+    /// # Errors
+    /// [`WireError::Forbidden`] if the session's role may not make this call, else as
+    /// [`handle`](Self::handle).
+    pub fn handle_for(&self, session: &Session, call: NamingCall) -> Result<Reply, WireError> {
+        authorize(session.identity, &session.client, &call)?;
+        self.handle(call)
+    }
+
     /// A copy of the tree now (after expiring lapsed leases), for inspection.
     pub fn snapshot(&self) -> NamingTree {
         let now = self.now();
@@ -758,7 +780,7 @@ impl Drop for Reaper {
 }
 
 impl Service for NamingService {
-    fn call(&self, _session: &Session, call: Call) -> Result<Reply, WireError> {
+    fn call(&self, session: &Session, call: Call) -> Result<Reply, WireError> {
         match call {
             Call::Ping { payload } => Ok(Reply::Pong(payload)),
             Call::NodeInfo => Ok(Reply::Node(NodeInfo {
@@ -767,13 +789,55 @@ impl Service for NamingService {
                 hosts_naming: true,
                 objects: 0,
             })),
-            Call::Naming(c) => self.handle(c),
+            Call::Naming(c) => self.handle_for(session, c),
             Call::Creator(_) => Err(unsupported("creator calls")),
             Call::Object { .. } => Err(unsupported("object calls")),
             Call::Subscribe { .. } | Call::Unsubscribe { .. } => {
                 Err(unsupported("telemetry subscriptions"))
             }
         }
+    }
+}
+
+/// Whether a session of `identity`, named `client` in its hello, may make `call` (see the
+/// module's rules).
+///
+/// # Errors
+/// [`WireError::Forbidden`] saying what is refused and why.
+pub fn authorize(identity: Identity, client: &str, call: &NamingCall) -> Result<(), WireError> {
+    let own_node = |node: &str, what: &str| match identity.role {
+        Role::Admin => Ok(()),
+        Role::Node if node == client => Ok(()),
+        Role::Node => Err(WireError::Forbidden(format!(
+            "node `{client}` may {what} only itself, not `{node}`"
+        ))),
+        Role::Reader => Err(WireError::Forbidden(format!(
+            "`{client}` is a reader: it may not {what} a node (connect as that node or with the \
+             admin secret)"
+        ))),
+    };
+    let own_path = |path: &str, what: &str| {
+        let owner = path.strip_prefix('/').and_then(|p| p.split('/').next());
+        match identity.role {
+            Role::Admin => Ok(()),
+            Role::Node if owner == Some(client) && path.len() > client.len() + 2 => Ok(()),
+            Role::Node => Err(WireError::Forbidden(format!(
+                "node `{client}` may {what} only under `/{client}/`, not `{path}`"
+            ))),
+            Role::Reader => Err(WireError::Forbidden(format!(
+                "`{client}` is a reader: it may not {what} `{path}`"
+            ))),
+        }
+    };
+    match call {
+        NamingCall::Resolve { .. } | NamingCall::List { .. } => Ok(()),
+        NamingCall::Register { node, .. } => own_node(node, "register"),
+        NamingCall::Renew { node } => own_node(node, "renew"),
+        NamingCall::Unregister { node } => own_node(node, "unregister"),
+        NamingCall::Bind { path, rebind, .. } => {
+            own_path(path, if *rebind { "rebind" } else { "bind" })
+        }
+        NamingCall::Unbind { path } => own_path(path, "unbind"),
     }
 }
 
@@ -1012,6 +1076,7 @@ mod tests {
             id: 1,
             peer: "127.0.0.1:1".parse().unwrap(),
             client: "t".into(),
+            identity: crate::service::Identity::LOCAL_NODE,
             outbox,
         };
         assert!(matches!(
@@ -1025,6 +1090,57 @@ mod tests {
             s.call(&session, Call::Creator(crate::proto::CreatorCall::Kinds)),
             Err(WireError::Unsupported { .. })
         ));
+    }
+
+    #[test]
+    fn authorization_follows_the_role_and_the_own_context() {
+        let node = Identity {
+            role: Role::Node,
+            proven: true,
+        };
+        let reader = Identity {
+            role: Role::Reader,
+            proven: true,
+        };
+        let admin = Identity {
+            role: Role::Admin,
+            proven: true,
+        };
+        let bind = |path: &str| NamingCall::Bind {
+            path: path.into(),
+            reference: r("a", "x"),
+            rebind: true,
+        };
+        let unbind = |path: &str| NamingCall::Unbind { path: path.into() };
+        let unregister = |n: &str| NamingCall::Unregister { node: n.into() };
+        let list = NamingCall::List {
+            context: "/b".into(),
+        };
+        for who in [node, reader, admin] {
+            assert!(authorize(who, "a", &list).is_ok());
+        }
+        assert!(authorize(node, "a", &bind("/a/robots/x")).is_ok());
+        assert!(authorize(node, "a", &unbind("/a/x")).is_ok());
+        assert!(authorize(node, "a", &unregister("a")).is_ok());
+        for call in [
+            bind("/b/robots/x"),
+            bind("/ab/x"),
+            bind("/a"),
+            bind("a/x"),
+            bind("/"),
+            unbind("/b/x"),
+            unregister("b"),
+        ] {
+            assert!(
+                matches!(authorize(node, "a", &call), Err(WireError::Forbidden(_))),
+                "{call:?}"
+            );
+            assert!(matches!(
+                authorize(reader, "a", &call),
+                Err(WireError::Forbidden(_))
+            ));
+            assert!(authorize(admin, "a", &call).is_ok());
+        }
     }
 
     #[test]

@@ -192,6 +192,7 @@ fn refusal_is_final(refused: &WireError) -> bool {
             | WireError::VersionMismatch { .. }
             | WireError::NameTaken(_)
             | WireError::BadName { .. }
+            | WireError::Forbidden(_)
     )
 }
 
@@ -208,6 +209,7 @@ fn local_session(name: &str) -> Session {
         id: u64::MAX,
         peer: SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0),
         client: name.to_string(),
+        identity: crate::service::Identity::LOCAL_NODE,
         outbox,
     }
 }
@@ -493,7 +495,7 @@ impl Service for NodeService {
         let shared = &self.shared;
         match call {
             Call::Naming(c) => match &shared.hosted {
-                Some(service) => service.handle(c),
+                Some(service) => service.handle_for(session, c),
                 None => Err(WireError::NoNamingService),
             },
             Call::NodeInfo => Ok(Reply::Node(NodeInfo {
@@ -598,7 +600,7 @@ impl Node {
         });
         let _ = shared.advertised.set(advertised);
 
-        let mut client_config = ClientConfig::new(name.clone());
+        let mut client_config = ClientConfig::node(name.clone());
         client_config.secret = config.secret;
         client_config.timeout = config.call_timeout;
         let naming_address = remote_naming.unwrap_or(address);
@@ -621,6 +623,15 @@ impl Node {
                         address: naming_address,
                         cause: RpcError::Remote(other),
                     },
+                });
+            }
+            // It does not prove the secret this node holds: nothing was sent, waiting cannot fix it.
+            Err(cause @ RpcError::Unauthenticated(_)) => {
+                creator.shutdown();
+                server.shutdown();
+                return Err(NodeError::NamingRefused {
+                    address: naming_address,
+                    cause,
                 });
             }
             // Silent (said once by `lost_naming`) or busy: the registration thread retries.

@@ -10,11 +10,17 @@
 //! every step with bytes.
 //!
 //! # A session
-//! 1. The client sends [`ClientMsg::Hello`] (magic, protocol version, its name).
-//! 2. The node answers [`ServerMsg::Hello`]. When it carries a challenge, the node requires the
-//!    shared secret: the client answers [`ClientMsg::Auth`] with
-//!    `HMAC-SHA256(secret, AUTH_CONTEXT || challenge || client name)` and the node answers
-//!    [`ServerMsg::AuthOk`] or [`ServerMsg::Error`] and closes.
+//! 1. The client sends [`ClientMsg::Hello`] (magic, protocol version, its name and the [`Role`]
+//!    it claims).
+//! 2. The node answers [`ServerMsg::Hello`] with its [`Security`]. Under [`Security::Noise`]
+//!    (the node has the shared secret) both sides then run the Noise handshake [`NOISE_PATTERN`]
+//!    with a pre-shared key derived from the secret, the two hellos as its prologue: the client
+//!    sends [`ClientMsg::Handshake`], which only a holder of the secret can make; the node
+//!    answers [`ServerMsg::Handshake`], which only a holder of the secret can make. From then on
+//!    every frame's body, both ways, is sealed (ChaCha20-Poly1305 under the session's keys,
+//!    counted nonces): a replayed, reordered or altered frame fails to open and the connection
+//!    closes. A client that holds the secret sends no request to a node that answers
+//!    [`Security::Plain`]. See `crate::net::auth`.
 //! 3. The client sends [`ClientMsg::Request`]s, each with an id of its choice; the node answers each
 //!    with a [`ServerMsg::Response`] carrying the same id. Requests may be pipelined (sent before
 //!    earlier answers arrive); answers come back in request order.
@@ -23,6 +29,9 @@
 //!    never queued without bound, when the client reads too slowly (`dropped` counts them).
 //! 5. Either side may close. A connection-level problem (bad frame, wrong version, failed
 //!    authentication, rate limit) is reported with [`ServerMsg::Error`] before the node closes.
+//!
+//! The frames of steps 1 and 2 (and an error ending the handshake) are never sealed; every frame
+//! after the handshake is, under [`Security::Noise`].
 //!
 //! # Compatibility
 //! Messages are postcard: field order and enum variant order are the encoding. Adding a variant
@@ -41,7 +50,7 @@ use serde::{Deserialize, Serialize};
 pub const MAGIC: [u8; 4] = *b"PNLP";
 
 /// The version of this protocol; a hello with another version is refused.
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// The default maximum frame body, bytes (256 KiB).
 pub const DEFAULT_MAX_FRAME: usize = 256 * 1024;
@@ -49,11 +58,8 @@ pub const DEFAULT_MAX_FRAME: usize = 256 * 1024;
 /// The bytes of the frame header (the little-endian `u32` length).
 pub const FRAME_HEADER_LEN: usize = 4;
 
-/// Domain-separation prefix of the authentication MAC.
-pub const AUTH_CONTEXT: &[u8] = b"penelope-auth-v1";
-
-/// Length of an authentication challenge and of the MAC, bytes.
-pub const AUTH_LEN: usize = 32;
+/// The Noise protocol of an authenticated connection (see `crate::net::auth`).
+pub const NOISE_PATTERN: &str = "Noise_NNpsk0_25519_ChaChaPoly_BLAKE2s";
 
 /// The default TCP port of a node (and of a naming service run alone).
 pub const DEFAULT_PORT: u16 = 7300;
@@ -67,11 +73,12 @@ pub const DEFAULT_PORT: u16 = 7300;
 pub enum ClientMsg {
     /// Opens the session.
     Hello(ClientHello),
-    /// The answer to the node's challenge: `HMAC-SHA256(secret, AUTH_CONTEXT || challenge ||
-    /// client name)`.
-    Auth {
-        /// The MAC.
-        mac: [u8; AUTH_LEN],
+    /// The first Noise handshake message (`-> psk, e`: 32 bytes of ephemeral key and the 16-byte
+    /// tag of an empty payload), sent after the node's hello when it says [`Security::Noise`].
+    Handshake {
+        /// The Noise message.
+        #[serde(with = "serde_bytes")]
+        noise: Vec<u8>,
     },
     /// A call; answered by a [`ServerMsg::Response`] with the same `id`.
     Request {
@@ -91,19 +98,51 @@ pub struct ClientHello {
     pub magic: [u8; 4],
     /// Must be [`PROTOCOL_VERSION`].
     pub version: u16,
-    /// Who is calling (a node name or a tool name); used in logs and in the MAC.
+    /// Who is calling (a node name or a tool name): the node's name for [`Role::Node`].
     pub client: String,
+    /// What the client claims to be; the node's naming service authorizes by it.
+    pub role: Role,
 }
 
 impl ClientHello {
-    /// A hello of this protocol version from `client`.
-    pub fn new(client: impl Into<String>) -> Self {
+    /// A hello of this protocol version from `client`, claiming `role`.
+    pub fn new(client: impl Into<String>, role: Role) -> Self {
         ClientHello {
             magic: MAGIC,
             version: PROTOCOL_VERSION,
             client: client.into(),
+            role,
         }
     }
+}
+
+/// What a client claims to be in its hello. Under [`Security::Noise`] the claim is bound into the
+/// handshake (the hellos are its prologue), and [`Role::Admin`] needs the admin secret; without a
+/// secret ([`Security::Plain`]) the claim is taken on trust.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Role {
+    /// A tool or a user: reads the naming tree, calls objects and creators.
+    Reader,
+    /// A node, named by the hello's `client`: also registers, renews and unregisters itself, and
+    /// binds, rebinds and unbinds inside its own context `/<client>/...`.
+    Node,
+    /// An administrator: may also unregister any node and write anywhere in the tree.
+    Admin,
+}
+
+/// How a node protects a connection, as its hello says.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Security {
+    /// No secret: plain frames, and the client's claimed role is taken on trust (loopback-only
+    /// systems).
+    Plain,
+    /// The shared secret: the Noise handshake [`NOISE_PATTERN`] follows, then sealed frames.
+    Noise {
+        /// The node has an admin secret: a client claiming [`Role::Admin`] must prove it (its
+        /// pre-shared key mixes both secrets). Without one, such a client is served as a
+        /// [`Role::Reader`].
+        admin: bool,
+    },
 }
 
 /// A message from a node to a client.
@@ -111,8 +150,13 @@ impl ClientHello {
 pub enum ServerMsg {
     /// The node's hello.
     Hello(ServerHello),
-    /// The MAC was right; requests may follow.
-    AuthOk,
+    /// The second Noise handshake message (`<- e, ee`: 32 bytes of ephemeral key and the 16-byte
+    /// tag of an empty payload); requests may follow, sealed.
+    Handshake {
+        /// The Noise message.
+        #[serde(with = "serde_bytes")]
+        noise: Vec<u8>,
+    },
     /// The answer to the request `id`.
     Response {
         /// The request's id.
@@ -135,8 +179,8 @@ pub struct ServerHello {
     pub version: u16,
     /// The node's name (its context in the naming tree).
     pub node: String,
-    /// Present when the node requires the shared secret.
-    pub challenge: Option<[u8; AUTH_LEN]>,
+    /// Whether (and how) the node requires the shared secret.
+    pub security: Security,
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -937,6 +981,10 @@ pub enum WireError {
     /// A bug: the node could not do what it should have.
     #[error("internal error: {0}")]
     Internal(String),
+    /// The session's role may not do this (a node writing outside its own context, a reader
+    /// writing the naming tree, unregistering another node without the admin credential).
+    #[error("forbidden: {0}")]
+    Forbidden(String),
 }
 
 /// Short names of the lifecycle transitions a user types (`configure`, ...).
@@ -1188,7 +1236,7 @@ mod tests {
     #[test]
     fn every_message_round_trips_through_postcard() {
         let msgs = [
-            ClientMsg::Hello(ClientHello::new("ctl")),
+            ClientMsg::Hello(ClientHello::new("ctl", Role::Reader)),
             ClientMsg::Request {
                 id: 7,
                 call: Call::Object {
@@ -1198,7 +1246,7 @@ mod tests {
                     }),
                 },
             },
-            ClientMsg::Auth { mac: [3; AUTH_LEN] },
+            ClientMsg::Handshake { noise: vec![3; 48] },
             ClientMsg::Bye,
         ];
         for m in msgs {

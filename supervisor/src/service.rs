@@ -10,7 +10,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 
-use crate::proto::{Call, Method, Reply, ServerMsg, WireError};
+use crate::proto::{Call, Method, Reply, Role, ServerMsg, WireError};
 
 /// What a node serves. Called from connection threads (never from a real-time thread), possibly
 /// from several at once.
@@ -46,10 +46,32 @@ pub struct Session {
     pub id: u64,
     /// The peer's address.
     pub peer: SocketAddr,
-    /// The name the client gave in its hello.
+    /// The name the client gave in its hello (the node's name for [`Role::Node`]).
     pub client: String,
+    /// Who the session speaks for, as its handshake established it.
+    pub identity: Identity,
     /// Frames to push to this connection (telemetry).
     pub outbox: Outbox,
+}
+
+/// Who a session speaks for: the role its hello claimed, and whether the handshake proved the
+/// secret behind it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Identity {
+    /// The role served: the claimed one, except that [`Role::Admin`] at a node without an admin
+    /// secret is served as [`Role::Reader`].
+    pub role: Role,
+    /// The handshake proved the secret (the system secret; for [`Role::Admin`] the admin secret
+    /// too). `false` on a plain connection (no secret configured): the role is taken on trust.
+    pub proven: bool,
+}
+
+impl Identity {
+    /// A node's own calls to itself (never crossed a wire).
+    pub const LOCAL_NODE: Identity = Identity {
+        role: Role::Node,
+        proven: true,
+    };
 }
 
 /// A bounded, non-blocking queue of frames to one connection.
@@ -131,15 +153,16 @@ mod tests {
     #[test]
     fn a_full_outbox_drops_and_counts_and_a_closed_one_says_so() {
         let (outbox, receiver) = Outbox::bounded(2);
-        assert!(outbox.try_push(ServerMsg::AuthOk));
-        assert!(outbox.try_push(ServerMsg::AuthOk));
-        assert!(!outbox.try_push(ServerMsg::AuthOk));
+        let msg = || ServerMsg::Error(WireError::Internal("test".into()));
+        assert!(outbox.try_push(msg()));
+        assert!(outbox.try_push(msg()));
+        assert!(!outbox.try_push(msg()));
         assert_eq!(outbox.dropped(), 1);
         assert!(!outbox.is_closed());
-        assert_eq!(receiver.rx.recv().unwrap(), ServerMsg::AuthOk);
+        assert_eq!(receiver.rx.recv().unwrap(), msg());
         drop(receiver);
         assert!(outbox.is_closed());
-        assert!(!outbox.try_push(ServerMsg::AuthOk));
-        assert!(!outbox.push(ServerMsg::AuthOk));
+        assert!(!outbox.try_push(msg()));
+        assert!(!outbox.push(msg()));
     }
 }

@@ -61,8 +61,7 @@ impl Lab {
         config.rt.priority = None;
         let creator = Arc::new(Creator::new(config));
         let node = Server::bind(any, ServerConfig::new(NODE), creator.clone()).unwrap();
-        let client =
-            Client::connect(naming.local_addr(), ClientConfig::new("client-test")).unwrap();
+        let client = Client::connect(naming.local_addr(), ClientConfig::node(NODE)).unwrap();
         client
             .naming()
             .bind(
@@ -529,17 +528,26 @@ fn a_virtual_sensor_measures_the_probe_and_the_naming_proxy_lists() {
     );
     let r = naming.resolve("/lab/sensors/wall").unwrap();
     assert_eq!((r.class, r.name.as_str()), (Class::Sensor, "wall"));
-    naming.bind("/elsewhere/alias", r.clone(), false).unwrap();
+    // A node binds only inside its own context.
     assert!(matches!(
-        remote(naming.bind("/elsewhere/alias", r, false).unwrap_err()),
+        remote(
+            naming
+                .bind("/elsewhere/alias", r.clone(), false)
+                .unwrap_err()
+        ),
+        WireError::Forbidden(_)
+    ));
+    naming.bind("/lab/aliases/wall", r.clone(), false).unwrap();
+    assert!(matches!(
+        remote(naming.bind("/lab/aliases/wall", r, false).unwrap_err()),
         WireError::NameTaken(_)
     ));
-    let alias = lab.client.sensor("/elsewhere/alias").unwrap();
+    let alias = lab.client.sensor("/lab/aliases/wall").unwrap();
     let deeper = Pose::translation(0.0, 0.0, 0.52);
     assert!(alias.measure(&deeper, &still).unwrap().force.norm() > 1.0);
-    naming.unbind("/elsewhere/alias").unwrap();
+    naming.unbind("/lab/aliases/wall").unwrap();
     assert!(matches!(
-        remote(naming.resolve("/elsewhere/alias").unwrap_err()),
+        remote(naming.resolve("/lab/aliases/wall").unwrap_err()),
         WireError::UnknownName(_)
     ));
     assert_eq!(lab.client.nodes().unwrap().len(), 1);

@@ -5,17 +5,24 @@
 
 use penelope_supervisor::net::frame::{FrameDecoder, FrameError, encode, encode_into, read_frame};
 use penelope_supervisor::proto::{
-    AUTH_LEN, Call, ClientHello, ClientMsg, CreatorCall, FRAME_HEADER_LEN, Method, Reply,
-    RobotMethod, ServerHello, ServerMsg, TelemetryBatch, WireError,
+    Call, ClientHello, ClientMsg, CreatorCall, FRAME_HEADER_LEN, Method, Reply, RobotMethod, Role,
+    Security, ServerHello, ServerMsg, TelemetryBatch, WireError,
 };
 use proptest::prelude::*;
 
-fn mac() -> impl Strategy<Value = [u8; AUTH_LEN]> {
-    proptest::collection::vec(any::<u8>(), AUTH_LEN).prop_map(|v| {
-        let mut m = [0u8; AUTH_LEN];
-        m.copy_from_slice(&v);
-        m
-    })
+fn noise() -> impl Strategy<Value = Vec<u8>> {
+    proptest::collection::vec(any::<u8>(), 0..100)
+}
+
+fn role() -> impl Strategy<Value = Role> {
+    prop_oneof![Just(Role::Reader), Just(Role::Node), Just(Role::Admin)]
+}
+
+fn security() -> impl Strategy<Value = Security> {
+    prop_oneof![
+        Just(Security::Plain),
+        any::<bool>().prop_map(|admin| Security::Noise { admin }),
+    ]
 }
 
 fn call() -> impl Strategy<Value = Call> {
@@ -44,14 +51,17 @@ fn call() -> impl Strategy<Value = Call> {
 
 fn client_msg() -> impl Strategy<Value = ClientMsg> {
     prop_oneof![
-        (any::<[u8; 4]>(), any::<u16>(), ".{0,30}").prop_map(|(magic, version, client)| {
-            ClientMsg::Hello(ClientHello {
-                magic,
-                version,
-                client,
-            })
-        }),
-        mac().prop_map(|mac| ClientMsg::Auth { mac }),
+        (any::<[u8; 4]>(), any::<u16>(), ".{0,30}", role()).prop_map(
+            |(magic, version, client, role)| {
+                ClientMsg::Hello(ClientHello {
+                    magic,
+                    version,
+                    client,
+                    role,
+                })
+            }
+        ),
+        noise().prop_map(|noise| ClientMsg::Handshake { noise }),
         (any::<u64>(), call()).prop_map(|(id, call)| ClientMsg::Request { id, call }),
         Just(ClientMsg::Bye),
     ]
@@ -63,6 +73,7 @@ fn wire_error() -> impl Strategy<Value = WireError> {
         (any::<u64>(), any::<u64>()).prop_map(|(len, max)| WireError::FrameTooLarge { len, max }),
         Just(WireError::BadMagic),
         Just(WireError::AuthFailed),
+        ".{0,40}".prop_map(WireError::Forbidden),
         any::<u32>().prop_map(|limit| WireError::RateLimited { limit }),
         any::<u32>().prop_map(|limit| WireError::TooManyConnections { limit }),
         ".{0,40}".prop_map(WireError::UnknownName),
@@ -73,15 +84,15 @@ fn wire_error() -> impl Strategy<Value = WireError> {
 
 fn server_msg() -> impl Strategy<Value = ServerMsg> {
     prop_oneof![
-        (".{0,30}", proptest::option::of(mac())).prop_map(|(node, challenge)| {
+        (".{0,30}", security()).prop_map(|(node, security)| {
             ServerMsg::Hello(ServerHello {
                 magic: *b"PNLP",
-                version: 1,
+                version: 2,
                 node,
-                challenge,
+                security,
             })
         }),
-        Just(ServerMsg::AuthOk),
+        noise().prop_map(|noise| ServerMsg::Handshake { noise }),
         (
             any::<u64>(),
             prop_oneof![
@@ -232,8 +243,8 @@ impl Rng {
 fn seeded_fuzz_of_the_decoder() {
     let mut rng = Rng(0x5eed_1234_abcd_0001);
     let seeds: Vec<Vec<u8>> = [
-        ClientMsg::Hello(ClientHello::new("fuzz")),
-        ClientMsg::Auth { mac: [9; AUTH_LEN] },
+        ClientMsg::Hello(ClientHello::new("fuzz", Role::Node)),
+        ClientMsg::Handshake { noise: vec![9; 48] },
         ClientMsg::Request {
             id: 3,
             call: Call::Ping {

@@ -21,7 +21,8 @@ fn serve() -> (Server, Arc<NamingService>) {
 }
 
 fn connect(server: &Server) -> Connection {
-    Connection::connect(server.local_addr(), &ClientConfig::new("test")).unwrap()
+    // An administrator: these tests play several nodes over one connection.
+    Connection::connect(server.local_addr(), &ClientConfig::admin("test")).unwrap()
 }
 
 fn naming(conn: &mut Connection, call: NamingCall) -> Result<Reply, WireError> {

@@ -17,7 +17,7 @@ use penelope_supervisor::net::conn::{ClientConfig, Connection};
 use penelope_supervisor::net::frame::encode;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::proto::{
-    AUTH_LEN, Call, ClientHello, ClientMsg, ControlStatus, DEFAULT_MAX_FRAME, Reply,
+    Call, ClientHello, ClientMsg, ControlStatus, DEFAULT_MAX_FRAME, Reply, Role,
 };
 
 const WINDOW: Duration = Duration::from_secs(2);
@@ -43,7 +43,10 @@ fn attack(
             };
             made.fetch_add(1, Ordering::Relaxed);
             let _ = s.set_read_timeout(Some(Duration::from_millis(200)));
-            let hello = frame(&ClientMsg::Hello(ClientHello::new("attacker")));
+            let hello = frame(&ClientMsg::Hello(ClientHello::new(
+                "attacker",
+                Role::Reader,
+            )));
             match kind {
                 // Garbage bytes.
                 0 => {
@@ -74,10 +77,10 @@ fn attack(
                     }
                     continue;
                 }
-                // A wrong answer to a challenge that was never sent.
+                // A handshake message to a node that asked for none.
                 _ => {
                     let _ = s.write_all(&hello);
-                    let _ = s.write_all(&frame(&ClientMsg::Auth { mac: [7; AUTH_LEN] }));
+                    let _ = s.write_all(&frame(&ClientMsg::Handshake { noise: vec![7; 48] }));
                 }
             }
             let mut sink = [0u8; 256];

@@ -21,6 +21,7 @@ fn session(id: u64) -> (Session, OutboxReceiver) {
             id,
             peer: "127.0.0.1:40000".parse().unwrap(),
             client: "test".into(),
+            identity: penelope_supervisor::service::Identity::LOCAL_NODE,
             outbox,
         },
         rx,

@@ -20,8 +20,8 @@ use penelope_supervisor::net::conn::{ClientConfig, Connection, RpcError};
 use penelope_supervisor::net::frame::{FrameError, encode, encode_into, read_frame};
 use penelope_supervisor::net::server::{ABUSE_STRIKES, NetError, Server, ServerConfig};
 use penelope_supervisor::proto::{
-    Call, ClientHello, ClientMsg, Reply, ServerMsg, TelemetryBatch, TelemetryRecord, WireError,
-    WrenchMsg,
+    Call, ClientHello, ClientMsg, Reply, Role, ServerMsg, TelemetryBatch, TelemetryRecord,
+    WireError, WrenchMsg,
 };
 use penelope_supervisor::service::{Outbox, Service, Session};
 
@@ -127,7 +127,10 @@ fn frame(msg: &ClientMsg) -> Vec<u8> {
 }
 
 fn hello() -> Vec<u8> {
-    frame(&ClientMsg::Hello(ClientHello::new("attacker")))
+    frame(&ClientMsg::Hello(ClientHello::new(
+        "attacker",
+        Role::Reader,
+    )))
 }
 
 /// Reads frames until the server's connection-level error or the end; the error, if one came.

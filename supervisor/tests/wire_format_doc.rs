@@ -5,14 +5,16 @@
 //! `<!-- wire: NAME prefix -->` when the block shows only the first bytes of a long message),
 //! followed by a fenced block whose lines are hex bytes, each line optionally ending in a
 //! `# comment`. The bytes are a whole frame: the 4-byte little-endian length, then the postcard
-//! body. Run with `WIRE_FORMAT_PRINT=1 -- --nocapture` to print every message's bytes.
+//! body (`<!-- wire: NAME sealed -->`: then the sealed body, which is not postcard). The Noise
+//! handshake of the examples uses fixed ephemeral keys, so its bytes are reproducible. Run with `WIRE_FORMAT_PRINT=1 -- --nocapture` to print every message's bytes.
 
 use std::collections::BTreeMap;
 
-use penelope_supervisor::net::{auth, frame};
+use penelope_supervisor::net::auth::{self, ClientHandshake};
+use penelope_supervisor::net::frame;
 use penelope_supervisor::proto::{
-    AUTH_LEN, Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, MAGIC, Method, PROTOCOL_VERSION,
-    PoseMsg, Reply, RobotMethod, ServerHello, ServerMsg, TelemetryBatch, TelemetryRecord,
+    Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, MAGIC, Method, PROTOCOL_VERSION, PoseMsg,
+    Reply, RobotMethod, Role, Security, ServerHello, ServerMsg, TelemetryBatch, TelemetryRecord,
     WireError, WrenchMsg,
 };
 use serde::Serialize;
@@ -20,9 +22,13 @@ use serde::Serialize;
 /// The document, relative to this crate.
 const DOC: &str = include_str!("../../docs/wire-format.md");
 
-/// The challenge of the examples: bytes 0x00 to 0x1f.
-fn example_challenge() -> [u8; AUTH_LEN] {
-    std::array::from_fn(|i| i as u8)
+/// The ephemeral private keys of the example handshake: the client's bytes 0x00 to 0x1f, the
+/// node's 0x20 to 0x3f (a real handshake draws them from the operating system).
+fn example_ephemerals() -> ([u8; 32], [u8; 32]) {
+    (
+        std::array::from_fn(|i| i as u8),
+        std::array::from_fn(|i| 0x20 + i as u8),
+    )
 }
 
 /// The shared secret of the examples.
@@ -65,7 +71,6 @@ fn framed<T: Serialize>(msg: &T) -> Vec<u8> {
 
 /// Every message the document shows, by the name its block carries.
 fn examples() -> BTreeMap<&'static str, Vec<u8>> {
-    let challenge = example_challenge();
     let pose = PoseMsg {
         position: [0.5, 0.0, 0.25],
         n: [1.0, 0.0, 0.0],
@@ -73,38 +78,73 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
         a: [0.0, 0.0, -1.0],
     };
     let mut m = BTreeMap::new();
-    m.insert(
-        "client-hello",
-        framed(&ClientMsg::Hello(ClientHello::new("ctl"))),
-    );
+    let ping = ClientMsg::Request {
+        id: 300,
+        call: Call::Ping {
+            payload: vec![0, 1, 2, 3, 4, 5, 6, 7],
+        },
+    };
+    let client_hello = ClientMsg::Hello(ClientHello::new("ctl", Role::Reader));
+    m.insert("client-hello", framed(&client_hello));
     m.insert(
         "server-hello",
         framed(&ServerMsg::Hello(ServerHello {
             magic: MAGIC,
             version: PROTOCOL_VERSION,
             node: "lab-a".into(),
-            challenge: None,
+            security: Security::Plain,
         })),
     );
+    let server_hello = ServerMsg::Hello(ServerHello {
+        magic: MAGIC,
+        version: PROTOCOL_VERSION,
+        node: "lab-a".into(),
+        security: Security::Noise { admin: false },
+    });
+    m.insert("server-hello-noise", framed(&server_hello));
+    // The handshake, as both sides make it.
+    let psk = auth::member_psk(EXAMPLE_SECRET);
+    let prologue = auth::prologue(&framed(&client_hello)[4..], &framed(&server_hello)[4..]);
+    let (e_client, e_node) = example_ephemerals();
+    let (client, first) = ClientHandshake::start_for_test_vectors(&psk, &prologue, &e_client)
+        .expect("the handshake starts");
+    let (second, node_keys) = auth::answer_for_test_vectors(&psk, &prologue, &first, &e_node)
+        .expect("the node accepts the client's first message");
+    let client_keys = client
+        .finish(&second)
+        .expect("the client accepts the answer");
     m.insert(
-        "server-hello-challenge",
-        framed(&ServerMsg::Hello(ServerHello {
-            magic: MAGIC,
-            version: PROTOCOL_VERSION,
-            node: "lab-a".into(),
-            challenge: Some(challenge),
-        })),
+        "client-handshake",
+        framed(&ClientMsg::Handshake { noise: first }),
     );
     m.insert(
-        "client-auth",
-        framed(&ClientMsg::Auth {
-            mac: auth::mac(EXAMPLE_SECRET, &challenge, "ctl"),
-        }),
+        "server-handshake",
+        framed(&ServerMsg::Handshake { noise: second }),
     );
-    m.insert("server-auth-ok", framed(&ServerMsg::AuthOk));
+    // The first request after it, sealed; the node opens it back to the plain body.
+    let (mut sealer, _) = client_keys.split();
+    let (_, mut opener) = node_keys.split();
+    let plain = framed(&ping);
+    let mut sealed = Vec::new();
+    sealer.seal_frames(&plain, &mut sealed).expect("seals");
+    assert_eq!(
+        opener.open(&sealed[4..]).expect("opens"),
+        &plain[4..],
+        "the node opens the sealed request"
+    );
+    m.insert("sealed-request-ping", sealed);
     m.insert(
         "server-auth-failed",
         framed(&ServerMsg::Error(WireError::AuthFailed)),
+    );
+    m.insert(
+        "response-forbidden",
+        framed(&ServerMsg::Response {
+            id: 3,
+            result: Err(WireError::Forbidden(
+                "node `lab-a` may unbind only under `/lab-a/`, not `/lab-b/sensors/ft`".into(),
+            )),
+        }),
     );
     m.insert(
         "request-forward-kinematics",
@@ -130,15 +170,7 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
             result: Err(WireError::UnknownName("slave2".into())),
         }),
     );
-    m.insert(
-        "request-ping",
-        framed(&ClientMsg::Request {
-            id: 300,
-            call: Call::Ping {
-                payload: vec![0, 1, 2, 3, 4, 5, 6, 7],
-            },
-        }),
-    );
+    m.insert("request-ping", framed(&ping));
     m.insert(
         "telemetry-batch",
         framed(&ServerMsg::Telemetry(TelemetryBatch {
@@ -163,11 +195,13 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
 struct Block {
     name: String,
     prefix: bool,
+    /// The body is sealed (not postcard).
+    sealed: bool,
     line: usize,
     bytes: Vec<u8>,
 }
 
-/// Every `<!-- wire: NAME [prefix] -->` block of `doc`.
+/// Every `<!-- wire: NAME [prefix|sealed] -->` block of `doc`.
 fn blocks(doc: &str) -> Result<Vec<Block>, String> {
     let lines: Vec<&str> = doc.lines().collect();
     let mut out = Vec::new();
@@ -185,9 +219,10 @@ fn blocks(doc: &str) -> Result<Vec<Block>, String> {
         let name = words
             .next()
             .ok_or(format!("line {}: marker without a name", i + 1))?;
-        let prefix = match words.next() {
-            None => false,
-            Some("prefix") => true,
+        let (prefix, sealed) = match words.next() {
+            None => (false, false),
+            Some("prefix") => (true, false),
+            Some("sealed") => (false, true),
             Some(other) => return Err(format!("line {}: unknown marker word {other:?}", i + 1)),
         };
         let start = i + 1;
@@ -220,6 +255,7 @@ fn blocks(doc: &str) -> Result<Vec<Block>, String> {
         out.push(Block {
             name: name.to_string(),
             prefix,
+            sealed,
             line: i + 1,
             bytes,
         });
@@ -273,7 +309,7 @@ fn every_byte_block_of_the_wire_format_document_is_what_the_encoder_makes() {
         );
         // What the document shows also decodes back to a message.
         let body = &b.bytes[4.min(b.bytes.len())..];
-        if !b.prefix {
+        if !b.prefix && !b.sealed {
             let as_client = postcard::from_bytes::<ClientMsg>(body).is_ok();
             let as_server = postcard::from_bytes::<ServerMsg>(body).is_ok();
             assert!(
@@ -306,4 +342,5 @@ fn the_block_parser_refuses_what_it_cannot_read() {
         (ok[0].name.as_str(), ok[0].prefix, ok[0].bytes.clone()),
         ("x", true, vec![10, 11])
     );
+    assert!(blocks("<!-- wire: y sealed -->\n```text\n00\n```\n").unwrap()[0].sealed);
 }

@@ -42,6 +42,7 @@ fn a_hundred_thousand_teleoperation_ticks_allocate_nothing() {
         peer: "127.0.0.1:1".parse().unwrap(),
         client: "test".into(),
         outbox,
+        identity: penelope_supervisor::service::Identity::LOCAL_NODE,
     };
     let wall = "[[shapes]]\nkind = \"plane\"\npoint = [0, 0, 0.1]";
     for (kind, name, cfg) in [

@@ -21,6 +21,7 @@ fn session() -> Session {
         peer: "127.0.0.1:1".parse().unwrap(),
         client: "test".into(),
         outbox,
+        identity: penelope_supervisor::service::Identity::LOCAL_NODE,
     }
 }
 

@@ -243,3 +243,65 @@ fn ctl_drives_a_node_through_the_naming_service() {
         .collect();
     assert_eq!(paths, ["/lab", "/lab/creator"]);
 }
+
+/// A secret file for these tests, with `mode`.
+fn secret_file(name: &str, mode: u32) -> PathBuf {
+    use std::os::unix::fs::PermissionsExt as _;
+    let path = script(name, "correct horse battery staple\n");
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(mode)).unwrap();
+    path
+}
+
+#[test]
+fn a_secret_file_others_may_read_is_refused_with_the_fix() {
+    let file = secret_file("open.secret", 0o644);
+    let out = ctl(
+        free_port(),
+        &["--secret-file", file.to_str().unwrap(), "ls"],
+    );
+    let (_, err) = text(&out);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains(&format!("chmod 600 {}", file.display())),
+        "the message must say how to fix it: {err}"
+    );
+}
+
+#[test]
+fn ctl_with_the_secret_sends_nothing_to_a_node_that_does_not_prove_it() {
+    use penelope_supervisor::net::frame::{encode, read_frame};
+    use penelope_supervisor::proto::{
+        ClientMsg, DEFAULT_MAX_FRAME, MAGIC, PROTOCOL_VERSION, Security, ServerHello, ServerMsg,
+    };
+    let file = secret_file("lab.secret", 0o600);
+    // An impostor naming service: it answers the hello without asking for the secret, then
+    // records whatever ctl sends.
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    let impostor = std::thread::spawn(move || {
+        let (mut s, _) = listener.accept().unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+        let _: ClientMsg = read_frame(&mut s, DEFAULT_MAX_FRAME).unwrap();
+        let hello = ServerMsg::Hello(ServerHello {
+            magic: MAGIC,
+            version: PROTOCOL_VERSION,
+            node: "naming".into(),
+            security: Security::Plain,
+        });
+        std::io::Write::write_all(&mut s, &encode(&hello, DEFAULT_MAX_FRAME).unwrap()).unwrap();
+        let mut got = Vec::new();
+        while let Ok(m) = read_frame::<_, ClientMsg>(&mut s, DEFAULT_MAX_FRAME) {
+            got.push(m);
+        }
+        got
+    });
+    let out = ctl(addr, &["--secret-file", file.to_str().unwrap(), "ls"]);
+    let (_, err) = text(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("did not prove the shared secret"), "{err}");
+    assert_eq!(
+        impostor.join().unwrap(),
+        Vec::new(),
+        "ctl sent something after the impostor's hello"
+    );
+}

@@ -1,7 +1,10 @@
 //! The client side of one connection to a node.
 //!
-//! A [`Connection`] is one TCP stream (`TCP_NODELAY`) that has passed the hello (and the
-//! challenge-response when the node asks for it). [`Connection::call`] sends one request and
+//! A [`Connection`] is one TCP stream (`TCP_NODELAY`) that has passed the hello and, when the
+//! client holds the secret, the Noise handshake of [`crate::net::auth`]: the node proved the
+//! secret before a single request is sent, and every frame after it is sealed both ways. A client
+//! with a secret refuses a node that answers [`Security::Plain`] (it sends it nothing more), and a
+//! frame of the node that fails to open ends the connection. [`Connection::call`] sends one request and
 //! waits for its answer; [`Connection::call_many`] pipelines many (written back to back, answers
 //! read in order); telemetry frames that arrive meanwhile are kept (at most
 //! [`TELEMETRY_BACKLOG`] batches, the oldest dropped first) for [`Connection::next_telemetry`].
@@ -17,11 +20,11 @@ use std::io::{self, Write};
 use std::net::{Shutdown, SocketAddr, TcpStream};
 use std::time::{Duration, Instant};
 
-use crate::net::auth;
-use crate::net::frame::{FrameDecoder, FrameError, encode_into};
+use crate::net::auth::{self, ClientHandshake, Opener, SealError, Sealer};
+use crate::net::frame::{FrameDecoder, FrameError, decode_body, encode_into};
 use crate::proto::{
-    Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, MAGIC, PROTOCOL_VERSION, Reply, ServerMsg,
-    TelemetryBatch, WireError,
+    Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, MAGIC, PROTOCOL_VERSION, Reply, Role,
+    Security, ServerMsg, TelemetryBatch, WireError,
 };
 
 /// Telemetry batches kept while nobody asks for them; older ones are dropped.
@@ -40,10 +43,15 @@ const WRITE_CHUNK: usize = 64 * 1024;
 /// How a client connects.
 #[derive(Clone, Debug)]
 pub struct ClientConfig {
-    /// The name sent in the hello.
+    /// The name sent in the hello (a node's own name for [`Role::Node`]).
     pub name: String,
-    /// The shared secret, if the node requires one.
+    /// The role claimed in the hello.
+    pub role: Role,
+    /// The shared secret. With it, the client authenticates the node before sending anything and
+    /// refuses a node without the secret.
     pub secret: Option<Vec<u8>>,
+    /// The admin secret, for [`Role::Admin`] at a node that has one.
+    pub admin_secret: Option<Vec<u8>>,
     /// Connect and per-call timeout.
     pub timeout: Duration,
     /// Largest frame accepted, bytes.
@@ -51,13 +59,33 @@ pub struct ClientConfig {
 }
 
 impl ClientConfig {
-    /// Defaults for a client named `name`: no secret, 5 s timeout, 256 KiB frames.
+    /// Defaults for a client (a [`Role::Reader`]) named `name`: no secret, 5 s timeout, 256 KiB
+    /// frames.
     pub fn new(name: impl Into<String>) -> Self {
         ClientConfig {
             name: name.into(),
+            role: Role::Reader,
             secret: None,
+            admin_secret: None,
             timeout: Duration::from_secs(5),
             max_frame: DEFAULT_MAX_FRAME,
+        }
+    }
+
+    /// The defaults of [`new`](Self::new) for the node named `node` ([`Role::Node`]).
+    pub fn node(node: impl Into<String>) -> Self {
+        ClientConfig {
+            role: Role::Node,
+            ..ClientConfig::new(node)
+        }
+    }
+
+    /// The defaults of [`new`](Self::new) for an administrator ([`Role::Admin`]); set
+    /// `admin_secret` (and `secret`) for a node that has them.
+    pub fn admin(name: impl Into<String>) -> Self {
+        ClientConfig {
+            role: Role::Admin,
+            ..ClientConfig::new(name)
         }
     }
 }
@@ -77,6 +105,10 @@ pub enum RpcError {
     /// The node broke the protocol.
     #[error("protocol error: {0}")]
     Protocol(String),
+    /// The client holds the secret and the node did not prove it (it offered no authentication,
+    /// or its handshake answer did not verify): nothing was sent to it.
+    #[error("the node at {0} did not prove the shared secret; nothing was sent to it")]
+    Unauthenticated(SocketAddr),
     /// No answer in time.
     #[error("timed out")]
     Timeout,
@@ -98,6 +130,10 @@ pub struct Connection {
     stream: TcpStream,
     decoder: FrameDecoder,
     out: Vec<u8>,
+    /// After the handshake with a secret: seals what is sent, opens what arrives.
+    seal: Option<(Sealer, Opener)>,
+    /// Sealed bytes being written.
+    sealed: Vec<u8>,
     max_frame: usize,
     timeout: Duration,
     /// The socket's read timeout as last set.
@@ -118,12 +154,14 @@ enum Incoming {
 }
 
 impl Connection {
-    /// Connects (within `config.timeout`), says hello and authenticates if asked.
+    /// Connects (within `config.timeout`), says hello and, with a secret, runs the Noise
+    /// handshake: the node must prove the secret before anything else is sent.
     ///
     /// # Errors
     /// [`RpcError::Io`] if the node cannot be reached, [`RpcError::Timeout`] if it does not
     /// answer in time, [`RpcError::Remote`] with [`WireError::AuthFailed`] if the node wants a
     /// secret and none or a wrong one was given (or another error the node sent),
+    /// [`RpcError::Unauthenticated`] if this client has a secret and the node did not prove it,
     /// [`RpcError::Protocol`] for a peer that is not a Penelope node of this version.
     pub fn connect(addr: SocketAddr, config: &ClientConfig) -> Result<Connection, RpcError> {
         let timeout = config.timeout.max(Duration::from_millis(1));
@@ -136,6 +174,8 @@ impl Connection {
             stream,
             decoder: FrameDecoder::new(config.max_frame),
             out: Vec::with_capacity(256),
+            seal: None,
+            sealed: Vec::new(),
             max_frame: config.max_frame,
             timeout,
             read_timeout: timeout,
@@ -144,10 +184,14 @@ impl Connection {
             telemetry: VecDeque::new(),
             broken: None,
         };
-        conn.send(&ClientMsg::Hello(ClientHello::new(config.name.clone())))?;
+        let hello = ClientMsg::Hello(ClientHello::new(config.name.clone(), config.role));
+        let client_body = postcard::to_stdvec(&hello)
+            .map_err(|e| RpcError::Frame(FrameError::Malformed(e.to_string())))?;
+        conn.send(&hello)?;
         conn.write_out()?;
         let mut deadline = Deadline::after(timeout);
-        let hello = match conn.read_msg(&mut deadline)? {
+        let (theirs, server_body) = conn.read_raw(&mut deadline)?;
+        let hello = match theirs {
             ServerMsg::Hello(h) => h,
             ServerMsg::Error(e) => return Err(RpcError::Remote(e)),
             other => return Err(conn.protocol(format!("expected the node's hello, got {other:?}"))),
@@ -162,23 +206,66 @@ impl Connection {
             }));
         }
         conn.node = hello.node;
-        if let Some(challenge) = hello.challenge {
-            let Some(secret) = config.secret.as_deref() else {
+        let secret = config.secret.as_deref().filter(|s| !s.is_empty());
+        match (hello.security, secret) {
+            (Security::Plain, None) => {}
+            (Security::Plain, Some(_)) => {
+                log::warn!(
+                    "node `{}` at {addr} offers no authentication; refusing it",
+                    conn.node
+                );
+                conn.close_unauthenticated();
+                return Err(RpcError::Unauthenticated(addr));
+            }
+            (Security::Noise { .. }, None) => {
                 log::warn!("node `{}` at {addr} requires a shared secret", conn.node);
                 return Err(RpcError::Remote(WireError::AuthFailed));
-            };
-            let mac = auth::mac(secret, &challenge, &config.name);
-            conn.send(&ClientMsg::Auth { mac })?;
-            conn.write_out()?;
-            match conn.read_msg(&mut deadline)? {
-                ServerMsg::AuthOk => {}
-                ServerMsg::Error(e) => return Err(RpcError::Remote(e)),
-                other => {
-                    return Err(conn.protocol(format!("expected AuthOk, got {other:?}")));
+            }
+            (Security::Noise { admin }, Some(secret)) => {
+                let admin_secret = config.admin_secret.as_deref().filter(|a| !a.is_empty());
+                let psk = match (config.role, admin, admin_secret) {
+                    (Role::Admin, true, Some(a)) => auth::admin_psk(secret, a),
+                    (Role::Admin, true, None) => {
+                        log::warn!("node `{}` wants the admin secret for admin", conn.node);
+                        return Err(RpcError::Remote(WireError::AuthFailed));
+                    }
+                    _ => auth::member_psk(secret),
+                };
+                let prologue = auth::prologue(&client_body, &server_body);
+                let (handshake, first) = ClientHandshake::start(&psk, &prologue)
+                    .map_err(|e| conn.protocol(e.to_string()))?;
+                conn.send(&ClientMsg::Handshake { noise: first })?;
+                conn.write_out()?;
+                let second = match conn.read_msg(&mut deadline)? {
+                    ServerMsg::Handshake { noise } => noise,
+                    ServerMsg::Error(e) => return Err(RpcError::Remote(e)),
+                    _ => Vec::new(),
+                };
+                match handshake.finish(&second) {
+                    Ok(keys) => {
+                        conn.seal = Some(keys.split());
+                        conn.decoder.set_max(auth::sealed_len(config.max_frame));
+                    }
+                    Err(SealError::Handshake) => {
+                        log::warn!(
+                            "node `{}` at {addr} did not prove the shared secret",
+                            conn.node
+                        );
+                        conn.close_unauthenticated();
+                        return Err(RpcError::Unauthenticated(addr));
+                    }
+                    Err(e) => return Err(conn.protocol(e.to_string())),
                 }
             }
         }
         Ok(conn)
+    }
+
+    /// Closes a connection to a node that did not prove the secret, without sending anything.
+    fn close_unauthenticated(&mut self) {
+        self.broken = Some("the node did not prove the shared secret".into());
+        self.out.clear();
+        let _ = self.stream.shutdown(Shutdown::Both);
     }
 
     /// The node's name from its hello.
@@ -317,13 +404,25 @@ impl Connection {
         encode_into(msg, self.max_frame, &mut self.out).map_err(RpcError::Frame)
     }
 
-    /// Writes the output buffer.
+    /// Writes the output buffer (sealed, after an authenticated handshake).
     fn write_out(&mut self) -> Result<(), RpcError> {
         if self.out.is_empty() {
             return Ok(());
         }
-        let r = self.stream.write_all(&self.out);
+        let r = match &mut self.seal {
+            None => self.stream.write_all(&self.out),
+            Some((sealer, _)) => {
+                self.sealed.clear();
+                match sealer.seal_frames(&self.out, &mut self.sealed) {
+                    Ok(_) => self.stream.write_all(&self.sealed),
+                    Err(e) => Err(io::Error::other(e)),
+                }
+            }
+        };
         self.out.clear();
+        if self.sealed.capacity() > 4 * WRITE_CHUNK {
+            self.sealed = Vec::new();
+        }
         r.map_err(|e| RpcError::Io(self.fail(e)))
     }
 
@@ -365,11 +464,39 @@ impl Connection {
 
     /// Reads the next frame of the node, waiting until `deadline`.
     fn read_msg(&mut self, deadline: &mut Deadline) -> Result<ServerMsg, RpcError> {
+        self.read_frame(deadline, false).map(|(m, _)| m)
+    }
+
+    /// The node's next message and its frame body (its hello, for the handshake's prologue).
+    fn read_raw(&mut self, deadline: &mut Deadline) -> Result<(ServerMsg, Vec<u8>), RpcError> {
+        self.read_frame(deadline, true)
+    }
+
+    fn read_frame(
+        &mut self,
+        deadline: &mut Deadline,
+        keep_body: bool,
+    ) -> Result<(ServerMsg, Vec<u8>), RpcError> {
         loop {
-            match self.decoder.next::<ServerMsg>() {
+            let opener = self.seal.as_mut().map(|(_, o)| o);
+            let next = self.decoder.next_with(|sealed| {
+                let body = match opener {
+                    None => sealed,
+                    Some(o) => o
+                        .open(sealed)
+                        .map_err(|e| FrameError::Malformed(e.to_string()))?,
+                };
+                let msg = decode_body::<ServerMsg>(body)?;
+                Ok((msg, if keep_body { body.to_vec() } else { Vec::new() }))
+            });
+            match next {
                 Ok(Some(m)) => return Ok(m),
                 Ok(None) => {}
-                Err(e) => return Err(RpcError::Frame(self.fail(e))),
+                Err(e) => {
+                    let e = self.fail(e);
+                    let _ = self.stream.shutdown(Shutdown::Both);
+                    return Err(RpcError::Frame(e));
+                }
             }
             let left = deadline.left();
             if left.is_zero() {
@@ -458,7 +585,7 @@ impl Drop for Connection {
         if self.broken.is_none() {
             self.out.clear();
             if self.send(&ClientMsg::Bye).is_ok() {
-                let _ = self.stream.write_all(&self.out);
+                let _ = self.write_out();
             }
         }
     }
@@ -579,7 +706,7 @@ mod tests {
                 magic: MAGIC,
                 version: PROTOCOL_VERSION,
                 node: "fake".into(),
-                challenge: None,
+                security: Security::Plain,
             });
             write_frame(&mut s, &hello, 1000).unwrap();
             script(&mut s);

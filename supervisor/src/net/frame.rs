@@ -376,6 +376,25 @@ impl FrameDecoder {
     /// is skipped).
     #[allow(clippy::should_implement_trait)] // fallible and generic: not an Iterator
     pub fn next<T: DeserializeOwned>(&mut self) -> Result<Option<T>, FrameError> {
+        self.next_with(decode_body)
+    }
+
+    /// Changes the largest body accepted from the next frame on (a sealed session's bodies carry
+    /// tags: see `net::auth::sealed_len`). Never below the bytes already buffered.
+    pub fn set_max(&mut self, max: usize) {
+        self.max = max.max(self.buffered().saturating_sub(FRAME_HEADER_LEN));
+    }
+
+    /// The next complete frame's body, handed to `f` (which decodes it, after opening it for a
+    /// sealed session); `Ok(None)` if more bytes are needed. The frame is consumed whatever `f`
+    /// returns.
+    ///
+    /// # Errors
+    /// [`FrameError::TooLarge`] (the decoder stays failed), or `f`'s error.
+    pub fn next_with<T>(
+        &mut self,
+        f: impl FnOnce(&[u8]) -> Result<T, FrameError>,
+    ) -> Result<Option<T>, FrameError> {
         self.check_front()?;
         let Some(len) = self.pending_len() else {
             return Ok(None);
@@ -385,7 +404,7 @@ impl FrameDecoder {
             return Ok(None);
         }
         let body = &self.buf[self.start + FRAME_HEADER_LEN..self.start + total];
-        let msg = decode_body(body);
+        let msg = f(body);
         self.start += total;
         if self.start == self.end {
             self.start = 0;
@@ -401,7 +420,7 @@ impl FrameDecoder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::proto::{Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME};
+    use crate::proto::{Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, Role};
 
     fn ping(n: usize) -> ClientMsg {
         ClientMsg::Request {
@@ -417,11 +436,11 @@ mod tests {
         let bytes = encode(&ClientMsg::Bye, 100).unwrap();
         // Bye is variant 3 of ClientMsg: one varint byte.
         assert_eq!(bytes, [1, 0, 0, 0, 3]);
-        let hello = encode(&ClientMsg::Hello(ClientHello::new("ab")), 100).unwrap();
+        let hello = encode(&ClientMsg::Hello(ClientHello::new("ab", Role::Node)), 100).unwrap();
         assert_eq!(&hello[..4], &(hello.len() as u32 - 4).to_le_bytes());
         assert_eq!(
             &hello[4..],
-            &[0, b'P', b'N', b'L', b'P', 1, 2, b'a', b'b'][..]
+            &[0, b'P', b'N', b'L', b'P', 2, 2, b'a', b'b', 1][..]
         );
     }
 

@@ -1,8 +1,9 @@
 //! The TCP server of a node.
 //!
 //! # Threads
-//! - one accept thread (`pnlp-accept`), which refuses connections over
-//!   [`ServerConfig::max_connections`] with [`WireError::TooManyConnections`];
+//! - one accept thread (`pnlp-accept`), which admits connections as [`crate::net::limits`]
+//!   says (a pending pool that evicts its oldest, sessions up to
+//!   [`ServerConfig::max_connections`]);
 //! - per connection, a reader thread (`pnlp-conn-N`) that does the handshake, decodes requests,
 //!   calls the [`Service`] and writes each response itself (no hand-off to another thread on the
 //!   request path: the round trip costs the same context switches as a raw TCP echo), and a
@@ -22,9 +23,18 @@
 //! real-time side's problem). Requests are limited by a token bucket per connection
 //! (`max_requests_per_s`, bursts up to one second's worth): over it a request is answered with
 //! [`WireError::RateLimited`]; [`ABUSE_STRIKES`] refused requests in a row close the connection.
-//! Malformed or oversized frames, a wrong hello, a failed authentication, a silent handshake or
-//! an idle connection get a [`ServerMsg::Error`] and are closed. [`Service::closed`] runs at every
-//! end of a session that passed its handshake.
+//! Malformed or oversized frames, a wrong hello, a failed authentication, a frame that fails to
+//! open, a silent handshake or an idle connection get a [`ServerMsg::Error`] and are closed. The
+//! whole handshake must end within `handshake_timeout` (a deadline, not an idle time: trickling
+//! bytes does not extend it). [`Service::closed`] runs at every end of a session that passed its
+//! handshake. Admission (how many connections, for whom) is [`crate::net::limits`].
+//!
+//! # Authentication
+//! With a secret, the handshake is the Noise handshake of [`crate::net::auth`] (in
+//! `server/handshake.rs`); the session's [`Identity`](crate::service::Identity) is the role the
+//! client's hello claimed (an admin claim needs the admin secret), and every later frame both ways
+//! is sealed: responses and telemetry are sealed under the socket's write lock, in the order they
+//! are written.
 
 use std::collections::HashMap;
 use std::io::{self, Read, Write};
@@ -39,12 +49,13 @@ use std::time::{Duration, Instant};
 
 use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
 
-use crate::net::auth;
-use crate::net::frame::{FrameDecoder, FrameError, encode_into};
-use crate::proto::{
-    ClientMsg, DEFAULT_MAX_FRAME, MAGIC, PROTOCOL_VERSION, ServerHello, ServerMsg, WireError,
-};
+use crate::net::auth::{self, Opener, PSK_LEN, Sealer};
+use crate::net::frame::{FrameDecoder, FrameError, decode_body, encode_into};
+use crate::net::limits::{Admission, TokenBucket};
+use crate::proto::{ClientMsg, DEFAULT_MAX_FRAME, ServerMsg, WireError};
 use crate::service::{Outbox, OutboxReceiver, Service, Session};
+
+mod handshake;
 
 /// Refused requests in a row (rate limit) after which a connection is closed.
 pub const ABUSE_STRIKES: u32 = 1000;
@@ -65,12 +76,24 @@ pub struct ServerConfig {
     /// The node's name (sent in the hello).
     pub node: String,
     /// The shared secret; required to bind anything but loopback. When set (even on loopback),
-    /// every client must authenticate.
+    /// every client must authenticate and every frame is sealed.
     pub secret: Option<Vec<u8>>,
+    /// The admin secret (used only with `secret`): a client claiming
+    /// [`Role::Admin`](crate::proto::Role::Admin) must prove it. Without it, such clients are
+    /// served as readers.
+    pub admin_secret: Option<Vec<u8>>,
     /// Largest frame accepted (and sent), bytes of body.
     pub max_frame: usize,
-    /// Connections served at once.
+    /// Sessions (connections past their handshake) served at once.
     pub max_connections: u32,
+    /// Of `max_connections`, the sessions kept for [`Role::Admin`](crate::proto::Role::Admin)
+    /// clients.
+    pub admin_reserve: u32,
+    /// Connections in their handshake at once; at the bound the oldest is evicted.
+    pub max_handshakes: u32,
+    /// Connections in their handshake at once from one IP address; at the bound that address's
+    /// oldest is evicted.
+    pub max_handshakes_per_peer: u32,
     /// Requests per second per connection (token bucket; bursts up to one second's worth).
     pub max_requests_per_s: u32,
     /// Time allowed for the hello (and authentication).
@@ -84,14 +107,19 @@ pub struct ServerConfig {
 }
 
 impl ServerConfig {
-    /// Defaults for `node`: 256 KiB frames, 64 connections, 200 000 requests/s per connection,
-    /// 5 s handshake, 300 s idle, 5 s write timeout, 256 queued frames.
+    /// Defaults for `node`: 256 KiB frames, 64 sessions (4 of them for administrators), 32
+    /// handshakes at once (8 per address), 200 000 requests/s per connection, 5 s handshake,
+    /// 300 s idle, 5 s write timeout, 256 queued frames.
     pub fn new(node: impl Into<String>) -> Self {
         ServerConfig {
             node: node.into(),
             secret: None,
+            admin_secret: None,
             max_frame: DEFAULT_MAX_FRAME,
             max_connections: 64,
+            admin_reserve: 4,
+            max_handshakes: 32,
+            max_handshakes_per_peer: 8,
             max_requests_per_s: 200_000,
             handshake_timeout: Duration::from_secs(5),
             idle_timeout: Duration::from_secs(300),
@@ -109,6 +137,10 @@ pub enum NetError {
         "refusing to listen on {0} without a shared secret (use a loopback address or give a secret)"
     )]
     SecretRequired(SocketAddr),
+    /// An admin secret without the system secret: nobody could prove it (the plain protocol
+    /// takes roles on trust), so the configuration is refused rather than silently weaker.
+    #[error("an admin secret needs the shared secret too (give both, or neither)")]
+    AdminSecretWithoutSecret,
     /// The socket failed.
     #[error("i/o: {0}")]
     Io(#[from] std::io::Error),
@@ -119,7 +151,7 @@ pub enum NetError {
 pub struct ServerStats {
     /// Connections accepted.
     pub accepted: u64,
-    /// Connections refused (limit).
+    /// Connections refused or evicted (limits).
     pub refused: u64,
     /// Connections open now.
     pub open: u64,
@@ -134,7 +166,7 @@ pub struct ServerStats {
     pub frames_in: u64,
     /// Frames sent.
     pub frames_out: u64,
-    /// Malformed frames and wrong hellos.
+    /// Malformed frames, wrong hellos and frames that failed to open.
     pub malformed: u64,
     /// Frames refused for their announced length.
     pub too_large: u64,
@@ -175,6 +207,9 @@ fn add(c: &AtomicU64, n: u64) {
 
 struct Shared {
     config: ServerConfig,
+    admission: Admission,
+    /// The pre-shared keys of members and (if an admin secret is set) administrators.
+    psk: Option<([u8; PSK_LEN], Option<[u8; PSK_LEN]>)>,
     service: Arc<dyn Service>,
     stop: AtomicBool,
     counters: Counters,
@@ -215,8 +250,8 @@ impl Server {
     ///
     /// # Errors
     /// [`NetError::SecretRequired`] for a non-loopback address (such as `0.0.0.0`) without a
-    /// non-empty secret; [`NetError::Io`] if the socket cannot be bound or the accept thread
-    /// cannot start.
+    /// non-empty secret; [`NetError::AdminSecretWithoutSecret`] for an admin secret without a
+    /// secret; [`NetError::Io`] if the socket cannot be bound or the accept thread cannot start.
     pub fn bind(
         addr: SocketAddr,
         config: ServerConfig,
@@ -226,9 +261,24 @@ impl Server {
         if !addr.ip().is_loopback() && !has_secret {
             return Err(NetError::SecretRequired(addr));
         }
+        if !has_secret && config.admin_secret.as_ref().is_some_and(|a| !a.is_empty()) {
+            return Err(NetError::AdminSecretWithoutSecret);
+        }
         let listener = TcpListener::bind(addr)?;
         let addr = listener.local_addr()?;
+        let psk = config.secret.as_deref().filter(|s| !s.is_empty()).map(|s| {
+            let admin = config.admin_secret.as_deref().filter(|a| !a.is_empty());
+            (auth::member_psk(s), admin.map(|a| auth::admin_psk(s, a)))
+        });
+        let admission = Admission::new(
+            config.max_connections,
+            config.admin_reserve,
+            config.max_handshakes,
+            config.max_handshakes_per_peer,
+        );
         let shared = Arc::new(Shared {
+            admission,
+            psk,
             config,
             service,
             stop: AtomicBool::new(false),
@@ -358,33 +408,31 @@ fn reap(shared: &Shared) {
 
 fn admit(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr) {
     let c = &shared.counters;
-    let limit = shared.config.max_connections;
-    if c.open.load(Ordering::Relaxed) >= u64::from(limit) {
-        bump(&c.refused);
-        log::warn!("refusing {peer}: {limit} connections open");
-        refuse(
-            stream,
-            &WireError::TooManyConnections { limit },
-            shared.config.max_frame,
-        );
-        return;
-    }
     let id = shared.next_session.fetch_add(1, Ordering::Relaxed);
-    let handle = match stream.try_clone() {
-        Ok(h) => h,
-        Err(e) => {
+    let (handle, for_admission) = match (stream.try_clone(), stream.try_clone()) {
+        (Ok(h), Ok(a)) => (h, a),
+        (Err(e), _) | (_, Err(e)) => {
             log::warn!("cannot serve {peer}: {e}");
             return;
         }
     };
+    let admitted = shared.admission.admit(id, peer.ip(), for_admission);
+    if admitted.evictions > 0 {
+        add(&c.refused, u64::from(admitted.evictions));
+        log::warn!(
+            "{} connection(s) in their handshake evicted to admit {peer}",
+            admitted.evictions
+        );
+    }
     bump(&c.accepted);
     bump(&c.open);
     lock(&shared.streams).insert(id, handle);
     let s = shared.clone();
+    let (evicted, greeted) = (admitted.evicted, admitted.greeted);
     let spawned = std::thread::Builder::new()
         .name(format!("pnlp-conn-{id}"))
         .spawn(move || {
-            serve(&s, stream, peer, id);
+            serve(&s, stream, peer, id, evicted, greeted);
             lock(&s.streams).remove(&id);
             s.counters.open.fetch_sub(1, Ordering::Relaxed);
         });
@@ -392,8 +440,15 @@ fn admit(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr) {
         Ok(t) => lock(&shared.threads).push(t),
         Err(e) => {
             log::error!("cannot start a thread for {peer}: {e}");
+            shared.admission.abandon(id);
             if let Some(s) = lock(&shared.streams).remove(&id) {
-                let _ = s.shutdown(Shutdown::Both);
+                refuse(
+                    s,
+                    &WireError::TooManyConnections {
+                        limit: shared.config.max_connections,
+                    },
+                    shared.config.max_frame,
+                );
             }
             c.open.fetch_sub(1, Ordering::Relaxed);
         }
@@ -437,16 +492,33 @@ enum End {
 struct Wire {
     stream: TcpStream,
     failed: bool,
+    /// After an authenticated handshake: seals every frame, in write order.
+    sealer: Option<Sealer>,
+    /// Sealed frames being written.
+    sealed: Vec<u8>,
 }
 
 impl Wire {
-    /// Writes whole frames; `false` once the socket has failed (timeout: a client that does not
-    /// read).
+    /// Writes whole frames (plain ones, sealed here when the session is); `false` once the
+    /// socket has failed (timeout: a client that does not read).
     fn send(&mut self, bytes: &[u8]) -> bool {
         if self.failed {
             return false;
         }
-        if let Err(e) = self.stream.write_all(bytes) {
+        let result = match &mut self.sealer {
+            None => self.stream.write_all(bytes),
+            Some(sealer) => {
+                self.sealed.clear();
+                match sealer.seal_frames(bytes, &mut self.sealed) {
+                    Ok(_) => self.stream.write_all(&self.sealed),
+                    Err(e) => Err(io::Error::other(e)),
+                }
+            }
+        };
+        if self.sealed.capacity() > 4 * OUT_FLUSH_AT {
+            self.sealed = Vec::new();
+        }
+        if let Err(e) = result {
             log::debug!("write failed: {e}");
             self.failed = true;
             let _ = self.stream.shutdown(Shutdown::Both);
@@ -461,6 +533,12 @@ struct Conn<'a> {
     peer: SocketAddr,
     stream: TcpStream,
     decoder: FrameDecoder,
+    /// After an authenticated handshake: opens every frame of the client.
+    opener: Option<Opener>,
+    /// Set by admission when this connection is evicted from the pending pool.
+    evicted: Arc<AtomicBool>,
+    /// Set once the client said a valid hello (admission then evicts silent ones first).
+    greeted: Arc<AtomicBool>,
     wire: Arc<Mutex<Wire>>,
     /// Responses not yet written.
     out: Vec<u8>,
@@ -574,14 +652,37 @@ impl Conn<'_> {
     /// Reads until the next message; `Err(end)` when the connection must end. `deadline` bounds
     /// the wait (the handshake); otherwise the idle timeout does.
     fn next_msg(&mut self, deadline: Option<Instant>) -> Result<ClientMsg, End> {
+        self.next_frame(deadline, false).map(|(m, _)| m)
+    }
+
+    /// [`next_msg`](Self::next_msg), with the frame's (plain) body when `keep_body`.
+    fn next_frame(
+        &mut self,
+        deadline: Option<Instant>,
+        keep_body: bool,
+    ) -> Result<(ClientMsg, Vec<u8>), End> {
         loop {
-            match self.decoder.next::<ClientMsg>() {
+            let opener = &mut self.opener;
+            let next = self.decoder.next_with(|sealed| {
+                let body = match opener {
+                    None => sealed,
+                    Some(o) => o
+                        .open(sealed)
+                        .map_err(|e| FrameError::Malformed(e.to_string()))?,
+                };
+                let msg = decode_body::<ClientMsg>(body)?;
+                Ok((msg, if keep_body { body.to_vec() } else { Vec::new() }))
+            });
+            match next {
                 Ok(Some(m)) => {
                     bump(&self.shared.counters.frames_in);
                     return Ok(m);
                 }
                 Ok(None) => {}
                 Err(e) => return Err(self.frame_error(e)),
+            }
+            if self.evicted.load(Ordering::Acquire) {
+                return Err(self.evict());
             }
             if !self.flush() {
                 return Err(self.dropped_writer());
@@ -590,6 +691,9 @@ impl Conn<'_> {
                 Ok(0) => {
                     if self.shared.stop.load(Ordering::Acquire) {
                         return Err(End::Shutdown);
+                    }
+                    if self.evicted.load(Ordering::Acquire) {
+                        return Err(self.evict());
                     }
                     let e = self.decoder.eof_error();
                     return Err(self.frame_error(e));
@@ -631,6 +735,12 @@ impl Conn<'_> {
         }
     }
 
+    /// Admission evicted this connection from the pending pool (newer ones needed the room).
+    fn evict(&mut self) -> End {
+        let limit = self.shared.config.max_handshakes;
+        self.fail(WireError::TooManyConnections { limit })
+    }
+
     fn dropped_writer(&self) -> End {
         if self.shared.stop.load(Ordering::Acquire) {
             return End::Shutdown;
@@ -643,61 +753,6 @@ impl Conn<'_> {
         bump(&self.shared.counters.timeouts);
         bump(&self.shared.counters.dropped);
         End::Dropped
-    }
-
-    /// Hello (and authentication): the client's name, or how it ended.
-    fn handshake(&mut self) -> Result<String, End> {
-        let config = &self.shared.config;
-        let deadline = Instant::now() + config.handshake_timeout;
-        let _ = self.stream.set_read_timeout(Some(
-            config
-                .handshake_timeout
-                .clamp(Duration::from_millis(1), POLL_EVERY),
-        ));
-        let hello = match self.next_msg(Some(deadline))? {
-            ClientMsg::Hello(h) => h,
-            other => {
-                bump(&self.shared.counters.malformed);
-                return Err(self.fail(WireError::Unexpected(format!(
-                    "{} before the hello",
-                    msg_name(&other)
-                ))));
-            }
-        };
-        if hello.magic != MAGIC {
-            bump(&self.shared.counters.malformed);
-            return Err(self.fail(WireError::BadMagic));
-        }
-        if hello.version != PROTOCOL_VERSION {
-            bump(&self.shared.counters.malformed);
-            return Err(self.fail(WireError::VersionMismatch {
-                ours: PROTOCOL_VERSION,
-                theirs: hello.version,
-            }));
-        }
-        let secret = self.shared.config.secret.clone().filter(|s| !s.is_empty());
-        let challenge = secret.as_ref().map(|_| auth::challenge());
-        self.queue(&ServerMsg::Hello(ServerHello {
-            magic: MAGIC,
-            version: PROTOCOL_VERSION,
-            node: self.shared.config.node.clone(),
-            challenge,
-        }));
-        if let (Some(secret), Some(challenge)) = (secret, challenge) {
-            let ok = match self.next_msg(Some(deadline))? {
-                ClientMsg::Auth { mac } => auth::verify(&secret, &challenge, &hello.client, &mac),
-                _ => false,
-            };
-            if !ok {
-                bump(&self.shared.counters.auth_failures);
-                return Err(self.fail(WireError::AuthFailed));
-            }
-            self.queue(&ServerMsg::AuthOk);
-        }
-        if !self.flush() {
-            return Err(self.dropped_writer());
-        }
-        Ok(hello.client)
     }
 
     /// Serves requests until the connection ends.
@@ -762,44 +817,21 @@ impl Conn<'_> {
 fn msg_name(m: &ClientMsg) -> &'static str {
     match m {
         ClientMsg::Hello(_) => "hello",
-        ClientMsg::Auth { .. } => "auth",
+        ClientMsg::Handshake { .. } => "handshake",
         ClientMsg::Request { .. } => "request",
         ClientMsg::Bye => "bye",
     }
 }
 
-/// Requests per second with bursts up to one second's worth.
-struct TokenBucket {
-    rate: u32,
-    tokens: f64,
-    last: Instant,
-}
-
-impl TokenBucket {
-    fn new(rate: u32) -> Self {
-        TokenBucket {
-            rate,
-            tokens: f64::from(rate.max(1)),
-            last: Instant::now(),
-        }
-    }
-
-    fn take(&mut self, now: Instant) -> bool {
-        let rate = f64::from(self.rate.max(1));
-        let dt = now.saturating_duration_since(self.last).as_secs_f64();
-        self.last = now;
-        self.tokens = (self.tokens + dt * rate).min(rate);
-        if self.tokens >= 1.0 {
-            self.tokens -= 1.0;
-            true
-        } else {
-            false
-        }
-    }
-}
-
 /// The connection thread: handshake, then the writer thread and the requests.
-fn serve(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr, id: u64) {
+fn serve(
+    shared: &Arc<Shared>,
+    stream: TcpStream,
+    peer: SocketAddr,
+    id: u64,
+    evicted: Arc<AtomicBool>,
+    greeted: Arc<AtomicBool>,
+) {
     let config = &shared.config;
     let _ = stream.set_nodelay(true);
     let _ = stream.set_write_timeout(Some(config.write_timeout.max(Duration::from_millis(1))));
@@ -813,6 +845,8 @@ fn serve(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr, id: u64) {
     let wire = Arc::new(Mutex::new(Wire {
         stream: write_half,
         failed: false,
+        sealer: None,
+        sealed: Vec::new(),
     }));
     let mut conn = Conn {
         shared,
@@ -820,6 +854,9 @@ fn serve(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr, id: u64) {
         peer,
         stream,
         decoder: FrameDecoder::new(config.max_frame),
+        opener: None,
+        evicted,
+        greeted,
         wire: wire.clone(),
         out: Vec::with_capacity(4096),
         out_frames: 0,
@@ -827,20 +864,36 @@ fn serve(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr, id: u64) {
         now: Instant::now(),
     };
     conn.touch();
-    let client = match conn.handshake() {
+    let (client, identity) = match conn.handshake() {
         Ok(c) => c,
         Err(_) => {
+            shared.admission.abandon(id);
             let _ = conn.stream.shutdown(Shutdown::Both);
             return;
         }
     };
-    log::info!("connection {id} from {peer}: client {client:?}");
+    if let Err(e) = shared.admission.open_session(id, identity.role) {
+        bump(&shared.counters.refused);
+        conn.fail(e);
+        let _ = conn.stream.shutdown(Shutdown::Both);
+        return;
+    }
+    log::info!(
+        "connection {id} from {peer}: client {client:?} as {:?}{}",
+        identity.role,
+        if identity.proven {
+            " (authenticated)"
+        } else {
+            ""
+        }
+    );
     bump(&shared.counters.sessions);
     let (outbox, receiver) = Outbox::bounded(config.outbox_capacity);
     let session = Session {
         id,
         peer,
         client,
+        identity,
         outbox: outbox.clone(),
     };
     let closing = Arc::new(AtomicBool::new(false));
@@ -860,7 +913,7 @@ fn serve(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr, id: u64) {
     };
     closing.store(true, Ordering::Release);
     // Wake the writer (it ignores everything once closing is set).
-    let _ = outbox.try_push(ServerMsg::AuthOk);
+    let _ = outbox.try_push(ServerMsg::Error(WireError::Timeout("closing".into())));
     let _ = conn.stream.shutdown(Shutdown::Both);
     if let Ok(h) = writer {
         let _ = h.join();
@@ -869,6 +922,7 @@ fn serve(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr, id: u64) {
     if catch_unwind(AssertUnwindSafe(|| service.closed(&session))).is_err() {
         log::error!("the service panicked closing session {id}");
     }
+    shared.admission.close_session();
     let how = match end {
         End::Client => "closed by the client",
         End::Shutdown => "closed by the server's shutdown",
@@ -926,86 +980,4 @@ fn drain_outbox(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::net::frame::{read_frame, write_frame};
-    use crate::proto::{Call, ClientHello, Reply};
-
-    struct Echo;
-
-    impl Service for Echo {
-        fn call(&self, _: &Session, call: Call) -> Result<Reply, WireError> {
-            match call {
-                Call::Ping { payload } => Ok(Reply::Pong(payload)),
-                _ => Err(WireError::NotReady("echo only".into())),
-            }
-        }
-    }
-
-    fn local() -> SocketAddr {
-        "127.0.0.1:0".parse().unwrap()
-    }
-
-    #[test]
-    fn a_non_loopback_bind_needs_a_secret() {
-        let any: SocketAddr = "0.0.0.0:0".parse().unwrap();
-        let e = Server::bind(any, ServerConfig::new("n"), Arc::new(Echo)).unwrap_err();
-        assert!(matches!(e, NetError::SecretRequired(_)), "{e}");
-        let mut c = ServerConfig::new("n");
-        c.secret = Some(Vec::new());
-        assert!(matches!(
-            Server::bind(any, c, Arc::new(Echo)),
-            Err(NetError::SecretRequired(_))
-        ));
-    }
-
-    #[test]
-    fn hello_then_pipelined_requests_are_answered_in_order() {
-        let server = Server::bind(local(), ServerConfig::new("unit"), Arc::new(Echo)).unwrap();
-        let mut s = TcpStream::connect(server.local_addr()).unwrap();
-        let max = DEFAULT_MAX_FRAME;
-        let mut batch = Vec::new();
-        encode_into(&ClientMsg::Hello(ClientHello::new("t")), max, &mut batch).unwrap();
-        for id in 0..50u64 {
-            let call = Call::Ping {
-                payload: vec![id as u8; id as usize],
-            };
-            encode_into(&ClientMsg::Request { id, call }, max, &mut batch).unwrap();
-        }
-        s.write_all(&batch).unwrap();
-        let hello: ServerMsg = read_frame(&mut s, max).unwrap();
-        assert!(
-            matches!(hello, ServerMsg::Hello(ServerHello { ref node, challenge: None, .. }) if node == "unit")
-        );
-        for id in 0..50u64 {
-            let r: ServerMsg = read_frame(&mut s, max).unwrap();
-            assert_eq!(
-                r,
-                ServerMsg::Response {
-                    id,
-                    result: Ok(Reply::Pong(vec![id as u8; id as usize]))
-                }
-            );
-        }
-        write_frame(&mut s, &ClientMsg::Bye, max).unwrap();
-        assert!(matches!(
-            read_frame::<_, ServerMsg>(&mut s, max),
-            Err(FrameError::Closed)
-        ));
-        let st = server.stats();
-        assert_eq!(st.requests, 50);
-        assert_eq!(st.accepted, 1);
-        server.shutdown();
-    }
-
-    #[test]
-    fn the_token_bucket_allows_a_burst_then_the_rate() {
-        let t0 = Instant::now();
-        let mut b = TokenBucket::new(10);
-        b.last = t0;
-        let allowed = (0..20).filter(|_| b.take(t0)).count();
-        assert_eq!(allowed, 10);
-        assert!(b.take(t0 + Duration::from_millis(150)));
-        assert!(!b.take(t0 + Duration::from_millis(150)));
-    }
-}
+mod tests;

@@ -27,9 +27,14 @@ pub struct Args {
     /// Address to listen on. Anything but loopback requires --secret-file.
     #[arg(long, default_value_t = SocketAddr::from(([127, 0, 0, 1], DEFAULT_PORT)))]
     pub listen: SocketAddr,
-    /// File holding the shared secret of the system (its bytes, a trailing newline ignored).
+    /// File holding the shared secret of the system (its bytes, a trailing newline ignored;
+    /// readable by its owner only).
     #[arg(long, value_name = "FILE")]
     pub secret_file: Option<PathBuf>,
+    /// File holding the admin secret (with --secret-file): only clients proving it may
+    /// unregister other nodes or write outside their own context.
+    #[arg(long, value_name = "FILE", requires = "secret_file")]
+    pub admin_secret_file: Option<PathBuf>,
     /// Most object bindings in the tree.
     #[arg(long, default_value_t = NamingLimits::default().max_bindings)]
     pub max_bindings: u32,
@@ -38,6 +43,7 @@ pub struct Args {
 /// Runs `penelope naming`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let secret = read_secret(args.secret_file.as_deref())?;
+    let admin_secret = read_secret(args.admin_secret_file.as_deref())?;
     refuse_open_listen(args.listen, secret.is_some())?;
     let signals = block_stop_signals()?;
     let limits = NamingLimits {
@@ -50,6 +56,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .context("starting the lease reaper")?;
     let mut config = ServerConfig::new("naming");
     config.secret = secret;
+    config.admin_secret = admin_secret;
     let server = Server::bind(args.listen, config, service.clone())
         .with_context(|| format!("listening on {}", args.listen))?;
     println!(
@@ -64,14 +71,30 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The shared secret in `file` (its bytes without a trailing newline), if given.
+/// The secret in `file` (its bytes without a trailing newline), if given: the one reader of
+/// secret files for every command (`naming`, `node`, `ctl`).
+///
+/// Like ssh with private keys, a file that anyone but its owner may read or write is refused,
+/// with the command that fixes it.
 ///
 /// # Errors
-/// The file cannot be read, or the secret is empty.
+/// The file cannot be read, others may read or write it, or the secret is empty (usage errors,
+/// exit 2).
 pub(crate) fn read_secret(file: Option<&Path>) -> anyhow::Result<Option<Vec<u8>>> {
+    use std::os::unix::fs::PermissionsExt as _;
     let Some(file) = file else {
         return Ok(None);
     };
+    let meta = std::fs::metadata(file)
+        .with_context(|| format!("reading the secret file {}", file.display()))?;
+    let mode = meta.permissions().mode() & 0o777;
+    if mode & 0o077 != 0 {
+        return Err(crate::cmd::usage(format!(
+            "the secret file {f} may be read or written by others (mode {mode:03o}); a secret \
+             must be readable by its owner only: run `chmod 600 {f}`",
+            f = file.display()
+        )));
+    }
     let mut bytes = std::fs::read(file)
         .with_context(|| format!("reading the secret file {}", file.display()))?;
     while bytes.last().is_some_and(|b| *b == b'\n' || *b == b'\r') {
@@ -131,8 +154,16 @@ mod tests {
         assert!(refuse_open_listen(open, true).is_ok());
         assert!(refuse_open_listen("127.0.0.1:7300".parse().unwrap(), false).is_ok());
 
+        use std::os::unix::fs::PermissionsExt as _;
         let dir = std::env::temp_dir().join(format!("penelope-secret-{}", std::process::id()));
         std::fs::write(&dir, b"s3cret\n").unwrap();
+        std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o644)).unwrap();
+        let err = read_secret(Some(&dir)).unwrap_err().to_string();
+        assert!(
+            err.contains(&format!("chmod 600 {}", dir.display())),
+            "{err}"
+        );
+        std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o600)).unwrap();
         assert_eq!(read_secret(Some(&dir)).unwrap(), Some(b"s3cret".to_vec()));
         std::fs::write(&dir, b"\n").unwrap();
         assert!(read_secret(Some(&dir)).is_err());

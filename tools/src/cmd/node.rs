@@ -51,9 +51,14 @@ pub struct Args {
     /// activated at start (its `[nodes.NAME]` real-time policy applies unless overridden here).
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
-    /// File holding the shared secret of the system (its bytes, a trailing newline ignored).
+    /// File holding the shared secret of the system (its bytes, a trailing newline ignored;
+    /// readable by its owner only).
     #[arg(long, value_name = "FILE")]
     pub secret_file: Option<PathBuf>,
+    /// File holding the admin secret (with --secret-file), for the naming service this node
+    /// hosts: only clients proving it may unregister other nodes or write outside their context.
+    #[arg(long, value_name = "FILE", requires = "secret_file")]
+    pub admin_secret_file: Option<PathBuf>,
     /// SCHED_FIFO priority of the control threads (1-99; 0: normal scheduling) [default: the
     /// system file's, else 80].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(0..=99))]
@@ -72,6 +77,7 @@ pub struct Args {
 /// Runs `penelope node`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let secret = read_secret(args.secret_file.as_deref())?;
+    let admin_secret = read_secret(args.admin_secret_file.as_deref())?;
     let listen = args.listen.unwrap_or_else(|| {
         let port = if args.host_naming { DEFAULT_PORT } else { 0 };
         SocketAddr::from(([127, 0, 0, 1], port))
@@ -97,6 +103,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     config.listen = listen;
     config.advertise = args.advertise;
     config.secret = secret;
+    config.server.admin_secret = admin_secret;
     config.lease = Duration::from_millis(args.lease_ms);
     // The system file's policy for this node, then what the command line says.
     let mut rt = file.as_ref().map_or(config.creator.rt, |f| {

@@ -78,9 +78,14 @@ pub struct Args {
     #[arg(long, value_name = "ADDR", default_value = "127.0.0.1:7300")]
     pub naming: String,
     /// A file holding the shared secret of the system (its bytes, a trailing newline ignored),
-    /// as given to `penelope node` and `penelope naming`.
+    /// as given to `penelope node` and `penelope naming` (readable by its owner only). With it,
+    /// ctl sends nothing to a node that does not prove the secret.
     #[arg(long, value_name = "FILE")]
     pub secret_file: Option<PathBuf>,
+    /// A file holding the admin secret (with --secret-file): ctl then connects as an
+    /// administrator.
+    #[arg(long, value_name = "FILE", requires = "secret_file")]
+    pub admin_secret_file: Option<PathBuf>,
     /// Print JSON instead of text (for `call`: the protocol's reply; for `watch`: one record
     /// per line).
     #[arg(long, global = true)]
@@ -233,6 +238,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     config.timeout = Duration::from_secs_f64(args.timeout);
     // Read exactly as `penelope node` and `penelope naming` read it.
     config.secret = crate::cmd::naming::read_secret(args.secret_file.as_deref())?;
+    config.admin_secret = crate::cmd::naming::read_secret(args.admin_secret_file.as_deref())?;
+    if config.admin_secret.is_some() {
+        config.role = penelope_supervisor::proto::Role::Admin;
+    }
     let mut ctl = Ctl {
         naming,
         config,
