@@ -39,7 +39,7 @@ use crate::proto::{
     Call, Class, CreatorCall, Method, NamingCall, NodeInfo, ObjectInfo, ObjectRef, Reply,
     WireError, check_name, object_path,
 };
-use crate::service::{Outbox, Remote, Service, Session};
+use crate::service::{Remote, Service, Session};
 
 /// Where a node's naming service is.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -204,14 +204,7 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 }
 
 fn local_session(name: &str) -> Session {
-    let (outbox, _receiver) = Outbox::bounded(1);
-    Session {
-        id: u64::MAX,
-        peer: SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), 0),
-        client: name.to_string(),
-        identity: crate::service::Identity::LOCAL_NODE,
-        outbox,
-    }
+    Session::in_process(name)
 }
 
 impl Shared {

@@ -54,6 +54,21 @@ pub struct Session {
     pub outbox: Outbox,
 }
 
+impl Session {
+    /// A session for calls made inside the process (a node's calls to itself, tests): no
+    /// connection behind it (its outbox is closed), a node's own identity.
+    pub fn in_process(client: &str) -> Session {
+        let (outbox, _receiver) = Outbox::bounded(1);
+        Session {
+            id: u64::MAX,
+            peer: SocketAddr::from(([127, 0, 0, 1], 0)),
+            client: client.to_string(),
+            identity: Identity::LOCAL_NODE,
+            outbox,
+        }
+    }
+}
+
 /// Who a session speaks for: the role its hello claimed, and whether the handshake proved the
 /// secret behind it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

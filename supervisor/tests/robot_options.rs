@@ -7,20 +7,8 @@ use penelope_hal::{JointVector, Timestamp, Transition};
 use penelope_rt_core::safety::SafetyState;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
 use penelope_supervisor::proto::{
-    Call, ControllerMethod, CreatorCall, JointAxis, Method, Reply, RobotMethod, WireError,
+    ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod, WireError,
 };
-use penelope_supervisor::service::{Outbox, Service, Session};
-
-fn session() -> Session {
-    let (outbox, _rx) = Outbox::bounded(16);
-    Session {
-        id: 1,
-        peer: "127.0.0.1:1".parse().unwrap(),
-        client: "test".into(),
-        outbox,
-        identity: penelope_supervisor::service::Identity::LOCAL_NODE,
-    }
-}
 
 fn creator() -> Creator {
     let mut config = CreatorConfig::new("options");
@@ -28,26 +16,13 @@ fn creator() -> Creator {
     Creator::new(config)
 }
 
-fn create(c: &Creator, kind: &str, name: &str, config: &str) -> Result<Reply, WireError> {
-    c.call(
-        &session(),
-        Call::Creator(CreatorCall::Create {
-            kind: kind.into(),
-            name: name.into(),
-            config: config.into(),
-        }),
-    )
+fn create(c: &Creator, kind: &str, name: &str, config: &str) -> Result<ObjectInfo, WireError> {
+    c.create(kind, name, config)
 }
 
 fn ok(c: &Creator, name: &str, method: Method) -> Reply {
-    c.call(
-        &session(),
-        Call::Object {
-            object: name.into(),
-            method,
-        },
-    )
-    .unwrap_or_else(|e| panic!("{name}: {e}"))
+    c.call_object(name, method)
+        .unwrap_or_else(|e| panic!("{name}: {e}"))
 }
 
 /// An FRHC named `name` on its own simulated board, configured.

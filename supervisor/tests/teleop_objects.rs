@@ -12,42 +12,16 @@ use penelope_rt_core::cell::Stamped;
 use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
 use penelope_supervisor::proto::{
-    Call, ControllerMethod, CreatorCall, JointAxis, Method, PoseMsg, Reply, RobotMethod,
-    SensorMethod, WireError,
+    ControllerMethod, JointAxis, Method, PoseMsg, Reply, RobotMethod, SensorMethod, WireError,
 };
-use penelope_supervisor::service::{Outbox, Service, Session};
-
-fn session() -> Session {
-    let (outbox, _rx) = Outbox::bounded(16);
-    Session {
-        id: 1,
-        peer: "127.0.0.1:1".parse().unwrap(),
-        client: "test".into(),
-        outbox,
-        identity: penelope_supervisor::service::Identity::LOCAL_NODE,
-    }
-}
 
 fn create(c: &Creator, kind: &str, name: &str, config: &str) {
-    c.call(
-        &session(),
-        Call::Creator(CreatorCall::Create {
-            kind: kind.into(),
-            name: name.into(),
-            config: config.into(),
-        }),
-    )
-    .unwrap_or_else(|e| panic!("create {name}: {e}"));
+    c.create(kind, name, config)
+        .unwrap_or_else(|e| panic!("create {name}: {e}"));
 }
 
 fn call(c: &Creator, name: &str, method: Method) -> Result<Reply, WireError> {
-    c.call(
-        &session(),
-        Call::Object {
-            object: name.into(),
-            method,
-        },
-    )
+    c.call_object(name, method)
 }
 
 fn ok(c: &Creator, name: &str, method: Method) -> Reply {

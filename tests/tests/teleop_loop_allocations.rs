@@ -11,24 +11,15 @@ use penelope_hal::{Frame, Timestamp, Transition, Wrench};
 use penelope_rt_core::cell::Stamped;
 use penelope_rt_core::safety::SafetyState;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::{
-    Call, ControllerMethod, CreatorCall, JointAxis, Method, RobotMethod,
-};
-use penelope_supervisor::service::{Outbox, Service, Session};
+use penelope_supervisor::proto::{ControllerMethod, JointAxis, Method, RobotMethod};
 use penelope_tests::{CountingAllocator, allocations};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
 
-fn call(c: &Creator, s: &Session, object: &str, method: Method) {
-    c.call(
-        s,
-        Call::Object {
-            object: object.into(),
-            method,
-        },
-    )
-    .unwrap_or_else(|e| panic!("{object}: {e}"));
+fn call(c: &Creator, object: &str, method: Method) {
+    c.call_object(object, method)
+        .unwrap_or_else(|e| panic!("{object}: {e}"));
 }
 
 #[test]
@@ -36,14 +27,6 @@ fn a_hundred_thousand_teleoperation_ticks_allocate_nothing() {
     let mut config = CreatorConfig::new("alloc");
     config.rt.priority = None;
     let c = Creator::new(config);
-    let (outbox, _rx) = Outbox::bounded(16);
-    let s = Session {
-        id: 1,
-        peer: "127.0.0.1:1".parse().unwrap(),
-        client: "test".into(),
-        outbox,
-        identity: penelope_supervisor::service::Identity::LOCAL_NODE,
-    };
     let wall = "[[shapes]]\nkind = \"plane\"\npoint = [0, 0, 0.1]";
     for (kind, name, cfg) in [
         ("robot/frhc", "frhc", ""),
@@ -60,20 +43,12 @@ fn a_hundred_thousand_teleoperation_ticks_allocate_nothing() {
         ("controller/force-display", "display", ""),
         ("controller/slave-tracking", "follow", ""),
     ] {
-        c.call(
-            &s,
-            Call::Creator(CreatorCall::Create {
-                kind: kind.into(),
-                name: name.into(),
-                config: cfg.into(),
-            }),
-        )
-        .unwrap_or_else(|e| panic!("{name}: {e}"));
+        c.create(kind, name, cfg)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
     }
     for (robot, board) in [("frhc", "frhc-io"), ("puma", "puma-io")] {
         call(
             &c,
-            &s,
             robot,
             Method::Robot(RobotMethod::MapJoints {
                 board: board.into(),
@@ -98,13 +73,13 @@ fn a_hundred_thousand_teleoperation_ticks_allocate_nothing() {
             });
         }
         for m in methods {
-            call(&c, &s, controller, Method::Controller(m));
+            call(&c, controller, Method::Controller(m));
         }
     }
     for name in [
         "frhc-io", "puma-io", "wrist", "hand", "frhc", "puma", "link", "display", "follow",
     ] {
-        call(&c, &s, name, Method::Transition(Transition::Configure));
+        call(&c, name, Method::Transition(Transition::Configure));
     }
     let mut master = c.detach_loop("display").expect("the master's loop builds");
     let mut slave = c.detach_loop("follow").expect("the slave's loop builds");

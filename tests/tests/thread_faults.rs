@@ -9,30 +9,11 @@ use penelope_hal::{LifecycleState, Transition};
 use penelope_supervisor::objects::runtime::LoopThread;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
 use penelope_supervisor::proto::{
-    BoardMethod, Call, ControllerMethod, CreatorCall, JointAxis, Method, ObjectInfo, Reply,
-    RobotMethod, WireError,
+    BoardMethod, ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod, WireError,
 };
-use penelope_supervisor::service::{Outbox, Service, Session};
-
-fn session() -> Session {
-    let (outbox, _rx) = Outbox::bounded(16);
-    Session {
-        id: 1,
-        peer: "127.0.0.1:1".parse().unwrap(),
-        client: "test".into(),
-        outbox,
-        identity: penelope_supervisor::service::Identity::LOCAL_NODE,
-    }
-}
 
 fn call(c: &Creator, name: &str, method: Method) -> Result<Reply, WireError> {
-    c.call(
-        &session(),
-        Call::Object {
-            object: name.into(),
-            method,
-        },
-    )
+    c.call_object(name, method)
 }
 
 fn ok(c: &Creator, name: &str, method: Method) -> Reply {
@@ -87,15 +68,7 @@ fn running_arm() -> Creator {
         ("trajectory/step", "hold", "pose = \"start\""),
         ("controller/joint-pid", "pid", ""),
     ] {
-        c.call(
-            &session(),
-            Call::Creator(CreatorCall::Create {
-                kind: kind.into(),
-                name: name.into(),
-                config: cfg.into(),
-            }),
-        )
-        .unwrap();
+        c.create(kind, name, cfg).unwrap();
     }
     ok(
         &c,
@@ -151,10 +124,7 @@ fn fails_safely(thread: LoopThread, cause: &str) {
         .fold(0.0, f64::max);
     assert!(moved < 0.01, "the arm moved {moved} rad while failing");
     // The node keeps answering, and a failed loop is not re-activated by accident.
-    assert!(matches!(
-        c.call(&session(), Call::Creator(CreatorCall::List)),
-        Ok(Reply::Objects(list)) if list.len() == 4
-    ));
+    assert_eq!(c.list().len(), 4);
     assert!(matches!(
         call(&c, "pid", Method::Transition(Transition::Activate)),
         Err(WireError::InvalidTransition { .. })

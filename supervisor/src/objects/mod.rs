@@ -567,6 +567,16 @@ impl Creator {
         }
     }
 
+    /// Calls `method` on object `object` (as a connection's `Call::Object` would, for calls made
+    /// inside the process).
+    ///
+    /// # Errors
+    /// The object's typed error.
+    pub fn call_object(&self, object: &str, method: Method) -> Result<Reply, WireError> {
+        self.reap_failed();
+        self.object_call(object, method)
+    }
+
     /// Makes a thread of controller `name`'s running loop panic in its next tick, as a bug
     /// would (fault-injection tests of the failure path).
     ///
