@@ -112,6 +112,23 @@ impl ForceDisplay {
         &self.config
     }
 
+    /// New settings while running: the filter and the passivity observer keep their state (a
+    /// new passivity setting starts its controller afresh), so nothing jumps but the gains.
+    ///
+    /// # Errors
+    /// As [`ForceDisplayConfig::validate`]; the old settings stay.
+    ///
+    /// # Real-time
+    /// Constant time, no allocation.
+    pub fn set_config(&mut self, config: ForceDisplayConfig) -> Result<(), TeleopConfigError> {
+        config.validate()?;
+        if config.passivity != self.config.passivity {
+            self.passivity = PassivityController::new(config.passivity)?;
+        }
+        self.config = config;
+        Ok(())
+    }
+
     /// The wrench displayed on the last tick (master base frame, about the tool origin).
     pub fn last_wrench(&self) -> &Wrench {
         &self.last_wrench

@@ -113,6 +113,19 @@ impl CartesianImpedance {
         &self.config
     }
 
+    /// New settings while running (the stiffness ramp goes on from the activation instant).
+    ///
+    /// # Errors
+    /// As [`ImpedanceConfig::validate`]; the old settings stay.
+    ///
+    /// # Real-time
+    /// Constant time, no allocation.
+    pub fn set_config(&mut self, config: ImpedanceConfig) -> Result<(), TeleopConfigError> {
+        config.validate()?;
+        self.config = config;
+        Ok(())
+    }
+
     /// The wrench commanded on the last tick (base frame, about the tool origin), after caps.
     pub fn last_wrench(&self) -> &Wrench {
         &self.last_wrench
@@ -252,6 +265,17 @@ impl PositionErrorMaster {
     /// The settings.
     pub fn config(&self) -> &ImpedanceConfig {
         self.law.config()
+    }
+
+    /// New settings while running (the energy observer keeps its state).
+    ///
+    /// # Errors
+    /// As [`ImpedanceConfig::validate`]; the old settings stay.
+    ///
+    /// # Real-time
+    /// Constant time, no allocation.
+    pub fn set_config(&mut self, config: ImpedanceConfig) -> Result<(), TeleopConfigError> {
+        self.law.set_config(config)
     }
 
     /// The wrench displayed on the last tick (master base frame), after caps.

@@ -155,6 +155,20 @@ impl SlaveTracking {
         &self.config
     }
 
+    /// New settings while running: the joint reference, its filters and the integral keep
+    /// their state, so nothing jumps but the gains.
+    ///
+    /// # Errors
+    /// As [`TrackingConfig::validate`]; the old settings stay.
+    ///
+    /// # Real-time
+    /// Constant time, no allocation.
+    pub fn set_config(&mut self, config: TrackingConfig) -> Result<(), TeleopConfigError> {
+        config.validate()?;
+        self.config = config;
+        Ok(())
+    }
+
     /// The joint reference of the last tick, rad.
     pub fn joint_reference(&self) -> &JointVector {
         &self.q_ref

@@ -130,6 +130,9 @@ impl ControllerConfig {
 
 pub(crate) struct ControllerObj {
     pub config: ControllerConfig,
+    /// The configuration's TOML text as created and changed by `set-gains` (what a merge of new
+    /// keys starts from).
+    pub config_text: String,
     pub timing: LoopTiming,
     pub robot: Option<String>,
     pub trajectory: Option<String>,
@@ -274,17 +277,17 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
         Kind::JointPid => {
             let cfg: JointPidConfig = kinds::parse(k, config)?;
             let timing = cfg.check(k)?;
-            controller_body(ControllerConfig::Pid(cfg), timing)
+            controller_body(ControllerConfig::Pid(cfg), timing, config)
         }
         Kind::CartesianImpedance => {
             let cfg: ImpedanceConfigToml = kinds::parse(k, config)?;
             let timing = cfg.check(k)?;
-            controller_body(ControllerConfig::Impedance(cfg), timing)
+            controller_body(ControllerConfig::Impedance(cfg), timing, config)
         }
         Kind::JointPosition => {
             let cfg: JointPositionConfig = kinds::parse(k, config)?;
             let timing = cfg.check(k)?;
-            controller_body(ControllerConfig::Position(cfg), timing)
+            controller_body(ControllerConfig::Position(cfg), timing, config)
         }
         Kind::OperatorHand => {
             let cfg: HandConfig = kinds::parse(k, config)?;
@@ -307,20 +310,20 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
             let cfg: ForceDisplayToml = kinds::parse(k, config)?;
             cfg.law(k)?;
             let timing = cfg.timing(k)?;
-            controller_body(ControllerConfig::ForceDisplay(cfg), timing)
+            controller_body(ControllerConfig::ForceDisplay(cfg), timing, config)
         }
         Kind::PositionErrorMaster => {
             let cfg: PositionErrorToml = kinds::parse(k, config)?;
             cfg.law(k)?;
             let timing = cfg.timing(k)?;
-            controller_body(ControllerConfig::PositionError(cfg), timing)
+            controller_body(ControllerConfig::PositionError(cfg), timing, config)
         }
         Kind::SlaveTracking | Kind::SlavePosition => {
             let cfg: SlaveTrackingToml = kinds::parse(k, config)?;
             let servo = kind == Kind::SlavePosition;
             cfg.law(k, servo)?;
             let timing = cfg.timing(k)?;
-            controller_body(ControllerConfig::Tracking(cfg, servo), timing)
+            controller_body(ControllerConfig::Tracking(cfg, servo), timing, config)
         }
         Kind::Step | Kind::Ramp | Kind::Trapezoidal | Kind::Spline => {
             Body::Trajectory(TrajectoryObj {
@@ -337,9 +340,10 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
     })
 }
 
-fn controller_body(config: ControllerConfig, timing: LoopTiming) -> Body {
+fn controller_body(config: ControllerConfig, timing: LoopTiming, text: &str) -> Body {
     Body::Controller(Box::new(ControllerObj {
         config,
+        config_text: text.to_string(),
         timing,
         robot: None,
         trajectory: None,
@@ -1690,12 +1694,11 @@ impl Registry {
                     ControllerConfig::ForceDisplay(_)
                     | ControllerConfig::PositionError(_)
                     | ControllerConfig::Tracking(..) => {
-                        return Err(WireError::Unsupported {
-                            kind: k.to_string(),
-                            method: "set-gains (a teleoperation law's gains are set at creation, \
-                                     in its configuration)"
-                                .into(),
-                        });
+                        let text = merged_gains(k, &c.config_text, &gains)?;
+                        let (config, update) = teleop_gains(k, &c.config, &text)?;
+                        c.config = config;
+                        c.config_text = text;
+                        Some(update)
                     }
                     ControllerConfig::Impedance(i) => {
                         let new: ImpedanceConfigToml = kinds::parse(k, &gains)?;
@@ -1760,6 +1763,73 @@ impl Registry {
             }
         }
     }
+}
+
+/// The keys of every loop (fixed while the loop runs).
+const LOOP_TIMING_KEYS: [&str; 6] = [
+    "period_us",
+    "comm_period_us",
+    "watchdog_ms",
+    "sensor_period_ms",
+    "sensor_timeout_ms",
+    "telemetry_period_ms",
+];
+
+/// `current` (a configuration's TOML text) with the keys of `gains` replaced: refused for loop
+/// timing keys (set at creation) and for text that is not a TOML table.
+fn merged_gains(kind: &str, current: &str, gains: &str) -> Result<String, WireError> {
+    let bad = |message: String| WireError::BadConfig {
+        kind: kind.into(),
+        message,
+    };
+    let new: toml::Table = gains
+        .parse()
+        .map_err(|e: toml::de::Error| bad(e.message().to_string()))?;
+    if let Some(k) = new.keys().find(|k| LOOP_TIMING_KEYS.contains(&k.as_str())) {
+        return Err(bad(format!(
+            "`{k}` is a loop timing key, set at creation; set-gains changes gains"
+        )));
+    }
+    let mut table: toml::Table = current
+        .parse()
+        .map_err(|e: toml::de::Error| bad(e.message().to_string()))?;
+    table.extend(new);
+    Ok(table.to_string())
+}
+
+/// A teleoperation law's configuration from `text`, checked, and the update for its loop.
+fn teleop_gains(
+    kind: &str,
+    current: &ControllerConfig,
+    text: &str,
+) -> Result<(ControllerConfig, GainsUpdate), WireError> {
+    Ok(match current {
+        ControllerConfig::ForceDisplay(_) => {
+            let cfg: ForceDisplayToml = kinds::parse(kind, text)?;
+            let law = cfg.law(kind)?;
+            (
+                ControllerConfig::ForceDisplay(cfg),
+                GainsUpdate::ForceDisplay(*law.config()),
+            )
+        }
+        ControllerConfig::PositionError(_) => {
+            let cfg: PositionErrorToml = kinds::parse(kind, text)?;
+            let law = cfg.law(kind)?;
+            (
+                ControllerConfig::PositionError(cfg),
+                GainsUpdate::PositionError(*law.config()),
+            )
+        }
+        ControllerConfig::Tracking(_, servo) => {
+            let cfg: SlaveTrackingToml = kinds::parse(kind, text)?;
+            let law = cfg.law(kind, *servo)?;
+            (
+                ControllerConfig::Tracking(cfg, *servo),
+                GainsUpdate::Tracking(*law.config()),
+            )
+        }
+        _ => return Err(WireError::Internal("not a teleoperation law".into())),
+    })
 }
 
 /// The default gains a loop on a simulated body holds its pose with.

@@ -42,7 +42,8 @@ use penelope_rt_core::exec::{Flow, PeriodicThread};
 use penelope_rt_core::ring::{ArcConsumer, ArcProducer};
 use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
 use penelope_rt_core::teleop::{
-    CartesianImpedance, ForceDisplay, ImpedanceConfig, PositionErrorMaster, SlaveTracking,
+    CartesianImpedance, ForceDisplay, ForceDisplayConfig, ImpedanceConfig, PositionErrorMaster,
+    SlaveTracking, TrackingConfig,
 };
 use penelope_rt_core::trajectory::{
     CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
@@ -303,10 +304,18 @@ impl NodeController {
     pub fn apply(&mut self, gains: &GainsUpdate) {
         match (self, gains) {
             (NodeController::Pid(p), GainsUpdate::Pid(g)) => p.set_gains(*g),
+            // Checked before they were sent: a refusal keeps the old gains.
             (NodeController::Impedance(c), GainsUpdate::Impedance(g)) => {
-                if let Ok(n) = CartesianImpedance::new(*g) {
-                    *c = n;
-                }
+                let _ = c.set_config(*g);
+            }
+            (NodeController::ForceDisplay(c), GainsUpdate::ForceDisplay(g)) => {
+                let _ = c.set_config(*g);
+            }
+            (NodeController::PositionErrorMaster(c), GainsUpdate::PositionError(g)) => {
+                let _ = c.set_config(*g);
+            }
+            (NodeController::SlaveTracking(c), GainsUpdate::Tracking(g)) => {
+                let _ = c.set_config(*g);
             }
             _ => {}
         }
@@ -339,6 +348,12 @@ pub enum GainsUpdate {
     Pid(JointPidGains),
     /// Impedance settings.
     Impedance(ImpedanceConfig),
+    /// Force-display settings.
+    ForceDisplay(ForceDisplayConfig),
+    /// Position-error master settings.
+    PositionError(ImpedanceConfig),
+    /// Slave-tracking settings.
+    Tracking(TrackingConfig),
 }
 
 // ---------------------------------------------------------------------------------------------
