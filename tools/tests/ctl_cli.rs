@@ -305,3 +305,74 @@ fn ctl_with_the_secret_sends_nothing_to_a_node_that_does_not_prove_it() {
         "ctl sent something after the impostor's hello"
     );
 }
+
+/// The paper's task from a system file: a node started before its naming service brings up
+/// `config/teleop.toml`, registers when the naming service appears, and `ctl` sees the FRHC,
+/// the PUMA 200, the channel and both halves of the law running; the slave's telemetry
+/// streams; deactivating the slave's controller stops its loop.
+#[test]
+fn a_node_runs_the_teleoperation_system_file() {
+    let naming = free_port();
+    let node = free_port();
+    let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../config/teleop.toml");
+    // The node first, its naming service later: start order does not matter.
+    let mut children = Children(vec![spawn(&[
+        "node",
+        "--name",
+        "lab",
+        "--listen",
+        &node.to_string(),
+        "--naming",
+        &naming.to_string(),
+        "--priority",
+        "0",
+        "--config",
+        config,
+    ])]);
+    children
+        .0
+        .push(spawn(&["naming", "--listen", &naming.to_string()]));
+
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let listing = loop {
+        let o = ctl(naming, &["ls"]);
+        let (out, _) = text(&o);
+        if o.status.success() && out.contains("follow") {
+            break out;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the node never showed up: {:?}",
+            text(&o)
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    for (name, kind) in [
+        ("frhc", "robot/frhc"),
+        ("puma", "robot/puma200"),
+        ("link", "trajectory/teleop"),
+        ("display", "controller/force-display"),
+        ("follow", "controller/slave-tracking"),
+        ("hand", "sensor/operator-hand"),
+    ] {
+        let line = listing
+            .lines()
+            .find(|l| l.contains(&format!(" {name} ")))
+            .unwrap_or_else(|| panic!("{name} missing from\n{listing}"));
+        assert!(line.contains(kind) && line.contains("active"), "{line}");
+    }
+
+    let o = ctl(naming, &["watch", "lab/follow", "--count", "3"]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(
+        out.lines().filter(|l| l.contains(" q [")).count(),
+        3,
+        "{out}"
+    );
+
+    let o = ctl(naming, &["deactivate", "lab/follow"]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    let o = ctl(naming, &["describe", "lab/follow"]);
+    assert!(text(&o).0.contains("inactive"), "{:?}", text(&o));
+}
