@@ -1,0 +1,559 @@
+//! Building a controller's loop from its objects, and taking a stopped loop back.
+
+use super::*;
+
+impl Registry {
+    /// Builds the loop of controller `name` (configured, inactive) without starting threads.
+    /// Takes the robot's board(s) and marks every object it uses.
+    pub fn build_loop(&mut self, name: &str, launch: &Launch<'_>) -> Result<Built, WireError> {
+        let o = self.get(name)?;
+        if o.kind.class() != Class::Controller {
+            return Err(unsupported(o.kind, "activate"));
+        }
+        if o.state != LifecycleState::Inactive {
+            return Err(WireError::InvalidTransition {
+                name: name.to_string(),
+                state: o.shown_state(),
+                transition: Transition::Activate,
+            });
+        }
+        self.configure_controller(name)?;
+        let c = self.controller_mut(name)?;
+        let timing = c.timing;
+        let robot_name = c.robot.clone().unwrap_or_default();
+        let traj_name = c.trajectory.clone().unwrap_or_default();
+        let sensor_name = c.sensor.clone();
+        let law = c.config.clone();
+        let kind = self.get(name)?.kind.as_str();
+
+        // The robot and its boards: configured, and no axis driven by another loop.
+        let robot_obj = self.get(&robot_name)?;
+        if robot_obj.state != LifecycleState::Inactive {
+            return Err(not_ready(format!("robot `{robot_name}` is not configured")));
+        }
+        if let Some(d) = robot_obj.users.iter().next() {
+            return Err(WireError::InUse {
+                name: robot_name.clone(),
+                dependents: vec![d.clone()],
+            });
+        }
+        let r = self.robot(&robot_name)?;
+        for (board, joints) in &r.maps {
+            for (other_name, other) in &self.objects {
+                let Body::Robot(or) = &other.body else {
+                    continue;
+                };
+                if other_name == &robot_name || other.users.is_empty() {
+                    continue;
+                }
+                for (ob, oj) in &or.maps {
+                    if ob == board && oj.iter().any(|x| joints.iter().any(|y| x.axis == y.axis)) {
+                        return Err(WireError::InUse {
+                            name: board.clone(),
+                            dependents: other.users.iter().cloned().collect(),
+                        });
+                    }
+                }
+            }
+            if let Body::Galil(g) = &self.get(board)?.body
+                && g.board.is_none()
+            {
+                let b = self.get(board)?;
+                return Err(WireError::InUse {
+                    name: board.clone(),
+                    dependents: b.users.iter().cloned().collect(),
+                });
+            }
+        }
+        let trajectory_obj = self.get(&traj_name)?;
+        if trajectory_obj.state == LifecycleState::Unconfigured {
+            return Err(not_ready(format!(
+                "trajectory `{traj_name}` is not configured"
+            )));
+        }
+        let local_sensor = match &sensor_name {
+            Some(s) if !s.starts_with('/') => {
+                let so = self.get(s)?;
+                if so.state == LifecycleState::Unconfigured {
+                    return Err(not_ready(format!("sensor `{s}` is not configured")));
+                }
+                match &so.body {
+                    Body::Sensor(x) => Some(x.state.clone()),
+                    _ => None,
+                }
+            }
+            _ => None,
+        };
+        if sensor_name.as_deref().is_some_and(|s| s.starts_with('/')) && launch.remote.is_none() {
+            return Err(not_ready(
+                "no remote link to other nodes on this creator (set_remote)",
+            ));
+        }
+
+        let r = self.robot(&robot_name)?;
+        let model = r.model.clone();
+        let kinematics = r.kinematics.clone();
+        let (role, caps) = (r.role, r.caps);
+        let n = model.joint_count();
+        let start = r.start;
+        // A trajectory, or one end of a teleoperation channel for the halves of the laws.
+        let (trajectory, teleop) = match (&self.get(&traj_name)?.body, law.teleop_side()) {
+            (Body::Trajectory(t), None) => (Some(build_trajectory(&t.spec, &model, kind)?), None),
+            (Body::Teleop(t), Some(side)) => {
+                check_teleop_end(&traj_name, t, side, &robot_name)?;
+                (None, Some((side, t.config.mapping())))
+            }
+            (Body::Teleop(_), None) => {
+                return Err(bad_arg(format!(
+                    "`{traj_name}` is a teleoperation channel: it is followed by the halves of \
+                     the teleoperation laws (force-display, position-error-master, \
+                     slave-tracking, slave-position), not by {kind}"
+                )));
+            }
+            (_, Some(_)) => {
+                return Err(bad_arg(format!(
+                    "{kind} follows a trajectory/teleop channel; `{traj_name}` is not one"
+                )));
+            }
+            _ => return Err(WireError::Internal("trajectory body".into())),
+        };
+
+        // Controller.
+        let (controller, hold) = match &law {
+            ControllerConfig::Pid(p) => {
+                let mut kp = JointVector::zeros();
+                let mut kd = JointVector::zeros();
+                for j in 0..n {
+                    kp[j] = 10.0 * finite_effort(&model, j);
+                    kd[j] = 0.5 * finite_effort(&model, j);
+                }
+                let gains = pid_gains(p, kind, n, kp, kd)?;
+                (NodeController::Pid(JointPid::new(gains)), (kp, kd))
+            }
+            ControllerConfig::Impedance(i) => {
+                let cfg = impedance(i);
+                let c = CartesianImpedance::new(cfg).map_err(|e| WireError::BadConfig {
+                    kind: kind.into(),
+                    message: format!("{e:?}"),
+                })?;
+                let mut kp = JointVector::zeros();
+                let mut kd = JointVector::zeros();
+                for j in 0..n {
+                    kp[j] = 10.0 * finite_effort(&model, j);
+                    kd[j] = 0.5 * finite_effort(&model, j);
+                }
+                (NodeController::Impedance(c), (kp, kd))
+            }
+            ControllerConfig::Position(p) => {
+                let max_velocity = p
+                    .max_velocity
+                    .resolve(kind, "max_velocity", n, 1e-3, 100.0)?;
+                let mut kp = JointVector::zeros();
+                let mut kd = JointVector::zeros();
+                for j in 0..n {
+                    kp[j] = 10.0 * finite_effort(&model, j);
+                    kd[j] = 0.5 * finite_effort(&model, j);
+                }
+                (
+                    NodeController::Position(JointPositionServo::new(max_velocity)),
+                    (kp, kd),
+                )
+            }
+            ControllerConfig::ForceDisplay(c) => (
+                NodeController::ForceDisplay(c.law(kind)?),
+                slave_hold(&model, n),
+            ),
+            ControllerConfig::PositionError(c) => (
+                NodeController::PositionErrorMaster(c.law(kind)?),
+                slave_hold(&model, n),
+            ),
+            ControllerConfig::Tracking(c, servo) => (
+                NodeController::SlaveTracking(c.law(kind, *servo)?),
+                slave_hold(&model, n),
+            ),
+        };
+
+        // Safety by role (a master: display caps, zero force on a stale reference, amplifiers
+        // off on a fault; a slave holds its pose), and axis bindings.
+        let mut safety = match role {
+            Role::Master => {
+                let mut s = SafetyConfig::master(n, *model.limits());
+                (s.max_force, s.max_moment) = caps;
+                s
+            }
+            Role::Slave => SafetyConfig::slave(n, *model.limits()),
+        };
+        safety.watchdog = timing.watchdog;
+        let mut config = ControlConfig::new(timing.period, safety);
+        let r = self.robot(&robot_name)?;
+        let on_sim = r.body.is_some();
+        let zero = model.named_pose(start);
+        for j in 0..n {
+            let cpr = model.counts_per_radian(j);
+            let mut b = AxisBinding::new(j as u8, cpr);
+            if !on_sim {
+                b.offset_counts = -((zero[j] * cpr).round() as i64);
+            }
+            config = config.with_axis(j, b);
+        }
+        config.safety.hold = if on_sim {
+            HoldMode::Pd {
+                kp: hold.0,
+                kd: hold.1,
+            }
+        } else {
+            HoldMode::BoardServo
+        };
+        config.validate(n).map_err(|e| WireError::BadConfig {
+            kind: kind.into(),
+            message: e.to_string(),
+        })?;
+
+        // Take the board(s).
+        let maps = r.maps.clone();
+        let board = if on_sim {
+            let Body::Robot(r) = &mut self.get_mut(&robot_name)?.body else {
+                return Err(WireError::Internal("robot body".into()));
+            };
+            LoopBoard::Sim(
+                r.body
+                    .take()
+                    .ok_or_else(|| WireError::Internal("sim body".into()))?,
+                None,
+            )
+        } else {
+            let mut boards: Vec<(String, GalilBoard)> = Vec::new();
+            let mut map = [(0u8, 0u8); MAX_JOINTS];
+            for (board, joints) in &maps {
+                let index = boards.len() as u8;
+                let Body::Galil(g) = &mut self.get_mut(board)?.body else {
+                    return Err(WireError::Internal("galil body".into()));
+                };
+                let Some(mut b) = g.board.take() else {
+                    // Put back what was taken before refusing.
+                    self.give_back(
+                        LoopBoard::Galil(Box::new(GalilSet::new(boards, map, n))),
+                        &robot_name,
+                    );
+                    return Err(not_ready(format!("board `{board}` is not open")));
+                };
+                // Torque directions from the model: the driver signs each axis' effort.
+                let bindings: Vec<AxisBinding> = joints
+                    .iter()
+                    .map(|ja| AxisBinding::new(ja.axis, model.counts_per_radian(ja.joint.into())))
+                    .collect();
+                b.orient(&bindings);
+                boards.push((board.clone(), b));
+                for ja in joints {
+                    map[usize::from(ja.joint)] = (index, ja.axis);
+                }
+            }
+            LoopBoard::Galil(Box::new(GalilSet::new(boards, map, n)))
+        };
+
+        // Ports.
+        use penelope_rt_core::cell::latest;
+        use penelope_rt_core::ring::ring;
+        let (ref_w, ref_r) = latest();
+        let (tel_w, tel_r) = ring();
+        let (comm_w, comm_r) = latest();
+        let (probe_w, probe_r) = latest();
+        let (mut cmd_w, cmd_r) = ring();
+        let (goto_w, goto_r) = ring();
+        let (gains_w, gains_r) = latest();
+        let sink = NodeSink::new(tel_w, comm_w, probe_w);
+        let ports = ControlPorts {
+            reference: ref_r,
+            telemetry: sink,
+            commands: cmd_r,
+        };
+        let cartesian = controller.is_cartesian();
+        let lp = match ControlLoop::new(config, board, kinematics.clone(), [controller], ports) {
+            Ok(l) => l,
+            Err(e) => return Err(WireError::Internal(format!("control loop: {e}"))),
+        };
+        let (lp, wrench_w) = if sensor_name.is_some() {
+            let (w, r) = latest();
+            (
+                NodeLoop::Sensed(Box::new(
+                    lp.with_sensor(CellSensor::new(r, timing.sensor_timeout)),
+                )),
+                Some(w),
+            )
+        } else {
+            (NodeLoop::Plain(Box::new(lp)), None)
+        };
+        let _ = cmd_w.push(ControlCommand::Activate);
+        let comm = match (trajectory, teleop) {
+            (Some(trajectory), _) => crate::objects::runtime::CommTask::new(
+                trajectory,
+                ref_w,
+                comm_r,
+                goto_r,
+                kinematics.clone(),
+                cartesian,
+            ),
+            (None, Some((side, mapping))) => {
+                // The master's clutch is its operator's hand's button, if a hand holds it.
+                let clutch = self.objects.values().find_map(|o| match &o.body {
+                    Body::Hand(h) if side == Side::Master && h.config.robot == robot_name => {
+                        Some(h.clutch.clone())
+                    }
+                    _ => None,
+                });
+                let Some(Body::Teleop(t)) = self.objects.get_mut(&traj_name).map(|o| &mut o.body)
+                else {
+                    return Err(WireError::Internal("teleop body".into()));
+                };
+                let link = t
+                    .link
+                    .as_mut()
+                    .ok_or_else(|| WireError::Internal("teleop link".into()))?;
+                let end = link
+                    .take(side)
+                    .ok_or_else(|| WireError::Internal("teleop end".into()))?;
+                crate::objects::runtime::CommTask::teleop(
+                    TeleopComm::new(end, mapping, kinematics.clone())?.with_clutch(clutch),
+                    ref_w,
+                    comm_r,
+                    goto_r,
+                    kinematics.clone(),
+                )?
+            }
+            (None, None) => return Err(WireError::Internal("no reference source".into())),
+        };
+        let source =
+            match (&sensor_name, local_sensor) {
+                (Some(path), None) => launch.remote.clone().map(|remote| {
+                    crate::objects::runtime::SensorSource::Remote {
+                        remote,
+                        path: path.clone(),
+                    }
+                }),
+                (_, Some(local)) => Some(crate::objects::runtime::SensorSource::Local(local)),
+                _ => None,
+            };
+
+        // Mark the users.
+        let mut used = vec![robot_name.clone(), traj_name.clone()];
+        used.extend(maps.iter().map(|(b, _)| b.clone()));
+        if let Some(s) = &sensor_name
+            && !s.starts_with('/')
+        {
+            used.push(s.clone());
+        }
+        for u in &used {
+            if let Some(o) = self.objects.get_mut(u) {
+                o.users.insert(name.to_string());
+            }
+        }
+        Ok(Built {
+            control: ControlTask::new(lp, gains_r),
+            comm,
+            telemetry: tel_r,
+            commands: cmd_w,
+            goto: goto_w,
+            gains: gains_w,
+            probe: probe_r,
+            wrench: wrench_w,
+            source,
+            model: kinematics,
+            joints: n,
+            timing,
+        })
+    }
+
+    /// Takes a stopped loop of `controller` back: its board to the robot's objects (amplifiers
+    /// off, or, `after_fault` on a board with its own servo, still holding), its teleoperation
+    /// channel's end to the channel, and clears the users. What a thread took down with it is
+    /// marked `unconfigured` (configure it again). Returns how the robot was left, in words.
+    pub fn take_back(
+        &mut self,
+        stopped: crate::objects::runtime::StoppedLoop,
+        controller: &str,
+        after_fault: bool,
+    ) -> &'static str {
+        let (robot, trajectory) = match self.objects.get(controller).map(|o| &o.body) {
+            Some(Body::Controller(c)) => (
+                c.robot.clone().unwrap_or_default(),
+                c.trajectory.clone().unwrap_or_default(),
+            ),
+            _ => (String::new(), String::new()),
+        };
+        let said = match stopped.control {
+            Some(t) => {
+                let hold = after_fault && t.holds_with_board_servo();
+                self.give_back_after_fault(t.into_loop().into_board(), &robot, hold);
+                if hold {
+                    "held by its board's servo"
+                } else {
+                    "zero torque, amplifiers off"
+                }
+            }
+            None => {
+                if let Ok(o) = self.get_mut(&robot) {
+                    o.state = LifecycleState::Unconfigured;
+                }
+                "its board went down with the thread; configure the robot again"
+            }
+        };
+        let end = stopped.comm.and_then(|c| c.into_teleop_end());
+        if let Some(Object {
+            body: Body::Teleop(t),
+            state,
+            ..
+        }) = self.objects.get_mut(&trajectory)
+            && let Some(link) = t.link.as_mut()
+        {
+            match end {
+                Some(end) => link.put_back(end),
+                None => {
+                    // The end went down with its thread: new cells at the next configure.
+                    t.link = None;
+                    *state = LifecycleState::Unconfigured;
+                }
+            }
+        }
+        self.release_users(controller);
+        said
+    }
+
+    /// Gives a stopped loop's board back to the objects it came from, amplifiers off.
+    pub fn give_back(&mut self, board: LoopBoard, robot: &str) {
+        self.give_back_after_fault(board, robot, false);
+    }
+
+    /// Gives a failed loop's board back as the loop left it: still holding with its own servo
+    /// when `holding` (a position board the loop stopped at its measured pose), else with its
+    /// amplifiers off.
+    pub fn give_back_after_fault(&mut self, mut board: LoopBoard, robot: &str, holding: bool) {
+        if !holding {
+            let _ = board.set_enabled(false);
+        }
+        match board {
+            LoopBoard::Sim(body, _) => {
+                if let Some(Object {
+                    body: Body::Robot(r),
+                    ..
+                }) = self.objects.get_mut(robot)
+                {
+                    r.body = Some(body);
+                }
+            }
+            LoopBoard::Galil(set) => {
+                for (name, b) in set.boards {
+                    if let Some(Object {
+                        body: Body::Galil(g),
+                        ..
+                    }) = self.objects.get_mut(&name)
+                    {
+                        g.board = Some(b);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Clears `controller` from every object's users.
+    pub fn release_users(&mut self, controller: &str) {
+        for o in self.objects.values_mut() {
+            o.users.remove(controller);
+        }
+    }
+}
+
+/// The default gains a loop on a simulated body holds its pose with.
+fn slave_hold(model: &DhRobotModel, n: usize) -> (JointVector, JointVector) {
+    let mut kp = JointVector::zeros();
+    let mut kd = JointVector::zeros();
+    for j in 0..n {
+        kp[j] = 10.0 * finite_effort(model, j);
+        kd[j] = 0.5 * finite_effort(model, j);
+    }
+    (kp, kd)
+}
+
+/// Checks that the controller on `robot` may run `side` of channel `name`, and that the end is
+/// free.
+fn check_teleop_end(name: &str, t: &TeleopObj, side: Side, robot: &str) -> Result<(), WireError> {
+    let (expected, word) = match side {
+        Side::Master => (&t.config.master, "master"),
+        Side::Slave => (&t.config.slave, "slave"),
+    };
+    if expected != robot {
+        return Err(bad_arg(format!(
+            "this law is a {word} half, and the {word} of `{name}` is `{expected}`, not `{robot}`"
+        )));
+    }
+    let link = t
+        .link
+        .as_ref()
+        .ok_or_else(|| not_ready(format!("channel `{name}` is not configured")))?;
+    let free = match side {
+        Side::Master => link.master.is_some(),
+        Side::Slave => link.slave.is_some(),
+    };
+    if !free {
+        return Err(not_ready(format!(
+            "the {word} end of `{name}` is held by a running loop"
+        )));
+    }
+    Ok(())
+}
+
+/// Everything an activation built, before threads start.
+pub(crate) struct Built {
+    pub control: ControlTask,
+    pub comm: crate::objects::runtime::CommTask,
+    pub telemetry: penelope_rt_core::ring::ArcConsumer<
+        penelope_rt_core::telemetry::TelemetrySample,
+        { crate::objects::runtime::TELEMETRY_CAPACITY },
+    >,
+    pub commands: penelope_rt_core::ring::ArcProducer<
+        ControlCommand,
+        { crate::objects::runtime::COMMAND_CAPACITY },
+    >,
+    pub goto: penelope_rt_core::ring::ArcProducer<
+        GoToCommand,
+        { crate::objects::runtime::GOTO_CAPACITY },
+    >,
+    pub gains: penelope_rt_core::cell::ArcLatestWriter<GainsUpdate>,
+    pub probe:
+        penelope_rt_core::cell::ArcLatestReader<penelope_rt_core::telemetry::TelemetrySample>,
+    pub wrench: Option<
+        penelope_rt_core::cell::ArcLatestWriter<
+            penelope_rt_core::cell::Stamped<penelope_hal::Wrench>,
+        >,
+    >,
+    pub source: Option<crate::objects::runtime::SensorSource>,
+    pub model: RobotKinematics,
+    pub joints: usize,
+    pub timing: LoopTiming,
+}
+
+pub(super) fn pid_gains(
+    p: &JointPidConfig,
+    kind: &str,
+    n: usize,
+    kp_default: JointVector,
+    kd_default: JointVector,
+) -> Result<JointPidGains, WireError> {
+    let kp = match &p.kp {
+        Some(k) => k.resolve(kind, "kp", n, 0.0, 1e7)?,
+        None => kp_default,
+    };
+    let kd = match &p.kd {
+        Some(k) => k.resolve(kind, "kd", n, 0.0, 1e6)?,
+        None => kd_default,
+    };
+    Ok(JointPidGains {
+        kp,
+        ki: p.ki.resolve(kind, "ki", n, 0.0, 1e7)?,
+        kd,
+        integral_limit: p
+            .integral_limit
+            .resolve(kind, "integral_limit", n, 0.0, 1e5)?,
+        gravity_compensation: p.gravity_compensation,
+        acceleration_feedforward: p.acceleration_feedforward,
+    })
+}

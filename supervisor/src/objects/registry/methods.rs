@@ -1,0 +1,780 @@
+//! The methods every object answers, by class.
+
+use super::*;
+
+impl Registry {
+    /// The measured joint state of `robot`: from its running loop, its simulated body, or its
+    /// Galil boards.
+    fn measured(&mut self, robot: &str) -> Result<(JointState, JointVector), WireError> {
+        if let Some(c) = self.driver_of(robot)
+            && let Ok(ctrl) = self.controller_mut(&c)
+            && let Some(run) = &ctrl.running
+        {
+            let Some(n) = run.shared.newest() else {
+                return Err(not_ready(format!(
+                    "robot `{robot}`: its loop has not ticked yet"
+                )));
+            };
+            let s = n.sample;
+            return Ok((
+                JointState {
+                    position: s.q,
+                    velocity: s.qd,
+                    effort: s.effort,
+                },
+                n.acceleration,
+            ));
+        }
+        let r = self.robot(robot)?;
+        if let Some(b) = &r.body {
+            return Ok((b.plant().snapshot().joints, JointVector::zeros()));
+        }
+        let model = r.model.clone();
+        let zero = model.named_pose(r.start);
+        let maps = r.maps.clone();
+        let mut state = JointState::default();
+        let mut any = false;
+        for (board, joints) in &maps {
+            let Ok(Object {
+                body: Body::Galil(g),
+                ..
+            }) = self.get_mut(board)
+            else {
+                continue;
+            };
+            let Some(b) = g.board.as_mut() else { continue };
+            let mut axes = [AxisState::default(); MAX_AXES];
+            let count = b.axis_count().min(MAX_AXES);
+            b.read_axes(
+                penelope_rt_core::clock::MonotonicClock::read(),
+                &mut axes[..count],
+            )
+            .map_err(|e| WireError::Device(format!("board `{board}`: {e}")))?;
+            for ja in joints {
+                let j = usize::from(ja.joint);
+                let cpr = model.counts_per_radian(j);
+                let offset = -((zero[j] * cpr).round() as i64);
+                let a = axes[usize::from(ja.axis)];
+                state.position[j] = a.position.wrapping_sub(offset) as f64 / cpr;
+                state.velocity[j] = a.velocity / cpr;
+                any = true;
+            }
+        }
+        if any {
+            Ok((state, JointVector::zeros()))
+        } else {
+            Err(not_ready(format!("robot `{robot}` is not configured")))
+        }
+    }
+
+    fn q_or_measured(&mut self, robot: &str, q: &Option<Joints>) -> Result<JointVector, WireError> {
+        let n = self.robot(robot)?.model.joint_count();
+        match q {
+            Some(q) => joints_to_vector(q, n),
+            None => Ok(self.measured(robot)?.0.position),
+        }
+    }
+
+    pub fn robot_method(&mut self, name: &str, m: RobotMethod) -> Result<Reply, WireError> {
+        let n = self.robot(name)?.model.joint_count();
+        match m {
+            RobotMethod::JointPositions => Ok(Reply::Joints(joints_from_vector(
+                &self.measured(name)?.0.position,
+                n,
+            ))),
+            RobotMethod::JointVelocities => Ok(Reply::Joints(joints_from_vector(
+                &self.measured(name)?.0.velocity,
+                n,
+            ))),
+            RobotMethod::JointAccelerations => Ok(Reply::Joints(joints_from_vector(
+                &self.measured(name)?.1,
+                n,
+            ))),
+            RobotMethod::Operational => {
+                let s = self.measured(name)?.0;
+                let model = &self.robot(name)?.model;
+                let o = model.operational_state(&s);
+                Ok(Reply::Operational(OperationalMsg {
+                    pose: PoseMsg::from(&o.pose),
+                    linear_velocity: o.twist.linear.into(),
+                    angular_velocity: o.twist.angular.into(),
+                }))
+            }
+            RobotMethod::ToolWrench => {
+                let driver = self.driver_of(name).ok_or_else(|| {
+                    not_ready(format!(
+                        "robot `{name}` is not driven by an active controller"
+                    ))
+                })?;
+                let c = self.controller_mut(&driver)?;
+                if c.sensor.is_none() {
+                    return Err(not_ready(format!(
+                        "controller `{driver}` has no force sensor"
+                    )));
+                }
+                let s = c
+                    .running
+                    .as_ref()
+                    .and_then(|r| r.shared.newest())
+                    .ok_or_else(|| not_ready("no sample yet"))?;
+                Ok(Reply::Wrench(WrenchMsg::from(&s.sample.wrench)))
+            }
+            RobotMethod::ForwardKinematics { q } => {
+                let q = self.q_or_measured(name, &q)?;
+                Ok(Reply::Pose(PoseMsg::from(
+                    &self.robot(name)?.kinematics.forward(&q),
+                )))
+            }
+            RobotMethod::Jacobian { q } => {
+                let q = self.q_or_measured(name, &q)?;
+                let j = self
+                    .robot(name)?
+                    .kinematics
+                    .jacobian(&q, JacobianFrame::Base);
+                Ok(Reply::Matrix(MatrixMsg::from_block(&j, 6, n)))
+            }
+            RobotMethod::JacobianInverse { q, damping } => {
+                if !(damping.is_finite() && (0.0..=10.0).contains(&damping)) {
+                    return Err(bad_arg("damping must be finite, 0..=10"));
+                }
+                let q = self.q_or_measured(name, &q)?;
+                let j = self.robot(name)?.model.jacobian_damped_inverse(&q, damping);
+                Ok(Reply::Matrix(MatrixMsg::from_block(&j, n, 6)))
+            }
+            RobotMethod::InverseKinematics { pose } => {
+                let pose = pose.to_pose()?;
+                let mut out = penelope_hal::IkSolutions::new();
+                let model = &self.robot(name)?.model;
+                let _ = model.inverse_all(&pose, &mut out);
+                Ok(Reply::Solutions(
+                    out.iter()
+                        .filter(|s| s.within_limits)
+                        .map(|s| joints_from_vector(&s.q, n))
+                        .collect(),
+                ))
+            }
+            RobotMethod::WrenchToTorques { wrench, q } => {
+                let w = wrench.to_wrench(Frame::Base)?;
+                let q = self.q_or_measured(name, &q)?;
+                let tau = self
+                    .robot(name)?
+                    .model
+                    .wrench_to_torques(&q, &w)
+                    .map_err(|e| bad_arg(e.to_string()))?;
+                Ok(Reply::Joints(joints_from_vector(&tau, n)))
+            }
+            RobotMethod::Gravity { q } => {
+                let q = self.q_or_measured(name, &q)?;
+                Ok(Reply::Joints(joints_from_vector(
+                    &self.robot(name)?.model.gravity(&q),
+                    n,
+                )))
+            }
+            RobotMethod::Inertia { q } => {
+                let q = self.q_or_measured(name, &q)?;
+                let m = self.robot(name)?.model.inertia(&q);
+                Ok(Reply::Matrix(MatrixMsg::from_block(&m, n, n)))
+            }
+            RobotMethod::CountsToRadians { counts } => {
+                if counts.len() != n {
+                    return Err(bad_arg(format!(
+                        "expected {n} counts, got {}",
+                        counts.len()
+                    )));
+                }
+                let model = &self.robot(name)?.model;
+                Ok(Reply::Joints(
+                    counts
+                        .iter()
+                        .enumerate()
+                        .map(|(j, c)| *c as f64 / model.counts_per_radian(j))
+                        .collect(),
+                ))
+            }
+            RobotMethod::RadiansToCounts { q } => {
+                let q = joints_to_vector(&q, n)?;
+                let model = &self.robot(name)?.model;
+                Ok(Reply::Counts(
+                    (0..n)
+                        .map(|j| (q[j] * model.counts_per_radian(j)).round() as i64)
+                        .collect(),
+                ))
+            }
+            RobotMethod::NamedPose { pose } => Ok(Reply::Joints(joints_from_vector(
+                &self.robot(name)?.model.named_pose(pose),
+                n,
+            ))),
+            RobotMethod::GoTo { pose, duration_s } => {
+                if !(duration_s.is_finite() && duration_s > 0.0 && duration_s <= 3600.0) {
+                    return Err(bad_arg("duration_s must be in (0, 3600]"));
+                }
+                let goal = self.robot(name)?.model.named_pose(pose);
+                let driver = self.driver_of(name).ok_or_else(|| {
+                    not_ready(format!(
+                        "robot `{name}` is not driven by an active controller (activate one)"
+                    ))
+                })?;
+                let c = self.controller_mut(&driver)?;
+                if c.config.teleop_side().is_some() {
+                    return Err(not_ready(format!(
+                        "robot `{name}` follows a teleoperation channel (`{driver}`): it goes \
+                         where the other side takes it"
+                    )));
+                }
+                let run = c
+                    .running
+                    .as_mut()
+                    .ok_or_else(|| not_ready("controller not running"))?;
+                run.goto
+                    .push(GoToCommand {
+                        goal,
+                        duration: Duration::from_secs_f64(duration_s),
+                    })
+                    .map_err(|_| not_ready("too many motions queued"))?;
+                Ok(Reply::Unit)
+            }
+            RobotMethod::MapJoints { board, joints } => {
+                let o = self.get(name)?;
+                if o.state != LifecycleState::Unconfigured {
+                    return Err(not_ready(format!(
+                        "map the joints of `{name}` before configure (cleanup first)"
+                    )));
+                }
+                crate::proto::check_name(&board)?;
+                if joints.is_empty() || joints.len() > MAX_JOINTS {
+                    return Err(bad_arg(format!("map 1 to {MAX_JOINTS} joints")));
+                }
+                for (i, ja) in joints.iter().enumerate() {
+                    if usize::from(ja.joint) >= n {
+                        return Err(bad_arg(format!("robot `{name}` has no joint {}", ja.joint)));
+                    }
+                    if usize::from(ja.axis) >= MAX_AXES {
+                        return Err(bad_arg(format!("axis {} is past {MAX_AXES}", ja.axis)));
+                    }
+                    if joints[..i]
+                        .iter()
+                        .any(|o| o.joint == ja.joint || o.axis == ja.axis)
+                    {
+                        return Err(bad_arg("a joint or an axis appears twice"));
+                    }
+                }
+                let Body::Robot(r) = &mut self.get_mut(name)?.body else {
+                    return Err(WireError::Internal("robot body".into()));
+                };
+                // Replaces this board's mapping; joints mapped elsewhere move here.
+                r.maps.retain(|(b, _)| b != &board);
+                for (_, js) in r.maps.iter_mut() {
+                    js.retain(|x| !joints.iter().any(|y| y.joint == x.joint));
+                }
+                r.maps.retain(|(_, js)| !js.is_empty());
+                r.maps.push((board, joints));
+                Ok(Reply::Unit)
+            }
+        }
+    }
+
+    pub fn board_method(&mut self, name: &str, m: BoardMethod) -> Result<Reply, WireError> {
+        let o = self.expect_class(name, Class::Board)?;
+        let active = !o.users.is_empty();
+        match (&o.body, m) {
+            (Body::SimBoard(s), BoardMethod::AxisCount) => Ok(Reply::Count(s.config.axes)),
+            (Body::Galil(g), BoardMethod::AxisCount) => Ok(Reply::Count(g.config.axes)),
+            (_, BoardMethod::AmplifiersEnabled) => {
+                // An idle board says what the device holds (a failed loop may leave a position
+                // board holding); a driven one, what its loop's safety state implies.
+                if !active {
+                    let on = match &o.body {
+                        Body::Galil(g) => g.board.as_ref().is_some_and(GalilBoard::is_enabled),
+                        _ => self.objects.values().any(|r| match &r.body {
+                            Body::Robot(r) => {
+                                r.maps.iter().any(|(b, _)| b == name)
+                                    && r.body.as_ref().is_some_and(|b| b.is_enabled())
+                            }
+                            _ => false,
+                        }),
+                    };
+                    return Ok(Reply::Flag(on));
+                }
+                let user = o.users.iter().next().cloned().unwrap_or_default();
+                let c = self.controller_mut(&user)?;
+                let on = c
+                    .running
+                    .as_ref()
+                    .and_then(|r| r.shared.newest())
+                    .is_some_and(|n| {
+                        use penelope_rt_core::safety::SafetyState;
+                        matches!(
+                            n.sample.state,
+                            SafetyState::Running | SafetyState::Holding | SafetyState::Fault
+                        )
+                    });
+                Ok(Reply::Flag(on))
+            }
+            (_, BoardMethod::Rearm) if active => Err(not_ready(format!(
+                "board `{name}` is driven by `{}`: re-arm that controller (it re-arms the board \
+                 and its loop)",
+                o.users.iter().next().cloned().unwrap_or_default()
+            ))),
+            (Body::Galil(g), BoardMethod::Rearm) => match &g.board {
+                Some(b) => {
+                    b.rearm();
+                    Ok(Reply::Unit)
+                }
+                None => Err(not_ready(format!(
+                    "board `{name}` is not open (configure it)"
+                ))),
+            },
+            // A simulated board latches nothing.
+            (_, BoardMethod::Rearm) => Ok(Reply::Unit),
+            (_, BoardMethod::ReadEncoders) => {
+                let axes = match &o.body {
+                    Body::SimBoard(s) => s.config.axes as usize,
+                    Body::Galil(g) => g.config.axes as usize,
+                    _ => 0,
+                };
+                let mut counts = vec![0i64; axes];
+                if let Body::Galil(_) = &o.body
+                    && !active
+                {
+                    let Body::Galil(g) = &mut self.get_mut(name)?.body else {
+                        unreachable_body()?
+                    };
+                    let b = g
+                        .board
+                        .as_mut()
+                        .ok_or_else(|| not_ready(format!("board `{name}` is not configured")))?;
+                    let mut st = [AxisState::default(); MAX_AXES];
+                    let count = b.axis_count().min(MAX_AXES);
+                    b.read_axes(
+                        penelope_rt_core::clock::MonotonicClock::read(),
+                        &mut st[..count],
+                    )
+                    .map_err(|e| WireError::Device(format!("board `{name}`: {e}")))?;
+                    for (c, s) in counts.iter_mut().zip(st.iter()) {
+                        *c = s.position;
+                    }
+                    return Ok(Reply::Counts(counts));
+                }
+                // Every robot mapped onto it: its joints' counts from the measured state.
+                let robots: Vec<(String, Vec<JointAxis>)> = self
+                    .objects
+                    .iter()
+                    .filter_map(|(rn, ro)| match &ro.body {
+                        Body::Robot(r) => r
+                            .maps
+                            .iter()
+                            .find(|(b, _)| b == name)
+                            .map(|(_, j)| (rn.clone(), j.clone())),
+                        _ => None,
+                    })
+                    .collect();
+                for (rn, joints) in robots {
+                    let Ok((state, _)) = self.measured(&rn) else {
+                        continue;
+                    };
+                    let r = self.robot(&rn)?;
+                    let zero = r.model.named_pose(r.start);
+                    let on_sim =
+                        r.body.is_some() || matches!(self.get(name)?.body, Body::SimBoard(_));
+                    for ja in joints {
+                        let j = usize::from(ja.joint);
+                        let cpr = r.model.counts_per_radian(j);
+                        let offset = if on_sim {
+                            0
+                        } else {
+                            -((zero[j] * cpr).round() as i64)
+                        };
+                        if let Some(c) = counts.get_mut(usize::from(ja.axis)) {
+                            *c = (state.position[j] * cpr).floor() as i64 + offset;
+                        }
+                    }
+                }
+                Ok(Reply::Counts(counts))
+            }
+            _ => Err(WireError::Internal("board body".into())),
+        }
+    }
+
+    pub fn sensor_method(&mut self, name: &str, m: SensorMethod) -> Result<Reply, WireError> {
+        let o = self.expect_class(name, Class::Sensor)?;
+        if o.state == LifecycleState::Unconfigured {
+            return Err(not_ready(format!("sensor `{name}` is not configured")));
+        }
+        let s = match &o.body {
+            Body::Sensor(s) => s,
+            Body::Hand(h) => {
+                return Err(WireError::Unsupported {
+                    kind: o.kind.as_str().into(),
+                    method: format!(
+                        "{m:?} (the hand pushes `{}`'s simulated handle; what it feels is in \
+                         that robot's telemetry)",
+                        h.config.robot
+                    ),
+                });
+            }
+            _ => return Err(WireError::Internal("sensor body".into())),
+        };
+        let state = s.state.clone();
+        let mut st = state
+            .lock()
+            .map_err(|_| WireError::Internal("sensor state poisoned".into()))?;
+        match m {
+            SensorMethod::Read => Ok(Reply::Wrench(WrenchMsg::from(&st.read()))),
+            SensorMethod::Bias => {
+                st.bias();
+                Ok(Reply::Unit)
+            }
+            SensorMethod::SetProbe { pose, velocity } => {
+                let pose = pose.to_pose()?;
+                let v = finite3(velocity)?;
+                st.measure(&pose, v);
+                Ok(Reply::Unit)
+            }
+            SensorMethod::Measure { pose, velocity } => {
+                let pose = pose.to_pose()?;
+                let v = finite3(velocity)?;
+                Ok(Reply::Wrench(WrenchMsg::from(&st.measure(&pose, v))))
+            }
+        }
+    }
+
+    pub fn trajectory_method(
+        &mut self,
+        name: &str,
+        m: TrajectoryMethod,
+    ) -> Result<Reply, WireError> {
+        let o = self.expect_class(name, Class::Trajectory)?;
+        let t = match &o.body {
+            Body::Trajectory(t) => t,
+            Body::Teleop(_) => {
+                return Err(WireError::Unsupported {
+                    kind: o.kind.as_str().into(),
+                    method: format!(
+                        "{m:?} (a teleoperation channel's reference is what the other side sends)"
+                    ),
+                });
+            }
+            _ => return Err(WireError::Internal("trajectory body".into())),
+        };
+        let spec = t.spec.clone();
+        let kind = o.kind.as_str();
+        // Standalone: started at t = 0 from zero joints of the goal's length; a goal that names
+        // a pose needs a robot (the one of a controller using it).
+        let robot_model = self
+            .objects
+            .values()
+            .find_map(|c| match &c.body {
+                Body::Controller(x) if x.trajectory.as_deref() == Some(name) => x.robot.clone(),
+                _ => None,
+            })
+            .and_then(|r| self.robot(&r).ok().map(|r| r.model.clone()));
+        let mut traj = match &robot_model {
+            Some(m) => build_trajectory(&spec, m, kind)?,
+            None => build_standalone(&spec, kind)?,
+        };
+        let n = robot_model
+            .as_ref()
+            .map_or_else(|| spec_joints(&spec), |m| m.joint_count());
+        use penelope_hal::Trajectory;
+        traj.start(
+            Timestamp::ZERO,
+            &penelope_hal::Reference::Joint(penelope_hal::JointReference::default()),
+        );
+        match m {
+            TrajectoryMethod::Duration => Ok(Reply::Duration(match &spec {
+                TrajectorySpec::Step { delay, .. } => Some(delay.as_secs_f64()),
+                TrajectorySpec::Ramp { duration, .. } => Some(duration.as_secs_f64()),
+                _ => traj.duration().map(|d| d.as_secs_f64()),
+            })),
+            TrajectoryMethod::Reference { t_s } => {
+                if !(t_s.is_finite() && (0.0..=1e6).contains(&t_s)) {
+                    return Err(bad_arg("t_s must be finite, 0..=1e6"));
+                }
+                let r = traj
+                    .reference(Timestamp::ZERO + Duration::from_secs_f64(t_s))
+                    .map_err(|e| not_ready(e.to_string()))?;
+                Ok(Reply::Reference(match r {
+                    penelope_hal::Reference::Joint(j) => ReferenceMsg::Joint {
+                        q: joints_from_vector(&j.position, n),
+                        qd: joints_from_vector(&j.velocity, n),
+                    },
+                    penelope_hal::Reference::Cartesian(c) => ReferenceMsg::Cartesian {
+                        pose: PoseMsg::from(&c.pose),
+                    },
+                    penelope_hal::Reference::Wrench(w) => ReferenceMsg::Wrench {
+                        wrench: WrenchMsg::from(&w),
+                    },
+                    penelope_hal::Reference::Hybrid(h) => ReferenceMsg::Cartesian {
+                        pose: PoseMsg::from(&h.motion.pose),
+                    },
+                }))
+            }
+        }
+    }
+
+    /// Controller methods other than the lifecycle (the creator handles those).
+    pub fn controller_method(
+        &mut self,
+        name: &str,
+        m: ControllerMethod,
+    ) -> Result<Reply, WireError> {
+        let o = self.expect_class(name, Class::Controller)?;
+        let state = o.shown_state();
+        let kind = o.kind;
+        let set_guard = |what: &str| -> Result<(), WireError> {
+            if state == LifecycleState::Active {
+                Err(not_ready(format!(
+                    "deactivate `{name}` before changing its {what}"
+                )))
+            } else {
+                Ok(())
+            }
+        };
+        match m {
+            ControllerMethod::SetRobot { robot } => {
+                set_guard("robot")?;
+                crate::proto::check_name(&robot)?;
+                self.controller_mut(name)?.robot = Some(robot);
+                Ok(Reply::Unit)
+            }
+            ControllerMethod::SetTrajectory { trajectory } => {
+                set_guard("trajectory")?;
+                crate::proto::check_name(&trajectory)?;
+                self.controller_mut(name)?.trajectory = Some(trajectory);
+                Ok(Reply::Unit)
+            }
+            ControllerMethod::SetSensor { sensor } => {
+                set_guard("sensor")?;
+                if let Some(path) = sensor.strip_prefix('/') {
+                    for part in path.split('/') {
+                        crate::proto::check_name(part)?;
+                    }
+                } else {
+                    crate::proto::check_name(&sensor)?;
+                }
+                self.controller_mut(name)?.sensor = Some(sensor);
+                Ok(Reply::Unit)
+            }
+            ControllerMethod::SetGains { gains } => {
+                let c = self.controller_mut(name)?;
+                let k = kind.as_str();
+                let update = match &mut c.config {
+                    ControllerConfig::Pid(_) => {
+                        let new: JointPidConfig = kinds::parse(k, &gains)?;
+                        new.check(k)?;
+                        let n = c.robot.clone().and_then(|r| {
+                            self.robot(&r)
+                                .ok()
+                                .map(|r| (r.model.joint_count(), r.model.clone()))
+                        });
+                        let c = self.controller_mut(name)?;
+                        let ControllerConfig::Pid(p) = &mut c.config else {
+                            unreachable_body()?
+                        };
+                        merge_pid(p, &new, &gains);
+                        match n {
+                            Some((n, model)) if c.running.is_some() => {
+                                let mut kp = JointVector::zeros();
+                                let mut kd = JointVector::zeros();
+                                for j in 0..n {
+                                    kp[j] = 10.0 * finite_effort(&model, j);
+                                    kd[j] = 0.5 * finite_effort(&model, j);
+                                }
+                                Some(GainsUpdate::Pid(pid_gains(p, k, n, kp, kd)?))
+                            }
+                            _ => None,
+                        }
+                    }
+                    ControllerConfig::Position(_) => {
+                        return Err(WireError::Unsupported {
+                            kind: k.to_string(),
+                            method:
+                                "set-gains (its only setting, max_velocity, is fixed at creation)"
+                                    .into(),
+                        });
+                    }
+                    ControllerConfig::ForceDisplay(_)
+                    | ControllerConfig::PositionError(_)
+                    | ControllerConfig::Tracking(..) => {
+                        let text = merged_gains(k, &c.config_text, &gains)?;
+                        let (config, update) = teleop_gains(k, &c.config, &text)?;
+                        c.config = config;
+                        c.config_text = text;
+                        Some(update)
+                    }
+                    ControllerConfig::Impedance(i) => {
+                        let new: ImpedanceConfigToml = kinds::parse(k, &gains)?;
+                        new.check(k)?;
+                        merge_impedance(i, &new, &gains);
+                        Some(GainsUpdate::Impedance(impedance(i)))
+                    }
+                };
+                let c = self.controller_mut(name)?;
+                if let (Some(u), Some(run)) = (update, c.running.as_mut()) {
+                    run.gains.write(u);
+                }
+                Ok(Reply::Unit)
+            }
+            ControllerMethod::EStop => {
+                let c = self.controller_mut(name)?;
+                let run = c
+                    .running
+                    .as_mut()
+                    .ok_or_else(|| not_ready(format!("controller `{name}` is not running")))?;
+                run.commands
+                    .push(ControlCommand::EStop)
+                    .map_err(|_| not_ready("command queue full; retry"))?;
+                Ok(Reply::Unit)
+            }
+            // Re-arming may start threads: the creator's job (`Creator::rearm`).
+            ControllerMethod::Rearm => {
+                Err(WireError::Internal("rearm is served by the creator".into()))
+            }
+            ControllerMethod::Status => {
+                let joints = self
+                    .controller_mut(name)?
+                    .robot
+                    .clone()
+                    .and_then(|r| self.robot(&r).ok().map(|r| r.model.joint_count()))
+                    .unwrap_or(MAX_JOINTS);
+                let c = self.controller_mut(name)?;
+                let (running, ticks, overruns, dropped, last) = match c.running.as_mut() {
+                    Some(run) => {
+                        let newest = run.shared.newest().map(|n| n.sample);
+                        let overruns = run.overruns();
+                        (
+                            true,
+                            newest.map_or(0, |s| s.seq),
+                            overruns,
+                            run.shared
+                                .dropped
+                                .load(std::sync::atomic::Ordering::Relaxed),
+                            newest,
+                        )
+                    }
+                    None => (false, c.last.map_or(0, |s| s.seq), 0, 0, c.last),
+                };
+                Ok(Reply::Status(ControlStatus {
+                    state,
+                    running,
+                    ticks,
+                    overruns,
+                    telemetry_dropped: dropped,
+                    last: last.map(|s| crate::objects::runtime::record(&s, joints)),
+                }))
+            }
+        }
+    }
+}
+
+/// The keys of every loop (fixed while the loop runs).
+const LOOP_TIMING_KEYS: [&str; 6] = [
+    "period_us",
+    "comm_period_us",
+    "watchdog_ms",
+    "sensor_period_ms",
+    "sensor_timeout_ms",
+    "telemetry_period_ms",
+];
+
+/// `current` (a configuration's TOML text) with the keys of `gains` replaced: refused for loop
+/// timing keys (set at creation) and for text that is not a TOML table.
+fn merged_gains(kind: &str, current: &str, gains: &str) -> Result<String, WireError> {
+    let bad = |message: String| WireError::BadConfig {
+        kind: kind.into(),
+        message,
+    };
+    let new: toml::Table = gains
+        .parse()
+        .map_err(|e: toml::de::Error| bad(e.message().to_string()))?;
+    if let Some(k) = new.keys().find(|k| LOOP_TIMING_KEYS.contains(&k.as_str())) {
+        return Err(bad(format!(
+            "`{k}` is a loop timing key, set at creation; set-gains changes gains"
+        )));
+    }
+    let mut table: toml::Table = current
+        .parse()
+        .map_err(|e: toml::de::Error| bad(e.message().to_string()))?;
+    table.extend(new);
+    Ok(table.to_string())
+}
+
+/// A teleoperation law's configuration from `text`, checked, and the update for its loop.
+fn teleop_gains(
+    kind: &str,
+    current: &ControllerConfig,
+    text: &str,
+) -> Result<(ControllerConfig, GainsUpdate), WireError> {
+    Ok(match current {
+        ControllerConfig::ForceDisplay(_) => {
+            let cfg: ForceDisplayToml = kinds::parse(kind, text)?;
+            let law = cfg.law(kind)?;
+            (
+                ControllerConfig::ForceDisplay(cfg),
+                GainsUpdate::ForceDisplay(*law.config()),
+            )
+        }
+        ControllerConfig::PositionError(_) => {
+            let cfg: PositionErrorToml = kinds::parse(kind, text)?;
+            let law = cfg.law(kind)?;
+            (
+                ControllerConfig::PositionError(cfg),
+                GainsUpdate::PositionError(*law.config()),
+            )
+        }
+        ControllerConfig::Tracking(_, servo) => {
+            let cfg: SlaveTrackingToml = kinds::parse(kind, text)?;
+            let law = cfg.law(kind, *servo)?;
+            (
+                ControllerConfig::Tracking(cfg, *servo),
+                GainsUpdate::Tracking(*law.config()),
+            )
+        }
+        _ => return Err(WireError::Internal("not a teleoperation law".into())),
+    })
+}
+
+/// Keys present in `text` replace those of `into`.
+fn merge_pid(into: &mut JointPidConfig, new: &JointPidConfig, text: &str) {
+    let has = |k: &str| text.lines().any(|l| l.trim_start().starts_with(k));
+    if has("kp") {
+        into.kp = new.kp.clone();
+    }
+    if has("ki") {
+        into.ki = new.ki.clone();
+    }
+    if has("kd") {
+        into.kd = new.kd.clone();
+    }
+    if has("integral_limit") {
+        into.integral_limit = new.integral_limit.clone();
+    }
+    if has("gravity_compensation") {
+        into.gravity_compensation = new.gravity_compensation;
+    }
+    if has("acceleration_feedforward") {
+        into.acceleration_feedforward = new.acceleration_feedforward;
+    }
+}
+
+fn merge_impedance(into: &mut ImpedanceConfigToml, new: &ImpedanceConfigToml, text: &str) {
+    let has = |k: &str| text.lines().any(|l| l.trim_start().starts_with(k));
+    if has("stiffness") {
+        into.stiffness = new.stiffness;
+    }
+    if has("damping") {
+        into.damping = new.damping;
+    }
+    if has("gravity_compensation") {
+        into.gravity_compensation = new.gravity_compensation;
+    }
+    if has("max_force") {
+        into.max_force = new.max_force;
+    }
+    if has("max_torque") {
+        into.max_torque = new.max_torque;
+    }
+    if has("ramp_in_ms") {
+        into.ramp_in_ms = new.ramp_in_ms;
+    }
+}

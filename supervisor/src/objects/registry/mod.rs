@@ -1,0 +1,727 @@
+//! The objects of a node, their relations and lifecycles, and every method they answer. Lives
+//! behind the creator's mutex: the non-real-time side only.
+//!
+//! - here: the objects (one body per class), making them from their configuration, and the
+//!   lifecycle transitions (configure, cleanup);
+//! - [`build`]: a controller's loop from its objects, and a stopped loop taken back;
+//! - [`methods`]: every method an object answers, by class;
+//! - [`trajectories`]: trajectories from their specifications.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use nalgebra::Vector3;
+use penelope_drivers::galil::board::LinkFactory;
+use penelope_drivers::galil::{GalilBoard, GalilBoardConfig, Link, TcpLink};
+use penelope_drivers::model::{self as models, DhRobotModel};
+use penelope_drivers::sim::ToolContact;
+use penelope_drivers::sim::board::{SimBoard, SimBoardConfig as DriverSimConfig};
+use penelope_drivers::sim::operator::VirtualOperator;
+use penelope_drivers::sim::plant::PlantConfig;
+use penelope_hal::{
+    AxisState, Board, Dynamics, Frame, InverseKinematics, JacobianFrame, JointState, JointVector,
+    Kinematics, LifecycleState, MAX_AXES, MAX_JOINTS, NamedPose, RobotModel, Timestamp, Transition,
+};
+use penelope_rt_core::control::{
+    AxisBinding, ControlCommand, ControlConfig, ControlLoop, ControlPorts,
+};
+use penelope_rt_core::controller::{JointPid, JointPidGains, JointPositionServo};
+use penelope_rt_core::safety::{HoldMode, Role, SafetyConfig};
+use penelope_rt_core::teleop::{CartesianImpedance, ImpedanceConfig};
+use penelope_rt_core::trajectory::{
+    CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
+};
+
+use super::kinds::{
+    self, GalilConfig, GoalConfig, ImpedanceConfigToml, JointPidConfig, JointPositionConfig, Kind,
+    LoopTiming, RobotConfig, SensorConfig, SimBoardConfig, TrajectorySpec,
+};
+use super::kinematics::RobotKinematics;
+use super::teleop::{
+    ForceDisplayToml, HandConfig, HandObj, PositionErrorToml, Side, SlaveTrackingToml, TeleopComm,
+    TeleopConfig, TeleopLink,
+};
+use crate::objects::runtime::{
+    CellSensor, ControlTask, GainsUpdate, GalilSet, GoToCommand, LoopBoard, NodeController,
+    NodeLoop, NodeSink, NodeTrajectory, SimBody, VirtualSensor,
+};
+use crate::proto::{
+    BoardMethod, Class, ControlStatus, ControllerMethod, JointAxis, Joints, MatrixMsg, ObjectInfo,
+    OperationalMsg, PoseMsg, ReferenceMsg, Reply, RobotMethod, SensorMethod, TrajectoryMethod,
+    WireError, WrenchMsg, joints_from_vector, joints_to_vector,
+};
+
+mod build;
+mod methods;
+mod trajectories;
+
+pub(crate) use build::Built;
+use build::pid_gains;
+use trajectories::{build_standalone, build_trajectory, spec_joints};
+
+/// One object.
+pub(crate) struct Object {
+    pub name: String,
+    pub kind: Kind,
+    pub state: LifecycleState,
+    /// Active controllers using this object (it shows `active` while there is one).
+    pub users: BTreeSet<String>,
+    pub body: Body,
+}
+
+// One per object, in a map: the size difference costs nothing worth a box.
+#[allow(clippy::large_enum_variant)]
+pub(crate) enum Body {
+    Robot(Box<RobotObj>),
+    SimBoard(SimBoardObj),
+    Galil(GalilObj),
+    Sensor(SensorObj),
+    Controller(Box<ControllerObj>),
+    Trajectory(TrajectoryObj),
+    Hand(Box<HandObj>),
+    Teleop(Box<TeleopObj>),
+}
+
+/// A `trajectory/teleop`: its settings, and its cells once configured.
+pub(crate) struct TeleopObj {
+    pub config: TeleopConfig,
+    pub link: Option<TeleopLink>,
+}
+
+pub(crate) struct RobotObj {
+    /// The float model: dynamics, named poses, encoder scaling, and the simulated body.
+    pub model: DhRobotModel,
+    /// What the robot's loops and kinematic methods compute with.
+    pub kinematics: RobotKinematics,
+    /// Master or slave: what its loops' safety does.
+    pub role: Role,
+    /// A master's display caps, N and N·m.
+    pub caps: (f64, f64),
+    pub start: NamedPose,
+    /// `(board, joints)` in the order given.
+    pub maps: Vec<(String, Vec<JointAxis>)>,
+    /// The simulated body (robots on simulated boards, configured, not running).
+    pub body: Option<Box<SimBody>>,
+}
+
+pub(crate) struct SimBoardObj {
+    pub config: SimBoardConfig,
+}
+
+pub(crate) struct GalilObj {
+    pub config: GalilConfig,
+    pub board: Option<GalilBoard>,
+}
+
+pub(crate) struct SensorObj {
+    pub state: Arc<Mutex<VirtualSensor>>,
+}
+
+#[derive(Clone)]
+pub(crate) enum ControllerConfig {
+    Pid(JointPidConfig),
+    Impedance(ImpedanceConfigToml),
+    Position(JointPositionConfig),
+    ForceDisplay(ForceDisplayToml),
+    PositionError(PositionErrorToml),
+    /// The slave half: torques, or position targets for the board's servo (`true`).
+    Tracking(SlaveTrackingToml, bool),
+}
+
+impl ControllerConfig {
+    /// The side of a teleoperation channel the law runs, if it is a teleoperation law.
+    pub fn teleop_side(&self) -> Option<Side> {
+        match self {
+            ControllerConfig::ForceDisplay(_) | ControllerConfig::PositionError(_) => {
+                Some(Side::Master)
+            }
+            ControllerConfig::Tracking(..) => Some(Side::Slave),
+            _ => None,
+        }
+    }
+}
+
+pub(crate) struct ControllerObj {
+    pub config: ControllerConfig,
+    /// The configuration's TOML text as created and changed by `set-gains` (what a merge of new
+    /// keys starts from).
+    pub config_text: String,
+    pub timing: LoopTiming,
+    pub robot: Option<String>,
+    pub trajectory: Option<String>,
+    pub sensor: Option<String>,
+    pub running: Option<crate::objects::runtime::Running>,
+    /// The newest sample of the last run.
+    pub last: Option<penelope_rt_core::telemetry::TelemetrySample>,
+    /// How the control thread is scheduled (shown in `describe`).
+    pub scheduling: Option<String>,
+    /// Why its loop failed (a thread panicked or died), until it is re-armed.
+    pub fault: Option<String>,
+}
+
+pub(crate) struct TrajectoryObj {
+    pub spec: TrajectorySpec,
+}
+
+fn bad_arg(m: impl Into<String>) -> WireError {
+    WireError::BadArgument(m.into())
+}
+
+fn not_ready(m: impl Into<String>) -> WireError {
+    WireError::NotReady(m.into())
+}
+
+fn unsupported(kind: Kind, method: &str) -> WireError {
+    WireError::Unsupported {
+        kind: kind.as_str().to_string(),
+        method: method.to_string(),
+    }
+}
+
+fn finite_effort(model: &DhRobotModel, j: usize) -> f64 {
+    let e = model.limits().effort_max[j];
+    if e.is_finite() && e > 0.0 { e } else { 100.0 }
+}
+
+impl Object {
+    /// The state shown to users.
+    pub fn shown_state(&self) -> LifecycleState {
+        if self.users.is_empty() || self.state == LifecycleState::Error {
+            self.state
+        } else {
+            LifecycleState::Active
+        }
+    }
+
+    pub fn info(&self) -> ObjectInfo {
+        let mut relations = Vec::new();
+        match &self.body {
+            Body::Robot(r) => {
+                for (b, joints) in &r.maps {
+                    let list: Vec<String> = joints
+                        .iter()
+                        .map(|j| format!("{}:{}", j.joint, j.axis))
+                        .collect();
+                    relations.push(("board".to_string(), format!("{b} [{}]", list.join(" "))));
+                }
+            }
+            Body::Hand(h) => relations.push(("robot".to_string(), h.config.robot.clone())),
+            Body::Teleop(t) => {
+                relations.push(("master".to_string(), t.config.master.clone()));
+                relations.push(("slave".to_string(), t.config.slave.clone()));
+            }
+            Body::Controller(c) => {
+                for (k, v) in [
+                    ("robot", &c.robot),
+                    ("trajectory", &c.trajectory),
+                    ("sensor", &c.sensor),
+                ] {
+                    if let Some(v) = v {
+                        relations.push((k.to_string(), v.clone()));
+                    }
+                }
+                if let Some(s) = &c.scheduling {
+                    relations.push(("scheduling".to_string(), s.clone()));
+                }
+                if let Some(f) = &c.fault {
+                    relations.push(("fault".to_string(), f.clone()));
+                }
+            }
+            _ => {}
+        }
+        for u in &self.users {
+            relations.push(("used-by".to_string(), u.clone()));
+        }
+        ObjectInfo {
+            name: self.name.clone(),
+            kind: self.kind.as_str().to_string(),
+            class: self.kind.class(),
+            state: self.shown_state(),
+            relations,
+        }
+    }
+}
+
+/// Makes the object `name` of `kind` from its configuration text (checked here).
+pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireError> {
+    let k = kind.as_str();
+    let body = match kind {
+        Kind::Robot(model) => {
+            let cfg: RobotConfig = kinds::parse(k, config)?;
+            let start = cfg.start_pose(k)?;
+            let role = cfg.role(k)?;
+            let model = models::by_name(model).ok_or_else(|| WireError::UnknownKind(k.into()))?;
+            let kinematics = RobotKinematics::new(model.clone(), cfg.fpga(k)?).map_err(|e| {
+                WireError::BadConfig {
+                    kind: k.into(),
+                    message: e.to_string(),
+                }
+            })?;
+            Body::Robot(Box::new(RobotObj {
+                model,
+                kinematics,
+                role,
+                caps: (cfg.max_force_n, cfg.max_moment_nm),
+                start,
+                maps: Vec::new(),
+                body: None,
+            }))
+        }
+        Kind::SimBoard => {
+            let cfg: SimBoardConfig = kinds::parse(k, config)?;
+            cfg.check(k)?;
+            Body::SimBoard(SimBoardObj { config: cfg })
+        }
+        Kind::GalilBoard => {
+            let cfg: GalilConfig = kinds::parse(k, config)?;
+            cfg.check(k)?;
+            Body::Galil(GalilObj {
+                config: cfg,
+                board: None,
+            })
+        }
+        Kind::VirtualSensor => {
+            let cfg: SensorConfig = kinds::parse(k, config)?;
+            let env = kinds::environment(k, &cfg.shapes)?;
+            Body::Sensor(SensorObj {
+                state: Arc::new(Mutex::new(VirtualSensor::new(env))),
+            })
+        }
+        Kind::JointPid => {
+            let cfg: JointPidConfig = kinds::parse(k, config)?;
+            let timing = cfg.check(k)?;
+            controller_body(ControllerConfig::Pid(cfg), timing, config)
+        }
+        Kind::CartesianImpedance => {
+            let cfg: ImpedanceConfigToml = kinds::parse(k, config)?;
+            let timing = cfg.check(k)?;
+            controller_body(ControllerConfig::Impedance(cfg), timing, config)
+        }
+        Kind::JointPosition => {
+            let cfg: JointPositionConfig = kinds::parse(k, config)?;
+            let timing = cfg.check(k)?;
+            controller_body(ControllerConfig::Position(cfg), timing, config)
+        }
+        Kind::OperatorHand => {
+            let cfg: HandConfig = kinds::parse(k, config)?;
+            let script = cfg.check(k)?;
+            Body::Hand(Box::new(HandObj {
+                config: cfg,
+                script,
+                clutch: Arc::default(),
+            }))
+        }
+        Kind::Teleop => {
+            let cfg: TeleopConfig = kinds::parse(k, config)?;
+            cfg.check(k)?;
+            Body::Teleop(Box::new(TeleopObj {
+                config: cfg,
+                link: None,
+            }))
+        }
+        Kind::ForceDisplay => {
+            let cfg: ForceDisplayToml = kinds::parse(k, config)?;
+            cfg.law(k)?;
+            let timing = cfg.timing(k)?;
+            controller_body(ControllerConfig::ForceDisplay(cfg), timing, config)
+        }
+        Kind::PositionErrorMaster => {
+            let cfg: PositionErrorToml = kinds::parse(k, config)?;
+            cfg.law(k)?;
+            let timing = cfg.timing(k)?;
+            controller_body(ControllerConfig::PositionError(cfg), timing, config)
+        }
+        Kind::SlaveTracking | Kind::SlavePosition => {
+            let cfg: SlaveTrackingToml = kinds::parse(k, config)?;
+            let servo = kind == Kind::SlavePosition;
+            cfg.law(k, servo)?;
+            let timing = cfg.timing(k)?;
+            controller_body(ControllerConfig::Tracking(cfg, servo), timing, config)
+        }
+        Kind::Step | Kind::Ramp | Kind::Trapezoidal | Kind::Spline => {
+            Body::Trajectory(TrajectoryObj {
+                spec: kinds::trajectory_spec(kind, config)?,
+            })
+        }
+    };
+    Ok(Object {
+        name: name.to_string(),
+        kind,
+        state: LifecycleState::Unconfigured,
+        users: BTreeSet::new(),
+        body,
+    })
+}
+
+fn controller_body(config: ControllerConfig, timing: LoopTiming, text: &str) -> Body {
+    Body::Controller(Box::new(ControllerObj {
+        config,
+        config_text: text.to_string(),
+        timing,
+        robot: None,
+        trajectory: None,
+        sensor: None,
+        running: None,
+        last: None,
+        scheduling: None,
+        fault: None,
+    }))
+}
+
+/// The objects of a node.
+#[derive(Default)]
+pub(crate) struct Registry {
+    pub objects: BTreeMap<String, Object>,
+}
+
+/// What activating a controller needs from the creator.
+pub(crate) struct Launch<'a> {
+    pub rt: &'a crate::objects::RtPolicy,
+    pub remote: Option<Arc<dyn crate::service::Remote>>,
+}
+
+impl Registry {
+    pub fn get(&self, name: &str) -> Result<&Object, WireError> {
+        self.objects
+            .get(name)
+            .ok_or_else(|| WireError::UnknownName(name.to_string()))
+    }
+
+    pub fn get_mut(&mut self, name: &str) -> Result<&mut Object, WireError> {
+        self.objects
+            .get_mut(name)
+            .ok_or_else(|| WireError::UnknownName(name.to_string()))
+    }
+
+    fn expect_class(&self, name: &str, class: Class) -> Result<&Object, WireError> {
+        let o = self.get(name)?;
+        if o.kind.class() != class {
+            return Err(WireError::WrongClass {
+                name: name.to_string(),
+                expected: class,
+                found: o.kind.class(),
+            });
+        }
+        Ok(o)
+    }
+
+    fn robot(&self, name: &str) -> Result<&RobotObj, WireError> {
+        match &self.expect_class(name, Class::Robot)?.body {
+            Body::Robot(r) => Ok(r),
+            _ => Err(WireError::Internal("robot body".into())),
+        }
+    }
+
+    fn controller_mut(&mut self, name: &str) -> Result<&mut ControllerObj, WireError> {
+        match &mut self.get_mut(name)?.body {
+            Body::Controller(c) => Ok(c),
+            _ => Err(WireError::Internal("controller body".into())),
+        }
+    }
+
+    /// The active controller driving `robot`, if any.
+    pub fn driver_of(&self, robot: &str) -> Option<String> {
+        let o = self.objects.get(robot)?;
+        if o.kind.class() != Class::Robot {
+            return None;
+        }
+        o.users.iter().next().cloned()
+    }
+
+    // -----------------------------------------------------------------------------------------
+    // Lifecycle
+    // -----------------------------------------------------------------------------------------
+
+    /// Runs a transition other than a controller's activate/deactivate (the creator handles
+    /// those, since they start and stop threads).
+    pub fn transition(&mut self, name: &str, t: Transition) -> Result<(), WireError> {
+        let o = self.get(name)?;
+        let kind = o.kind;
+        let shown = o.shown_state();
+        let refuse = || WireError::InvalidTransition {
+            name: name.to_string(),
+            state: shown,
+            transition: t,
+        };
+        if !o.users.is_empty() && matches!(t, Transition::Cleanup | Transition::Shutdown) {
+            return Err(WireError::InUse {
+                name: name.to_string(),
+                dependents: o.users.iter().cloned().collect(),
+            });
+        }
+        if kind.class() != Class::Controller
+            && matches!(t, Transition::Activate | Transition::Deactivate)
+        {
+            return Err(unsupported(
+                kind,
+                "activate/deactivate (it is active while a controller that uses it runs)",
+            ));
+        }
+        let next = o.state.apply(t).map_err(|_| refuse())?;
+        match t {
+            Transition::Configure => self.configure(name)?,
+            Transition::Cleanup | Transition::Shutdown | Transition::Reset => self.release(name),
+            _ => {}
+        }
+        self.get_mut(name)?.state = next;
+        Ok(())
+    }
+
+    fn release(&mut self, name: &str) {
+        if let Some(o) = self.objects.get_mut(name) {
+            match &mut o.body {
+                Body::Robot(r) => r.body = None,
+                Body::Teleop(t) => t.link = None,
+                Body::Galil(g) => {
+                    // The driver's release: amplifiers off, watchdog halted.
+                    if let Some(b) = g.board.take() {
+                        b.release();
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+
+    fn configure(&mut self, name: &str) -> Result<(), WireError> {
+        let kind = self.get(name)?.kind;
+        match kind {
+            Kind::Robot(_) => self.configure_robot(name),
+            Kind::GalilBoard => {
+                let Body::Galil(g) = &mut self.get_mut(name)?.body else {
+                    return Err(WireError::Internal("galil body".into()));
+                };
+                g.board = Some(open_galil(&g.config)?);
+                Ok(())
+            }
+            Kind::Teleop => self.configure_teleop(name),
+            _ if kind.class() == Class::Controller => self.configure_controller(name),
+            _ => Ok(()),
+        }
+    }
+
+    fn configure_robot(&mut self, name: &str) -> Result<(), WireError> {
+        let r = self.robot(name)?;
+        let n = r.model.joint_count();
+        if r.maps.is_empty() {
+            return Err(not_ready(format!(
+                "robot `{name}` has no joints mapped onto a board (MapJoints first)"
+            )));
+        }
+        let mut seen = [false; MAX_JOINTS];
+        let mut sim_boards = Vec::new();
+        let mut galil = false;
+        for (board, joints) in &r.maps {
+            let b = self.expect_class(board, Class::Board)?;
+            if b.state == LifecycleState::Unconfigured {
+                return Err(not_ready(format!("board `{board}` is not configured")));
+            }
+            let axes = match &b.body {
+                Body::SimBoard(s) => {
+                    sim_boards.push(board.clone());
+                    s.config.axes as usize
+                }
+                Body::Galil(g) => {
+                    galil = true;
+                    g.config.axes as usize
+                }
+                _ => 0,
+            };
+            for ja in joints {
+                let (j, a) = (usize::from(ja.joint), usize::from(ja.axis));
+                if j >= n {
+                    return Err(bad_arg(format!("robot `{name}` has no joint {j}")));
+                }
+                if a >= axes {
+                    return Err(bad_arg(format!(
+                        "board `{board}` has no axis {a} (it has {axes})"
+                    )));
+                }
+                if seen[j] {
+                    return Err(bad_arg(format!("joint {j} of `{name}` is mapped twice")));
+                }
+                seen[j] = true;
+            }
+        }
+        if let Some(j) = (0..n).find(|j| !seen[*j]) {
+            return Err(not_ready(format!(
+                "joint {j} of robot `{name}` is not mapped onto a board"
+            )));
+        }
+        if galil && !sim_boards.is_empty() {
+            return Err(bad_arg(format!(
+                "robot `{name}` mixes simulated and galil boards: a simulated body cannot move a real joint"
+            )));
+        }
+        if let Some(first) = sim_boards.first() {
+            let Body::SimBoard(s) = &self.get(first)?.body else {
+                return Err(WireError::Internal("sim body".into()));
+            };
+            let env = kinds::environment("board/sim", &s.config.shapes)?;
+            let cfg = s.config.clone();
+            let r = self.robot(name)?;
+            let model = r.model.clone();
+            let q0 = model.named_pose(r.start);
+            let mut counts = JointVector::repeat(1.0);
+            let mut full = JointVector::repeat(100.0);
+            for j in 0..n {
+                counts[j] = model.counts_per_radian(j);
+                full[j] = finite_effort(&model, j);
+            }
+            let plant = PlantConfig {
+                substep: Duration::from_micros(cfg.substep_us),
+                motor_torque_limit: full,
+                friction: cfg.friction,
+            };
+            let board_cfg = DriverSimConfig {
+                counts_per_radian: counts,
+                effort_full_scale: full,
+                dac_bits: cfg.dac_bits,
+                position_kp: full * 200.0,
+                position_kd: full * 4.0,
+                velocity_cutoff_hz: 150.0,
+            };
+            // The operator's hand holds a master's handle; anything else meets the board's
+            // environment (free space without shapes).
+            let hand = self.objects.values().find_map(|o| match &o.body {
+                Body::Hand(h) if h.config.robot == name => Some(h),
+                _ => None,
+            });
+            let contact = match hand {
+                Some(h) => ToolContact::Hand {
+                    operator: VirtualOperator::new(
+                        h.script.clone(),
+                        h.config.impedance(),
+                        model.forward(&q0),
+                        Timestamp::ZERO,
+                    ),
+                    clutch: h.clutch.clone(),
+                },
+                None => ToolContact::Environment(env),
+            };
+            let body = SimBoard::new(model, plant, board_cfg, contact, q0, Timestamp::ZERO);
+            if let Body::Robot(r) = &mut self.get_mut(name)?.body {
+                r.body = Some(Box::new(body));
+            }
+        }
+        Ok(())
+    }
+
+    fn configure_teleop(&mut self, name: &str) -> Result<(), WireError> {
+        let Body::Teleop(t) = &self.get(name)?.body else {
+            return Err(WireError::Internal("teleop body".into()));
+        };
+        let (master, slave, mapping) = (
+            t.config.master.clone(),
+            t.config.slave.clone(),
+            t.config.mapping(),
+        );
+        self.expect_class(&master, Class::Robot)?;
+        self.expect_class(&slave, Class::Robot)?;
+        penelope_rt_core::teleop::WorkspaceMapping::new(mapping).map_err(|e| {
+            WireError::BadConfig {
+                kind: "trajectory/teleop".into(),
+                message: format!("{e:?}"),
+            }
+        })?;
+        if let Body::Teleop(t) = &mut self.get_mut(name)?.body {
+            t.link = Some(TeleopLink::new());
+        }
+        Ok(())
+    }
+
+    fn configure_controller(&mut self, name: &str) -> Result<(), WireError> {
+        let c = self.controller_mut(name)?;
+        let (robot, trajectory, sensor) = (c.robot.clone(), c.trajectory.clone(), c.sensor.clone());
+        let robot = robot
+            .ok_or_else(|| not_ready(format!("controller `{name}` has no robot (SetRobot)")))?;
+        self.expect_class(&robot, Class::Robot)?;
+        let trajectory = trajectory.ok_or_else(|| {
+            not_ready(format!(
+                "controller `{name}` has no trajectory (SetTrajectory)"
+            ))
+        })?;
+        self.expect_class(&trajectory, Class::Trajectory)?;
+        if let Some(s) = sensor
+            && !s.starts_with('/')
+        {
+            self.expect_class(&s, Class::Sensor)?;
+        }
+        Ok(())
+    }
+}
+
+fn unreachable_body<T>() -> Result<T, WireError> {
+    Err(WireError::Internal("object body changed".into()))
+}
+
+fn finite3(v: [f64; 3]) -> Result<Vector3<f64>, WireError> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(Vector3::from(v))
+    } else {
+        Err(bad_arg("velocity has a NaN or infinite value"))
+    }
+}
+
+fn impedance(i: &ImpedanceConfigToml) -> ImpedanceConfig {
+    ImpedanceConfig {
+        stiffness: i.stiffness,
+        damping: i.damping,
+        gravity_compensation: i.gravity_compensation,
+        max_force: i.max_force,
+        max_torque: i.max_torque,
+        ramp_in: Duration::from_millis(i.ramp_in_ms),
+    }
+}
+
+/// Opens a Galil board.
+fn open_galil(cfg: &GalilConfig) -> Result<GalilBoard, WireError> {
+    let volts = cfg.volts();
+    let path = cfg.device.clone().unwrap_or_else(|| "tcp".into());
+    let mut board_cfg = GalilBoardConfig::new(path.clone(), cfg.axes as usize, &volts);
+    board_cfg.serial.baud = cfg.baud;
+    board_cfg.watchdog = (cfg.watchdog_ms > 0).then(|| Duration::from_millis(cfg.watchdog_ms));
+    let result = match &cfg.address {
+        Some(address) => {
+            let address = address.clone();
+            let timeout = Duration::from_millis(cfg.connect_timeout_ms);
+            let factory: LinkFactory = Box::new(move || {
+                use std::net::ToSocketAddrs;
+                let addr = address
+                    .to_socket_addrs()
+                    .map_err(|e| penelope_drivers::galil::GalilError::Io(e.kind()))?
+                    .next()
+                    .ok_or(penelope_drivers::galil::GalilError::Closed)?;
+                let stream = std::net::TcpStream::connect_timeout(&addr, timeout)
+                    .map_err(|e| penelope_drivers::galil::GalilError::Io(e.kind()))?;
+                TcpLink::new(stream).map(|l| Box::new(l) as Box<dyn Link + Send>)
+            });
+            GalilBoard::with_link_factory(board_cfg, factory)
+        }
+        None => GalilBoard::open(board_cfg),
+    };
+    let place = cfg
+        .address
+        .as_deref()
+        .or(cfg.device.as_deref())
+        .unwrap_or("?")
+        .to_string();
+    let board = result.map_err(|e| WireError::Device(format!("galil board at {place}: {e}")))?;
+    // Configured means ready: wait for the I/O thread's first exchange, so the encoders can be
+    // read as soon as `configure` returns.
+    let deadline = std::time::Instant::now() + FIRST_EXCHANGE_TIMEOUT;
+    while board.cycles() == 0 {
+        if board.is_faulted() || std::time::Instant::now() >= deadline {
+            return Err(WireError::Device(format!(
+                "galil board at {place}: no answer within {} ms",
+                FIRST_EXCHANGE_TIMEOUT.as_millis()
+            )));
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    Ok(board)
+}
+
+/// How long `configure` of a Galil board waits for the first exchange with the controller.
+const FIRST_EXCHANGE_TIMEOUT: Duration = Duration::from_secs(2);

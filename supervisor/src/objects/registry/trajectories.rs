@@ -1,0 +1,159 @@
+//! Trajectories from their specifications: for a robot, or standalone (for `reference`).
+
+use super::*;
+
+pub(super) fn goal_vector(
+    g: &GoalConfig,
+    model: &DhRobotModel,
+    kind: &str,
+) -> Result<JointVector, WireError> {
+    match g {
+        GoalConfig::Pose(p) => Ok(model.named_pose(*p)),
+        GoalConfig::Joints(q) => {
+            joints_to_vector(q, model.joint_count()).map_err(|_| WireError::BadConfig {
+                kind: kind.into(),
+                message: format!(
+                    "goal has {} values, the robot has {} joints",
+                    q.len(),
+                    model.joint_count()
+                ),
+            })
+        }
+    }
+}
+
+pub(super) fn spec_joints(spec: &TrajectorySpec) -> usize {
+    let of = |g: &GoalConfig| match g {
+        GoalConfig::Joints(q) => q.len(),
+        GoalConfig::Pose(_) => MAX_JOINTS,
+    };
+    match spec {
+        TrajectorySpec::Step { goal, .. }
+        | TrajectorySpec::Ramp { goal, .. }
+        | TrajectorySpec::Trapezoidal { goal, .. } => of(goal),
+        TrajectorySpec::Spline { waypoints, .. } => {
+            waypoints.first().map_or(MAX_JOINTS, |w| of(&w.1))
+        }
+    }
+}
+
+pub(super) fn build_standalone(
+    spec: &TrajectorySpec,
+    kind: &str,
+) -> Result<NodeTrajectory, WireError> {
+    let uses_pose = |g: &GoalConfig| matches!(g, GoalConfig::Pose(_));
+    let any_pose = match spec {
+        TrajectorySpec::Step { goal, .. }
+        | TrajectorySpec::Ramp { goal, .. }
+        | TrajectorySpec::Trapezoidal { goal, .. } => uses_pose(goal),
+        TrajectorySpec::Spline { waypoints, .. } => waypoints.iter().any(|w| uses_pose(&w.1)),
+    };
+    if any_pose {
+        return Err(not_ready(
+            "the goal is a named pose: bind the trajectory to a controller with a robot first",
+        ));
+    }
+    // A robot-less model of the goal's length: joints only, so any model of that many joints
+    // gives the same result; use a PUMA 560 for six and below.
+    let model = models::puma560();
+    let n = spec_joints(spec);
+    let pad = |g: &GoalConfig| match g {
+        GoalConfig::Joints(q) => {
+            let mut v = q.clone();
+            v.resize(model.joint_count().max(n), 0.0);
+            GoalConfig::Joints(v)
+        }
+        other => other.clone(),
+    };
+    let padded = match spec {
+        TrajectorySpec::Step { goal, delay } => TrajectorySpec::Step {
+            goal: pad(goal),
+            delay: *delay,
+        },
+        TrajectorySpec::Ramp { goal, duration } => TrajectorySpec::Ramp {
+            goal: pad(goal),
+            duration: *duration,
+        },
+        TrajectorySpec::Trapezoidal {
+            goal,
+            velocity,
+            acceleration,
+        } => TrajectorySpec::Trapezoidal {
+            goal: pad(goal),
+            velocity: match velocity {
+                kinds::PerJoint::Each(v) if v.len() == n => {
+                    let mut v = v.clone();
+                    v.resize(model.joint_count(), 1.0);
+                    kinds::PerJoint::Each(v)
+                }
+                other => other.clone(),
+            },
+            acceleration: match acceleration {
+                kinds::PerJoint::Each(v) if v.len() == n => {
+                    let mut v = v.clone();
+                    v.resize(model.joint_count(), 1.0);
+                    kinds::PerJoint::Each(v)
+                }
+                other => other.clone(),
+            },
+        },
+        TrajectorySpec::Spline { clamped, waypoints } => TrajectorySpec::Spline {
+            clamped: *clamped,
+            waypoints: waypoints.iter().map(|(t, g)| (*t, pad(g))).collect(),
+        },
+    };
+    build_trajectory(&padded, &model, kind)
+}
+
+/// The trajectory `spec` for `model` (named poses resolved, lengths checked).
+pub(super) fn build_trajectory(
+    spec: &TrajectorySpec,
+    model: &DhRobotModel,
+    kind: &str,
+) -> Result<NodeTrajectory, WireError> {
+    let n = model.joint_count();
+    let cfg_err = |e: penelope_rt_core::trajectory::TrajectoryConfigError| WireError::BadConfig {
+        kind: kind.into(),
+        message: e.to_string(),
+    };
+    Ok(match spec {
+        TrajectorySpec::Step { goal, delay } => NodeTrajectory::Step(
+            Step::joint(goal_vector(goal, model, kind)?)
+                .map_err(cfg_err)?
+                .with_delay(*delay),
+        ),
+        TrajectorySpec::Ramp { goal, duration } => NodeTrajectory::Ramp(
+            Ramp::joint(goal_vector(goal, model, kind)?, *duration).map_err(cfg_err)?,
+        ),
+        TrajectorySpec::Trapezoidal {
+            goal,
+            velocity,
+            acceleration,
+        } => {
+            let mut v = velocity.resolve(kind, "max_velocity", n, 1e-4, 20.0)?;
+            let mut a = acceleration.resolve(kind, "max_acceleration", n, 1e-4, 200.0)?;
+            for j in n..MAX_JOINTS {
+                v[j] = 1.0;
+                a[j] = 1.0;
+            }
+            NodeTrajectory::Trapezoidal(
+                Trapezoidal::joint(goal_vector(goal, model, kind)?, v, a).map_err(cfg_err)?,
+            )
+        }
+        TrajectorySpec::Spline { clamped, waypoints } => {
+            let mut w = Vec::with_capacity(waypoints.len());
+            for (at, g) in waypoints {
+                w.push(Waypoint {
+                    at: *at,
+                    goal: Goal::Joint(goal_vector(g, model, kind)?),
+                });
+            }
+            let ends = if *clamped {
+                SplineEnds::Clamped
+            } else {
+                SplineEnds::Natural
+            };
+            NodeTrajectory::Spline(CubicSpline::new(&w, ends).map_err(cfg_err)?)
+        }
+    })
+}
