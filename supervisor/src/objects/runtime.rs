@@ -30,8 +30,8 @@ use penelope_drivers::sim::board::{SimBoard, SimBoardError};
 use penelope_drivers::sim::environment::Environment;
 use penelope_hal::{
     AxisCommand, AxisState, Board, ControlInput, Controller, ControllerError, Error, ErrorKind,
-    Frame, JacobianFrame, JointCommand, JointReference, JointState, JointVector, Kinematics,
-    MAX_AXES, MAX_JOINTS, Pose, Reference, RobotModel, Sensor, Timestamp, Trajectory,
+    Frame, InverseKinematics, JacobianFrame, JointCommand, JointReference, JointState, JointVector,
+    Kinematics, MAX_AXES, MAX_JOINTS, Pose, Reference, RobotModel, Sensor, Timestamp, Trajectory,
     TrajectoryError, Twist, Wrench,
 };
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, Stamped};
@@ -654,10 +654,17 @@ pub struct CommTask {
     goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
     model: RobotKinematics,
     cartesian: bool,
+    /// The trajectory's goals are tool poses (it starts from the measured tool pose).
+    tool_goals: bool,
     started: bool,
     last: Option<JointReference>,
+    /// When `last` was produced by inverse kinematics (for its velocity).
+    last_at: Option<Timestamp>,
     measured: Option<JointVector>,
     published: u64,
+    /// Tool references a joint law could not follow (no inverse kinematics solution near the
+    /// last one): not published, so the loop's watchdog holds the robot if they persist.
+    ik_failures: u64,
 }
 
 impl CommTask {
@@ -678,11 +685,26 @@ impl CommTask {
             goto,
             model,
             cartesian,
+            tool_goals: false,
             started: false,
             last: None,
+            last_at: None,
             measured: None,
             published: 0,
+            ik_failures: 0,
         }
+    }
+
+    /// Tells the task that the trajectory's goals are tool poses: it starts from the measured
+    /// tool pose, and a joint law follows its references through inverse kinematics.
+    pub fn with_tool_goals(mut self, tool_goals: bool) -> Self {
+        self.tool_goals = tool_goals;
+        self
+    }
+
+    /// Tool references a joint law could not follow so far.
+    pub fn ik_failures(&self) -> u64 {
+        self.ik_failures
     }
 
     /// A task running one end of a teleoperation channel instead of a trajectory (GoTo
@@ -710,10 +732,18 @@ impl CommTask {
     }
 
     fn from(&self) -> Reference {
-        Reference::Joint(self.last.unwrap_or(JointReference {
+        let joints = self.last.unwrap_or(JointReference {
             position: self.measured.unwrap_or_else(JointVector::zeros),
             ..JointReference::default()
-        }))
+        });
+        if self.tool_goals {
+            Reference::Cartesian(penelope_hal::CartesianReference {
+                pose: self.model.forward(&joints.position),
+                twist: Twist::default(),
+            })
+        } else {
+            Reference::Joint(joints)
+        }
     }
 
     /// One communication tick at `now`.
@@ -741,6 +771,8 @@ impl CommTask {
         if let Some(cmd) = self.goto.pop()
             && let Ok(mut t) = NodeTrajectory::go_to(cmd.goal, cmd.duration)
         {
+            // A GoTo moves in joint space, from the current joint reference.
+            self.tool_goals = false;
             let from = self.from();
             t.start(now, &from);
             self.trajectory = t;
@@ -768,6 +800,33 @@ impl CommTask {
                 } else {
                     r
                 }
+            }
+            // A tool reference for a joint law: the inverse kinematics branch nearest the last
+            // joint reference, its velocity from the previous solution.
+            Reference::Cartesian(c) if !self.cartesian => {
+                let seed = self
+                    .last
+                    .map(|j| j.position)
+                    .or(self.measured)
+                    .unwrap_or_else(JointVector::zeros);
+                let Ok(q) = self.model.inverse_near(&c.pose, &seed) else {
+                    self.ik_failures += 1;
+                    return;
+                };
+                let velocity = match (self.last, self.last_at) {
+                    (Some(l), Some(at)) if now > at => {
+                        (q - l.position) / now.saturating_since(at).as_secs_f64()
+                    }
+                    _ => JointVector::zeros(),
+                };
+                let j = JointReference {
+                    position: q,
+                    velocity,
+                    acceleration: JointVector::zeros(),
+                };
+                self.last = Some(j);
+                self.last_at = Some(now);
+                Reference::Joint(j)
             }
             other => other,
         };

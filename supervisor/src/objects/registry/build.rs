@@ -97,8 +97,12 @@ impl Registry {
         let n = model.joint_count();
         let start = r.start;
         // A trajectory, or one end of a teleoperation channel for the halves of the laws.
+        let mut tool_goals = false;
         let (trajectory, teleop) = match (&self.get(&traj_name)?.body, law.teleop_side()) {
-            (Body::Trajectory(t), None) => (Some(build_trajectory(&t.spec, &model, kind)?), None),
+            (Body::Trajectory(t), None) => {
+                tool_goals = spec_is_tool(&t.spec);
+                (Some(build_trajectory(&t.spec, &model, kind)?), None)
+            }
             (Body::Teleop(t), Some(side)) => {
                 check_teleop_end(&traj_name, t, side, &robot_name)?;
                 (None, Some((side, t.config.mapping())))
@@ -292,7 +296,8 @@ impl Registry {
                 goto_r,
                 kinematics.clone(),
                 cartesian,
-            ),
+            )
+            .with_tool_goals(tool_goals),
             (None, Some((side, mapping))) => {
                 // The master's clutch is its operator's hand's button, if a hand holds it.
                 let clutch = self.objects.values().find_map(|o| match &o.body {

@@ -58,7 +58,7 @@ mod trajectories;
 
 pub(crate) use build::Built;
 use build::pid_gains;
-use trajectories::{build_standalone, build_trajectory, spec_joints};
+use trajectories::{build_standalone, build_trajectory, spec_is_tool, spec_joints};
 
 /// One object.
 pub(crate) struct Object {

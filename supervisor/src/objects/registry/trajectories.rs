@@ -9,6 +9,7 @@ pub(super) fn goal_vector(
 ) -> Result<JointVector, WireError> {
     match g {
         GoalConfig::Pose(p) => Ok(model.named_pose(*p)),
+        GoalConfig::Tool { .. } => Err(WireError::Internal("a tool goal in joint space".into())),
         GoalConfig::Joints(q) => {
             joints_to_vector(q, model.joint_count()).map_err(|_| WireError::BadConfig {
                 kind: kind.into(),
@@ -25,7 +26,7 @@ pub(super) fn goal_vector(
 pub(super) fn spec_joints(spec: &TrajectorySpec) -> usize {
     let of = |g: &GoalConfig| match g {
         GoalConfig::Joints(q) => q.len(),
-        GoalConfig::Pose(_) => MAX_JOINTS,
+        GoalConfig::Pose(_) | GoalConfig::Tool { .. } => MAX_JOINTS,
     };
     match spec {
         TrajectorySpec::Step { goal, .. }
@@ -41,7 +42,13 @@ pub(super) fn build_standalone(
     spec: &TrajectorySpec,
     kind: &str,
 ) -> Result<NodeTrajectory, WireError> {
-    let uses_pose = |g: &GoalConfig| matches!(g, GoalConfig::Pose(_));
+    // A named pose, or a tool goal whose orientation is the robot's start pose's.
+    let uses_pose = |g: &GoalConfig| {
+        matches!(
+            g,
+            GoalConfig::Pose(_) | GoalConfig::Tool { rpy_deg: None, .. }
+        )
+    };
     let any_pose = match spec {
         TrajectorySpec::Step { goal, .. }
         | TrajectorySpec::Ramp { goal, .. }
@@ -105,6 +112,37 @@ pub(super) fn build_standalone(
     build_trajectory(&padded, &model, kind)
 }
 
+/// Whether `spec` moves in operational space (its goals are tool poses).
+pub(super) fn spec_is_tool(spec: &TrajectorySpec) -> bool {
+    match spec {
+        TrajectorySpec::Step { goal, .. }
+        | TrajectorySpec::Ramp { goal, .. }
+        | TrajectorySpec::Trapezoidal { goal, .. } => goal.is_tool(),
+        TrajectorySpec::Spline { waypoints, .. } => waypoints.iter().any(|w| w.1.is_tool()),
+    }
+}
+
+/// The goal `g` for `model`: joints for a joint or named-pose goal, a tool pose for a tool goal
+/// (its orientation, when not given, that of the robot's `start` pose).
+fn goal_for(g: &GoalConfig, model: &DhRobotModel, kind: &str) -> Result<Goal, WireError> {
+    match g {
+        GoalConfig::Tool { position, rpy_deg } => {
+            let rotation = match rpy_deg {
+                Some(a) => {
+                    let [r, p, y] = a.map(f64::to_radians);
+                    nalgebra::UnitQuaternion::from_euler_angles(r, p, y)
+                }
+                None => model.forward(&model.named_pose(NamedPose::Start)).rotation,
+            };
+            Ok(Goal::Cartesian(penelope_hal::Pose::from_parts(
+                nalgebra::Translation3::new(position[0], position[1], position[2]),
+                rotation,
+            )))
+        }
+        other => Ok(Goal::Joint(goal_vector(other, model, kind)?)),
+    }
+}
+
 /// The trajectory `spec` for `model` (named poses resolved, lengths checked).
 pub(super) fn build_trajectory(
     spec: &TrajectorySpec,
@@ -118,12 +156,12 @@ pub(super) fn build_trajectory(
     };
     Ok(match spec {
         TrajectorySpec::Step { goal, delay } => NodeTrajectory::Step(
-            Step::joint(goal_vector(goal, model, kind)?)
+            Step::new(goal_for(goal, model, kind)?)
                 .map_err(cfg_err)?
                 .with_delay(*delay),
         ),
         TrajectorySpec::Ramp { goal, duration } => NodeTrajectory::Ramp(
-            Ramp::joint(goal_vector(goal, model, kind)?, *duration).map_err(cfg_err)?,
+            Ramp::new(goal_for(goal, model, kind)?, *duration).map_err(cfg_err)?,
         ),
         TrajectorySpec::Trapezoidal {
             goal,
@@ -145,7 +183,7 @@ pub(super) fn build_trajectory(
             for (at, g) in waypoints {
                 w.push(Waypoint {
                     at: *at,
-                    goal: Goal::Joint(goal_vector(g, model, kind)?),
+                    goal: goal_for(g, model, kind)?,
                 });
             }
             let ends = if *clamped {

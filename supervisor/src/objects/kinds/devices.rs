@@ -1,0 +1,321 @@
+//! The configurations of robots, boards and sensors, and the environment a simulated tool or a
+//! virtual sensor touches.
+
+use super::*;
+
+/// One contact shape of an environment.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShapeConfig {
+    /// `plane` or `sphere`.
+    pub kind: String,
+    /// A point on the plane, or the sphere's centre, m (base frame).
+    #[serde(default)]
+    pub point: [f64; 3],
+    /// Plane normal into free space.
+    #[serde(default = "up")]
+    pub normal: [f64; 3],
+    /// Sphere radius, m.
+    #[serde(default = "radius")]
+    pub radius: f64,
+    /// Contact stiffness, N/m.
+    #[serde(default = "stiffness")]
+    pub stiffness: f64,
+    /// Contact damping, N·s/m.
+    #[serde(default = "damping")]
+    pub damping: f64,
+}
+
+fn up() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+fn radius() -> f64 {
+    0.05
+}
+fn stiffness() -> f64 {
+    5000.0
+}
+fn damping() -> f64 {
+    20.0
+}
+
+/// Builds an environment from shapes.
+///
+/// # Errors
+/// [`WireError::BadConfig`] for an unknown shape kind, a value out of range or too many shapes.
+pub fn environment(kind: &str, shapes: &[ShapeConfig]) -> Result<Environment, WireError> {
+    let mut env = Environment::new();
+    for s in shapes {
+        for x in s.point.iter().chain(&s.normal) {
+            check_range(kind, "shapes.point/normal", *x, -100.0, 100.0)?;
+        }
+        check_range(kind, "shapes.stiffness", s.stiffness, 0.0, 1e7)?;
+        check_range(kind, "shapes.damping", s.damping, 0.0, 1e5)?;
+        let shape = match s.kind.as_str() {
+            "plane" => {
+                let n = Vector3::from(s.normal);
+                if n.norm() < 1e-9 {
+                    return Err(bad(kind, "a plane's `normal` must not be zero"));
+                }
+                Shape::Plane {
+                    point: Vector3::from(s.point),
+                    normal: Unit::new_normalize(n),
+                }
+            }
+            "sphere" => {
+                check_range(kind, "shapes.radius", s.radius, 1e-6, 100.0)?;
+                Shape::Sphere {
+                    center: Vector3::from(s.point),
+                    radius: s.radius,
+                }
+            }
+            other => {
+                return Err(bad(
+                    kind,
+                    format!("shape kind `{other}` is not \"plane\" or \"sphere\""),
+                ));
+            }
+        };
+        env = env
+            .with(ContactModel {
+                shape,
+                stiffness: s.stiffness,
+                damping: s.damping,
+            })
+            .map_err(|_| bad(kind, "at most 8 shapes"))?;
+    }
+    Ok(env)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Robots, boards, sensors
+// ---------------------------------------------------------------------------------------------
+
+/// `robot/*` configuration.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RobotConfig {
+    /// The named pose a simulated body starts in, and where Galil encoders read zero.
+    pub start: String,
+    /// `float`, or `fpga` (the FRHC's FPGA board model).
+    pub kinematics: String,
+    /// `master` or `slave` (`None`: master for the FRHC, else slave).
+    pub role: Option<String>,
+    /// A master's largest displayed force, N.
+    pub max_force_n: f64,
+    /// A master's largest displayed moment, N·m.
+    pub max_moment_nm: f64,
+}
+
+impl Default for RobotConfig {
+    fn default() -> Self {
+        RobotConfig {
+            start: "start".into(),
+            kinematics: "float".into(),
+            role: None,
+            max_force_n: 10.0,
+            max_moment_nm: 0.5,
+        }
+    }
+}
+
+impl RobotConfig {
+    /// Whether the FPGA kinematics were chosen.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for a word other than float or fpga.
+    pub fn fpga(&self, kind: &str) -> Result<bool, WireError> {
+        match self.kinematics.as_str() {
+            "float" => Ok(false),
+            "fpga" => Ok(true),
+            other => Err(bad(
+                kind,
+                format!("`kinematics` = {other:?} is not \"float\" or \"fpga\""),
+            )),
+        }
+    }
+
+    /// The robot's role, defaulting by model (`frhc` is a master), and its checked caps.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for a word other than master or slave, or caps that are not
+    /// positive.
+    pub fn role(&self, kind: &str) -> Result<Role, WireError> {
+        for (key, v) in [
+            ("max_force_n", self.max_force_n),
+            ("max_moment_nm", self.max_moment_nm),
+        ] {
+            if v.is_nan() || v <= 0.0 {
+                return Err(bad(kind, format!("`{key}` must be > 0 (inf: no cap)")));
+            }
+        }
+        match self.role.as_deref() {
+            None if kind == "robot/frhc" => Ok(Role::Master),
+            None | Some("slave") => Ok(Role::Slave),
+            Some("master") => Ok(Role::Master),
+            Some(other) => Err(bad(
+                kind,
+                format!("`role` = {other:?} is not \"master\" or \"slave\""),
+            )),
+        }
+    }
+
+    /// The start pose.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for a name other than nest, start, work.
+    pub fn start_pose(&self, kind: &str) -> Result<NamedPose, WireError> {
+        NamedPose::parse(&self.start).ok_or_else(|| {
+            bad(
+                kind,
+                format!("`start` = {:?} is not nest, start or work", self.start),
+            )
+        })
+    }
+}
+
+/// `board/sim` configuration.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimBoardConfig {
+    /// Number of axes.
+    pub axes: u32,
+    /// DAC resolution, bits.
+    pub dac_bits: u32,
+    /// Plant integration sub-step, µs.
+    pub substep_us: u64,
+    /// Model friction in the plant.
+    pub friction: bool,
+    /// The environment the plant's tool touches.
+    pub shapes: Vec<ShapeConfig>,
+}
+
+impl Default for SimBoardConfig {
+    fn default() -> Self {
+        SimBoardConfig {
+            axes: 6,
+            dac_bits: 16,
+            substep_us: 200,
+            friction: true,
+            shapes: Vec::new(),
+        }
+    }
+}
+
+impl SimBoardConfig {
+    /// Checks ranges.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<Environment, WireError> {
+        check_int(kind, "axes", self.axes.into(), 1, MAX_AXES as u64)?;
+        check_int(kind, "dac_bits", self.dac_bits.into(), 8, 24)?;
+        check_int(kind, "substep_us", self.substep_us, 20, 2000)?;
+        environment(kind, &self.shapes)
+    }
+}
+
+/// `board/galil` configuration.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GalilConfig {
+    /// Serial device.
+    pub device: Option<String>,
+    /// TCP address.
+    pub address: Option<String>,
+    /// Serial baud rate.
+    pub baud: u32,
+    /// Axes driven.
+    pub axes: u32,
+    /// V per N·m.
+    pub volts_per_newton_metre: PerJoint,
+    /// TCP connect timeout, ms.
+    pub connect_timeout_ms: u64,
+    /// The board-side watchdog time, ms (0: none).
+    pub watchdog_ms: u64,
+}
+
+impl Default for GalilConfig {
+    fn default() -> Self {
+        GalilConfig {
+            device: None,
+            address: None,
+            baud: 115_200,
+            axes: 6,
+            volts_per_newton_metre: PerJoint::One(0.1),
+            connect_timeout_ms: 1000,
+            watchdog_ms: penelope_drivers::galil::DEFAULT_WATCHDOG.as_millis() as u64,
+        }
+    }
+}
+
+impl GalilConfig {
+    /// Checks ranges and that exactly one of `device` and `address` is given.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<(), WireError> {
+        match (&self.device, &self.address) {
+            (Some(_), Some(_)) => return Err(bad(kind, "give `device` or `address`, not both")),
+            (None, None) => {
+                return Err(bad(
+                    kind,
+                    "needs `device` (serial) or `address` (host:port)",
+                ));
+            }
+            (None, Some(a)) => {
+                if a.parse::<std::net::SocketAddr>().is_err() && !a.contains(':') {
+                    return Err(bad(kind, format!("`address` = {a:?} is not host:port")));
+                }
+            }
+            (Some(d), None) => {
+                if d.is_empty() {
+                    return Err(bad(kind, "`device` is empty"));
+                }
+            }
+        }
+        check_int(kind, "baud", self.baud.into(), 1200, 921_600)?;
+        check_int(kind, "axes", self.axes.into(), 1, MAX_AXES as u64)?;
+        check_int(
+            kind,
+            "connect_timeout_ms",
+            self.connect_timeout_ms,
+            10,
+            60_000,
+        )?;
+        if self.watchdog_ms != 0 {
+            check_int(kind, "watchdog_ms", self.watchdog_ms, 5, 1000)?;
+        }
+        self.volts_per_newton_metre
+            .check(kind, "volts_per_newton_metre", -10.0, 10.0)?;
+        if let PerJoint::Each(v) = &self.volts_per_newton_metre
+            && v.len() != self.axes as usize
+        {
+            return Err(bad(
+                kind,
+                "`volts_per_newton_metre` needs one value or one per axis",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The scaling per axis.
+    pub fn volts(&self) -> [f64; MAX_AXES] {
+        let mut out = [0.0; MAX_AXES];
+        for (a, o) in out.iter_mut().enumerate().take(self.axes as usize) {
+            *o = match &self.volts_per_newton_metre {
+                PerJoint::One(v) => *v,
+                PerJoint::Each(v) => v.get(a).copied().unwrap_or(0.0),
+            };
+        }
+        out
+    }
+}
+
+/// `sensor/virtual` configuration.
+#[derive(Clone, Debug, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SensorConfig {
+    /// The contact shapes.
+    pub shapes: Vec<ShapeConfig>,
+}
