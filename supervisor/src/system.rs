@@ -320,11 +320,12 @@ impl SystemFile {
     /// object created from the file is destroyed again (forced: loops stopped, amplifiers off).
     ///
     /// # Errors
-    /// [`SystemFileError::Invalid`] when the file names other nodes but not this one's objects
-    /// unambiguously; [`SystemFileError::Step`] for the first refused step.
+    /// [`SystemFileError::Invalid`] when the file names its nodes and `node` is not one of them;
+    /// [`SystemFileError::Step`] for the first refused step.
     pub fn apply(&self, node: &Node) -> Result<Vec<ObjectInfo>, SystemFileError> {
+        // A file that names its nodes is applied only to one of them (never silently to none).
         let names = self.node_names();
-        if names.len() > 1 && !names.iter().any(|n| n == node.name()) {
+        if !names.is_empty() && !names.iter().any(|n| n == node.name()) {
             return Err(SystemFileError::Invalid {
                 line: 1,
                 key: "node".into(),

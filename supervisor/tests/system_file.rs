@@ -123,6 +123,25 @@ fn a_node_brings_the_papers_task_up_from_the_file() {
 }
 
 #[test]
+fn a_file_for_other_nodes_is_refused_not_applied_to_nothing() {
+    let mut config = NodeConfig::new("elsewhere", NamingChoice::None);
+    config.creator.rt.priority = None;
+    let node = Node::start(config).unwrap();
+    let file = SystemFile::parse(TELEOP).unwrap();
+    match file.apply(&node) {
+        Err(SystemFileError::Invalid { message, .. }) => {
+            assert!(message.contains("lab"), "{message}")
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(node.creator().list().is_empty());
+    // A file that names no node goes to whichever node applies it.
+    let example = SystemFile::parse(EXAMPLE).unwrap();
+    assert_eq!(example.apply(&node).unwrap().len(), 4);
+    node.shutdown();
+}
+
+#[test]
 fn a_file_that_cannot_be_applied_whole_leaves_nothing_behind() {
     let node = node();
     // The slave half on the master's robot: refused at activation, after everything was made
