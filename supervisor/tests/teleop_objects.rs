@@ -114,6 +114,15 @@ fn the_task() -> Creator {
 
 /// Every control tick of both sides over `seconds` of simulated time.
 fn run(c: &Creator, seconds: f64) -> (Vec<TelemetrySample>, Vec<TelemetrySample>) {
+    run_with_master_until(c, seconds, f64::INFINITY)
+}
+
+/// As [`run`], with the master's communication thread silent after `master_stops` seconds.
+fn run_with_master_until(
+    c: &Creator,
+    seconds: f64,
+    master_stops: f64,
+) -> (Vec<TelemetrySample>, Vec<TelemetrySample>) {
     let mut master: DetachedLoop = c.detach_loop("display").expect("the master's loop builds");
     let mut slave: DetachedLoop = c.detach_loop("follow").expect("the slave's loop builds");
     let mut wrench = slave.wrench.take().expect("a sensor is bound");
@@ -123,7 +132,9 @@ fn run(c: &Creator, seconds: f64) -> (Vec<TelemetrySample>, Vec<TelemetrySample>
         let now = Timestamp::from_nanos(i * 1_000_000);
         if i % 2 == 1 {
             // What the communication threads and the sensor feed do each period.
-            master.comm.tick(now);
+            if (i as f64) < master_stops * 1000.0 {
+                master.comm.tick(now);
+            }
             slave.comm.tick(now);
             if let Some(s) = slave.probe.latest() {
                 let pose = match ok(
@@ -345,4 +356,30 @@ fn motor_force(c: &Creator, robot: &str, s: &TelemetrySample) -> nalgebra::Vecto
         .expect("away from singularities")
         * (tau - g);
     wrench.fixed_rows::<3>(0).into_owned()
+}
+
+#[test]
+fn a_silent_master_makes_the_slave_hold_within_its_watchdog() {
+    use penelope_rt_core::safety::SafetyState;
+    let c = the_task();
+    // The master's side goes silent at 3 s (the reach is under way).
+    let (_, slave) = run_with_master_until(&c, 3.5, 3.0);
+    let first_hold = slave
+        .iter()
+        .find(|s| s.time.as_nanos() > 3_000_000_000 && s.state != SafetyState::Running)
+        .expect("the slave never stopped following a silent master");
+    assert_eq!(first_hold.state, SafetyState::Holding);
+    let after = first_hold.time.as_nanos() as f64 / 1e6 - 3000.0;
+    // The watchdog is 50 ms; the last sample arrived up to one communication period earlier.
+    assert!(
+        (45.0..=55.0).contains(&after),
+        "held {after:.1} ms after the master went silent"
+    );
+    // Until then it ran (after its first references arrived).
+    assert!(
+        slave
+            .iter()
+            .filter(|s| (500_000_000..3_000_000_000).contains(&s.time.as_nanos()))
+            .all(|s| s.state == SafetyState::Running)
+    );
 }

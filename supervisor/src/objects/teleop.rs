@@ -199,6 +199,9 @@ pub struct TeleopComm {
     clutch: Option<Arc<AtomicBool>>,
     started: bool,
     sequence: u64,
+    /// When the newest sample of the other side arrived (this node's clock): the stamp of the
+    /// references, so that a silent other side makes them stale and the loop's watchdog acts.
+    received_at: Option<Timestamp>,
 }
 
 impl TeleopComm {
@@ -231,6 +234,7 @@ impl TeleopComm {
             clutch: None,
             started: false,
             sequence: 0,
+            received_at: None,
         })
     }
 
@@ -323,17 +327,19 @@ impl TeleopComm {
             clutch,
             reference,
         });
-        if let Fresh::New(received) = self.end.receive.read() {
-            // A stale or malformed sample is counted by the channel and dropped.
-            let _ = self.channel.receive(received);
+        if let Fresh::New(received) = self.end.receive.read()
+            && self.channel.receive(received).is_ok()
+        {
+            // (A stale or malformed sample is counted by the channel and dropped.)
+            self.received_at = Some(now);
         }
-        if let Ok(r) = penelope_hal::Trajectory::reference(&mut self.channel, now)
+        // Stamped with the arrival of what it is made of: when the other side goes silent the
+        // reference ages, and the loop holds (slave) or displays zero force (master).
+        if let Some(stamp) = self.received_at
+            && let Ok(r) = penelope_hal::Trajectory::reference(&mut self.channel, now)
             && r.is_finite()
         {
-            out.write(Stamped {
-                stamp: now,
-                value: r,
-            });
+            out.write(Stamped { stamp, value: r });
         }
     }
 }
