@@ -39,6 +39,7 @@ use hmac::{KeyInit, Mac};
 use sha2::Sha256;
 use snow::{Builder, HandshakeState, StatelessTransportState};
 
+use crate::net::frame::{FrameError, decode_body};
 use crate::proto::{FRAME_HEADER_LEN, NOISE_PATTERN};
 
 type HmacSha256 = hmac::Hmac<Sha256>;
@@ -360,6 +361,26 @@ impl std::fmt::Debug for Opener {
             .field("nonce", &self.nonce)
             .finish()
     }
+}
+
+/// The message in a frame's body: opened first when the connection is sealed (`opener`), then
+/// decoded; with `keep_body`, also a copy of the plain body (for the wire-format checks).
+///
+/// # Errors
+/// [`FrameError::Malformed`] for a body that does not open or does not decode.
+pub fn open_message<T: serde::de::DeserializeOwned>(
+    opener: Option<&mut Opener>,
+    body: &[u8],
+    keep_body: bool,
+) -> Result<(T, Vec<u8>), FrameError> {
+    let body = match opener {
+        None => body,
+        Some(o) => o
+            .open(body)
+            .map_err(|e| FrameError::Malformed(e.to_string()))?,
+    };
+    let msg = decode_body::<T>(body)?;
+    Ok((msg, if keep_body { body.to_vec() } else { Vec::new() }))
 }
 
 impl Opener {

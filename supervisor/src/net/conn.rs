@@ -20,8 +20,8 @@ use std::io::{self, Write};
 use std::net::{Shutdown, SocketAddr, TcpStream};
 use std::time::{Duration, Instant};
 
-use crate::net::auth::{self, ClientHandshake, Opener, SealError, Sealer};
-use crate::net::frame::{FrameDecoder, FrameError, decode_body, encode_into};
+use crate::net::auth::{self, ClientHandshake, Opener, SealError, Sealer, open_message};
+use crate::net::frame::{FrameDecoder, FrameError, encode_into};
 use crate::proto::{
     Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, MAGIC, PROTOCOL_VERSION, Reply, Role,
     Security, ServerMsg, TelemetryBatch, WireError,
@@ -479,16 +479,9 @@ impl Connection {
     ) -> Result<(ServerMsg, Vec<u8>), RpcError> {
         loop {
             let opener = self.seal.as_mut().map(|(_, o)| o);
-            let next = self.decoder.next_with(|sealed| {
-                let body = match opener {
-                    None => sealed,
-                    Some(o) => o
-                        .open(sealed)
-                        .map_err(|e| FrameError::Malformed(e.to_string()))?,
-                };
-                let msg = decode_body::<ServerMsg>(body)?;
-                Ok((msg, if keep_body { body.to_vec() } else { Vec::new() }))
-            });
+            let next = self
+                .decoder
+                .next_with(|body| open_message::<ServerMsg>(opener, body, keep_body));
             match next {
                 Ok(Some(m)) => return Ok(m),
                 Ok(None) => {}

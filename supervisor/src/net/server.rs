@@ -49,8 +49,8 @@ use std::time::{Duration, Instant};
 
 use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
 
-use crate::net::auth::{self, Opener, PSK_LEN, Sealer};
-use crate::net::frame::{FrameDecoder, FrameError, decode_body, encode_into};
+use crate::net::auth::{self, Opener, PSK_LEN, Sealer, open_message};
+use crate::net::frame::{FrameDecoder, FrameError, encode_into};
 use crate::net::limits::{Admission, TokenBucket};
 use crate::proto::{ClientMsg, DEFAULT_MAX_FRAME, ServerMsg, WireError};
 use crate::service::{Outbox, OutboxReceiver, Service, Session};
@@ -662,17 +662,10 @@ impl Conn<'_> {
         keep_body: bool,
     ) -> Result<(ClientMsg, Vec<u8>), End> {
         loop {
-            let opener = &mut self.opener;
-            let next = self.decoder.next_with(|sealed| {
-                let body = match opener {
-                    None => sealed,
-                    Some(o) => o
-                        .open(sealed)
-                        .map_err(|e| FrameError::Malformed(e.to_string()))?,
-                };
-                let msg = decode_body::<ClientMsg>(body)?;
-                Ok((msg, if keep_body { body.to_vec() } else { Vec::new() }))
-            });
+            let opener = self.opener.as_mut();
+            let next = self
+                .decoder
+                .next_with(|body| open_message::<ClientMsg>(opener, body, keep_body));
             match next {
                 Ok(Some(m)) => {
                     bump(&self.shared.counters.frames_in);
