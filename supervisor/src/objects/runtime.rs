@@ -641,14 +641,22 @@ impl ControlTask {
 // The communication task
 // ---------------------------------------------------------------------------------------------
 
+/// Where a communication task's references come from.
+// One per loop, built before its thread starts: inline, so a GoTo swaps it without allocating.
+#[allow(clippy::large_enum_variant)]
+enum ReferenceSource {
+    /// A trajectory (and the GoTo motions that replace it).
+    Trajectory(NodeTrajectory),
+    /// One end of a teleoperation channel.
+    Teleop(Box<TeleopComm>),
+}
+
 /// The per-tick body of a communication thread: starts the trajectory from the measured state
 /// (no jump), swaps in GoTo motions from the current reference (no jump in position or velocity),
 /// converts joint references to Cartesian ones for a Cartesian law (forward kinematics and
 /// `J qd`), and publishes the stamped reference. Like rt-core's `CommLoop`, plus the conversion.
 pub struct CommTask {
-    /// A teleoperation channel's end, when the trajectory is a `trajectory/teleop`.
-    teleop: Option<Box<TeleopComm>>,
-    trajectory: NodeTrajectory,
+    source: ReferenceSource,
     writer: RefWriter,
     state: ArcLatestReader<TelemetrySample>,
     goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
@@ -677,9 +685,20 @@ impl CommTask {
         model: RobotKinematics,
         cartesian: bool,
     ) -> Self {
+        let source = ReferenceSource::Trajectory(trajectory);
+        CommTask::with_source(source, writer, state, goto, model, cartesian)
+    }
+
+    fn with_source(
+        source: ReferenceSource,
+        writer: RefWriter,
+        state: ArcLatestReader<TelemetrySample>,
+        goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
+        model: RobotKinematics,
+        cartesian: bool,
+    ) -> Self {
         CommTask {
-            teleop: None,
-            trajectory,
+            source,
             writer,
             state,
             goto,
@@ -709,26 +728,29 @@ impl CommTask {
 
     /// A task running one end of a teleoperation channel instead of a trajectory (GoTo
     /// requests are refused by the creator before they reach it).
-    ///
-    /// # Errors
-    /// None in practice (the idle trajectory is built from constants); typed all the same.
     pub fn teleop(
         teleop: TeleopComm,
         writer: RefWriter,
         state: ArcLatestReader<TelemetrySample>,
         goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
         model: RobotKinematics,
-    ) -> Result<Self, WireError> {
-        // Never ticked: the channel end produces the references.
-        let idle = NodeTrajectory::go_to(JointVector::zeros(), Duration::from_secs(1))?;
-        let mut task = CommTask::new(idle, writer, state, goto, model, true);
-        task.teleop = Some(Box::new(teleop));
-        Ok(task)
+    ) -> Self {
+        CommTask::with_source(
+            ReferenceSource::Teleop(Box::new(teleop)),
+            writer,
+            state,
+            goto,
+            model,
+            true,
+        )
     }
 
     /// The teleoperation channel's end, given back when the loop stops.
     pub fn into_teleop_end(self) -> Option<super::teleop::TeleopEnd> {
-        self.teleop.map(|t| t.into_end())
+        match self.source {
+            ReferenceSource::Teleop(t) => Some(t.into_end()),
+            ReferenceSource::Trajectory(_) => None,
+        }
     }
 
     fn from(&self) -> Reference {
@@ -751,7 +773,7 @@ impl CommTask {
     /// # Real-time
     /// No allocation, no locks: cell reads and writes, one ring pop, bounded spline set-up.
     pub fn tick(&mut self, now: Timestamp) {
-        if let Some(t) = self.teleop.as_mut() {
+        if let ReferenceSource::Teleop(t) = &mut self.source {
             let state = self.state.latest();
             t.tick(now, state, &mut self.writer);
             self.published += 1;
@@ -765,7 +787,9 @@ impl CommTask {
         }
         if !self.started {
             let from = self.from();
-            self.trajectory.start(now, &from);
+            if let ReferenceSource::Trajectory(t) = &mut self.source {
+                t.start(now, &from);
+            }
             self.started = true;
         }
         if let Some(cmd) = self.goto.pop()
@@ -775,9 +799,12 @@ impl CommTask {
             self.tool_goals = false;
             let from = self.from();
             t.start(now, &from);
-            self.trajectory = t;
+            self.source = ReferenceSource::Trajectory(t);
         }
-        let Ok(r) = self.trajectory.reference(now) else {
+        let ReferenceSource::Trajectory(trajectory) = &mut self.source else {
+            return;
+        };
+        let Ok(r) = trajectory.reference(now) else {
             return;
         };
         if !r.is_finite() {

@@ -122,59 +122,31 @@ impl Registry {
             _ => return Err(WireError::Internal("trajectory body".into())),
         };
 
-        // Controller.
-        let (controller, hold) = match &law {
+        // Controller, and the gains a simulated body holds its pose with.
+        let hold = default_joint_gains(&model, n);
+        let controller = match &law {
             ControllerConfig::Pid(p) => {
-                let mut kp = JointVector::zeros();
-                let mut kd = JointVector::zeros();
-                for j in 0..n {
-                    kp[j] = 10.0 * finite_effort(&model, j);
-                    kd[j] = 0.5 * finite_effort(&model, j);
-                }
-                let gains = pid_gains(p, kind, n, kp, kd)?;
-                (NodeController::Pid(JointPid::new(gains)), (kp, kd))
+                NodeController::Pid(JointPid::new(pid_gains(p, kind, n, hold.0, hold.1)?))
             }
             ControllerConfig::Impedance(i) => {
-                let cfg = impedance(i);
-                let c = CartesianImpedance::new(cfg).map_err(|e| WireError::BadConfig {
-                    kind: kind.into(),
-                    message: format!("{e:?}"),
-                })?;
-                let mut kp = JointVector::zeros();
-                let mut kd = JointVector::zeros();
-                for j in 0..n {
-                    kp[j] = 10.0 * finite_effort(&model, j);
-                    kd[j] = 0.5 * finite_effort(&model, j);
-                }
-                (NodeController::Impedance(c), (kp, kd))
+                NodeController::Impedance(CartesianImpedance::new(impedance(i)).map_err(|e| {
+                    WireError::BadConfig {
+                        kind: kind.into(),
+                        message: format!("{e:?}"),
+                    }
+                })?)
             }
             ControllerConfig::Position(p) => {
                 let max_velocity = p
                     .max_velocity
                     .resolve(kind, "max_velocity", n, 1e-3, 100.0)?;
-                let mut kp = JointVector::zeros();
-                let mut kd = JointVector::zeros();
-                for j in 0..n {
-                    kp[j] = 10.0 * finite_effort(&model, j);
-                    kd[j] = 0.5 * finite_effort(&model, j);
-                }
-                (
-                    NodeController::Position(JointPositionServo::new(max_velocity)),
-                    (kp, kd),
-                )
+                NodeController::Position(JointPositionServo::new(max_velocity))
             }
-            ControllerConfig::ForceDisplay(c) => (
-                NodeController::ForceDisplay(c.law(kind)?),
-                slave_hold(&model, n),
-            ),
-            ControllerConfig::PositionError(c) => (
-                NodeController::PositionErrorMaster(c.law(kind)?),
-                slave_hold(&model, n),
-            ),
-            ControllerConfig::Tracking(c, servo) => (
-                NodeController::SlaveTracking(c.law(kind, *servo)?),
-                slave_hold(&model, n),
-            ),
+            ControllerConfig::ForceDisplay(c) => NodeController::ForceDisplay(c.law(kind)?),
+            ControllerConfig::PositionError(c) => NodeController::PositionErrorMaster(c.law(kind)?),
+            ControllerConfig::Tracking(c, servo) => {
+                NodeController::SlaveTracking(c.law(kind, *servo)?)
+            }
         };
 
         // Safety by role (a master: display caps, zero force on a stale reference, amplifiers
@@ -323,7 +295,7 @@ impl Registry {
                     comm_r,
                     goto_r,
                     kinematics.clone(),
-                )?
+                )
             }
             (None, None) => return Err(WireError::Internal("no reference source".into())),
         };
@@ -467,8 +439,10 @@ impl Registry {
     }
 }
 
-/// The default gains a loop on a simulated body holds its pose with.
-fn slave_hold(model: &DhRobotModel, n: usize) -> (JointVector, JointVector) {
+/// The default joint gains `(kp, kd)` of a robot: a joint PID's when its configuration leaves
+/// them out, and what a loop on a simulated body holds its pose with (10 and 0.5 times each
+/// joint's torque limit, per rad and per rad/s).
+pub(super) fn default_joint_gains(model: &DhRobotModel, n: usize) -> (JointVector, JointVector) {
     let mut kp = JointVector::zeros();
     let mut kd = JointVector::zeros();
     for j in 0..n {

@@ -556,60 +556,25 @@ impl Registry {
                 Ok(Reply::Unit)
             }
             ControllerMethod::SetGains { gains } => {
-                let c = self.controller_mut(name)?;
                 let k = kind.as_str();
-                let update = match &mut c.config {
-                    ControllerConfig::Pid(_) => {
-                        let new: JointPidConfig = kinds::parse(k, &gains)?;
-                        new.check(k)?;
-                        let n = c.robot.clone().and_then(|r| {
-                            self.robot(&r)
-                                .ok()
-                                .map(|r| (r.model.joint_count(), r.model.clone()))
-                        });
-                        let c = self.controller_mut(name)?;
-                        let ControllerConfig::Pid(p) = &mut c.config else {
-                            unreachable_body()?
-                        };
-                        merge_pid(p, &new, &gains);
-                        match n {
-                            Some((n, model)) if c.running.is_some() => {
-                                let mut kp = JointVector::zeros();
-                                let mut kd = JointVector::zeros();
-                                for j in 0..n {
-                                    kp[j] = 10.0 * finite_effort(&model, j);
-                                    kd[j] = 0.5 * finite_effort(&model, j);
-                                }
-                                Some(GainsUpdate::Pid(pid_gains(p, k, n, kp, kd)?))
-                            }
-                            _ => None,
-                        }
-                    }
-                    ControllerConfig::Position(_) => {
-                        return Err(WireError::Unsupported {
-                            kind: k.to_string(),
-                            method:
-                                "set-gains (its only setting, max_velocity, is fixed at creation)"
-                                    .into(),
-                        });
-                    }
-                    ControllerConfig::ForceDisplay(_)
-                    | ControllerConfig::PositionError(_)
-                    | ControllerConfig::Tracking(..) => {
-                        let text = merged_gains(k, &c.config_text, &gains)?;
-                        let (config, update) = teleop_gains(k, &c.config, &text)?;
-                        c.config = config;
-                        c.config_text = text;
-                        Some(update)
-                    }
-                    ControllerConfig::Impedance(i) => {
-                        let new: ImpedanceConfigToml = kinds::parse(k, &gains)?;
-                        new.check(k)?;
-                        merge_impedance(i, &new, &gains);
-                        Some(GainsUpdate::Impedance(impedance(i)))
-                    }
-                };
+                let model = self
+                    .controller_mut(name)?
+                    .robot
+                    .clone()
+                    .and_then(|r| self.robot(&r).ok().map(|r| r.model.clone()));
                 let c = self.controller_mut(name)?;
+                if matches!(c.config, ControllerConfig::Position(_)) {
+                    return Err(WireError::Unsupported {
+                        kind: k.to_string(),
+                        method: "set-gains (its only setting, max_velocity, is fixed at creation)"
+                            .into(),
+                    });
+                }
+                // The new keys replace those of the configuration; the rest stays.
+                let text = merged_gains(k, &c.config_text, &gains)?;
+                let (config, update) = gains_from(k, &c.config, &text, model.as_ref())?;
+                c.config = config;
+                c.config_text = text;
                 if let (Some(u), Some(run)) = (update, c.running.as_mut()) {
                     run.gains.write(u);
                 }
@@ -699,19 +664,40 @@ fn merged_gains(kind: &str, current: &str, gains: &str) -> Result<String, WireEr
     Ok(table.to_string())
 }
 
-/// A teleoperation law's configuration from `text`, checked, and the update for its loop.
-fn teleop_gains(
+/// A controller's configuration from `text`, checked, and the update for its running loop
+/// (a joint PID's needs its robot's `model` for the default gains; without one, none is sent).
+fn gains_from(
     kind: &str,
     current: &ControllerConfig,
     text: &str,
-) -> Result<(ControllerConfig, GainsUpdate), WireError> {
+    model: Option<&DhRobotModel>,
+) -> Result<(ControllerConfig, Option<GainsUpdate>), WireError> {
     Ok(match current {
+        ControllerConfig::Pid(_) => {
+            let cfg: JointPidConfig = kinds::parse(kind, text)?;
+            cfg.check(kind)?;
+            let update = match model {
+                Some(m) => {
+                    let n = m.joint_count();
+                    let (kp, kd) = default_joint_gains(m, n);
+                    Some(GainsUpdate::Pid(pid_gains(&cfg, kind, n, kp, kd)?))
+                }
+                None => None,
+            };
+            (ControllerConfig::Pid(cfg), update)
+        }
+        ControllerConfig::Impedance(_) => {
+            let cfg: ImpedanceConfigToml = kinds::parse(kind, text)?;
+            cfg.check(kind)?;
+            let update = GainsUpdate::Impedance(impedance(&cfg));
+            (ControllerConfig::Impedance(cfg), Some(update))
+        }
         ControllerConfig::ForceDisplay(_) => {
             let cfg: ForceDisplayToml = kinds::parse(kind, text)?;
             let law = cfg.law(kind)?;
             (
                 ControllerConfig::ForceDisplay(cfg),
-                GainsUpdate::ForceDisplay(*law.config()),
+                Some(GainsUpdate::ForceDisplay(*law.config())),
             )
         }
         ControllerConfig::PositionError(_) => {
@@ -719,7 +705,7 @@ fn teleop_gains(
             let law = cfg.law(kind)?;
             (
                 ControllerConfig::PositionError(cfg),
-                GainsUpdate::PositionError(*law.config()),
+                Some(GainsUpdate::PositionError(*law.config())),
             )
         }
         ControllerConfig::Tracking(_, servo) => {
@@ -727,54 +713,13 @@ fn teleop_gains(
             let law = cfg.law(kind, *servo)?;
             (
                 ControllerConfig::Tracking(cfg, *servo),
-                GainsUpdate::Tracking(*law.config()),
+                Some(GainsUpdate::Tracking(*law.config())),
             )
         }
-        _ => return Err(WireError::Internal("not a teleoperation law".into())),
+        ControllerConfig::Position(_) => {
+            return Err(WireError::Internal(
+                "a joint-position servo has no gains".into(),
+            ));
+        }
     })
-}
-
-/// Keys present in `text` replace those of `into`.
-fn merge_pid(into: &mut JointPidConfig, new: &JointPidConfig, text: &str) {
-    let has = |k: &str| text.lines().any(|l| l.trim_start().starts_with(k));
-    if has("kp") {
-        into.kp = new.kp.clone();
-    }
-    if has("ki") {
-        into.ki = new.ki.clone();
-    }
-    if has("kd") {
-        into.kd = new.kd.clone();
-    }
-    if has("integral_limit") {
-        into.integral_limit = new.integral_limit.clone();
-    }
-    if has("gravity_compensation") {
-        into.gravity_compensation = new.gravity_compensation;
-    }
-    if has("acceleration_feedforward") {
-        into.acceleration_feedforward = new.acceleration_feedforward;
-    }
-}
-
-fn merge_impedance(into: &mut ImpedanceConfigToml, new: &ImpedanceConfigToml, text: &str) {
-    let has = |k: &str| text.lines().any(|l| l.trim_start().starts_with(k));
-    if has("stiffness") {
-        into.stiffness = new.stiffness;
-    }
-    if has("damping") {
-        into.damping = new.damping;
-    }
-    if has("gravity_compensation") {
-        into.gravity_compensation = new.gravity_compensation;
-    }
-    if has("max_force") {
-        into.max_force = new.max_force;
-    }
-    if has("max_torque") {
-        into.max_torque = new.max_torque;
-    }
-    if has("ramp_in_ms") {
-        into.ramp_in_ms = new.ramp_in_ms;
-    }
 }

@@ -57,7 +57,7 @@ mod methods;
 mod trajectories;
 
 pub(crate) use build::Built;
-use build::pid_gains;
+use build::{default_joint_gains, pid_gains};
 use trajectories::{build_standalone, build_trajectory, spec_is_tool, spec_joints};
 
 /// One object.
