@@ -157,13 +157,14 @@ fn a_node_under_attack_keeps_answering_and_its_loop_keeps_time() {
         .map(|k| attack(addr, stop.clone(), made.clone(), k))
         .collect();
     let mut deaf = Connection::connect(addr, &ClientConfig::new("deaf")).unwrap();
-    assert!(matches!(
-        deaf.call(Call::Subscribe {
-            object: "pid".into(),
-            decimation: 1,
-        }),
-        Ok(Reply::Subscribed { .. })
-    ));
+    let subscribed = deaf.call(Call::Subscribe {
+        object: "pid".into(),
+        decimation: 1,
+    });
+    assert!(
+        matches!(subscribed, Ok(Reply::Subscribed { .. })),
+        "{subscribed:?}"
+    );
     let flood_stop = stop.clone();
     let flood = thread::spawn(move || {
         let mut answered = 0u64;

@@ -539,6 +539,9 @@ struct Conn<'a> {
     evicted: Arc<AtomicBool>,
     /// Set once the client said a valid hello (admission then evicts silent ones first).
     greeted: Arc<AtomicBool>,
+    /// Set once the handshake took a session slot: the connection left the pending pool and
+    /// can no longer be evicted from it.
+    in_session: bool,
     wire: Arc<Mutex<Wire>>,
     /// Responses not yet written.
     out: Vec<u8>,
@@ -850,6 +853,7 @@ fn serve(
         opener: None,
         evicted,
         greeted,
+        in_session: false,
         wire: wire.clone(),
         out: Vec::with_capacity(4096),
         out_frames: 0,
@@ -860,17 +864,15 @@ fn serve(
     let (client, identity) = match conn.handshake() {
         Ok(c) => c,
         Err(_) => {
-            shared.admission.abandon(id);
+            if conn.in_session {
+                shared.admission.close_session();
+            } else {
+                shared.admission.abandon(id);
+            }
             let _ = conn.stream.shutdown(Shutdown::Both);
             return;
         }
     };
-    if let Err(e) = shared.admission.open_session(id, identity.role) {
-        bump(&shared.counters.refused);
-        conn.fail(e);
-        let _ = conn.stream.shutdown(Shutdown::Both);
-        return;
-    }
     log::info!(
         "connection {id} from {peer}: client {client:?} as {:?}{}",
         identity.role,

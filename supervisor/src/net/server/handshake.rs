@@ -57,20 +57,25 @@ impl Conn<'_> {
             node: self.shared.config.node.clone(),
             security,
         });
-        self.queue(&ours);
         let identity = match psk {
-            None => Identity {
-                role: hello.role,
-                proven: false,
-            },
+            None => {
+                // The server hello ends a plain handshake: a session before it goes out.
+                self.open_session(hello.role)?;
+                self.queue(&ours);
+                Identity {
+                    role: hello.role,
+                    proven: false,
+                }
+            }
             Some((member, admin)) => {
+                self.queue(&ours);
                 let (role, psk) = match (hello.role, admin) {
                     (Role::Admin, Some(admin)) => (Role::Admin, admin),
                     (Role::Admin, None) => (Role::Reader, member),
                     (role, _) => (role, member),
                 };
                 let server_body = postcard::to_stdvec(&ours).unwrap_or_default();
-                self.authenticate(&psk, &client_body, &server_body, deadline)?;
+                self.authenticate(&psk, &client_body, &server_body, role, deadline)?;
                 Identity { role, proven: true }
             }
         };
@@ -80,13 +85,34 @@ impl Conn<'_> {
         Ok((hello.client, identity))
     }
 
+    /// Takes a session slot for `role` and leaves the pending pool, before the handshake's last
+    /// message goes out: a client is then never told it is connected by a connection that the
+    /// pool may still evict (an eviction that came first is the client's answer instead).
+    fn open_session(&mut self, role: Role) -> Result<(), End> {
+        let admission = &self.shared.admission;
+        if let Err(e) = admission.open_session(self.id, role) {
+            bump(&self.shared.counters.refused);
+            return Err(self.fail(e));
+        }
+        self.in_session = true;
+        // Evicted while still pending (the flag is set under the admission lock, which
+        // `open_session` took after it): give the slot back and say so.
+        if self.evicted.load(Ordering::Acquire) {
+            admission.close_session();
+            self.in_session = false;
+            return Err(self.evict());
+        }
+        Ok(())
+    }
+
     /// The Noise handshake (after the hellos, which are its prologue): checks the client's
-    /// message, answers, and seals the connection from then on.
+    /// message, takes a session slot for `role`, answers, and seals the connection from then on.
     fn authenticate(
         &mut self,
         psk: &[u8; PSK_LEN],
         client_hello: &[u8],
         server_hello: &[u8],
+        role: Role,
         deadline: Instant,
     ) -> Result<(), End> {
         if !self.flush() {
@@ -107,6 +133,7 @@ impl Conn<'_> {
         let prologue = auth::prologue(client_hello, server_hello);
         match auth::answer(psk, &prologue, &first) {
             Ok((second, keys)) => {
+                self.open_session(role)?;
                 self.queue(&ServerMsg::Handshake { noise: second });
                 if !self.flush() {
                     return Err(self.dropped_writer());
