@@ -109,6 +109,12 @@ impl<M: RobotModel, I: Interaction> SimBoard<M, I> {
         self
     }
 
+    /// Replaces the tap (its old readers see no new samples): a board that outlives the loops
+    /// that read it gets a fresh tap per loop, so readers never pile up.
+    pub fn set_tap(&mut self, tap: TapWriter) {
+        self.tap = Some(tap);
+    }
+
     /// Whether the amplifiers are on (set by [`Board::set_enabled`]); off, the plant gets zero
     /// torque.
     pub fn is_enabled(&self) -> bool {

@@ -2,6 +2,7 @@
 //! virtual sensor touches.
 
 use super::*;
+use penelope_hal::{Frame, Pose, Wrench};
 
 /// One contact shape of an environment.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -313,9 +314,87 @@ impl GalilConfig {
 }
 
 /// `sensor/virtual` configuration.
-#[derive(Clone, Debug, PartialEq, Default, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SensorConfig {
-    /// The contact shapes.
+    /// The robot whose simulated body's contact the sensor reads (plant mode).
+    pub robot: Option<String>,
+    /// The sensor frame's origin in the tool frame, m.
+    pub mount_xyz: [f64; 3],
+    /// Constant offset: force (N) then torque (N·m), sensor frame.
+    pub bias: [f64; 6],
+    /// Noise standard deviation per force axis, N.
+    pub force_noise: f64,
+    /// Noise standard deviation per torque axis, N·m.
+    pub torque_noise: f64,
+    /// Low-pass cut-off, Hz (0: off).
+    pub cutoff_hz: f64,
+    /// Noise seed.
+    pub seed: u64,
+    /// The contact shapes (probe mode).
     pub shapes: Vec<ShapeConfig>,
+}
+
+impl Default for SensorConfig {
+    fn default() -> Self {
+        SensorConfig {
+            robot: None,
+            mount_xyz: [0.0; 3],
+            bias: [0.0; 6],
+            force_noise: 0.0,
+            torque_noise: 0.0,
+            cutoff_hz: 0.0,
+            seed: 1,
+            shapes: Vec::new(),
+        }
+    }
+}
+
+impl SensorConfig {
+    /// Checks ranges; a sensor reading a robot's plant has no shapes of its own (the plant's
+    /// environment is its board's).
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] naming the key.
+    pub fn check(&self, kind: &str) -> Result<(), WireError> {
+        for x in &self.mount_xyz {
+            check_range(kind, "mount_xyz", *x, -2.0, 2.0)?;
+        }
+        for x in &self.bias {
+            check_range(kind, "bias", *x, -1e4, 1e4)?;
+        }
+        check_range(kind, "force_noise", self.force_noise, 0.0, 100.0)?;
+        check_range(kind, "torque_noise", self.torque_noise, 0.0, 10.0)?;
+        if self.cutoff_hz != 0.0 {
+            check_range(kind, "cutoff_hz", self.cutoff_hz, 0.1, 1e4)?;
+        }
+        if self.robot.is_some() && !self.shapes.is_empty() {
+            return Err(bad(
+                kind,
+                "a sensor reading a robot's plant (`robot`) meets that plant's environment: put \
+                 the `shapes` on the robot's simulated board",
+            ));
+        }
+        if let Some(r) = &self.robot {
+            crate::proto::check_name(r).map_err(|e| bad(kind, format!("robot: {e}")))?;
+        }
+        Ok(())
+    }
+
+    /// The driver's sensor settings (plant mode).
+    pub fn plant_sensor(&self) -> penelope_drivers::sim::force_sensor::ForceSensorConfig {
+        let [fx, fy, fz, tx, ty, tz] = self.bias;
+        penelope_drivers::sim::force_sensor::ForceSensorConfig {
+            mount: Pose::translation(self.mount_xyz[0], self.mount_xyz[1], self.mount_xyz[2]),
+            bias: Wrench {
+                force: Vector3::new(fx, fy, fz),
+                torque: Vector3::new(tx, ty, tz),
+                frame: Frame::Sensor,
+            },
+            force_noise: self.force_noise,
+            torque_noise: self.torque_noise,
+            cutoff_hz: self.cutoff_hz,
+            seed: self.seed,
+        }
+    }
 }

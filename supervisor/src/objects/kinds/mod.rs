@@ -182,7 +182,8 @@ impl Kind {
                 GALIL_KEYS.to_string(),
             ),
             Kind::VirtualSensor => (
-                "6-axis force sensor: an environment contact model fed by a probe pose",
+                "6-axis force sensor: a robot's plant contact at the wrist (bias, noise, low-pass), or an \
+                 environment probed at a pose",
                 SENSOR_KEYS.to_string() + SHAPE_KEYS,
             ),
             Kind::OperatorHand => (
@@ -297,8 +298,17 @@ watchdog_ms = 30               # the DMC turns its motors off when no exchange r
 "#;
 
 const SENSOR_KEYS: &str = r#"
-# Reads the wrench the environment applies to the probe (N, N·m, base frame, about the probe
-# point), minus the bias. Empty space by default:
+# A 6-axis wrist sensor model. With `robot`, it reads the contact of that robot's simulated
+# body (its board's shapes, or the operator's hand) at the wrist, as a real sensor would:
+robot = "puma"               # optional; without it, the shapes below are probed at the reader's tool
+mount_xyz = [0.0, 0.0, 0.0]  # sensor frame origin in the tool frame, m
+bias = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]   # constant offset, N and N·m (sensor frame)
+force_noise = 0.0            # standard deviation per axis, N, 0..=100
+torque_noise = 0.0           # standard deviation per axis, N·m, 0..=10
+cutoff_hz = 0.0              # first-order low-pass, 0 (off) or 0.1..=10000 Hz
+seed = 1                     # noise seed (`penelope demo --seed` sets it)
+# Probe mode (no `robot`): the wrench the environment applies to the probe (N, N·m, base frame,
+# about the probe point), minus the bias. Empty space by default:
 "#;
 
 const LOOP_KEYS: &str = r#"

@@ -1,0 +1,90 @@
+//! What runs while a controller is active: the control task (period `T_ctrl`, SCHED_FIFO), the
+//! communication task (period `T_com`: the trajectory's reference into a latest-value cell), the
+//! sensor feed (a non-real-time thread that may block on the network) and the telemetry pump
+//! (non-real-time: drains the telemetry ring, keeps the newest sample, fans batches out).
+//!
+//! ```text
+//!  GoTo ──ring──> comm task ──LatestCell<reference>──> control task ──ring<telemetry>──> pump ──> outboxes
+//!                    ^ LatestCell<sample>                  │  ^ LatestCell<wrench>
+//!                    └─────────────────────────────────────┤  └── sensor feed <── remote.call(Measure)
+//!                                  LatestCell<sample> ─────┘
+//! ```
+//!
+//! [`ControlTask::tick`] is the whole per-tick body of the control thread; it is public so a test
+//! can run it on a simulated clock under a counting allocator.
+//!
+//! Why the reference is produced in the communication task and not in the loop: DESIGN.md's two
+//! threads per controller, and a GoTo or a new trajectory is then swapped without touching the
+//! control thread; the control loop's watchdog holds the robot if that task ever stalls.
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use nalgebra::Vector3;
+use penelope_drivers::galil::{GalilBoard, GalilBoardError};
+use penelope_drivers::model::DhRobotModel;
+use penelope_drivers::sim::ToolContact;
+use penelope_drivers::sim::board::{SimBoard, SimBoardError};
+use penelope_drivers::sim::environment::Environment;
+use penelope_hal::{
+    AxisCommand, AxisState, Board, ControlInput, Controller, ControllerError, Error, ErrorKind,
+    Frame, InverseKinematics, JacobianFrame, JointCommand, JointReference, JointState, JointVector,
+    Kinematics, MAX_AXES, MAX_JOINTS, Pose, Reference, RobotModel, Sensor, Timestamp, Trajectory,
+    TrajectoryError, Twist, Wrench,
+};
+use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, Stamped};
+use penelope_rt_core::clock::MonotonicClock;
+use penelope_rt_core::control::{ControlLoop, NoSensor, TickOutcome};
+use penelope_rt_core::controller::{JointPid, JointPidGains, JointPositionServo};
+use penelope_rt_core::exec::{Flow, PeriodicThread};
+use penelope_rt_core::ring::{ArcConsumer, ArcProducer};
+use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
+use penelope_rt_core::teleop::{
+    CartesianImpedance, ForceDisplay, ForceDisplayConfig, ImpedanceConfig, PositionErrorMaster,
+    SlaveTracking, TrackingConfig,
+};
+use penelope_rt_core::trajectory::{
+    CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
+};
+
+use super::kinematics::RobotKinematics;
+use super::teleop::TeleopComm;
+use crate::proto::{
+    Method, PoseMsg, Reply, SensorMethod, ServerMsg, TelemetryBatch, TelemetryRecord, WireError,
+    WrenchMsg, joints_from_vector,
+};
+use crate::service::{Outbox, Remote};
+
+/// Telemetry samples buffered between a control thread and its pump (4 s at 1 kHz).
+pub const TELEMETRY_CAPACITY: usize = 4096;
+/// Commands buffered towards a control thread.
+pub const COMMAND_CAPACITY: usize = 16;
+/// GoTo requests buffered towards a communication thread.
+pub const GOTO_CAPACITY: usize = 4;
+/// Waypoints of a configured spline.
+pub const SPLINE_CAPACITY: usize = crate::objects::kinds::MAX_WAYPOINTS;
+
+/// A robot's simulated body: the rigid-body plant of its whole chain behind a simulated board
+/// whose axes are the robot's joints in order (joints are dynamically coupled, so a robot whose
+/// joints are spread over several simulated boards is still one plant).
+pub type SimBody = SimBoard<DhRobotModel, ToolContact>;
+
+type RefWriter = ArcLatestWriter<Stamped<Reference>>;
+type RefReader = ArcLatestReader<Stamped<Reference>>;
+type Commands = ArcConsumer<penelope_rt_core::control::ControlCommand, COMMAND_CAPACITY>;
+
+mod board;
+mod comm;
+mod control;
+mod sensors;
+mod telemetry;
+mod threads;
+
+pub use board::*;
+pub use comm::*;
+pub use control::*;
+pub use sensors::*;
+pub use telemetry::*;
+pub use threads::*;

@@ -1,0 +1,149 @@
+//! Force sensors: the probe model of `sensor/virtual`, where a feed gets its wrench, and the
+//! sensor feed.
+
+use super::*;
+
+/// The state of a `sensor/virtual`: an environment pushed by a probe.
+#[derive(Clone, Debug)]
+pub struct VirtualSensor {
+    environment: Environment,
+    bias: Wrench,
+    last_raw: Wrench,
+    probes: u64,
+}
+
+impl VirtualSensor {
+    /// A sensor over `environment`, no bias.
+    pub fn new(environment: Environment) -> Self {
+        VirtualSensor {
+            environment,
+            bias: Wrench::zero(Frame::Base),
+            last_raw: Wrench::zero(Frame::Base),
+            probes: 0,
+        }
+    }
+
+    /// The wrench the environment applies to a probe at `pose` moving at `velocity` (base frame,
+    /// N and N·m about the probe point), minus the bias. Also the new [`read`](Self::read).
+    pub fn measure(&mut self, pose: &Pose, velocity: Vector3<f64>) -> Wrench {
+        use penelope_drivers::sim::Interaction;
+        let twist = Twist {
+            linear: velocity,
+            angular: Vector3::zeros(),
+            frame: Frame::Base,
+        };
+        self.last_raw = self
+            .environment
+            .wrench_on_tool(Timestamp::ZERO, pose, &twist);
+        self.probes += 1;
+        self.read()
+    }
+
+    /// The wrench at the last probe, minus the bias.
+    pub fn read(&self) -> Wrench {
+        Wrench {
+            force: self.last_raw.force - self.bias.force,
+            torque: self.last_raw.torque - self.bias.torque,
+            frame: Frame::Base,
+        }
+    }
+
+    /// Takes the wrench at the last probe as the zero.
+    pub fn bias(&mut self) {
+        self.bias = self.last_raw;
+    }
+
+    /// Probes so far.
+    pub fn probes(&self) -> u64 {
+        self.probes
+    }
+}
+
+/// Where a controller's sensor feed gets its wrench.
+pub enum SensorSource {
+    /// A sensor on another node, at a naming path, through the node's [`Remote`].
+    Remote {
+        /// The node's remote.
+        remote: Arc<dyn Remote>,
+        /// The naming path.
+        path: String,
+    },
+    /// A `sensor/virtual` on this node.
+    Local(Arc<Mutex<VirtualSensor>>),
+}
+
+impl SensorSource {
+    /// One measurement for a probe at `pose` moving at `velocity`.
+    ///
+    /// # Errors
+    /// The remote's error, or [`WireError::Remote`] for an answer that is not a wrench.
+    pub fn measure(&self, pose: &Pose, velocity: Vector3<f64>) -> Result<Wrench, WireError> {
+        match self {
+            SensorSource::Remote { remote, path } => {
+                let method = Method::Sensor(SensorMethod::Measure {
+                    pose: PoseMsg::from(pose),
+                    velocity: [velocity.x, velocity.y, velocity.z],
+                });
+                match remote.call(path, method)? {
+                    Reply::Wrench(w) => w.to_wrench(Frame::Base),
+                    other => Err(WireError::Remote(format!(
+                        "sensor `{path}` answered {other:?}, not a wrench"
+                    ))),
+                }
+            }
+            SensorSource::Local(s) => {
+                let mut s = s
+                    .lock()
+                    .map_err(|_| WireError::Internal("sensor state poisoned".into()))?;
+                Ok(s.measure(pose, velocity))
+            }
+        }
+    }
+}
+
+/// Counters of a sensor feed.
+#[derive(Debug, Default)]
+pub struct FeedStats {
+    /// Wrenches published.
+    pub ok: AtomicU64,
+    /// Failed measurements.
+    pub failed: AtomicU64,
+}
+
+/// Runs a sensor feed until `stop`: every `period`, the tool pose and velocity of the newest
+/// sample go to `source`, and the wrench (stamped on `CLOCK_MONOTONIC`) into `out`. A failing
+/// source publishes nothing, so the loop's wrench goes stale; it never blocks the loop.
+#[allow(clippy::too_many_arguments)]
+pub fn run_sensor_feed(
+    source: &SensorSource,
+    model: &RobotKinematics,
+    state: &mut ArcLatestReader<TelemetrySample>,
+    out: &mut ArcLatestWriter<Stamped<Wrench>>,
+    period: Duration,
+    stop: &AtomicBool,
+    stats: &FeedStats,
+    name: &str,
+) {
+    while !stop.load(Ordering::Relaxed) {
+        std::thread::sleep(period);
+        let Some(s) = state.latest() else { continue };
+        let pose = model.forward(&s.q);
+        let v = model.jacobian(&s.q, JacobianFrame::Base) * s.qd;
+        match source.measure(&pose, Vector3::new(v[0], v[1], v[2])) {
+            Ok(w) if w.is_finite() => {
+                out.write(Stamped {
+                    stamp: MonotonicClock::read(),
+                    value: w,
+                });
+                stats.ok.fetch_add(1, Ordering::Relaxed);
+            }
+            Ok(_) | Err(_) => {
+                if stats.failed.fetch_add(1, Ordering::Relaxed) == 0 {
+                    log::warn!(
+                        "controller `{name}`: sensor measurement failed; the wrench goes stale"
+                    );
+                }
+            }
+        }
+    }
+}
