@@ -2,7 +2,8 @@
 //!
 //! # A tour
 //!
-//! - [`lab`]: the lab configuration file and the teleoperation run it describes (the demo).
+//! - [`runs`]: a system file's teleoperation task run for a duration through the node runtime,
+//!   on either clock, recorded tick by tick, and its report (the demo).
 //! - [`proto`]: the protocol, the single definition of every message on the wire (the IDL).
 //! - [`service`]: the seam between the transport and what a node serves.
 //! - [`net`]: frames, authentication, the TCP server of a node and the client connection.
@@ -15,11 +16,11 @@
 #![warn(missing_docs)]
 
 pub mod client;
-pub mod lab;
 pub mod naming;
 pub mod net;
 pub mod node;
 pub mod objects;
 pub mod proto;
+pub mod runs;
 pub mod service;
 pub mod system;

@@ -252,6 +252,13 @@ pub enum CreatorCall {
         /// Stop the active dependents first instead of refusing.
         force: bool,
     },
+    /// Moves a node's simulated clock on by `seconds` (0 to 3600), stepping every active loop:
+    /// [`Reply::Duration`] with the clock's new time, s. Refused with [`WireError::NotReady`]
+    /// on a node clocked in real time.
+    Advance {
+        /// How far, s.
+        seconds: f64,
+    },
 }
 
 /// A method of an object. Methods of a class the object is not are refused with

@@ -128,7 +128,7 @@ fn efforts_without_reference(robot_config: &str) -> (JointVector, SafetyState) {
     let mut last = None;
     for i in 1..=300u64 {
         detached.control.tick(Timestamp::from_nanos(i * 1_000_000));
-        while let Some(s) = detached.telemetry.pop() {
+        while let Some(s) = detached.telemetry.pop().map(|t| t.sample) {
             last = Some(s);
         }
     }

@@ -165,10 +165,10 @@ fn run_with_master_until(
         }
         master.control.tick(now);
         slave.control.tick(now);
-        while let Some(s) = master.telemetry.pop() {
+        while let Some(s) = master.telemetry.pop().map(|t| t.sample) {
             m_rows.push(s);
         }
-        while let Some(s) = slave.telemetry.pop() {
+        while let Some(s) = slave.telemetry.pop().map(|t| t.sample) {
             s_rows.push(s);
         }
     }

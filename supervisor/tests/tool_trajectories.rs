@@ -76,7 +76,7 @@ fn follow(law: &str, law_config: &str) -> (f64, f64) {
             d.comm.tick(now);
         }
         d.control.tick(now);
-        while let Some(s) = d.telemetry.pop() {
+        while let Some(s) = d.telemetry.pop().map(|t| t.sample) {
             // Distance from the segment start..goal.
             let p = s.tool_position;
             let (a, b) = (

@@ -637,6 +637,20 @@ impl NodeProxy {
         }
     }
 
+    /// Moves the node's simulated clock on by `by`, stepping its active loops; returns the
+    /// clock's new time.
+    ///
+    /// # Errors
+    /// [`WireError::NotReady`] on a node clocked in real time; transport errors.
+    pub fn advance(&self, by: std::time::Duration) -> Result<std::time::Duration, RpcError> {
+        match self.creator(CreatorCall::Advance {
+            seconds: by.as_secs_f64(),
+        })? {
+            Reply::Duration(Some(t)) => Ok(std::time::Duration::from_secs_f64(t.max(0.0))),
+            other => Err(unexpected("a time", &other)),
+        }
+    }
+
     /// The reference of one of this node's objects.
     pub fn reference_of(&self, info: &ObjectInfo) -> ObjectRef {
         ObjectRef {

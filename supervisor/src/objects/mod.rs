@@ -31,27 +31,26 @@
 //! so commands start from the measured state. Deactivating sends `Deactivate` (amplifiers off),
 //! joins the threads and gives the boards back.
 
+pub mod clock;
 pub mod kinds;
 pub mod kinematics;
+mod loops;
 mod registry;
 pub mod runtime;
 pub mod teleop;
 
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::sync_channel;
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 use penelope_hal::{LifecycleState, Timestamp, Transition};
-use penelope_rt_core::exec::{self, PeriodicConfig, Setting};
 
 use crate::proto::{
     Call, Class, ControllerMethod, CreatorCall, KindInfo, Method, NodeInfo, ObjectInfo, Reply,
     WireError, check_name,
 };
 use crate::service::{Remote, Service, Session};
-use penelope_rt_core::control::ControlCommand;
-use registry::{Body, Launch, Registry};
-use runtime::{CommTask, ControlTask, LoopFault, LoopShared, Running, Subscriptions};
+use clock::{ClockMode, SimWorld};
+use registry::{Body, Registry};
+use runtime::{CommTask, ControlTask, Subscriptions};
 
 /// Real-time settings of the control threads a creator starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -90,6 +89,8 @@ pub struct CreatorConfig {
     pub rt: RtPolicy,
     /// How controllers reach sensors on other nodes (set later with [`Creator::set_remote`]).
     pub remote: Option<Arc<dyn Remote>>,
+    /// Real time, or a simulated clock moved by [`Creator::advance`].
+    pub clock: ClockMode,
 }
 
 impl std::fmt::Debug for CreatorConfig {
@@ -100,6 +101,7 @@ impl std::fmt::Debug for CreatorConfig {
             .field("max_subscriptions", &self.max_subscriptions)
             .field("rt", &self.rt)
             .field("remote", &self.remote.is_some())
+            .field("clock", &self.clock)
             .finish()
     }
 }
@@ -113,6 +115,7 @@ impl CreatorConfig {
             max_subscriptions: 64,
             rt: RtPolicy::default(),
             remote: None,
+            clock: ClockMode::RealTime,
         }
     }
 }
@@ -126,6 +129,8 @@ pub struct Creator {
     remote: Mutex<Option<Arc<dyn Remote>>>,
     subscriptions: Arc<Subscriptions>,
     fifo: OnceLock<bool>,
+    /// The loops and the clock, on a simulated clock.
+    sim: Option<Mutex<SimWorld>>,
 }
 
 impl std::fmt::Debug for Creator {
@@ -145,10 +150,8 @@ pub struct DetachedLoop {
     /// The communication thread's per-tick body.
     pub comm: CommTask,
     /// The telemetry ring's consumer end.
-    pub telemetry: penelope_rt_core::ring::ArcConsumer<
-        penelope_rt_core::telemetry::TelemetrySample,
-        { runtime::TELEMETRY_CAPACITY },
-    >,
+    pub telemetry:
+        penelope_rt_core::ring::ArcConsumer<runtime::TickRecord, { runtime::TELEMETRY_CAPACITY }>,
     /// The newest sample for a sensor feed.
     pub probe:
         penelope_rt_core::cell::ArcLatestReader<penelope_rt_core::telemetry::TelemetrySample>,
@@ -164,6 +167,7 @@ impl Creator {
     /// A creator with no objects.
     pub fn new(config: CreatorConfig) -> Self {
         Creator {
+            sim: (config.clock == ClockMode::Simulated).then(|| Mutex::new(SimWorld::default())),
             remote: Mutex::new(config.remote.clone()),
             config,
             registry: Mutex::new(Registry::default()),
@@ -313,411 +317,6 @@ impl Creator {
             .ok_or_else(|| WireError::UnknownName(name.into()))
     }
 
-    fn fifo_allowed(&self) -> bool {
-        let Some(p) = self.config.rt.priority else {
-            return false;
-        };
-        *self.fifo.get_or_init(|| {
-            std::thread::spawn(move || exec::set_fifo(p) == Setting::Applied)
-                .join()
-                .unwrap_or(false)
-        })
-    }
-
-    fn activate(&self, name: &str) -> Result<(), WireError> {
-        let fifo = self.fifo_allowed();
-        let remote = self.remote.lock().ok().and_then(|r| r.clone());
-        let launch = Launch {
-            rt: &self.config.rt,
-            remote,
-        };
-        let mut reg = self.lock()?;
-        let built = reg.build_loop(name, &launch)?;
-        let rt = launch.rt;
-        let thread_name =
-            |prefix: &str| -> String { format!("{prefix}{name}").chars().take(15).collect() };
-        let mut control_cfg = PeriodicConfig::new(thread_name("ctl-"), built.timing.period);
-        control_cfg.lock_memory = rt.lock_memory;
-        control_cfg.hold_dma_latency = rt.lock_memory;
-        control_cfg.cpu = rt.cpu;
-        control_cfg.priority = if fifo { rt.priority } else { None };
-        let mut comm_cfg = PeriodicConfig::new(thread_name("com-"), built.timing.comm_period);
-        comm_cfg.lock_memory = false;
-        comm_cfg.hold_dma_latency = false;
-        comm_cfg.prefault_stack = 64 * 1024;
-        comm_cfg.stack_size = 512 * 1024;
-        comm_cfg.cpu = rt.cpu;
-        comm_cfg.priority = if fifo {
-            rt.priority.map(|p| p.saturating_sub(10).max(1))
-        } else {
-            None
-        };
-        let scheduling = match (fifo, rt.priority) {
-            (true, Some(p)) => format!("SCHED_FIFO {p}"),
-            (false, Some(p)) => {
-                log::warn!(
-                    "controller `{name}`: SCHED_FIFO {p} is not permitted to this process; its loop runs at normal priority"
-                );
-                "normal (SCHED_FIFO refused)".to_string()
-            }
-            (_, None) => "normal".to_string(),
-        };
-
-        let control_stop = Arc::new(AtomicBool::new(false));
-        let comm_stop = Arc::new(AtomicBool::new(false));
-        let fault = Arc::new(LoopFault::default());
-        let (back_tx, back_rx) = sync_channel(1);
-        let (comm_back_tx, comm_back_rx) = sync_channel(1);
-        let registry::Built {
-            control,
-            comm,
-            telemetry,
-            commands,
-            goto,
-            gains,
-            mut probe,
-            wrench,
-            source,
-            model,
-            joints,
-            timing,
-        } = built;
-        // A thread that cannot be spawned is an error, never a silently missing part.
-        let spawned_control = exec::spawn(
-            control_cfg,
-            runtime::control_body(control, control_stop.clone(), back_tx, fault.clone()),
-        );
-        let control_thread = match spawned_control {
-            Ok(t) => t,
-            Err(e) => {
-                // The task (with the board) went down with the closure: configure again.
-                let comm = Some(comm);
-                reg.take_back(
-                    runtime::StoppedLoop {
-                        control: None,
-                        comm,
-                    },
-                    name,
-                    false,
-                );
-                return Err(WireError::Internal(format!(
-                    "cannot start the control thread: {e}"
-                )));
-            }
-        };
-        let spawned_comm = exec::spawn(
-            comm_cfg,
-            runtime::comm_body(comm, fault.clone(), comm_stop.clone(), comm_back_tx),
-        );
-        let comm_thread = match spawned_comm {
-            Ok(t) => t,
-            Err(e) => {
-                control_stop.store(true, Ordering::Release);
-                let control = back_rx.recv_timeout(std::time::Duration::from_secs(2)).ok();
-                let _ = control_thread.join();
-                reg.take_back(
-                    runtime::StoppedLoop {
-                        control,
-                        comm: None,
-                    },
-                    name,
-                    false,
-                );
-                return Err(WireError::Internal(format!(
-                    "cannot start the communication thread: {e}"
-                )));
-            }
-        };
-        let aux_stop = Arc::new(AtomicBool::new(false));
-        let shared = Arc::new(LoopShared::default());
-        let feed_stats = Arc::new(runtime::FeedStats::default());
-        let pump = {
-            let (shared, subs, stop) =
-                (shared.clone(), self.subscriptions.clone(), aux_stop.clone());
-            let controller = name.to_string();
-            let mut telemetry = telemetry;
-            let period = timing.telemetry_period;
-            std::thread::Builder::new()
-                .name(thread_name("tel-"))
-                .spawn(move || {
-                    runtime::run_pump(
-                        &mut telemetry,
-                        &shared,
-                        &subs,
-                        &controller,
-                        joints,
-                        period,
-                        &stop,
-                    );
-                })
-        };
-        let feed = match (source, wrench) {
-            (Some(source), Some(mut out)) => {
-                let (stop, stats) = (aux_stop.clone(), feed_stats.clone());
-                let controller = name.to_string();
-                let period = timing.sensor_period;
-                Some(
-                    std::thread::Builder::new()
-                        .name(thread_name("sen-"))
-                        .spawn(move || {
-                            runtime::run_sensor_feed(
-                                &source,
-                                &model,
-                                &mut probe,
-                                &mut out,
-                                period,
-                                &stop,
-                                &stats,
-                                &controller,
-                            );
-                        }),
-                )
-            }
-            _ => None,
-        };
-        let spawn_error = match (&pump, &feed) {
-            (Err(e), _) => Some(format!("cannot start the telemetry thread: {e}")),
-            (_, Some(Err(e))) => Some(format!("cannot start the sensor feed thread: {e}")),
-            _ => None,
-        };
-        let running = Running {
-            control: Some(control_thread),
-            control_stop,
-            control_back: back_rx,
-            comm: Some(comm_thread),
-            comm_stop,
-            comm_back: comm_back_rx,
-            commands,
-            goto,
-            gains,
-            pump: pump.ok(),
-            aux_stop,
-            feed: feed.and_then(Result::ok),
-            feed_stats,
-            shared,
-            fifo,
-            period: timing.period,
-            fault,
-        };
-        if let Some(why) = spawn_error {
-            // Stop what did start, give the board back, and say why.
-            let stopped = running.stop();
-            reg.take_back(stopped, name, false);
-            return Err(WireError::Internal(why));
-        }
-        let o = reg.get_mut(name)?;
-        o.state = LifecycleState::Active;
-        if let Body::Controller(c) = &mut o.body {
-            c.running = Some(running);
-            c.scheduling = Some(scheduling);
-            c.fault = None;
-        }
-        Ok(())
-    }
-
-    /// Takes every loop whose threads failed out of service: the control thread already
-    /// brought its robot to the safe state (amplifiers off, or the board's servo holding); here
-    /// the threads are joined, the board goes back to its objects as it is, and the controller
-    /// shows `error` with the cause until it is re-armed. Runs before every call, so what a
-    /// client sees is never a dead loop shown `active`.
-    fn reap_failed(&self) {
-        let failed: Vec<(String, String, Running)> = {
-            let Ok(mut reg) = self.lock() else { return };
-            let names: Vec<String> = reg
-                .objects
-                .values()
-                .filter(|o| {
-                    matches!(&o.body, Body::Controller(c)
-                        if c.running.as_ref().is_some_and(|r| r.failure().is_some()))
-                })
-                .map(|o| o.name.clone())
-                .collect();
-            names
-                .into_iter()
-                .filter_map(|name| {
-                    let o = reg.objects.get_mut(&name)?;
-                    let Body::Controller(c) = &mut o.body else {
-                        return None;
-                    };
-                    let robot = c.robot.clone().unwrap_or_default();
-                    Some((name, robot, c.running.take()?))
-                })
-                .collect()
-        };
-        for (name, robot, running) in failed {
-            let cause = running
-                .failure()
-                .unwrap_or_else(|| "a thread failed".into());
-            let last = running.shared.newest().map(|n| n.sample);
-            let stopped = running.stop_failed();
-            let Ok(mut reg) = self.lock() else { return };
-            let stopped = reg.take_back(stopped, &name, true);
-            log::error!(
-                "node {}: controller `{name}` failed ({cause}); robot `{robot}` stopped: {stopped}",
-                self.config.node
-            );
-            if let Ok(o) = reg.get_mut(&name) {
-                o.state = LifecycleState::Error;
-                if let Body::Controller(c) = &mut o.body {
-                    c.fault = Some(cause);
-                    c.last = last.or(c.last);
-                    c.scheduling = None;
-                }
-            }
-        }
-    }
-
-    /// Calls `method` on object `object` (as a connection's `Call::Object` would, for calls made
-    /// inside the process).
-    ///
-    /// # Errors
-    /// The object's typed error.
-    pub fn call_object(&self, object: &str, method: Method) -> Result<Reply, WireError> {
-        self.reap_failed();
-        self.object_call(object, method)
-    }
-
-    /// Makes a thread of controller `name`'s running loop panic in its next tick, as a bug
-    /// would (fault-injection tests of the failure path).
-    ///
-    /// # Errors
-    /// [`WireError::UnknownName`], or [`WireError::NotReady`] when it is not running.
-    #[cfg(feature = "fault-injection")]
-    pub fn inject_thread_panic(
-        &self,
-        name: &str,
-        thread: runtime::LoopThread,
-    ) -> Result<(), WireError> {
-        let reg = self.lock()?;
-        match &reg.get(name)?.body {
-            Body::Controller(c) => match &c.running {
-                Some(r) => {
-                    r.fault.inject_panic(thread);
-                    Ok(())
-                }
-                None => Err(WireError::NotReady(format!("`{name}` is not running"))),
-            },
-            _ => Err(WireError::NotReady(format!("`{name}` is not a controller"))),
-        }
-    }
-
-    /// Re-arms controller `name`: a running loop clears its latched fault or e-stop (and its
-    /// boards' own latches) and activates again from the measured state; a loop whose threads
-    /// failed (`error`) is built and started anew, from the measured state.
-    fn rearm(&self, name: &str) -> Result<Reply, WireError> {
-        let failed = {
-            let mut reg = self.lock()?;
-            let o = reg.get_mut(name)?;
-            if o.kind.class() != Class::Controller {
-                return Err(WireError::WrongClass {
-                    name: name.into(),
-                    expected: Class::Controller,
-                    found: o.kind.class(),
-                });
-            }
-            let failed = o.state == LifecycleState::Error;
-            if failed {
-                o.state = LifecycleState::Inactive;
-                if let Body::Controller(c) = &mut o.body {
-                    c.fault = None;
-                }
-            }
-            failed
-        };
-        if failed {
-            self.activate(name)?;
-            return Ok(Reply::Unit);
-        }
-        let mut reg = self.lock()?;
-        let Body::Controller(c) = &mut reg.get_mut(name)?.body else {
-            return Err(WireError::Internal("controller body".into()));
-        };
-        let run = c
-            .running
-            .as_mut()
-            .ok_or_else(|| WireError::NotReady(format!("controller `{name}` is not running")))?;
-        for cmd in [ControlCommand::Rearm, ControlCommand::Activate] {
-            run.commands
-                .push(cmd)
-                .map_err(|_| WireError::NotReady("command queue full; retry".into()))?;
-        }
-        Ok(Reply::Unit)
-    }
-
-    /// Stops controller `name`'s loop (amplifiers off), joins its threads and gives its boards
-    /// back. The registry lock is not held while threads are joined (a sensor feed may be calling
-    /// back into this node).
-    fn deactivate(&self, name: &str) -> Result<(), WireError> {
-        let running = {
-            let mut reg = self.lock()?;
-            let o = reg.get_mut(name)?;
-            match &mut o.body {
-                Body::Controller(c) => c.running.take(),
-                _ => return Err(WireError::Internal("not a controller".into())),
-            }
-        };
-        let mut last = None;
-        let stopped = running.map(|r| {
-            let shared = r.shared.clone();
-            let stopped = r.stop();
-            last = shared.newest().map(|n| n.sample);
-            stopped
-        });
-        let mut reg = self.lock()?;
-        if let Some(stopped) = stopped {
-            reg.take_back(stopped, name, false);
-        }
-        reg.release_users(name);
-        let o = reg.get_mut(name)?;
-        o.state = LifecycleState::Inactive;
-        if let Body::Controller(c) = &mut o.body {
-            c.last = last.or(c.last);
-            c.scheduling = None;
-        }
-        Ok(())
-    }
-
-    /// Builds controller `name`'s loop without starting any thread (for tests and benchmarks
-    /// that step it on a simulated clock). The controller stays `inactive`, but the objects it
-    /// uses show it as their user and the robot's board is inside the returned loop, so they
-    /// cannot run elsewhere until the creator is dropped.
-    ///
-    /// # Errors
-    /// As activating the controller.
-    pub fn detach_loop(&self, name: &str) -> Result<DetachedLoop, WireError> {
-        let launch = Launch {
-            rt: &self.config.rt,
-            remote: self.remote.lock().ok().and_then(|r| r.clone()),
-        };
-        let built = self.lock()?.build_loop(name, &launch)?;
-        Ok(DetachedLoop {
-            control: built.control,
-            comm: built.comm,
-            telemetry: built.telemetry,
-            probe: built.probe,
-            wrench: built.wrench,
-        })
-    }
-
-    /// Stops every running loop safely (amplifiers off, threads joined).
-    pub fn shutdown(&self) {
-        let active: Vec<String> = self
-            .lock()
-            .map(|r| {
-                r.objects
-                    .values()
-                    .filter(|o| matches!(&o.body, Body::Controller(c) if c.running.is_some()))
-                    .map(|o| o.name.clone())
-                    .collect()
-            })
-            .unwrap_or_default();
-        for c in active {
-            if let Err(e) = self.deactivate(&c) {
-                log::warn!("shutdown: controller `{c}`: {e}");
-            }
-        }
-    }
-
     fn subscribe(
         &self,
         session: &Session,
@@ -795,6 +394,15 @@ impl Service for Creator {
             Call::Creator(CreatorCall::Destroy { name, force }) => {
                 self.destroy(&name, force).map(|()| Reply::Unit)
             }
+            Call::Creator(CreatorCall::Advance { seconds }) => {
+                if !(seconds.is_finite() && (0.0..=3600.0).contains(&seconds)) {
+                    return Err(WireError::BadArgument(format!(
+                        "advance by 0 to 3600 s, not {seconds}"
+                    )));
+                }
+                let now = self.advance(std::time::Duration::from_secs_f64(seconds))?;
+                Ok(Reply::Duration(Some(now.as_nanos() as f64 * 1e-9)))
+            }
             Call::Object { object, method } => self.object_call(&object, method),
             Call::Naming(_) => Err(WireError::NoNamingService),
             Call::Subscribe { object, decimation } => self.subscribe(session, &object, decimation),
@@ -820,5 +428,4 @@ fn _assert_send_sync() {
     fn is<T: Send + Sync>() {}
     is::<Creator>();
     let _ = Timestamp::ZERO;
-    let _ = Ordering::Relaxed;
 }

@@ -19,7 +19,8 @@ use nalgebra::UnitQuaternion;
 use penelope_drivers::sim::operator::{HandImpedance, OperatorScript};
 use penelope_drivers::sim::scripts;
 use penelope_hal::{
-    CartesianReference, Frame, HybridReference, Kinematics, Reference, Timestamp, Twist, Wrench,
+    CartesianReference, Frame, HybridReference, Kinematics, Pose, Reference, Timestamp, Twist,
+    Wrench,
 };
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, Stamped, latest};
 use penelope_rt_core::telemetry::TelemetrySample;
@@ -197,6 +198,8 @@ pub struct TeleopComm {
     model: RobotKinematics,
     /// The clutch button of the operator's hand on this (master) robot, if one holds it.
     clutch: Option<Arc<AtomicBool>>,
+    /// The mount of a wrist sensor in the loop (its readings are in the sensor frame).
+    sensor_mount: Option<Pose>,
     started: bool,
     sequence: u64,
     /// When the newest sample of the other side arrived (this node's clock): the stamp of the
@@ -232,6 +235,7 @@ impl TeleopComm {
             channel,
             model,
             clutch: None,
+            sensor_mount: None,
             started: false,
             sequence: 0,
             received_at: None,
@@ -241,6 +245,13 @@ impl TeleopComm {
     /// Reads the master's clutch button from `clutch` (an operator's hand), if any.
     pub fn with_clutch(mut self, clutch: Option<Arc<AtomicBool>>) -> Self {
         self.clutch = clutch;
+        self
+    }
+
+    /// Tells the slave's end that its loop reads a wrist sensor mounted at `mount` in the tool
+    /// frame (readings in the sensor frame, the robot pushing on the world).
+    pub fn with_sensor_mount(mut self, mount: Option<Pose>) -> Self {
+        self.sensor_mount = mount;
         self
     }
 
@@ -297,11 +308,20 @@ impl TeleopComm {
                 )
             }
             Side::Slave => {
-                // The loop's wrench is in the base frame (a sensor feed's), or in the tool
-                // frame, rotated here.
+                // What the channel carries: the world's wrench on the robot, base frame, about
+                // the tool point. A feed's is that already; a wrist sensor's is in its own frame
+                // with the opposite sign; a tool-frame wrench is rotated.
                 let w = sample.wrench;
-                let wrench = match w.frame {
-                    Frame::Base => w,
+                let wrench = match (w.frame, self.sensor_mount) {
+                    (Frame::Base, _) => w,
+                    (Frame::Sensor, Some(mount)) => {
+                        let at_tool = sensor_to_base(&w, &mount, &pose);
+                        Wrench {
+                            force: -at_tool.force,
+                            torque: -at_tool.torque,
+                            frame: Frame::Base,
+                        }
+                    }
                     _ => Wrench {
                         force: pose.rotation * w.force,
                         torque: pose.rotation * w.torque,
@@ -341,6 +361,17 @@ impl TeleopComm {
         {
             out.write(Stamped { stamp, value: r });
         }
+    }
+}
+
+/// A wrist-sensor reading (sensor frame, mounted at `mount` in the tool frame) as a wrench in
+/// the robot's base frame about the tool origin, for a tool at `tool`.
+pub fn sensor_to_base(reading: &Wrench, mount: &Pose, tool: &Pose) -> Wrench {
+    let in_tool = reading.expressed_in(&mount.inverse(), Frame::Tool);
+    Wrench {
+        force: tool.rotation * in_tool.force,
+        torque: tool.rotation * in_tool.torque,
+        frame: Frame::Base,
     }
 }
 

@@ -7,9 +7,10 @@ use std::time::Duration;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use penelope_supervisor::lab::config::LabConfig;
-use penelope_supervisor::lab::report::{Report, report};
-use penelope_supervisor::lab::run::{ClockMode, RunOptions, RunOutput, run};
+use penelope_supervisor::objects::clock::ClockMode;
+use penelope_supervisor::runs::report::{Report, report};
+use penelope_supervisor::runs::{DEMO_SYSTEM, Law, RunOptions, RunOutput, run};
+use penelope_supervisor::system::SystemFile;
 
 use super::usage;
 
@@ -19,7 +20,7 @@ mod plots;
 /// Options of `penelope demo`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Lab configuration file (default: the shipped `config/demo.toml`).
+    /// System file (default: the shipped `config/demo.toml`).
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// Length of the run, for example `20s` or `1500ms` (default: the operator script, 20 s).
@@ -76,13 +77,19 @@ pub fn parse_duration(text: &str) -> Result<Duration, String> {
 
 /// Runs the demo.
 pub fn run_demo(args: Args) -> anyhow::Result<ExitCode> {
-    let lab = match &args.config {
-        Some(path) => LabConfig::from_file(path).map_err(|e| usage(e.to_string()))?,
-        None => LabConfig::demo(),
+    let text = match &args.config {
+        Some(path) => std::fs::read_to_string(path)
+            .map_err(|e| usage(format!("reading the system file {}: {e}", path.display())))?,
+        None => DEMO_SYSTEM.to_string(),
     };
+    let where_ = args.config.as_ref().map_or_else(
+        || "config/demo.toml".to_string(),
+        |p| p.display().to_string(),
+    );
+    let system = SystemFile::parse(&text).map_err(|e| usage(format!("{where_}: {e}")))?;
     let law = match args.law.as_deref() {
-        Some("position-error") => Some(penelope_supervisor::lab::Law::PositionError),
-        Some(_) => Some(penelope_supervisor::lab::Law::ForcePosition),
+        Some("position-error") => Some(Law::PositionError),
+        Some(_) => Some(Law::ForcePosition),
         None => None,
     };
     if let Some(s) = args.scale
@@ -111,24 +118,24 @@ pub fn run_demo(args: Args) -> anyhow::Result<ExitCode> {
     );
     bar.set_prefix(format!(
         "{} {}",
-        lab.name,
+        system.name.as_deref().unwrap_or("system"),
         if args.sim_clock {
             "(simulated clock)"
         } else {
             "(real time)"
         }
     ));
-    let output = run(&lab, &options, &mut |p| {
+    let output = run(&system, &options, &mut |p| {
         let fraction = p.elapsed.as_secs_f64() / p.total.as_secs_f64().max(1e-9);
         bar.set_position((fraction * 1000.0).clamp(0.0, 1000.0) as u64);
         bar.set_message(format!(
-            "{:5.1}/{:.0} s  {:<10}  tracking {:5.2} mm  contact {:5.1} N  displayed {:4.1} N",
+            "{:5.1}/{:.0} s  {:<10}  tracking {:5.2} mm  contact {:5.1} N  commanded {:4.1} N",
             p.elapsed.as_secs_f64(),
             p.total.as_secs_f64(),
             p.phase,
             p.tracking_error * 1e3,
             p.contact_force,
-            p.displayed_force
+            p.commanded_force
         ));
     })
     .map_err(|e| usage(e.to_string()))?;
@@ -184,19 +191,24 @@ fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
         r.duration_s, r.scale, r.force_gain
     );
     println!();
-    println!("  free-motion tracking (slave tool vs mapped master pose)");
+    println!("  free-motion tracking (slave tool)");
     println!(
-        "    RMS {:.3} mm   max {:.3} mm   over {} ticks",
+        "    vs its reference: RMS {:.3} mm   max {:.3} mm   over {} ticks",
         r.tracking.rms_mm, r.tracking.max_mm, r.tracking.samples
+    );
+    println!(
+        "    vs the master's mapped pose at the same instant: RMS {:.3} mm   max {:.3} mm",
+        r.tracking.against_master_rms_mm, r.tracking.against_master_max_mm
     );
     println!("  steady contact with the wall");
     println!(
-        "    sensed {:.2} N (true {:.2} N)   expected display {:.2} N   displayed {:.2} N ({:.2}% off)   hand feels {:.2} N",
+        "    sensed {:.2} N (true {:.2} N)   expected display {:.2} N   motors display {:.2} N ({:.2}% off; law commands {:.2} N)   hand feels {:.2} N",
         r.contact.sensed_force_n,
         r.contact.true_contact_force_n,
         r.contact.expected_display_n,
         r.contact.displayed_force_n,
         r.contact.display_error_pct,
+        r.contact.commanded_force_n,
         r.contact.hand_force_n
     );
     println!("  free-motion drag felt by the operator");
@@ -245,14 +257,6 @@ fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
                 t.exec_us[1]
             );
         }
-    }
-    if let Some(link) = &r.galil_link {
-        println!(
-            "  galil link (slave board): {} exchanges, {:.0} per second{}",
-            link.cycles,
-            link.mean_rate_hz,
-            if link.faulted { ", FAULTED" } else { "" }
-        );
     }
     println!("  safety events");
     if r.safety_events.is_empty() {

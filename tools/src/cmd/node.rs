@@ -69,6 +69,10 @@ pub struct Args {
     /// Lock memory (mlockall) before the first control tick.
     #[arg(long)]
     pub lock_memory: bool,
+    /// Clock the loops on a simulated clock instead of real time: it stands still until
+    /// `penelope ctl advance NODE DURATION` moves it (faster than real time, reproducible).
+    #[arg(long)]
+    pub sim_clock: bool,
     /// Lease in the naming service, ms (renewed every third of it).
     #[arg(long, value_name = "MS", default_value_t = 3000)]
     pub lease_ms: u64,
@@ -117,6 +121,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     rt.lock_memory |= args.lock_memory;
     config.creator.rt = rt;
+    if args.sim_clock {
+        config.creator.clock = penelope_supervisor::objects::clock::ClockMode::Simulated;
+    }
 
     let signals = block_stop_signals()?;
     let node = Node::start(config).map_err(|e| match e {

@@ -529,6 +529,30 @@ macro_rules! loop_keys {
 
 pub(crate) use loop_keys;
 
+loop_keys!(LoopKeysOnly {});
+
+/// The timing keys of any controller's configuration text (other keys are ignored).
+///
+/// # Errors
+/// [`WireError::BadConfig`] for text that is not TOML or timing out of range.
+pub fn loop_timing(kind: &str, text: &str) -> Result<LoopTiming, WireError> {
+    let table: toml::Table = text.parse().map_err(|e| bad(kind, format!("{e}")))?;
+    let keys = [
+        "period_us",
+        "comm_period_us",
+        "watchdog_ms",
+        "sensor_period_ms",
+        "sensor_timeout_ms",
+        "telemetry_period_ms",
+    ];
+    let timing: toml::Table = table
+        .into_iter()
+        .filter(|(k, _)| keys.contains(&k.as_str()))
+        .collect();
+    let keys: LoopKeysOnly = parse(kind, &timing.to_string())?;
+    keys.timing(kind)
+}
+
 loop_keys!(JointPidConfig {
     kp: Option<PerJoint> = None, #[doc = "Proportional gain, N·m/rad (default 10 × torque limit)."]
     ki: PerJoint = PerJoint::One(0.0), #[doc = "Integral gain, N·m/(rad·s)."]

@@ -78,7 +78,7 @@ impl Registry {
                     return Err(not_ready(format!("sensor `{s}` is not configured")));
                 }
                 match &so.body {
-                    Body::Sensor(x) => Some(x.state.clone()),
+                    Body::Sensor(x) => Some((x.state.clone(), x.config.clone())),
                     _ => None,
                 }
             }
@@ -90,6 +90,27 @@ impl Registry {
             ));
         }
 
+        // A wrist sensor reading a robot's plant is read in the loop, and only that robot's.
+        let plant_sensor = match &local_sensor {
+            Some((_, cfg)) => match &cfg.robot {
+                Some(r) if *r != robot_name => {
+                    return Err(bad_arg(format!(
+                        "sensor `{}` reads robot `{r}`'s plant, not `{robot_name}`'s",
+                        sensor_name.as_deref().unwrap_or_default()
+                    )));
+                }
+                Some(_) if self.robot(&robot_name)?.body.is_none() => {
+                    return Err(bad_arg(format!(
+                        "sensor `{}` reads the simulated plant of `{robot_name}`, which is not on \
+                         a simulated board",
+                        sensor_name.as_deref().unwrap_or_default()
+                    )));
+                }
+                Some(_) => Some(cfg.plant_sensor()),
+                None => None,
+            },
+            None => None,
+        };
         let r = self.robot(&robot_name)?;
         let model = r.model.clone();
         let kinematics = r.kinematics.clone();
@@ -187,16 +208,25 @@ impl Registry {
 
         // Take the board(s).
         let maps = r.maps.clone();
+        let (mut truth, mut contact) = (None, None);
         let board = if on_sim {
             let Body::Robot(r) = &mut self.get_mut(&robot_name)?.body else {
                 return Err(WireError::Internal("robot body".into()));
             };
-            LoopBoard::Sim(
-                r.body
-                    .take()
-                    .ok_or_else(|| WireError::Internal("sim body".into()))?,
-                None,
-            )
+            let mut body = r
+                .body
+                .take()
+                .ok_or_else(|| WireError::Internal("sim body".into()))?;
+            // A fresh tap per loop: the plant's truth for telemetry, and its contact for a
+            // wrist sensor.
+            let mut tap = TapWriter::new();
+            let tap_failed = |_| WireError::Internal("plant tap".into());
+            truth = Some(tap.reader().map_err(tap_failed)?);
+            if plant_sensor.is_some() {
+                contact = Some(tap.reader().map_err(tap_failed)?);
+            }
+            body.set_tap(tap);
+            LoopBoard::Sim(body, None)
         } else {
             let mut boards: Vec<(String, GalilBoard)> = Vec::new();
             let mut map = [(0u8, 0u8); MAX_JOINTS];
@@ -237,7 +267,7 @@ impl Registry {
         let (mut cmd_w, cmd_r) = ring();
         let (goto_w, goto_r) = ring();
         let (gains_w, gains_r) = latest();
-        let sink = NodeSink::new(tel_w, comm_w, probe_w);
+        let sink = NodeSink::new(tel_w, comm_w, probe_w, truth);
         let ports = ControlPorts {
             reference: ref_r,
             telemetry: sink,
@@ -248,7 +278,10 @@ impl Registry {
             Ok(l) => l,
             Err(e) => return Err(WireError::Internal(format!("control loop: {e}"))),
         };
-        let (lp, wrench_w) = if sensor_name.is_some() {
+        let (lp, wrench_w) = if let (Some(cfg), Some(contact)) = (plant_sensor, contact) {
+            let sensor = VirtualForceSensor::new(cfg, contact);
+            (NodeLoop::Plant(Box::new(lp.with_sensor(sensor))), None)
+        } else if sensor_name.is_some() {
             let (w, r) = latest();
             (
                 NodeLoop::Sensed(Box::new(
@@ -290,7 +323,9 @@ impl Registry {
                     .take(side)
                     .ok_or_else(|| WireError::Internal("teleop end".into()))?;
                 crate::objects::runtime::CommTask::teleop(
-                    TeleopComm::new(end, mapping, kinematics.clone())?.with_clutch(clutch),
+                    TeleopComm::new(end, mapping, kinematics.clone())?
+                        .with_clutch(clutch)
+                        .with_sensor_mount(plant_sensor.map(|c| c.mount)),
                     ref_w,
                     comm_r,
                     goto_r,
@@ -307,7 +342,8 @@ impl Registry {
                         path: path.clone(),
                     }
                 }),
-                (_, Some(local)) => Some(crate::objects::runtime::SensorSource::Local(local)),
+                (_, Some(_)) if plant_sensor.is_some() => None,
+                (_, Some((local, _))) => Some(crate::objects::runtime::SensorSource::Local(local)),
                 _ => None,
             };
 
@@ -485,7 +521,7 @@ pub(crate) struct Built {
     pub control: ControlTask,
     pub comm: crate::objects::runtime::CommTask,
     pub telemetry: penelope_rt_core::ring::ArcConsumer<
-        penelope_rt_core::telemetry::TelemetrySample,
+        crate::objects::runtime::TickRecord,
         { crate::objects::runtime::TELEMETRY_CAPACITY },
     >,
     pub commands: penelope_rt_core::ring::ArcProducer<

@@ -17,8 +17,10 @@ use penelope_drivers::galil::{GalilBoard, GalilBoardConfig, Link, TcpLink};
 use penelope_drivers::model::{self as models, DhRobotModel};
 use penelope_drivers::sim::ToolContact;
 use penelope_drivers::sim::board::{SimBoard, SimBoardConfig as DriverSimConfig};
+use penelope_drivers::sim::force_sensor::VirtualForceSensor;
 use penelope_drivers::sim::operator::VirtualOperator;
 use penelope_drivers::sim::plant::PlantConfig;
+use penelope_drivers::sim::tap::TapWriter;
 use penelope_hal::{
     AxisState, Board, Dynamics, Frame, InverseKinematics, JacobianFrame, JointState, JointVector,
     Kinematics, LifecycleState, MAX_AXES, MAX_JOINTS, NamedPose, RobotModel, Timestamp, Transition,
@@ -115,7 +117,9 @@ pub(crate) struct GalilObj {
 }
 
 pub(crate) struct SensorObj {
+    /// The probe model's state (probe mode).
     pub state: Arc<Mutex<VirtualSensor>>,
+    pub config: SensorConfig,
 }
 
 #[derive(Clone)]
@@ -283,9 +287,11 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
         }
         Kind::VirtualSensor => {
             let cfg: SensorConfig = kinds::parse(k, config)?;
+            cfg.check(k)?;
             let env = kinds::environment(k, &cfg.shapes)?;
             Body::Sensor(SensorObj {
                 state: Arc::new(Mutex::new(VirtualSensor::new(env))),
+                config: cfg,
             })
         }
         Kind::JointPid => {

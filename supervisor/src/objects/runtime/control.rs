@@ -98,32 +98,56 @@ pub enum GainsUpdate {
     Tracking(TrackingConfig),
 }
 
-/// The control loop's telemetry port: every sample into the ring (for the pump) and into
-/// latest-value cells for the communication task and the sensor feed.
+/// One control tick as the telemetry ring carries it: what the loop reported, and the simulated
+/// plant's true state at that instant (robots on simulated boards).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct TickRecord {
+    /// What the control loop reported.
+    pub sample: TelemetrySample,
+    /// The plant's ground truth (`None` on real boards).
+    pub truth: Option<TapSample>,
+}
+
+/// The control loop's telemetry port: every sample (with the plant's truth, if a plant is
+/// behind the board) into the ring for the pump, and into latest-value cells for the
+/// communication task and the sensor feed.
 pub struct NodeSink {
-    ring: ArcProducer<TelemetrySample, TELEMETRY_CAPACITY>,
+    ring: ArcProducer<TickRecord, TELEMETRY_CAPACITY>,
     comm: ArcLatestWriter<TelemetrySample>,
     probe: ArcLatestWriter<TelemetrySample>,
+    truth: Option<TapReader>,
 }
 
 impl NodeSink {
-    /// A sink over these three ports.
+    /// A sink over these ports; `truth` reads the simulated plant, if there is one.
     pub fn new(
-        ring: ArcProducer<TelemetrySample, TELEMETRY_CAPACITY>,
+        ring: ArcProducer<TickRecord, TELEMETRY_CAPACITY>,
         comm: ArcLatestWriter<TelemetrySample>,
         probe: ArcLatestWriter<TelemetrySample>,
+        truth: Option<TapReader>,
     ) -> Self {
-        NodeSink { ring, comm, probe }
+        NodeSink {
+            ring,
+            comm,
+            probe,
+            truth,
+        }
     }
 }
 
 impl TelemetrySink for NodeSink {
     /// # Real-time
-    /// Two wait-free cell writes and one ring push.
+    /// Three wait-free cell operations and one ring push.
     fn push(&mut self, sample: &TelemetrySample) -> bool {
         self.comm.write(*sample);
         self.probe.write(*sample);
-        self.ring.push(*sample).is_ok()
+        let truth = self.truth.as_mut().and_then(TapReader::latest);
+        self.ring
+            .push(TickRecord {
+                sample: *sample,
+                truth,
+            })
+            .is_ok()
     }
 }
 
@@ -180,23 +204,30 @@ pub enum NodeLoop {
     Plain(Box<Loop<NoSensor>>),
     /// A sensor bound (its wrench comes through a [`CellSensor`]).
     Sensed(Box<Loop<CellSensor>>),
+    /// A wrist sensor reading the robot's own simulated plant, in the loop.
+    Plant(Box<Loop<VirtualForceSensor>>),
+}
+
+/// `$body` with `$l` bound to the loop, whatever its sensor.
+macro_rules! each_loop {
+    ($lp:expr, $l:ident => $body:expr) => {
+        match $lp {
+            NodeLoop::Plain($l) => $body,
+            NodeLoop::Sensed($l) => $body,
+            NodeLoop::Plant($l) => $body,
+        }
+    };
 }
 
 impl NodeLoop {
     /// The board, model and controllers back (the loop is taken apart).
     pub fn into_board(self) -> LoopBoard {
-        match self {
-            NodeLoop::Plain(l) => l.into_parts().0,
-            NodeLoop::Sensed(l) => l.into_parts().0,
-        }
+        each_loop!(self, l => l.into_parts().0)
     }
 
     /// The last tick's sample.
     pub fn last_sample(&self) -> &TelemetrySample {
-        match self {
-            NodeLoop::Plain(l) => l.last_sample(),
-            NodeLoop::Sensed(l) => l.last_sample(),
-        }
+        each_loop!(self, l => l.last_sample())
     }
 }
 
@@ -219,15 +250,9 @@ impl ControlTask {
     /// board steps its plant, a Galil board exchanges cells with its I/O thread), bounded time.
     pub fn tick(&mut self, now: Timestamp) -> TickOutcome {
         if let Fresh::New(g) = self.gains.read() {
-            match &mut self.lp {
-                NodeLoop::Plain(l) => l.controllers_mut()[0].apply(&g),
-                NodeLoop::Sensed(l) => l.controllers_mut()[0].apply(&g),
-            }
+            each_loop!(&mut self.lp, l => l.controllers_mut()[0].apply(&g))
         }
-        match &mut self.lp {
-            NodeLoop::Plain(l) => l.tick(now),
-            NodeLoop::Sensed(l) => l.tick(now),
-        }
+        each_loop!(&mut self.lp, l => l.tick(now))
     }
 
     /// Passes the executor's timing of the previous tick to the loop.
@@ -235,10 +260,7 @@ impl ControlTask {
     /// # Real-time
     /// Constant time.
     pub fn note_timing(&mut self, wake_latency: Duration, exec_time: Duration) {
-        match &mut self.lp {
-            NodeLoop::Plain(l) => l.note_timing(wake_latency, exec_time),
-            NodeLoop::Sensed(l) => l.note_timing(wake_latency, exec_time),
-        }
+        each_loop!(&mut self.lp, l => l.note_timing(wake_latency, exec_time))
     }
 
     /// The loop.
@@ -256,18 +278,12 @@ impl ControlTask {
     /// # Real-time
     /// Constant time, no allocation.
     pub fn fail_safe(&mut self, now: Timestamp) {
-        match &mut self.lp {
-            NodeLoop::Plain(l) => l.fail_safe(now),
-            NodeLoop::Sensed(l) => l.fail_safe(now),
-        }
+        each_loop!(&mut self.lp, l => l.fail_safe(now))
     }
 
     /// Whether the loop holds its robot with the board's own servo (rather than with torques).
     pub fn holds_with_board_servo(&self) -> bool {
-        let hold = match &self.lp {
-            NodeLoop::Plain(l) => l.config().safety.hold,
-            NodeLoop::Sensed(l) => l.config().safety.hold,
-        };
+        let hold = each_loop!(&self.lp, l => l.config().safety.hold);
         matches!(hold, penelope_rt_core::safety::HoldMode::BoardServo)
     }
 }

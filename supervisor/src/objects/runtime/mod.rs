@@ -28,6 +28,8 @@ use penelope_drivers::model::DhRobotModel;
 use penelope_drivers::sim::ToolContact;
 use penelope_drivers::sim::board::{SimBoard, SimBoardError};
 use penelope_drivers::sim::environment::Environment;
+use penelope_drivers::sim::force_sensor::VirtualForceSensor;
+use penelope_drivers::sim::tap::{TapReader, TapSample};
 use penelope_hal::{
     AxisCommand, AxisState, Board, ControlInput, Controller, ControllerError, Error, ErrorKind,
     Frame, InverseKinematics, JacobianFrame, JointCommand, JointReference, JointState, JointVector,

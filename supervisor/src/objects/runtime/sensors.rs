@@ -110,40 +110,53 @@ pub struct FeedStats {
     pub failed: AtomicU64,
 }
 
-/// Runs a sensor feed until `stop`: every `period`, the tool pose and velocity of the newest
-/// sample go to `source`, and the wrench (stamped on `CLOCK_MONOTONIC`) into `out`. A failing
-/// source publishes nothing, so the loop's wrench goes stale; it never blocks the loop.
-#[allow(clippy::too_many_arguments)]
-pub fn run_sensor_feed(
-    source: &SensorSource,
-    model: &RobotKinematics,
-    state: &mut ArcLatestReader<TelemetrySample>,
-    out: &mut ArcLatestWriter<Stamped<Wrench>>,
-    period: Duration,
-    stop: &AtomicBool,
-    stats: &FeedStats,
-    name: &str,
-) {
-    while !stop.load(Ordering::Relaxed) {
-        std::thread::sleep(period);
-        let Some(s) = state.latest() else { continue };
-        let pose = model.forward(&s.q);
-        let v = model.jacobian(&s.q, JacobianFrame::Base) * s.qd;
-        match source.measure(&pose, Vector3::new(v[0], v[1], v[2])) {
+/// What a sensor feed needs each period: where the wrench comes from, the robot's model, the
+/// loop's newest sample, and the cell the loop reads the wrench from.
+pub struct SensorFeed {
+    /// Where the wrench comes from.
+    pub source: SensorSource,
+    /// The robot's kinematics (probe pose and velocity from the sample).
+    pub model: RobotKinematics,
+    /// The loop's newest sample.
+    pub state: ArcLatestReader<TelemetrySample>,
+    /// The loop's wrench cell.
+    pub out: ArcLatestWriter<Stamped<Wrench>>,
+    /// Counters.
+    pub stats: Arc<FeedStats>,
+    /// The controller's name, for the log.
+    pub controller: String,
+}
+
+impl SensorFeed {
+    /// One measurement: the tool pose and velocity of the newest sample go to the source, and
+    /// the wrench, stamped `stamp`, into the loop's cell. A failing source publishes nothing,
+    /// so the loop's wrench goes stale.
+    pub fn step(&mut self, stamp: Timestamp) {
+        let Some(s) = self.state.latest() else { return };
+        let pose = self.model.forward(&s.q);
+        let v = self.model.jacobian(&s.q, JacobianFrame::Base) * s.qd;
+        match self.source.measure(&pose, Vector3::new(v[0], v[1], v[2])) {
             Ok(w) if w.is_finite() => {
-                out.write(Stamped {
-                    stamp: MonotonicClock::read(),
-                    value: w,
-                });
-                stats.ok.fetch_add(1, Ordering::Relaxed);
+                self.out.write(Stamped { stamp, value: w });
+                self.stats.ok.fetch_add(1, Ordering::Relaxed);
             }
             Ok(_) | Err(_) => {
-                if stats.failed.fetch_add(1, Ordering::Relaxed) == 0 {
+                if self.stats.failed.fetch_add(1, Ordering::Relaxed) == 0 {
                     log::warn!(
-                        "controller `{name}`: sensor measurement failed; the wrench goes stale"
+                        "controller `{}`: sensor measurement failed; the wrench goes stale",
+                        self.controller
                     );
                 }
             }
         }
+    }
+}
+
+/// Runs a sensor feed until `stop`, every `period`, stamping on `CLOCK_MONOTONIC`; it never
+/// blocks the loop.
+pub fn run_sensor_feed(feed: &mut SensorFeed, period: Duration, stop: &AtomicBool) {
+    while !stop.load(Ordering::Relaxed) {
+        std::thread::sleep(period);
+        feed.step(MonotonicClock::read());
     }
 }

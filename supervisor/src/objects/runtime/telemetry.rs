@@ -45,6 +45,34 @@ struct Subscription {
 pub struct Subscriptions {
     list: Mutex<Vec<Subscription>>,
     next: AtomicU64,
+    recorders: Mutex<Vec<Recorder>>,
+}
+
+/// An in-process consumer of every tick of one controller (not decimated), with the plant's
+/// truth: what a run's report and files are made of.
+#[derive(Debug)]
+struct Recorder {
+    controller: String,
+    to: SyncSender<TickRecord>,
+    dropped: Arc<AtomicU64>,
+}
+
+/// The receiving end of [`Subscriptions::record`].
+#[derive(Debug)]
+pub struct TickStream {
+    /// Every tick, in order.
+    pub ticks: Receiver<TickRecord>,
+    /// Ticks lost because the stream was full (its reader fell behind).
+    pub dropped: Arc<AtomicU64>,
+}
+
+impl TickStream {
+    /// Moves every tick received so far into `into`.
+    pub fn drain_into(&self, into: &mut Vec<TickRecord>) {
+        while let Ok(t) = self.ticks.try_recv() {
+            into.push(t);
+        }
+    }
 }
 
 impl Subscriptions {
@@ -110,11 +138,44 @@ impl Subscriptions {
         }
     }
 
-    /// Sends `samples` of `controller` to its subscribers, decimated, without waiting: a full
-    /// outbox loses the batch (counted), a closed one ends the subscription.
-    pub fn publish(&self, controller: &str, samples: &[TelemetrySample], joints: usize) {
-        if samples.is_empty() {
+    /// Records every tick of `controller` from now on into a stream holding up to `capacity`
+    /// ticks; a reader that falls behind loses ticks (counted), never the loop.
+    pub fn record(&self, controller: &str, capacity: usize) -> TickStream {
+        let (to, ticks) = std::sync::mpsc::sync_channel(capacity.max(1));
+        let dropped = Arc::new(AtomicU64::new(0));
+        if let Ok(mut r) = self.recorders.lock() {
+            r.push(Recorder {
+                controller: controller.to_string(),
+                to,
+                dropped: dropped.clone(),
+            });
+        }
+        TickStream { ticks, dropped }
+    }
+
+    /// Sends `ticks` of `controller` to its recorders (every tick) and its subscribers
+    /// (decimated), without waiting: a full outbox loses the batch (counted), a closed one ends
+    /// the subscription.
+    pub fn publish(&self, controller: &str, ticks: &[TickRecord], joints: usize) {
+        if ticks.is_empty() {
             return;
+        }
+        if let Ok(mut recorders) = self.recorders.lock() {
+            recorders.retain(|r| {
+                if r.controller != controller {
+                    return true;
+                }
+                for t in ticks {
+                    match r.to.try_send(*t) {
+                        Ok(()) => {}
+                        Err(std::sync::mpsc::TrySendError::Full(_)) => {
+                            r.dropped.fetch_add(1, Ordering::Relaxed);
+                        }
+                        Err(std::sync::mpsc::TrySendError::Disconnected(_)) => return false,
+                    }
+                }
+                true
+            });
         }
         let Ok(mut list) = self.list.lock() else {
             return;
@@ -123,10 +184,10 @@ impl Subscriptions {
             if s.controller != controller {
                 return true;
             }
-            let records: Vec<TelemetryRecord> = samples
+            let records: Vec<TelemetryRecord> = ticks
                 .iter()
-                .filter(|x| x.seq % s.decimation == 0)
-                .map(|x| record(x, joints))
+                .filter(|x| x.sample.seq % s.decimation == 0)
+                .map(|x| record(&x.sample, joints))
                 .collect();
             if records.is_empty() {
                 return true;
@@ -163,38 +224,57 @@ pub fn record(s: &TelemetrySample, joints: usize) -> TelemetryRecord {
     }
 }
 
-/// Runs a telemetry pump until `stop` (then drains once more): every `period`, takes every sample
-/// out of the ring, keeps the newest in `shared`, and publishes them to the subscribers of
-/// `controller`.
-#[allow(clippy::too_many_arguments)]
-pub fn run_pump(
-    ring: &mut ArcConsumer<TelemetrySample, TELEMETRY_CAPACITY>,
-    shared: &LoopShared,
-    subscriptions: &Subscriptions,
-    controller: &str,
+/// What drains a loop's telemetry ring: keeps the newest sample in the loop's shared state and
+/// fans every tick out to recorders and subscribers. Run by a thread ([`run_pump`]) on the real
+/// clock, and after every step on a simulated one.
+pub struct Pump {
+    ring: ArcConsumer<TickRecord, TELEMETRY_CAPACITY>,
+    shared: Arc<LoopShared>,
+    subscriptions: Arc<Subscriptions>,
+    controller: String,
     joints: usize,
-    period: Duration,
-    stop: &AtomicBool,
-) {
-    let mut batch: Vec<TelemetrySample> = Vec::with_capacity(TELEMETRY_CAPACITY);
-    let mut previous: Option<TelemetrySample> = shared.newest().map(|n| n.sample);
-    loop {
-        let last_round = stop.load(Ordering::Acquire);
-        if !last_round {
-            std::thread::sleep(period);
+    batch: Vec<TickRecord>,
+    previous: Option<TelemetrySample>,
+}
+
+impl Pump {
+    /// A pump of `controller`'s ring.
+    pub fn new(
+        ring: ArcConsumer<TickRecord, TELEMETRY_CAPACITY>,
+        shared: Arc<LoopShared>,
+        subscriptions: Arc<Subscriptions>,
+        controller: &str,
+        joints: usize,
+    ) -> Self {
+        let previous = shared.newest().map(|n| n.sample);
+        Pump {
+            ring,
+            shared,
+            subscriptions,
+            controller: controller.to_string(),
+            joints,
+            batch: Vec::with_capacity(TELEMETRY_CAPACITY),
+            previous,
         }
-        batch.clear();
-        while let Some(s) = ring.pop() {
-            batch.push(s);
+    }
+
+    /// Takes every tick out of the ring and passes it on.
+    pub fn drain(&mut self) {
+        self.batch.clear();
+        while let Some(s) = self.ring.pop() {
+            self.batch.push(s);
         }
+        let shared = &self.shared;
         shared
             .dropped
-            .store(ring.dropped() as u64, Ordering::Relaxed);
+            .store(self.ring.dropped() as u64, Ordering::Relaxed);
         shared
             .drained
-            .fetch_add(batch.len() as u64, Ordering::Relaxed);
-        if let Some(last) = batch.last().copied() {
-            let before = batch.len().checked_sub(2).map(|i| batch[i]).or(previous);
+            .fetch_add(self.batch.len() as u64, Ordering::Relaxed);
+        if let Some(last) = self.batch.last().map(|t| t.sample) {
+            let before = (self.batch.len().checked_sub(2))
+                .map(|i| self.batch[i].sample)
+                .or(self.previous);
             let acceleration = match before {
                 Some(b) if last.time > b.time => {
                     (last.qd - b.qd) / (last.time - b.time).as_secs_f64()
@@ -207,9 +287,21 @@ pub fn run_pump(
                     acceleration,
                 });
             }
-            previous = Some(last);
+            self.previous = Some(last);
         }
-        subscriptions.publish(controller, &batch, joints);
+        self.subscriptions
+            .publish(&self.controller, &self.batch, self.joints);
+    }
+}
+
+/// Runs `pump` until `stop` (then drains once more), every `period`.
+pub fn run_pump(pump: &mut Pump, period: Duration, stop: &AtomicBool) {
+    loop {
+        let last_round = stop.load(Ordering::Acquire);
+        if !last_round {
+            std::thread::sleep(period);
+        }
+        pump.drain();
         if last_round {
             break;
         }

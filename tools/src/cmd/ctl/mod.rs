@@ -138,6 +138,14 @@ pub enum Verb {
         #[arg(long)]
         force: bool,
     },
+    /// Move a node's simulated clock on (a node started with --sim-clock), stepping its loops.
+    Advance {
+        /// The node (its name in the naming tree).
+        node: String,
+        /// How far, for example `20s` or `500ms`.
+        #[arg(value_parser = crate::cmd::demo::parse_duration)]
+        duration: std::time::Duration,
+    },
     /// unconfigured -> inactive: check the relations and build the object.
     Configure {
         /// The object: naming path or NODE/NAME.
@@ -311,6 +319,15 @@ impl Ctl {
                     say!("{}", json!({ "destroyed": path }));
                 } else {
                     say!("destroyed {path}");
+                }
+                Ok(())
+            }
+            Verb::Advance { node, duration } => {
+                let now = self.client()?.node(&node)?.advance(duration)?;
+                if json {
+                    say!("{}", json!({ "node": node, "time_s": now.as_secs_f64() }));
+                } else {
+                    say!("{node}: simulated clock at {:.3} s", now.as_secs_f64());
                 }
                 Ok(())
             }

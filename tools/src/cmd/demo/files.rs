@@ -2,11 +2,12 @@
 
 use std::path::Path;
 
-use penelope_supervisor::lab::run::{LabSample, RunInfo};
+use penelope_supervisor::objects::runtime::TickRecord;
+use penelope_supervisor::runs::RunInfo;
 
 /// Writes one robot's ticks: time, script phase, safety state, joints, references, wrenches,
 /// the plant's ground truth and loop timing. Units in the column names.
-pub fn write_telemetry(path: &Path, info: &RunInfo, rows: &[LabSample]) -> anyhow::Result<()> {
+pub fn write_telemetry(path: &Path, info: &RunInfo, rows: &[TickRecord]) -> anyhow::Result<()> {
     let mut w = csv::Writer::from_path(path)?;
     let mut header: Vec<String> = vec![
         "time_s".into(),
@@ -42,7 +43,7 @@ pub fn write_telemetry(path: &Path, info: &RunInfo, rows: &[LabSample]) -> anyho
     w.write_record(&header)?;
     let mut record: Vec<String> = Vec::with_capacity(header.len());
     for s in rows {
-        let t = &s.telemetry;
+        let t = &s.sample;
         record.clear();
         let elapsed = t.time - info.start;
         record.push(format!("{:.6}", elapsed.as_secs_f64()));

@@ -4,15 +4,19 @@ use std::path::{Path, PathBuf};
 
 use penelope_hal::Kinematics;
 use penelope_rt_core::telemetry::ReferenceKind;
-use penelope_supervisor::lab::run::{LabSample, RunOutput, sensor_to_base};
+use penelope_supervisor::objects::clock::ClockMode;
+use penelope_supervisor::objects::runtime::TickRecord;
+use penelope_supervisor::objects::teleop::sensor_to_base;
+use penelope_supervisor::runs::RunOutput;
+use penelope_supervisor::runs::report::motor_force;
 use plotters::prelude::*;
 
 const SIZE: (u32, u32) = (1100, 700);
 
 type Series = Vec<(f64, f64)>;
 
-fn time_of(out: &RunOutput, s: &LabSample) -> f64 {
-    (s.telemetry.time - out.info.start).as_secs_f64()
+fn time_of(out: &RunOutput, s: &TickRecord) -> f64 {
+    (s.sample.time - out.info.start).as_secs_f64()
 }
 
 fn bounds(series: &[&Series]) -> (f64, f64, f64, f64) {
@@ -82,15 +86,15 @@ pub fn write_all(dir: &Path, out: &RunOutput) -> anyhow::Result<Vec<PathBuf>> {
     let tracked = || {
         out.slave
             .iter()
-            .filter(|s| s.telemetry.reference_kind != ReferenceKind::None)
+            .filter(|s| s.sample.reference_kind != ReferenceKind::None)
     };
     let axis = |i: usize, reference: bool| -> Series {
         tracked()
             .map(|s| {
                 let v = if reference {
-                    s.telemetry.reference_position
+                    s.sample.reference_position
                 } else {
-                    s.telemetry.tool_position
+                    s.sample.tool_position
                 };
                 (time_of(out, s), v[i] * 1e3)
             })
@@ -100,7 +104,7 @@ pub fn write_all(dir: &Path, out: &RunOutput) -> anyhow::Result<Vec<PathBuf>> {
         .map(|s| {
             (
                 time_of(out, s),
-                (s.telemetry.reference_position - s.telemetry.tool_position).norm() * 1e3,
+                (s.sample.reference_position - s.sample.tool_position).norm() * 1e3,
             )
         })
         .collect();
@@ -146,10 +150,10 @@ pub fn write_all(dir: &Path, out: &RunOutput) -> anyhow::Result<Vec<PathBuf>> {
         .slave
         .iter()
         .map(|s| {
-            let pose = slave_model.forward(&s.telemetry.q);
+            let pose = slave_model.forward(&s.sample.q);
             (
                 time_of(out, s),
-                sensor_to_base(&s.telemetry.wrench, &out.info.sensor_mount, &pose)
+                sensor_to_base(&s.sample.wrench, &out.info.sensor_mount, &pose)
                     .force
                     .norm(),
             )
@@ -157,12 +161,12 @@ pub fn write_all(dir: &Path, out: &RunOutput) -> anyhow::Result<Vec<PathBuf>> {
         .collect();
     let scaled: Series = sensed
         .iter()
-        .map(|&(t, f)| (t, f * out.info.force_gain))
+        .map(|&(t, f)| (t, f * out.info.mapping.force_gain))
         .collect();
     let displayed: Series = out
         .master
         .iter()
-        .map(|s| (time_of(out, s), s.telemetry.commanded_wrench.force.norm()))
+        .filter_map(|s| Some((time_of(out, s), motor_force(&out.info, s)?.norm())))
         .collect();
     let hand: Series = out
         .master
@@ -183,7 +187,7 @@ pub fn write_all(dir: &Path, out: &RunOutput) -> anyhow::Result<Vec<PathBuf>> {
             &[
                 ("slave wrist sensor", &sensed, RED),
                 ("force gain x sensor", &scaled, MAGENTA),
-                ("master displays", &displayed, BLUE),
+                ("master motors display", &displayed, BLUE),
                 ("operator's hand", &hand, GREEN),
             ],
         )?;
@@ -192,15 +196,10 @@ pub fn write_all(dir: &Path, out: &RunOutput) -> anyhow::Result<Vec<PathBuf>> {
     written.push(path);
 
     // Timing: wake-up latency per tick of the control threads (real-time runs only).
-    if !out.threads.is_empty() {
-        let latency = |rows: &[LabSample]| -> Series {
+    if out.info.clock == ClockMode::RealTime {
+        let latency = |rows: &[TickRecord]| -> Series {
             rows.iter()
-                .map(|s| {
-                    (
-                        time_of(out, s),
-                        s.telemetry.wake_latency.as_secs_f64() * 1e6,
-                    )
-                })
+                .map(|s| (time_of(out, s), s.sample.wake_latency.as_secs_f64() * 1e6))
                 .collect()
         };
         let (m, s) = (latency(&out.master), latency(&out.slave));

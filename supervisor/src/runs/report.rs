@@ -11,16 +11,26 @@ use penelope_hal::{Kinematics, Timestamp};
 use penelope_rt_core::telemetry::ReferenceKind;
 use serde::Serialize;
 
-use super::run::{ClockMode, LabSample, RunInfo, RunOutput, sensor_to_base};
+use super::{RunInfo, RunOutput};
+use crate::objects::clock::ClockMode;
+use crate::objects::runtime::TickRecord;
+use crate::objects::teleop::sensor_to_base;
 use penelope_drivers::sim::scripts::{CONTACT_PHASE, FREE_MOTION_PHASES, INDEX_PHASE, TAP_PHASE};
+use penelope_rt_core::teleop::WorkspaceMapping;
 
 /// Position tracking in free motion.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct TrackingReport {
-    /// RMS distance between the slave's tool and its reference (the mapped master pose), mm.
+    /// RMS distance between the slave's tool and its own reference (the mapped master pose as
+    /// the slave received it), mm.
     pub rms_mm: f64,
     /// Largest distance, mm.
     pub max_mm: f64,
+    /// RMS distance between the slave's tool and the master's mapped pose at the same instant
+    /// (the transport lag shows here), mm.
+    pub against_master_rms_mm: f64,
+    /// Largest such distance, mm.
+    pub against_master_max_mm: f64,
     /// Control ticks measured.
     pub samples: usize,
 }
@@ -32,8 +42,11 @@ pub struct ContactReport {
     pub sensed_force_n: f64,
     /// Mean force the master should display: force gain x mapped sensed force, magnitude, N.
     pub expected_display_n: f64,
-    /// Mean force the master commanded, magnitude, N.
+    /// Mean force the master's motors produce at the handle (their torques less gravity,
+    /// through `J^-T`, from the plant's applied torques), magnitude, N.
     pub displayed_force_n: f64,
+    /// Mean force the master's law commanded, magnitude, N.
+    pub commanded_force_n: f64,
     /// `|displayed - expected| / |expected|` of the mean vectors, percent.
     pub display_error_pct: f64,
     /// Mean force the operator's hand felt (pushed with), magnitude, N.
@@ -90,7 +103,7 @@ pub struct LoopTiming {
     pub latency_us: [f64; 5],
     /// Execution time of the body, µs: mean, max.
     pub exec_us: [f64; 2],
-    /// Whether SCHED_FIFO and mlockall took effect.
+    /// Whether the loop ran on the real clock (latencies are measured only there).
     pub realtime: bool,
 }
 
@@ -129,19 +142,6 @@ pub struct Report {
     pub faults: Vec<String>,
     /// Telemetry samples dropped because the logger fell behind.
     pub dropped_samples: usize,
-    /// The slave's Galil link, when the slave is on a Galil board: exchanges and mean rate (Hz).
-    pub galil_link: Option<GalilLinkReport>,
-}
-
-/// What a Galil board's I/O thread achieved.
-#[derive(Clone, Debug, Serialize, PartialEq)]
-pub struct GalilLinkReport {
-    /// Command/reply cycles completed.
-    pub cycles: u64,
-    /// Mean cycles per second over the run.
-    pub mean_rate_hz: f64,
-    /// Whether the link ended faulted.
-    pub faulted: bool,
 }
 
 fn phase_of(info: &RunInfo, t: Timestamp) -> &'static str {
@@ -180,8 +180,8 @@ fn mean_vector(values: impl Iterator<Item = Vector3<f64>>) -> (Vector3<f64>, usi
     (if n > 0 { sum / n as f64 } else { sum }, n)
 }
 
-fn in_window(info: &RunInfo, s: &LabSample, window: (Duration, Duration)) -> bool {
-    let t = s.telemetry.time - info.start;
+fn in_window(info: &RunInfo, s: &TickRecord, window: (Duration, Duration)) -> bool {
+    let t = s.sample.time - info.start;
     t >= window.0 && t < window.1
 }
 
@@ -194,13 +194,13 @@ fn coupled_energy(out: &RunOutput) -> Vec<(Duration, f64)> {
     let mut master = out
         .master
         .iter()
-        .filter_map(|m| m.truth.map(|t| (m.telemetry.time, t)))
+        .filter_map(|m| m.truth.map(|t| (m.sample.time, t)))
         .peekable();
     let mut current = None;
     let mut series = Vec::with_capacity(out.slave.len());
     for s in &out.slave {
         while let Some(&(t, truth)) = master.peek() {
-            if t > s.telemetry.time {
+            if t > s.sample.time {
                 break;
             }
             current = Some(truth);
@@ -211,7 +211,7 @@ fn coupled_energy(out: &RunOutput) -> Vec<(Duration, f64)> {
                 .environment
                 .stored_energy(&ts.tool_pose.translation.vector);
             series.push((
-                s.telemetry.time - info.start,
+                s.sample.time - info.start,
                 ts.kinetic_energy + tm.kinetic_energy + stored,
             ));
         }
@@ -219,12 +219,93 @@ fn coupled_energy(out: &RunOutput) -> Vec<(Duration, f64)> {
     series
 }
 
+/// The force the master's motors produce at the handle in tick `s`: the plant's applied joint
+/// torques less gravity, through `J^-T` (`None` near a singularity).
+pub fn motor_force(info: &RunInfo, s: &TickRecord) -> Option<Vector3<f64>> {
+    use penelope_hal::{Dynamics, JacobianFrame};
+    let q = s.sample.q;
+    let n = info.master_dynamics.joint_count().min(6);
+    let tau = s.truth.map_or(s.sample.effort, |t| t.joints.effort);
+    let g = info.master_dynamics.gravity(&q);
+    let j = info.master_model.jacobian(&q, JacobianFrame::Base);
+    let jt = j.columns(0, n).transpose();
+    let rhs = (tau - g).rows(0, n).into_owned();
+    // J^T F = tau - g, solved for F (least squares for fewer than six joints).
+    let f = jt.svd(true, true).solve(&rhs, 1e-9).ok()?;
+    Some(Vector3::new(f[0], f[1], f[2]))
+}
+
+/// The master's tool position mapped into the slave's frame at each master tick, replaying the
+/// channel's mapping (anchored at the start, re-anchored at each clutch release).
+fn mapped_master(out: &RunOutput) -> Vec<(Timestamp, Vector3<f64>)> {
+    let info = &out.info;
+    let (Some(m0), Some(s0)) = (out.master.first(), out.slave.first()) else {
+        return Vec::new();
+    };
+    let Ok(mut mapping) = WorkspaceMapping::new(info.mapping) else {
+        return Vec::new();
+    };
+    mapping.anchor(
+        &info.master_model.forward(&m0.sample.q),
+        &info.slave_model.forward(&s0.sample.q),
+    );
+    out.master
+        .iter()
+        .filter_map(|m| {
+            let pose = info.master_model.forward(&m.sample.q);
+            let clutch = info.script.clutch(m.sample.time - info.start);
+            let mapped = mapping.update(m.sample.time, &pose, clutch).ok()?;
+            Some((m.sample.time, mapped.translation.vector))
+        })
+        .collect()
+}
+
+/// Wake-up latency and execution time of one control loop, from what it noted each tick.
+fn loop_timing(side: &str, info: &RunInfo, rows: &[TickRecord]) -> LoopTiming {
+    let us = |d: Duration| d.as_secs_f64() * 1e6;
+    let mut latency: Vec<f64> = rows.iter().map(|r| us(r.sample.wake_latency)).collect();
+    latency.sort_by(f64::total_cmp);
+    let at = |p: f64| {
+        let i = ((latency.len() as f64 - 1.0) * p).round() as usize;
+        latency.get(i).copied().unwrap_or(0.0)
+    };
+    let exec: Vec<f64> = rows.iter().map(|r| us(r.sample.exec_time)).collect();
+    let period = info.control_period;
+    // A deadline the loop skipped shows as a gap of more than one period between ticks.
+    let overruns = rows
+        .windows(2)
+        .map(|w| {
+            let gap = w[1].sample.time.saturating_since(w[0].sample.time);
+            (gap.as_nanos() / period.as_nanos().max(1)).saturating_sub(1) as u64
+        })
+        .sum();
+    LoopTiming {
+        name: format!(
+            "{side} ({})",
+            if side == "master" {
+                &info.controllers.0
+            } else {
+                &info.controllers.1
+            }
+        ),
+        period_us: us(period),
+        ticks: rows.len() as u64,
+        overruns,
+        latency_us: [at(0.0), at(0.5), at(0.99), at(0.999), at(1.0)],
+        exec_us: [
+            exec.iter().sum::<f64>() / exec.len().max(1) as f64,
+            exec.iter().copied().fold(0.0, f64::max),
+        ],
+        realtime: true,
+    }
+}
+
 /// The run's report.
 pub fn report(out: &RunOutput) -> Report {
     let info = &out.info;
-    let free = |s: &&LabSample| {
-        s.telemetry.reference_kind != ReferenceKind::None
-            && FREE_MOTION_PHASES.contains(&phase_of(info, s.telemetry.time))
+    let free = |s: &&TickRecord| {
+        s.sample.reference_kind != ReferenceKind::None
+            && FREE_MOTION_PHASES.contains(&phase_of(info, s.sample.time))
     };
 
     // Tracking: slave tool vs its reference, free-motion phases.
@@ -232,36 +313,45 @@ pub fn report(out: &RunOutput) -> Report {
         .slave
         .iter()
         .filter(free)
-        .map(|s| (s.telemetry.reference_position - s.telemetry.tool_position).norm()));
+        .map(|s| (s.sample.reference_position - s.sample.tool_position).norm()));
+    let mapped = mapped_master(out);
+    let (lag_rms, lag_max, _) = rms(out.slave.iter().filter(free).filter_map(|s| {
+        let m = mapped
+            .iter()
+            .take_while(|(t, _)| *t <= s.sample.time)
+            .last()?;
+        Some((m.1 - s.sample.tool_position).norm())
+    }));
 
     // Contact: the second half of the steady-contact phase.
     let contact_window = phase_window(info, CONTACT_PHASE)
         .map(|(a, b)| (a + (b - a) / 2, b))
         .unwrap_or_default();
-    let slave_contact: Vec<&LabSample> = out
+    let slave_contact: Vec<&TickRecord> = out
         .slave
         .iter()
         .filter(|s| in_window(info, s, contact_window))
         .collect();
-    let master_contact: Vec<&LabSample> = out
+    let master_contact: Vec<&TickRecord> = out
         .master
         .iter()
         .filter(|s| in_window(info, s, contact_window))
         .collect();
     let slave_model = &info.slave_model;
     let (sensed_base, contact_n) = mean_vector(slave_contact.iter().map(|s| {
-        let pose = slave_model.forward(&s.telemetry.q);
-        sensor_to_base(&s.telemetry.wrench, &info.sensor_mount, &pose).force
+        let pose = slave_model.forward(&s.sample.q);
+        sensor_to_base(&s.sample.wrench, &info.sensor_mount, &pose).force
     }));
     let (true_contact, _) = mean_vector(
         slave_contact
             .iter()
             .filter_map(|s| s.truth.map(|t| t.base_wrench.force)),
     );
-    let (displayed, _) = mean_vector(
+    let (displayed, _) = mean_vector(master_contact.iter().filter_map(|s| motor_force(info, s)));
+    let (commanded, _) = mean_vector(
         master_contact
             .iter()
-            .map(|s| s.telemetry.commanded_wrench.force),
+            .map(|s| s.sample.commanded_wrench.force),
     );
     let (hand, _) = mean_vector(
         master_contact
@@ -270,7 +360,7 @@ pub fn report(out: &RunOutput) -> Report {
     );
     // Expected display: the environment's push on the slave, rotated into the master frame and
     // scaled by the force gain (the sensor reads the robot pushing, hence the minus).
-    let expected = info.rotation.inverse() * (-sensed_base * info.force_gain);
+    let expected = info.rotation().inverse() * (-sensed_base * info.mapping.force_gain);
     let display_error_pct = if expected.norm() > 1e-9 {
         (displayed - expected).norm() / expected.norm() * 100.0
     } else {
@@ -304,7 +394,7 @@ pub fn report(out: &RunOutput) -> Report {
         let run_end = out
             .slave
             .last()
-            .map_or(Duration::ZERO, |s| s.telemetry.time - info.start);
+            .map_or(Duration::ZERO, |s| s.sample.time - info.start);
         while k + cycle <= b.min(run_end + Duration::from_millis(1)) {
             let window = (k, k + cycle);
             let peak = energy
@@ -318,7 +408,7 @@ pub fn report(out: &RunOutput) -> Report {
         let work_at = |t: Duration| {
             out.master
                 .iter()
-                .find(|s| s.telemetry.time - info.start >= t)
+                .find(|s| s.sample.time - info.start >= t)
                 .and_then(|s| s.truth)
                 .map(|t| t.interaction_work)
         };
@@ -336,11 +426,11 @@ pub fn report(out: &RunOutput) -> Report {
     };
 
     // Clutch: reference steps.
-    let steps = |pred: &dyn Fn(&LabSample) -> bool| {
+    let steps = |pred: &dyn Fn(&TickRecord) -> bool| {
         out.slave
             .windows(2)
             .filter(|w| pred(&w[1]))
-            .map(|w| (w[1].telemetry.reference_position - w[0].telemetry.reference_position).norm())
+            .map(|w| (w[1].sample.reference_position - w[0].sample.reference_position).norm())
             .fold(0.0f64, f64::max)
             * 1e3
     };
@@ -349,28 +439,19 @@ pub fn report(out: &RunOutput) -> Report {
         .unwrap_or_default();
     let clutch = ClutchReport {
         max_step_mm: steps(&|s| in_window(info, s, index_window)),
-        normal_max_step_mm: steps(&|s| phase_of(info, s.telemetry.time).starts_with("sweep")),
+        normal_max_step_mm: steps(&|s| phase_of(info, s.sample.time).starts_with("sweep")),
     };
 
-    // Timing.
-    let timing = out
-        .threads
-        .iter()
-        .filter_map(|t| {
-            let r = t.report.as_ref()?;
-            let l = r.latency.summary();
-            let us = |d: Duration| d.as_secs_f64() * 1e6;
-            Some(LoopTiming {
-                name: t.name.clone(),
-                period_us: us(t.period),
-                ticks: r.ticks,
-                overruns: r.overruns,
-                latency_us: [us(l.min), us(l.p50), us(l.p99), us(l.p999), us(l.max)],
-                exec_us: [us(r.exec.mean()), us(r.exec.max())],
-                realtime: r.rt.fifo.is_applied() && r.rt.memory_locked.is_applied(),
-            })
-        })
-        .collect();
+    // Timing: what each control loop noted of its own wake-ups and execution.
+    let timing = if info.clock == ClockMode::RealTime {
+        [("master", &out.master), ("slave", &out.slave)]
+            .into_iter()
+            .filter(|(_, rows)| !rows.is_empty())
+            .map(|(side, rows)| loop_timing(side, info, rows))
+            .collect()
+    } else {
+        Vec::new()
+    };
 
     // Safety.
     let mut safety_events = BTreeMap::new();
@@ -378,25 +459,25 @@ pub fn report(out: &RunOutput) -> Report {
     for (robot, rows) in [("master", &out.master), ("slave", &out.slave)] {
         let mut last_fault = None;
         for s in rows.iter() {
-            for e in s.telemetry.events.iter() {
+            for e in s.sample.events.iter() {
                 *safety_events
                     .entry(format!("{robot}/{}", e.as_str()))
                     .or_insert(0) += 1;
             }
-            if let Some(cause) = s.telemetry.fault
-                && s.telemetry.fault != last_fault
+            if let Some(cause) = s.sample.fault
+                && s.sample.fault != last_fault
             {
                 faults.push(format!(
                     "{robot} at {:.3} s: {cause}",
-                    (s.telemetry.time - info.start).as_secs_f64()
+                    (s.sample.time - info.start).as_secs_f64()
                 ));
             }
-            last_fault = s.telemetry.fault;
+            last_fault = s.sample.fault;
         }
     }
 
     Report {
-        lab: info.lab.clone(),
+        lab: info.system.clone(),
         law: info.law.as_str().to_string(),
         clock: match info.clock {
             ClockMode::RealTime => "real-time",
@@ -407,18 +488,21 @@ pub fn report(out: &RunOutput) -> Report {
         duration_s: out
             .slave
             .last()
-            .map_or(0.0, |s| (s.telemetry.time - info.start).as_secs_f64()),
-        scale: info.scale,
-        force_gain: info.force_gain,
+            .map_or(0.0, |s| (s.sample.time - info.start).as_secs_f64()),
+        scale: info.mapping.scale,
+        force_gain: info.mapping.force_gain,
         tracking: TrackingReport {
             rms_mm: track_rms * 1e3,
             max_mm: track_max * 1e3,
+            against_master_rms_mm: lag_rms * 1e3,
+            against_master_max_mm: lag_max * 1e3,
             samples: track_n,
         },
         contact: ContactReport {
             sensed_force_n: sensed_base.norm(),
             expected_display_n: expected.norm(),
             displayed_force_n: displayed.norm(),
+            commanded_force_n: commanded.norm(),
             display_error_pct,
             hand_force_n: hand.norm(),
             true_contact_force_n: true_contact.norm(),
@@ -437,11 +521,6 @@ pub fn report(out: &RunOutput) -> Report {
         timing,
         safety_events,
         faults,
-        dropped_samples: out.dropped.0 + out.dropped.1,
-        galil_link: info.slave_link.as_ref().map(|l| GalilLinkReport {
-            cycles: l.cycles(),
-            mean_rate_hz: l.mean_exchange_rate_hz(),
-            faulted: l.faulted(),
-        }),
+        dropped_samples: (out.dropped.0 + out.dropped.1) as usize,
     }
 }

@@ -1,0 +1,497 @@
+//! The loops of active controllers: starting them (threads, or steps on the simulated clock),
+//! stopping them safely, taking failed ones out of service, and the simulated clock's controls.
+
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::sync::mpsc::sync_channel;
+use std::time::Duration;
+
+use penelope_hal::{LifecycleState, Timestamp};
+use penelope_rt_core::control::ControlCommand;
+use penelope_rt_core::exec::{self, PeriodicConfig, Setting};
+
+use super::clock::{SteppedLoop, TickBody};
+use super::registry::{self, Body, Launch};
+use super::runtime::{self, LoopFault, LoopShared, Running, StoppedLoop, TickStream};
+use super::{Creator, DetachedLoop, RtPolicy};
+use crate::proto::{Class, Method, Reply, WireError};
+
+impl Creator {
+    pub(super) fn fifo_allowed(&self) -> bool {
+        let Some(p) = self.config.rt.priority else {
+            return false;
+        };
+        *self.fifo.get_or_init(|| {
+            std::thread::spawn(move || exec::set_fifo(p) == Setting::Applied)
+                .join()
+                .unwrap_or(false)
+        })
+    }
+
+    pub(super) fn activate(&self, name: &str) -> Result<(), WireError> {
+        let fifo = self.fifo_allowed();
+        let remote = self.remote.lock().ok().and_then(|r| r.clone());
+        let launch = Launch {
+            rt: &self.config.rt,
+            remote,
+        };
+        let mut reg = self.lock()?;
+        let built = reg.build_loop(name, &launch)?;
+        let rt = launch.rt;
+        let scheduling = match (fifo, rt.priority) {
+            (true, Some(p)) => format!("SCHED_FIFO {p}"),
+            (false, Some(p)) => {
+                log::warn!(
+                    "controller `{name}`: SCHED_FIFO {p} is not permitted to this process; its loop runs at normal priority"
+                );
+                "normal (SCHED_FIFO refused)".to_string()
+            }
+            (_, None) => "normal".to_string(),
+        };
+
+        let control_stop = Arc::new(AtomicBool::new(false));
+        let comm_stop = Arc::new(AtomicBool::new(false));
+        let fault = Arc::new(LoopFault::default());
+        let (back_tx, back_rx) = sync_channel(1);
+        let (comm_back_tx, comm_back_rx) = sync_channel(1);
+        let registry::Built {
+            control,
+            comm,
+            telemetry,
+            commands,
+            goto,
+            gains,
+            probe,
+            wrench,
+            source,
+            model,
+            joints,
+            timing,
+        } = built;
+        let aux_stop = Arc::new(AtomicBool::new(false));
+        let shared = Arc::new(LoopShared::default());
+        let feed_stats = Arc::new(runtime::FeedStats::default());
+        let mut pump = Some(runtime::Pump::new(
+            telemetry,
+            shared.clone(),
+            self.subscriptions.clone(),
+            name,
+            joints,
+        ));
+        let mut feed = match (source, wrench) {
+            (Some(source), Some(out)) => Some(runtime::SensorFeed {
+                source,
+                model,
+                state: probe,
+                out,
+                stats: feed_stats.clone(),
+                controller: name.to_string(),
+            }),
+            _ => None,
+        };
+        let control_body =
+            runtime::control_body(control, control_stop.clone(), back_tx, fault.clone());
+        let comm_body = runtime::comm_body(comm, fault.clone(), comm_stop.clone(), comm_back_tx);
+        let mut running = Running {
+            control: None,
+            control_stop,
+            control_back: back_rx,
+            comm: None,
+            comm_stop,
+            comm_back: comm_back_rx,
+            commands,
+            goto,
+            gains,
+            pump: None,
+            aux_stop,
+            feed: None,
+            feed_stats,
+            shared,
+            fifo,
+            period: timing.period,
+            fault,
+            stepped: self.sim.is_some(),
+        };
+        let scheduling = if let Some(world) = &self.sim {
+            let mut world = world
+                .lock()
+                .map_err(|_| WireError::Internal("simulated clock poisoned".into()))?;
+            let now = world.now();
+            world.add(
+                name,
+                SteppedLoop::new(
+                    now,
+                    Box::new(control_body),
+                    Box::new(comm_body),
+                    feed.take(),
+                    pump.take()
+                        .ok_or_else(|| WireError::Internal("pump".into()))?,
+                    (timing.period, timing.comm_period, timing.sensor_period),
+                ),
+            );
+            "simulated clock".to_string()
+        } else {
+            let bodies: (TickBody, TickBody) = (Box::new(control_body), Box::new(comm_body));
+            let aux = (pump.take(), feed.take());
+            if let Err(why) = start_threads(name, &mut running, bodies, aux, &timing, rt, fifo) {
+                // Stop what did start, give the board back, and say why.
+                let stopped = running.stop();
+                reg.take_back(stopped, name, false);
+                return Err(WireError::Internal(why));
+            }
+            scheduling
+        };
+        let o = reg.get_mut(name)?;
+        o.state = LifecycleState::Active;
+        if let Body::Controller(c) = &mut o.body {
+            c.running = Some(running);
+            c.scheduling = Some(scheduling);
+            c.fault = None;
+        }
+        Ok(())
+    }
+
+    /// Takes every loop whose threads failed out of service: the control thread already
+    /// brought its robot to the safe state (amplifiers off, or the board's servo holding); here
+    /// the threads are joined, the board goes back to its objects as it is, and the controller
+    /// shows `error` with the cause until it is re-armed. Runs before every call, so what a
+    /// client sees is never a dead loop shown `active`.
+    pub(super) fn reap_failed(&self) {
+        let failed: Vec<(String, String, Running)> = {
+            let Ok(mut reg) = self.lock() else { return };
+            let names: Vec<String> = reg
+                .objects
+                .values()
+                .filter(|o| {
+                    matches!(&o.body, Body::Controller(c)
+                        if c.running.as_ref().is_some_and(|r| r.failure().is_some()))
+                })
+                .map(|o| o.name.clone())
+                .collect();
+            names
+                .into_iter()
+                .filter_map(|name| {
+                    let o = reg.objects.get_mut(&name)?;
+                    let Body::Controller(c) = &mut o.body else {
+                        return None;
+                    };
+                    let robot = c.robot.clone().unwrap_or_default();
+                    Some((name, robot, c.running.take()?))
+                })
+                .collect()
+        };
+        for (name, robot, running) in failed {
+            let cause = running
+                .failure()
+                .unwrap_or_else(|| "a thread failed".into());
+            let last = running.shared.newest().map(|n| n.sample);
+            let stopped = self.stop_loop(&name, running, true);
+            let Ok(mut reg) = self.lock() else { return };
+            let stopped = reg.take_back(stopped, &name, true);
+            log::error!(
+                "node {}: controller `{name}` failed ({cause}); robot `{robot}` stopped: {stopped}",
+                self.config.node
+            );
+            if let Ok(o) = reg.get_mut(&name) {
+                o.state = LifecycleState::Error;
+                if let Body::Controller(c) = &mut o.body {
+                    c.fault = Some(cause);
+                    c.last = last.or(c.last);
+                    c.scheduling = None;
+                }
+            }
+        }
+    }
+
+    /// Calls `method` on object `object` (as a connection's `Call::Object` would, for calls made
+    /// inside the process).
+    ///
+    /// # Errors
+    /// The object's typed error.
+    pub fn call_object(&self, object: &str, method: Method) -> Result<Reply, WireError> {
+        self.reap_failed();
+        self.object_call(object, method)
+    }
+
+    /// Makes a thread of controller `name`'s running loop panic in its next tick, as a bug
+    /// would (fault-injection tests of the failure path).
+    ///
+    /// # Errors
+    /// [`WireError::UnknownName`], or [`WireError::NotReady`] when it is not running.
+    #[cfg(feature = "fault-injection")]
+    pub fn inject_thread_panic(
+        &self,
+        name: &str,
+        thread: runtime::LoopThread,
+    ) -> Result<(), WireError> {
+        let reg = self.lock()?;
+        match &reg.get(name)?.body {
+            Body::Controller(c) => match &c.running {
+                Some(r) => {
+                    r.fault.inject_panic(thread);
+                    Ok(())
+                }
+                None => Err(WireError::NotReady(format!("`{name}` is not running"))),
+            },
+            _ => Err(WireError::NotReady(format!("`{name}` is not a controller"))),
+        }
+    }
+
+    /// Re-arms controller `name`: a running loop clears its latched fault or e-stop (and its
+    /// boards' own latches) and activates again from the measured state; a loop whose threads
+    /// failed (`error`) is built and started anew, from the measured state.
+    pub(super) fn rearm(&self, name: &str) -> Result<Reply, WireError> {
+        let failed = {
+            let mut reg = self.lock()?;
+            let o = reg.get_mut(name)?;
+            if o.kind.class() != Class::Controller {
+                return Err(WireError::WrongClass {
+                    name: name.into(),
+                    expected: Class::Controller,
+                    found: o.kind.class(),
+                });
+            }
+            let failed = o.state == LifecycleState::Error;
+            if failed {
+                o.state = LifecycleState::Inactive;
+                if let Body::Controller(c) = &mut o.body {
+                    c.fault = None;
+                }
+            }
+            failed
+        };
+        if failed {
+            self.activate(name)?;
+            return Ok(Reply::Unit);
+        }
+        let mut reg = self.lock()?;
+        let Body::Controller(c) = &mut reg.get_mut(name)?.body else {
+            return Err(WireError::Internal("controller body".into()));
+        };
+        let run = c
+            .running
+            .as_mut()
+            .ok_or_else(|| WireError::NotReady(format!("controller `{name}` is not running")))?;
+        for cmd in [ControlCommand::Rearm, ControlCommand::Activate] {
+            run.commands
+                .push(cmd)
+                .map_err(|_| WireError::NotReady("command queue full; retry".into()))?;
+        }
+        Ok(Reply::Unit)
+    }
+
+    /// Stops controller `name`'s loop (amplifiers off), joins its threads and gives its boards
+    /// back. The registry lock is not held while threads are joined (a sensor feed may be calling
+    /// back into this node).
+    pub(super) fn deactivate(&self, name: &str) -> Result<(), WireError> {
+        let running = {
+            let mut reg = self.lock()?;
+            let o = reg.get_mut(name)?;
+            match &mut o.body {
+                Body::Controller(c) => c.running.take(),
+                _ => return Err(WireError::Internal("not a controller".into())),
+            }
+        };
+        let mut last = None;
+        let stopped = running.map(|r| {
+            let shared = r.shared.clone();
+            let stopped = self.stop_loop(name, r, false);
+            last = shared.newest().map(|n| n.sample);
+            stopped
+        });
+        let mut reg = self.lock()?;
+        if let Some(stopped) = stopped {
+            reg.take_back(stopped, name, false);
+        }
+        reg.release_users(name);
+        let o = reg.get_mut(name)?;
+        o.state = LifecycleState::Inactive;
+        if let Body::Controller(c) = &mut o.body {
+            c.last = last.or(c.last);
+            c.scheduling = None;
+        }
+        Ok(())
+    }
+
+    /// Builds controller `name`'s loop without starting any thread (for tests and benchmarks
+    /// that step it on a simulated clock). The controller stays `inactive`, but the objects it
+    /// uses show it as their user and the robot's board is inside the returned loop, so they
+    /// cannot run elsewhere until the creator is dropped.
+    ///
+    /// # Errors
+    /// As activating the controller.
+    pub fn detach_loop(&self, name: &str) -> Result<DetachedLoop, WireError> {
+        let launch = Launch {
+            rt: &self.config.rt,
+            remote: self.remote.lock().ok().and_then(|r| r.clone()),
+        };
+        let built = self.lock()?.build_loop(name, &launch)?;
+        Ok(DetachedLoop {
+            control: built.control,
+            comm: built.comm,
+            telemetry: built.telemetry,
+            probe: built.probe,
+            wrench: built.wrench,
+        })
+    }
+
+    /// Stops every running loop safely (amplifiers off, threads joined).
+    pub fn shutdown(&self) {
+        let active: Vec<String> = self
+            .lock()
+            .map(|r| {
+                r.objects
+                    .values()
+                    .filter(|o| matches!(&o.body, Body::Controller(c) if c.running.is_some()))
+                    .map(|o| o.name.clone())
+                    .collect()
+            })
+            .unwrap_or_default();
+        for c in active {
+            if let Err(e) = self.deactivate(&c) {
+                log::warn!("shutdown: controller `{c}`: {e}");
+            }
+        }
+    }
+
+    /// Moves the simulated clock on by `by`, stepping every active loop in order, and returns
+    /// its new time.
+    ///
+    /// # Errors
+    /// [`WireError::NotReady`] on a creator clocked in real time.
+    pub fn advance(&self, by: Duration) -> Result<Timestamp, WireError> {
+        let world = self.sim.as_ref().ok_or_else(|| {
+            WireError::NotReady(
+                "this node runs in real time; only a simulated clock advances".into(),
+            )
+        })?;
+        let now = world
+            .lock()
+            .map_err(|_| WireError::Internal("simulated clock poisoned".into()))?
+            .advance(by);
+        self.reap_failed();
+        Ok(now)
+    }
+
+    /// The simulated clock's time (`None` in real time).
+    pub fn sim_time(&self) -> Option<Timestamp> {
+        self.sim
+            .as_ref()
+            .and_then(|w| w.lock().ok().map(|w| w.now()))
+    }
+
+    /// Records every tick of controller `name` (not decimated, with the plant's truth) from now
+    /// on, into a stream of up to `capacity` ticks: what a run's report and files are made of.
+    /// A reader that falls behind loses ticks (counted), never the loop.
+    ///
+    /// # Errors
+    /// [`WireError::UnknownName`], or [`WireError::WrongClass`] for an object that is not a
+    /// controller.
+    pub fn record_ticks(&self, name: &str, capacity: usize) -> Result<TickStream, WireError> {
+        let class = self.lock()?.get(name)?.kind.class();
+        if class != Class::Controller {
+            return Err(WireError::WrongClass {
+                name: name.into(),
+                expected: Class::Controller,
+                found: class,
+            });
+        }
+        Ok(self.subscriptions.record(name, capacity))
+    }
+
+    /// Stops `running` (controller `name`'s loop): its threads, or its steps on the simulated
+    /// clock. `failed`: the loop already brought its robot to the safe state.
+    fn stop_loop(&self, name: &str, running: Running, failed: bool) -> StoppedLoop {
+        if !running.stepped {
+            return if failed {
+                running.stop_failed()
+            } else {
+                running.stop()
+            };
+        }
+        let Some(world) = &self.sim else {
+            return StoppedLoop {
+                control: None,
+                comm: None,
+            };
+        };
+        let mut running = running;
+        if !failed {
+            let _ = running.commands.push(ControlCommand::Deactivate);
+        }
+        let Ok(mut world) = world.lock() else {
+            return StoppedLoop {
+                control: None,
+                comm: None,
+            };
+        };
+        let now = world.now();
+        match world.remove(name) {
+            Some(stepped) => stepped.stop(&running, now, failed),
+            None => StoppedLoop {
+                control: None,
+                comm: None,
+            },
+        }
+    }
+}
+
+/// Starts the threads of a loop: control (SCHED_FIFO where permitted), communication, the
+/// telemetry pump and the sensor feed. On an error, what did start is in `running`.
+fn start_threads(
+    name: &str,
+    running: &mut Running,
+    (control, comm): (TickBody, TickBody),
+    (pump, feed): (Option<runtime::Pump>, Option<runtime::SensorFeed>),
+    timing: &super::kinds::LoopTiming,
+    rt: &RtPolicy,
+    fifo: bool,
+) -> Result<(), String> {
+    let thread_name =
+        |prefix: &str| -> String { format!("{prefix}{name}").chars().take(15).collect() };
+    let mut control_cfg = PeriodicConfig::new(thread_name("ctl-"), timing.period);
+    control_cfg.lock_memory = rt.lock_memory;
+    control_cfg.hold_dma_latency = rt.lock_memory;
+    control_cfg.cpu = rt.cpu;
+    control_cfg.priority = if fifo { rt.priority } else { None };
+    let mut comm_cfg = PeriodicConfig::new(thread_name("com-"), timing.comm_period);
+    comm_cfg.lock_memory = false;
+    comm_cfg.hold_dma_latency = false;
+    comm_cfg.prefault_stack = 64 * 1024;
+    comm_cfg.stack_size = 512 * 1024;
+    comm_cfg.cpu = rt.cpu;
+    comm_cfg.priority = if fifo {
+        rt.priority.map(|p| p.saturating_sub(10).max(1))
+    } else {
+        None
+    };
+    // A thread that cannot be spawned is an error, never a silently missing part. (A body that
+    // never ran went down with its task and board: the robot must be configured again.)
+    running.control = Some(
+        exec::spawn(control_cfg, control)
+            .map_err(|e| format!("cannot start the control thread: {e}"))?,
+    );
+    running.comm = Some(
+        exec::spawn(comm_cfg, comm)
+            .map_err(|e| format!("cannot start the communication thread: {e}"))?,
+    );
+    if let Some(mut pump) = pump {
+        let (stop, period) = (running.aux_stop.clone(), timing.telemetry_period);
+        running.pump = Some(
+            std::thread::Builder::new()
+                .name(thread_name("tel-"))
+                .spawn(move || runtime::run_pump(&mut pump, period, &stop))
+                .map_err(|e| format!("cannot start the telemetry thread: {e}"))?,
+        );
+    }
+    if let Some(mut feed) = feed {
+        let (stop, period) = (running.aux_stop.clone(), timing.sensor_period);
+        running.feed = Some(
+            std::thread::Builder::new()
+                .name(thread_name("sen-"))
+                .spawn(move || runtime::run_sensor_feed(&mut feed, period, &stop))
+                .map_err(|e| format!("cannot start the sensor feed thread: {e}"))?,
+        );
+    }
+    Ok(())
+}
