@@ -1,18 +1,39 @@
 // Penelope FPGA kinematics: forward kinematics of a 6-joint DH chain and the force
-// transformation tau = J^T [f; m], one finite-state machine with three shared 25x25 signed
-// multipliers and one sine/cosine unit (kin_sincos).
+// transformation tau = J^T [f; m], for a Virtex-II XC2V1000 at 40 MHz.
 //
 // Bit-exact with the Rust model penelope_fpga::pipeline (fpga/src/pipeline.rs); every node's
 // format, rounding and overflow is in fpga/SPEC.md; the cycle schedule is
-// penelope_fpga::cycles (FK 61 cycles, FK + force 91 cycles, at 40 MHz).
+// penelope_fpga::cycles (FK 59 cycles, FK + force 90 cycles).
 //
 // Interface: put the inputs on the ports and raise `start` for one cycle while `busy` is low;
 // the inputs and the DH table are latched on that edge. `done` pulses high for one cycle on the
 // edge that completes; the outputs then hold until the next result. A new `start` is accepted
 // on the edge right after `done`.
 //
-// Per-joint data (angles, DH rows, saved frames z_j and o_j, torques) live in shift registers
-// that advance once per joint, so no multiplexer is indexed by the joint number.
+// Datapath: an issue stage that picks the operands of three shared 25 x 25 signed multipliers
+// (four MULT18X18 each) from the state registers, then a three-stage pipeline:
+//   M  products registered (pr0..pr2)                        edge t
+//   A  exact sum: addend + pr0 +- pr1 + pr2 registered (acc) edge t + 1
+//   Q  quantized (truncate / round, wrap / saturate) into its destination register, edge t + 2
+// One operation issues per cycle; the schedule (below and in penelope_fpga::cycles) is ordered
+// so that no operation reads a register before the Q stage has written it, without stalls
+// except one bubble before the last torque. The sine/cosine unit (kin_sincos: block-RAM table,
+// two pipeline stages) works one joint ahead.
+//
+// Schedule, edges counted from the one that samples `start` (e0):
+//   e1          the table ROM reads joint 0's angle
+//   e2          sine and cosine of joint 0 loaded
+//   joint j, issue k = 0..8 at edge e(3 + 9j + k):
+//     k 0..5    n0_0..2, n1_0..2 (c R_i0 + s R_i1, c R_i1 - s R_i0)
+//     k 6..8    p_0..2 (p_i + a n0_i + d R_i2); on k = 8 R is committed
+//     k 0 / 2   z_j / o_j saved; k 7: the ROM reads joint j+1's angle; k 8: it is loaded
+//   FK done     two edges after the last issue: e58, 59 cycles
+//   force       6 issues f0_i, m0_i; then mj of joint 0, mj of joint 1, tau_0, mj of joint 2,
+//               tau_1, ... mj of joint 5, tau_4, one bubble, tau_5: 31 issues; done two edges
+//               after the last: 90 cycles
+//
+// Per-joint data (angles, DH rows, saved frames z_j and o_j, moments, torques) live in shift
+// registers, so no multiplexer is indexed by the joint number.
 //
 // Planted bugs for the co-simulation's mutation check (never defined in a real build):
 //   MUTANT_LOGICAL_SHIFT  `>>` for `>>>` in the saturating wrench nodes
@@ -39,11 +60,16 @@ module penelope_kin (
     output wire [149:0] base_wrench,    // [f0; m0] <+-,25,8> at [25k +: 25]
     output wire [149:0] tau             // tau[j] <+-,25,8> N m at [25j +: 25]
 );
-    localparam S_IDLE = 3'd0, S_ANG = 3'd1, S_ROT = 3'd2, S_POS = 3'd3,
-               S_WROT = 3'd4, S_MX = 3'd5, S_TAU = 3'd6;
+    // Issue states.
+    localparam [2:0] S_IDLE = 3'd0, S_PRE = 3'd1, S_FK = 3'd2, S_WROT = 3'd3, S_MX = 3'd4,
+                     S_TAU = 3'd5, S_BUB = 3'd6, S_WAIT = 3'd7;
+    // Operations travelling down the pipeline.
+    localparam [2:0] OP_NONE = 3'd0, OP_ROT = 3'd1, OP_POS = 3'd2, OP_WROT = 3'd3,
+                     OP_MX = 3'd4, OP_TAU = 3'd5;
 
-    reg [2:0] state, k, j;
-    reg       op_force, flange;
+    reg [2:0] state, j;
+    reg [3:0] k;
+    reg       op_force, flange, last_tau;
 
     // Per-joint shift registers: the current joint's entry is always at the bottom.
     reg [143:0] qs, offs;
@@ -51,15 +77,15 @@ module penelope_kin (
     reg [11:0]  alphas;
     reg [449:0] zs;                     // z_j (3 x 25): appended on top, rotated in the force path
     reg [575:0] os;                     // o_j (3 x 32)
+    reg [99:0]  mjs;                    // the last four moment components, newest on top
     reg [149:0] taus;                   // tau_j, shifted in on top
 
     reg signed [24:0] w0, w1, w2, w3, w4, w5;                      // latched wrench
     reg signed [24:0] r00, r01, r02, r10, r11, r12, r20, r21, r22; // R
     reg signed [31:0] p0, p1, p2;                                  // p
     reg signed [24:0] n00, n01, n02, n10, n11, n12;                // R Rz(theta) columns 0, 1
-    reg signed [24:0] S, C;
     reg signed [24:0] f0x, f0y, f0z, m0x, m0y, m0z;                // base-frame wrench
-    reg signed [24:0] mj0, mj1, mj2;                               // moment about o_j
+    reg signed [24:0] L0, L1, L2;                                  // lever arm p - o_j
 
     assign busy = (state != S_IDLE);
     assign rot = {r22, r21, r20, r12, r11, r10, r02, r01, r00};
@@ -68,16 +94,18 @@ module penelope_kin (
     assign tau = taus;
 
     // --- the sine/cosine unit: theta = q_j + offset_j, wrapped to 24 bits ---------------------
+    // The ROM stage samples the bottom angle on every edge; `sc_load` moves the result of the
+    // angle sampled on the previous edge into S and C.
     wire [23:0] theta = qs[23:0] + offs[23:0];
-    wire signed [24:0] sin_w, cos_w;
-    kin_sincos u_sincos (.angle(theta), .sin_o(sin_w), .cos_o(cos_w));
+    wire        sc_load = (state == S_PRE && k == 4'd1) || (state == S_FK && k == 4'd8);
+    wire signed [24:0] S, C;
+    kin_sincos u_sincos (.clk(clk), .angle(theta), .load(sc_load), .sin_o(S), .cos_o(C));
 
     wire signed [24:0] a_j = as[24:0];
     wire signed [24:0] d_j = ds[24:0];
     wire [1:0] alpha_j = alphas[1:0];
 
     // --- lever arms r = p - o_j: round half-even over 7 fraction bits, wrap to 25 bits --------
-    // (computed on the edge before each joint's S_MX cycles: a subtractor per axis)
     function signed [24:0] lever7(input signed [31:0] p, input signed [31:0] o);
         reg signed [32:0] diff, t;
         begin
@@ -93,110 +121,213 @@ module penelope_kin (
         end
     endfunction
 
-    reg signed [24:0] L0, L1, L2;       // registered once per joint of the force path
+    // --- issue: operand multiplexers in front of the three multipliers ------------------------
+    reg signed [24:0] ma0, mb0, ma1, mb1, ma2, mb2;
+    reg [2:0] iop;                      // the operation issued this cycle
+    reg [2:0] iidx;                     // its destination index
+    reg       ilast;                    // its result completes the request
 
-    // --- saturation helpers ---------------------------------------------------------------------
-    // Saturate a value already on the output grid into 25 bits.
-    function signed [24:0] sat25(input signed [63:0] t);
-        begin
-            if (t > 64'sd16777215)
-                sat25 = 25'h0FFFFFF;
-            else if (t < -64'sd16777216)
-                sat25 = 25'h1000000;
-            else
-                sat25 = t[24:0];
-        end
-    endfunction
+    always @* begin
+        ma0 = 25'sd0; mb0 = 25'sd0; ma1 = 25'sd0; mb1 = 25'sd0; ma2 = 25'sd0; mb2 = 25'sd0;
+        iop = OP_NONE;
+        iidx = k[2:0];
+        ilast = 1'b0;
+        case (state)
+            S_FK: begin
+                if (k < 4'd6) begin
+                    // n0_i = c R_i0 + s R_i1 (k = i); n1_i = c R_i1 - s R_i0 (k = 3 + i)
+                    iop = OP_ROT;
+                    ma0 = C; ma1 = S;
+                    case (k)
+                        4'd0:    begin mb0 = r00; mb1 = r01; end
+                        4'd1:    begin mb0 = r10; mb1 = r11; end
+                        4'd2:    begin mb0 = r20; mb1 = r21; end
+                        4'd3:    begin mb0 = r01; mb1 = r00; end
+                        4'd4:    begin mb0 = r11; mb1 = r10; end
+                        default: begin mb0 = r21; mb1 = r20; end
+                    endcase
+                end else begin
+                    // p_i + a n0_i + d R_i2 (k = 6 + i)
+                    iop = OP_POS;
+                    ma0 = a_j; ma1 = d_j;
+                    case (k)
+                        4'd6:    begin mb0 = n00; mb1 = r02; iidx = 3'd0; end
+                        4'd7:    begin mb0 = n01; mb1 = r12; iidx = 3'd1; end
+                        default: begin mb0 = n02; mb1 = r22; iidx = 3'd2; end
+                    endcase
+                    ilast = (k == 4'd8) && (j == 3'd5) && !op_force;
+                end
+            end
+            S_WROT: begin   // R_i . f (k = i), R_i . m (k = 3 + i)
+                iop = OP_WROT;
+                case (k)
+                    4'd0, 4'd3: begin ma0 = r00; ma1 = r01; ma2 = r02; end
+                    4'd1, 4'd4: begin ma0 = r10; ma1 = r11; ma2 = r12; end
+                    default:    begin ma0 = r20; ma1 = r21; ma2 = r22; end
+                endcase
+                if (k < 4'd3) begin
+                    mb0 = w0; mb1 = w1; mb2 = w2;
+                end else begin
+                    mb0 = w3; mb1 = w4; mb2 = w5;
+                end
+            end
+            S_MX: begin     // m0_k + (r x f0)_k
+                iop = OP_MX;
+                case (k)
+                    4'd0:    begin ma0 = L1; mb0 = f0z; ma1 = L2; mb1 = f0y; end
+                    4'd1:    begin ma0 = L2; mb0 = f0x; ma1 = L0; mb1 = f0z; end
+                    default: begin ma0 = L0; mb0 = f0y; ma1 = L1; mb1 = f0x; end
+                endcase
+            end
+            S_TAU: begin    // z_j . mj: the newest three moments, or the three before them
+                iop = OP_TAU;
+                ma0 = zs[24:0]; ma1 = zs[49:25]; ma2 = zs[74:50];
+                if (last_tau) begin
+                    mb0 = mjs[49:25]; mb1 = mjs[74:50]; mb2 = mjs[99:75];
+                end else begin  // the newest is the next joint's mj_x
+                    mb0 = mjs[24:0];  mb1 = mjs[49:25]; mb2 = mjs[74:50];
+                end
+                ilast = last_tau;
+            end
+            default: ;
+        endcase
+    end
 
+    // --- pipeline registers -------------------------------------------------------------------
+    reg signed [49:0] pr0, pr1, pr2;    // M: exact 25 x 25 products
+    reg [2:0] m_op, m_idx, a_op, a_idx;
+    reg       m_last, a_last;
+    reg signed [51:0] acc;              // A: exact sum, |acc| < 2^50
+
+    // A stage: the addend (position or moment, aligned to the products' LSB) and the sign of
+    // the second product.
+    reg signed [51:0] addend;
+    reg               sub1;
+    always @* begin
+        addend = 52'sd0;
+        sub1 = 1'b0;
+        case (m_op)
+            OP_ROT: sub1 = (m_idx >= 3'd3);
+            OP_POS: case (m_idx)
+                3'd0:    addend = {{3{p0[31]}}, p0, 17'd0};
+                3'd1:    addend = {{3{p1[31]}}, p1, 17'd0};
+                default: addend = {{3{p2[31]}}, p2, 17'd0};
+            endcase
+            OP_MX: begin
+                sub1 = 1'b1;
+                case (m_idx)
+                    3'd0:    addend = {{4{m0x[24]}}, m0x, 23'd0};
+                    3'd1:    addend = {{4{m0y[24]}}, m0y, 23'd0};
+                    default: addend = {{4{m0z[24]}}, m0z, 23'd0};
+                endcase
+            end
+            default: ;
+        endcase
+    end
+    wire signed [51:0] x0 = {{2{pr0[49]}}, pr0};
+    wire signed [51:0] x1 = {{2{pr1[49]}}, pr1};
+    wire signed [51:0] x2 = {{2{pr2[49]}}, pr2};
+
+    // --- Q stage: quantizers ----------------------------------------------------------------
     // Truncate (floor) 23 fraction bits, then saturate to 25 bits.
-    function signed [24:0] trunc_sat23(input signed [63:0] acc);
-        reg signed [63:0] t;
+    function signed [24:0] trunc_sat23(input signed [51:0] a);
+        reg signed [51:0] t;
         begin
 `ifdef MUTANT_LOGICAL_SHIFT
-            t = acc >> 23;
+            t = a >> 23;
 `else
-            t = acc >>> 23;
+            t = a >>> 23;
 `endif
-            trunc_sat23 = sat25(t);
+            if (t[51:24] == {28{t[51]}})
+                trunc_sat23 = t[24:0];
+            else
+                trunc_sat23 = t[51] ? 25'h1000000 : 25'h0FFFFFF;
         end
     endfunction
 
-    // Round half-even over 23 fraction bits, then saturate to 25 bits.
-    function signed [24:0] rhe_sat23(input signed [63:0] acc);
-        reg signed [63:0] t;
+    // Round half-even over 23 fraction bits, then saturate to 25 bits (|a| < 2^50, so t + 1
+    // cannot overflow).
+    function signed [24:0] rhe_sat23(input signed [51:0] a);
+        reg signed [28:0] t;
         begin
-            t = acc >>> 23;
-            if (acc[22] && ((|acc[21:0]) || t[0]))
-                t = t + 64'sd1;
-            rhe_sat23 = sat25(t);
+            t = a[51:23];
+            if (a[22] && ((|a[21:0]) || t[0]))
+                t = t + 29'sd1;
+            if (t[28:24] == {5{t[28]}})
+                rhe_sat23 = t[24:0];
+            else
+                rhe_sat23 = t[28] ? 25'h1000000 : 25'h0FFFFFF;
         end
     endfunction
 
-    // --- the datapath: one clocked process, three shared multipliers --------------------------
-    reg signed [24:0] ma0, mb0, ma1, mb1, ma2, mb2;
-    reg signed [49:0] pr0, pr1, pr2;
-    reg signed [63:0] acc;
-    reg signed [24:0] res;
+    wire signed [24:0] q_rot = acc[47:23];            // truncate 46 -> 23, wrap to 25 bits
+`ifdef MUTANT_DROP_LSB
+    wire signed [31:0] q_pos = {acc[48:18], 1'b0};
+`else
+    wire signed [31:0] q_pos = acc[48:17];            // truncate 47 -> 30, wrap to 32 bits
+`endif
+    wire signed [24:0] q_sat = trunc_sat23(acc);
+    wire signed [24:0] q_rhe = rhe_sat23(acc);
 
+    // The low 17 bits of a position sum and the top bits of acc beyond the formats are
+    // dropped by the quantizers on purpose (truncation and wrap).
+    wire _unused = &{1'b0, acc[16:0]};
+
+    // --- the clocked process -------------------------------------------------------------------
     always @(posedge clk) begin
         done <= 1'b0;
+
+        // M, A: products and sums of whatever was issued (OP_NONE results are ignored).
+        pr0 <= ma0 * mb0;
+        pr1 <= ma1 * mb1;
+        pr2 <= ma2 * mb2;
+        acc <= addend + x0 + (sub1 ? -x1 : x1) + x2;
+        m_idx <= iidx;
+        a_idx <= m_idx;
+        m_last <= ilast;
+        a_last <= m_last;
+
+        // Q: write the result.
+        case (a_op)
+            OP_ROT: case (a_idx)
+                3'd0:    n00 <= q_rot;
+                3'd1:    n01 <= q_rot;
+                3'd2:    n02 <= q_rot;
+                3'd3:    n10 <= q_rot;
+                3'd4:    n11 <= q_rot;
+                default: n12 <= q_rot;
+            endcase
+            OP_POS: case (a_idx)
+                3'd0:    p0 <= q_pos;
+                3'd1:    p1 <= q_pos;
+                default: p2 <= q_pos;
+            endcase
+            OP_WROT: case (a_idx)
+                3'd0:    f0x <= flange ? q_sat : w0;
+                3'd1:    f0y <= flange ? q_sat : w1;
+                3'd2:    f0z <= flange ? q_sat : w2;
+                3'd3:    m0x <= flange ? q_sat : w3;
+                3'd4:    m0y <= flange ? q_sat : w4;
+                default: m0z <= flange ? q_sat : w5;
+            endcase
+            OP_MX:  mjs <= {q_sat, mjs[99:25]};
+            OP_TAU: taus <= {q_rhe, taus[149:25]};
+            default: ;
+        endcase
+
         if (rst) begin
             state <= S_IDLE;
             j <= 3'd0;
-            k <= 3'd0;
+            k <= 4'd0;
+            m_op <= OP_NONE;
+            a_op <= OP_NONE;
         end else begin
-            // Operand multiplexers in front of the three multipliers.
-            ma0 = 25'sd0; mb0 = 25'sd0; ma1 = 25'sd0; mb1 = 25'sd0; ma2 = 25'sd0; mb2 = 25'sd0;
-            case (state)
-                S_ROT: begin
-                    ma0 = C; ma1 = S;
-                    case (k)   // n0_i = c R_i0 + s R_i1 (k = i); n1_i = c R_i1 - s R_i0 (k = 3 + i)
-                        3'd0: begin mb0 = r00; mb1 = r01; end
-                        3'd1: begin mb0 = r10; mb1 = r11; end
-                        3'd2: begin mb0 = r20; mb1 = r21; end
-                        3'd3: begin mb0 = r01; mb1 = r00; end
-                        3'd4: begin mb0 = r11; mb1 = r10; end
-                        default: begin mb0 = r21; mb1 = r20; end
-                    endcase
-                end
-                S_POS: begin   // p_i + a n0_i + d R_i2
-                    ma0 = a_j; ma1 = d_j;
-                    case (k)
-                        3'd0: begin mb0 = n00; mb1 = r02; end
-                        3'd1: begin mb0 = n01; mb1 = r12; end
-                        default: begin mb0 = n02; mb1 = r22; end
-                    endcase
-                end
-                S_WROT: begin  // R_i . f (k = i), R_i . m (k = 3 + i)
-                    case (k)
-                        3'd0, 3'd3: begin ma0 = r00; ma1 = r01; ma2 = r02; end
-                        3'd1, 3'd4: begin ma0 = r10; ma1 = r11; ma2 = r12; end
-                        default:    begin ma0 = r20; ma1 = r21; ma2 = r22; end
-                    endcase
-                    if (k < 3'd3) begin
-                        mb0 = w0; mb1 = w1; mb2 = w2;
-                    end else begin
-                        mb0 = w3; mb1 = w4; mb2 = w5;
-                    end
-                end
-                S_MX: begin    // m0_k + (r x f0)_k
-                    case (k)
-                        3'd0:    begin ma0 = L1; mb0 = f0z; ma1 = L2; mb1 = f0y; end
-                        3'd1:    begin ma0 = L2; mb0 = f0x; ma1 = L0; mb1 = f0z; end
-                        default: begin ma0 = L0; mb0 = f0y; ma1 = L1; mb1 = f0x; end
-                    endcase
-                end
-                S_TAU: begin   // z_j . mj
-                    ma0 = zs[24:0];  mb0 = mj0;
-                    ma1 = zs[49:25]; mb1 = mj1;
-                    ma2 = zs[74:50]; mb2 = mj2;
-                end
-                default: ;
-            endcase
-            pr0 = ma0 * mb0;
-            pr1 = ma1 * mb1;
-            pr2 = ma2 * mb2;
-
+            m_op <= iop;
+            a_op <= m_op;
+            if (a_op != OP_NONE && a_last) begin
+                state <= S_IDLE;
+                done <= 1'b1;
+            end
             case (state)
                 S_IDLE: if (start) begin
                     qs <= q; offs <= dh_offset; as <= dh_a; ds <= dh_d; alphas <= dh_alpha;
@@ -209,49 +340,27 @@ module penelope_kin (
                     r20 <= 25'sd0; r21 <= 25'sd0; r22 <= 25'sh0800000;
                     p0 <= 32'sd0; p1 <= 32'sd0; p2 <= 32'sd0;
                     j <= 3'd0;
-                    k <= 3'd0;
-                    state <= S_ANG;
+                    k <= 4'd0;
+                    state <= S_PRE;
                 end
-                S_ANG: begin
-                    S <= sin_w;
-                    C <= cos_w;
-                    zs <= {r22, r12, r02, zs[449:75]};
-                    os <= {p2, p1, p0, os[575:96]};
-                    k <= 3'd0;
-                    state <= S_ROT;
+                S_PRE: begin   // k 0: the ROM reads joint 0's angle; k 1: S, C loaded
+                    if (k == 4'd0) begin
+                        qs <= qs >> 24; offs <= offs >> 24;
+                        k <= 4'd1;
+                    end else begin
+                        k <= 4'd0;
+                        state <= S_FK;
+                    end
                 end
-                S_ROT: begin
-                    acc = (k < 3'd3) ? pr0 + pr1 : pr0 - pr1;
-                    res = acc[47:23];                 // truncate 46 -> 23, wrap to 25 bits
-                    case (k)
-                        3'd0: n00 <= res;
-                        3'd1: n01 <= res;
-                        3'd2: n02 <= res;
-                        3'd3: n10 <= res;
-                        3'd4: n11 <= res;
-                        default: n12 <= res;
-                    endcase
-                    if (k == 3'd5) begin
-                        k <= 3'd0;
-                        state <= S_POS;
-                    end else
-                        k <= k + 3'd1;
-                end
-                S_POS: begin
-                    case (k)
-                        3'd0: acc = ($signed(p0) <<< 17) + pr0 + pr1;
-                        3'd1: acc = ($signed(p1) <<< 17) + pr0 + pr1;
-                        default: acc = ($signed(p2) <<< 17) + pr0 + pr1;
-                    endcase
-`ifdef MUTANT_DROP_LSB
-                    acc[17] = 1'b0;
-`endif
-                    case (k)                          // truncate 47 -> 30, wrap to 32 bits
-                        3'd0: p0 <= acc[48:17];
-                        3'd1: p1 <= acc[48:17];
-                        default: p2 <= acc[48:17];
-                    endcase
-                    if (k == 3'd2) begin
+                S_FK: begin
+                    if (k == 4'd0)
+                        zs <= {r22, r12, r02, zs[449:75]};
+                    if (k == 4'd2)   // the previous joint's p2 was written on the edge before
+                        os <= {p2, p1, p0, os[575:96]};
+                    if (k == 4'd7) begin
+                        qs <= qs >> 24; offs <= offs >> 24;
+                    end
+                    if (k == 4'd8) begin
                         // Commit R <- [n0, alpha(n1, R_2)].
                         r00 <= n00; r10 <= n01; r20 <= n02;
                         case (alpha_j)
@@ -271,80 +380,58 @@ module penelope_kin (
                                 r02 <= n10;  r12 <= n11;  r22 <= n12;
                             end
                         endcase
-                        qs <= qs >> 24; offs <= offs >> 24;
                         as <= as >> 25; ds <= ds >> 25; alphas <= alphas >> 2;
-                        k <= 3'd0;
+                        k <= 4'd0;
                         if (j == 3'd5) begin
                             j <= 3'd0;
-                            if (op_force)
-                                state <= S_WROT;
-                            else begin
-                                state <= S_IDLE;
-                                done <= 1'b1;
-                            end
-                        end else begin
+                            state <= op_force ? S_WROT : S_WAIT;
+                        end else
                             j <= j + 3'd1;
-                            state <= S_ANG;
-                        end
                     end else
-                        k <= k + 3'd1;
+                        k <= k + 4'd1;
                 end
                 S_WROT: begin
-                    acc = pr0 + pr1 + pr2;
-                    res = trunc_sat23(acc);
-                    case (k)
-                        3'd0: f0x <= flange ? res : w0;
-                        3'd1: f0y <= flange ? res : w1;
-                        3'd2: f0z <= flange ? res : w2;
-                        3'd3: m0x <= flange ? res : w3;
-                        3'd4: m0y <= flange ? res : w4;
-                        default: m0z <= flange ? res : w5;
-                    endcase
-                    if (k == 3'd5) begin
+                    if (k == 4'd5) begin
                         L0 <= lever7(p0, os[31:0]);   // joint 0's lever arm
                         L1 <= lever7(p1, os[63:32]);
                         L2 <= lever7(p2, os[95:64]);
-                        k <= 3'd0;
+                        os <= {os[95:0], os[575:96]};
+                        k <= 4'd0;
+                        j <= 3'd0;
                         state <= S_MX;
                     end else
-                        k <= k + 3'd1;
+                        k <= k + 4'd1;
                 end
-                S_MX: begin
-                    case (k)
-                        3'd0: acc = ($signed(m0x) <<< 23) + pr0 - pr1;
-                        3'd1: acc = ($signed(m0y) <<< 23) + pr0 - pr1;
-                        default: acc = ($signed(m0z) <<< 23) + pr0 - pr1;
-                    endcase
-                    res = trunc_sat23(acc);
-                    case (k)
-                        3'd0: mj0 <= res;
-                        3'd1: mj1 <= res;
-                        default: mj2 <= res;
-                    endcase
-                    if (k == 3'd2) begin
-                        k <= 3'd0;
-                        state <= S_TAU;
+                S_MX: begin    // moments of joint j
+                    if (k == 4'd2) begin
+                        L0 <= lever7(p0, os[31:0]);   // the next joint's lever arm
+                        L1 <= lever7(p1, os[63:32]);
+                        L2 <= lever7(p2, os[95:64]);
+                        os <= {os[95:0], os[575:96]};
+                        k <= 4'd0;
+                        last_tau <= 1'b0;
+                        state <= (j == 3'd0) ? S_MX : S_TAU;   // tau_(j-1) follows mj of j
+                        if (j == 3'd0)
+                            j <= 3'd1;
                     end else
-                        k <= k + 3'd1;
+                        k <= k + 4'd1;
                 end
                 S_TAU: begin
-                    acc = pr0 + pr1 + pr2;
-                    taus <= {rhe_sat23(acc), taus[149:25]};
-                    zs <= {zs[74:0], zs[449:75]};     // next joint's z_j, o_j to the bottom
-                    os <= {os[95:0], os[575:96]};
-                    if (j == 3'd5) begin
-                        j <= 3'd0;
-                        state <= S_IDLE;
-                        done <= 1'b1;
-                    end else begin
-                        L0 <= lever7(p0, os[127:96]); // the next joint's lever arm
-                        L1 <= lever7(p1, os[159:128]);
-                        L2 <= lever7(p2, os[191:160]);
+                    zs <= {zs[74:0], zs[449:75]};     // the next joint's z_j to the bottom
+                    if (last_tau)
+                        state <= S_WAIT;
+                    else if (j == 3'd5)
+                        state <= S_BUB;               // tau_5 waits for mj of joint 5
+                    else begin
                         j <= j + 3'd1;
                         state <= S_MX;
                     end
                 end
-                default: state <= S_IDLE;
+                S_BUB: begin
+                    last_tau <= 1'b1;
+                    state <= S_TAU;
+                end
+                default: ;   // S_WAIT: the Q stage ends the request
             endcase
         end
     end

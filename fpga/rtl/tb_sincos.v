@@ -1,5 +1,6 @@
-// Test bench for kin_sincos: sweeps binary angles and writes, per block of 2^16 consecutive
-// angles, a 64-bit hash of the outputs (or, with +DUMP, every output). Driven by the Rust
+// Test bench for kin_sincos: sweeps binary angles, one per clock cycle through the two-stage
+// pipeline (each angle's result is read two edges after the angle is applied), and writes, per
+// block of 2^16 consecutive angles, a 64-bit hash of the outputs (or, with +DUMP, every output). Driven by the Rust
 // co-simulation harness (fpga/src/cosim.rs), which computes the same hashes from the model.
 //
 //   vvp tb_sincos +START=<first angle, hex 24 bits> +BLOCKS=<n> +OUT=file [+DUMP]
@@ -9,9 +10,17 @@
 // so any single differing output changes the hash.
 `timescale 1ns/1ps
 module tb_sincos;
+    reg         clk = 1'b0;
     reg  [23:0] angle;
     wire signed [24:0] s, c;
-    kin_sincos dut (.angle(angle), .sin_o(s), .cos_o(c));
+    kin_sincos dut (.clk(clk), .angle(angle), .load(1'b1), .sin_o(s), .cos_o(c));
+
+    task tick;   // one clock cycle, 25 ns (40 MHz)
+        begin
+            #12.5 clk = 1'b1;
+            #12.5 clk = 1'b0;
+        end
+    endtask
 
     reg [1023:0] out_name;
     reg [63:0] h;
@@ -27,15 +36,16 @@ module tb_sincos;
         dump = $test$plusargs("DUMP");
         fout = $fopen(out_name, "w");
         angle = first;
+        tick;                                // the ROM stage samples the first angle
         for (b = 0; b < blocks; b = b + 1) begin
             h = 64'd0;
             for (k = 0; k < 65536; k = k + 1) begin
-                #1;
+                angle = angle + 24'd1;       // the next angle enters the ROM stage ...
+                tick;                        // ... while the previous one's result is loaded
                 if (dump)
-                    $fwrite(fout, "%h %h %h\n", angle, s, c);
+                    $fwrite(fout, "%h %h %h\n", angle - 24'd1, s, c);
                 else
                     h = h * 64'h9E3779B97F4A7C15 + {14'd0, s, c};
-                angle = angle + 24'd1;
             end
             if (!dump)
                 $fwrite(fout, "%h\n", h);
