@@ -6,14 +6,17 @@
 //   r      = round_half_up(g, 28 -> 23 fraction bits)          <+-,25,2>
 //   unfold: q0 (r1, r2)  q1 (r2, -r1)  q2 (-r1, -r2)  q3 (-r2, r1)
 //
-// Two pipeline stages:
+// Three pipeline stages:
 //   edge 1  the table ROM registers the words at u1 >> 10 and u2 >> 10 (a dual-port block RAM
-//           with registered read: 4096 x 46 bits, twelve RAMB16 in their 4096 x 4 shape); the
-//           quadrant, the interpolation fractions and the u2 = 2^22 flag are registered beside it.
-//   edge 2  when `load` is high, sin_o and cos_o take the interpolated, rounded, unfolded words
-//           of the angle sampled on edge 1 (one MULT18X18 per port for the 17 x 10 product).
+//           with registered read, 4096 x 46 bits); the quadrant, the interpolation fractions and
+//           the u2 = 2^22 flag are registered beside it.
+//   edge 2  the 17 x 10 products D f (one MULT18X18 per port) and T are registered.
+//   edge 3  when `load` is high, sin_o and cos_o take the interpolated, rounded, unfolded words
+//           of the angle sampled on edge 1.
 // `load` low holds the outputs (penelope_kin keeps a joint's sine and cosine in them while the
-// next joint's angle is already in the ROM stage).
+// next joint's angle is already in the first two stages). The split keeps the block RAM's
+// clock-to-out, its output multiplexer and the multiplier out of the same cycle as the three
+// carry chains (interpolation sum, rounding, negation).
 //
 // The table's last point T[4096] = 2^28 (D[4096] = 0) is not stored: u = 2^22 occurs only as
 // u2 for phi = 0, where g = T[4096] exactly, so the ROM is a power of two deep (4096 rows
@@ -51,11 +54,23 @@ module kin_sincos (
         quad <= angle[23:22];
     end
 
-    // --- stage 2: interpolate, round, unfold ------------------------------------------------
-    wire [26:0] p1 = e1[16:0] * f1;     // 17 x 10 unsigned, exact
-    wire [26:0] p2 = e2[16:0] * f2;
-    wire [28:0] g1 = e1[45:17] + {12'd0, p1[26:10]};   // T + floor(D f / 2^10); cannot overflow
-    wire [28:0] g2 = top2 ? 29'h10000000 : e2[45:17] + {12'd0, p2[26:10]};
+    // --- stage 2: the interpolation products ------------------------------------------------
+    reg [26:0] p1, p2;                  // D f, 17 x 10 unsigned, exact
+    reg [28:0] t1, t2;                  // T
+    reg        top2b;
+    reg [1:0]  quadb;
+    always @(posedge clk) begin
+        p1 <= {10'd0, e1[16:0]} * {17'd0, f1};
+        p2 <= {10'd0, e2[16:0]} * {17'd0, f2};
+        t1 <= e1[45:17];
+        t2 <= e2[45:17];
+        top2b <= top2;
+        quadb <= quad;
+    end
+
+    // --- stage 3: interpolate, round, unfold ------------------------------------------------
+    wire [28:0] g1 = t1 + {12'd0, p1[26:10]};   // T + floor(D f / 2^10); cannot overflow
+    wire [28:0] g2 = top2b ? 29'h10000000 : t2 + {12'd0, p2[26:10]};
 `ifdef MUTANT_SINCOS_TRUNC
     wire [29:0] h1 = {1'b0, g1};        // planted bug: truncate instead of round half-up
     wire [29:0] h2 = {1'b0, g2};
@@ -69,7 +84,7 @@ module kin_sincos (
 
     always @(posedge clk) begin
         if (load) begin
-            case (quad)
+            case (quadb)
                 2'd0:    begin sin_o <= r1;  cos_o <= r2;  end
                 2'd1:    begin sin_o <= r2;  cos_o <= -r1; end
                 2'd2:    begin sin_o <= -r1; cos_o <= -r2; end

@@ -3,7 +3,7 @@
 //
 // Bit-exact with the Rust model penelope_fpga::pipeline (fpga/src/pipeline.rs); every node's
 // format, rounding and overflow is in fpga/SPEC.md; the cycle schedule is
-// penelope_fpga::cycles (FK 59 cycles, FK + force 90 cycles).
+// penelope_fpga::cycles (FK 60 cycles, FK + force 91 cycles).
 //
 // Interface: put the inputs on the ports and raise `start` for one cycle while `busy` is low;
 // the inputs and the DH table are latched on that edge. `done` pulses high for one cycle on the
@@ -18,19 +18,19 @@
 // One operation issues per cycle; the schedule (below and in penelope_fpga::cycles) is ordered
 // so that no operation reads a register before the Q stage has written it, without stalls
 // except one bubble before the last torque. The sine/cosine unit (kin_sincos: block-RAM table,
-// two pipeline stages) works one joint ahead.
+// three pipeline stages) works one joint ahead.
 //
 // Schedule, edges counted from the one that samples `start` (e0):
-//   e1          the table ROM reads joint 0's angle
-//   e2          sine and cosine of joint 0 loaded
-//   joint j, issue k = 0..8 at edge e(3 + 9j + k):
+//   e1, e2      the table ROM reads joint 0's angle; the interpolation products
+//   e3          sine and cosine of joint 0 loaded
+//   joint j, issue k = 0..8 at edge e(4 + 9j + k):
 //     k 0..5    n0_0..2, n1_0..2 (c R_i0 + s R_i1, c R_i1 - s R_i0)
 //     k 6..8    p_0..2 (p_i + a n0_i + d R_i2); on k = 8 R is committed
-//     k 0 / 2   z_j / o_j saved; k 7: the ROM reads joint j+1's angle; k 8: it is loaded
-//   FK done     two edges after the last issue: e58, 59 cycles
+//     k 0 / 2   z_j / o_j saved; k 6: the ROM reads joint j+1's angle; k 8: it is loaded
+//   FK done     two edges after the last issue: e59, 60 cycles
 //   force       6 issues f0_i, m0_i; then mj of joint 0, mj of joint 1, tau_0, mj of joint 2,
 //               tau_1, ... mj of joint 5, tau_4, one bubble, tau_5: 31 issues; done two edges
-//               after the last: 90 cycles
+//               after the last: 91 cycles
 //
 // Per-joint data (angles, DH rows, saved frames z_j and o_j, moments, torques) live in shift
 // registers, so no multiplexer is indexed by the joint number.
@@ -40,6 +40,7 @@
 //   MUTANT_HALF_UP        round-half-up instead of half-even in the lever node
 //   MUTANT_DROP_LSB       position sums lose their least significant result bit
 //   (kin_sincos.v)        MUTANT_SINCOS_TRUNC
+//   MUTANT_LINT_WIDTH     a width mismatch that verilator -Wall must report (tests/lint.rs)
 `timescale 1ns/1ps
 module penelope_kin (
     input  wire         clk,
@@ -95,9 +96,9 @@ module penelope_kin (
 
     // --- the sine/cosine unit: theta = q_j + offset_j, wrapped to 24 bits ---------------------
     // The ROM stage samples the bottom angle on every edge; `sc_load` moves the result of the
-    // angle sampled on the previous edge into S and C.
+    // angle sampled two edges before into S and C.
     wire [23:0] theta = qs[23:0] + offs[23:0];
-    wire        sc_load = (state == S_PRE && k == 4'd1) || (state == S_FK && k == 4'd8);
+    wire        sc_load = (state == S_PRE && k == 4'd2) || (state == S_FK && k == 4'd8);
     wire signed [24:0] S, C;
     kin_sincos u_sincos (.clk(clk), .angle(theta), .load(sc_load), .sin_o(S), .cos_o(C));
 
@@ -272,6 +273,9 @@ module penelope_kin (
     // The low 17 bits of a position sum and the top bits of acc beyond the formats are
     // dropped by the quantizers on purpose (truncation and wrap).
     wire _unused = &{1'b0, acc[16:0]};
+`ifdef MUTANT_LINT_WIDTH
+    wire [3:0] lint_mutant_unused = j;   // planted for tests/lint.rs: 3 bits into 4 (WIDTH)
+`endif
 
     // --- the clocked process -------------------------------------------------------------------
     always @(posedge clk) begin
@@ -343,11 +347,13 @@ module penelope_kin (
                     k <= 4'd0;
                     state <= S_PRE;
                 end
-                S_PRE: begin   // k 0: the ROM reads joint 0's angle; k 1: S, C loaded
+                S_PRE: begin   // k 0: the ROM reads joint 0's angle; k 2: S, C loaded
                     if (k == 4'd0) begin
                         qs <= qs >> 24; offs <= offs >> 24;
-                        k <= 4'd1;
-                    end else begin
+                    end
+                    if (k != 4'd2)
+                        k <= k + 4'd1;
+                    else begin
                         k <= 4'd0;
                         state <= S_FK;
                     end
@@ -357,7 +363,7 @@ module penelope_kin (
                         zs <= {r22, r12, r02, zs[449:75]};
                     if (k == 4'd2)   // the previous joint's p2 was written on the edge before
                         os <= {p2, p1, p0, os[575:96]};
-                    if (k == 4'd7) begin
+                    if (k == 4'd6) begin
                         qs <= qs >> 24; offs <= offs >> 24;
                     end
                     if (k == 4'd8) begin

@@ -1,5 +1,5 @@
-// Test bench for kin_sincos: sweeps binary angles, one per clock cycle through the two-stage
-// pipeline (each angle's result is read two edges after the angle is applied), and writes, per
+// Test bench for kin_sincos: sweeps binary angles, one per clock cycle through the three-stage
+// pipeline (each angle's result is read three edges after the angle is applied), and writes, per
 // block of 2^16 consecutive angles, a 64-bit hash of the outputs (or, with +DUMP, every output). Driven by the Rust
 // co-simulation harness (fpga/src/cosim.rs), which computes the same hashes from the model.
 //
@@ -36,14 +36,16 @@ module tb_sincos;
         dump = $test$plusargs("DUMP");
         fout = $fopen(out_name, "w");
         angle = first;
-        tick;                                // the ROM stage samples the first angle
+        tick;                                // the ROM stage samples the first angle,
+        angle = angle + 24'd1;
+        tick;                                // the product stage takes it
         for (b = 0; b < blocks; b = b + 1) begin
             h = 64'd0;
             for (k = 0; k < 65536; k = k + 1) begin
                 angle = angle + 24'd1;       // the next angle enters the ROM stage ...
-                tick;                        // ... while the previous one's result is loaded
+                tick;                        // ... while the one two before is loaded
                 if (dump)
-                    $fwrite(fout, "%h %h %h\n", angle - 24'd1, s, c);
+                    $fwrite(fout, "%h %h %h\n", angle - 24'd2, s, c);
                 else
                     h = h * 64'h9E3779B97F4A7C15 + {14'd0, s, c};
             end

@@ -66,14 +66,7 @@ pub fn rtl_dir() -> PathBuf {
 
 /// True when `iverilog` and `vvp` can be started.
 pub fn simulator_available() -> bool {
-    let ok = |tool: &str, arg: &str| {
-        Command::new(tool)
-            .arg(arg)
-            .output()
-            .map(|o| !o.stdout.is_empty() || !o.stderr.is_empty())
-            .unwrap_or(false)
-    };
-    ok("iverilog", "-V") && ok("vvp", "-V")
+    tool_available("iverilog", "-V") && tool_available("vvp", "-V")
 }
 
 /// For tests: true when the simulator is installed. When it is not, prints a loud `SKIPPED`
@@ -83,21 +76,40 @@ pub fn simulator_available() -> bool {
 /// # Panics
 /// When the simulator is missing and `PENELOPE_REQUIRE_COSIM=1`: the test must fail, not skip.
 pub fn simulator_or_skip(test: &str) -> bool {
-    if simulator_available() {
+    tool_or_skip(test, "iverilog/vvp", simulator_available(), "iverilog")
+}
+
+/// True when `tool` can be started and prints something for `arg` (for example `yosys -V`;
+/// `iverilog -V` exits with an error status, so the status is not used).
+pub fn tool_available(tool: &str, arg: &str) -> bool {
+    Command::new(tool)
+        .arg(arg)
+        .output()
+        .map(|o| !o.stdout.is_empty() || !o.stderr.is_empty())
+        .unwrap_or(false)
+}
+
+/// For tests: `available` as is; when false, prints a loud `SKIPPED` line naming `tools` and
+/// the Debian `package` that provides them, unless `PENELOPE_REQUIRE_COSIM=1`.
+///
+/// # Panics
+/// When a tool is missing and `PENELOPE_REQUIRE_COSIM=1`: the test must fail, not skip.
+pub fn tool_or_skip(test: &str, tools: &str, available: bool, package: &str) -> bool {
+    if available {
         return true;
     }
     if std::env::var("PENELOPE_REQUIRE_COSIM").is_ok_and(|v| v == "1") {
         panic!(
-            "{test}: PENELOPE_REQUIRE_COSIM=1 but iverilog/vvp are not installed \
-             (apt-get install -y iverilog)"
+            "{test}: PENELOPE_REQUIRE_COSIM=1 but {tools} is not installed \
+             (apt-get install -y {package})"
         );
     }
     // Straight to the process's stderr: the test harness captures `eprintln!`, and this line
     // must be seen.
     let _ = writeln!(
         std::io::stderr(),
-        "\n*** SKIPPED {test}: iverilog/vvp not installed; the RTL co-simulation did NOT run. \
-         Install iverilog (scripts/test does) to run it. ***\n"
+        "\n*** SKIPPED {test}: {tools} not installed; this RTL check did NOT run. \
+         Install {package} (scripts/test does) to run it. ***\n"
     );
     false
 }

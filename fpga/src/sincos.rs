@@ -17,9 +17,10 @@
 //!
 //! So `sin(0) = 0`, `cos(0) = 1` and `sin(pi/2) = 1` exactly, and every output is within 0.7
 //! LSB (`2^-23`) of the true value of the quantized angle (tested: `tests/accuracy.rs`).
-//! Cost in hardware: one dual-port ROM of 4096 x 46 bits with registered read (twelve of the
-//! XC2V1000's forty 18 Kb block RAMs, in their 4096 x 4 shape) and two 17x10 multipliers; two
-//! pipeline stages (ROM read, then interpolation).
+//! Cost in hardware: one dual-port ROM of 4096 x 46 bits with registered read (Yosys maps it
+//! onto ten of the XC2V1000's forty 18 Kb block RAMs, as 2048 x 9 halves: `T[28]` is zero in
+//! every stored row) and two 17x10 multipliers; three pipeline stages (ROM read, products,
+//! interpolation and unfold).
 //!
 //! # Real-time
 //! No allocation, no panic, constant time.
