@@ -44,12 +44,12 @@ module tb_sincos;
             for (k = 0; k < 65536; k = k + 1) begin
                 angle = angle + 24'd1;       // the next angle enters the ROM stage ...
                 tick;                        // ... while the one two before is loaded
-                if (dump)
+                if (dump != 0)
                     $fwrite(fout, "%h %h %h\n", angle - 24'd2, s, c);
                 else
                     h = h * 64'h9E3779B97F4A7C15 + {14'd0, s, c};
             end
-            if (!dump)
+            if (dump == 0)
                 $fwrite(fout, "%h\n", h);
         end
         $fclose(fout);

@@ -10,7 +10,7 @@
 //   cycles   - the 40 MHz cycle model of the RTL
 //   reference- the f64 model of the same chain (the accuracy oracle)
 //   kinematics - `FpgaKinematics`, the `penelope_hal::robot::Kinematics` implementation
-//   cosim    - (std) driving the Verilog RTL in Icarus Verilog
+//   cosim    - (std) driving the Verilog RTL in Verilator or Icarus Verilog
 //   synthesis- (std) Yosys synthesis for the XC2V1000: resources and a datasheet timing estimate
 
 pub mod cycles;
