@@ -3,15 +3,17 @@
 //
 // Bit-exact with the Rust model penelope_fpga::pipeline (fpga/src/pipeline.rs); every node's
 // format, rounding and overflow is in fpga/SPEC.md; the cycle schedule is
-// penelope_fpga::cycles (FK 60 cycles, FK + force 91 cycles).
+// penelope_fpga::cycles (FK 61 cycles, FK + force 92 cycles).
 //
 // Interface: put the inputs on the ports and raise `start` for one cycle while `busy` is low;
 // the inputs and the DH table are latched on that edge. `done` pulses high for one cycle on the
 // edge that completes; the outputs then hold until the next result. A new `start` is accepted
 // on the edge right after `done`.
 //
-// Datapath: an issue stage that picks the operands of three shared 25 x 25 signed multipliers
-// (four MULT18X18 each) from the state registers, then a three-stage pipeline:
+// Datapath: the state machine decides each cycle which operation issues and registers that
+// decision (operand source codes and datapath actions), so the datapath runs one edge behind
+// it; the registered codes select the operands of three shared 25 x 25 signed multipliers
+// (four MULT18X18 each), then a three-stage pipeline:
 //   M  products registered (pr0..pr2)                        edge t
 //   A  exact sum: addend + pr0 +- pr1 + pr2 registered (acc) edge t + 1
 //   Q  quantized (truncate / round, wrap / saturate) into its destination register, edge t + 2
@@ -20,17 +22,18 @@
 // except one bubble before the last torque. The sine/cosine unit (kin_sincos: block-RAM table,
 // three pipeline stages) works one joint ahead.
 //
-// Schedule, edges counted from the one that samples `start` (e0):
-//   e1, e2      the table ROM reads joint 0's angle; the interpolation products
-//   e3          sine and cosine of joint 0 loaded
-//   joint j, issue k = 0..8 at edge e(4 + 9j + k):
+// Schedule, edges counted from the one that samples `start` (e0); e1 registers the first
+// decision, so every datapath event below is one edge after the state machine's cycle:
+//   e2, e3      the table ROM reads joint 0's angle; the interpolation products
+//   e4          sine and cosine of joint 0 loaded
+//   joint j, issue k = 0..8 at edge e(5 + 9j + k):
 //     k 0..5    n0_0..2, n1_0..2 (c R_i0 + s R_i1, c R_i1 - s R_i0)
 //     k 6..8    p_0..2 (p_i + a n0_i + d R_i2); on k = 8 R is committed
 //     k 0 / 2   z_j / o_j saved; k 6: the ROM reads joint j+1's angle; k 8: it is loaded
-//   FK done     two edges after the last issue: e59, 60 cycles
+//   FK done     two edges after the last issue: e60, 61 cycles
 //   force       6 issues f0_i, m0_i; then mj of joint 0, mj of joint 1, tau_0, mj of joint 2,
 //               tau_1, ... mj of joint 5, tau_4, one bubble, tau_5: 31 issues; done two edges
-//               after the last: 91 cycles
+//               after the last: 92 cycles
 //
 // Per-joint data (angles, DH rows, saved frames z_j and o_j, moments, torques) live in shift
 // registers, so no multiplexer is indexed by the joint number.
@@ -88,6 +91,13 @@ module penelope_kin (
     reg signed [24:0] f0x, f0y, f0z, m0x, m0y, m0z;                // base-frame wrench
     reg signed [24:0] L0, L1, L2;                                  // lever arm p - o_j
 
+    // The registered issue decision (see "issue decode" below): operand codes, the operation,
+    // and the datapath actions, all one edge behind the state machine.
+    reg [3:0] u_a0, u_a1, u_a2, u_b0, u_b1, u_b2;
+    reg [2:0] u_op, u_idx;
+    reg       u_last, u_last_tau;
+    reg       u_zs, u_os, u_qshift, u_scload, u_commit, u_lever, u_zrot;
+
     assign busy = (state != S_IDLE);
     assign rot = {r22, r21, r20, r12, r11, r10, r02, r01, r00};
     assign pos = {p2, p1, p0};
@@ -95,12 +105,11 @@ module penelope_kin (
     assign tau = taus;
 
     // --- the sine/cosine unit: theta = q_j + offset_j, wrapped to 24 bits ---------------------
-    // The ROM stage samples the bottom angle on every edge; `sc_load` moves the result of the
+    // The ROM stage samples the bottom angle on every edge; `u_scload` moves the result of the
     // angle sampled two edges before into S and C.
     wire [23:0] theta = qs[23:0] + offs[23:0];
-    wire        sc_load = (state == S_PRE && k == 4'd2) || (state == S_FK && k == 4'd8);
     wire signed [24:0] S, C;
-    kin_sincos u_sincos (.clk(clk), .angle(theta), .load(sc_load), .sin_o(S), .cos_o(C));
+    kin_sincos u_sincos (.clk(clk), .angle(theta), .load(u_scload), .sin_o(S), .cos_o(C));
 
     wire signed [24:0] a_j = as[24:0];
     wire signed [24:0] d_j = ds[24:0];
@@ -122,14 +131,30 @@ module penelope_kin (
         end
     endfunction
 
-    // --- issue: operand multiplexers in front of the three multipliers ------------------------
-    reg signed [24:0] ma0, mb0, ma1, mb1, ma2, mb2;
-    reg [2:0] iop;                      // the operation issued this cycle
+    // --- issue decode (control timeline) --------------------------------------------------------
+    // The state machine decides, one cycle ahead, which operation issues and where its operands
+    // come from; that decision is registered (u_*), and the datapath acts on the registered
+    // decision. So the operand multiplexers are selected straight from flip-flops (no state
+    // decoding in front of the multipliers), and every datapath action happens one edge after
+    // the state machine's cycle that decided it.
+    //
+    // Operand source codes:
+    //   ma0: 0 zero, 1 C, 2 a_j, 3 r00, 4 r10, 5 r20, 6 L0, 7 L1, 8 L2, 9 z_j.x
+    //   ma1: 0 zero, 1 S, 2 d_j, 3 r01, 4 r11, 5 r21, 6 L0, 7 L1, 8 L2, 9 z_j.y
+    //   ma2: 0 zero,             3 r02, 4 r12, 5 r22,                  9 z_j.z
+    //   mb0: 0 zero, 1 r00, 2 r10, 3 r20, 4 r01, 5 r11, 6 r21, 7 n00, 8 n01, 9 n02,
+    //        10 w0, 11 w3, 12 f0x, 13 f0y, 14 f0z, 15 mj.x
+    //   mb1: 0 zero, 1 r00, 2 r10, 3 r20, 4 r01, 5 r11, 6 r21, 7 r02, 8 r12, 9 r22,
+    //        10 w1, 11 w4, 12 f0x, 13 f0y, 14 f0z, 15 mj.y
+    //   mb2: 0 zero, 10 w2, 11 w5, 15 mj.z
+    reg [3:0] ca0, ca1, ca2, cb0, cb1, cb2;
+    reg [2:0] iop;                      // the operation decided this cycle
     reg [2:0] iidx;                     // its destination index
     reg       ilast;                    // its result completes the request
+    wire [3:0] row = (k == 4'd1 || k == 4'd4) ? 4'd4 : (k == 4'd2 || k == 4'd5) ? 4'd5 : 4'd3;
 
     always @* begin
-        ma0 = 25'sd0; mb0 = 25'sd0; ma1 = 25'sd0; mb1 = 25'sd0; ma2 = 25'sd0; mb2 = 25'sd0;
+        ca0 = 4'd0; ca1 = 4'd0; ca2 = 4'd0; cb0 = 4'd0; cb1 = 4'd0; cb2 = 4'd0;
         iop = OP_NONE;
         iidx = k[2:0];
         ilast = 1'b0;
@@ -138,61 +163,113 @@ module penelope_kin (
                 if (k < 4'd6) begin
                     // n0_i = c R_i0 + s R_i1 (k = i); n1_i = c R_i1 - s R_i0 (k = 3 + i)
                     iop = OP_ROT;
-                    ma0 = C; ma1 = S;
+                    ca0 = 4'd1; ca1 = 4'd1;
                     case (k)
-                        4'd0:    begin mb0 = r00; mb1 = r01; end
-                        4'd1:    begin mb0 = r10; mb1 = r11; end
-                        4'd2:    begin mb0 = r20; mb1 = r21; end
-                        4'd3:    begin mb0 = r01; mb1 = r00; end
-                        4'd4:    begin mb0 = r11; mb1 = r10; end
-                        default: begin mb0 = r21; mb1 = r20; end
+                        4'd0:    begin cb0 = 4'd1; cb1 = 4'd4; end
+                        4'd1:    begin cb0 = 4'd2; cb1 = 4'd5; end
+                        4'd2:    begin cb0 = 4'd3; cb1 = 4'd6; end
+                        4'd3:    begin cb0 = 4'd4; cb1 = 4'd1; end
+                        4'd4:    begin cb0 = 4'd5; cb1 = 4'd2; end
+                        default: begin cb0 = 4'd6; cb1 = 4'd3; end
                     endcase
                 end else begin
                     // p_i + a n0_i + d R_i2 (k = 6 + i)
                     iop = OP_POS;
-                    ma0 = a_j; ma1 = d_j;
+                    ca0 = 4'd2; ca1 = 4'd2;
                     case (k)
-                        4'd6:    begin mb0 = n00; mb1 = r02; iidx = 3'd0; end
-                        4'd7:    begin mb0 = n01; mb1 = r12; iidx = 3'd1; end
-                        default: begin mb0 = n02; mb1 = r22; iidx = 3'd2; end
+                        4'd6:    begin cb0 = 4'd7; cb1 = 4'd7; iidx = 3'd0; end
+                        4'd7:    begin cb0 = 4'd8; cb1 = 4'd8; iidx = 3'd1; end
+                        default: begin cb0 = 4'd9; cb1 = 4'd9; iidx = 3'd2; end
                     endcase
                     ilast = (k == 4'd8) && (j == 3'd5) && !op_force;
                 end
             end
             S_WROT: begin   // R_i . f (k = i), R_i . m (k = 3 + i)
                 iop = OP_WROT;
-                case (k)
-                    4'd0, 4'd3: begin ma0 = r00; ma1 = r01; ma2 = r02; end
-                    4'd1, 4'd4: begin ma0 = r10; ma1 = r11; ma2 = r12; end
-                    default:    begin ma0 = r20; ma1 = r21; ma2 = r22; end
-                endcase
+                ca0 = row; ca1 = row; ca2 = row;
                 if (k < 4'd3) begin
-                    mb0 = w0; mb1 = w1; mb2 = w2;
+                    cb0 = 4'd10; cb1 = 4'd10; cb2 = 4'd10;
                 end else begin
-                    mb0 = w3; mb1 = w4; mb2 = w5;
+                    cb0 = 4'd11; cb1 = 4'd11; cb2 = 4'd11;
                 end
             end
             S_MX: begin     // m0_k + (r x f0)_k
                 iop = OP_MX;
                 case (k)
-                    4'd0:    begin ma0 = L1; mb0 = f0z; ma1 = L2; mb1 = f0y; end
-                    4'd1:    begin ma0 = L2; mb0 = f0x; ma1 = L0; mb1 = f0z; end
-                    default: begin ma0 = L0; mb0 = f0y; ma1 = L1; mb1 = f0x; end
+                    4'd0:    begin ca0 = 4'd7; cb0 = 4'd14; ca1 = 4'd8; cb1 = 4'd13; end
+                    4'd1:    begin ca0 = 4'd8; cb0 = 4'd12; ca1 = 4'd6; cb1 = 4'd14; end
+                    default: begin ca0 = 4'd6; cb0 = 4'd13; ca1 = 4'd7; cb1 = 4'd12; end
                 endcase
             end
-            S_TAU: begin    // z_j . mj: the newest three moments, or the three before them
+            S_TAU: begin    // z_j . mj
                 iop = OP_TAU;
-                ma0 = zs[24:0]; ma1 = zs[49:25]; ma2 = zs[74:50];
-                if (last_tau) begin
-                    mb0 = mjs[49:25]; mb1 = mjs[74:50]; mb2 = mjs[99:75];
-                end else begin  // the newest is the next joint's mj_x
-                    mb0 = mjs[24:0];  mb1 = mjs[49:25]; mb2 = mjs[74:50];
-                end
+                ca0 = 4'd9; ca1 = 4'd9; ca2 = 4'd9;
+                cb0 = 4'd15; cb1 = 4'd15; cb2 = 4'd15;
                 ilast = last_tau;
             end
             default: ;
         endcase
     end
+
+
+    // --- operand multiplexers, selected by registered codes ----------------------------------
+    // tau_j (j < 5) reads the three moments below the newest (the newest is already joint
+    // j+1's mj_x); tau_5, after its bubble, reads the newest three.
+    wire signed [24:0] mjx = u_last_tau ? mjs[49:25] : mjs[24:0];
+    wire signed [24:0] mjy = u_last_tau ? mjs[74:50] : mjs[49:25];
+    wire signed [24:0] mjz = u_last_tau ? mjs[99:75] : mjs[74:50];
+
+    function signed [24:0] pick_a(input [3:0] code, input signed [24:0] s1, input signed [24:0] s2,
+                                  input signed [24:0] s3, input signed [24:0] s4,
+                                  input signed [24:0] s5, input signed [24:0] s9);
+        begin
+            case (code)
+                4'd1:    pick_a = s1;
+                4'd2:    pick_a = s2;
+                4'd3:    pick_a = s3;
+                4'd4:    pick_a = s4;
+                4'd5:    pick_a = s5;
+                4'd6:    pick_a = L0;
+                4'd7:    pick_a = L1;
+                4'd8:    pick_a = L2;
+                4'd9:    pick_a = s9;
+                default: pick_a = 25'sd0;
+            endcase
+        end
+    endfunction
+
+    function signed [24:0] pick_b(input [3:0] code, input signed [24:0] s7,
+                                  input signed [24:0] s8, input signed [24:0] s9,
+                                  input signed [24:0] s10, input signed [24:0] s11,
+                                  input signed [24:0] s15);
+        begin
+            case (code)
+                4'd1:    pick_b = r00;
+                4'd2:    pick_b = r10;
+                4'd3:    pick_b = r20;
+                4'd4:    pick_b = r01;
+                4'd5:    pick_b = r11;
+                4'd6:    pick_b = r21;
+                4'd7:    pick_b = s7;
+                4'd8:    pick_b = s8;
+                4'd9:    pick_b = s9;
+                4'd10:   pick_b = s10;
+                4'd11:   pick_b = s11;
+                4'd12:   pick_b = f0x;
+                4'd13:   pick_b = f0y;
+                4'd14:   pick_b = f0z;
+                4'd15:   pick_b = s15;
+                default: pick_b = 25'sd0;
+            endcase
+        end
+    endfunction
+
+    wire signed [24:0] ma0 = pick_a(u_a0, C, a_j, r00, r10, r20, zs[24:0]);
+    wire signed [24:0] ma1 = pick_a(u_a1, S, d_j, r01, r11, r21, zs[49:25]);
+    wire signed [24:0] ma2 = pick_a(u_a2, 25'sd0, 25'sd0, r02, r12, r22, zs[74:50]);
+    wire signed [24:0] mb0 = pick_b(u_b0, n00, n01, n02, w0, w3, mjx);
+    wire signed [24:0] mb1 = pick_b(u_b1, r02, r12, r22, w1, w4, mjy);
+    wire signed [24:0] mb2 = pick_b(u_b2, 25'sd0, 25'sd0, 25'sd0, w2, w5, mjz);
 
     // --- pipeline registers -------------------------------------------------------------------
     reg signed [49:0] pr0, pr1, pr2;    // M: exact 25 x 25 products
@@ -286,9 +363,9 @@ module penelope_kin (
         pr1 <= ma1 * mb1;
         pr2 <= ma2 * mb2;
         acc <= addend + x0 + (sub1 ? -x1 : x1) + x2;
-        m_idx <= iidx;
+        m_idx <= u_idx;
         a_idx <= m_idx;
-        m_last <= ilast;
+        m_last <= u_last;
         a_last <= m_last;
 
         // Q: write the result.
@@ -319,15 +396,71 @@ module penelope_kin (
             default: ;
         endcase
 
+        // The registered decision.
+        u_a0 <= ca0; u_a1 <= ca1; u_a2 <= ca2; u_b0 <= cb0; u_b1 <= cb1; u_b2 <= cb2;
+        u_idx <= iidx;
+        u_last <= ilast;
+        u_last_tau <= last_tau;
+
+        // Datapath actions decided on the previous cycle.
+        if (u_zs)
+            zs <= {r22, r12, r02, zs[449:75]};
+        if (u_zrot)
+            zs <= {zs[74:0], zs[449:75]};     // the next joint's z_j to the bottom
+        if (u_os)                             // the previous joint's p2 was written before
+            os <= {p2, p1, p0, os[575:96]};
+        if (u_lever) begin                    // this (first) or the next joint's lever arm
+            L0 <= lever7(p0, os[31:0]);
+            L1 <= lever7(p1, os[63:32]);
+            L2 <= lever7(p2, os[95:64]);
+            os <= {os[95:0], os[575:96]};
+        end
+        if (u_qshift) begin
+            qs <= qs >> 24; offs <= offs >> 24;
+        end
+        if (u_commit) begin
+            // Commit R <- [n0, alpha(n1, R_2)].
+            r00 <= n00; r10 <= n01; r20 <= n02;
+            case (alpha_j)
+                2'd0: begin
+                    r01 <= n10;  r11 <= n11;  r21 <= n12;
+                end
+                2'd1: begin
+                    r01 <= r02;  r11 <= r12;  r21 <= r22;
+                    r02 <= -n10; r12 <= -n11; r22 <= -n12;
+                end
+                2'd2: begin
+                    r01 <= -n10; r11 <= -n11; r21 <= -n12;
+                    r02 <= -r02; r12 <= -r12; r22 <= -r22;
+                end
+                default: begin
+                    r01 <= -r02; r11 <= -r12; r21 <= -r22;
+                    r02 <= n10;  r12 <= n11;  r22 <= n12;
+                end
+            endcase
+            as <= as >> 25; ds <= ds >> 25; alphas <= alphas >> 2;
+        end
+
+        // The state machine (control timeline).
         if (rst) begin
             state <= S_IDLE;
             j <= 3'd0;
             k <= 4'd0;
+            u_op <= OP_NONE;
             m_op <= OP_NONE;
             a_op <= OP_NONE;
+            {u_zs, u_os, u_qshift, u_scload, u_commit, u_lever, u_zrot} <= 7'd0;
         end else begin
-            m_op <= iop;
+            u_op <= iop;
+            m_op <= u_op;
             a_op <= m_op;
+            u_zs <= (state == S_FK) && (k == 4'd0);
+            u_os <= (state == S_FK) && (k == 4'd2);
+            u_qshift <= ((state == S_PRE) && (k == 4'd0)) || ((state == S_FK) && (k == 4'd6));
+            u_scload <= ((state == S_PRE) && (k == 4'd2)) || ((state == S_FK) && (k == 4'd8));
+            u_commit <= (state == S_FK) && (k == 4'd8);
+            u_lever <= ((state == S_WROT) && (k == 4'd5)) || ((state == S_MX) && (k == 4'd2));
+            u_zrot <= (state == S_TAU);
             if (a_op != OP_NONE && a_last) begin
                 state <= S_IDLE;
                 done <= 1'b1;
@@ -347,10 +480,7 @@ module penelope_kin (
                     k <= 4'd0;
                     state <= S_PRE;
                 end
-                S_PRE: begin   // k 0: the ROM reads joint 0's angle; k 2: S, C loaded
-                    if (k == 4'd0) begin
-                        qs <= qs >> 24; offs <= offs >> 24;
-                    end
+                S_PRE: begin   // k 0: joint 0's angle to the ROM; k 2: S, C loaded
                     if (k != 4'd2)
                         k <= k + 4'd1;
                     else begin
@@ -359,34 +489,7 @@ module penelope_kin (
                     end
                 end
                 S_FK: begin
-                    if (k == 4'd0)
-                        zs <= {r22, r12, r02, zs[449:75]};
-                    if (k == 4'd2)   // the previous joint's p2 was written on the edge before
-                        os <= {p2, p1, p0, os[575:96]};
-                    if (k == 4'd6) begin
-                        qs <= qs >> 24; offs <= offs >> 24;
-                    end
                     if (k == 4'd8) begin
-                        // Commit R <- [n0, alpha(n1, R_2)].
-                        r00 <= n00; r10 <= n01; r20 <= n02;
-                        case (alpha_j)
-                            2'd0: begin
-                                r01 <= n10;  r11 <= n11;  r21 <= n12;
-                            end
-                            2'd1: begin
-                                r01 <= r02;  r11 <= r12;  r21 <= r22;
-                                r02 <= -n10; r12 <= -n11; r22 <= -n12;
-                            end
-                            2'd2: begin
-                                r01 <= -n10; r11 <= -n11; r21 <= -n12;
-                                r02 <= -r02; r12 <= -r12; r22 <= -r22;
-                            end
-                            default: begin
-                                r01 <= -r02; r11 <= -r12; r21 <= -r22;
-                                r02 <= n10;  r12 <= n11;  r22 <= n12;
-                            end
-                        endcase
-                        as <= as >> 25; ds <= ds >> 25; alphas <= alphas >> 2;
                         k <= 4'd0;
                         if (j == 3'd5) begin
                             j <= 3'd0;
@@ -398,10 +501,6 @@ module penelope_kin (
                 end
                 S_WROT: begin
                     if (k == 4'd5) begin
-                        L0 <= lever7(p0, os[31:0]);   // joint 0's lever arm
-                        L1 <= lever7(p1, os[63:32]);
-                        L2 <= lever7(p2, os[95:64]);
-                        os <= {os[95:0], os[575:96]};
                         k <= 4'd0;
                         j <= 3'd0;
                         state <= S_MX;
@@ -410,10 +509,6 @@ module penelope_kin (
                 end
                 S_MX: begin    // moments of joint j
                     if (k == 4'd2) begin
-                        L0 <= lever7(p0, os[31:0]);   // the next joint's lever arm
-                        L1 <= lever7(p1, os[63:32]);
-                        L2 <= lever7(p2, os[95:64]);
-                        os <= {os[95:0], os[575:96]};
                         k <= 4'd0;
                         last_tau <= 1'b0;
                         state <= (j == 3'd0) ? S_MX : S_TAU;   // tau_(j-1) follows mj of j
@@ -423,7 +518,6 @@ module penelope_kin (
                         k <= k + 4'd1;
                 end
                 S_TAU: begin
-                    zs <= {zs[74:0], zs[449:75]};     // the next joint's z_j to the bottom
                     if (last_tau)
                         state <= S_WAIT;
                     else if (j == 3'd5)

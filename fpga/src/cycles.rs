@@ -1,7 +1,8 @@
 //! The cycle model: how many 40 MHz clock cycles the RTL takes, phase by phase.
 //!
-//! The RTL (`rtl/penelope_kin.v`) issues one operation per cycle into three shared 25x25
-//! multipliers followed by a three-stage pipeline (M: products registered; A: exact sum
+//! The RTL (`rtl/penelope_kin.v`) decides one operation per cycle, registers that decision
+//! (operand codes and datapath actions: the datapath runs one edge behind the state machine),
+//! and issues it into three shared 25x25 multipliers followed by a three-stage pipeline (M: products registered; A: exact sum
 //! registered; Q: quantized into the destination register), so a result is written
 //! [`PIPELINE_DEPTH`] edges after its issue. The sine/cosine unit (block-RAM table, registered
 //! read) has three stages and works one joint ahead. The schedule, edges counted from the one that
@@ -10,6 +11,7 @@
 //! | phase | cycles | what happens |
 //! |---|---|---|
 //! | start | 1 | the edge that samples `start` latches the inputs, `R = I`, `p = 0` |
+//! | decision | 1 | the datapath runs one edge behind the state machine |
 //! | sine/cosine warm-up | 3 | the ROM reads joint 0's angle; the interpolation products; sine and cosine loaded |
 //! | per joint (x6) | 6 | one rotation entry issued per cycle (`n0_i`, then `n1_i`): 2 multipliers |
 //! | | 3 | one position entry per cycle: 2 multipliers; the last commits `R`, and joint `j+1`'s sine and cosine are loaded |
@@ -33,8 +35,9 @@ pub const CLOCK_HZ: f64 = 40.0e6;
 
 /// Edges from an operation's issue to the write of its result (M, A, Q stages).
 pub const PIPELINE_DEPTH: u32 = 3;
-/// Cycles before the first joint's first issue: the start edge and the sine/cosine warm-up.
-pub const FK_PROLOGUE_CYCLES: u32 = 1 + 3;
+/// Cycles before the first joint's first issue: the start edge, the registered decision, and
+/// the sine/cosine warm-up.
+pub const FK_PROLOGUE_CYCLES: u32 = 1 + 1 + 3;
 /// Operations issued per joint of the forward kinematics: 6 rotation entries, 3 positions.
 pub const FK_ISSUES_PER_JOINT: u32 = 6 + 3;
 /// Cycles of one forward kinematics, from the edge that samples `start` to the edge that raises
@@ -66,9 +69,9 @@ mod tests {
 
     #[test]
     fn the_schedule_adds_up() {
-        assert_eq!(FK_CYCLES, 60);
-        assert_eq!(FORCE_CYCLES, 91);
-        assert!((seconds(FK_CYCLES) - 1.5e-6).abs() < 1e-12);
-        assert!((per_second(FORCE_CYCLES) - 439_560.44).abs() < 0.01);
+        assert_eq!(FK_CYCLES, 61);
+        assert_eq!(FORCE_CYCLES, 92);
+        assert!((seconds(FK_CYCLES) - 1.525e-6).abs() < 1e-12);
+        assert!((per_second(FORCE_CYCLES) - 434_782.61).abs() < 0.01);
     }
 }
