@@ -4,6 +4,7 @@
 // co-simulation harness (fpga/src/cosim.rs), which computes the same hashes from the model.
 //
 //   vvp tb_sincos +START=<first angle, hex 24 bits> +BLOCKS=<n> +OUT=file [+DUMP]
+//   (or the same plusargs to the executable Verilator builds)
 //
 // Hash of a block: h = 0; for each angle a: h = h * 0x9E3779B97F4A7C15 + {sin, cos} (mod 2^64),
 // where {sin, cos} is the 50-bit concatenation of the two 25-bit words. The multiplier is odd,

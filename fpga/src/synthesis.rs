@@ -183,8 +183,7 @@ pub struct CriticalPath {
 enum Role {
     /// Starts paths at its outputs (after `clk_to_out`), ends them at its inputs (`setup`).
     Sequential { clk_to_out: f64, setup: f64 },
-    /// Combinational: delay from a given input pin to the outputs, and whether that input is a
-    /// dedicated link (no routed net).
+    /// Combinational: its arcs are given by `Netlist::arc`.
     Logic,
     /// A constant driver or clock buffer: starts nothing.
     Constant,
