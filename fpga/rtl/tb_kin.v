@@ -2,7 +2,8 @@
 // every result word, plus the measured cycle count, to another. Driven by the Rust
 // co-simulation harness (fpga/src/cosim.rs), which compares each word with the Rust model.
 //
-//   vvp tb_kin +IN=vectors.hex +OUT=results.hex
+//   vvp tb_kin +IN=vectors.hex +OUT=results.hex      (Icarus)
+//   obj_tb_kin/tb_kin +IN=vectors.hex +OUT=results.hex  (Verilator --binary --timing)
 //
 // Input, one vector per line, hex words (two's complement, masked to the port width):
 //   flags q0..q5 w0..w5 [off0..off5 a0..a5 d0..d5 alpha0..alpha5]

@@ -1,7 +1,12 @@
-//! Co-simulation: runs the Verilog RTL in Icarus Verilog (`iverilog`, `vvp`) and compares every
-//! word with the Rust model. `std` only.
+//! Co-simulation: runs the Verilog RTL in a simulator and compares every word with the Rust
+//! model. `std` only.
 //!
-//! Vectors go through **one** `vvp` process per batch, as text files of hex words (see
+//! The simulator is Verilator (`verilator --binary --timing`) when it is installed, else Icarus
+//! Verilog (`iverilog`, `vvp`); `PENELOPE_SIMULATOR=icarus` or `=verilator` forces one. Both run
+//! the same test benches and give the same words; Verilator builds in about 6 s and then runs
+//! the benches about 30 to 50 times faster (see `BENCHMARKS.md`).
+//!
+//! Vectors go through **one** simulator process per batch, as text files of hex words (see
 //! `rtl/tb_kin.v` and `rtl/tb_sincos.v` for the formats). The comparison is exact integer
 //! equality; there is no tolerance anywhere.
 //!
@@ -30,7 +35,7 @@ pub const SINCOS_HASH_MULTIPLIER: u64 = 0x9E37_79B9_7F4A_7C15;
 pub enum CosimError {
     /// A file could not be read or written, or a tool could not be started.
     Io(std::io::Error),
-    /// `iverilog` or `vvp` exited with an error.
+    /// The simulator (or its compiler) exited with an error.
     Tool {
         /// The command.
         command: String,
@@ -64,16 +69,41 @@ pub fn rtl_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("rtl")
 }
 
-/// True when `iverilog` and `vvp` can be started.
+/// A Verilog simulator.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Simulator {
+    /// Icarus Verilog: `iverilog` compiles, `vvp` runs.
+    Icarus,
+    /// Verilator: `verilator --binary --timing` builds an executable.
+    Verilator,
+}
+
+impl Simulator {
+    /// True when this simulator's tools can be started.
+    pub fn available(self) -> bool {
+        match self {
+            Simulator::Icarus => tool_available("iverilog", "-V") && tool_available("vvp", "-V"),
+            Simulator::Verilator => tool_available("verilator", "--version"),
+        }
+    }
+
+    /// The simulator the co-simulation uses: `PENELOPE_SIMULATOR` (`icarus` or `verilator`)
+    /// when set, else Verilator when installed, else Icarus. `None` when the chosen one (or
+    /// both) is missing.
+    pub fn chosen() -> Option<Simulator> {
+        match std::env::var("PENELOPE_SIMULATOR").as_deref() {
+            Ok("icarus") => Some(Simulator::Icarus).filter(|s| s.available()),
+            Ok("verilator") => Some(Simulator::Verilator).filter(|s| s.available()),
+            _ => [Simulator::Verilator, Simulator::Icarus]
+                .into_iter()
+                .find(|s| s.available()),
+        }
+    }
+}
+
+/// True when a simulator can be started (see [`Simulator::chosen`]).
 pub fn simulator_available() -> bool {
-    let ok = |tool: &str, arg: &str| {
-        Command::new(tool)
-            .arg(arg)
-            .output()
-            .map(|o| !o.stdout.is_empty() || !o.stderr.is_empty())
-            .unwrap_or(false)
-    };
-    ok("iverilog", "-V") && ok("vvp", "-V")
+    Simulator::chosen().is_some()
 }
 
 /// For tests: true when the simulator is installed. When it is not, prints a loud `SKIPPED`
@@ -83,21 +113,45 @@ pub fn simulator_available() -> bool {
 /// # Panics
 /// When the simulator is missing and `PENELOPE_REQUIRE_COSIM=1`: the test must fail, not skip.
 pub fn simulator_or_skip(test: &str) -> bool {
-    if simulator_available() {
+    tool_or_skip(
+        test,
+        "a Verilog simulator (verilator, or iverilog/vvp)",
+        simulator_available(),
+        "verilator iverilog",
+    )
+}
+
+/// True when `tool` can be started and prints something for `arg` (for example `yosys -V`;
+/// `iverilog -V` exits with an error status, so the status is not used).
+pub fn tool_available(tool: &str, arg: &str) -> bool {
+    Command::new(tool)
+        .arg(arg)
+        .output()
+        .map(|o| !o.stdout.is_empty() || !o.stderr.is_empty())
+        .unwrap_or(false)
+}
+
+/// For tests: `available` as is; when false, prints a loud `SKIPPED` line naming `tools` and
+/// the Debian `package` that provides them, unless `PENELOPE_REQUIRE_COSIM=1`.
+///
+/// # Panics
+/// When a tool is missing and `PENELOPE_REQUIRE_COSIM=1`: the test must fail, not skip.
+pub fn tool_or_skip(test: &str, tools: &str, available: bool, package: &str) -> bool {
+    if available {
         return true;
     }
     if std::env::var("PENELOPE_REQUIRE_COSIM").is_ok_and(|v| v == "1") {
         panic!(
-            "{test}: PENELOPE_REQUIRE_COSIM=1 but iverilog/vvp are not installed \
-             (apt-get install -y iverilog)"
+            "{test}: PENELOPE_REQUIRE_COSIM=1 but {tools} is not installed \
+             (apt-get install -y {package})"
         );
     }
     // Straight to the process's stderr: the test harness captures `eprintln!`, and this line
     // must be seen.
     let _ = writeln!(
         std::io::stderr(),
-        "\n*** SKIPPED {test}: iverilog/vvp not installed; the RTL co-simulation did NOT run. \
-         Install iverilog (scripts/test does) to run it. ***\n"
+        "\n*** SKIPPED {test}: {tools} not installed; this RTL check did NOT run. \
+         Install {package} (scripts/test does) to run it. ***\n"
     );
     false
 }
@@ -119,31 +173,83 @@ pub enum Bench {
 /// A compiled test bench.
 #[derive(Clone, Debug)]
 pub struct Compiled {
-    /// The `vvp` image.
+    /// The simulator it was built for.
+    pub simulator: Simulator,
+    /// The `vvp` image (Icarus) or the executable (Verilator).
     pub image: PathBuf,
     /// The scratch directory it lives in.
     pub work: PathBuf,
 }
 
-/// Compiles a test bench with `iverilog` into `work`, with extra `` `define``s (for example
-/// `MUTANT_HALF_UP`).
+impl Compiled {
+    /// The command that runs the bench; the caller adds the `+PLUSARGS`.
+    fn command(&self) -> Command {
+        match self.simulator {
+            Simulator::Icarus => {
+                let mut cmd = Command::new("vvp");
+                cmd.arg("-n").arg(&self.image);
+                cmd
+            }
+            Simulator::Verilator => Command::new(&self.image),
+        }
+    }
+}
+
+/// Compiles a test bench into `work` with the [`Simulator::chosen`] simulator, with extra
+/// `` `define``s (for example `MUTANT_HALF_UP`).
 ///
 /// # Errors
-/// [`CosimError`] when `iverilog` cannot run or rejects the sources.
+/// [`CosimError`] when no simulator is installed, or it rejects the sources (a Verilator
+/// warning in a bench is an error too).
 pub fn compile(bench: Bench, work: &Path, defines: &[&str]) -> Result<Compiled, CosimError> {
+    let simulator = Simulator::chosen().ok_or_else(|| {
+        CosimError::Io(std::io::Error::new(
+            std::io::ErrorKind::NotFound,
+            "no Verilog simulator (verilator or iverilog) is installed",
+        ))
+    })?;
+    compile_with(simulator, bench, work, defines)
+}
+
+/// [`compile`] with a given simulator.
+///
+/// # Errors
+/// As [`compile`].
+pub fn compile_with(
+    simulator: Simulator,
+    bench: Bench,
+    work: &Path,
+    defines: &[&str],
+) -> Result<Compiled, CosimError> {
     fs::create_dir_all(work)?;
     let rtl = rtl_dir();
     let (name, files): (&str, &[&str]) = match bench {
         Bench::Kin => ("tb_kin", &["penelope_kin.v", "kin_sincos.v", "tb_kin.v"]),
         Bench::SinCos => ("tb_sincos", &["kin_sincos.v", "tb_sincos.v"]),
     };
-    let image = work.join(format!("{name}.vvp"));
-    let mut cmd = Command::new("iverilog");
-    cmd.arg("-g2005").arg("-o").arg(&image);
-    cmd.arg(format!(
+    let table = format!(
         "-DSINCOS_TABLE=\"{}\"",
         rtl.join("sincos_table.hex").display()
-    ));
+    );
+    let (mut cmd, image) = match simulator {
+        Simulator::Icarus => {
+            let image = work.join(format!("{name}.vvp"));
+            let mut cmd = Command::new("iverilog");
+            cmd.arg("-g2005").arg("-o").arg(&image);
+            (cmd, image)
+        }
+        Simulator::Verilator => {
+            let mdir = work.join(format!("obj_{name}"));
+            let mut cmd = Command::new("verilator");
+            // One build job: the machine is shared with the other tests.
+            cmd.args(["--binary", "--timing", "-j", "1", "--top-module", name])
+                .arg("--Mdir")
+                .arg(&mdir)
+                .args(["-o", name]);
+            (cmd, mdir.join(name))
+        }
+    };
+    cmd.arg(table);
     for d in defines {
         cmd.arg(format!("-D{d}"));
     }
@@ -152,6 +258,7 @@ pub fn compile(bench: Bench, work: &Path, defines: &[&str]) -> Result<Compiled, 
     }
     run(cmd)?;
     Ok(Compiled {
+        simulator,
         image,
         work: work.to_path_buf(),
     })
@@ -231,11 +338,11 @@ fn mask(x: i32, width: u32) -> u64 {
     (x as i64 as u64) & ((1u64 << width) - 1)
 }
 
-/// Runs `vectors` through the compiled `tb_kin` in one `vvp` process; `tag` names the scratch
+/// Runs `vectors` through the compiled `tb_kin` in one simulator process; `tag` names the scratch
 /// files.
 ///
 /// # Errors
-/// [`CosimError`] when `vvp` fails or its output does not parse.
+/// [`CosimError`] when the simulator fails or its output does not parse.
 pub fn run_kin(
     bench: &Compiled,
     tag: &str,
@@ -276,10 +383,8 @@ pub fn run_kin(
         }
         w.flush()?;
     }
-    let mut cmd = Command::new("vvp");
-    cmd.arg("-n")
-        .arg(&bench.image)
-        .arg(format!("+IN={}", input.display()))
+    let mut cmd = bench.command();
+    cmd.arg(format!("+IN={}", input.display()))
         .arg(format!("+OUT={}", output.display()));
     run(cmd)?;
     let reader = BufReader::new(fs::File::open(&output)?);
@@ -379,7 +484,7 @@ pub fn sincos_model_hashes(start: u32, blocks: u32) -> Vec<u64> {
 /// The RTL's hashes of `blocks` blocks of [`SINCOS_BLOCK`] angles from `start`.
 ///
 /// # Errors
-/// [`CosimError`] when `vvp` fails or its output does not parse.
+/// [`CosimError`] when the simulator fails or its output does not parse.
 pub fn sincos_rtl_hashes(
     bench: &Compiled,
     tag: &str,
@@ -387,10 +492,8 @@ pub fn sincos_rtl_hashes(
     blocks: u32,
 ) -> Result<Vec<u64>, CosimError> {
     let output = bench.work.join(format!("{tag}.hash"));
-    let mut cmd = Command::new("vvp");
-    cmd.arg("-n")
-        .arg(&bench.image)
-        .arg(format!("+START={:x}", start & 0xff_ffff))
+    let mut cmd = bench.command();
+    cmd.arg(format!("+START={:x}", start & 0xff_ffff))
         .arg(format!("+BLOCKS={blocks}"))
         .arg(format!("+OUT={}", output.display()));
     run(cmd)?;
@@ -413,7 +516,7 @@ pub fn sincos_rtl_hashes(
 /// model, as `(angle, rtl (sin, cos), model (sin, cos))`.
 ///
 /// # Errors
-/// [`CosimError`] when `vvp` fails or its output does not parse.
+/// [`CosimError`] when the simulator fails or its output does not parse.
 #[allow(clippy::type_complexity)]
 pub fn sincos_dump(
     bench: &Compiled,
@@ -421,10 +524,8 @@ pub fn sincos_dump(
     start: u32,
 ) -> Result<Option<(u32, (i32, i32), (i32, i32))>, CosimError> {
     let output = bench.work.join(format!("{tag}.dump"));
-    let mut cmd = Command::new("vvp");
-    cmd.arg("-n")
-        .arg(&bench.image)
-        .arg(format!("+START={:x}", start & 0xff_ffff))
+    let mut cmd = bench.command();
+    cmd.arg(format!("+START={:x}", start & 0xff_ffff))
         .arg("+BLOCKS=1")
         .arg("+DUMP")
         .arg(format!("+OUT={}", output.display()));

@@ -10,7 +10,8 @@
 //   cycles   - the 40 MHz cycle model of the RTL
 //   reference- the f64 model of the same chain (the accuracy oracle)
 //   kinematics - `FpgaKinematics`, the `penelope_hal::robot::Kinematics` implementation
-//   cosim    - (std) driving the Verilog RTL in Icarus Verilog
+//   cosim    - (std) driving the Verilog RTL in Verilator or Icarus Verilog
+//   synthesis- (std) Yosys synthesis for the XC2V1000: resources and a datasheet timing estimate
 
 pub mod cycles;
 pub mod dh;
@@ -23,6 +24,8 @@ mod wide;
 
 #[cfg(feature = "std")]
 pub mod cosim;
+#[cfg(feature = "std")]
+pub mod synthesis;
 
 pub use dh::{Alpha, DhParams, DhRow, DhTable, TableError};
 pub use fixed::{FixedError, Format, Fx, Overflow, Rounding};

@@ -17,8 +17,10 @@
 //!
 //! So `sin(0) = 0`, `cos(0) = 1` and `sin(pi/2) = 1` exactly, and every output is within 0.7
 //! LSB (`2^-23`) of the true value of the quantized angle (tested: `tests/accuracy.rs`).
-//! Cost in hardware: one dual-port ROM of 4097 x 46 bits (about 190 kbit: 11 to 12 of the
-//! XC2V1000's forty 18 Kb block RAMs) and two 17x10 multipliers; one clock cycle.
+//! Cost in hardware: one dual-port ROM of 4096 x 46 bits with registered read (Yosys maps it
+//! onto ten of the XC2V1000's forty 18 Kb block RAMs, as 2048 x 9 halves: `T[28]` is zero in
+//! every stored row) and two 17x10 multipliers; three pipeline stages (ROM read, products,
+//! interpolation and unfold).
 //!
 //! # Real-time
 //! No allocation, no panic, constant time.
@@ -39,7 +41,8 @@ pub const SIN_COS: Format = Format::signed(25, 2);
 /// Number of table intervals in a quarter wave.
 pub const TABLE_INTERVALS: usize = 4096;
 
-/// The committed table, one `{T (29 bits), D (17 bits)}` word per line in hex.
+/// The committed table, one `{T (29 bits), D (17 bits)}` word per line in hex, rows `0..4096`
+/// (`T[4096] = 2^28`, `D[4096] = 0` are constants, not rows).
 const TABLE_HEX: &[u8] = include_bytes!("../rtl/sincos_table.hex");
 
 /// The committed quarter-wave table, parsed at compile time: `T[i]` raw words of [`TABLE_T`],
@@ -74,7 +77,7 @@ impl Table {
                     digits += 1;
                 }
                 None if digits > 0 => {
-                    assert!(k <= TABLE_INTERVALS, "sincos_table.hex: too many lines");
+                    assert!(k < TABLE_INTERVALS, "sincos_table.hex: too many lines");
                     t[k] = (acc >> 17) as u32;
                     d[k] = (acc & 0x1_ffff) as u32;
                     k += 1;
@@ -85,10 +88,11 @@ impl Table {
             }
             i += 1;
         }
-        assert!(
-            k == TABLE_INTERVALS + 1,
-            "sincos_table.hex: wrong line count"
-        );
+        assert!(k == TABLE_INTERVALS, "sincos_table.hex: wrong line count");
+        // The last point is a constant, not a ROM row (the ROM stays 4096 rows deep):
+        // sin(pi/2) = 1 exactly, and no slope after it.
+        t[TABLE_INTERVALS] = 1 << 28;
+        d[TABLE_INTERVALS] = 0;
         Table { t, d }
     }
 }

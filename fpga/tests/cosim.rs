@@ -2,16 +2,18 @@
 //!
 //! (The exhaustive sine/cosine sweep is in `cosim_sincos.rs`.)
 //! - 100,000 seeded random forward-kinematics and force vectors, FRHC and random DH tables,
-//!   plus the directed corners, in one `vvp` run; the cycle count of each is checked against the
-//!   cycle model;
-//! - a mutation check: the RTL built with each planted bug must FAIL the same comparison.
+//!   plus the directed corners, in two simulator runs; the cycle count of each is checked against
+//!   the cycle model;
+//! - a mutation check: the RTL built with each planted bug must FAIL the same comparison;
+//! - both simulators (Verilator and Icarus) give the model's words on the same vectors.
 //!
-//! Needs Icarus Verilog. With `PENELOPE_REQUIRE_COSIM=1` (set by `scripts/test`) a missing
-//! simulator fails these tests; without it they print a loud SKIPPED line and pass.
+//! Needs Verilator or Icarus Verilog (`cosim::Simulator::chosen`; the cross-check needs both).
+//! With `PENELOPE_REQUIRE_COSIM=1` (set by `scripts/test`) a missing simulator fails these tests;
+//! without it they print a loud SKIPPED line and pass.
 
 use std::thread;
 
-use penelope_fpga::cosim::{self, Bench, KinOutput, KinVector};
+use penelope_fpga::cosim::{self, Bench, KinOutput, KinVector, Simulator};
 use penelope_fpga::dh::{Alpha, DhRow, DhTable, JOINTS, LENGTH};
 use penelope_fpga::pipeline;
 use rand::{RngExt, SeedableRng};
@@ -19,6 +21,7 @@ use rand_chacha::ChaCha8Rng;
 
 const RANDOM_VECTORS: usize = 100_000;
 const MUTANT_RANDOM_VECTORS: usize = 500;
+const CROSS_RANDOM_VECTORS: usize = 1_000;
 
 // --- vector generation ---------------------------------------------------------------------
 
@@ -218,7 +221,7 @@ fn kinematics_rtl_equals_model_bit_for_bit() {
         return;
     }
     let work = cosim::scratch_dir("kin");
-    let bench = cosim::compile(Bench::Kin, &work, &[]).expect("iverilog");
+    let bench = cosim::compile(Bench::Kin, &work, &[]).expect("simulator build");
     let v = vectors(RANDOM_VECTORS, 0x7e1e_0b05);
     assert!(v.len() > RANDOM_VECTORS);
     // Two simulator processes, one per half of the vectors.
@@ -226,8 +229,8 @@ fn kinematics_rtl_equals_model_bit_for_bit() {
     let rtl: Vec<KinOutput> = thread::scope(|s| {
         let a = s.spawn(|| cosim::run_kin(&bench, "first", first));
         let b = s.spawn(|| cosim::run_kin(&bench, "second", second));
-        let mut out = a.join().expect("thread").expect("vvp");
-        out.extend(b.join().expect("thread").expect("vvp"));
+        let mut out = a.join().expect("thread").expect("simulator");
+        out.extend(b.join().expect("thread").expect("simulator"));
         out
     });
     if let Err(e) = cosim::compare(&v, &rtl) {
@@ -253,10 +256,19 @@ fn planted_bugs_fail_the_comparison() {
     if !cosim::simulator_or_skip("planted_bugs_fail_the_comparison") {
         return;
     }
+    // Six builds of 500 vectors each: Icarus compiles in well under a second where Verilator
+    // takes several, so this check prefers Icarus (`both_simulators_give_the_model_words`
+    // shows that both simulators give the same words).
+    let sim = if Simulator::Icarus.available() {
+        Simulator::Icarus
+    } else {
+        Simulator::Verilator
+    };
     let v = vectors(MUTANT_RANDOM_VECTORS, 0x0bad_c0de);
     // The unmutated RTL passes the same vectors (so a failure below is the mutant's doing).
-    let clean = cosim::compile(Bench::Kin, &cosim::scratch_dir("clean"), &[]).expect("iverilog");
-    let rtl = cosim::run_kin(&clean, "clean", &v).expect("vvp");
+    let clean = cosim::compile_with(sim, Bench::Kin, &cosim::scratch_dir("clean"), &[])
+        .expect("simulator build");
+    let rtl = cosim::run_kin(&clean, "clean", &v).expect("simulator");
     assert_eq!(cosim::compare(&v, &rtl), Ok(()));
     let _ = std::fs::remove_dir_all(cosim::scratch_dir("clean"));
     for mutant in [
@@ -266,8 +278,9 @@ fn planted_bugs_fail_the_comparison() {
         "MUTANT_SINCOS_TRUNC",
     ] {
         let work = cosim::scratch_dir(mutant);
-        let bench = cosim::compile(Bench::Kin, &work, &[mutant]).expect("iverilog");
-        let rtl = cosim::run_kin(&bench, "mutant", &v).expect("vvp");
+        let bench =
+            cosim::compile_with(sim, Bench::Kin, &work, &[mutant]).expect("simulator build");
+        let rtl = cosim::run_kin(&bench, "mutant", &v).expect("simulator");
         let verdict = cosim::compare(&v, &rtl);
         assert!(
             verdict.is_err(),
@@ -281,15 +294,41 @@ fn planted_bugs_fail_the_comparison() {
     }
     // The sine/cosine sweep catches its own planted bug too.
     let work = cosim::scratch_dir("sincos-mutant");
-    let bench = cosim::compile(Bench::SinCos, &work, &["MUTANT_SINCOS_TRUNC"]).expect("iverilog");
-    let rtl = cosim::sincos_rtl_hashes(&bench, "m", 0, 1).expect("vvp");
+    let bench = cosim::compile_with(sim, Bench::SinCos, &work, &["MUTANT_SINCOS_TRUNC"])
+        .expect("simulator build");
+    let rtl = cosim::sincos_rtl_hashes(&bench, "m", 0, 1).expect("simulator");
     assert_ne!(
         rtl,
         cosim::sincos_model_hashes(0, 1),
         "MUTANT_SINCOS_TRUNC not caught"
     );
-    assert!(cosim::sincos_dump(&bench, "m", 0).expect("vvp").is_some());
+    assert!(
+        cosim::sincos_dump(&bench, "m", 0)
+            .expect("simulator")
+            .is_some()
+    );
     let _ = std::fs::remove_dir_all(&work);
+}
+
+#[test]
+fn both_simulators_give_the_model_words() {
+    let test = "both_simulators_give_the_model_words";
+    let both = Simulator::Icarus.available() && Simulator::Verilator.available();
+    if !cosim::tool_or_skip(test, "verilator and iverilog", both, "verilator iverilog") {
+        return;
+    }
+    let v = vectors(CROSS_RANDOM_VECTORS, 0x5eed_c055);
+    for sim in [Simulator::Icarus, Simulator::Verilator] {
+        let work = cosim::scratch_dir(&format!("cross-{sim:?}"));
+        let bench = cosim::compile_with(sim, Bench::Kin, &work, &[]).expect("simulator build");
+        let rtl = cosim::run_kin(&bench, "cross", &v).expect("simulator");
+        assert_eq!(cosim::compare(&v, &rtl), Ok(()), "{sim:?}");
+        let bench = cosim::compile_with(sim, Bench::SinCos, &work, &[]).expect("simulator build");
+        let start = 0x40_0000 - 0x8000; // across the quadrant edge at pi/2
+        let rtl = cosim::sincos_rtl_hashes(&bench, "cross", start, 1).expect("simulator");
+        assert_eq!(rtl, cosim::sincos_model_hashes(start, 1), "{sim:?}");
+        let _ = std::fs::remove_dir_all(&work);
+    }
 }
 
 #[test]
