@@ -35,3 +35,49 @@ unsafe impl GlobalAlloc for CountingAllocator {
 pub fn allocations() -> u64 {
     ALLOCATIONS.load(Ordering::Relaxed)
 }
+
+/// Steps the detached loops of a teleoperation pair over ticks `ticks` of a 1 kHz control clock
+/// (communication every other tick, after `at_comm`, which plays any feed a thread would),
+/// draining their telemetry as a pump would, and returns the allocator calls made meanwhile.
+pub fn step_teleop_pair(
+    master: &mut penelope_supervisor::objects::DetachedLoop,
+    slave: &mut penelope_supervisor::objects::DetachedLoop,
+    ticks: std::ops::Range<u64>,
+    at_comm: &mut dyn FnMut(penelope_hal::Timestamp),
+) -> u64 {
+    let before = allocations();
+    for i in ticks {
+        let now = penelope_hal::Timestamp::from_nanos(i * 1_000_000);
+        if i.is_multiple_of(2) {
+            at_comm(now);
+            master.comm.tick(now);
+            slave.comm.tick(now);
+        }
+        master.control.tick(now);
+        slave.control.tick(now);
+        while master.telemetry.pop().is_some() {}
+        while slave.telemetry.pop().is_some() {}
+    }
+    allocations() - before
+}
+
+/// Asserts that both loops of a pair ran `ticks` control ticks with no fault and published
+/// more than `published` references.
+pub fn assert_pair_ran(
+    master: &penelope_supervisor::objects::DetachedLoop,
+    slave: &penelope_supervisor::objects::DetachedLoop,
+    ticks: u64,
+    published: u64,
+) {
+    for (name, d) in [("master", master), ("slave", slave)] {
+        let last = *d.control.control_loop().last_sample();
+        assert_eq!(last.seq, ticks, "{name}");
+        assert_eq!(
+            last.state,
+            penelope_rt_core::safety::SafetyState::Running,
+            "{name}: {:?}",
+            last.fault
+        );
+        assert!(d.comm.published() > published, "{name}");
+    }
+}

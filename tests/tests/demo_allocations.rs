@@ -10,14 +10,13 @@
 
 use std::net::SocketAddr;
 
-use penelope_hal::{Timestamp, Transition};
-use penelope_rt_core::safety::SafetyState;
+use penelope_hal::Transition;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::proto::{Call, Method};
 use penelope_supervisor::runs::DEMO_SYSTEM;
 use penelope_supervisor::system::SystemFile;
-use penelope_tests::{CountingAllocator, allocations};
+use penelope_tests::{CountingAllocator, assert_pair_ran, step_teleop_pair};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
@@ -40,39 +39,14 @@ fn one_hundred_thousand_demo_ticks_allocate_nothing() {
         slave.wrench.is_none(),
         "the wrist sensor is read in the slave's loop, not through a feed"
     );
-    let mut step = |i: u64| {
-        let now = Timestamp::from_nanos(i * 1_000_000);
-        if i.is_multiple_of(2) {
-            master.comm.tick(now);
-            slave.comm.tick(now);
-        }
-        master.control.tick(now);
-        slave.control.tick(now);
-        while master.telemetry.pop().is_some() {}
-        while slave.telemetry.pop().is_some() {}
-    };
     // Warm-up: the first ticks start the channels and anchor the mapping.
-    for i in 0..1000 {
-        step(i);
-    }
-    let before = allocations();
-    for i in 1000..101_000 {
-        step(i);
-    }
-    let after = allocations();
+    step_teleop_pair(&mut master, &mut slave, 1..1001, &mut |_| {});
+    let allocated = step_teleop_pair(&mut master, &mut slave, 1001..101_001, &mut |_| {});
     assert_eq!(
-        after - before,
-        0,
-        "the demo's loops allocated or freed {} times",
-        after - before
+        allocated, 0,
+        "the demo's loops allocated or freed {allocated} times"
     );
-    for (name, d) in [("master", &master), ("slave", &slave)] {
-        let last = *d.control.control_loop().last_sample();
-        assert_eq!(last.seq, 101_000, "{name}");
-        assert_eq!(last.state, SafetyState::Running, "{name}: {:?}", last.fault);
-        assert!(d.comm.published() > 50_000, "{name}");
-    }
-    // The slave met the wall during the script (its sensor read the plant's contact).
+    assert_pair_ran(&master, &slave, 101_000, 50_000);
     drop((master, slave));
     let _ = node.call(Call::Object {
         object: "follow".into(),

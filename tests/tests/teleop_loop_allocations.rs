@@ -9,10 +9,9 @@
 
 use penelope_hal::{Frame, Timestamp, Transition, Wrench};
 use penelope_rt_core::cell::Stamped;
-use penelope_rt_core::safety::SafetyState;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
 use penelope_supervisor::proto::{ControllerMethod, JointAxis, Method, RobotMethod};
-use penelope_tests::{CountingAllocator, allocations};
+use penelope_tests::{CountingAllocator, assert_pair_ran, step_teleop_pair};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
@@ -84,47 +83,19 @@ fn a_hundred_thousand_teleoperation_ticks_allocate_nothing() {
     let mut master = c.detach_loop("display").expect("the master's loop builds");
     let mut slave = c.detach_loop("follow").expect("the slave's loop builds");
     let mut wrench = slave.wrench.take().expect("a sensor is bound");
-    let mut step = |i: u64| {
-        let now = Timestamp::from_nanos((i + 1) * 1_000_000);
-        if i.is_multiple_of(2) {
-            master.comm.tick(now);
-            slave.comm.tick(now);
-            // What the sensor feed does each period, without its thread.
-            wrench.write(Stamped {
-                stamp: now,
-                value: Wrench::zero(Frame::Base),
-            });
-        }
-        master.control.tick(now);
-        slave.control.tick(now);
-        while master.telemetry.pop().is_some() {}
-        while slave.telemetry.pop().is_some() {}
+    // What the sensor feed does each period, without its thread.
+    let mut feed = |now: Timestamp| {
+        wrench.write(Stamped {
+            stamp: now,
+            value: Wrench::zero(Frame::Base),
+        });
     };
     // Warm-up: the first ticks start the channels and anchor the mapping.
-    for i in 0..1000 {
-        step(i);
-    }
-    let before = allocations();
-    for i in 1000..101_000 {
-        step(i);
-    }
-    let after = allocations();
+    step_teleop_pair(&mut master, &mut slave, 1..1001, &mut feed);
+    let allocated = step_teleop_pair(&mut master, &mut slave, 1001..101_001, &mut feed);
     assert_eq!(
-        after - before,
-        0,
-        "the teleoperation loops allocated or freed {} times",
-        after - before
+        allocated, 0,
+        "the teleoperation loops allocated or freed {allocated} times"
     );
-
-    for (name, d) in [("master", &master), ("slave", &slave)] {
-        let last = *d.control.control_loop().last_sample();
-        assert_eq!(last.seq, 101_000, "{name}");
-        assert_eq!(
-            last.state,
-            SafetyState::Running,
-            "{name} fault: {:?}",
-            last.fault
-        );
-        assert!(d.comm.published() > 50_000, "{name}");
-    }
+    assert_pair_ran(&master, &slave, 101_000, 50_000);
 }

@@ -71,14 +71,14 @@ impl Creator {
         let aux_stop = Arc::new(AtomicBool::new(false));
         let shared = Arc::new(LoopShared::default());
         let feed_stats = Arc::new(runtime::FeedStats::default());
-        let mut pump = Some(runtime::Pump::new(
+        let pump = runtime::Pump::new(
             telemetry,
             shared.clone(),
             self.subscriptions.clone(),
             name,
             joints,
-        ));
-        let mut feed = match (source, wrench) {
+        );
+        let feed = match (source, wrench) {
             (Some(source), Some(out)) => Some(runtime::SensorFeed {
                 source,
                 model,
@@ -110,7 +110,6 @@ impl Creator {
             fifo,
             period: timing.period,
             fault,
-            stepped: self.sim.is_some(),
         };
         let scheduling = if let Some(world) = &self.sim {
             let mut world = world
@@ -123,17 +122,17 @@ impl Creator {
                     now,
                     Box::new(control_body),
                     Box::new(comm_body),
-                    feed.take(),
-                    pump.take()
-                        .ok_or_else(|| WireError::Internal("pump".into()))?,
+                    feed,
+                    pump,
                     (timing.period, timing.comm_period, timing.sensor_period),
                 ),
             );
             "simulated clock".to_string()
         } else {
             let bodies: (TickBody, TickBody) = (Box::new(control_body), Box::new(comm_body));
-            let aux = (pump.take(), feed.take());
-            if let Err(why) = start_threads(name, &mut running, bodies, aux, &timing, rt, fifo) {
+            if let Err(why) =
+                start_threads(name, &mut running, bodies, (pump, feed), &timing, rt, fifo)
+            {
                 // Stop what did start, give the board back, and say why.
                 let stopped = running.stop();
                 reg.take_back(stopped, name, false);
@@ -402,17 +401,12 @@ impl Creator {
     /// Stops `running` (controller `name`'s loop): its threads, or its steps on the simulated
     /// clock. `failed`: the loop already brought its robot to the safe state.
     fn stop_loop(&self, name: &str, running: Running, failed: bool) -> StoppedLoop {
-        if !running.stepped {
+        // A creator's clock is fixed at its creation: on the real clock every loop has threads.
+        let Some(world) = &self.sim else {
             return if failed {
                 running.stop_failed()
             } else {
                 running.stop()
-            };
-        }
-        let Some(world) = &self.sim else {
-            return StoppedLoop {
-                control: None,
-                comm: None,
             };
         };
         let mut running = running;
@@ -442,7 +436,7 @@ fn start_threads(
     name: &str,
     running: &mut Running,
     (control, comm): (TickBody, TickBody),
-    (pump, feed): (Option<runtime::Pump>, Option<runtime::SensorFeed>),
+    (mut pump, feed): (runtime::Pump, Option<runtime::SensorFeed>),
     timing: &super::kinds::LoopTiming,
     rt: &RtPolicy,
     fifo: bool,
@@ -475,15 +469,13 @@ fn start_threads(
         exec::spawn(comm_cfg, comm)
             .map_err(|e| format!("cannot start the communication thread: {e}"))?,
     );
-    if let Some(mut pump) = pump {
-        let (stop, period) = (running.aux_stop.clone(), timing.telemetry_period);
-        running.pump = Some(
-            std::thread::Builder::new()
-                .name(thread_name("tel-"))
-                .spawn(move || runtime::run_pump(&mut pump, period, &stop))
-                .map_err(|e| format!("cannot start the telemetry thread: {e}"))?,
-        );
-    }
+    let (stop, period) = (running.aux_stop.clone(), timing.telemetry_period);
+    running.pump = Some(
+        std::thread::Builder::new()
+            .name(thread_name("tel-"))
+            .spawn(move || runtime::run_pump(&mut pump, period, &stop))
+            .map_err(|e| format!("cannot start the telemetry thread: {e}"))?,
+    );
     if let Some(mut feed) = feed {
         let (stop, period) = (running.aux_stop.clone(), timing.sensor_period);
         running.feed = Some(

@@ -261,7 +261,7 @@ fn mapped_master(out: &RunOutput) -> Vec<(Timestamp, Vector3<f64>)> {
 }
 
 /// Wake-up latency and execution time of one control loop, from what it noted each tick.
-fn loop_timing(side: &str, info: &RunInfo, rows: &[TickRecord]) -> LoopTiming {
+fn loop_timing(name: &str, info: &RunInfo, rows: &[TickRecord]) -> LoopTiming {
     let us = |d: Duration| d.as_secs_f64() * 1e6;
     let mut latency: Vec<f64> = rows.iter().map(|r| us(r.sample.wake_latency)).collect();
     latency.sort_by(f64::total_cmp);
@@ -280,14 +280,7 @@ fn loop_timing(side: &str, info: &RunInfo, rows: &[TickRecord]) -> LoopTiming {
         })
         .sum();
     LoopTiming {
-        name: format!(
-            "{side} ({})",
-            if side == "master" {
-                &info.controllers.0
-            } else {
-                &info.controllers.1
-            }
-        ),
+        name: name.to_string(),
         period_us: us(period),
         ticks: rows.len() as u64,
         overruns,
@@ -444,11 +437,15 @@ pub fn report(out: &RunOutput) -> Report {
 
     // Timing: what each control loop noted of its own wake-ups and execution.
     let timing = if info.clock == ClockMode::RealTime {
-        [("master", &out.master), ("slave", &out.slave)]
-            .into_iter()
-            .filter(|(_, rows)| !rows.is_empty())
-            .map(|(side, rows)| loop_timing(side, info, rows))
-            .collect()
+        let (m, s) = &info.controllers;
+        [
+            (format!("master ({m})"), &out.master),
+            (format!("slave ({s})"), &out.slave),
+        ]
+        .into_iter()
+        .filter(|(_, rows)| !rows.is_empty())
+        .map(|(name, rows)| loop_timing(&name, info, rows))
+        .collect()
     } else {
         Vec::new()
     };

@@ -594,7 +594,7 @@ mod tests {
                 assert!((a - b).abs() < 1e-5, "T[{i}][{j}]: float {a}, fpga {b}");
             }
         }
-        assert_eq!(fpga["fpga"]["cycles"], 61);
+        assert_eq!(fpga["fpga"]["cycles"], penelope_fpga::cycles::FK_CYCLES);
         assert_eq!(fpga["fpga"]["p_words"].as_array().unwrap().len(), 3);
         let not_frhc = Args {
             robot: "puma560".into(),

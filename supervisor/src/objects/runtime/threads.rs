@@ -38,8 +38,6 @@ pub struct Running {
     pub period: Duration,
     /// Where the loop's threads report a failure.
     pub fault: Arc<LoopFault>,
-    /// Stepped on the creator's simulated clock: no threads.
-    pub stepped: bool,
 }
 
 impl Running {

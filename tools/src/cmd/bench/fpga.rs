@@ -190,7 +190,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
     }
     println!(
-        "\nModelled hardware (NI PCI-7831R at {:.0} MHz, one FSM, not pipelined):\n",
+        "\nModelled hardware (NI PCI-7831R at {:.0} MHz, one FSM, pipelined multipliers):\n",
         cycles::CLOCK_HZ / 1e6
     );
     println!("| operation | cycles | latency | results per second |");
