@@ -36,6 +36,16 @@ pub enum JointCommand {
     Effort(JointVector),
     /// Joint positions for the board's own servo loop, rad.
     Position(JointVector),
+    /// Per joint: a position target for the joints in `position_joints`, a torque for the
+    /// others (controllers of one robot driving different joint sets with different laws).
+    Mixed {
+        /// Joint torques, N·m (joints not in `position_joints`).
+        effort: JointVector,
+        /// Joint positions, rad (joints in `position_joints`).
+        position: JointVector,
+        /// The joints given position targets.
+        position_joints: crate::joint::JointSet,
+    },
 }
 
 /// Why a controller could not compute a command this tick.

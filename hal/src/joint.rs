@@ -10,6 +10,77 @@ pub const MAX_JOINTS: usize = 6;
 /// (torques) depending on use. Lives on the stack; never allocates.
 pub type JointVector = SVector<f64, MAX_JOINTS>;
 
+/// A set of joint indices (`0..MAX_JOINTS`): which joints one controller of a robot drives when
+/// several controllers share the robot. A bit mask: `Copy`, no allocation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct JointSet(u8);
+
+impl JointSet {
+    /// No joint.
+    pub const EMPTY: JointSet = JointSet(0);
+
+    /// Joints `0..n` (`n` clamped to [`MAX_JOINTS`]).
+    pub fn first(n: usize) -> JointSet {
+        let n = n.min(MAX_JOINTS);
+        JointSet(((1u16 << n) - 1) as u8)
+    }
+
+    /// The set of these indices, or `None` if one is `MAX_JOINTS` or more.
+    pub fn from_indices(indices: &[usize]) -> Option<JointSet> {
+        let mut s = JointSet::EMPTY;
+        for &j in indices {
+            if j >= MAX_JOINTS {
+                return None;
+            }
+            s.0 |= 1 << j;
+        }
+        Some(s)
+    }
+
+    /// True when joint `j` is in the set.
+    pub fn contains(self, j: usize) -> bool {
+        j < MAX_JOINTS && self.0 & (1 << j) != 0
+    }
+
+    /// The set with joint `j` added (`j` past [`MAX_JOINTS`] is ignored).
+    #[must_use]
+    pub fn with(self, j: usize) -> JointSet {
+        if j < MAX_JOINTS {
+            JointSet(self.0 | 1 << j)
+        } else {
+            self
+        }
+    }
+
+    /// Joints in either set.
+    #[must_use]
+    pub fn union(self, other: JointSet) -> JointSet {
+        JointSet(self.0 | other.0)
+    }
+
+    /// Joints in both sets.
+    #[must_use]
+    pub fn intersection(self, other: JointSet) -> JointSet {
+        JointSet(self.0 & other.0)
+    }
+
+    /// True when the set has no joint.
+    pub fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+
+    /// How many joints the set holds.
+    pub fn len(self) -> usize {
+        self.0.count_ones() as usize
+    }
+
+    /// The joints in the set, in increasing order.
+    pub fn iter(self) -> impl Iterator<Item = usize> {
+        (0..MAX_JOINTS).filter(move |&j| self.contains(j))
+    }
+}
+
 /// The measured state of a robot's joints.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -71,5 +142,27 @@ impl JointLimits {
             velocity_max: JointVector::repeat(f64::INFINITY),
             effort_max: JointVector::repeat(f64::INFINITY),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn joint_sets_hold_exactly_their_indices() {
+        let arm = JointSet::first(3);
+        let wrist = JointSet::from_indices(&[3, 4, 5]).unwrap();
+        assert_eq!(arm.iter().collect::<heapless::Vec<_, 6>>(), [0, 1, 2]);
+        assert_eq!(arm.len(), 3);
+        assert!(arm.contains(2) && !arm.contains(3) && !arm.contains(99));
+        assert!(arm.intersection(wrist).is_empty());
+        assert_eq!(arm.union(wrist), JointSet::first(MAX_JOINTS));
+        assert_eq!(JointSet::first(100), JointSet::first(MAX_JOINTS));
+        assert_eq!(
+            JointSet::EMPTY.with(4).with(MAX_JOINTS),
+            JointSet::from_indices(&[4]).unwrap()
+        );
+        assert_eq!(JointSet::from_indices(&[1, MAX_JOINTS]), None);
     }
 }

@@ -30,7 +30,7 @@ pub mod trajectory;
 pub use board::{AxisCommand, AxisState, Board, MAX_AXES};
 pub use controller::{ControlInput, Controller, ControllerError, JointCommand};
 pub use error::{Error, ErrorKind};
-pub use joint::{JointLimits, JointState, JointVector, MAX_JOINTS};
+pub use joint::{JointLimits, JointSet, JointState, JointVector, MAX_JOINTS};
 pub use lifecycle::{LifecycleError, LifecycleState, Transition};
 pub use reference::{CartesianReference, HybridReference, JointReference, Reference};
 pub use robot::{

@@ -171,6 +171,12 @@ impl AxisBinding {
     }
 }
 
+/// The board's position target for joint position `q`, rad, on axis binding `b`.
+fn position_counts(q: f64, b: AxisBinding) -> AxisCommand {
+    let counts = libm::round(q * b.counts_per_radian) as i64;
+    AxisCommand::Position(counts.wrapping_add(b.offset_counts))
+}
+
 /// Configuration of a [`ControlLoop`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ControlConfig {
@@ -686,9 +692,17 @@ where
                 let b = self.config.axes[j];
                 self.out[usize::from(b.axis)] = match command {
                     JointCommand::Effort(t) => AxisCommand::Effort(t[j]),
-                    JointCommand::Position(q) => {
-                        let counts = libm::round(q[j] * b.counts_per_radian) as i64;
-                        AxisCommand::Position(counts.wrapping_add(b.offset_counts))
+                    JointCommand::Position(q) => position_counts(q[j], b),
+                    JointCommand::Mixed {
+                        effort,
+                        position,
+                        position_joints,
+                    } => {
+                        if position_joints.contains(j) {
+                            position_counts(position[j], b)
+                        } else {
+                            AxisCommand::Effort(effort[j])
+                        }
                     }
                 };
             }

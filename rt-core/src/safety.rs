@@ -27,7 +27,7 @@ use core::time::Duration;
 
 use penelope_hal::controller::ControllerError;
 use penelope_hal::{
-    ErrorKind, JointCommand, JointLimits, JointState, JointVector, MAX_JOINTS, Reference,
+    ErrorKind, JointCommand, JointLimits, JointSet, JointState, JointVector, MAX_JOINTS, Reference,
     Timestamp, Wrench,
 };
 
@@ -697,39 +697,57 @@ impl Safety {
     pub fn limit_command(&mut self, command: JointCommand) -> Result<JointCommand, FaultCause> {
         let n = self.config.joint_count;
         let l = &self.config.limits;
-        let (mut v, is_effort) = match command {
-            JointCommand::Effort(v) => (v, true),
-            JointCommand::Position(v) => (v, false),
+        // Which joints carry position targets; the others carry torques.
+        let (mut effort, mut position, position_joints) = match command {
+            JointCommand::Effort(v) => (v, JointVector::zeros(), JointSet::EMPTY),
+            JointCommand::Position(v) => (JointVector::zeros(), v, JointSet::first(n)),
+            JointCommand::Mixed {
+                effort,
+                position,
+                position_joints,
+            } => (effort, position, position_joints),
         };
-        if !(0..n).all(|j| v[j].is_finite()) {
+        let finite = (0..n).all(|j| {
+            if position_joints.contains(j) {
+                position[j].is_finite()
+            } else {
+                effort[j].is_finite()
+            }
+        });
+        if !finite {
             return Err(FaultCause::NonFiniteCommand);
         }
-        let mut clamped = false;
+        let (mut effort_clamped, mut position_clamped) = (false, false);
         for j in 0..MAX_JOINTS {
             if j >= n {
-                v[j] = 0.0;
-                continue;
+                effort[j] = 0.0;
+                position[j] = 0.0;
+            } else if position_joints.contains(j) {
+                let c = position[j].clamp(l.position_min[j], l.position_max[j]);
+                position_clamped |= c != position[j];
+                position[j] = c;
+                effort[j] = 0.0;
+            } else {
+                let c = effort[j].clamp(-l.effort_max[j], l.effort_max[j]);
+                effort_clamped |= c != effort[j];
+                effort[j] = c;
+                position[j] = 0.0;
             }
-            let (lo, hi) = if is_effort {
-                (-l.effort_max[j], l.effort_max[j])
-            } else {
-                (l.position_min[j], l.position_max[j])
-            };
-            let c = v[j].clamp(lo, hi);
-            clamped |= c != v[j];
-            v[j] = c;
         }
-        if clamped {
-            self.events.insert(if is_effort {
-                SafetyEvent::EffortClamped
-            } else {
-                SafetyEvent::PositionClamped
-            });
+        if effort_clamped {
+            self.events.insert(SafetyEvent::EffortClamped);
         }
-        Ok(if is_effort {
-            JointCommand::Effort(v)
-        } else {
-            JointCommand::Position(v)
+        if position_clamped {
+            self.events.insert(SafetyEvent::PositionClamped);
+        }
+        Ok(match command {
+            JointCommand::Effort(_) => JointCommand::Effort(effort),
+            JointCommand::Position(_) => JointCommand::Position(position),
+            JointCommand::Mixed { .. } => JointCommand::Mixed {
+                effort,
+                position,
+                position_joints,
+            },
         })
     }
 }

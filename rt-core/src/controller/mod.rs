@@ -2,12 +2,16 @@
 //! control loop owns and switches between by index.
 //!
 //! - [`JointPid`]: joint-space PID with gravity compensation.
+//! - [`JointPositionServo`]: position targets for a board's own servo.
+//! - [`JointGroups`]: different laws on different joints of one robot.
 
 use penelope_hal::Controller;
 
+mod joint_groups;
 mod joint_pid;
 mod joint_position;
 
+pub use joint_groups::{JointGroups, JointGroupsError};
 pub use joint_pid::{JointPid, JointPidGains};
 pub use joint_position::JointPositionServo;
 
