@@ -38,7 +38,8 @@
 //! Order of work: every object is created (boards, sensors, robots, trajectories, controllers;
 //! in file order within a class), then related, then configured in the same order (so a hand
 //! exists before the robot it holds is configured, and robots before the channel between them),
-//! then the controllers marked `active` are activated in file order. Any refusal destroys
+//! then the controllers marked `active` are activated in file order (except the members of a
+//! `joint-groups` controller, which run in the group's loop). Any refusal destroys
 //! everything created so far and names the line, the object and the step.
 
 use std::collections::BTreeMap;
@@ -415,7 +416,12 @@ fn apply_steps(
             object(o, Method::Transition(Transition::Configure)),
         )?;
     }
-    for o in objects.iter().filter(|o| o.active) {
+    // A joint group's members run in the group's loop, not on their own.
+    let members = group_members(objects);
+    for o in objects
+        .iter()
+        .filter(|o| o.active && !members.contains(&o.name.as_str()))
+    {
         step(
             o,
             "activate",
@@ -423,6 +429,31 @@ fn apply_steps(
         )?;
     }
     Ok(())
+}
+
+/// The names of the controllers that are members of a `controller/joint-groups` in `objects`.
+fn group_members<'a>(objects: &[&'a ObjectSpec]) -> Vec<&'a str> {
+    let mut members = Vec::new();
+    for o in objects
+        .iter()
+        .filter(|o| o.kind == "controller/joint-groups")
+    {
+        let Ok(table) = o.config.parse::<toml::Table>() else {
+            continue;
+        };
+        let groups = table.get("groups").and_then(toml::Value::as_array);
+        for g in groups.into_iter().flatten() {
+            if let Some(name) = g.get("controller").and_then(toml::Value::as_str) {
+                members.extend(
+                    objects
+                        .iter()
+                        .find(|o| o.name == name)
+                        .map(|o| o.name.as_str()),
+                );
+            }
+        }
+    }
+    members
 }
 
 /// The system-file class key of a `class/kind`.

@@ -5,8 +5,8 @@
 //! 100,000 control ticks per robot (the script's clutch, contact and tapping phases included).
 //!
 //! The loops are built by the creator of a node the demo's system file was applied to, and
-//! stepped on this test's thread; the counting allocator counts every allocation of the
-//! process, so this binary holds this one test only.
+//! stepped on this test's thread; the counting allocator counts the allocations of this test's
+//! thread; this binary holds this one test only.
 
 use std::net::SocketAddr;
 

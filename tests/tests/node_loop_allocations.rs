@@ -3,8 +3,8 @@
 //! communication task (trajectory, reference cell), built by the creator exactly as `activate`
 //! builds them, stepped here on a simulated clock without threads.
 //!
-//! The counting allocator counts every allocation of the process, so this binary holds this one
-//! test only.
+//! The counting allocator counts the allocations of this test's thread (where the loops are
+//! stepped); this binary holds this one test only.
 
 use penelope_hal::{Frame, Timestamp, Transition, Wrench};
 use penelope_rt_core::cell::Stamped;

@@ -4,8 +4,8 @@
 //! the creator exactly as `activate` builds them and stepped here on a simulated clock for
 //! 100,000 control ticks each.
 //!
-//! The counting allocator counts every allocation of the process, so this binary holds this one
-//! test only.
+//! The counting allocator counts the allocations of this test's thread (where the loops are
+//! stepped); this binary holds this one test only.
 
 use penelope_hal::{Frame, Timestamp, Transition, Wrench};
 use penelope_rt_core::cell::Stamped;

@@ -62,6 +62,7 @@ impl penelope_hal::Error for JointGroupsError {
 ///
 /// # Real-time
 /// Fixed storage (at most [`MAX_JOINTS`] groups), no allocation.
+#[derive(Clone, Debug)]
 pub struct JointGroups<C> {
     groups: [Option<(JointSet, C)>; MAX_JOINTS],
     count: usize,

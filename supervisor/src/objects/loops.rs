@@ -331,6 +331,7 @@ impl Creator {
             telemetry: built.telemetry,
             probe: built.probe,
             wrench: built.wrench,
+            gains: built.gains,
         })
     }
 

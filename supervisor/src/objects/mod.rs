@@ -161,6 +161,9 @@ pub struct DetachedLoop {
             penelope_rt_core::cell::Stamped<penelope_hal::Wrench>,
         >,
     >,
+    /// New gains to the control task (what `set-gains` sends a running loop).
+    pub gains:
+        penelope_rt_core::ring::ArcProducer<runtime::RoutedGains, { runtime::GAINS_CAPACITY }>,
 }
 
 impl Creator {

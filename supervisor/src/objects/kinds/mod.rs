@@ -30,7 +30,7 @@ use super::teleop::{
 use crate::proto::{Class, KindInfo, WireError};
 
 /// Every kind this creator makes, in listing order.
-pub const KINDS: [&str; 19] = [
+pub const KINDS: [&str; 20] = [
     "robot/puma560",
     "robot/puma200",
     "robot/frhc",
@@ -41,6 +41,7 @@ pub const KINDS: [&str; 19] = [
     "controller/joint-pid",
     "controller/cartesian-impedance",
     "controller/joint-position",
+    "controller/joint-groups",
     "controller/force-display",
     "controller/position-error-master",
     "controller/slave-tracking",
@@ -71,6 +72,8 @@ pub enum Kind {
     CartesianImpedance,
     /// `controller/joint-position`.
     JointPosition,
+    /// `controller/joint-groups`: other controllers, each on its own joints of one robot.
+    JointGroups,
     /// `controller/force-display`: the master half of position-forward / force-back.
     ForceDisplay,
     /// `controller/position-error-master`: the master half of position-error.
@@ -105,6 +108,7 @@ impl Kind {
             "controller/joint-pid" => Kind::JointPid,
             "controller/cartesian-impedance" => Kind::CartesianImpedance,
             "controller/joint-position" => Kind::JointPosition,
+            "controller/joint-groups" => Kind::JointGroups,
             "controller/force-display" => Kind::ForceDisplay,
             "controller/position-error-master" => Kind::PositionErrorMaster,
             "controller/slave-tracking" => Kind::SlaveTracking,
@@ -131,6 +135,7 @@ impl Kind {
             Kind::JointPid => "controller/joint-pid",
             Kind::CartesianImpedance => "controller/cartesian-impedance",
             Kind::JointPosition => "controller/joint-position",
+            Kind::JointGroups => "controller/joint-groups",
             Kind::ForceDisplay => "controller/force-display",
             Kind::PositionErrorMaster => "controller/position-error-master",
             Kind::SlaveTracking => "controller/slave-tracking",
@@ -152,6 +157,7 @@ impl Kind {
             Kind::JointPid
             | Kind::CartesianImpedance
             | Kind::JointPosition
+            | Kind::JointGroups
             | Kind::ForceDisplay
             | Kind::PositionErrorMaster
             | Kind::SlaveTracking
@@ -224,6 +230,11 @@ impl Kind {
             Kind::JointPosition => (
                 "joint positions for the board's own servo (a Galil DMC closes the loop)",
                 JOINT_POSITION_KEYS.to_string() + LOOP_KEYS,
+            ),
+            Kind::JointGroups => (
+                "different laws on different joints of one robot: each group a configured \
+                 joint-pid or joint-position controller following its own trajectory",
+                JOINT_GROUPS_KEYS.to_string() + LOOP_KEYS,
             ),
             Kind::Step => ("joint step to a goal after a delay", STEP_KEYS.to_string()),
             Kind::Ramp => (
@@ -332,6 +343,14 @@ acceleration_feedforward = false # add M(q) qdd_ref
 
 const JOINT_POSITION_KEYS: &str = r#"
 max_velocity = 1.0              # rad/s, one value or one per joint: how fast the servo's target may move
+# plus the loop keys:
+"#;
+
+const JOINT_GROUPS_KEYS: &str = r#"
+groups = [{ controller = "arm", joints = [0, 1, 2] }, { controller = "wrist", joints = [3, 4, 5] }]
+# each joint of the robot in exactly one group; a member is a configured controller/joint-pid or
+# controller/joint-position with the same robot, following its own trajectory (joint or tool
+# goals); the members run in this controller's loop, not on their own
 # plus the loop keys:
 "#;
 
@@ -594,6 +613,87 @@ loop_keys!(JointPositionConfig {
     max_velocity: PerJoint = PerJoint::One(1.0), #[doc = "Largest target speed, rad/s."]
 });
 
+/// One group of a `controller/joint-groups`: a member controller and the joints it drives.
+#[derive(Clone, Debug, PartialEq, ::serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointGroupToml {
+    /// The member controller's name (on the same node).
+    pub controller: String,
+    /// The joints it drives, 0-based.
+    pub joints: Vec<usize>,
+}
+
+loop_keys!(JointGroupsConfig {
+    groups: Vec<JointGroupToml> = Vec::new(), #[doc = "The groups, each a member controller and its joints."]
+});
+
+impl JointGroupsConfig {
+    /// Checks what does not depend on the robot or the members (those are checked when the
+    /// loop is built).
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
+        if self.groups.is_empty() || self.groups.len() > penelope_hal::MAX_JOINTS {
+            return Err(bad(
+                kind,
+                format!(
+                    "`groups`: {} groups, need 1 to {}",
+                    self.groups.len(),
+                    penelope_hal::MAX_JOINTS
+                ),
+            ));
+        }
+        let mut claimed = [None::<usize>; penelope_hal::MAX_JOINTS];
+        for (i, g) in self.groups.iter().enumerate() {
+            crate::proto::check_name(&g.controller)
+                .map_err(|e| bad(kind, format!("`groups[{i}].controller`: {e}")))?;
+            if g.joints.is_empty() {
+                return Err(bad(kind, format!("`groups[{i}].joints` is empty")));
+            }
+            if let Some(j) = g.joints.iter().find(|&&j| j >= penelope_hal::MAX_JOINTS) {
+                return Err(bad(
+                    kind,
+                    format!("`groups[{i}].joints`: joint {j} is past the largest robot's joints"),
+                ));
+            }
+            for &j in &g.joints {
+                match claimed[j] {
+                    Some(other) if other != i => {
+                        return Err(bad(
+                            kind,
+                            format!("`groups`: joint {j} is in groups {other} and {i}"),
+                        ));
+                    }
+                    _ => claimed[j] = Some(i),
+                }
+            }
+        }
+        if let Some(dup) = self.groups.iter().enumerate().find(|(i, g)| {
+            self.groups[..*i]
+                .iter()
+                .any(|o| o.controller == g.controller)
+        }) {
+            return Err(bad(
+                kind,
+                format!(
+                    "`groups`: controller `{}` is in two groups",
+                    dup.1.controller
+                ),
+            ));
+        }
+        self.timing(kind)
+    }
+
+    /// The group's joints as a set (call after [`check`](Self::check)).
+    pub fn joint_set(group: &JointGroupToml) -> penelope_hal::JointSet {
+        group
+            .joints
+            .iter()
+            .fold(penelope_hal::JointSet::EMPTY, |s, &j| s.with(j))
+    }
+}
+
 impl JointPositionConfig {
     /// Checks what does not depend on the robot.
     ///
@@ -658,7 +758,7 @@ mod tests {
         let kinds = all_kinds();
         // Every listed name parses (a name that does not would be dropped from the list).
         assert_eq!(kinds.len(), KINDS.len());
-        assert_eq!(kinds.len(), 19);
+        assert_eq!(kinds.len(), 20);
         for k in &kinds {
             let parsed = Kind::parse(&k.kind).unwrap();
             assert_eq!(parsed.as_str(), k.kind);

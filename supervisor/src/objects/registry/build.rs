@@ -65,8 +65,8 @@ impl Registry {
                 });
             }
         }
-        let trajectory_obj = self.get(&traj_name)?;
-        if trajectory_obj.state == LifecycleState::Unconfigured {
+        let grouped = matches!(law, ControllerConfig::Groups(_));
+        if !grouped && self.get(&traj_name)?.state == LifecycleState::Unconfigured {
             return Err(not_ready(format!(
                 "trajectory `{traj_name}` is not configured"
             )));
@@ -117,56 +117,56 @@ impl Registry {
         let (role, caps) = (r.role, r.caps);
         let n = model.joint_count();
         let start = r.start;
-        // A trajectory, or one end of a teleoperation channel for the halves of the laws.
-        let mut tool_goals = false;
-        let (trajectory, teleop) = match (&self.get(&traj_name)?.body, law.teleop_side()) {
-            (Body::Trajectory(t), None) => {
-                tool_goals = spec_is_tool(&t.spec);
-                (Some(build_trajectory(&t.spec, &model, kind)?), None)
-            }
-            (Body::Teleop(t), Some(side)) => {
-                check_teleop_end(&traj_name, t, side, &robot_name)?;
-                (None, Some((side, t.config.mapping())))
-            }
-            (Body::Teleop(_), None) => {
-                return Err(bad_arg(format!(
-                    "`{traj_name}` is a teleoperation channel: it is followed by the halves of \
-                     the teleoperation laws (force-display, position-error-master, \
-                     slave-tracking, slave-position), not by {kind}"
-                )));
-            }
-            (_, Some(_)) => {
-                return Err(bad_arg(format!(
-                    "{kind} follows a trajectory/teleop channel; `{traj_name}` is not one"
-                )));
-            }
-            _ => return Err(WireError::Internal("trajectory body".into())),
-        };
-
         // Controller, and the gains a simulated body holds its pose with.
         let hold = default_joint_gains(&model, n);
-        let controller = match &law {
-            ControllerConfig::Pid(p) => {
-                NodeController::Pid(JointPid::new(pid_gains(p, kind, n, hold.0, hold.1)?))
+        // What feeds the loop: a trajectory, one end of a teleoperation channel for the halves
+        // of the laws, or one trajectory per joint group; and the objects that become users.
+        let mut used = vec![robot_name.clone()];
+        let (source, controller) = match &law {
+            ControllerConfig::Groups(groups) => {
+                let members = self.group_members(groups, &robot_name, &model, hold)?;
+                let (mut laws, mut feeds) = (Vec::new(), Vec::new());
+                for m in members {
+                    laws.push((m.joints, m.law));
+                    feeds.push((m.joints, m.feed));
+                    used.push(m.name);
+                    used.push(m.trajectory);
+                }
+                let groups = JointGroups::new(n, laws).map_err(|e| WireError::BadConfig {
+                    kind: kind.into(),
+                    message: e.to_string(),
+                })?;
+                (
+                    LoopSource::Groups(feeds),
+                    NodeController::Groups(Box::new(groups)),
+                )
             }
-            ControllerConfig::Impedance(i) => {
-                NodeController::Impedance(CartesianImpedance::new(impedance(i)).map_err(|e| {
-                    WireError::BadConfig {
-                        kind: kind.into(),
-                        message: format!("{e:?}"),
+            _ => {
+                used.push(traj_name.clone());
+                let source = match (&self.get(&traj_name)?.body, law.teleop_side()) {
+                    (Body::Trajectory(t), None) => LoopSource::Trajectory(TrajectoryFeed::new(
+                        build_trajectory(&t.spec, &model, kind)?,
+                        spec_is_tool(&t.spec),
+                    )),
+                    (Body::Teleop(t), Some(side)) => {
+                        check_teleop_end(&traj_name, t, side, &robot_name)?;
+                        LoopSource::Teleop(side, t.config.mapping())
                     }
-                })?)
-            }
-            ControllerConfig::Position(p) => {
-                let max_velocity = p
-                    .max_velocity
-                    .resolve(kind, "max_velocity", n, 1e-3, 100.0)?;
-                NodeController::Position(JointPositionServo::new(max_velocity))
-            }
-            ControllerConfig::ForceDisplay(c) => NodeController::ForceDisplay(c.law(kind)?),
-            ControllerConfig::PositionError(c) => NodeController::PositionErrorMaster(c.law(kind)?),
-            ControllerConfig::Tracking(c, servo) => {
-                NodeController::SlaveTracking(c.law(kind, *servo)?)
+                    (Body::Teleop(_), None) => {
+                        return Err(bad_arg(format!(
+                            "`{traj_name}` is a teleoperation channel: it is followed by the \
+                             halves of the teleoperation laws (force-display, \
+                             position-error-master, slave-tracking, slave-position), not by {kind}"
+                        )));
+                    }
+                    (_, Some(_)) => {
+                        return Err(bad_arg(format!(
+                            "{kind} follows a trajectory/teleop channel; `{traj_name}` is not one"
+                        )));
+                    }
+                    _ => return Err(WireError::Internal("trajectory body".into())),
+                };
+                (source, node_law(&law, kind, &model, hold)?)
             }
         };
 
@@ -266,7 +266,7 @@ impl Registry {
         let (probe_w, probe_r) = latest();
         let (mut cmd_w, cmd_r) = ring();
         let (goto_w, goto_r) = ring();
-        let (gains_w, gains_r) = latest();
+        let (gains_w, gains_r) = ring();
         let sink = NodeSink::new(tel_w, comm_w, probe_w, truth);
         let ports = ControlPorts {
             reference: ref_r,
@@ -293,17 +293,23 @@ impl Registry {
             (NodeLoop::Plain(Box::new(lp)), None)
         };
         let _ = cmd_w.push(ControlCommand::Activate);
-        let comm = match (trajectory, teleop) {
-            (Some(trajectory), _) => crate::objects::runtime::CommTask::new(
-                trajectory,
+        let comm = match source {
+            LoopSource::Trajectory(feed) => crate::objects::runtime::CommTask::new(
+                feed,
                 ref_w,
                 comm_r,
                 goto_r,
                 kinematics.clone(),
                 cartesian,
-            )
-            .with_tool_goals(tool_goals),
-            (None, Some((side, mapping))) => {
+            ),
+            LoopSource::Groups(feeds) => crate::objects::runtime::CommTask::groups(
+                feeds,
+                ref_w,
+                comm_r,
+                goto_r,
+                kinematics.clone(),
+            )?,
+            LoopSource::Teleop(side, mapping) => {
                 // The master's clutch is its operator's hand's button, if a hand holds it.
                 let clutch = self.objects.values().find_map(|o| match &o.body {
                     Body::Hand(h) if side == Side::Master && h.config.robot == robot_name => {
@@ -332,7 +338,6 @@ impl Registry {
                     kinematics.clone(),
                 )
             }
-            (None, None) => return Err(WireError::Internal("no reference source".into())),
         };
         let source =
             match (&sensor_name, local_sensor) {
@@ -348,7 +353,6 @@ impl Registry {
             };
 
         // Mark the users.
-        let mut used = vec![robot_name.clone(), traj_name.clone()];
         used.extend(maps.iter().map(|(b, _)| b.clone()));
         if let Some(s) = &sensor_name
             && !s.starts_with('/')
@@ -488,6 +492,55 @@ pub(super) fn default_joint_gains(model: &DhRobotModel, n: usize) -> (JointVecto
     (kp, kd)
 }
 
+/// What feeds a loop its references (built once per activation: its size costs nothing).
+#[allow(clippy::large_enum_variant)]
+enum LoopSource {
+    /// A trajectory.
+    Trajectory(TrajectoryFeed),
+    /// One end of a teleoperation channel, and the channel's mapping.
+    Teleop(Side, penelope_rt_core::teleop::MappingConfig),
+    /// One trajectory per joint group.
+    Groups(Vec<(JointSet, TrajectoryFeed)>),
+}
+
+/// The law of a controller configured as `law` (not a joint-groups controller) for `model`;
+/// `hold` is the robot's default joint gains `(kp, kd)`.
+pub(super) fn node_law(
+    law: &ControllerConfig,
+    kind: &str,
+    model: &DhRobotModel,
+    hold: (JointVector, JointVector),
+) -> Result<NodeController, WireError> {
+    let n = model.joint_count();
+    Ok(match law {
+        ControllerConfig::Pid(p) => {
+            NodeController::Pid(JointPid::new(pid_gains(p, kind, n, hold.0, hold.1)?))
+        }
+        ControllerConfig::Impedance(i) => {
+            NodeController::Impedance(CartesianImpedance::new(impedance(i)).map_err(|e| {
+                WireError::BadConfig {
+                    kind: kind.into(),
+                    message: format!("{e:?}"),
+                }
+            })?)
+        }
+        ControllerConfig::Position(p) => {
+            let max_velocity = p
+                .max_velocity
+                .resolve(kind, "max_velocity", n, 1e-3, 100.0)?;
+            NodeController::Position(JointPositionServo::new(max_velocity))
+        }
+        ControllerConfig::ForceDisplay(c) => NodeController::ForceDisplay(c.law(kind)?),
+        ControllerConfig::PositionError(c) => NodeController::PositionErrorMaster(c.law(kind)?),
+        ControllerConfig::Tracking(c, servo) => NodeController::SlaveTracking(c.law(kind, *servo)?),
+        ControllerConfig::Groups(_) => {
+            return Err(WireError::Internal(
+                "a joint group inside a joint group".into(),
+            ));
+        }
+    })
+}
+
 /// Checks that the controller on `robot` may run `side` of channel `name`, and that the end is
 /// free.
 fn check_teleop_end(name: &str, t: &TeleopObj, side: Side, robot: &str) -> Result<(), WireError> {
@@ -532,7 +585,10 @@ pub(crate) struct Built {
         GoToCommand,
         { crate::objects::runtime::GOTO_CAPACITY },
     >,
-    pub gains: penelope_rt_core::cell::ArcLatestWriter<GainsUpdate>,
+    pub gains: penelope_rt_core::ring::ArcProducer<
+        RoutedGains,
+        { crate::objects::runtime::GAINS_CAPACITY },
+    >,
     pub probe:
         penelope_rt_core::cell::ArcLatestReader<penelope_rt_core::telemetry::TelemetrySample>,
     pub wrench: Option<

@@ -570,14 +570,36 @@ impl Registry {
                             .into(),
                     });
                 }
+                if matches!(c.config, ControllerConfig::Groups(_)) {
+                    return Err(WireError::Unsupported {
+                        kind: k.to_string(),
+                        method: "set-gains (set its members' gains: they reach the running group)"
+                            .into(),
+                    });
+                }
                 // The new keys replace those of the configuration; the rest stays.
                 let text = merged_gains(k, &c.config_text, &gains)?;
                 let (config, update) = gains_from(k, &c.config, &text, model.as_ref())?;
+                // To the running loop: its own, or the joint group's that runs this member.
+                if let Some(update) = update {
+                    let (run, member) = match self.controller_mut(name)?.running.is_some() {
+                        true => (self.controller_mut(name)?.running.as_mut(), None),
+                        false => match self.running_group_of(name) {
+                            Some((group, index)) => {
+                                (self.controller_mut(&group)?.running.as_mut(), Some(index))
+                            }
+                            None => (None, None),
+                        },
+                    };
+                    if let Some(run) = run {
+                        run.gains
+                            .push(RoutedGains { member, update })
+                            .map_err(|_| not_ready("gain changes queued; retry"))?;
+                    }
+                }
+                let c = self.controller_mut(name)?;
                 c.config = config;
                 c.config_text = text;
-                if let (Some(u), Some(run)) = (update, c.running.as_mut()) {
-                    run.gains.write(u);
-                }
                 Ok(Reply::Unit)
             }
             ControllerMethod::EStop => {
@@ -716,10 +738,8 @@ fn gains_from(
                 Some(GainsUpdate::Tracking(*law.config())),
             )
         }
-        ControllerConfig::Position(_) => {
-            return Err(WireError::Internal(
-                "a joint-position servo has no gains".into(),
-            ));
+        ControllerConfig::Position(_) | ControllerConfig::Groups(_) => {
+            return Err(WireError::Internal(format!("{kind} has no gains")));
         }
     })
 }

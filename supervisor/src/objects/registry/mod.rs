@@ -22,13 +22,14 @@ use penelope_drivers::sim::operator::VirtualOperator;
 use penelope_drivers::sim::plant::PlantConfig;
 use penelope_drivers::sim::tap::TapWriter;
 use penelope_hal::{
-    AxisState, Board, Dynamics, Frame, InverseKinematics, JacobianFrame, JointState, JointVector,
-    Kinematics, LifecycleState, MAX_AXES, MAX_JOINTS, NamedPose, RobotModel, Timestamp, Transition,
+    AxisState, Board, Dynamics, Frame, InverseKinematics, JacobianFrame, JointSet, JointState,
+    JointVector, Kinematics, LifecycleState, MAX_AXES, MAX_JOINTS, NamedPose, RobotModel,
+    Timestamp, Transition,
 };
 use penelope_rt_core::control::{
     AxisBinding, ControlCommand, ControlConfig, ControlLoop, ControlPorts,
 };
-use penelope_rt_core::controller::{JointPid, JointPidGains, JointPositionServo};
+use penelope_rt_core::controller::{JointGroups, JointPid, JointPidGains, JointPositionServo};
 use penelope_rt_core::safety::{HoldMode, Role, SafetyConfig};
 use penelope_rt_core::teleop::{CartesianImpedance, ImpedanceConfig};
 use penelope_rt_core::trajectory::{
@@ -46,7 +47,7 @@ use super::teleop::{
 };
 use crate::objects::runtime::{
     CellSensor, ControlTask, GainsUpdate, GalilSet, GoToCommand, LoopBoard, NodeController,
-    NodeLoop, NodeSink, NodeTrajectory, SimBody, VirtualSensor,
+    NodeLoop, NodeSink, NodeTrajectory, RoutedGains, SimBody, TrajectoryFeed, VirtualSensor,
 };
 use crate::proto::{
     BoardMethod, Class, ControlStatus, ControllerMethod, JointAxis, Joints, MatrixMsg, ObjectInfo,
@@ -55,6 +56,7 @@ use crate::proto::{
 };
 
 mod build;
+mod groups;
 mod methods;
 mod trajectories;
 
@@ -127,6 +129,8 @@ pub(crate) enum ControllerConfig {
     Pid(JointPidConfig),
     Impedance(ImpedanceConfigToml),
     Position(JointPositionConfig),
+    /// Member controllers on joint subsets of one robot, run in one loop.
+    Groups(kinds::JointGroupsConfig),
     ForceDisplay(ForceDisplayToml),
     PositionError(PositionErrorToml),
     /// The slave half: torques, or position targets for the board's servo (`true`).
@@ -225,6 +229,16 @@ impl Object {
                         relations.push((k.to_string(), v.clone()));
                     }
                 }
+                if let ControllerConfig::Groups(g) = &c.config {
+                    for group in &g.groups {
+                        let joints: Vec<String> =
+                            group.joints.iter().map(|j| j.to_string()).collect();
+                        relations.push((
+                            "member".to_string(),
+                            format!("{} [{}]", group.controller, joints.join(" ")),
+                        ));
+                    }
+                }
                 if let Some(s) = &c.scheduling {
                     relations.push(("scheduling".to_string(), s.clone()));
                 }
@@ -308,6 +322,11 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
             let cfg: JointPositionConfig = kinds::parse(k, config)?;
             let timing = cfg.check(k)?;
             controller_body(ControllerConfig::Position(cfg), timing, config)
+        }
+        Kind::JointGroups => {
+            let cfg: kinds::JointGroupsConfig = kinds::parse(k, config)?;
+            let timing = cfg.check(k)?;
+            controller_body(ControllerConfig::Groups(cfg), timing, config)
         }
         Kind::OperatorHand => {
             let cfg: HandConfig = kinds::parse(k, config)?;
@@ -639,6 +658,10 @@ impl Registry {
 
     fn configure_controller(&mut self, name: &str) -> Result<(), WireError> {
         let c = self.controller_mut(name)?;
+        if let ControllerConfig::Groups(groups) = &c.config {
+            let groups = groups.clone();
+            return self.configure_groups(name, &groups);
+        }
         let (robot, trajectory, sensor) = (c.robot.clone(), c.trajectory.clone(), c.sensor.clone());
         let robot = robot
             .ok_or_else(|| not_ready(format!("controller `{name}` has no robot (SetRobot)")))?;

@@ -98,9 +98,127 @@ pub struct GoToCommand {
 #[allow(clippy::large_enum_variant)]
 enum ReferenceSource {
     /// A trajectory (and the GoTo motions that replace it).
-    Trajectory(NodeTrajectory),
+    Trajectory(TrajectoryFeed),
     /// One end of a teleoperation channel.
     Teleop(Box<TeleopComm>),
+    /// One trajectory per joint group (`controller/joint-groups`), merged joint by joint.
+    Groups(Box<heapless::Vec<(JointSet, TrajectoryFeed), MAX_JOINTS>>),
+}
+
+/// One trajectory as a communication task runs it: started from the measured state (no jump),
+/// replaced by GoTo motions, and, when its goals are tool poses and the law is a joint law,
+/// followed through inverse kinematics.
+pub struct TrajectoryFeed {
+    trajectory: NodeTrajectory,
+    /// The trajectory's goals are tool poses (it starts from the measured tool pose).
+    tool_goals: bool,
+    started: bool,
+    last: Option<JointReference>,
+    /// When `last` was produced by inverse kinematics (for its velocity).
+    last_at: Option<Timestamp>,
+    /// Tool references a joint law could not follow (no inverse kinematics solution near the
+    /// last one): not published, so the loop's watchdog holds the robot if they persist.
+    ik_failures: u64,
+}
+
+impl TrajectoryFeed {
+    /// A feed of `trajectory`; `tool_goals` when its goals are tool poses.
+    pub fn new(trajectory: NodeTrajectory, tool_goals: bool) -> Self {
+        TrajectoryFeed {
+            trajectory,
+            tool_goals,
+            started: false,
+            last: None,
+            last_at: None,
+            ik_failures: 0,
+        }
+    }
+
+    /// Where the trajectory (or a GoTo) starts: the last joint reference, else the measured
+    /// joints; as a tool pose for tool goals.
+    fn from(&self, measured: JointVector, model: &RobotKinematics) -> Reference {
+        let joints = self.last.unwrap_or(JointReference {
+            position: measured,
+            ..JointReference::default()
+        });
+        if self.tool_goals {
+            Reference::Cartesian(penelope_hal::CartesianReference {
+                pose: model.forward(&joints.position),
+                twist: Twist::default(),
+            })
+        } else {
+            Reference::Joint(joints)
+        }
+    }
+
+    /// Starts the trajectory on the first call.
+    fn start_once(&mut self, now: Timestamp, measured: JointVector, model: &RobotKinematics) {
+        if !self.started {
+            let from = self.from(measured, model);
+            self.trajectory.start(now, &from);
+            self.started = true;
+        }
+    }
+
+    /// Replaces the trajectory by a joint-space GoTo motion from the current reference.
+    fn go_to(
+        &mut self,
+        mut motion: NodeTrajectory,
+        now: Timestamp,
+        measured: JointVector,
+        model: &RobotKinematics,
+    ) {
+        self.tool_goals = false;
+        let from = self.from(measured, model);
+        motion.start(now, &from);
+        self.trajectory = motion;
+    }
+
+    /// The reference at `now`: a joint reference, converted from a tool pose through inverse
+    /// kinematics unless `cartesian` (a law that follows poses). `None` when there is nothing to
+    /// publish (trajectory error, non-finite value, no inverse kinematics solution).
+    fn next(
+        &mut self,
+        now: Timestamp,
+        measured: JointVector,
+        model: &RobotKinematics,
+        cartesian: bool,
+    ) -> Option<Reference> {
+        let r = self.trajectory.reference(now).ok()?;
+        if !r.is_finite() {
+            return None;
+        }
+        match r {
+            Reference::Joint(j) => {
+                self.last = Some(j);
+                Some(r)
+            }
+            // A tool reference for a joint law: the inverse kinematics branch nearest the last
+            // joint reference, its velocity from the previous solution.
+            Reference::Cartesian(c) if !cartesian => {
+                let seed = self.last.map_or(measured, |j| j.position);
+                let Ok(q) = model.inverse_near(&c.pose, &seed) else {
+                    self.ik_failures += 1;
+                    return None;
+                };
+                let velocity = match (self.last, self.last_at) {
+                    (Some(l), Some(at)) if now > at => {
+                        (q - l.position) / now.saturating_since(at).as_secs_f64()
+                    }
+                    _ => JointVector::zeros(),
+                };
+                let j = JointReference {
+                    position: q,
+                    velocity,
+                    acceleration: JointVector::zeros(),
+                };
+                self.last = Some(j);
+                self.last_at = Some(now);
+                Some(Reference::Joint(j))
+            }
+            other => Some(other),
+        }
+    }
 }
 
 /// The per-tick body of a communication thread: starts the trajectory from the measured state
@@ -114,23 +232,14 @@ pub struct CommTask {
     goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
     model: RobotKinematics,
     cartesian: bool,
-    /// The trajectory's goals are tool poses (it starts from the measured tool pose).
-    tool_goals: bool,
-    started: bool,
-    last: Option<JointReference>,
-    /// When `last` was produced by inverse kinematics (for its velocity).
-    last_at: Option<Timestamp>,
     measured: Option<JointVector>,
     published: u64,
-    /// Tool references a joint law could not follow (no inverse kinematics solution near the
-    /// last one): not published, so the loop's watchdog holds the robot if they persist.
-    ik_failures: u64,
 }
 
 impl CommTask {
     /// A task publishing `trajectory` into `writer`; `cartesian` for a law that follows poses.
     pub fn new(
-        trajectory: NodeTrajectory,
+        trajectory: TrajectoryFeed,
         writer: RefWriter,
         state: ArcLatestReader<TelemetrySample>,
         goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
@@ -156,26 +265,41 @@ impl CommTask {
             goto,
             model,
             cartesian,
-            tool_goals: false,
-            started: false,
-            last: None,
-            last_at: None,
             measured: None,
             published: 0,
-            ik_failures: 0,
         }
     }
 
-    /// Tells the task that the trajectory's goals are tool poses: it starts from the measured
-    /// tool pose, and a joint law follows its references through inverse kinematics.
-    pub fn with_tool_goals(mut self, tool_goals: bool) -> Self {
-        self.tool_goals = tool_goals;
-        self
+    /// A task publishing one joint reference merged from one trajectory per joint group (each
+    /// group's joints from its own trajectory), for a `controller/joint-groups` loop.
+    ///
+    /// # Errors
+    /// [`WireError::BadArgument`] for more than [`MAX_JOINTS`] groups.
+    pub fn groups(
+        feeds: Vec<(JointSet, TrajectoryFeed)>,
+        writer: RefWriter,
+        state: ArcLatestReader<TelemetrySample>,
+        goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
+        model: RobotKinematics,
+    ) -> Result<Self, WireError> {
+        let mut set = heapless::Vec::new();
+        for feed in feeds {
+            set.push(feed)
+                .map_err(|_| WireError::BadArgument(format!("more than {MAX_JOINTS} groups")))?;
+        }
+        let source = ReferenceSource::Groups(Box::new(set));
+        Ok(CommTask::with_source(
+            source, writer, state, goto, model, false,
+        ))
     }
 
     /// Tool references a joint law could not follow so far.
     pub fn ik_failures(&self) -> u64 {
-        self.ik_failures
+        match &self.source {
+            ReferenceSource::Trajectory(f) => f.ik_failures,
+            ReferenceSource::Groups(g) => g.iter().map(|(_, f)| f.ik_failures).sum(),
+            ReferenceSource::Teleop(_) => 0,
+        }
     }
 
     /// A task running one end of a teleoperation channel instead of a trajectory (GoTo
@@ -201,22 +325,7 @@ impl CommTask {
     pub fn into_teleop_end(self) -> Option<crate::objects::teleop::TeleopEnd> {
         match self.source {
             ReferenceSource::Teleop(t) => Some(t.into_end()),
-            ReferenceSource::Trajectory(_) => None,
-        }
-    }
-
-    fn from(&self) -> Reference {
-        let joints = self.last.unwrap_or(JointReference {
-            position: self.measured.unwrap_or_else(JointVector::zeros),
-            ..JointReference::default()
-        });
-        if self.tool_goals {
-            Reference::Cartesian(penelope_hal::CartesianReference {
-                pose: self.model.forward(&joints.position),
-                twist: Twist::default(),
-            })
-        } else {
-            Reference::Joint(joints)
+            _ => None,
         }
     }
 
@@ -234,80 +343,64 @@ impl CommTask {
         if let Some(s) = self.state.latest() {
             self.measured = Some(s.q);
         }
-        if self.measured.is_none() {
-            return; // the loop has not measured yet: start from the measured state, not zeros
-        }
-        if !self.started {
-            let from = self.from();
-            if let ReferenceSource::Trajectory(t) = &mut self.source {
-                t.start(now, &from);
-            }
-            self.started = true;
-        }
-        if let Some(cmd) = self.goto.pop()
-            && let Ok(mut t) = NodeTrajectory::go_to(cmd.goal, cmd.duration)
-        {
-            // A GoTo moves in joint space, from the current joint reference.
-            self.tool_goals = false;
-            let from = self.from();
-            t.start(now, &from);
-            self.source = ReferenceSource::Trajectory(t);
-        }
-        let ReferenceSource::Trajectory(trajectory) = &mut self.source else {
+        // The loop has not measured yet: start from the measured state, not zeros.
+        let Some(measured) = self.measured else {
             return;
         };
-        let Ok(r) = trajectory.reference(now) else {
-            return;
-        };
-        if !r.is_finite() {
-            return;
-        }
-        let out = match r {
-            Reference::Joint(j) => {
-                self.last = Some(j);
-                if self.cartesian {
-                    let pose = self.model.forward(&j.position);
-                    let v = self.model.jacobian(&j.position, JacobianFrame::Base) * j.velocity;
-                    Reference::Cartesian(penelope_hal::CartesianReference {
-                        pose,
-                        twist: Twist {
-                            linear: v.fixed_rows::<3>(0).into(),
-                            angular: v.fixed_rows::<3>(3).into(),
-                            frame: Frame::Base,
-                        },
-                    })
-                } else {
-                    r
+        let goto = self.goto.pop();
+        let model = &self.model;
+        let out = match &mut self.source {
+            ReferenceSource::Teleop(_) => return,
+            ReferenceSource::Trajectory(feed) => {
+                feed.start_once(now, measured, model);
+                if let Some(cmd) = goto
+                    && let Ok(motion) = NodeTrajectory::go_to(cmd.goal, cmd.duration)
+                {
+                    feed.go_to(motion, now, measured, model);
+                }
+                match feed.next(now, measured, model, self.cartesian) {
+                    Some(Reference::Joint(j)) if self.cartesian => {
+                        let pose = model.forward(&j.position);
+                        let v = model.jacobian(&j.position, JacobianFrame::Base) * j.velocity;
+                        Reference::Cartesian(penelope_hal::CartesianReference {
+                            pose,
+                            twist: Twist {
+                                linear: v.fixed_rows::<3>(0).into(),
+                                angular: v.fixed_rows::<3>(3).into(),
+                                frame: Frame::Base,
+                            },
+                        })
+                    }
+                    Some(r) => r,
+                    None => return,
                 }
             }
-            // A tool reference for a joint law: the inverse kinematics branch nearest the last
-            // joint reference, its velocity from the previous solution.
-            Reference::Cartesian(c) if !self.cartesian => {
-                let seed = self
-                    .last
-                    .map(|j| j.position)
-                    .or(self.measured)
-                    .unwrap_or_else(JointVector::zeros);
-                let Ok(q) = self.model.inverse_near(&c.pose, &seed) else {
-                    self.ik_failures += 1;
-                    return;
+            ReferenceSource::Groups(feeds) => {
+                let mut merged = JointReference {
+                    position: measured,
+                    ..JointReference::default()
                 };
-                let velocity = match (self.last, self.last_at) {
-                    (Some(l), Some(at)) if now > at => {
-                        (q - l.position) / now.saturating_since(at).as_secs_f64()
+                for (joints, feed) in feeds.iter_mut() {
+                    feed.start_once(now, measured, model);
+                    // A GoTo moves the whole robot: every group to its joints of the goal.
+                    if let Some(cmd) = goto
+                        && let Ok(motion) = NodeTrajectory::go_to(cmd.goal, cmd.duration)
+                    {
+                        feed.go_to(motion, now, measured, model);
                     }
-                    _ => JointVector::zeros(),
-                };
-                let j = JointReference {
-                    position: q,
-                    velocity,
-                    acceleration: JointVector::zeros(),
-                };
-                self.last = Some(j);
-                self.last_at = Some(now);
-                Reference::Joint(j)
+                    // Every group every tick, or nothing: a group without a reference leaves
+                    // the loop's watchdog to hold the robot.
+                    let Some(Reference::Joint(r)) = feed.next(now, measured, model, false) else {
+                        return;
+                    };
+                    for j in joints.iter() {
+                        merged.position[j] = r.position[j];
+                        merged.velocity[j] = r.velocity[j];
+                        merged.acceleration[j] = r.acceleration[j];
+                    }
+                }
+                Reference::Joint(merged)
             }
-            other => other,
         };
         self.writer.write(Stamped {
             stamp: now,

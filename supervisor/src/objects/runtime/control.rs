@@ -19,6 +19,8 @@ pub enum NodeController {
     PositionErrorMaster(PositionErrorMaster),
     /// `controller/slave-tracking` and `controller/slave-position`.
     SlaveTracking(SlaveTracking),
+    /// `controller/joint-groups`: members on joint subsets, in one loop.
+    Groups(Box<JointGroups<NodeController>>),
 }
 
 impl NodeController {
@@ -36,6 +38,7 @@ impl NodeController {
             NodeController::ForceDisplay(c) => c,
             NodeController::PositionErrorMaster(c) => c,
             NodeController::SlaveTracking(c) => c,
+            NodeController::Groups(c) => &mut **c,
         }
     }
 
@@ -43,8 +46,15 @@ impl NodeController {
     ///
     /// # Real-time
     /// Constant time, no allocation.
-    pub fn apply(&mut self, gains: &GainsUpdate) {
-        match (self, gains) {
+    pub fn apply(&mut self, gains: &RoutedGains) {
+        let (law, gains) = match (self, gains.member) {
+            (NodeController::Groups(g), Some(i)) => match g.group_mut(usize::from(i)) {
+                Some((_, member)) => (member, &gains.update),
+                None => return,
+            },
+            (law, _) => (law, &gains.update),
+        };
+        match (law, gains) {
             (NodeController::Pid(p), GainsUpdate::Pid(g)) => p.set_gains(*g),
             // Checked before they were sent: a refusal keeps the old gains.
             (NodeController::Impedance(c), GainsUpdate::Impedance(g)) => {
@@ -73,6 +83,7 @@ impl Controller for NodeController {
             NodeController::ForceDisplay(c) => c.kind(),
             NodeController::PositionErrorMaster(c) => c.kind(),
             NodeController::SlaveTracking(c) => c.kind(),
+            NodeController::Groups(c) => c.kind(),
         }
     }
     fn activate(&mut self, now: Timestamp, measured: &JointState, model: &dyn RobotModel) {
@@ -96,6 +107,16 @@ pub enum GainsUpdate {
     PositionError(ImpedanceConfig),
     /// Slave-tracking settings.
     Tracking(TrackingConfig),
+}
+
+/// Gains on their way to a running loop: for the loop's own law, or for member `member` of a
+/// joint-groups loop.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RoutedGains {
+    /// The group member (its index in the groups list), or `None` for the loop's law.
+    pub member: Option<u8>,
+    /// The new gains.
+    pub update: GainsUpdate,
 }
 
 /// One control tick as the telemetry ring carries it: what the loop reported, and the simulated
@@ -234,12 +255,12 @@ impl NodeLoop {
 /// The per-tick body of a control thread: new gains if any, then one [`ControlLoop::tick`].
 pub struct ControlTask {
     lp: NodeLoop,
-    gains: ArcLatestReader<GainsUpdate>,
+    gains: ArcConsumer<RoutedGains, GAINS_CAPACITY>,
 }
 
 impl ControlTask {
     /// A task over `lp`, taking gain changes from `gains`.
-    pub fn new(lp: NodeLoop, gains: ArcLatestReader<GainsUpdate>) -> Self {
+    pub fn new(lp: NodeLoop, gains: ArcConsumer<RoutedGains, GAINS_CAPACITY>) -> Self {
         ControlTask { lp, gains }
     }
 
@@ -249,7 +270,7 @@ impl ControlTask {
     /// No allocation, no locks, no blocking (the ports are wait-free cells and rings; a simulated
     /// board steps its plant, a Galil board exchanges cells with its I/O thread), bounded time.
     pub fn tick(&mut self, now: Timestamp) -> TickOutcome {
-        if let Fresh::New(g) = self.gains.read() {
+        while let Some(g) = self.gains.pop() {
             each_loop!(&mut self.lp, l => l.controllers_mut()[0].apply(&g))
         }
         each_loop!(&mut self.lp, l => l.tick(now))

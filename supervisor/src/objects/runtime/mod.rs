@@ -32,14 +32,14 @@ use penelope_drivers::sim::force_sensor::VirtualForceSensor;
 use penelope_drivers::sim::tap::{TapReader, TapSample};
 use penelope_hal::{
     AxisCommand, AxisState, Board, ControlInput, Controller, ControllerError, Error, ErrorKind,
-    Frame, InverseKinematics, JacobianFrame, JointCommand, JointReference, JointState, JointVector,
-    Kinematics, MAX_AXES, MAX_JOINTS, Pose, Reference, RobotModel, Sensor, Timestamp, Trajectory,
-    TrajectoryError, Twist, Wrench,
+    Frame, InverseKinematics, JacobianFrame, JointCommand, JointReference, JointSet, JointState,
+    JointVector, Kinematics, MAX_AXES, MAX_JOINTS, Pose, Reference, RobotModel, Sensor, Timestamp,
+    Trajectory, TrajectoryError, Twist, Wrench,
 };
-use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, Stamped};
+use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Stamped};
 use penelope_rt_core::clock::MonotonicClock;
 use penelope_rt_core::control::{ControlLoop, NoSensor, TickOutcome};
-use penelope_rt_core::controller::{JointPid, JointPidGains, JointPositionServo};
+use penelope_rt_core::controller::{JointGroups, JointPid, JointPidGains, JointPositionServo};
 use penelope_rt_core::exec::{Flow, PeriodicThread};
 use penelope_rt_core::ring::{ArcConsumer, ArcProducer};
 use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
@@ -65,6 +65,9 @@ pub const TELEMETRY_CAPACITY: usize = 4096;
 pub const COMMAND_CAPACITY: usize = 16;
 /// GoTo requests buffered towards a communication thread.
 pub const GOTO_CAPACITY: usize = 4;
+/// Gain changes buffered towards a control thread (a queue, not a latest value: changes to two
+/// members of a joint group must both arrive).
+pub const GAINS_CAPACITY: usize = 8;
 /// Waypoints of a configured spline.
 pub const SPLINE_CAPACITY: usize = crate::objects::kinds::MAX_WAYPOINTS;
 

@@ -21,7 +21,7 @@ pub struct Running {
     /// GoTo requests to the communication task.
     pub goto: ArcProducer<GoToCommand, GOTO_CAPACITY>,
     /// New gains to the loop.
-    pub gains: ArcLatestWriter<GainsUpdate>,
+    pub gains: ArcProducer<RoutedGains, GAINS_CAPACITY>,
     /// The pump thread and its stop flag.
     pub pump: Option<std::thread::JoinHandle<()>>,
     /// Stops the pump and the sensor feed.
