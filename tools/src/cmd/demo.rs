@@ -169,7 +169,7 @@ fn write_outputs(dir: &Path, output: &RunOutput, report: &Report) -> anyhow::Res
         ("telemetry-slave.csv", &output.slave),
     ] {
         let path = dir.join(name);
-        files::write_telemetry(&path, &output.info, rows)
+        files::write_telemetry(&path, output.info.start, &output.info.script, rows)
             .with_context(|| format!("writing {}", path.display()))?;
         written.push(path);
     }

@@ -2,12 +2,20 @@
 
 use std::path::Path;
 
+use penelope_drivers::sim::operator::OperatorScript;
+use penelope_hal::Timestamp;
 use penelope_supervisor::objects::runtime::TickRecord;
-use penelope_supervisor::runs::RunInfo;
 
-/// Writes one robot's ticks: time, script phase, safety state, joints, references, wrenches,
-/// the plant's ground truth and loop timing. Units in the column names.
-pub fn write_telemetry(path: &Path, info: &RunInfo, rows: &[TickRecord]) -> anyhow::Result<()> {
+/// Writes one robot's ticks: time since `start` (the run's first tick), the phase of the
+/// operator's `script`, safety state, joints, references, wrenches, the plant's ground truth and
+/// loop timing. Units in the column names. (`tools/tests/demo_by_ctl.rs` writes a node's ticks
+/// with this same function, to compare them with the demo's files byte for byte.)
+pub fn write_telemetry(
+    path: &Path,
+    start: Timestamp,
+    script: &OperatorScript,
+    rows: &[TickRecord],
+) -> anyhow::Result<()> {
     let mut w = csv::Writer::from_path(path)?;
     let mut header: Vec<String> = vec![
         "time_s".into(),
@@ -45,10 +53,10 @@ pub fn write_telemetry(path: &Path, info: &RunInfo, rows: &[TickRecord]) -> anyh
     for s in rows {
         let t = &s.sample;
         record.clear();
-        let elapsed = t.time - info.start;
+        let elapsed = t.time - start;
         record.push(format!("{:.6}", elapsed.as_secs_f64()));
         record.push(
-            info.script
+            script
                 .segment_at(elapsed)
                 .map_or("", |(_, seg, _)| seg.label)
                 .to_string(),
