@@ -56,7 +56,9 @@ use penelope_hal::{
 use crate::cell::{Fresh, LatestCell, LatestReader, Stamped};
 use crate::controller::ControllerSet;
 use crate::ring::{Consumer, Ring};
-use crate::safety::{Action, EventSet, FaultCause, HoldMode, Safety, SafetyEvent, SafetyState};
+use crate::safety::{
+    Action, EventSet, FaultAction, FaultCause, HoldMode, Safety, SafetyEvent, SafetyState,
+};
 use crate::telemetry::{ReferenceKind, TelemetrySample, TelemetrySink};
 
 /// At most this many commands are taken from the command port per tick (bounded work).
@@ -423,6 +425,27 @@ where
                 let _ = self.board.set_enabled(false);
             }
         }
+    }
+
+    /// Leaves the robot held where it was last measured by the board's own position servo
+    /// (the loop is about to stop: a slave's controller deactivated). Returns `false`, writing
+    /// nothing, when the loop was not driving the robot (inactive, e-stopped, or faulted with
+    /// the amplifiers off) or has no finite measurement to hold.
+    ///
+    /// # Real-time
+    /// Constant time, no allocation: one board write.
+    pub fn hold_with_board_servo(&mut self, now: Timestamp) -> bool {
+        let driving = match self.safety.state() {
+            SafetyState::Running | SafetyState::Holding => true,
+            SafetyState::Fault => self.config.safety.fault_action == FaultAction::Hold,
+            SafetyState::Inactive | SafetyState::EStop => false,
+        };
+        let q = self.state.position;
+        if !driving || !q.iter().all(|x| x.is_finite()) {
+            return false;
+        }
+        self.write(now, Some(JointCommand::Position(q)));
+        true
     }
 
     fn measure(&mut self, now: Timestamp) -> bool {

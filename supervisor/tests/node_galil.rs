@@ -97,8 +97,12 @@ fn a_node_drives_a_puma200_through_the_emulated_galil() {
     assert!(torque.last.as_ref().is_some_and(|s| s.fault.is_none()));
     let held = robot.joint_positions().unwrap();
     assert!((held - start).amax() < 0.01, "{held:?} vs {start:?}");
+    // Deactivated, a slave stays where it is: held by the DMC's own servo, amplifiers on.
     pid.deactivate().unwrap();
-    assert!(!board.amplifiers_enabled().unwrap());
+    assert!(board.amplifiers_enabled().unwrap());
+    thread::sleep(Duration::from_millis(300));
+    let still = robot.joint_positions().unwrap();
+    assert!((still - start).amax() < 0.01, "{still:?} vs {start:?}");
 
     // Joint positions as targets for the board's own servo (the DMC closes the loop): a torque
     // loop over a 115200-baud line (about 100 exchanges per second) cannot hold a PUMA.

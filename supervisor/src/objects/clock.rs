@@ -107,8 +107,14 @@ impl SteppedLoop {
     /// Stops the loop at `now` the way its threads stop: with `running`'s `Deactivate` in its
     /// command ring, one more control tick applies it (amplifiers off, or the board's servo
     /// holding) unless the loop already failed; then both bodies hand their tasks back.
-    pub fn stop(mut self, running: &Running, now: Timestamp, failed: bool) -> StoppedLoop {
-        if !failed && self.running[1] {
+    pub fn stop(
+        mut self,
+        running: &Running,
+        now: Timestamp,
+        mode: Option<super::runtime::StopMode>,
+    ) -> StoppedLoop {
+        // One more control tick takes a `Deactivate` in.
+        if mode == Some(super::runtime::StopMode::Deactivate) && self.running[1] {
             let tick = self.tick(CONTROL, now);
             self.running[1] = (self.control)(tick) == Flow::Continue;
         }

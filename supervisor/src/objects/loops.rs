@@ -9,10 +9,11 @@ use std::time::Duration;
 use penelope_hal::{LifecycleState, Timestamp};
 use penelope_rt_core::control::ControlCommand;
 use penelope_rt_core::exec::{self, PeriodicConfig, Setting};
+use penelope_rt_core::safety::Role;
 
 use super::clock::{SteppedLoop, TickBody};
 use super::registry::{self, Body, Launch};
-use super::runtime::{self, LoopFault, LoopShared, Running, StoppedLoop, TickStream};
+use super::runtime::{self, LoopFault, LoopShared, Running, StopMode, StoppedLoop, TickStream};
 use super::{Creator, DetachedLoop, RtPolicy};
 use crate::proto::{Class, Method, Reply, WireError};
 
@@ -134,7 +135,7 @@ impl Creator {
                 start_threads(name, &mut running, bodies, (pump, feed), &timing, rt, fifo)
             {
                 // Stop what did start, give the board back, and say why.
-                let stopped = running.stop();
+                let stopped = running.stop(StopMode::Deactivate);
                 reg.take_back(stopped, name, false);
                 return Err(WireError::Internal(why));
             }
@@ -184,7 +185,7 @@ impl Creator {
                 .failure()
                 .unwrap_or_else(|| "a thread failed".into());
             let last = running.shared.newest().map(|n| n.sample);
-            let stopped = self.stop_loop(&name, running, true);
+            let stopped = self.stop_loop(&name, running, None);
             let Ok(mut reg) = self.lock() else { return };
             let stopped = reg.take_back(stopped, &name, true);
             log::error!(
@@ -279,22 +280,34 @@ impl Creator {
         Ok(Reply::Unit)
     }
 
-    /// Stops controller `name`'s loop (amplifiers off), joins its threads and gives its boards
-    /// back. The registry lock is not held while threads are joined (a sensor feed may be calling
-    /// back into this node).
+    /// Stops controller `name`'s loop, joins its threads and gives its boards back: a slave
+    /// held where it is by its board's servo, a master with zero torque and amplifiers off.
+    /// The registry lock is not held while threads are joined (a sensor feed may be calling back
+    /// into this node).
     pub(super) fn deactivate(&self, name: &str) -> Result<(), WireError> {
-        let running = {
+        self.stop_controller(name, true)
+    }
+
+    /// Stops controller `name`'s loop as [`deactivate`](Self::deactivate) does, a slave held by
+    /// its board's servo when `hold_slave`, otherwise every robot with zero torque and its
+    /// amplifiers off (a forced destroy, the node's shutdown).
+    pub(super) fn stop_controller(&self, name: &str, hold_slave: bool) -> Result<(), WireError> {
+        let (running, mode) = {
             let mut reg = self.lock()?;
+            let mode = match reg.role_of(name) {
+                Some(Role::Slave) if hold_slave => StopMode::Hold,
+                _ => StopMode::Deactivate,
+            };
             let o = reg.get_mut(name)?;
             match &mut o.body {
-                Body::Controller(c) => c.running.take(),
+                Body::Controller(c) => (c.running.take(), mode),
                 _ => return Err(WireError::Internal("not a controller".into())),
             }
         };
         let mut last = None;
         let stopped = running.map(|r| {
             let shared = r.shared.clone();
-            let stopped = self.stop_loop(name, r, false);
+            let stopped = self.stop_loop(name, r, Some(mode));
             last = shared.newest().map(|n| n.sample);
             stopped
         });
@@ -348,7 +361,7 @@ impl Creator {
             })
             .unwrap_or_default();
         for c in active {
-            if let Err(e) = self.deactivate(&c) {
+            if let Err(e) = self.stop_controller(&c, false) {
                 log::warn!("shutdown: controller `{c}`: {e}");
             }
         }
@@ -401,17 +414,17 @@ impl Creator {
 
     /// Stops `running` (controller `name`'s loop): its threads, or its steps on the simulated
     /// clock. `failed`: the loop already brought its robot to the safe state.
-    fn stop_loop(&self, name: &str, running: Running, failed: bool) -> StoppedLoop {
+    /// Stops a loop: on purpose (`mode`), or after a failure (`None`).
+    fn stop_loop(&self, name: &str, running: Running, mode: Option<StopMode>) -> StoppedLoop {
         // A creator's clock is fixed at its creation: on the real clock every loop has threads.
         let Some(world) = &self.sim else {
-            return if failed {
-                running.stop_failed()
-            } else {
-                running.stop()
+            return match mode {
+                Some(mode) => running.stop(mode),
+                None => running.stop_failed(),
             };
         };
         let mut running = running;
-        if !failed {
+        if mode == Some(StopMode::Deactivate) {
             let _ = running.commands.push(ControlCommand::Deactivate);
         }
         let Ok(mut world) = world.lock() else {
@@ -422,7 +435,7 @@ impl Creator {
         };
         let now = world.now();
         match world.remove(name) {
-            Some(stepped) => stepped.stop(&running, now, failed),
+            Some(stepped) => stepped.stop(&running, now, mode),
             None => StoppedLoop {
                 control: None,
                 comm: None,

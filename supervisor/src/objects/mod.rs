@@ -284,7 +284,7 @@ impl Creator {
                 });
             }
             for c in &dependents {
-                self.deactivate(c)?;
+                self.stop_controller(c, false)?;
             }
         }
         let mut reg = self.lock()?;

@@ -380,10 +380,12 @@ impl Registry {
         })
     }
 
-    /// Takes a stopped loop of `controller` back: its board to the robot's objects (amplifiers
-    /// off, or, `after_fault` on a board with its own servo, still holding), its teleoperation
-    /// channel's end to the channel, and clears the users. What a thread took down with it is
-    /// marked `unconfigured` (configure it again). Returns how the robot was left, in words.
+    /// Takes a stopped loop of `controller` back: its board to the robot's objects, its
+    /// teleoperation channel's end to the channel, and clears the users. A slave stopped on
+    /// purpose stays where it is, held by its board's servo; a master, and a slave stopped by a
+    /// fault on a board without a servo of its own, gets zero torque and its amplifiers off.
+    /// What a thread took down with it is marked `unconfigured` (configure it again). Returns
+    /// how the robot was left, in words.
     pub fn take_back(
         &mut self,
         stopped: crate::objects::runtime::StoppedLoop,
@@ -397,9 +399,14 @@ impl Registry {
             ),
             _ => (String::new(), String::new()),
         };
+        let slave = self.role_of(controller) == Some(Role::Slave);
         let said = match stopped.control {
-            Some(t) => {
-                let hold = after_fault && t.holds_with_board_servo();
+            Some(mut t) => {
+                let hold = if after_fault {
+                    t.holds_with_board_servo()
+                } else {
+                    slave && t.hold_with_board_servo()
+                };
                 self.give_back_after_fault(t.into_loop().into_board(), &robot, hold);
                 if hold {
                     "held by its board's servo"
@@ -433,6 +440,14 @@ impl Registry {
         }
         self.release_users(controller);
         said
+    }
+
+    /// The role of the robot controller `controller` drives, if it has one.
+    pub fn role_of(&self, controller: &str) -> Option<Role> {
+        let Some(Body::Controller(c)) = self.objects.get(controller).map(|o| &o.body) else {
+            return None;
+        };
+        self.robot(c.robot.as_deref()?).ok().map(|r| r.role)
     }
 
     /// Gives a stopped loop's board back to the objects it came from, amplifiers off.

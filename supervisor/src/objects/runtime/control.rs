@@ -302,6 +302,18 @@ impl ControlTask {
         each_loop!(&mut self.lp, l => l.fail_safe(now))
     }
 
+    /// Leaves the robot held at its last measured pose by the board's own servo (a Galil's, or
+    /// a simulated board's), for a loop being stopped; `false` when there was nothing to hold.
+    ///
+    /// # Real-time
+    /// Constant time, no allocation.
+    pub fn hold_with_board_servo(&mut self) -> bool {
+        each_loop!(&mut self.lp, l => {
+            let now = l.last_sample().time;
+            l.hold_with_board_servo(now)
+        })
+    }
+
     /// Whether the loop holds its robot with the board's own servo (rather than with torques).
     pub fn holds_with_board_servo(&self) -> bool {
         let hold = each_loop!(&self.lp, l => l.config().safety.hold);

@@ -118,18 +118,32 @@ impl Running {
         comm
     }
 
-    /// Stops everything: `Deactivate` to the loop (amplifiers off), a few periods for it to take
-    /// effect, then the threads are joined. Returns the tasks (`None` where a thread died).
-    pub fn stop(mut self) -> StoppedLoop {
-        let _ = self
-            .commands
-            .push(penelope_rt_core::control::ControlCommand::Deactivate);
-        std::thread::sleep((self.period * 4).max(Duration::from_millis(5)));
+    /// Stops everything: with [`StopMode::Deactivate`], `Deactivate` to the loop (amplifiers
+    /// off) and a few periods for it to take effect; with [`StopMode::Hold`], at once, the law
+    /// still commanding (the caller then hands the robot to its board's servo). Then the threads
+    /// are joined. Returns the tasks (`None` where a thread died).
+    pub fn stop(mut self, mode: StopMode) -> StoppedLoop {
+        if mode == StopMode::Deactivate {
+            let _ = self
+                .commands
+                .push(penelope_rt_core::control::ControlCommand::Deactivate);
+            std::thread::sleep((self.period * 4).max(Duration::from_millis(5)));
+        }
         self.control_stop.store(true, Ordering::Release);
         let control = self.control_back.recv_timeout(Duration::from_secs(2)).ok();
         let comm = self.join_all();
         StoppedLoop { control, comm }
     }
+}
+
+/// How a loop is stopped on purpose.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StopMode {
+    /// The loop deactivates first: zero torque, amplifiers off (a master).
+    Deactivate,
+    /// The loop stops while its law still commands; the robot is then held where it is by its
+    /// board's own servo (a slave: deactivating its controller must not drop it).
+    Hold,
 }
 
 /// How the threads of a running loop report that one of them failed (a panic, or an exit
