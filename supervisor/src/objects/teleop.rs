@@ -137,6 +137,9 @@ pub struct TeleopEnd {
     pub side: Side,
     send: ArcLatestWriter<TeleopSample>,
     receive: ArcLatestReader<TeleopSample>,
+    /// The sequence number of the last sample sent: kept with the end, so that a loop
+    /// re-activated on it goes on numbering and the other side (newest wins) takes its samples.
+    sent: u64,
 }
 
 /// The cells of a configured channel; each end is lent to the loop that runs it.
@@ -157,11 +160,13 @@ impl TeleopLink {
                 side: Side::Master,
                 send: m2s_w,
                 receive: s2m_r,
+                sent: 0,
             }),
             slave: Some(TeleopEnd {
                 side: Side::Slave,
                 send: s2m_w,
                 receive: m2s_r,
+                sent: 0,
             }),
         }
     }
@@ -231,13 +236,13 @@ impl TeleopComm {
             message: format!("{e:?}"),
         })?;
         Ok(TeleopComm {
+            sequence: end.sent,
             end,
             channel,
             model,
             clutch: None,
             sensor_mount: None,
             started: false,
-            sequence: 0,
             received_at: None,
         })
     }
@@ -256,7 +261,8 @@ impl TeleopComm {
     }
 
     /// The end, given back when the loop stops.
-    pub fn into_end(self) -> TeleopEnd {
+    pub fn into_end(mut self) -> TeleopEnd {
+        self.end.sent = self.sequence;
         self.end
     }
 
