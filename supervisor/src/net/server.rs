@@ -35,11 +35,18 @@
 //! client's hello claimed (an admin claim needs the admin secret), and every later frame both ways
 //! is sealed: responses and telemetry are sealed under the socket's write lock, in the order they
 //! are written.
+//!
+//! # Layout
+//! - this file: the state the threads share (`Shared`, its counters) and one connection's
+//!   session (`Conn`: framing, the request loop, the outbox writer);
+//! - `server/config.rs`: [`ServerConfig`], [`NetError`] and [`ServerStats`];
+//! - `server/listener.rs`: the [`Server`] handle and its accept thread (admission, refusal);
+//! - `server/handshake.rs`: the hellos and the Noise handshake of a connection;
+//! - `server/tests.rs`: the unit tests.
 
 use std::collections::HashMap;
 use std::io::{self, Read, Write};
-use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
-use std::os::fd::AsFd;
+use std::net::{Shutdown, SocketAddr, TcpStream};
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::RecvTimeoutError;
@@ -47,15 +54,20 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
-
-use crate::net::auth::{self, Opener, PSK_LEN, Sealer, open_message};
+use crate::net::auth::{Opener, PSK_LEN, Sealer, open_message};
 use crate::net::frame::{FrameDecoder, FrameError, encode_into};
 use crate::net::limits::{Admission, TokenBucket};
-use crate::proto::{ClientMsg, DEFAULT_MAX_FRAME, ServerMsg, WireError};
+use crate::proto::{ClientMsg, ServerMsg, WireError};
 use crate::service::{Outbox, OutboxReceiver, Service, Session};
 
+mod config;
 mod handshake;
+mod listener;
+#[cfg(test)]
+mod tests;
+
+pub use config::{NetError, ServerConfig, ServerStats};
+pub use listener::Server;
 
 /// Refused requests in a row (rate limit) after which a connection is closed.
 pub const ABUSE_STRIKES: u32 = 1000;
@@ -69,114 +81,6 @@ const OUT_FLUSH_AT: usize = 64 * 1024;
 /// lost to a TCP reset.
 const LINGER: Duration = Duration::from_millis(200);
 const LINGER_BYTES: usize = 1 << 20;
-
-/// How a server runs.
-#[derive(Clone, Debug)]
-pub struct ServerConfig {
-    /// The node's name (sent in the hello).
-    pub node: String,
-    /// The shared secret; required to bind anything but loopback. When set (even on loopback),
-    /// every client must authenticate and every frame is sealed.
-    pub secret: Option<Vec<u8>>,
-    /// The admin secret (used only with `secret`): a client claiming
-    /// [`Role::Admin`](crate::proto::Role::Admin) must prove it. Without it, such clients are
-    /// served as readers.
-    pub admin_secret: Option<Vec<u8>>,
-    /// Largest frame accepted (and sent), bytes of body.
-    pub max_frame: usize,
-    /// Sessions (connections past their handshake) served at once.
-    pub max_connections: u32,
-    /// Of `max_connections`, the sessions kept for [`Role::Admin`](crate::proto::Role::Admin)
-    /// clients.
-    pub admin_reserve: u32,
-    /// Connections in their handshake at once; at the bound the oldest is evicted.
-    pub max_handshakes: u32,
-    /// Connections in their handshake at once from one IP address; at the bound that address's
-    /// oldest is evicted.
-    pub max_handshakes_per_peer: u32,
-    /// Requests per second per connection (token bucket; bursts up to one second's worth).
-    pub max_requests_per_s: u32,
-    /// Time allowed for the hello (and authentication).
-    pub handshake_timeout: Duration,
-    /// A connection with no frame in either direction for this long is closed.
-    pub idle_timeout: Duration,
-    /// A client that does not take a frame within this time is dropped.
-    pub write_timeout: Duration,
-    /// Frames queued per connection before telemetry is dropped.
-    pub outbox_capacity: usize,
-}
-
-impl ServerConfig {
-    /// Defaults for `node`: 256 KiB frames, 64 sessions (4 of them for administrators), 32
-    /// handshakes at once (8 per address), 200 000 requests/s per connection, 5 s handshake,
-    /// 300 s idle, 5 s write timeout, 256 queued frames.
-    pub fn new(node: impl Into<String>) -> Self {
-        ServerConfig {
-            node: node.into(),
-            secret: None,
-            admin_secret: None,
-            max_frame: DEFAULT_MAX_FRAME,
-            max_connections: 64,
-            admin_reserve: 4,
-            max_handshakes: 32,
-            max_handshakes_per_peer: 8,
-            max_requests_per_s: 200_000,
-            handshake_timeout: Duration::from_secs(5),
-            idle_timeout: Duration::from_secs(300),
-            write_timeout: Duration::from_secs(5),
-            outbox_capacity: 256,
-        }
-    }
-}
-
-/// Why a server could not start.
-#[derive(Debug, thiserror::Error)]
-pub enum NetError {
-    /// A non-loopback address without a shared secret.
-    #[error(
-        "refusing to listen on {0} without a shared secret (use a loopback address or give a secret)"
-    )]
-    SecretRequired(SocketAddr),
-    /// An admin secret without the system secret: nobody could prove it (the plain protocol
-    /// takes roles on trust), so the configuration is refused rather than silently weaker.
-    #[error("an admin secret needs the shared secret too (give both, or neither)")]
-    AdminSecretWithoutSecret,
-    /// The socket failed.
-    #[error("i/o: {0}")]
-    Io(#[from] std::io::Error),
-}
-
-/// Counters of a server (since it started).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct ServerStats {
-    /// Connections accepted.
-    pub accepted: u64,
-    /// Connections refused or evicted (limits).
-    pub refused: u64,
-    /// Connections open now.
-    pub open: u64,
-    /// Connections dropped for a protocol error, a timeout, the rate limit or a client that did
-    /// not read.
-    pub dropped: u64,
-    /// Requests served (rate-limited ones not included).
-    pub requests: u64,
-    /// Sessions that passed the handshake (each ends with one [`Service::closed`]).
-    pub sessions: u64,
-    /// Frames received.
-    pub frames_in: u64,
-    /// Frames sent.
-    pub frames_out: u64,
-    /// Malformed frames, wrong hellos and frames that failed to open.
-    pub malformed: u64,
-    /// Frames refused for their announced length.
-    pub too_large: u64,
-    /// Failed authentications.
-    pub auth_failures: u64,
-    /// Handshake, idle and write timeouts.
-    pub timeouts: u64,
-    /// Requests refused by the rate limit.
-    pub rate_limited: u64,
-}
 
 #[derive(Default)]
 struct Counters {
@@ -225,257 +129,6 @@ struct Shared {
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     // A panic elsewhere never leaves these maps inconsistent: keep serving.
     m.lock().unwrap_or_else(|p| p.into_inner())
-}
-
-/// A running server.
-pub struct Server {
-    addr: SocketAddr,
-    shared: Arc<Shared>,
-    accept: Option<JoinHandle<()>>,
-}
-
-impl std::fmt::Debug for Server {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Server")
-            .field("addr", &self.addr)
-            .field("node", &self.shared.config.node)
-            .field("stats", &self.stats())
-            .finish()
-    }
-}
-
-impl Server {
-    /// Listens on `addr` and serves `service`. Port 0 takes any free port (see
-    /// [`local_addr`](Self::local_addr)).
-    ///
-    /// # Errors
-    /// [`NetError::SecretRequired`] for a non-loopback address (such as `0.0.0.0`) without a
-    /// non-empty secret; [`NetError::AdminSecretWithoutSecret`] for an admin secret without a
-    /// secret; [`NetError::Io`] if the socket cannot be bound or the accept thread cannot start.
-    pub fn bind(
-        addr: SocketAddr,
-        config: ServerConfig,
-        service: Arc<dyn Service>,
-    ) -> Result<Server, NetError> {
-        let has_secret = config.secret.as_ref().is_some_and(|s| !s.is_empty());
-        if !addr.ip().is_loopback() && !has_secret {
-            return Err(NetError::SecretRequired(addr));
-        }
-        if !has_secret && config.admin_secret.as_ref().is_some_and(|a| !a.is_empty()) {
-            return Err(NetError::AdminSecretWithoutSecret);
-        }
-        let listener = TcpListener::bind(addr)?;
-        let addr = listener.local_addr()?;
-        let psk = config.secret.as_deref().filter(|s| !s.is_empty()).map(|s| {
-            let admin = config.admin_secret.as_deref().filter(|a| !a.is_empty());
-            (auth::member_psk(s), admin.map(|a| auth::admin_psk(s, a)))
-        });
-        let admission = Admission::new(
-            config.max_connections,
-            config.admin_reserve,
-            config.max_handshakes,
-            config.max_handshakes_per_peer,
-        );
-        let shared = Arc::new(Shared {
-            admission,
-            psk,
-            config,
-            service,
-            stop: AtomicBool::new(false),
-            counters: Counters::default(),
-            next_session: AtomicU64::new(1),
-            streams: Mutex::new(HashMap::new()),
-            threads: Mutex::new(Vec::new()),
-            epoch: Instant::now(),
-        });
-        let s = shared.clone();
-        let accept = std::thread::Builder::new()
-            .name("pnlp-accept".into())
-            .spawn(move || accept_loop(&s, &listener))?;
-        log::info!(
-            "node `{}` listening on {addr}{}",
-            shared.config.node,
-            if has_secret { " (shared secret)" } else { "" }
-        );
-        Ok(Server {
-            addr,
-            shared,
-            accept: Some(accept),
-        })
-    }
-
-    /// The bound address (the real port when bound to port 0).
-    pub fn local_addr(&self) -> SocketAddr {
-        self.addr
-    }
-
-    /// Counters.
-    pub fn stats(&self) -> ServerStats {
-        let c = &self.shared.counters;
-        let get = |a: &AtomicU64| a.load(Ordering::Relaxed);
-        ServerStats {
-            accepted: get(&c.accepted),
-            refused: get(&c.refused),
-            open: get(&c.open),
-            dropped: get(&c.dropped),
-            requests: get(&c.requests),
-            sessions: get(&c.sessions),
-            frames_in: get(&c.frames_in),
-            frames_out: get(&c.frames_out),
-            malformed: get(&c.malformed),
-            too_large: get(&c.too_large),
-            auth_failures: get(&c.auth_failures),
-            timeouts: get(&c.timeouts),
-            rate_limited: get(&c.rate_limited),
-        }
-    }
-
-    /// Stops accepting, closes every connection (their sessions get [`Service::closed`]) and
-    /// joins every thread of the server.
-    pub fn shutdown(mut self) {
-        self.stop_and_join();
-    }
-
-    fn stop_and_join(&mut self) {
-        self.shared.stop.store(true, Ordering::Release);
-        if let Some(h) = self.accept.take() {
-            let _ = h.join();
-        }
-        for s in lock(&self.shared.streams).values() {
-            let _ = s.shutdown(Shutdown::Both);
-        }
-        let threads = std::mem::take(&mut *lock(&self.shared.threads));
-        for t in threads {
-            let _ = t.join();
-        }
-        log::info!(
-            "node `{}` server on {} stopped",
-            self.shared.config.node,
-            self.addr
-        );
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        if self.accept.is_some() {
-            self.stop_and_join();
-        }
-    }
-}
-
-fn accept_loop(shared: &Arc<Shared>, listener: &TcpListener) {
-    while !shared.stop.load(Ordering::Acquire) {
-        let mut fds = [PollFd::new(listener.as_fd(), PollFlags::POLLIN)];
-        let ready = poll(&mut fds, PollTimeout::from(POLL_EVERY.as_millis() as u16));
-        reap(shared);
-        match ready {
-            Ok(0) => continue,
-            Ok(_) => {}
-            Err(nix::errno::Errno::EINTR) => continue,
-            Err(e) => {
-                log::error!("poll on the listening socket failed: {e}");
-                std::thread::sleep(POLL_EVERY);
-                continue;
-            }
-        }
-        if shared.stop.load(Ordering::Acquire) {
-            break;
-        }
-        match listener.accept() {
-            Ok((stream, peer)) => admit(shared, stream, peer),
-            Err(e) => {
-                // EMFILE and friends: back off instead of spinning.
-                log::warn!("accept failed: {e}");
-                std::thread::sleep(Duration::from_millis(10));
-            }
-        }
-    }
-}
-
-/// Joins the connection threads that have ended.
-fn reap(shared: &Shared) {
-    let finished: Vec<JoinHandle<()>> = {
-        let mut threads = lock(&shared.threads);
-        let (done, running): (Vec<_>, Vec<_>) = threads.drain(..).partition(|t| t.is_finished());
-        *threads = running;
-        done
-    };
-    for t in finished {
-        let _ = t.join();
-    }
-}
-
-fn admit(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr) {
-    let c = &shared.counters;
-    let id = shared.next_session.fetch_add(1, Ordering::Relaxed);
-    let (handle, for_admission) = match (stream.try_clone(), stream.try_clone()) {
-        (Ok(h), Ok(a)) => (h, a),
-        (Err(e), _) | (_, Err(e)) => {
-            log::warn!("cannot serve {peer}: {e}");
-            return;
-        }
-    };
-    let admitted = shared.admission.admit(id, peer.ip(), for_admission);
-    if admitted.evictions > 0 {
-        add(&c.refused, u64::from(admitted.evictions));
-        log::warn!(
-            "{} connection(s) in their handshake evicted to admit {peer}",
-            admitted.evictions
-        );
-    }
-    bump(&c.accepted);
-    bump(&c.open);
-    lock(&shared.streams).insert(id, handle);
-    let s = shared.clone();
-    let (evicted, greeted) = (admitted.evicted, admitted.greeted);
-    let spawned = std::thread::Builder::new()
-        .name(format!("pnlp-conn-{id}"))
-        .spawn(move || {
-            serve(&s, stream, peer, id, evicted, greeted);
-            lock(&s.streams).remove(&id);
-            s.counters.open.fetch_sub(1, Ordering::Relaxed);
-        });
-    match spawned {
-        Ok(t) => lock(&shared.threads).push(t),
-        Err(e) => {
-            log::error!("cannot start a thread for {peer}: {e}");
-            shared.admission.abandon(id);
-            if let Some(s) = lock(&shared.streams).remove(&id) {
-                refuse(
-                    s,
-                    &WireError::TooManyConnections {
-                        limit: shared.config.max_connections,
-                    },
-                    shared.config.max_frame,
-                );
-            }
-            c.open.fetch_sub(1, Ordering::Relaxed);
-        }
-    }
-}
-
-/// Sends `error` on a connection that is not served and closes it (from the accept thread: never
-/// waits long).
-fn refuse(stream: TcpStream, error: &WireError, max_frame: usize) {
-    let mut stream = stream;
-    let _ = stream.set_nodelay(true);
-    let _ = stream.set_write_timeout(Some(Duration::from_millis(50)));
-    let mut out = Vec::new();
-    if encode_into(&ServerMsg::Error(error.clone()), max_frame, &mut out).is_ok() {
-        let _ = stream.write_all(&out);
-    }
-    let _ = stream.shutdown(Shutdown::Write);
-    // Take what the client already sent (its hello), so closing does not reset the connection
-    // and lose the error; do not wait for more.
-    if stream.set_nonblocking(true).is_ok() {
-        let mut scratch = [0u8; 4096];
-        while let Ok(n) = stream.read(&mut scratch) {
-            if n == 0 {
-                break;
-            }
-        }
-    }
 }
 
 /// Why a connection ends.
@@ -973,6 +626,3 @@ fn drain_outbox(
         }
     }
 }
-
-#[cfg(test)]
-mod tests;

@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::net::frame::{read_frame, write_frame};
-use crate::proto::{Call, ClientHello, Reply, Role, Security, ServerHello};
+use crate::proto::{Call, ClientHello, DEFAULT_MAX_FRAME, Reply, Role, Security, ServerHello};
 
 struct Echo;
 

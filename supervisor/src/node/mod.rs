@@ -20,12 +20,20 @@
 //! # Objects at start
 //! `penelope node --config FILE` brings up the objects a system file places on the node: see
 //! [`crate::system`].
+//!
+//! # Layout
+//! - this file: the node's configuration and errors, the [`Node`] handle (start, calls, stop)
+//!   and the state its threads share;
+//! - `node/naming_link.rs`: that shared state's link to the naming service (registration,
+//!   renewal, bindings) and to other nodes' objects (resolution, remote calls);
+//! - `node/service.rs`: what the node's server serves;
+//! - `node/tests.rs`: the unit tests.
 
 use std::collections::HashMap;
 use std::fmt;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, RecvTimeoutError, Sender};
+use std::sync::atomic::AtomicBool;
+use std::sync::mpsc::{self, Sender};
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock, PoisonError, Weak};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -35,11 +43,17 @@ use crate::naming::{NamingLimits, NamingService, Reaper};
 use crate::net::conn::{ClientConfig, RpcError};
 use crate::net::server::{NetError, Server, ServerConfig, ServerStats};
 use crate::objects::{Creator, CreatorConfig};
-use crate::proto::{
-    Call, Class, CreatorCall, Method, NamingCall, NodeInfo, ObjectInfo, ObjectRef, Reply,
-    WireError, check_name, object_path,
-};
+#[cfg(doc)]
+use crate::proto::object_path;
+use crate::proto::{Call, NamingCall, ObjectRef, Reply, WireError, check_name};
 use crate::service::{Remote, Service, Session};
+
+mod naming_link;
+mod service;
+#[cfg(test)]
+mod tests;
+
+use service::NodeService;
 
 /// Where a node's naming service is.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -196,341 +210,12 @@ fn refusal_is_final(refused: &WireError) -> bool {
     )
 }
 
-/// Most resolved paths cached at once.
-const MAX_RESOLVED: usize = 256;
-
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 fn local_session(name: &str) -> Session {
     Session::in_process(name)
-}
-
-impl Shared {
-    fn advertised(&self) -> &str {
-        self.advertised.get().map_or("", String::as_str)
-    }
-
-    fn uses_naming(&self) -> bool {
-        self.hosted.is_some() || self.remote_naming.is_some()
-    }
-
-    fn registered(&self) -> bool {
-        self.registered.load(Ordering::Acquire)
-    }
-
-    /// One call to the naming service (hosted or remote), with transport failures kept apart
-    /// from the naming service's answers ([`RpcError::Remote`]).
-    fn naming_rpc(&self, call: NamingCall) -> Result<Reply, RpcError> {
-        if let Some(service) = &self.hosted {
-            return service.handle(call).map_err(RpcError::Remote);
-        }
-        match (self.remote_naming, self.client.get()) {
-            (Some(address), Some(client)) => client.call_at(address, Call::Naming(call)),
-            (Some(_), None) => Err(RpcError::Remote(WireError::NotReady(
-                "the node is starting".into(),
-            ))),
-            (None, _) => Err(RpcError::Remote(WireError::NoNamingService)),
-        }
-    }
-
-    /// One call to the naming service (hosted or remote).
-    fn naming(&self, call: NamingCall) -> Result<Reply, WireError> {
-        self.naming_rpc(call).map_err(WireError::from)
-    }
-
-    fn naming_address(&self) -> String {
-        self.remote_naming
-            .map_or_else(|| "(hosted)".to_string(), |a| a.to_string())
-    }
-
-    /// The naming service stopped answering: registering again is the registration thread's
-    /// job from now on. Said once until it answers again.
-    fn lost_naming(&self, cause: &RpcError) {
-        self.registered.store(false, Ordering::Release);
-        if !self.silence_reported.swap(true, Ordering::AcqRel) {
-            log::warn!(
-                "node {}: the naming service at {} does not answer ({cause}); serving on and \
-                 registering as soon as it answers",
-                self.name,
-                self.naming_address()
-            );
-        }
-    }
-
-    fn reference(&self, info: &ObjectInfo) -> ObjectRef {
-        ObjectRef {
-            node: self.name.clone(),
-            address: self.advertised().to_string(),
-            name: info.name.clone(),
-            class: info.class,
-            kind: info.kind.clone(),
-        }
-    }
-
-    fn creator_reference(&self) -> ObjectRef {
-        ObjectRef {
-            node: self.name.clone(),
-            address: self.advertised().to_string(),
-            name: "creator".into(),
-            class: Class::Creator,
-            kind: "creator".into(),
-        }
-    }
-
-    /// Binds `info` in the naming tree. While the naming service does not answer, binding waits
-    /// for the next registration (which binds every object), so only a refusal is an error.
-    fn bind(&self, info: &ObjectInfo) -> Result<(), WireError> {
-        if !self.uses_naming() || !self.registered() {
-            return Ok(());
-        }
-        match self.naming_rpc(NamingCall::Bind {
-            path: object_path(&self.name, info.class, &info.name),
-            reference: self.reference(info),
-            // The node owns its context: whatever is there is a stale entry of its own.
-            rebind: true,
-        }) {
-            Ok(_) => Ok(()),
-            Err(RpcError::Remote(refused)) => Err(refused),
-            Err(transport) => {
-                self.lost_naming(&transport);
-                Ok(())
-            }
-        }
-    }
-
-    fn unbind(&self, info: &ObjectInfo) {
-        if !self.uses_naming() {
-            return;
-        }
-        let path = object_path(&self.name, info.class, &info.name);
-        lock(&self.resolved).remove(&path);
-        match self.naming(NamingCall::Unbind { path: path.clone() }) {
-            Ok(_) | Err(WireError::UnknownName(_)) => {}
-            Err(e) => log::warn!("node {}: cannot unbind {path}: {e}", self.name),
-        }
-    }
-
-    /// Registers the node and binds its creator and every object (at start, when the naming
-    /// service first answers, and after the lease lapsed). Holds `ops`.
-    fn register(&self) -> Result<(), RpcError> {
-        if !self.uses_naming() {
-            return Ok(());
-        }
-        let _ops = lock(&self.ops);
-        let result = self.register_and_bind();
-        match &result {
-            Ok(()) => {
-                self.registered.store(true, Ordering::Release);
-                if self.silence_reported.swap(false, Ordering::AcqRel) {
-                    log::warn!(
-                        "node {}: registered in the naming service at {}",
-                        self.name,
-                        self.naming_address()
-                    );
-                }
-            }
-            Err(RpcError::Remote(_)) => self.registered.store(false, Ordering::Release),
-            Err(transport) => self.lost_naming(transport),
-        }
-        result
-    }
-
-    fn register_and_bind(&self) -> Result<(), RpcError> {
-        self.naming_rpc(NamingCall::Register {
-            node: self.name.clone(),
-            address: self.advertised().to_string(),
-            lease_ms: u32::try_from(self.lease.as_millis()).unwrap_or(u32::MAX),
-        })?;
-        self.naming_rpc(NamingCall::Bind {
-            path: object_path(&self.name, Class::Creator, ""),
-            reference: self.creator_reference(),
-            rebind: true,
-        })?;
-        if let Some(creator) = self.creator.upgrade() {
-            for info in creator.list() {
-                self.naming_rpc(NamingCall::Bind {
-                    path: object_path(&self.name, info.class, &info.name),
-                    reference: self.reference(&info),
-                    rebind: true,
-                })?;
-            }
-        }
-        Ok(())
-    }
-
-    /// One renewal; registers again if the naming service forgot the node (its lease lapsed,
-    /// or it restarted).
-    fn renew(&self) {
-        match self.naming_rpc(NamingCall::Renew {
-            node: self.name.clone(),
-        }) {
-            Ok(_) => {}
-            Err(RpcError::Remote(WireError::UnknownName(_))) => {
-                log::warn!(
-                    "node {}: the naming service forgot this node (lease lapsed or restart); \
-                     registering again",
-                    self.name
-                );
-                if let Err(e) = self.register() {
-                    log::warn!("node {}: registering again failed: {e}", self.name);
-                }
-            }
-            Err(RpcError::Remote(e)) => {
-                log::warn!("node {}: lease renewal refused: {e}", self.name);
-            }
-            Err(transport) => self.lost_naming(&transport),
-        }
-    }
-
-    /// The registration thread: renews the lease every `period` while registered; otherwise
-    /// tries to register with a doubling backoff, until `stop` says stop.
-    fn keep_registered(&self, stop: &mpsc::Receiver<()>, period: Duration) {
-        let mut backoff = REGISTER_RETRY_FIRST;
-        loop {
-            let wait = if self.registered() { period } else { backoff };
-            match stop.recv_timeout(wait) {
-                Err(RecvTimeoutError::Timeout) => {}
-                Ok(()) | Err(RecvTimeoutError::Disconnected) => return,
-            }
-            if self.registered() {
-                self.renew();
-                backoff = REGISTER_RETRY_FIRST;
-            } else if let Err(e) = self.register() {
-                if let RpcError::Remote(refused) = &e {
-                    // A live node of the same name, or limits: may change when leases lapse.
-                    log::warn!("node {}: registration refused: {refused}", self.name);
-                }
-                backoff = (backoff * 2).min(REGISTER_RETRY_MAX.min(period.max(backoff)));
-            }
-        }
-    }
-
-    fn resolve(&self, path: &str) -> Result<(ObjectRef, bool), WireError> {
-        if let Some((reference, at)) = lock(&self.resolved).get(path)
-            && at.elapsed() < self.resolve_ttl
-        {
-            return Ok((reference.clone(), true));
-        }
-        let reference = match self.naming(NamingCall::Resolve {
-            path: path.to_string(),
-        })? {
-            Reply::Resolved(r) => r,
-            other => {
-                return Err(WireError::Internal(format!(
-                    "the naming service answered a resolve with {other:?}"
-                )));
-            }
-        };
-        let mut cache = lock(&self.resolved);
-        if cache.len() >= MAX_RESOLVED {
-            cache.clear();
-        }
-        cache.insert(path.to_string(), (reference.clone(), Instant::now()));
-        Ok((reference, false))
-    }
-
-    fn call_object(&self, reference: &ObjectRef, method: Method) -> Result<Reply, WireError> {
-        let call = Call::Object {
-            object: reference.name.clone(),
-            method,
-        };
-        if reference.node == self.name {
-            let creator = self
-                .creator
-                .upgrade()
-                .ok_or_else(|| WireError::NotReady("the node is shutting down".into()))?;
-            return creator.call(&local_session(&self.name), call);
-        }
-        let client = self
-            .client
-            .get()
-            .ok_or_else(|| WireError::NotReady("the node is starting".into()))?;
-        let address = reference.address.parse::<SocketAddr>().map_err(|_| {
-            WireError::Remote(format!(
-                "`{}` has an unusable address `{}`",
-                reference.name, reference.address
-            ))
-        })?;
-        client.call_at(address, call).map_err(WireError::from)
-    }
-}
-
-impl Remote for Shared {
-    fn call(&self, path: &str, method: Method) -> Result<Reply, WireError> {
-        let (reference, cached) = self.resolve(path)?;
-        match self.call_object(&reference, method.clone()) {
-            // A cached entry may be stale (the object moved or went): resolve again, once.
-            Err(WireError::UnknownName(_) | WireError::Remote(_)) if cached => {
-                lock(&self.resolved).remove(path);
-                let (reference, _) = self.resolve(path)?;
-                self.call_object(&reference, method)
-            }
-            Err(e @ (WireError::UnknownName(_) | WireError::Remote(_))) => {
-                lock(&self.resolved).remove(path);
-                Err(e)
-            }
-            other => other,
-        }
-    }
-}
-
-/// What the node's server serves: the creator, plus naming bookkeeping and the hosted naming
-/// service.
-struct NodeService {
-    shared: Arc<Shared>,
-    creator: Arc<Creator>,
-}
-
-impl Service for NodeService {
-    fn call(&self, session: &Session, call: Call) -> Result<Reply, WireError> {
-        let shared = &self.shared;
-        match call {
-            Call::Naming(c) => match &shared.hosted {
-                Some(service) => service.handle_for(session, c),
-                None => Err(WireError::NoNamingService),
-            },
-            Call::NodeInfo => Ok(Reply::Node(NodeInfo {
-                node: shared.name.clone(),
-                software: env!("CARGO_PKG_VERSION").to_string(),
-                hosts_naming: shared.hosted.is_some(),
-                objects: self.creator.object_count(),
-            })),
-            Call::Creator(CreatorCall::Create { .. }) => {
-                let _ops = lock(&shared.ops);
-                let reply = self.creator.call(session, call)?;
-                if let Reply::Object(info) = &reply
-                    && let Err(e) = shared.bind(info)
-                {
-                    // Not reachable by name is not created: undo.
-                    let undo = Call::Creator(CreatorCall::Destroy {
-                        name: info.name.clone(),
-                        force: true,
-                    });
-                    if let Err(u) = self.creator.call(session, undo) {
-                        log::error!("node {}: cannot undo `{}`: {u}", shared.name, info.name);
-                    }
-                    return Err(e);
-                }
-                Ok(reply)
-            }
-            Call::Creator(CreatorCall::Destroy { ref name, .. }) => {
-                let _ops = lock(&shared.ops);
-                let info = self.creator.info(name);
-                let reply = self.creator.call(session, call)?;
-                if let Some(info) = info {
-                    shared.unbind(&info);
-                }
-                Ok(reply)
-            }
-            other => self.creator.call(session, other),
-        }
-    }
-
-    fn closed(&self, session: &Session) {
-        self.creator.closed(session);
-    }
 }
 
 impl Node {
@@ -767,77 +452,5 @@ impl Drop for Node {
         if self.server.is_some() {
             self.stop(true);
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn names(node: &Node, context: &str) -> Vec<String> {
-        let tree = node.hosted_naming().unwrap().snapshot();
-        tree.list(context)
-            .unwrap()
-            .iter()
-            .map(|e| e.name().to_string())
-            .collect()
-    }
-
-    #[test]
-    fn created_objects_are_bound_and_destroyed_ones_unbound() {
-        let node = Node::start(NodeConfig::new("lab-a", NamingChoice::Host)).unwrap();
-        assert_eq!(names(&node, "/lab-a"), ["creator"]);
-        let create = Call::Creator(CreatorCall::Create {
-            kind: "sensor/virtual".into(),
-            name: "ft".into(),
-            config: String::new(),
-        });
-        assert!(matches!(node.call(create.clone()), Ok(Reply::Object(_))));
-        assert!(matches!(node.call(create), Err(WireError::NameTaken(_))));
-        let tree = node.hosted_naming().unwrap().snapshot();
-        let r = tree.resolve("/lab-a/sensors/ft").unwrap();
-        assert_eq!(
-            (r.class, r.address.as_str()),
-            (Class::Sensor, node.advertised())
-        );
-        // The node reaches its own objects through its Remote.
-        assert!(matches!(
-            node.remote().call("/lab-a/sensors/ft", Method::Describe),
-            Ok(Reply::Object(_))
-        ));
-        assert!(matches!(
-            node.remote().call("/lab-a/sensors/nope", Method::Describe),
-            Err(WireError::UnknownName(_))
-        ));
-        let destroy = Call::Creator(CreatorCall::Destroy {
-            name: "ft".into(),
-            force: false,
-        });
-        node.call(destroy).unwrap();
-        assert_eq!(names(&node, "/lab-a"), ["creator"]);
-        assert!(matches!(
-            node.call(Call::NodeInfo),
-            Ok(Reply::Node(NodeInfo {
-                hosts_naming: true,
-                objects: 0,
-                ..
-            }))
-        ));
-        let naming = node.hosted_naming().unwrap().clone();
-        node.shutdown();
-        assert!(naming.snapshot().list("/").unwrap().is_empty());
-    }
-
-    #[test]
-    fn bad_names_and_leases_are_refused() {
-        let mut config = NodeConfig::new("no/slash", NamingChoice::None);
-        assert!(matches!(
-            Node::start(config.clone()),
-            Err(NodeError::BadName(_))
-        ));
-        config.name = "ok".into();
-        config.naming = NamingChoice::Host;
-        config.lease = Duration::from_millis(1);
-        assert!(matches!(Node::start(config), Err(NodeError::BadLease(_))));
     }
 }

@@ -1,0 +1,47 @@
+//! Who may make which naming call: the rules of the module's "Authorization" section, checked
+//! against a connection's [`Identity`] before the service serves the call.
+
+use crate::proto::{NamingCall, Role, WireError};
+use crate::service::Identity;
+
+/// Whether a session of `identity`, named `client` in its hello, may make `call` (see the
+/// module's rules).
+///
+/// # Errors
+/// [`WireError::Forbidden`] saying what is refused and why.
+pub fn authorize(identity: Identity, client: &str, call: &NamingCall) -> Result<(), WireError> {
+    let own_node = |node: &str, what: &str| match identity.role {
+        Role::Admin => Ok(()),
+        Role::Node if node == client => Ok(()),
+        Role::Node => Err(WireError::Forbidden(format!(
+            "node `{client}` may {what} only itself, not `{node}`"
+        ))),
+        Role::Reader => Err(WireError::Forbidden(format!(
+            "`{client}` is a reader: it may not {what} a node (connect as that node or with the \
+             admin secret)"
+        ))),
+    };
+    let own_path = |path: &str, what: &str| {
+        let owner = path.strip_prefix('/').and_then(|p| p.split('/').next());
+        match identity.role {
+            Role::Admin => Ok(()),
+            Role::Node if owner == Some(client) && path.len() > client.len() + 2 => Ok(()),
+            Role::Node => Err(WireError::Forbidden(format!(
+                "node `{client}` may {what} only under `/{client}/`, not `{path}`"
+            ))),
+            Role::Reader => Err(WireError::Forbidden(format!(
+                "`{client}` is a reader: it may not {what} `{path}`"
+            ))),
+        }
+    };
+    match call {
+        NamingCall::Resolve { .. } | NamingCall::List { .. } => Ok(()),
+        NamingCall::Register { node, .. } => own_node(node, "register"),
+        NamingCall::Renew { node } => own_node(node, "renew"),
+        NamingCall::Unregister { node } => own_node(node, "unregister"),
+        NamingCall::Bind { path, rebind, .. } => {
+            own_path(path, if *rebind { "rebind" } else { "bind" })
+        }
+        NamingCall::Unbind { path } => own_path(path, "unbind"),
+    }
+}

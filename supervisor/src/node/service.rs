@@ -1,0 +1,66 @@
+//! What the node's server serves ([`NodeService`]): calls go to the creator, with the naming
+//! tree kept in step with the objects it creates and destroys, and to the hosted naming service.
+
+use std::sync::Arc;
+
+use super::{Shared, lock};
+use crate::objects::Creator;
+use crate::proto::{Call, CreatorCall, NodeInfo, Reply, WireError};
+use crate::service::{Service, Session};
+
+/// What the node's server serves: the creator, plus naming bookkeeping and the hosted naming
+/// service.
+pub(super) struct NodeService {
+    pub(super) shared: Arc<Shared>,
+    pub(super) creator: Arc<Creator>,
+}
+
+impl Service for NodeService {
+    fn call(&self, session: &Session, call: Call) -> Result<Reply, WireError> {
+        let shared = &self.shared;
+        match call {
+            Call::Naming(c) => match &shared.hosted {
+                Some(service) => service.handle_for(session, c),
+                None => Err(WireError::NoNamingService),
+            },
+            Call::NodeInfo => Ok(Reply::Node(NodeInfo {
+                node: shared.name.clone(),
+                software: env!("CARGO_PKG_VERSION").to_string(),
+                hosts_naming: shared.hosted.is_some(),
+                objects: self.creator.object_count(),
+            })),
+            Call::Creator(CreatorCall::Create { .. }) => {
+                let _ops = lock(&shared.ops);
+                let reply = self.creator.call(session, call)?;
+                if let Reply::Object(info) = &reply
+                    && let Err(e) = shared.bind(info)
+                {
+                    // Not reachable by name is not created: undo.
+                    let undo = Call::Creator(CreatorCall::Destroy {
+                        name: info.name.clone(),
+                        force: true,
+                    });
+                    if let Err(u) = self.creator.call(session, undo) {
+                        log::error!("node {}: cannot undo `{}`: {u}", shared.name, info.name);
+                    }
+                    return Err(e);
+                }
+                Ok(reply)
+            }
+            Call::Creator(CreatorCall::Destroy { ref name, .. }) => {
+                let _ops = lock(&shared.ops);
+                let info = self.creator.info(name);
+                let reply = self.creator.call(session, call)?;
+                if let Some(info) = info {
+                    shared.unbind(&info);
+                }
+                Ok(reply)
+            }
+            other => self.creator.call(session, other),
+        }
+    }
+
+    fn closed(&self, session: &Session) {
+        self.creator.closed(session);
+    }
+}

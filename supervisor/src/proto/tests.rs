@@ -1,0 +1,97 @@
+//! Round trips of the wire's data and messages through postcard.
+
+use nalgebra::{Translation3, UnitQuaternion};
+use penelope_hal::{Frame, Pose};
+
+use super::*;
+
+#[test]
+fn poses_wrenches_and_joints_cross_the_wire_intact() {
+    let pose = Pose::from_parts(
+        Translation3::new(0.1, -0.2, 0.3),
+        UnitQuaternion::from_euler_angles(0.3, -0.2, 1.1),
+    );
+    let back = PoseMsg::from(&pose).to_pose().unwrap();
+    assert!((back.translation.vector - pose.translation.vector).norm() < 1e-12);
+    assert!(back.rotation.angle_to(&pose.rotation) < 1e-9);
+    let mut skew = PoseMsg::from(&pose);
+    skew.n = [1.0, 1.0, 0.0];
+    assert!(matches!(skew.to_pose(), Err(WireError::BadArgument(_))));
+    let mut nan = PoseMsg::from(&pose);
+    nan.position[1] = f64::NAN;
+    assert!(nan.to_pose().is_err());
+
+    let w = WrenchMsg {
+        force: [1.0, 2.0, 3.0],
+        torque: [0.1, 0.2, f64::INFINITY],
+    };
+    assert!(w.to_wrench(Frame::Base).is_err());
+
+    assert!(joints_to_vector(&[0.1, 0.2], 3).is_err());
+    assert!(joints_to_vector(&[0.1, f64::NAN, 0.3], 3).is_err());
+    let q = joints_to_vector(&[0.1, 0.2, 0.3], 3).unwrap();
+    assert_eq!(joints_from_vector(&q, 3), vec![0.1, 0.2, 0.3]);
+
+    let m = MatrixMsg::from_block(
+        &nalgebra::Matrix2x3::new(1.0, 2.0, 3.0, 4.0, 5.0, 6.0),
+        2,
+        2,
+    );
+    assert_eq!(m.data, vec![1.0, 2.0, 4.0, 5.0]);
+    assert_eq!(m.get(1, 0), Some(4.0));
+    assert_eq!(m.get(2, 0), None);
+}
+
+#[test]
+fn names_are_checked() {
+    assert!(check_name("slave-1.a_b").is_ok());
+    for bad in ["", ".", "..", "a/b", "a b", "é", &"x".repeat(65)] {
+        assert!(
+            matches!(check_name(bad), Err(WireError::BadName { .. })),
+            "{bad:?}"
+        );
+    }
+}
+
+#[test]
+fn classes_round_trip_their_names() {
+    for c in Class::ALL {
+        assert_eq!(Class::parse(c.as_str()), Some(c));
+    }
+    assert_eq!(
+        object_path("lab-a", Class::Robot, "slave"),
+        "/lab-a/robots/slave"
+    );
+    assert_eq!(object_path("lab-a", Class::Creator, "x"), "/lab-a/creator");
+}
+
+#[test]
+fn every_message_round_trips_through_postcard() {
+    let msgs = [
+        ClientMsg::Hello(ClientHello::new("ctl", Role::Reader)),
+        ClientMsg::Request {
+            id: 7,
+            call: Call::Object {
+                object: "slave".into(),
+                method: Method::Robot(RobotMethod::ForwardKinematics {
+                    q: Some(vec![0.0, 0.1, 0.2, 0.0, 0.0, 0.0]),
+                }),
+            },
+        },
+        ClientMsg::Handshake { noise: vec![3; 48] },
+        ClientMsg::Bye,
+    ];
+    for m in msgs {
+        let bytes = postcard::to_stdvec(&m).unwrap();
+        assert_eq!(postcard::from_bytes::<ClientMsg>(&bytes).unwrap(), m);
+    }
+    let reply = ServerMsg::Response {
+        id: 7,
+        result: Err(WireError::InUse {
+            name: "slave".into(),
+            dependents: vec!["pid".into()],
+        }),
+    };
+    let bytes = postcard::to_stdvec(&reply).unwrap();
+    assert_eq!(postcard::from_bytes::<ServerMsg>(&bytes).unwrap(), reply);
+}

@@ -1,0 +1,191 @@
+//! The creator in-process (no network): a PUMA 560 on two simulated boards driven by a joint PID
+//! along a trajectory and by GoTo, with telemetry through an outbox, and destroying a board the
+//! running loop uses (refused, then forced).
+
+use std::time::Duration;
+
+use penelope_hal::{NamedPose, Transition};
+use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_supervisor::proto::{
+    BoardMethod, Call, ControllerMethod, CreatorCall, Method, Reply, RobotMethod, ServerMsg,
+    WireError,
+};
+use penelope_supervisor::service::Service;
+
+mod common;
+
+use common::*;
+
+#[test]
+fn a_puma_on_two_boards_follows_its_trajectory_streams_telemetry_and_goes_to_work() {
+    // SCHED_FIFO where the process may use it (else normal priority, said in `describe`).
+    let c = Creator::new(CreatorConfig::new("lab"));
+    let (s, rx) = session(1);
+    create(&c, &s, "robot/puma560", "probe-model", "");
+    let start = joints(call(
+        &c,
+        &s,
+        (
+            "probe-model",
+            Method::Robot(RobotMethod::NamedPose {
+                pose: NamedPose::Start,
+            }),
+        ),
+    ));
+    let goal: Vec<f64> = start
+        .iter()
+        .zip([0.2, -0.1, 0.1, 0.2, 0.1, 0.2])
+        .map(|(q, d)| q + d)
+        .collect();
+    let goal_text = format!(
+        "goal = [{}]\nduration_s = 0.6",
+        goal.iter()
+            .map(|x| x.to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    puma_on_two_boards(&c, &s, "trajectory/ramp", &goal_text);
+
+    // Before activation: the measured state is the simulated body's start pose.
+    let q0 = joints(call(
+        &c,
+        &s,
+        ("robot", Method::Robot(RobotMethod::JointPositions)),
+    ));
+    assert!(max_error(&q0, &start) < 1e-6);
+
+    let Ok(Reply::Subscribed { subscription }) = c.call(
+        &s,
+        Call::Subscribe {
+            object: "pid".into(),
+            decimation: 10,
+        },
+    ) else {
+        panic!("subscribe")
+    };
+    let info = lifecycle(&c, &s, "pid", Transition::Activate).unwrap();
+    assert!(matches!(info, Reply::Object(o) if o.state == penelope_hal::LifecycleState::Active));
+    for used in ["robot", "b1", "b2", "traj"] {
+        assert_eq!(
+            c.info(used).unwrap().state,
+            penelope_hal::LifecycleState::Active,
+            "{used} shows active while the loop runs"
+        );
+    }
+
+    // The ramp ends after 0.6 s; the robot settles at the goal.
+    wait_for("the goal", Duration::from_secs(5), || {
+        try_joints(call(
+            &c,
+            &s,
+            ("robot", Method::Robot(RobotMethod::JointPositions)),
+        ))
+        .is_some_and(|q| max_error(&q, &goal) < 0.02)
+    });
+    let Ok(Reply::Status(status)) = ctl(&c, &s, "pid", ControllerMethod::Status) else {
+        panic!("status")
+    };
+    assert!(status.running && status.ticks > 100);
+    let last = status.last.unwrap();
+    assert!(last.state == "running", "state {}", last.state);
+    assert!(max_error(&last.q, &goal) < 0.03);
+
+    // Telemetry batches arrived, samples decimated and in order.
+    let mut seqs = Vec::new();
+    while let Ok(m) = rx.rx.try_recv() {
+        if let ServerMsg::Telemetry(b) = m {
+            assert_eq!(b.subscription, subscription);
+            seqs.extend(b.samples.iter().map(|r| r.seq));
+        }
+    }
+    assert!(seqs.len() > 20, "{} samples", seqs.len());
+    assert!(seqs.windows(2).all(|w| w[1] > w[0]), "increasing seq");
+    assert!(seqs.iter().all(|q| q % 10 == 0), "decimated by 10");
+
+    // GoTo work, through the active controller.
+    let work = joints(call(
+        &c,
+        &s,
+        (
+            "robot",
+            Method::Robot(RobotMethod::NamedPose {
+                pose: NamedPose::Work,
+            }),
+        ),
+    ));
+    call(
+        &c,
+        &s,
+        (
+            "robot",
+            Method::Robot(RobotMethod::GoTo {
+                pose: NamedPose::Work,
+                duration_s: 2.0,
+            }),
+        ),
+    )
+    .unwrap();
+    wait_for("the work pose", Duration::from_secs(10), || {
+        try_joints(call(
+            &c,
+            &s,
+            ("robot", Method::Robot(RobotMethod::JointPositions)),
+        ))
+        .is_some_and(|q| max_error(&q, &work) < 0.02)
+    });
+    assert!(matches!(
+        call(
+            &c,
+            &s,
+            ("b1", Method::Board(BoardMethod::AmplifiersEnabled))
+        ),
+        Ok(Reply::Flag(true))
+    ));
+
+    // Destroy is refused while active, then forced: the loop stops, amplifiers off.
+    match c.call(
+        &s,
+        Call::Creator(CreatorCall::Destroy {
+            name: "b2".into(),
+            force: false,
+        }),
+    ) {
+        Err(WireError::InUse { dependents, .. }) => assert_eq!(dependents, vec!["pid".to_string()]),
+        other => panic!("expected InUse, got {other:?}"),
+    }
+    c.call(
+        &s,
+        Call::Creator(CreatorCall::Destroy {
+            name: "b2".into(),
+            force: true,
+        }),
+    )
+    .unwrap();
+    assert!(c.info("b2").is_none());
+    let Ok(Reply::Status(status)) = ctl(&c, &s, "pid", ControllerMethod::Status) else {
+        panic!("status")
+    };
+    assert!(!status.running);
+    assert_eq!(status.state, penelope_hal::LifecycleState::Inactive);
+    assert_eq!(
+        c.info("robot").unwrap().state,
+        penelope_hal::LifecycleState::Inactive
+    );
+    assert!(matches!(
+        call(
+            &c,
+            &s,
+            ("b1", Method::Board(BoardMethod::AmplifiersEnabled))
+        ),
+        Ok(Reply::Flag(false))
+    ));
+    // The body kept its pose across the stop.
+    let q = joints(call(
+        &c,
+        &s,
+        ("robot", Method::Robot(RobotMethod::JointPositions)),
+    ));
+    assert!(max_error(&q, &work) < 0.05);
+    c.closed(&s);
+    assert_eq!(c.subscription_count(), 0);
+}
