@@ -57,7 +57,7 @@ pub struct CommStats {
 /// use penelope_hal::{JointReference, Reference, Timestamp};
 /// use penelope_rt_core::cell::{Fresh, LatestCell};
 /// use penelope_rt_core::comm::{CommLoop, CommOutcome};
-/// use penelope_rt_core::testbed::SineTrajectory;
+/// use penelope_testbed::SineTrajectory;
 ///
 /// let cell = LatestCell::new();
 /// let (writer, mut reader) = cell.split().unwrap();

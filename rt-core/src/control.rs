@@ -20,7 +20,7 @@
 //! use penelope_rt_core::ring::Ring;
 //! use penelope_rt_core::safety::{SafetyConfig, SafetyState};
 //! use penelope_rt_core::telemetry::TelemetrySample;
-//! use penelope_rt_core::testbed::{ChainBoard, DecoupledChain};
+//! use penelope_testbed::{ChainBoard, DecoupledChain};
 //!
 //! let model = DecoupledChain::six_joint();
 //! let board = ChainBoard::new(model.clone(), 1000.0);

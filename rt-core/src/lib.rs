@@ -15,7 +15,6 @@
 //! - [`comm`] and [`control`]: the two loops of each robot — communication (`T_com`, trajectory
 //!   to reference cell) and control (`T_ctrl`, board, safety, controller, telemetry).
 //! - [`telemetry`]: the `Copy` sample the control loop reports each tick.
-//! - [`testbed`]: a simulated six-joint robot and board for tests, examples and benchmarks.
 //! - [`exec`] (feature `std`, Linux): the periodic SCHED_FIFO executor.
 //!
 //! Everything but [`exec`] and the `Arc` constructors is `no_std` without `alloc`.
@@ -35,7 +34,6 @@ pub mod sim;
 pub mod stats;
 pub mod telemetry;
 pub mod teleop;
-pub mod testbed;
 pub mod trajectory;
 
 #[cfg(all(feature = "std", not(loom)))]

@@ -12,9 +12,7 @@ use penelope_rt_core::ring::Ring;
 use penelope_rt_core::safety::{FaultCause, HoldMode, SafetyConfig, SafetyEvent, SafetyState};
 use penelope_rt_core::sim::{Flow, SimRunner, SimTask};
 use penelope_rt_core::telemetry::TelemetrySample;
-use penelope_rt_core::testbed::{
-    ChainBoard, DecoupledChain, SineTrajectory, critically_damped_gains,
-};
+use penelope_testbed::{ChainBoard, DecoupledChain, SineTrajectory, critically_damped_gains};
 
 const T_CTRL: Duration = Duration::from_millis(1);
 const T_COM: Duration = Duration::from_millis(4);

@@ -20,9 +20,7 @@ use penelope_rt_core::ring::{Ring, ring};
 use penelope_rt_core::safety::{SafetyConfig, SafetyEvent, SafetyState};
 use penelope_rt_core::sim::{self, SimRunner, SimTask};
 use penelope_rt_core::telemetry::TelemetrySample;
-use penelope_rt_core::testbed::{
-    ChainBoard, DecoupledChain, SineTrajectory, critically_damped_gains,
-};
+use penelope_testbed::{ChainBoard, DecoupledChain, SineTrajectory, critically_damped_gains};
 
 struct Counting;
 

@@ -212,9 +212,9 @@ impl<C: Controller> Controller for JointGroups<C> {
 mod tests {
     use super::*;
     use crate::controller::{JointPid, JointPidGains, JointPositionServo};
-    use crate::testbed::DecoupledChain;
     use core::time::Duration;
     use penelope_hal::{JointReference, Reference};
+    use penelope_testbed::DecoupledChain;
 
     fn set(indices: &[usize]) -> JointSet {
         JointSet::from_indices(indices).unwrap()

@@ -66,9 +66,9 @@ impl Controller for JointPositionServo {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testbed::DecoupledChain;
     use core::time::Duration;
     use penelope_hal::{Frame, JointReference, Wrench};
+    use penelope_testbed::DecoupledChain;
 
     #[test]
     fn the_target_starts_at_the_measured_pose_and_ramps_to_the_reference() {

@@ -28,9 +28,7 @@ use penelope_rt_core::ring::ring;
 use penelope_rt_core::safety::SafetyConfig;
 use penelope_rt_core::stats::{DEFAULT_BUCKETS, LatencyHistogram, LatencySummary};
 use penelope_rt_core::telemetry::TelemetrySample;
-use penelope_rt_core::testbed::{
-    ChainBoard, DecoupledChain, SineTrajectory, critically_damped_gains,
-};
+use penelope_testbed::{ChainBoard, DecoupledChain, SineTrajectory, critically_damped_gains};
 use serde_json::json;
 
 use crate::cmd::usage;

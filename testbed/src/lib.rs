@@ -1,4 +1,4 @@
-//! A small but real simulated robot for rt-core's own tests, examples and benchmarks: a decoupled
+//! A small but real simulated robot for Penelope's tests, examples and benchmarks: a decoupled
 //! six-joint chain ([`DecoupledChain`], a [`RobotModel`]), a memory-like board that integrates its
 //! dynamics ([`ChainBoard`]), and a sinusoidal joint trajectory ([`SineTrajectory`]).
 //!
@@ -9,7 +9,12 @@
 //!
 //! `(m l² + jm) q̈ + b q̇ + m g l cos q = τ`.
 //!
-//! The real robot models (PUMA 560/200, FRHC) live in `penelope-drivers`.
+//! The real robot models (PUMA 560/200, FRHC) live in `penelope-drivers`. This crate is a test
+//! fixture in its own crate so that the real-time core's production build does not carry it;
+//! `no_std`, like the core it exercises.
+
+#![cfg_attr(not(test), no_std)]
+#![warn(missing_docs)]
 
 use core::f64::consts::PI;
 use core::fmt;
@@ -474,9 +479,12 @@ impl Trajectory for SineTrajectory {
 pub fn critically_damped_gains(
     model: &DecoupledChain,
     omega: f64,
-) -> crate::controller::JointPidGains {
+) -> penelope_rt_core::controller::JointPidGains {
     let inertia = model.inertia(&JointVector::zeros()).diagonal();
-    crate::controller::JointPidGains::pd(inertia * (omega * omega), inertia * (2.0 * omega))
+    penelope_rt_core::controller::JointPidGains::pd(
+        inertia * (omega * omega),
+        inertia * (2.0 * omega),
+    )
 }
 
 #[cfg(test)]
