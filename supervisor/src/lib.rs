@@ -16,6 +16,7 @@
 #![warn(missing_docs)]
 
 pub mod client;
+pub mod dataplane;
 pub mod naming;
 pub mod net;
 pub mod node;

@@ -1,0 +1,290 @@
+//! Data-plane datagrams: one byte saying whether the datagram is authenticated, a postcard
+//! [`Header`] (stream, sender session, sequence number, send time on the common clock), the
+//! postcard payload, and, with a system secret, a 16-byte HMAC-SHA256 tag over everything before
+//! it.
+//!
+//! ```text
+//!  0        1                                  n                     n+16
+//!  +--------+----------------------------------+---------------------+
+//!  | 1 or 2 | postcard(Header) postcard(payload) | tag (2 only)      |
+//!  +--------+----------------------------------+---------------------+
+//! ```
+//!
+//! Why HMAC and not the TCP plane's Noise sessions: a datagram must open on its own (any may be
+//! lost or arrive out of order), and what the data plane needs is authenticity, not secrecy
+//! (joint angles and wrenches; DESIGN.md section 4). Replays are refused by the stream's newest-wins
+//! rule on (session, sequence, send time), which the tag makes unforgeable
+//! ([`StreamReceiver`](super::stream::StreamReceiver)).
+//!
+//! Encoding and decoding work on caller buffers: nothing is allocated for fixed-size payloads,
+//! so a communication thread can use them.
+
+use hmac::{KeyInit, Mac};
+use serde::{Deserialize, Serialize};
+use sha2::Sha256;
+
+type HmacSha256 = hmac::Hmac<Sha256>;
+
+/// Version of the data-plane header (in every header).
+pub const DATAPLANE_VERSION: u8 = 1;
+/// The largest datagram sent or accepted: small enough to cross any path without fragmenting.
+pub const MAX_DATAGRAM: usize = 1200;
+/// Bytes of the authentication tag (HMAC-SHA256 truncated, as RFC 2104 allows).
+pub const TAG_LEN: usize = 16;
+/// First byte of a datagram without a tag.
+const PLAIN: u8 = 1;
+/// First byte of a datagram with a tag.
+const TAGGED: u8 = 2;
+/// Domain separation of the datagram key from the other keys derived from the secret.
+const KEY_CONTEXT: &[u8] = b"penelope-datagram-v1";
+
+/// Which stream a datagram belongs to (a channel direction, a sensor), unique in the system.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct StreamId(pub u32);
+
+/// What every datagram says about itself.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Header {
+    /// [`DATAPLANE_VERSION`].
+    pub version: u8,
+    /// The stream.
+    pub stream: StreamId,
+    /// The sender's session: a random number drawn when the sender starts, so that a restarted
+    /// sender, whose sequence starts again, is told apart from a replay.
+    pub session: u64,
+    /// The sender's sequence number in its session (1 for the first datagram).
+    pub sequence: u64,
+    /// When it was sent, ns on the common clock.
+    pub sent_ns: i64,
+}
+
+/// The key that authenticates datagrams, derived from the system secret.
+#[derive(Clone)]
+pub struct DatagramKey([u8; 32]);
+
+impl std::fmt::Debug for DatagramKey {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("DatagramKey(..)")
+    }
+}
+
+impl DatagramKey {
+    /// The datagram key of a system whose members hold `secret`.
+    pub fn from_secret(secret: &[u8]) -> Self {
+        let mut m = keyed(secret);
+        m.update(KEY_CONTEXT);
+        DatagramKey(m.finalize().into_bytes().into())
+    }
+
+    fn tag(&self, bytes: &[u8]) -> [u8; TAG_LEN] {
+        let mut m = keyed(&self.0);
+        m.update(bytes);
+        let full = m.finalize().into_bytes();
+        let mut tag = [0; TAG_LEN];
+        tag.copy_from_slice(&full[..TAG_LEN]);
+        tag
+    }
+
+    fn verify(&self, bytes: &[u8], tag: &[u8]) -> bool {
+        let mut m = keyed(&self.0);
+        m.update(bytes);
+        // Constant time: a forger learns nothing from how long the refusal took.
+        m.verify_truncated_left(tag).is_ok()
+    }
+}
+
+fn keyed(key: &[u8]) -> HmacSha256 {
+    // HMAC takes keys of any length (longer ones are hashed first), so this cannot fail.
+    <HmacSha256 as KeyInit>::new_from_slice(key)
+        .unwrap_or_else(|_| <HmacSha256 as KeyInit>::new(&Default::default()))
+}
+
+/// Why a datagram was not made or not taken.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum FrameError {
+    /// The datagram would be, or is, longer than [`MAX_DATAGRAM`].
+    #[error("datagram longer than {MAX_DATAGRAM} bytes")]
+    TooLarge,
+    /// Shorter than its first byte, header, payload or tag.
+    #[error("datagram truncated")]
+    Truncated,
+    /// The tag does not verify: altered, or not from a member of this system.
+    #[error("datagram failed authentication")]
+    BadTag,
+    /// Tagged while this end has no key, or untagged while it has one.
+    #[error("datagram {0} while this end {1}")]
+    Authentication(&'static str, &'static str),
+    /// The first byte is neither plain nor tagged.
+    #[error("unknown datagram kind {0}")]
+    Kind(u8),
+    /// A header of another data-plane version.
+    #[error("data-plane version {0}, expected {DATAPLANE_VERSION}")]
+    Version(u8),
+    /// Header or payload did not decode, or bytes were left over.
+    #[error("malformed datagram")]
+    Malformed,
+}
+
+/// Writes the datagram of `header` and `payload` into `out` (tagged with `key` when given) and
+/// returns its length.
+///
+/// # Errors
+/// [`FrameError::TooLarge`] when it does not fit `out` or [`MAX_DATAGRAM`].
+pub fn encode<P: Serialize>(
+    header: &Header,
+    payload: &P,
+    key: Option<&DatagramKey>,
+    out: &mut [u8],
+) -> Result<usize, FrameError> {
+    let limit = out.len().min(MAX_DATAGRAM);
+    let body_limit = limit
+        .checked_sub(if key.is_some() { TAG_LEN } else { 0 })
+        .ok_or(FrameError::TooLarge)?;
+    if body_limit == 0 {
+        return Err(FrameError::TooLarge);
+    }
+    out[0] = if key.is_some() { TAGGED } else { PLAIN };
+    let mut at = 1;
+    at += postcard::to_slice(header, &mut out[at..body_limit])
+        .map_err(|_| FrameError::TooLarge)?
+        .len();
+    at += postcard::to_slice(payload, &mut out[at..body_limit])
+        .map_err(|_| FrameError::TooLarge)?
+        .len();
+    if let Some(key) = key {
+        let tag = key.tag(&out[..at]);
+        out[at..at + TAG_LEN].copy_from_slice(&tag);
+        at += TAG_LEN;
+    }
+    Ok(at)
+}
+
+/// Opens `datagram`: checks its kind against `key` (a keyed end takes tagged datagrams only,
+/// an unkeyed end untagged ones only), its tag, its version, and decodes header and payload
+/// (borrowing from `datagram` where the payload borrows).
+///
+/// # Errors
+/// [`FrameError`], for anything but a whole, authentic datagram of this version.
+pub fn decode<'a, P: Deserialize<'a>>(
+    datagram: &'a [u8],
+    key: Option<&DatagramKey>,
+) -> Result<(Header, P), FrameError> {
+    if datagram.len() > MAX_DATAGRAM {
+        return Err(FrameError::TooLarge);
+    }
+    let (&kind, _) = datagram.split_first().ok_or(FrameError::Truncated)?;
+    let body = match (kind, key) {
+        (TAGGED, Some(key)) => {
+            let end = datagram
+                .len()
+                .checked_sub(TAG_LEN)
+                .filter(|&e| e > 1)
+                .ok_or(FrameError::Truncated)?;
+            if !key.verify(&datagram[..end], &datagram[end..]) {
+                return Err(FrameError::BadTag);
+            }
+            &datagram[1..end]
+        }
+        (PLAIN, None) => &datagram[1..],
+        (TAGGED, None) => return Err(FrameError::Authentication("tagged", "has no key")),
+        (PLAIN, Some(_)) => return Err(FrameError::Authentication("untagged", "has a key")),
+        (other, _) => return Err(FrameError::Kind(other)),
+    };
+    let (header, rest): (Header, _) =
+        postcard::take_from_bytes(body).map_err(|_| FrameError::Malformed)?;
+    if header.version != DATAPLANE_VERSION {
+        return Err(FrameError::Version(header.version));
+    }
+    let (payload, rest) = postcard::take_from_bytes(rest).map_err(|_| FrameError::Malformed)?;
+    if !rest.is_empty() {
+        return Err(FrameError::Malformed);
+    }
+    Ok((header, payload))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn header(sequence: u64) -> Header {
+        Header {
+            version: DATAPLANE_VERSION,
+            stream: StreamId(7),
+            session: 0xdead_beef,
+            sequence,
+            sent_ns: 1_234_567,
+        }
+    }
+
+    #[test]
+    fn a_datagram_round_trips_with_and_without_a_key() {
+        let key = DatagramKey::from_secret(b"lab secret");
+        let payload = [0.25f64, -1.5, 3.0];
+        for k in [None, Some(&key)] {
+            let mut buf = [0u8; MAX_DATAGRAM];
+            let n = encode(&header(3), &payload, k, &mut buf).unwrap();
+            let (h, p): (Header, [f64; 3]) = decode(&buf[..n], k).unwrap();
+            assert_eq!((h, p), (header(3), payload));
+        }
+    }
+
+    #[test]
+    fn every_altered_byte_of_a_tagged_datagram_is_refused() {
+        let key = DatagramKey::from_secret(b"lab secret");
+        let mut buf = [0u8; MAX_DATAGRAM];
+        let n = encode(&header(9), &[1.0f64; 6], Some(&key), &mut buf).unwrap();
+        for i in 0..n {
+            let mut bad = buf;
+            bad[i] ^= 0x10;
+            let r = decode::<[f64; 6]>(&bad[..n], Some(&key));
+            assert!(r.is_err(), "byte {i} altered and accepted");
+        }
+        // Another system's key, and the kind checks both ways.
+        let other = DatagramKey::from_secret(b"another lab");
+        assert_eq!(
+            decode::<[f64; 6]>(&buf[..n], Some(&other)),
+            Err(FrameError::BadTag)
+        );
+        assert!(matches!(
+            decode::<[f64; 6]>(&buf[..n], None),
+            Err(FrameError::Authentication(..))
+        ));
+        let plain = encode(&header(9), &[1.0f64; 6], None, &mut buf).unwrap();
+        assert!(matches!(
+            decode::<[f64; 6]>(&buf[..plain], Some(&key)),
+            Err(FrameError::Authentication(..))
+        ));
+    }
+
+    #[test]
+    fn size_version_and_leftovers_are_checked() {
+        let mut small = [0u8; 8];
+        assert_eq!(
+            encode(&header(1), &[0.0f64; 6], None, &mut small),
+            Err(FrameError::TooLarge)
+        );
+        let mut buf = [0u8; MAX_DATAGRAM];
+        let mut h = header(1);
+        h.version = 9;
+        let n = encode(&h, &0u8, None, &mut buf).unwrap();
+        assert_eq!(decode::<u8>(&buf[..n], None), Err(FrameError::Version(9)));
+        let n = encode(&header(1), &(1u8, 2u8), None, &mut buf).unwrap();
+        assert_eq!(decode::<u8>(&buf[..n], None), Err(FrameError::Malformed));
+        assert_eq!(decode::<u8>(&[], None), Err(FrameError::Truncated));
+        assert_eq!(decode::<u8>(&[7, 0, 0], None), Err(FrameError::Kind(7)));
+        assert_eq!(
+            decode::<u8>(&[0; MAX_DATAGRAM + 1], None),
+            Err(FrameError::TooLarge)
+        );
+    }
+
+    proptest! {
+        #[test]
+        fn arbitrary_bytes_never_panic_and_never_open_with_a_key(bytes in proptest::collection::vec(any::<u8>(), 0..1300)) {
+            let key = DatagramKey::from_secret(b"s");
+            prop_assert!(decode::<[f64; 6]>(&bytes, Some(&key)).is_err());
+            let _ = decode::<[f64; 6]>(&bytes, None);
+        }
+    }
+}

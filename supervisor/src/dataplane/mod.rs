@@ -1,0 +1,11 @@
+//! The data plane between nodes: UDP streams of stamped samples (teleoperation references
+//! forward, wrenches back, sensor readings), beside the TCP request plane of `net`.
+//!
+//! - [`frame`]: the datagram (header, payload, optional authentication tag);
+//! - [`stream`]: numbering on the sending side, newest-wins on the receiving side;
+//! - [`endpoint`]: a non-blocking UDP socket that sends and receives frames and counts what it
+//!   refused.
+
+pub mod endpoint;
+pub mod frame;
+pub mod stream;
