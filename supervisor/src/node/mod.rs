@@ -243,6 +243,11 @@ impl Node {
         };
         let mut creator_config = config.creator;
         creator_config.node = name.clone();
+        // The data plane's datagrams are authenticated with a key from the same secret.
+        if let Some(secret) = &config.secret {
+            creator_config.datagram_key =
+                Some(crate::dataplane::frame::DatagramKey::from_secret(secret));
+        }
         let creator = Arc::new(Creator::new(creator_config));
         let shared = Arc::new(Shared {
             name: name.clone(),

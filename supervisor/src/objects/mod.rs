@@ -38,6 +38,7 @@ mod loops;
 mod registry;
 pub mod runtime;
 pub mod teleop;
+pub mod teleop_end;
 
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
@@ -91,6 +92,9 @@ pub struct CreatorConfig {
     pub remote: Option<Arc<dyn Remote>>,
     /// Real time, or a simulated clock moved by [`Creator::advance`].
     pub clock: ClockMode,
+    /// The key that authenticates data-plane datagrams (from the system secret; set by the
+    /// node), or `None` in a system without a secret.
+    pub datagram_key: Option<crate::dataplane::frame::DatagramKey>,
 }
 
 impl std::fmt::Debug for CreatorConfig {
@@ -102,6 +106,7 @@ impl std::fmt::Debug for CreatorConfig {
             .field("rt", &self.rt)
             .field("remote", &self.remote.is_some())
             .field("clock", &self.clock)
+            .field("datagram_key", &self.datagram_key.is_some())
             .finish()
     }
 }
@@ -116,6 +121,7 @@ impl CreatorConfig {
             rt: RtPolicy::default(),
             remote: None,
             clock: ClockMode::RealTime,
+            datagram_key: None,
         }
     }
 }
@@ -172,8 +178,11 @@ impl Creator {
         Creator {
             sim: (config.clock == ClockMode::Simulated).then(|| Mutex::new(SimWorld::default())),
             remote: Mutex::new(config.remote.clone()),
+            registry: Mutex::new(Registry {
+                datagram_key: config.datagram_key.clone(),
+                ..Registry::default()
+            }),
             config,
-            registry: Mutex::new(Registry::default()),
             subscriptions: Arc::new(Subscriptions::default()),
             fifo: OnceLock::new(),
         }

@@ -22,7 +22,7 @@ use penelope_hal::{
     CartesianReference, Frame, HybridReference, Kinematics, Pose, Reference, Timestamp, Twist,
     Wrench,
 };
-use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, Stamped, latest};
+use penelope_rt_core::cell::{ArcLatestWriter, Stamped};
 use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_rt_core::teleop::{
     ChannelConfig, ChannelDirection, ForceDisplay, ForceDisplayConfig, ImpedanceConfig,
@@ -50,6 +50,11 @@ pub struct TeleopConfig {
     pub torque_gain: f64,
     /// Master base frame to slave base frame, roll-pitch-yaw, degrees.
     pub rotation_rpy_deg: [f64; 3],
+    /// When the other robot is on another node: this node's data-plane address for the
+    /// channel (`host:port`).
+    pub listen: Option<String>,
+    /// When the other robot is on another node: the other node's data-plane address for it.
+    pub peer: Option<String>,
 }
 
 impl Default for TeleopConfig {
@@ -61,6 +66,8 @@ impl Default for TeleopConfig {
             force_gain: 0.5,
             torque_gain: 0.5,
             rotation_rpy_deg: [0.0; 3],
+            listen: None,
+            peer: None,
         }
     }
 }
@@ -73,6 +80,12 @@ scale = 1.0                         # slave motion = scale x master motion
 force_gain = 0.5                    # displayed force = force_gain x mapped sensor force
 torque_gain = 0.5                   # displayed moment = torque_gain x mapped sensor moment
 rotation_rpy_deg = [0.0, 0.0, 0.0]  # master base frame -> slave base frame
+# When the master and the slave are on different nodes, the same channel is created on both,
+# each node holding the end of its own robot; samples cross on the data plane (UDP, one stream
+# per direction, newest wins; authenticated when the nodes have a secret, required off
+# loopback):
+# listen = "127.0.0.1:7410"         # this node's address for the channel
+# peer = "127.0.0.1:7411"           # the other node's
 "#;
 
 impl TeleopConfig {
@@ -103,7 +116,34 @@ impl TeleopConfig {
         if self.rotation_rpy_deg.iter().any(|a| !a.is_finite()) {
             return Err(bad("`rotation_rpy_deg` must be finite".into()));
         }
+        self.data_plane(kind)?;
         Ok(())
+    }
+
+    /// The data-plane addresses `(listen, peer)` of a channel that crosses to another node, or
+    /// `None` for a channel on this node.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for only one of the two, or an address that does not parse.
+    pub fn data_plane(
+        &self,
+        kind: &str,
+    ) -> Result<Option<(std::net::SocketAddr, std::net::SocketAddr)>, WireError> {
+        let bad = |message: String| WireError::BadConfig {
+            kind: kind.into(),
+            message,
+        };
+        let parse = |key: &str, v: &str| {
+            v.parse::<std::net::SocketAddr>()
+                .map_err(|e| bad(format!("`{key}` = {v:?}: {e} (host:port, an IP address)")))
+        };
+        match (&self.listen, &self.peer) {
+            (None, None) => Ok(None),
+            (Some(l), Some(p)) => Ok(Some((parse("listen", l)?, parse("peer", p)?))),
+            _ => Err(bad(
+                "`listen` and `peer` go together (a channel to another node)".into(),
+            )),
+        }
     }
 
     /// The workspace mapping.
@@ -122,77 +162,7 @@ impl TeleopConfig {
     }
 }
 
-/// Which side of a channel a loop runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Side {
-    /// Sends the master's tool pose and clutch; receives the slave's pose and wrench.
-    Master,
-    /// Sends the slave's tool pose and sensed wrench; receives the master's pose and clutch.
-    Slave,
-}
-
-/// One side's cells: what it sends, what it receives.
-pub struct TeleopEnd {
-    /// Its side.
-    pub side: Side,
-    send: ArcLatestWriter<TeleopSample>,
-    receive: ArcLatestReader<TeleopSample>,
-    /// The sequence number of the last sample sent: kept with the end, so that a loop
-    /// re-activated on it goes on numbering and the other side (newest wins) takes its samples.
-    sent: u64,
-}
-
-/// The cells of a configured channel; each end is lent to the loop that runs it.
-pub struct TeleopLink {
-    /// The master's end, while no loop holds it.
-    pub master: Option<TeleopEnd>,
-    /// The slave's end, while no loop holds it.
-    pub slave: Option<TeleopEnd>,
-}
-
-impl TeleopLink {
-    /// New cells, both ends free.
-    pub fn new() -> Self {
-        let (m2s_w, m2s_r) = latest::<TeleopSample>();
-        let (s2m_w, s2m_r) = latest::<TeleopSample>();
-        TeleopLink {
-            master: Some(TeleopEnd {
-                side: Side::Master,
-                send: m2s_w,
-                receive: s2m_r,
-                sent: 0,
-            }),
-            slave: Some(TeleopEnd {
-                side: Side::Slave,
-                send: s2m_w,
-                receive: m2s_r,
-                sent: 0,
-            }),
-        }
-    }
-
-    /// Takes `side`'s end.
-    pub fn take(&mut self, side: Side) -> Option<TeleopEnd> {
-        match side {
-            Side::Master => self.master.take(),
-            Side::Slave => self.slave.take(),
-        }
-    }
-
-    /// Gives an end back.
-    pub fn put_back(&mut self, end: TeleopEnd) {
-        match end.side {
-            Side::Master => self.master = Some(end),
-            Side::Slave => self.slave = Some(end),
-        }
-    }
-}
-
-impl Default for TeleopLink {
-    fn default() -> Self {
-        TeleopLink::new()
-    }
-}
+pub use super::teleop_end::{Side, TeleopEnd, TeleopLink};
 
 /// The communication-thread end of one side: publishes this robot's state to the other side,
 /// feeds the other side's samples into this side's [`TeleopChannel`], and the channel's
@@ -236,7 +206,7 @@ impl TeleopComm {
             message: format!("{e:?}"),
         })?;
         Ok(TeleopComm {
-            sequence: end.sent,
+            sequence: end.sent(),
             end,
             channel,
             model,
@@ -262,7 +232,7 @@ impl TeleopComm {
 
     /// The end, given back when the loop stops.
     pub fn into_end(mut self) -> TeleopEnd {
-        self.end.sent = self.sequence;
+        self.end.set_sent(self.sequence);
         self.end
     }
 
@@ -347,13 +317,13 @@ impl TeleopComm {
                 )
             }
         };
-        self.end.send.write(TeleopSample {
+        self.end.publish(TeleopSample {
             sequence: self.sequence,
             sent: now,
             clutch,
             reference,
         });
-        if let Fresh::New(received) = self.end.receive.read()
+        if let Some(received) = self.end.take_newest()
             && self.channel.receive(received).is_ok()
         {
             // (A stale or malformed sample is counted by the channel and dropped.)

@@ -572,6 +572,11 @@ fn check_teleop_end(name: &str, t: &TeleopObj, side: Side, robot: &str) -> Resul
         .link
         .as_ref()
         .ok_or_else(|| not_ready(format!("channel `{name}` is not configured")))?;
+    if !link.is_local(side) {
+        return Err(bad_arg(format!(
+            "the {word} end of `{name}` is on another node (its `peer`); run the {word} half there"
+        )));
+    }
     let free = match side {
         Side::Master => link.master.is_some(),
         Side::Slave => link.slave.is_some(),

@@ -43,8 +43,10 @@ use super::kinds::{
 use super::kinematics::RobotKinematics;
 use super::teleop::{
     ForceDisplayToml, HandConfig, HandObj, PositionErrorToml, Side, SlaveTrackingToml, TeleopComm,
-    TeleopConfig, TeleopLink,
+    TeleopConfig, TeleopEnd, TeleopLink,
 };
+use crate::dataplane::endpoint::Endpoint;
+use crate::dataplane::frame::DatagramKey;
 use crate::objects::runtime::{
     CellSensor, ControlTask, GainsUpdate, GalilSet, GoToCommand, LoopBoard, NodeController,
     NodeLoop, NodeSink, NodeTrajectory, RoutedGains, SimBody, TrajectoryFeed, VirtualSensor,
@@ -398,6 +400,8 @@ fn controller_body(config: ControllerConfig, timing: LoopTiming, text: &str) -> 
 #[derive(Default)]
 pub(crate) struct Registry {
     pub objects: BTreeMap<String, Object>,
+    /// The key of this system's data-plane datagrams (from the nodes' secret), if it has one.
+    pub datagram_key: Option<DatagramKey>,
 }
 
 /// What activating a controller needs from the creator.
@@ -634,6 +638,7 @@ impl Registry {
     }
 
     fn configure_teleop(&mut self, name: &str) -> Result<(), WireError> {
+        let kind = "trajectory/teleop";
         let Body::Teleop(t) = &self.get(name)?.body else {
             return Err(WireError::Internal("teleop body".into()));
         };
@@ -642,16 +647,51 @@ impl Registry {
             t.config.slave.clone(),
             t.config.mapping(),
         );
-        self.expect_class(&master, Class::Robot)?;
-        self.expect_class(&slave, Class::Robot)?;
+        let data_plane = t.config.data_plane(kind)?;
         penelope_rt_core::teleop::WorkspaceMapping::new(mapping).map_err(|e| {
             WireError::BadConfig {
-                kind: "trajectory/teleop".into(),
+                kind: kind.into(),
                 message: format!("{e:?}"),
             }
         })?;
+        let link = match data_plane {
+            None => {
+                self.expect_class(&master, Class::Robot)?;
+                self.expect_class(&slave, Class::Robot)?;
+                TeleopLink::new()
+            }
+            Some((listen, peer)) => {
+                let here = |r: &str| self.expect_class(r, Class::Robot).is_ok();
+                let side = match (here(&master), here(&slave)) {
+                    (true, false) => Side::Master,
+                    (false, true) => Side::Slave,
+                    (true, true) => {
+                        return Err(bad_arg(format!(
+                            "`{name}` has a `peer`, but both `{master}` and `{slave}` are on \
+                             this node (leave out listen and peer)"
+                        )));
+                    }
+                    (false, false) => {
+                        return Err(bad_arg(format!(
+                            "neither `{master}` nor `{slave}` is a robot on this node"
+                        )));
+                    }
+                };
+                let off_loopback = !(listen.ip().is_loopback() && peer.ip().is_loopback());
+                if off_loopback && self.datagram_key.is_none() {
+                    return Err(bad_arg(format!(
+                        "`{name}` crosses off loopback ({listen} to {peer}): the nodes need a \
+                         secret (--secret-file) so that its datagrams are authenticated"
+                    )));
+                }
+                let endpoint = Endpoint::bind(listen, self.datagram_key.clone()).map_err(|e| {
+                    WireError::Device(format!("data plane: cannot bind {listen}: {e}"))
+                })?;
+                TeleopLink::one_end(TeleopEnd::remote(side, endpoint, peer))
+            }
+        };
         if let Body::Teleop(t) = &mut self.get_mut(name)?.body {
-            t.link = Some(TeleopLink::new());
+            t.link = Some(link);
         }
         Ok(())
     }

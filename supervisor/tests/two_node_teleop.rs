@@ -1,0 +1,163 @@
+//! The demo's task with the master and the slave on two nodes, their channel crossing the data
+//! plane (UDP on loopback, authenticated with the nodes' secret): both nodes on simulated
+//! clocks stepped in turn, 1 ms at a time, against the same task on one node. The robots move
+//! the same way to within a fraction of a millimetre, and the link counts its datagrams.
+
+use std::net::UdpSocket;
+use std::time::Duration;
+
+use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
+use penelope_supervisor::objects::clock::ClockMode;
+use penelope_supervisor::proto::{Call, ControllerMethod, Method, Reply, WireError};
+use penelope_supervisor::runs::DEMO_SYSTEM;
+use penelope_supervisor::system::{SystemFile, SystemFileError};
+
+/// The demo's system file cut in two: the master's objects for node `a`, the slave's for `b`,
+/// the channel on both with each one's data-plane address.
+fn halves(a_port: u16, b_port: u16) -> (String, String) {
+    // Sections by their header line (the preamble has none).
+    let mut sections: Vec<(String, String)> = vec![(String::new(), String::new())];
+    for line in DEMO_SYSTEM.lines() {
+        if let Some(rest) = line.strip_prefix('[') {
+            let head = rest.split(']').next().unwrap_or_default().to_string();
+            sections.push((head, String::new()));
+        }
+        let last = sections.last_mut().expect("one section at least");
+        last.1.push_str(line);
+        last.1.push('\n');
+    }
+    let (mut a, mut b) = (String::new(), String::new());
+    for (head, text) in &sections {
+        match head.as_str() {
+            "" | "timing" => {
+                a.push_str(text);
+                b.push_str(text);
+            }
+            "nodes.lab" => {
+                a.push_str("[nodes.a]\n");
+                b.push_str("[nodes.b]\n");
+            }
+            "trajectories.link" => {
+                let data_plane = |here: u16, there: u16| {
+                    format!("listen = \"127.0.0.1:{here}\"\npeer = \"127.0.0.1:{there}\"\n")
+                };
+                a.push_str(&format!("{text}{}", data_plane(a_port, b_port)));
+                b.push_str(&format!("{text}{}", data_plane(b_port, a_port)));
+            }
+            "boards.frhc-io"
+            | "sensors.hand"
+            | "robots.frhc"
+            | "controllers.display"
+            | "controllers.position-error" => a.push_str(text),
+            _ => b.push_str(text),
+        }
+    }
+    (a, b)
+}
+
+fn free_port() -> u16 {
+    UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn node(name: &str, secret: Option<&[u8]>) -> Node {
+    let mut config = NodeConfig::new(name, NamingChoice::None);
+    config.creator.rt.priority = None;
+    config.creator.clock = ClockMode::Simulated;
+    config.secret = secret.map(<[u8]>::to_vec);
+    Node::start(config).unwrap()
+}
+
+fn tool(node: &Node, controller: &str) -> [f64; 3] {
+    match node.call(Call::Object {
+        object: controller.into(),
+        method: Method::Controller(ControllerMethod::Status),
+    }) {
+        Ok(Reply::Status(s)) => {
+            let last = s.last.expect("ticked");
+            assert!(last.fault.is_none(), "{controller}: {:?}", last.fault);
+            last.tool_position
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+#[test]
+fn master_and_slave_on_two_nodes_move_as_on_one() {
+    let secret = b"two-node test secret".as_slice();
+    let one = node("lab", Some(secret));
+    SystemFile::parse(DEMO_SYSTEM)
+        .unwrap()
+        .apply(&one)
+        .expect("the demo on one node");
+    let (a_text, b_text) = halves(free_port(), free_port());
+    let (a, b) = (node("a", Some(secret)), node("b", Some(secret)));
+    SystemFile::parse(&a_text)
+        .unwrap_or_else(|e| panic!("{e}\n{a_text}"))
+        .apply(&a)
+        .expect("the master's half");
+    SystemFile::parse(&b_text)
+        .unwrap_or_else(|e| panic!("{e}\n{b_text}"))
+        .apply(&b)
+        .expect("the slave's half");
+
+    let step = Duration::from_millis(1);
+    let (mut master_err, mut slave_err, mut samples) = (0.0f64, 0.0f64, 0usize);
+    let mut worst: f64 = 0.0;
+    for ms in 1..=20_000u32 {
+        one.creator().advance(step).unwrap();
+        a.creator().advance(step).unwrap();
+        b.creator().advance(step).unwrap();
+        if ms % 100 == 0 {
+            let m = distance(tool(&one, "display"), tool(&a, "display"));
+            let s = distance(tool(&one, "follow"), tool(&b, "follow"));
+            master_err += m * m;
+            slave_err += s * s;
+            worst = worst.max(m).max(s);
+            samples += 1;
+        }
+    }
+    let rms = |e: f64| (e / samples as f64).sqrt() * 1000.0;
+    println!(
+        "two nodes vs one over 20 s: master RMS {:.4} mm, slave RMS {:.4} mm, worst {:.4} mm",
+        rms(master_err),
+        rms(slave_err),
+        worst * 1000.0
+    );
+    assert!(rms(master_err) < 0.5 && rms(slave_err) < 0.5 && worst < 2e-3);
+    for n in [one, a, b] {
+        n.shutdown();
+    }
+}
+
+#[test]
+fn a_channel_to_another_node_is_checked_at_configure() {
+    let (a_text, _) = halves(free_port(), free_port());
+    // Off loopback without a secret: refused, nothing left.
+    let a = node("a", None);
+    let text = a_text.replace("peer = \"127.0.0.1:", "peer = \"192.0.2.1:");
+    match SystemFile::parse(&text).unwrap().apply(&a) {
+        Err(SystemFileError::Step { key, error, .. }) => {
+            assert_eq!(key, "trajectories.link");
+            assert!(error.to_string().contains("secret"), "{error}");
+        }
+        other => panic!("{other:?}"),
+    }
+    // Only one of listen and peer.
+    let text = a_text.replace("peer = \"127.0.0.1:", "# peer = \"127.0.0.1:");
+    assert!(matches!(
+        SystemFile::parse(&text).unwrap().apply(&a),
+        Err(SystemFileError::Step {
+            error: WireError::BadConfig { .. },
+            ..
+        })
+    ));
+    a.shutdown();
+}
