@@ -41,6 +41,14 @@ fn amplifiers_on(c: &Creator) -> bool {
     }
 }
 
+/// The largest joint-by-joint difference of two joint vectors, rad.
+fn largest_difference(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
 fn joints(c: &Creator) -> Vec<f64> {
     match ok(c, "arm", Method::Robot(RobotMethod::JointPositions)) {
         Reply::Joints(q) => q.to_vec(),
@@ -117,11 +125,7 @@ fn fails_safely(thread: LoopThread, cause: &str) {
     assert!(!amplifiers_on(&c));
     assert_eq!(describe(&c, "arm").state, LifecycleState::Inactive);
     let after = joints(&c);
-    let moved = before
-        .iter()
-        .zip(&after)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max);
+    let moved = largest_difference(&before, &after);
     assert!(moved < 0.01, "the arm moved {moved} rad while failing");
     // The node keeps answering, and a failed loop is not re-activated by accident.
     assert_eq!(c.list().len(), 4);
@@ -142,21 +146,13 @@ fn fails_safely(thread: LoopThread, cause: &str) {
     wait_until("the re-armed loop runs", || ticks(&c) > 300);
     assert!(amplifiers_on(&c));
     let rearmed = joints(&c);
-    let jump = after
-        .iter()
-        .zip(&rearmed)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max);
+    let jump = largest_difference(&after, &rearmed);
     assert!(jump < 0.01, "re-arming moved the arm {jump} rad");
     // Deactivated on purpose, the slave is held by its board's servo where it was.
     ok(&c, "pid", Method::Transition(Transition::Deactivate));
     assert!(amplifiers_on(&c));
     let held = joints(&c);
-    let drift = rearmed
-        .iter()
-        .zip(&held)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max);
+    let drift = largest_difference(&rearmed, &held);
     assert!(drift < 0.01, "deactivating moved the arm {drift} rad");
 }
 
