@@ -13,6 +13,8 @@
 //! - [`node`]: a node: creator, objects and optionally the naming service behind one server.
 //! - [`system`]: the system file: every object, its configuration, relations and node.
 //! - [`client`]: the naming-aware client and the proxies of remote objects.
+//! - [`dataplane`]: the data plane between nodes: authenticated UDP streams of samples, and
+//!   each link's clock estimate.
 #![warn(missing_docs)]
 
 pub mod client;

@@ -4,8 +4,10 @@
 //! - [`frame`]: the datagram (header, payload, optional authentication tag);
 //! - [`stream`]: numbering on the sending side, newest-wins on the receiving side;
 //! - [`endpoint`]: a non-blocking UDP socket that sends and receives frames and counts what it
-//!   refused.
+//!   refused;
+//! - [`clock`]: the common clock of a link, estimated from four-timestamp heartbeats.
 
+pub mod clock;
 pub mod endpoint;
 pub mod frame;
 pub mod stream;
