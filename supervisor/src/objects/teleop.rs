@@ -323,7 +323,7 @@ impl TeleopComm {
             clutch,
             reference,
         });
-        if let Some(received) = self.end.take_newest()
+        if let Some(received) = self.end.take_newest(now)
             && self.channel.receive(received).is_ok()
         {
             // (A stale or malformed sample is counted by the channel and dropped.)

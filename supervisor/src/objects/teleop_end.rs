@@ -9,6 +9,9 @@ use penelope_hal::{Reference, Timestamp};
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, latest};
 use penelope_rt_core::teleop::TeleopSample;
 
+use serde::{Deserialize, Serialize};
+
+use crate::dataplane::clock::LinkClock;
 use crate::dataplane::endpoint::{Endpoint, EndpointStats, RECEIVE_BURST};
 use crate::dataplane::frame::StreamId;
 use crate::dataplane::stream::{StreamReceiver, StreamSender, StreamStats, Verdict};
@@ -17,6 +20,10 @@ use crate::dataplane::stream::{StreamReceiver, StreamSender, StreamStats, Verdic
 pub const MASTER_TO_SLAVE: StreamId = StreamId(1);
 /// The stream of the slave's samples to the master.
 pub const SLAVE_TO_MASTER: StreamId = StreamId(2);
+/// The heartbeats and their answers, both ways (each answered, not newest-wins).
+pub const HEARTBEATS: StreamId = StreamId(0);
+/// A heartbeat goes out with every this many samples.
+pub const HEARTBEAT_EVERY: u64 = 5;
 
 /// Which side of a channel a loop runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -37,8 +44,27 @@ impl Side {
     }
 }
 
-/// What a sample carries on the data plane (the header carries sequence and send time).
-type WireSample = (bool, Reference);
+/// What crosses a channel's data-plane link (the header carries stream, sequence and send time).
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+enum LinkDatagram {
+    /// A sample of the sending side.
+    Sample {
+        /// The master's clutch button.
+        clutch: bool,
+        /// The sample.
+        reference: Reference,
+    },
+    /// A heartbeat, sent at the header's send time (the sender's clock).
+    Heartbeat,
+    /// The answer to heartbeat `heartbeat`: received at `received_ns`, answered at the
+    /// header's send time (the answering side's clock).
+    Answer {
+        /// The heartbeat's sequence number.
+        heartbeat: u64,
+        /// When the heartbeat was received, ns on the answering side's clock.
+        received_ns: i64,
+    },
+}
 
 /// One side's end of the channel.
 pub struct TeleopEnd {
@@ -66,6 +92,9 @@ struct RemoteLink {
     peer: SocketAddr,
     sender: StreamSender,
     receiver: StreamReceiver,
+    heartbeats: StreamSender,
+    /// The other node's clock as heartbeats estimate it.
+    clock: LinkClock,
     /// Samples taken so far: the channel's sequence numbers (newest wins there too), which stay
     /// increasing when the other side restarts with a new session.
     taken: u64,
@@ -74,7 +103,7 @@ struct RemoteLink {
 }
 
 /// What an end's data-plane link counted.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct LinkStats {
     /// The socket's counters.
     pub endpoint: EndpointStats,
@@ -82,6 +111,12 @@ pub struct LinkStats {
     pub stream: StreamStats,
     /// Datagrams from another address than the peer's.
     pub strangers: u64,
+    /// The other node's clock minus this node's, ns, as heartbeats estimate it.
+    pub clock_offset_ns: Option<i64>,
+    /// The heartbeats' round trip, ns, of the exchange the offset comes from.
+    pub round_trip_ns: Option<i64>,
+    /// The share of heartbeats not answered.
+    pub heartbeat_loss: f64,
 }
 
 impl TeleopEnd {
@@ -96,6 +131,8 @@ impl TeleopEnd {
                 peer,
                 sender: StreamSender::new(out),
                 receiver: StreamReceiver::new(inbound),
+                heartbeats: StreamSender::new(HEARTBEATS),
+                clock: LinkClock::new(),
                 taken: 0,
                 strangers: 0,
             })),
@@ -113,27 +150,43 @@ impl TeleopEnd {
         self.sent = sent;
     }
 
-    /// Sends `sample` to the other side.
+    /// Sends `sample` (taken at `sample.sent` on this node's clock) to the other side, and
+    /// every [`HEARTBEAT_EVERY`] samples a heartbeat.
     ///
     /// # Real-time
-    /// A cell write, or one non-blocking `sendto` (a refusal is counted, not waited on).
+    /// A cell write, or one or two non-blocking `sendto` calls (a refusal is counted, not
+    /// waited on).
     pub fn publish(&mut self, sample: TeleopSample) {
         match &mut self.transport {
             Transport::Cells { send, .. } => send.write(sample),
             Transport::DataPlane(link) => {
-                let sent_ns = i64::try_from(sample.sent.as_nanos()).unwrap_or(i64::MAX);
-                let header = link.sender.next(sent_ns);
-                let payload: WireSample = (sample.clutch, sample.reference);
+                let now = nanos(sample.sent);
+                let header = link.sender.next(now);
+                let payload = LinkDatagram::Sample {
+                    clutch: sample.clutch,
+                    reference: sample.reference,
+                };
                 let _ = link.endpoint.send(&header, &payload, link.peer);
+                if header.sequence % HEARTBEAT_EVERY == 1 {
+                    let beat = link.heartbeats.next(now);
+                    link.clock.note_sent(beat.sequence, now);
+                    let _ = link
+                        .endpoint
+                        .send(&beat, &LinkDatagram::Heartbeat, link.peer);
+                }
             }
         }
     }
 
-    /// The other side's newest sample since the last call, if one arrived.
+    /// The other side's newest sample since the last call, if one arrived, its send time on
+    /// this node's clock; heartbeats are answered and answers taken into the link's clock.
+    /// `now` is this node's time (of the call: the datagrams' arrival to within a
+    /// communication period).
     ///
     /// # Real-time
-    /// A cell read, or at most [`RECEIVE_BURST`] non-blocking `recvfrom` calls.
-    pub fn take_newest(&mut self) -> Option<TeleopSample> {
+    /// A cell read, or at most [`RECEIVE_BURST`] non-blocking `recvfrom` calls and as many
+    /// answers.
+    pub fn take_newest(&mut self, now: Timestamp) -> Option<TeleopSample> {
         match &mut self.transport {
             Transport::Cells { receive, .. } => match receive.read() {
                 Fresh::New(s) => Some(s),
@@ -141,9 +194,9 @@ impl TeleopEnd {
             },
             Transport::DataPlane(link) => {
                 let mut newest = None;
+                let now = nanos(now);
                 for _ in 0..RECEIVE_BURST {
-                    let Some((from, header, (clutch, reference))) =
-                        link.endpoint.receive::<WireSample>()
+                    let Some((from, header, datagram)) = link.endpoint.receive::<LinkDatagram>()
                     else {
                         break;
                     };
@@ -151,14 +204,44 @@ impl TeleopEnd {
                         link.strangers += 1;
                         continue;
                     }
-                    if link.receiver.offer(&header) == Verdict::Accepted {
-                        link.taken += 1;
-                        newest = Some(TeleopSample {
-                            sequence: link.taken,
-                            sent: Timestamp::from_nanos(u64::try_from(header.sent_ns).unwrap_or(0)),
-                            clutch,
-                            reference,
-                        });
+                    match datagram {
+                        LinkDatagram::Sample { clutch, reference } => {
+                            if link.receiver.offer(&header) != Verdict::Accepted {
+                                continue;
+                            }
+                            link.taken += 1;
+                            // The sender's time on this node's clock, once heartbeats know
+                            // the offset (before that, taken as is: one host, one clock).
+                            let sent = link
+                                .clock
+                                .from_common(header.sent_ns)
+                                .unwrap_or(header.sent_ns);
+                            newest = Some(TeleopSample {
+                                sequence: link.taken,
+                                sent: Timestamp::from_nanos(u64::try_from(sent).unwrap_or(0)),
+                                clutch,
+                                reference,
+                            });
+                        }
+                        LinkDatagram::Heartbeat if header.stream == HEARTBEATS => {
+                            let answer = link.heartbeats.next(now);
+                            let payload = LinkDatagram::Answer {
+                                heartbeat: header.sequence,
+                                received_ns: now,
+                            };
+                            let _ = link.endpoint.send(&answer, &payload, link.peer);
+                        }
+                        LinkDatagram::Answer {
+                            heartbeat,
+                            received_ns,
+                        } if header.stream == HEARTBEATS => {
+                            // Refusals (unmatched, duplicate, impossible times) are counted
+                            // by the clock and leave its estimate alone.
+                            let _ =
+                                link.clock
+                                    .note_answer(heartbeat, received_ns, header.sent_ns, now);
+                        }
+                        _ => {}
                     }
                 }
                 newest
@@ -174,9 +257,17 @@ impl TeleopEnd {
                 endpoint: link.endpoint.stats(),
                 stream: link.receiver.stats(),
                 strangers: link.strangers,
+                clock_offset_ns: link.clock.offset(),
+                round_trip_ns: link.clock.delay(),
+                heartbeat_loss: link.clock.loss_ratio(),
             }),
         }
     }
+}
+
+/// A time as signed nanoseconds (the data plane's clock values).
+fn nanos(t: Timestamp) -> i64 {
+    i64::try_from(t.as_nanos()).unwrap_or(i64::MAX)
 }
 
 /// The ends of a configured channel on this node; each is lent to the loop that runs it. A
@@ -256,5 +347,81 @@ impl TeleopLink {
 impl Default for TeleopLink {
     fn default() -> Self {
         TeleopLink::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataplane::frame::DatagramKey;
+    use penelope_hal::{JointReference, JointVector};
+
+    fn end(side: Side, key: &DatagramKey) -> (TeleopEnd, SocketAddr) {
+        let endpoint = Endpoint::bind("127.0.0.1:0".parse().unwrap(), Some(key.clone())).unwrap();
+        let addr = endpoint.local_addr().unwrap();
+        // The peer is set below, once both are bound.
+        (TeleopEnd::remote(side, endpoint, addr), addr)
+    }
+
+    fn set_peer(end: &mut TeleopEnd, peer: SocketAddr) {
+        if let Transport::DataPlane(link) = &mut end.transport {
+            link.peer = peer;
+        }
+    }
+
+    fn sample(at: Timestamp, value: f64) -> TeleopSample {
+        TeleopSample::new(
+            0,
+            at,
+            Reference::Joint(JointReference {
+                position: JointVector::repeat(value),
+                ..JointReference::default()
+            }),
+        )
+    }
+
+    #[test]
+    fn heartbeats_find_the_other_nodes_clock_and_samples_arrive_on_this_ones() {
+        let key = DatagramKey::from_secret(b"lab");
+        let (mut master, m_addr) = end(Side::Master, &key);
+        let (mut slave, s_addr) = end(Side::Slave, &key);
+        set_peer(&mut master, s_addr);
+        set_peer(&mut slave, m_addr);
+        // The slave's node clock runs 3.7 ms ahead of the master's.
+        let ahead = 3_700_000u64;
+        let mut last_from_slave = None;
+        for k in 1..=200u64 {
+            let t = Timestamp::from_nanos(k * 2_000_000);
+            let t_slave = Timestamp::from_nanos(k * 2_000_000 + ahead);
+            master.publish(sample(t, k as f64));
+            // Loopback: the datagram is there at once; a bounded wait for safety.
+            let mut got = None;
+            for _ in 0..10_000 {
+                got = slave.take_newest(t_slave);
+                if got.is_some() {
+                    break;
+                }
+                std::thread::yield_now();
+            }
+            let got = got.expect("the master's sample");
+            assert_eq!(got.reference, sample(t, k as f64).reference);
+            slave.publish(sample(t_slave, -(k as f64)));
+            for _ in 0..10_000 {
+                if let Some(s) = master.take_newest(t) {
+                    last_from_slave = Some(s);
+                    break;
+                }
+                std::thread::yield_now();
+            }
+        }
+        let stats = master.link_stats().unwrap();
+        assert_eq!(stats.clock_offset_ns, Some(ahead as i64), "{stats:?}");
+        assert_eq!(stats.round_trip_ns, Some(0));
+        assert_eq!(stats.heartbeat_loss, 0.0);
+        assert_eq!(stats.endpoint.bad_tag + stats.strangers, 0);
+        // The slave's last sample, sent at its 400 ms + 3.7 ms, is stamped 400 ms here.
+        let last = last_from_slave.expect("samples from the slave");
+        assert_eq!(last.sent, Timestamp::from_nanos(400_000_000));
+        assert_eq!(stats.stream.accepted, 200);
     }
 }
