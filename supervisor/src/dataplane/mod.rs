@@ -5,9 +5,12 @@
 //! - [`stream`]: numbering on the sending side, newest-wins on the receiving side;
 //! - [`endpoint`]: a non-blocking UDP socket that sends and receives frames and counts what it
 //!   refused;
-//! - [`clock`]: the common clock of a link, estimated from four-timestamp heartbeats.
+//! - [`clock`]: the common clock of a link, estimated from four-timestamp heartbeats;
+//! - [`faults`]: seeded link faults (delay, jitter, loss, duplication, reordering, outages),
+//!   because these machines have no netem.
 
 pub mod clock;
 pub mod endpoint;
+pub mod faults;
 pub mod frame;
 pub mod stream;
