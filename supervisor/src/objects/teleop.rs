@@ -55,6 +55,11 @@ pub struct TeleopConfig {
     pub listen: Option<String>,
     /// When the other robot is on another node: the other node's data-plane address for it.
     pub peer: Option<String>,
+    /// Faults injected into what this node's end sends (tests and experiments; these
+    /// machines have no netem).
+    pub faults: Option<crate::dataplane::faults::FaultConfig>,
+    /// The seed of the injected faults.
+    pub fault_seed: u64,
 }
 
 impl Default for TeleopConfig {
@@ -68,6 +73,8 @@ impl Default for TeleopConfig {
             rotation_rpy_deg: [0.0; 3],
             listen: None,
             peer: None,
+            faults: None,
+            fault_seed: 1,
         }
     }
 }
@@ -86,6 +93,9 @@ rotation_rpy_deg = [0.0, 0.0, 0.0]  # master base frame -> slave base frame
 # loopback):
 # listen = "127.0.0.1:7410"         # this node's address for the channel
 # peer = "127.0.0.1:7411"           # the other node's
+# faults = { delay_ms = 5.0, jitter_ms = 2.0, loss = 0.01, duplicate = 0.0, reorder = 0.0,
+#            outages = [{ from_s = 10.0, to_s = 12.0 }] }   # injected into what this end sends
+# fault_seed = 1
 "#;
 
 impl TeleopConfig {
@@ -116,7 +126,15 @@ impl TeleopConfig {
         if self.rotation_rpy_deg.iter().any(|a| !a.is_finite()) {
             return Err(bad("`rotation_rpy_deg` must be finite".into()));
         }
-        self.data_plane(kind)?;
+        let plane = self.data_plane(kind)?;
+        if let Some(f) = &self.faults {
+            if plane.is_none() {
+                return Err(bad(
+                    "`faults` are injected on the data plane: they need `listen` and `peer`".into(),
+                ));
+            }
+            f.validate().map_err(|e| bad(format!("`faults`: {e}")))?;
+        }
         Ok(())
     }
 

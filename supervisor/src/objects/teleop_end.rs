@@ -13,6 +13,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::dataplane::clock::LinkClock;
 use crate::dataplane::endpoint::{Endpoint, EndpointStats, RECEIVE_BURST};
+use crate::dataplane::faults::{FaultConfig, FaultConfigError, FaultCounters, FaultyLink};
+use crate::dataplane::frame::Header;
 use crate::dataplane::frame::StreamId;
 use crate::dataplane::stream::{StreamReceiver, StreamSender, StreamStats, Verdict};
 
@@ -24,6 +26,8 @@ pub const SLAVE_TO_MASTER: StreamId = StreamId(2);
 pub const HEARTBEATS: StreamId = StreamId(0);
 /// A heartbeat goes out with every this many samples.
 pub const HEARTBEAT_EVERY: u64 = 5;
+/// Datagrams an injected-fault link holds at once (beyond: dropped and counted).
+pub const FAULTY_CAPACITY: usize = 256;
 
 /// Which side of a channel a loop runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -95,6 +99,8 @@ struct RemoteLink {
     heartbeats: StreamSender,
     /// The other node's clock as heartbeats estimate it.
     clock: LinkClock,
+    /// Injected faults on what this end sends (tests, experiments), if configured.
+    faults: Option<FaultyLink<(Header, LinkDatagram)>>,
     /// Samples taken so far: the channel's sequence numbers (newest wins there too), which stay
     /// increasing when the other side restarts with a new session.
     taken: u64,
@@ -117,14 +123,47 @@ pub struct LinkStats {
     pub round_trip_ns: Option<i64>,
     /// The share of heartbeats not answered.
     pub heartbeat_loss: f64,
+    /// What the injected faults did to what this end sent, if faults are configured.
+    pub faults: Option<FaultCounters>,
+}
+
+impl RemoteLink {
+    /// Sends a datagram now, or through the injected faults (which release what is due).
+    fn emit(&mut self, now: i64, header: Header, datagram: LinkDatagram) {
+        match &mut self.faults {
+            None => {
+                let _ = self.endpoint.send(&header, &datagram, self.peer);
+            }
+            Some(faults) => {
+                let at = std::time::Duration::from_nanos(u64::try_from(now).unwrap_or(0));
+                faults.send(at, (header, datagram));
+                while let Some((h, d)) = faults.poll(at) {
+                    let _ = self.endpoint.send(&h, &d, self.peer);
+                }
+            }
+        }
+    }
 }
 
 impl TeleopEnd {
     /// `side`'s end linked over the data plane: `endpoint` (bound on this node) exchanges
-    /// samples with the other side's endpoint at `peer`.
-    pub fn remote(side: Side, endpoint: Endpoint, peer: SocketAddr) -> Self {
+    /// samples with the other side's endpoint at `peer`; what it sends goes through injected
+    /// `faults` (with their seed) when given.
+    ///
+    /// # Errors
+    /// [`FaultConfigError`] for a fault configuration out of range.
+    pub fn remote(
+        side: Side,
+        endpoint: Endpoint,
+        peer: SocketAddr,
+        faults: Option<(&FaultConfig, u64)>,
+    ) -> Result<Self, FaultConfigError> {
         let (out, inbound) = side.streams();
-        TeleopEnd {
+        let faults = match faults {
+            Some((config, seed)) => Some(FaultyLink::new(config, seed, FAULTY_CAPACITY)?),
+            None => None,
+        };
+        Ok(TeleopEnd {
             side,
             transport: Transport::DataPlane(Box::new(RemoteLink {
                 endpoint,
@@ -133,11 +172,12 @@ impl TeleopEnd {
                 receiver: StreamReceiver::new(inbound),
                 heartbeats: StreamSender::new(HEARTBEATS),
                 clock: LinkClock::new(),
+                faults,
                 taken: 0,
                 strangers: 0,
             })),
             sent: 0,
-        }
+        })
     }
 
     /// The sequence number of the last sample sent.
@@ -166,13 +206,11 @@ impl TeleopEnd {
                     clutch: sample.clutch,
                     reference: sample.reference,
                 };
-                let _ = link.endpoint.send(&header, &payload, link.peer);
+                link.emit(now, header, payload);
                 if header.sequence % HEARTBEAT_EVERY == 1 {
                     let beat = link.heartbeats.next(now);
                     link.clock.note_sent(beat.sequence, now);
-                    let _ = link
-                        .endpoint
-                        .send(&beat, &LinkDatagram::Heartbeat, link.peer);
+                    link.emit(now, beat, LinkDatagram::Heartbeat);
                 }
             }
         }
@@ -229,7 +267,7 @@ impl TeleopEnd {
                                 heartbeat: header.sequence,
                                 received_ns: now,
                             };
-                            let _ = link.endpoint.send(&answer, &payload, link.peer);
+                            link.emit(now, answer, payload);
                         }
                         LinkDatagram::Answer {
                             heartbeat,
@@ -260,6 +298,7 @@ impl TeleopEnd {
                 clock_offset_ns: link.clock.offset(),
                 round_trip_ns: link.clock.delay(),
                 heartbeat_loss: link.clock.loss_ratio(),
+                faults: link.faults.as_ref().map(FaultyLink::counters),
             }),
         }
     }
@@ -360,7 +399,7 @@ mod tests {
         let endpoint = Endpoint::bind("127.0.0.1:0".parse().unwrap(), Some(key.clone())).unwrap();
         let addr = endpoint.local_addr().unwrap();
         // The peer is set below, once both are bound.
-        (TeleopEnd::remote(side, endpoint, addr), addr)
+        (TeleopEnd::remote(side, endpoint, addr, None).unwrap(), addr)
     }
 
     fn set_peer(end: &mut TeleopEnd, peer: SocketAddr) {

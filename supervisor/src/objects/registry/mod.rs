@@ -648,6 +648,7 @@ impl Registry {
             t.config.mapping(),
         );
         let data_plane = t.config.data_plane(kind)?;
+        let faults = t.config.faults.clone().map(|f| (f, t.config.fault_seed));
         penelope_rt_core::teleop::WorkspaceMapping::new(mapping).map_err(|e| {
             WireError::BadConfig {
                 kind: kind.into(),
@@ -687,7 +688,17 @@ impl Registry {
                 let endpoint = Endpoint::bind(listen, self.datagram_key.clone()).map_err(|e| {
                     WireError::Device(format!("data plane: cannot bind {listen}: {e}"))
                 })?;
-                TeleopLink::one_end(TeleopEnd::remote(side, endpoint, peer))
+                let end = TeleopEnd::remote(
+                    side,
+                    endpoint,
+                    peer,
+                    faults.as_ref().map(|(f, seed)| (f, *seed)),
+                )
+                .map_err(|e| WireError::BadConfig {
+                    kind: kind.into(),
+                    message: format!("`faults`: {e}"),
+                })?;
+                TeleopLink::one_end(end)
             }
         };
         if let Body::Teleop(t) = &mut self.get_mut(name)?.body {
