@@ -8,7 +8,9 @@ use std::time::Duration;
 
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::objects::clock::ClockMode;
-use penelope_supervisor::proto::{Call, ControllerMethod, Method, Reply, WireError};
+use penelope_supervisor::proto::{
+    Call, ControllerMethod, Method, Reply, RobotMethod, TelemetryRecord, WireError,
+};
 use penelope_supervisor::runs::DEMO_SYSTEM;
 use penelope_supervisor::system::{SystemFile, SystemFileError};
 
@@ -74,7 +76,8 @@ fn node(name: &str, secret: Option<&[u8]>) -> Node {
     Node::start(config).unwrap()
 }
 
-fn tool(node: &Node, controller: &str) -> [f64; 3] {
+/// The controller's newest sample, checked free of faults.
+fn last(node: &Node, controller: &str) -> TelemetryRecord {
     match node.call(Call::Object {
         object: controller.into(),
         method: Method::Controller(ControllerMethod::Status),
@@ -82,10 +85,24 @@ fn tool(node: &Node, controller: &str) -> [f64; 3] {
         Ok(Reply::Status(s)) => {
             let last = s.last.expect("ticked");
             assert!(last.fault.is_none(), "{controller}: {:?}", last.fault);
-            last.tool_position
+            last
         }
         other => panic!("{other:?}"),
     }
+}
+
+fn tool(node: &Node, controller: &str) -> [f64; 3] {
+    last(node, controller).tool_position
+}
+
+/// What the channel object says of its link (`up to ADDR, lost N times, restored M times`).
+fn link(node: &Node) -> String {
+    let info = node.creator().info("link").expect("the channel");
+    info.relations
+        .iter()
+        .find(|(k, _)| k == "link")
+        .map(|(_, v)| v.clone())
+        .expect("a channel to another node shows its link")
 }
 
 fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -150,7 +167,10 @@ fn master_and_slave_on_two_nodes_move_as_on_one() {
 fn with_one_percent_loss_and_five_milliseconds_of_jitter_the_task_still_completes() {
     // Every status read asserts the loops ran without a fault; the tracking bound is the
     // demo's own (2 mm RMS).
-    let (master, slave, worst) = against_one_node("faults = { loss = 0.01, jitter_ms = 5.0 }");
+    // A link this jittery needs a link timeout above its jitter, or every late datagram
+    // counts as a lost link (and motion re-anchors when it comes).
+    let (master, slave, worst) =
+        against_one_node("faults = { loss = 0.01, jitter_ms = 5.0 }\nlink_timeout_ms = 20");
     println!(
         "with 1% loss and 5 ms jitter, vs one node: master RMS {master:.3} mm, slave RMS \
          {slave:.3} mm, worst {worst:.3} mm"
@@ -183,4 +203,116 @@ fn a_channel_to_another_node_is_checked_at_configure() {
         })
     ));
     a.shutdown();
+}
+
+#[test]
+fn a_link_cut_in_contact_holds_the_slave_and_the_master_lets_go_then_resumes_without_a_jump() {
+    // Both directions silent from 13.0 to 13.5 s, in the middle of the steady contact
+    // (12.5-14.5 s); communication every 2 ms, so the link counts as lost 4 ms after the last
+    // sample heard.
+    let cut = "faults = { outages = [{ from_s = 13.0, to_s = 13.5 }] }";
+    let secret = b"two-node test secret".as_slice();
+    let (a_text, b_text) = halves(free_port(), free_port(), cut);
+    let (a, b) = (node("a", Some(secret)), node("b", Some(secret)));
+    SystemFile::parse(&a_text).unwrap().apply(&a).unwrap();
+    SystemFile::parse(&b_text).unwrap().apply(&b).unwrap();
+    let step = |n: u32| {
+        for _ in 0..n {
+            a.creator().advance(Duration::from_millis(1)).unwrap();
+            b.creator().advance(Duration::from_millis(1)).unwrap();
+        }
+    };
+    // What the master's motors add to gravity compensation: the displayed force, in joint
+    // torques.
+    let display = |n: &Node| {
+        let r = last(n, "display");
+        let g = match n.call(Call::Object {
+            object: "frhc".into(),
+            method: Method::Robot(RobotMethod::Gravity {
+                q: Some(r.q.clone()),
+            }),
+        }) {
+            Ok(Reply::Joints(g)) => g,
+            other => panic!("{other:?}"),
+        };
+        r.effort
+            .iter()
+            .zip(g.iter())
+            .map(|(t, g)| (t - g) * (t - g))
+            .sum::<f64>()
+            .sqrt()
+    };
+    step(12_990);
+    assert!(link(&a).starts_with("up") && link(&b).starts_with("up"));
+    let pressing = display(&a);
+    let at_cut = tool(&b, "follow");
+    step(10); // 13.000 s: the cut
+    step(6); // two communication periods and one tick of margin
+    for n in [&a, &b] {
+        assert!(link(n).starts_with("down"), "{}", link(n));
+    }
+    // The slave holds the pose it was measured at, so it stops pressing: the wall's
+    // compliance lets it back out a little (away from the wall, +z), then it stays.
+    // The master: the hand, no longer resisted, moves the handle to where it holds it (the
+    // law's damping shows while it moves), then nothing is displayed.
+    step(100);
+    let held = tool(&b, "follow");
+    let mut drift: f64 = 0.0;
+    let mut master_display: f64 = 0.0;
+    for i in 0..380 {
+        step(1);
+        drift = drift.max(distance(held, tool(&b, "follow")));
+        if i >= 280 {
+            master_display = master_display.max(display(&a));
+        }
+    }
+    println!(
+        "link cut: master display {pressing:.3} N·m before, at most {master_display:.4} N·m \
+         late in the cut; slave backed out {:.3} mm, then drifted {:.4} mm",
+        (held[2] - at_cut[2]) * 1000.0,
+        drift * 1000.0
+    );
+    assert!(
+        held[2] >= at_cut[2] - 1e-4,
+        "the slave pushed on into the wall"
+    );
+    assert!(
+        drift < 5e-4,
+        "the slave moved {} mm while held",
+        drift * 1000.0
+    );
+    assert!(
+        master_display < 0.05 * pressing,
+        "the master still displays: {master_display} vs {pressing} before"
+    );
+    // Restored at 13.5 s: up again, and the slave goes on from where it is.
+    let mut before = tool(&b, "follow");
+    let mut largest_step: f64 = 0.0;
+    for _ in 0..200 {
+        step(1);
+        let now = tool(&b, "follow");
+        largest_step = largest_step.max(distance(before, now));
+        before = now;
+    }
+    for n in [&a, &b] {
+        assert!(
+            link(n).starts_with("up") && link(n).ends_with("lost 1 times, restored 1 times"),
+            "{}",
+            link(n)
+        );
+    }
+    println!(
+        "after the link returns: largest slave step {:.4} mm per ms",
+        largest_step * 1000.0
+    );
+    assert!(
+        largest_step < 2e-4,
+        "the slave jumped {} mm",
+        largest_step * 1000.0
+    );
+    step(6_500); // the rest of the script, without a fault
+    last(&b, "follow");
+    last(&a, "display");
+    a.shutdown();
+    b.shutdown();
 }

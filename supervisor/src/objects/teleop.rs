@@ -14,6 +14,7 @@
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
 
 use nalgebra::UnitQuaternion;
 use penelope_drivers::sim::operator::{HandImpedance, OperatorScript};
@@ -60,6 +61,9 @@ pub struct TeleopConfig {
     pub faults: Option<crate::dataplane::faults::FaultConfig>,
     /// The seed of the injected faults.
     pub fault_seed: u64,
+    /// How long this node's end may hear nothing from the other node before the link counts
+    /// as lost and its robot goes neutral, ms (0: two communication periods).
+    pub link_timeout_ms: u64,
 }
 
 impl Default for TeleopConfig {
@@ -75,6 +79,7 @@ impl Default for TeleopConfig {
             peer: None,
             faults: None,
             fault_seed: 1,
+            link_timeout_ms: 0,
         }
     }
 }
@@ -96,6 +101,9 @@ rotation_rpy_deg = [0.0, 0.0, 0.0]  # master base frame -> slave base frame
 # faults = { delay_ms = 5.0, jitter_ms = 2.0, loss = 0.01, duplicate = 0.0, reorder = 0.0,
 #            outages = [{ from_s = 10.0, to_s = 12.0 }] }   # injected into what this end sends
 # fault_seed = 1
+# link_timeout_ms = 0               # silence before the link counts as lost and the robot goes
+#                                   # neutral (slave holds, master no force); 0: two T_com.
+#                                   # Above the link's jitter: each loss re-anchors the motion
 "#;
 
 impl TeleopConfig {
@@ -127,6 +135,12 @@ impl TeleopConfig {
             return Err(bad("`rotation_rpy_deg` must be finite".into()));
         }
         let plane = self.data_plane(kind)?;
+        if self.link_timeout_ms > 10_000 {
+            return Err(bad(format!(
+                "`link_timeout_ms` = {} is outside 0..=10000",
+                self.link_timeout_ms
+            )));
+        }
         if let Some(f) = &self.faults {
             if plane.is_none() {
                 return Err(bad(
@@ -164,6 +178,15 @@ impl TeleopConfig {
         }
     }
 
+    /// How long the link may be silent before it counts as lost, for a communication period
+    /// `comm_period`.
+    pub fn link_timeout(&self, comm_period: Duration) -> Duration {
+        match self.link_timeout_ms {
+            0 => comm_period * 2,
+            ms => Duration::from_millis(ms),
+        }
+    }
+
     /// The workspace mapping.
     pub fn mapping(&self) -> MappingConfig {
         let [r, p, y] = self.rotation_rpy_deg.map(f64::to_radians);
@@ -198,6 +221,13 @@ pub struct TeleopComm {
     /// When the newest sample of the other side arrived (this node's clock): the stamp of the
     /// references, so that a silent other side makes them stale and the loop's watchdog acts.
     received_at: Option<Timestamp>,
+    /// For an end linked to another node: how long the other side may be silent before the
+    /// link counts as lost and this robot goes neutral (a slave holds, a master displays no
+    /// force) without waiting for the loop's watchdog.
+    link_timeout: Option<Duration>,
+    /// While the link is lost: the pose this robot had when it was (a slave holds it); neutral
+    /// references until the other side is heard again.
+    lost_at: Option<Pose>,
 }
 
 impl TeleopComm {
@@ -232,6 +262,8 @@ impl TeleopComm {
             sensor_mount: None,
             started: false,
             received_at: None,
+            link_timeout: None,
+            lost_at: None,
         })
     }
 
@@ -245,6 +277,13 @@ impl TeleopComm {
     /// frame (readings in the sensor frame, the robot pushing on the world).
     pub fn with_sensor_mount(mut self, mount: Option<Pose>) -> Self {
         self.sensor_mount = mount;
+        self
+    }
+
+    /// Goes neutral when an end linked to another node hears nothing for `timeout` (ends on
+    /// cells ignore it).
+    pub fn with_link_timeout(mut self, timeout: Duration) -> Self {
+        self.link_timeout = self.end.health.is_some().then_some(timeout);
         self
     }
 
@@ -341,11 +380,44 @@ impl TeleopComm {
             clutch,
             reference,
         });
-        if let Some(received) = self.end.take_newest(now)
-            && self.channel.receive(received).is_ok()
+        let received = self.end.take_newest(now);
+        if let Some(sample) = received {
+            if self.lost_at.take().is_some() {
+                // Heard again: resume from where this robot is, re-anchored as after the
+                // clutch, so nothing jumps.
+                if let Some(h) = &self.end.health {
+                    h.note_restored();
+                }
+                self.channel.reset();
+                penelope_hal::Trajectory::start(
+                    &mut self.channel,
+                    now,
+                    &Reference::Cartesian(CartesianReference {
+                        pose,
+                        twist: Twist::default(),
+                    }),
+                );
+            }
+            if self.channel.receive(sample).is_ok() {
+                // (A stale or malformed sample is counted by the channel and dropped.)
+                self.received_at = Some(now);
+            }
+        }
+        if let (Some(timeout), Some(at)) = (self.link_timeout, self.received_at)
+            && now.saturating_since(at) >= timeout
         {
-            // (A stale or malformed sample is counted by the channel and dropped.)
-            self.received_at = Some(now);
+            let held = *self.lost_at.get_or_insert_with(|| {
+                if let Some(h) = &self.end.health {
+                    h.note_lost();
+                }
+                pose
+            });
+            // Neutral and fresh: the slave holds where it was, the master displays no force.
+            out.write(Stamped {
+                stamp: now,
+                value: neutral(self.end.side, &held, &pose),
+            });
+            return;
         }
         // Stamped with the arrival of what it is made of: when the other side goes silent the
         // reference ages, and the loop holds (slave) or displays zero force (master).
@@ -355,6 +427,27 @@ impl TeleopComm {
         {
             out.write(Stamped { stamp, value: r });
         }
+    }
+}
+
+/// What a side follows while its link is lost: the slave the pose it had when the link was
+/// lost (it holds), the master its present pose and no wrench (a position-error master's
+/// spring is slack, a force display shows nothing).
+fn neutral(side: Side, held: &Pose, now: &Pose) -> Reference {
+    let at = |pose: &Pose| CartesianReference {
+        pose: *pose,
+        twist: Twist::default(),
+    };
+    match side {
+        Side::Slave => Reference::Cartesian(at(held)),
+        Side::Master => Reference::Hybrid(HybridReference {
+            motion: at(now),
+            wrench: Wrench {
+                frame: Frame::Base,
+                ..Wrench::default()
+            },
+            force_axes: [true; 6],
+        }),
     }
 }
 

@@ -4,6 +4,8 @@
 //! communication thread that holds the end does the I/O; the control thread never does.
 
 use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use penelope_hal::{Reference, Timestamp};
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, latest};
@@ -70,10 +72,44 @@ enum LinkDatagram {
     },
 }
 
+/// The health of a channel's link to another node, shared between the communication thread
+/// that runs the end (which writes it) and the channel object (which shows it).
+#[derive(Debug, Default)]
+pub struct LinkHealth {
+    down: AtomicBool,
+    losses: AtomicU64,
+    restorations: AtomicU64,
+}
+
+impl LinkHealth {
+    /// Notes that the other side went silent (a safety event: this robot is now neutral).
+    pub fn note_lost(&self) {
+        self.down.store(true, Ordering::Relaxed);
+        self.losses.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Notes that the other side is heard again (motion resumes, re-anchored).
+    pub fn note_restored(&self) {
+        self.down.store(false, Ordering::Relaxed);
+        self.restorations.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// `(down, losses, restorations)`.
+    pub fn snapshot(&self) -> (bool, u64, u64) {
+        (
+            self.down.load(Ordering::Relaxed),
+            self.losses.load(Ordering::Relaxed),
+            self.restorations.load(Ordering::Relaxed),
+        )
+    }
+}
+
 /// One side's end of the channel.
 pub struct TeleopEnd {
     /// Its side.
     pub side: Side,
+    /// The link's health, for an end linked to another node.
+    pub health: Option<Arc<LinkHealth>>,
     transport: Transport,
     /// The sequence number of the last sample sent: kept with the end, so that a loop
     /// re-activated on it goes on numbering and the other side (newest wins) takes its samples.
@@ -165,6 +201,7 @@ impl TeleopEnd {
         };
         Ok(TeleopEnd {
             side,
+            health: Some(Arc::default()),
             transport: Transport::DataPlane(Box::new(RemoteLink {
                 endpoint,
                 peer,
@@ -318,6 +355,8 @@ pub struct TeleopLink {
     pub slave: Option<TeleopEnd>,
     /// Which ends are on this node (the others are on another node).
     local: (bool, bool),
+    /// The health of this node's end's link to another node, if it has one.
+    health: Option<Arc<LinkHealth>>,
 }
 
 impl TeleopLink {
@@ -328,6 +367,7 @@ impl TeleopLink {
         TeleopLink {
             master: Some(TeleopEnd {
                 side: Side::Master,
+                health: None,
                 transport: Transport::Cells {
                     send: m2s_w,
                     receive: s2m_r,
@@ -336,6 +376,7 @@ impl TeleopLink {
             }),
             slave: Some(TeleopEnd {
                 side: Side::Slave,
+                health: None,
                 transport: Transport::Cells {
                     send: s2m_w,
                     receive: m2s_r,
@@ -343,6 +384,7 @@ impl TeleopLink {
                 sent: 0,
             }),
             local: (true, true),
+            health: None,
         }
     }
 
@@ -353,9 +395,15 @@ impl TeleopLink {
             master: None,
             slave: None,
             local: (side == Side::Master, side == Side::Slave),
+            health: end.health.clone(),
         };
         link.put_back(end);
         link
+    }
+
+    /// The health of the link to another node (`None` for a channel on this node).
+    pub fn health(&self) -> Option<&LinkHealth> {
+        self.health.as_deref()
     }
 
     /// Whether `side`'s end lives on this node.

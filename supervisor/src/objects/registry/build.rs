@@ -150,7 +150,11 @@ impl Registry {
                     )),
                     (Body::Teleop(t), Some(side)) => {
                         check_teleop_end(&traj_name, t, side, &robot_name)?;
-                        LoopSource::Teleop(side, t.config.mapping())
+                        LoopSource::Teleop(
+                            side,
+                            t.config.mapping(),
+                            t.config.link_timeout(timing.comm_period),
+                        )
                     }
                     (Body::Teleop(_), None) => {
                         return Err(bad_arg(format!(
@@ -309,7 +313,7 @@ impl Registry {
                 goto_r,
                 kinematics.clone(),
             )?,
-            LoopSource::Teleop(side, mapping) => {
+            LoopSource::Teleop(side, mapping, link_timeout) => {
                 // The master's clutch is its operator's hand's button, if a hand holds it.
                 let clutch = self.objects.values().find_map(|o| match &o.body {
                     Body::Hand(h) if side == Side::Master && h.config.robot == robot_name => {
@@ -331,7 +335,8 @@ impl Registry {
                 crate::objects::runtime::CommTask::teleop(
                     TeleopComm::new(end, mapping, kinematics.clone())?
                         .with_clutch(clutch)
-                        .with_sensor_mount(plant_sensor.map(|c| c.mount)),
+                        .with_sensor_mount(plant_sensor.map(|c| c.mount))
+                        .with_link_timeout(link_timeout),
                     ref_w,
                     comm_r,
                     goto_r,
@@ -512,8 +517,13 @@ pub(super) fn default_joint_gains(model: &DhRobotModel, n: usize) -> (JointVecto
 enum LoopSource {
     /// A trajectory.
     Trajectory(TrajectoryFeed),
-    /// One end of a teleoperation channel, and the channel's mapping.
-    Teleop(Side, penelope_rt_core::teleop::MappingConfig),
+    /// One end of a teleoperation channel, the channel's mapping, and how long its link to
+    /// another node may be silent.
+    Teleop(
+        Side,
+        penelope_rt_core::teleop::MappingConfig,
+        std::time::Duration,
+    ),
     /// One trajectory per joint group.
     Groups(Vec<(JointSet, TrajectoryFeed)>),
 }

@@ -220,6 +220,17 @@ impl Object {
             Body::Teleop(t) => {
                 relations.push(("master".to_string(), t.config.master.clone()));
                 relations.push(("slave".to_string(), t.config.slave.clone()));
+                if let Some(h) = t.link.as_ref().and_then(|l| l.health()) {
+                    let (down, losses, restorations) = h.snapshot();
+                    let peer = t.config.peer.clone().unwrap_or_default();
+                    relations.push((
+                        "link".to_string(),
+                        format!(
+                            "{} to {peer}, lost {losses} times, restored {restorations} times",
+                            if down { "down" } else { "up" }
+                        ),
+                    ));
+                }
             }
             Body::Controller(c) => {
                 for (k, v) in [
