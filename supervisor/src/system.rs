@@ -15,6 +15,7 @@
 //! priority = 80                         # SCHED_FIFO priority of control threads (0: normal)
 //! cpu = 1                               # pin them to this CPU
 //! lock_memory = false                   # mlockall before the first tick
+//! data_plane = "127.0.0.1:7410"         # where a channel to a robot on another node binds
 //!
 //! [boards.puma-io]                      # <class>.<name>: boards, robots, sensors,
 //! kind = "sim"                          #   trajectories, controllers; `kind` without the class
@@ -71,6 +72,10 @@ pub struct NodePolicy {
     pub cpu: Option<usize>,
     /// `mlockall` before the first tick.
     pub lock_memory: Option<bool>,
+    /// The node's data-plane address: a teleoperation channel between a robot on this node
+    /// and one on another binds it (the file's first such channel on this port, the next on
+    /// the port after, and so on).
+    pub data_plane: Option<std::net::SocketAddr>,
 }
 
 impl NodePolicy {
@@ -257,6 +262,7 @@ impl SystemFile {
             specs.sort_by_key(|s| s.line);
             objects.extend(specs);
         }
+        split_cross_node_channels(&mut objects, &nodes)?;
         // With several nodes, every object says where it lives.
         let named: Vec<&str> = objects
             .iter()
@@ -454,6 +460,96 @@ fn group_members<'a>(objects: &[&'a ObjectSpec]) -> Vec<&'a str> {
         }
     }
     members
+}
+
+/// Puts each teleoperation channel whose master and slave robots are on different nodes on
+/// both nodes, each copy with `listen` (its node's data-plane address) and `peer` (the other
+/// node's), unless the file set them itself.
+fn split_cross_node_channels(
+    objects: &mut Vec<ObjectSpec>,
+    nodes: &BTreeMap<String, NodePolicy>,
+) -> Result<(), SystemFileError> {
+    let robot_node = |name: &str| {
+        objects
+            .iter()
+            .find(|o| o.kind.starts_with("robot/") && o.name == name)
+            .map(|o| o.node.clone())
+    };
+    let mut split = Vec::new();
+    let mut crossing = 0u16;
+    for (i, o) in objects.iter().enumerate() {
+        if o.kind != "trajectory/teleop" {
+            continue;
+        }
+        let Ok(config) = o.config.parse::<toml::Table>() else {
+            continue;
+        };
+        if config.contains_key("listen") || config.contains_key("peer") {
+            continue;
+        }
+        let side = |k: &str| {
+            config
+                .get(k)
+                .and_then(toml::Value::as_str)
+                .and_then(robot_node)
+        };
+        let (Some(master), Some(slave)) = (side("master"), side("slave")) else {
+            continue;
+        };
+        if master == slave || master.is_empty() || slave.is_empty() {
+            continue;
+        }
+        let key = format!("trajectories.{}", o.name);
+        let address = |node: &str| {
+            let base = nodes.get(node).and_then(|p| p.data_plane).ok_or_else(|| {
+                SystemFileError::Invalid {
+                    line: o.line,
+                    key: key.clone(),
+                    message: format!(
+                        "its master and slave are on nodes `{master}` and `{slave}`: \
+                         [nodes.{node}] needs `data_plane = \"host:port\"`"
+                    ),
+                }
+            })?;
+            let port =
+                base.port()
+                    .checked_add(crossing)
+                    .ok_or_else(|| SystemFileError::Invalid {
+                        line: o.line,
+                        key: format!("nodes.{node}.data_plane"),
+                        message: "no port left for this channel".into(),
+                    })?;
+            Ok::<_, SystemFileError>(std::net::SocketAddr::new(base.ip(), port))
+        };
+        let (m, s) = (address(&master)?, address(&slave)?);
+        crossing += 1;
+        for (node, listen, peer) in [(&master, m, s), (&slave, s, m)] {
+            let mut copy = o.clone();
+            let mut table = config.clone();
+            table.insert("listen".into(), listen.to_string().into());
+            table.insert("peer".into(), peer.to_string().into());
+            copy.config = toml::to_string(&table).map_err(|e| SystemFileError::Invalid {
+                line: o.line,
+                key: key.clone(),
+                message: e.to_string(),
+            })?;
+            copy.node = node.clone();
+            split.push((i, copy));
+        }
+    }
+    // Each split channel gives way to its two copies, in place (file order is kept).
+    let mut copies: BTreeMap<usize, Vec<ObjectSpec>> = BTreeMap::new();
+    for (i, copy) in split {
+        copies.entry(i).or_default().push(copy);
+    }
+    let all = std::mem::take(objects);
+    for (i, o) in all.into_iter().enumerate() {
+        match copies.remove(&i) {
+            Some(c) => objects.extend(c),
+            None => objects.push(o),
+        }
+    }
+    Ok(())
 }
 
 /// The system-file class key of a `class/kind`.

@@ -316,3 +316,72 @@ fn a_link_cut_in_contact_holds_the_slave_and_the_master_lets_go_then_resumes_wit
     a.shutdown();
     b.shutdown();
 }
+
+/// The two-node system file (`config/demo-two-nodes.toml`, the paper's two-PC layout) run by
+/// `penelope demo`'s runner on the simulated clock: the demo's bounds hold across the data
+/// plane, and the figures are the one-node run's to within a few hundredths.
+#[test]
+fn the_two_node_demo_file_meets_the_demos_bounds() {
+    use penelope_supervisor::runs::report::report;
+    use penelope_supervisor::runs::{Law, RunOptions, run};
+    let options = |file: &str| {
+        let system = SystemFile::parse(file).expect("a valid system file");
+        let options = RunOptions {
+            duration: None,
+            law: Some(Law::ForcePosition),
+            scale: None,
+            seed: 1,
+            clock: ClockMode::Simulated,
+        };
+        report(&run(&system, &options, &mut |_| {}).expect("the system runs"))
+    };
+    let two = options(include_str!("../../config/demo-two-nodes.toml"));
+    let one = options(DEMO_SYSTEM);
+    println!(
+        "two nodes: tracking {:.3} mm RMS (one node {:.3}), display {:.2}% off (one node {:.2}%)",
+        two.tracking.rms_mm,
+        one.tracking.rms_mm,
+        two.contact.display_error_pct,
+        one.contact.display_error_pct
+    );
+    assert!(two.faults.is_empty(), "{:?}", two.faults);
+    assert!(two.tracking.samples > 5_000 && two.tracking.rms_mm < 2.0);
+    assert!(two.contact.samples > 500 && two.contact.display_error_pct < 5.0);
+    assert!((two.tracking.rms_mm - one.tracking.rms_mm).abs() < 0.05);
+}
+
+#[test]
+fn a_channel_between_nodes_of_one_file_lands_on_both_with_their_addresses() {
+    let file = SystemFile::parse(include_str!("../../config/demo-two-nodes.toml")).unwrap();
+    let copies: Vec<_> = file
+        .objects
+        .iter()
+        .filter(|o| o.name == "link")
+        .map(|o| (o.node.as_str(), o.config.clone()))
+        .collect();
+    assert_eq!(copies.len(), 2, "{copies:?}");
+    for (node, listen, peer) in [
+        ("master", "127.0.0.1:7410", "127.0.0.1:7420"),
+        ("slave", "127.0.0.1:7420", "127.0.0.1:7410"),
+    ] {
+        let (_, config) = copies.iter().find(|(n, _)| *n == node).expect(node);
+        assert!(
+            config.contains(&format!("listen = \"{listen}\"")),
+            "{config}"
+        );
+        assert!(config.contains(&format!("peer = \"{peer}\"")), "{config}");
+    }
+    // Without a node's data-plane address, the file says which node needs one.
+    let text = include_str!("../../config/demo-two-nodes.toml")
+        .replace("data_plane = \"127.0.0.1:7420\"", "");
+    match SystemFile::parse(&text) {
+        Err(SystemFileError::Invalid { key, message, .. }) => {
+            assert_eq!(key, "trajectories.link");
+            assert!(
+                message.contains("[nodes.slave] needs `data_plane"),
+                "{message}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+}

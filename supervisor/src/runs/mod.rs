@@ -495,11 +495,23 @@ fn run_on(
         let by = step.min(duration - elapsed);
         match info.clock {
             ClockMode::Simulated => {
-                for n in &nodes.nodes {
-                    n.creator().advance(by).map_err(|error| RunError::Node {
-                        what: "advancing the simulated clock".into(),
-                        error,
-                    })?;
+                // Nodes exchange samples between their loops' ticks (the data plane), so
+                // several nodes move on together, one millisecond at a time.
+                let tick = if nodes.nodes.len() > 1 {
+                    Duration::from_millis(1)
+                } else {
+                    by
+                };
+                let mut moved = Duration::ZERO;
+                while moved < by {
+                    let sub = tick.min(by - moved);
+                    for n in &nodes.nodes {
+                        n.creator().advance(sub).map_err(|error| RunError::Node {
+                            what: "advancing the simulated clock".into(),
+                            error,
+                        })?;
+                    }
+                    moved += sub;
                 }
                 elapsed += by;
             }
