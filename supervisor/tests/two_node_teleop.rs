@@ -1,7 +1,7 @@
-//! The demo's task with the master and the slave on two nodes, their channel crossing the data
-//! plane (UDP on loopback, authenticated with the nodes' secret): both nodes on simulated
-//! clocks stepped in turn, 1 ms at a time, against the same task on one node. The robots move
-//! the same way to within a fraction of a millimetre, and the link counts its datagrams.
+//! The demo's task with the master and the slave on two nodes (`config/demo-two-nodes.toml`),
+//! their channel crossing the data plane (UDP on loopback, authenticated with the nodes'
+//! secret): both nodes on simulated clocks stepped in turn, 1 ms at a time, against the same
+//! task on one node; with injected loss and jitter; with the link cut in contact.
 
 use std::net::UdpSocket;
 use std::time::Duration;
@@ -14,49 +14,25 @@ use penelope_supervisor::proto::{
 use penelope_supervisor::runs::DEMO_SYSTEM;
 use penelope_supervisor::system::{SystemFile, SystemFileError};
 
-/// The demo's system file cut in two: the master's objects for node `a`, the slave's for `b`,
-/// the channel on both with each one's data-plane address.
-fn halves(a_port: u16, b_port: u16, faults: &str) -> (String, String) {
-    // Sections by their header line (the preamble has none).
-    let mut sections: Vec<(String, String)> = vec![(String::new(), String::new())];
-    for line in DEMO_SYSTEM.lines() {
-        if let Some(rest) = line.strip_prefix('[') {
-            let head = rest.split(']').next().unwrap_or_default().to_string();
-            sections.push((head, String::new()));
-        }
-        let last = sections.last_mut().expect("one section at least");
-        last.1.push_str(line);
-        last.1.push('\n');
-    }
-    let (mut a, mut b) = (String::new(), String::new());
-    for (head, text) in &sections {
-        match head.as_str() {
-            "" | "timing" => {
-                a.push_str(text);
-                b.push_str(text);
-            }
-            "nodes.lab" => {
-                a.push_str("[nodes.a]\n");
-                b.push_str("[nodes.b]\n");
-            }
-            "trajectories.link" => {
-                let data_plane = |here: u16, there: u16, seed: u32| {
-                    format!(
-                        "listen = \"127.0.0.1:{here}\"\npeer = \"127.0.0.1:{there}\"\n{faults}\n\
-                         fault_seed = {seed}\n"
-                    )
-                };
-                a.push_str(&format!("{text}{}", data_plane(a_port, b_port, 1)));
-                b.push_str(&format!("{text}{}", data_plane(b_port, a_port, 2)));
-            }
-            "boards.frhc-io"
-            | "sensors.hand"
-            | "robots.frhc"
-            | "controllers.display"
-            | "controllers.position-error" => a.push_str(text),
-            _ => b.push_str(text),
-        }
-    }
+/// The demo's two-node system (`config/demo-two-nodes.toml`: the FRHC on node `master`, the
+/// PUMA on node `slave`) on free ports, with `channel` (faults, a link timeout) added to the
+/// channel's keys.
+fn two_nodes(channel: &str) -> String {
+    include_str!("../../config/demo-two-nodes.toml")
+        .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", free_port()))
+        .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", free_port()))
+        .replace(
+            "[trajectories.link]\n",
+            &format!("[trajectories.link]\n{channel}\n"),
+        )
+}
+
+/// The master's node and the slave's, with the two-node system applied.
+fn master_and_slave(channel: &str, secret: Option<&[u8]>) -> (Node, Node) {
+    let file = SystemFile::parse(&two_nodes(channel)).expect("a valid system file");
+    let (a, b) = (node("master", secret), node("slave", secret));
+    file.apply(&a).expect("the master's half");
+    file.apply(&b).expect("the slave's half");
     (a, b)
 }
 
@@ -119,16 +95,7 @@ fn against_one_node(faults: &str) -> (f64, f64, f64) {
         .unwrap()
         .apply(&one)
         .expect("the demo on one node");
-    let (a_text, b_text) = halves(free_port(), free_port(), faults);
-    let (a, b) = (node("a", Some(secret)), node("b", Some(secret)));
-    SystemFile::parse(&a_text)
-        .unwrap_or_else(|e| panic!("{e}\n{a_text}"))
-        .apply(&a)
-        .expect("the master's half");
-    SystemFile::parse(&b_text)
-        .unwrap_or_else(|e| panic!("{e}\n{b_text}"))
-        .apply(&b)
-        .expect("the slave's half");
+    let (a, b) = master_and_slave(faults, Some(secret));
 
     let step = Duration::from_millis(1);
     let (mut master_err, mut slave_err, mut samples) = (0.0f64, 0.0f64, 0usize);
@@ -182,10 +149,9 @@ fn with_one_percent_loss_and_five_milliseconds_of_jitter_the_task_still_complete
 
 #[test]
 fn a_channel_to_another_node_is_checked_at_configure() {
-    let (a_text, _) = halves(free_port(), free_port(), "");
     // Off loopback without a secret: refused, nothing left.
-    let a = node("a", None);
-    let text = a_text.replace("peer = \"127.0.0.1:", "peer = \"192.0.2.1:");
+    let a = node("master", None);
+    let text = two_nodes("").replace("data_plane = \"127.0.0.1:", "data_plane = \"192.0.2.1:");
     match SystemFile::parse(&text).unwrap().apply(&a) {
         Err(SystemFileError::Step { key, error, .. }) => {
             assert_eq!(key, "trajectories.link");
@@ -193,14 +159,12 @@ fn a_channel_to_another_node_is_checked_at_configure() {
         }
         other => panic!("{other:?}"),
     }
+    assert!(a.creator().list().is_empty());
     // Only one of listen and peer.
-    let text = a_text.replace("peer = \"127.0.0.1:", "# peer = \"127.0.0.1:");
+    let half = "master = \"frhc\"\nslave = \"puma\"\nlisten = \"127.0.0.1:9\"";
     assert!(matches!(
-        SystemFile::parse(&text).unwrap().apply(&a),
-        Err(SystemFileError::Step {
-            error: WireError::BadConfig { .. },
-            ..
-        })
+        a.creator().create("trajectory/teleop", "half", half),
+        Err(WireError::BadConfig { .. })
     ));
     a.shutdown();
 }
@@ -212,10 +176,7 @@ fn a_link_cut_in_contact_holds_the_slave_and_the_master_lets_go_then_resumes_wit
     // sample heard.
     let cut = "faults = { outages = [{ from_s = 13.0, to_s = 13.5 }] }";
     let secret = b"two-node test secret".as_slice();
-    let (a_text, b_text) = halves(free_port(), free_port(), cut);
-    let (a, b) = (node("a", Some(secret)), node("b", Some(secret)));
-    SystemFile::parse(&a_text).unwrap().apply(&a).unwrap();
-    SystemFile::parse(&b_text).unwrap().apply(&b).unwrap();
+    let (a, b) = master_and_slave(cut, Some(secret));
     let step = |n: u32| {
         for _ in 0..n {
             a.creator().advance(Duration::from_millis(1)).unwrap();
