@@ -287,6 +287,18 @@ impl TeleopComm {
         self
     }
 
+    /// Starts (or starts again) the channel from this robot's tool pose `pose`.
+    fn start_channel(&mut self, now: Timestamp, pose: &Pose) {
+        penelope_hal::Trajectory::start(
+            &mut self.channel,
+            now,
+            &Reference::Cartesian(CartesianReference {
+                pose: *pose,
+                twist: Twist::default(),
+            }),
+        );
+    }
+
     /// The end, given back when the loop stops.
     pub fn into_end(mut self) -> TeleopEnd {
         self.end.set_sent(self.sequence);
@@ -314,14 +326,7 @@ impl TeleopComm {
         };
         let pose = self.model.forward(&sample.q);
         if !self.started {
-            penelope_hal::Trajectory::start(
-                &mut self.channel,
-                now,
-                &Reference::Cartesian(CartesianReference {
-                    pose,
-                    twist: Twist::default(),
-                }),
-            );
+            self.start_channel(now, &pose);
             self.started = true;
         }
         self.sequence += 1;
@@ -389,14 +394,7 @@ impl TeleopComm {
                     h.note_restored();
                 }
                 self.channel.reset();
-                penelope_hal::Trajectory::start(
-                    &mut self.channel,
-                    now,
-                    &Reference::Cartesian(CartesianReference {
-                        pose,
-                        twist: Twist::default(),
-                    }),
-                );
+                self.start_channel(now, &pose);
             }
             if self.channel.receive(sample).is_ok() {
                 // (A stale or malformed sample is counted by the channel and dropped.)
