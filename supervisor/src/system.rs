@@ -36,6 +36,11 @@
 //! active = true                         # activate at start (the default)
 //! ```
 //!
+//! A `trajectory/teleop` whose master and slave robots are on different nodes is placed on both
+//! (leave out its `node`), each copy with `listen` at its node's `data_plane` address and `peer`
+//! at the other's (the file's second such channel takes the next port of each, and so on); its
+//! samples cross on the data plane.
+//!
 //! Order of work: every object is created (boards, sensors, robots, trajectories, controllers;
 //! in file order within a class), then related, then configured in the same order (so a hand
 //! exists before the robot it holds is configured, and robots before the channel between them),
