@@ -71,14 +71,19 @@ fn tool(node: &Node, controller: &str) -> [f64; 3] {
     last(node, controller).tool_position
 }
 
-/// What the channel object says of its link (`up to ADDR, lost N times, restored M times`).
-fn link(node: &Node) -> String {
+/// What the channel object says of its link: `link` (`up to ADDR, lost N times, restored M
+/// times`) or `link-stats`.
+fn relation(node: &Node, key: &str) -> String {
     let info = node.creator().info("link").expect("the channel");
     info.relations
         .iter()
-        .find(|(k, _)| k == "link")
+        .find(|(k, _)| k == key)
         .map(|(_, v)| v.clone())
         .expect("a channel to another node shows its link")
+}
+
+fn link(node: &Node) -> String {
+    relation(node, "link")
 }
 
 fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -274,6 +279,19 @@ fn a_link_cut_in_contact_holds_the_slave_and_the_master_lets_go_then_resumes_wit
     step(6_500); // the rest of the script, without a fault
     last(&b, "follow");
     last(&a, "display");
+    // 20 s at one sample per 2 ms, less the cut; nothing refused; the heartbeats saw the cut.
+    for n in [&a, &b] {
+        let stats = relation(n, "link-stats");
+        println!("{}: {stats}", n.name());
+        let taken: u64 = stats
+            .split(' ')
+            .next()
+            .and_then(|x| x.parse().ok())
+            .expect("a count");
+        assert!((9_500..=10_000).contains(&taken), "{stats}");
+        assert!(stats.contains(" 0 datagrams refused"), "{stats}");
+        assert!(!stats.contains("heartbeats lost 0.0%"), "{stats}");
+    }
     a.shutdown();
     b.shutdown();
 }

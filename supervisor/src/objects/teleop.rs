@@ -386,6 +386,9 @@ impl TeleopComm {
             reference,
         });
         let received = self.end.take_newest(now);
+        if let (Some(h), Some(stats)) = (&self.end.health, self.end.link_stats()) {
+            h.note_stats(&stats);
+        }
         if let Some(sample) = received {
             if self.lost_at.take().is_some() {
                 // Heard again: resume from where this robot is, re-anchored as after the

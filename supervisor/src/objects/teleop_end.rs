@@ -5,7 +5,7 @@
 
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
 
 use penelope_hal::{Reference, Timestamp};
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, latest};
@@ -79,6 +79,37 @@ pub struct LinkHealth {
     down: AtomicBool,
     losses: AtomicU64,
     restorations: AtomicU64,
+    /// The other node's clock minus this one's, ns (`i64::MIN`: not known yet).
+    offset_ns: AtomicI64,
+    /// The heartbeats' round trip, ns (`i64::MIN`: not known yet).
+    round_trip_ns: AtomicI64,
+    /// Heartbeats unanswered, parts per million.
+    heartbeat_loss_ppm: AtomicU64,
+    /// Samples taken from the other side, and datagrams refused (bad tag, wrong
+    /// authentication, malformed, from a stranger).
+    taken: AtomicU64,
+    refused: AtomicU64,
+}
+
+/// What [`LinkHealth::snapshot`] reads.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LinkReport {
+    /// The link is lost.
+    pub down: bool,
+    /// Times it was lost.
+    pub losses: u64,
+    /// Times it came back.
+    pub restorations: u64,
+    /// The other node's clock minus this one's, ns, once heartbeats know it.
+    pub clock_offset_ns: Option<i64>,
+    /// The heartbeats' round trip, ns.
+    pub round_trip_ns: Option<i64>,
+    /// The share of heartbeats unanswered.
+    pub heartbeat_loss: f64,
+    /// Samples taken from the other side.
+    pub taken: u64,
+    /// Datagrams refused.
+    pub refused: u64,
 }
 
 impl LinkHealth {
@@ -94,13 +125,39 @@ impl LinkHealth {
         self.restorations.fetch_add(1, Ordering::Relaxed);
     }
 
-    /// `(down, losses, restorations)`.
-    pub fn snapshot(&self) -> (bool, u64, u64) {
-        (
-            self.down.load(Ordering::Relaxed),
-            self.losses.load(Ordering::Relaxed),
-            self.restorations.load(Ordering::Relaxed),
-        )
+    /// Publishes the link's counters and clock estimate (each communication tick).
+    ///
+    /// # Real-time
+    /// A few relaxed atomic stores.
+    pub fn note_stats(&self, stats: &LinkStats) {
+        let known = |v: Option<i64>| v.unwrap_or(i64::MIN);
+        self.offset_ns
+            .store(known(stats.clock_offset_ns), Ordering::Relaxed);
+        self.round_trip_ns
+            .store(known(stats.round_trip_ns), Ordering::Relaxed);
+        self.heartbeat_loss_ppm
+            .store((stats.heartbeat_loss * 1e6) as u64, Ordering::Relaxed);
+        self.taken.store(stats.stream.accepted, Ordering::Relaxed);
+        let e = stats.endpoint;
+        self.refused.store(
+            e.bad_tag + e.wrong_authentication + e.malformed + stats.strangers,
+            Ordering::Relaxed,
+        );
+    }
+
+    /// The link as last published.
+    pub fn snapshot(&self) -> LinkReport {
+        let known = |v: i64| (v != i64::MIN).then_some(v);
+        LinkReport {
+            down: self.down.load(Ordering::Relaxed),
+            losses: self.losses.load(Ordering::Relaxed),
+            restorations: self.restorations.load(Ordering::Relaxed),
+            clock_offset_ns: known(self.offset_ns.load(Ordering::Relaxed)),
+            round_trip_ns: known(self.round_trip_ns.load(Ordering::Relaxed)),
+            heartbeat_loss: self.heartbeat_loss_ppm.load(Ordering::Relaxed) as f64 / 1e6,
+            taken: self.taken.load(Ordering::Relaxed),
+            refused: self.refused.load(Ordering::Relaxed),
+        }
     }
 }
 
@@ -199,9 +256,14 @@ impl TeleopEnd {
             Some((config, seed)) => Some(FaultyLink::new(config, seed, FAULTY_CAPACITY)?),
             None => None,
         };
+        let health = LinkHealth {
+            offset_ns: AtomicI64::new(i64::MIN),
+            round_trip_ns: AtomicI64::new(i64::MIN),
+            ..LinkHealth::default()
+        };
         Ok(TeleopEnd {
             side,
-            health: Some(Arc::default()),
+            health: Some(Arc::new(health)),
             transport: Transport::DataPlane(Box::new(RemoteLink {
                 endpoint,
                 peer,

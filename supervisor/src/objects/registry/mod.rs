@@ -221,13 +221,32 @@ impl Object {
                 relations.push(("master".to_string(), t.config.master.clone()));
                 relations.push(("slave".to_string(), t.config.slave.clone()));
                 if let Some(h) = t.link.as_ref().and_then(|l| l.health()) {
-                    let (down, losses, restorations) = h.snapshot();
+                    let r = h.snapshot();
                     let peer = t.config.peer.clone().unwrap_or_default();
+                    let micros = |v: Option<i64>| {
+                        v.map_or("unknown".to_string(), |ns| {
+                            format!("{:.1} µs", ns as f64 / 1e3)
+                        })
+                    };
                     relations.push((
                         "link".to_string(),
                         format!(
-                            "{} to {peer}, lost {losses} times, restored {restorations} times",
-                            if down { "down" } else { "up" }
+                            "{} to {peer}, lost {} times, restored {} times",
+                            if r.down { "down" } else { "up" },
+                            r.losses,
+                            r.restorations
+                        ),
+                    ));
+                    relations.push((
+                        "link-stats".to_string(),
+                        format!(
+                            "{} samples taken, {} datagrams refused, clock offset {}, round \
+                             trip {}, heartbeats lost {:.1}%",
+                            r.taken,
+                            r.refused,
+                            micros(r.clock_offset_ns),
+                            micros(r.round_trip_ns),
+                            r.heartbeat_loss * 100.0
                         ),
                     ));
                 }
