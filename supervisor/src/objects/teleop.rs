@@ -283,7 +283,7 @@ impl TeleopComm {
     /// Goes neutral when an end linked to another node hears nothing for `timeout` (ends on
     /// cells ignore it).
     pub fn with_link_timeout(mut self, timeout: Duration) -> Self {
-        self.link_timeout = self.end.health.is_some().then_some(timeout);
+        self.link_timeout = self.end.is_remote().then_some(timeout);
         self
     }
 
@@ -386,16 +386,11 @@ impl TeleopComm {
             reference,
         });
         let received = self.end.take_newest(now);
-        if let (Some(h), Some(stats)) = (&self.end.health, self.end.link_stats()) {
-            h.note_stats(&stats);
-        }
         if let Some(sample) = received {
             if self.lost_at.take().is_some() {
                 // Heard again: resume from where this robot is, re-anchored as after the
                 // clutch, so nothing jumps.
-                if let Some(h) = &self.end.health {
-                    h.note_restored();
-                }
+                self.end.note_link(false);
                 self.channel.reset();
                 self.start_channel(now, &pose);
             }
@@ -407,12 +402,9 @@ impl TeleopComm {
         if let (Some(timeout), Some(at)) = (self.link_timeout, self.received_at)
             && now.saturating_since(at) >= timeout
         {
-            let held = *self.lost_at.get_or_insert_with(|| {
-                if let Some(h) = &self.end.health {
-                    h.note_lost();
-                }
-                pose
-            });
+            let held = *self.lost_at.get_or_insert(pose);
+            self.end.note_link(true);
+            self.end.publish_stats();
             // Neutral and fresh: the slave holds where it was, the master displays no force.
             out.write(Stamped {
                 stamp: now,
@@ -428,6 +420,7 @@ impl TeleopComm {
         {
             out.write(Stamped { stamp, value: r });
         }
+        self.end.publish_stats();
     }
 }
 

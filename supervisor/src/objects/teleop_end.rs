@@ -4,11 +4,14 @@
 //! communication thread that holds the end does the I/O; the control thread never does.
 
 use std::net::SocketAddr;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
+use std::sync::Mutex;
 
 use penelope_hal::{Reference, Timestamp};
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, latest};
+
+/// Where an end linked to another node publishes its [`LinkStats`] (read by the channel
+/// object for `describe`).
+type StatsWriter = ArcLatestWriter<LinkStats>;
 use penelope_rt_core::teleop::TeleopSample;
 
 use serde::{Deserialize, Serialize};
@@ -72,101 +75,10 @@ enum LinkDatagram {
     },
 }
 
-/// The health of a channel's link to another node, shared between the communication thread
-/// that runs the end (which writes it) and the channel object (which shows it).
-#[derive(Debug, Default)]
-pub struct LinkHealth {
-    down: AtomicBool,
-    losses: AtomicU64,
-    restorations: AtomicU64,
-    /// The other node's clock minus this one's, ns (`i64::MIN`: not known yet).
-    offset_ns: AtomicI64,
-    /// The heartbeats' round trip, ns (`i64::MIN`: not known yet).
-    round_trip_ns: AtomicI64,
-    /// Heartbeats unanswered, parts per million.
-    heartbeat_loss_ppm: AtomicU64,
-    /// Samples taken from the other side, and datagrams refused (bad tag, wrong
-    /// authentication, malformed, from a stranger).
-    taken: AtomicU64,
-    refused: AtomicU64,
-}
-
-/// What [`LinkHealth::snapshot`] reads.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LinkReport {
-    /// The link is lost.
-    pub down: bool,
-    /// Times it was lost.
-    pub losses: u64,
-    /// Times it came back.
-    pub restorations: u64,
-    /// The other node's clock minus this one's, ns, once heartbeats know it.
-    pub clock_offset_ns: Option<i64>,
-    /// The heartbeats' round trip, ns.
-    pub round_trip_ns: Option<i64>,
-    /// The share of heartbeats unanswered.
-    pub heartbeat_loss: f64,
-    /// Samples taken from the other side.
-    pub taken: u64,
-    /// Datagrams refused.
-    pub refused: u64,
-}
-
-impl LinkHealth {
-    /// Notes that the other side went silent (a safety event: this robot is now neutral).
-    pub fn note_lost(&self) {
-        self.down.store(true, Ordering::Relaxed);
-        self.losses.fetch_add(1, Ordering::Relaxed);
-    }
-
-    /// Notes that the other side is heard again (motion resumes, re-anchored).
-    pub fn note_restored(&self) {
-        self.down.store(false, Ordering::Relaxed);
-        self.restorations.fetch_add(1, Ordering::Relaxed);
-    }
-
-    /// Publishes the link's counters and clock estimate (each communication tick).
-    ///
-    /// # Real-time
-    /// A few relaxed atomic stores.
-    pub fn note_stats(&self, stats: &LinkStats) {
-        let known = |v: Option<i64>| v.unwrap_or(i64::MIN);
-        self.offset_ns
-            .store(known(stats.clock_offset_ns), Ordering::Relaxed);
-        self.round_trip_ns
-            .store(known(stats.round_trip_ns), Ordering::Relaxed);
-        self.heartbeat_loss_ppm
-            .store((stats.heartbeat_loss * 1e6) as u64, Ordering::Relaxed);
-        self.taken.store(stats.stream.accepted, Ordering::Relaxed);
-        let e = stats.endpoint;
-        self.refused.store(
-            e.bad_tag + e.wrong_authentication + e.malformed + stats.strangers,
-            Ordering::Relaxed,
-        );
-    }
-
-    /// The link as last published.
-    pub fn snapshot(&self) -> LinkReport {
-        let known = |v: i64| (v != i64::MIN).then_some(v);
-        LinkReport {
-            down: self.down.load(Ordering::Relaxed),
-            losses: self.losses.load(Ordering::Relaxed),
-            restorations: self.restorations.load(Ordering::Relaxed),
-            clock_offset_ns: known(self.offset_ns.load(Ordering::Relaxed)),
-            round_trip_ns: known(self.round_trip_ns.load(Ordering::Relaxed)),
-            heartbeat_loss: self.heartbeat_loss_ppm.load(Ordering::Relaxed) as f64 / 1e6,
-            taken: self.taken.load(Ordering::Relaxed),
-            refused: self.refused.load(Ordering::Relaxed),
-        }
-    }
-}
-
 /// One side's end of the channel.
 pub struct TeleopEnd {
     /// Its side.
     pub side: Side,
-    /// The link's health, for an end linked to another node.
-    pub health: Option<Arc<LinkHealth>>,
     transport: Transport,
     /// The sequence number of the last sample sent: kept with the end, so that a loop
     /// re-activated on it goes on numbering and the other side (newest wins) takes its samples.
@@ -199,11 +111,24 @@ struct RemoteLink {
     taken: u64,
     /// Datagrams from an address other than the peer's, dropped.
     strangers: u64,
+    /// The link is lost (the other side silent past the timeout), and how often it was lost
+    /// and came back: safety transitions, counted.
+    down: bool,
+    losses: u64,
+    restorations: u64,
+    /// Where the counters go for the channel object to show.
+    stats: StatsWriter,
 }
 
 /// What an end's data-plane link counted.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct LinkStats {
+    /// The link is lost.
+    pub down: bool,
+    /// Times it was lost.
+    pub losses: u64,
+    /// Times it came back.
+    pub restorations: u64,
     /// The socket's counters.
     pub endpoint: EndpointStats,
     /// The incoming stream's counters.
@@ -218,6 +143,14 @@ pub struct LinkStats {
     pub heartbeat_loss: f64,
     /// What the injected faults did to what this end sent, if faults are configured.
     pub faults: Option<FaultCounters>,
+}
+
+impl LinkStats {
+    /// Datagrams refused: bad tag, wrong authentication, malformed, or from a stranger.
+    pub fn refused(&self) -> u64 {
+        let e = self.endpoint;
+        e.bad_tag + e.wrong_authentication + e.malformed + self.strangers
+    }
 }
 
 impl RemoteLink {
@@ -241,29 +174,21 @@ impl RemoteLink {
 impl TeleopEnd {
     /// `side`'s end linked over the data plane: `endpoint` (bound on this node) exchanges
     /// samples with the other side's endpoint at `peer`; what it sends goes through injected
-    /// `faults` (with their seed) when given.
-    ///
-    /// # Errors
-    /// [`FaultConfigError`] for a fault configuration out of range.
-    pub fn remote(
+    /// `faults` (with their seed) when given; its counters go to `stats`.
+    fn remote(
         side: Side,
         endpoint: Endpoint,
         peer: SocketAddr,
         faults: Option<(&FaultConfig, u64)>,
+        stats: StatsWriter,
     ) -> Result<Self, FaultConfigError> {
         let (out, inbound) = side.streams();
         let faults = match faults {
             Some((config, seed)) => Some(FaultyLink::new(config, seed, FAULTY_CAPACITY)?),
             None => None,
         };
-        let health = LinkHealth {
-            offset_ns: AtomicI64::new(i64::MIN),
-            round_trip_ns: AtomicI64::new(i64::MIN),
-            ..LinkHealth::default()
-        };
         Ok(TeleopEnd {
             side,
-            health: Some(Arc::new(health)),
             transport: Transport::DataPlane(Box::new(RemoteLink {
                 endpoint,
                 peer,
@@ -274,6 +199,10 @@ impl TeleopEnd {
                 faults,
                 taken: 0,
                 strangers: 0,
+                down: false,
+                losses: 0,
+                restorations: 0,
+                stats,
             })),
             sent: 0,
         })
@@ -386,11 +315,45 @@ impl TeleopEnd {
         }
     }
 
+    /// Whether the other end is on another node.
+    pub fn is_remote(&self) -> bool {
+        matches!(self.transport, Transport::DataPlane(_))
+    }
+
+    /// Notes that the link is lost (`true`) or back (`false`); a change is counted.
+    pub fn note_link(&mut self, lost: bool) {
+        if let Transport::DataPlane(link) = &mut self.transport
+            && link.down != lost
+        {
+            link.down = lost;
+            if lost {
+                link.losses += 1;
+            } else {
+                link.restorations += 1;
+            }
+        }
+    }
+
+    /// Publishes the link's counters for the channel object (each communication tick).
+    ///
+    /// # Real-time
+    /// One wait-free cell write.
+    pub fn publish_stats(&mut self) {
+        if let Some(stats) = self.link_stats()
+            && let Transport::DataPlane(link) = &mut self.transport
+        {
+            link.stats.write(stats);
+        }
+    }
+
     /// The data-plane link's counters (`None` for an end on cells).
     pub fn link_stats(&self) -> Option<LinkStats> {
         match &self.transport {
             Transport::Cells { .. } => None,
             Transport::DataPlane(link) => Some(LinkStats {
+                down: link.down,
+                losses: link.losses,
+                restorations: link.restorations,
                 endpoint: link.endpoint.stats(),
                 stream: link.receiver.stats(),
                 strangers: link.strangers,
@@ -417,8 +380,8 @@ pub struct TeleopLink {
     pub slave: Option<TeleopEnd>,
     /// Which ends are on this node (the others are on another node).
     local: (bool, bool),
-    /// The health of this node's end's link to another node, if it has one.
-    health: Option<Arc<LinkHealth>>,
+    /// The counters of this node's end's link to another node, if it has one.
+    stats: Option<Mutex<ArcLatestReader<LinkStats>>>,
 }
 
 impl TeleopLink {
@@ -429,7 +392,6 @@ impl TeleopLink {
         TeleopLink {
             master: Some(TeleopEnd {
                 side: Side::Master,
-                health: None,
                 transport: Transport::Cells {
                     send: m2s_w,
                     receive: s2m_r,
@@ -438,7 +400,6 @@ impl TeleopLink {
             }),
             slave: Some(TeleopEnd {
                 side: Side::Slave,
-                health: None,
                 transport: Transport::Cells {
                     send: s2m_w,
                     receive: m2s_r,
@@ -446,26 +407,37 @@ impl TeleopLink {
                 sent: 0,
             }),
             local: (true, true),
-            health: None,
+            stats: None,
         }
     }
 
-    /// Only `end` on this node; the other side's end is on another node.
-    pub fn one_end(end: TeleopEnd) -> Self {
-        let side = end.side;
+    /// Only `side`'s end on this node, linked over the data plane: `endpoint` (bound on this
+    /// node) exchanges samples with the other side's endpoint at `peer`, through injected
+    /// `faults` (with their seed) when given; the other side's end is on another node.
+    ///
+    /// # Errors
+    /// [`FaultConfigError`] for a fault configuration out of range.
+    pub fn remote(
+        side: Side,
+        endpoint: Endpoint,
+        peer: SocketAddr,
+        faults: Option<(&FaultConfig, u64)>,
+    ) -> Result<Self, FaultConfigError> {
+        let (writer, reader) = latest();
         let mut link = TeleopLink {
             master: None,
             slave: None,
             local: (side == Side::Master, side == Side::Slave),
-            health: end.health.clone(),
+            stats: Some(Mutex::new(reader)),
         };
-        link.put_back(end);
-        link
+        link.put_back(TeleopEnd::remote(side, endpoint, peer, faults, writer)?);
+        Ok(link)
     }
 
-    /// The health of the link to another node (`None` for a channel on this node).
-    pub fn health(&self) -> Option<&LinkHealth> {
-        self.health.as_deref()
+    /// The newest counters of the link to another node (`None` for a channel on this node,
+    /// or before its first communication tick).
+    pub fn stats(&self) -> Option<LinkStats> {
+        self.stats.as_ref()?.lock().ok()?.latest()
     }
 
     /// Whether `side`'s end lives on this node.
@@ -509,7 +481,11 @@ mod tests {
         let endpoint = Endpoint::bind("127.0.0.1:0".parse().unwrap(), Some(key.clone())).unwrap();
         let addr = endpoint.local_addr().unwrap();
         // The peer is set below, once both are bound.
-        (TeleopEnd::remote(side, endpoint, addr, None).unwrap(), addr)
+        let (stats, _) = latest();
+        (
+            TeleopEnd::remote(side, endpoint, addr, None, stats).unwrap(),
+            addr,
+        )
     }
 
     fn set_peer(end: &mut TeleopEnd, peer: SocketAddr) {

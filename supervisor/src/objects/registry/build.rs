@@ -410,7 +410,7 @@ impl Registry {
                 let hold = if after_fault {
                     t.holds_with_board_servo()
                 } else {
-                    slave && t.hold_with_board_servo()
+                    slave && t.hand_to_board_servo()
                 };
                 self.give_back_after_fault(t.into_loop().into_board(), &robot, hold);
                 if hold {

@@ -43,7 +43,7 @@ use super::kinds::{
 use super::kinematics::RobotKinematics;
 use super::teleop::{
     ForceDisplayToml, HandConfig, HandObj, PositionErrorToml, Side, SlaveTrackingToml, TeleopComm,
-    TeleopConfig, TeleopEnd, TeleopLink,
+    TeleopConfig, TeleopLink,
 };
 use crate::dataplane::endpoint::Endpoint;
 use crate::dataplane::frame::DatagramKey;
@@ -60,10 +60,12 @@ use crate::proto::{
 mod build;
 mod groups;
 mod methods;
+mod teleop;
 mod trajectories;
 
 pub(crate) use build::Built;
 use build::{default_joint_gains, pid_gains};
+use teleop::link_relations;
 use trajectories::{build_standalone, build_trajectory, spec_is_tool, spec_joints};
 
 /// One object.
@@ -220,36 +222,7 @@ impl Object {
             Body::Teleop(t) => {
                 relations.push(("master".to_string(), t.config.master.clone()));
                 relations.push(("slave".to_string(), t.config.slave.clone()));
-                if let Some(h) = t.link.as_ref().and_then(|l| l.health()) {
-                    let r = h.snapshot();
-                    let peer = t.config.peer.clone().unwrap_or_default();
-                    let micros = |v: Option<i64>| {
-                        v.map_or("unknown".to_string(), |ns| {
-                            format!("{:.1} µs", ns as f64 / 1e3)
-                        })
-                    };
-                    relations.push((
-                        "link".to_string(),
-                        format!(
-                            "{} to {peer}, lost {} times, restored {} times",
-                            if r.down { "down" } else { "up" },
-                            r.losses,
-                            r.restorations
-                        ),
-                    ));
-                    relations.push((
-                        "link-stats".to_string(),
-                        format!(
-                            "{} samples taken, {} datagrams refused, clock offset {}, round \
-                             trip {}, heartbeats lost {:.1}%",
-                            r.taken,
-                            r.refused,
-                            micros(r.clock_offset_ns),
-                            micros(r.round_trip_ns),
-                            r.heartbeat_loss * 100.0
-                        ),
-                    ));
-                }
+                relations.extend(link_relations(t));
             }
             Body::Controller(c) => {
                 for (k, v) in [
@@ -663,76 +636,6 @@ impl Registry {
             if let Body::Robot(r) = &mut self.get_mut(name)?.body {
                 r.body = Some(Box::new(body));
             }
-        }
-        Ok(())
-    }
-
-    fn configure_teleop(&mut self, name: &str) -> Result<(), WireError> {
-        let kind = "trajectory/teleop";
-        let Body::Teleop(t) = &self.get(name)?.body else {
-            return Err(WireError::Internal("teleop body".into()));
-        };
-        let (master, slave, mapping) = (
-            t.config.master.clone(),
-            t.config.slave.clone(),
-            t.config.mapping(),
-        );
-        let data_plane = t.config.data_plane(kind)?;
-        let faults = t.config.faults.clone().map(|f| (f, t.config.fault_seed));
-        penelope_rt_core::teleop::WorkspaceMapping::new(mapping).map_err(|e| {
-            WireError::BadConfig {
-                kind: kind.into(),
-                message: format!("{e:?}"),
-            }
-        })?;
-        let link = match data_plane {
-            None => {
-                self.expect_class(&master, Class::Robot)?;
-                self.expect_class(&slave, Class::Robot)?;
-                TeleopLink::new()
-            }
-            Some((listen, peer)) => {
-                let here = |r: &str| self.expect_class(r, Class::Robot).is_ok();
-                let side = match (here(&master), here(&slave)) {
-                    (true, false) => Side::Master,
-                    (false, true) => Side::Slave,
-                    (true, true) => {
-                        return Err(bad_arg(format!(
-                            "`{name}` has a `peer`, but both `{master}` and `{slave}` are on \
-                             this node (leave out listen and peer)"
-                        )));
-                    }
-                    (false, false) => {
-                        return Err(bad_arg(format!(
-                            "neither `{master}` nor `{slave}` is a robot on this node"
-                        )));
-                    }
-                };
-                let off_loopback = !(listen.ip().is_loopback() && peer.ip().is_loopback());
-                if off_loopback && self.datagram_key.is_none() {
-                    return Err(bad_arg(format!(
-                        "`{name}` crosses off loopback ({listen} to {peer}): the nodes need a \
-                         secret (--secret-file) so that its datagrams are authenticated"
-                    )));
-                }
-                let endpoint = Endpoint::bind(listen, self.datagram_key.clone()).map_err(|e| {
-                    WireError::Device(format!("data plane: cannot bind {listen}: {e}"))
-                })?;
-                let end = TeleopEnd::remote(
-                    side,
-                    endpoint,
-                    peer,
-                    faults.as_ref().map(|(f, seed)| (f, *seed)),
-                )
-                .map_err(|e| WireError::BadConfig {
-                    kind: kind.into(),
-                    message: format!("`faults`: {e}"),
-                })?;
-                TeleopLink::one_end(end)
-            }
-        };
-        if let Body::Teleop(t) = &mut self.get_mut(name)?.body {
-            t.link = Some(link);
         }
         Ok(())
     }

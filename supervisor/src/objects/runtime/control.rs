@@ -307,7 +307,7 @@ impl ControlTask {
     ///
     /// # Real-time
     /// Constant time, no allocation.
-    pub fn hold_with_board_servo(&mut self) -> bool {
+    pub fn hand_to_board_servo(&mut self) -> bool {
         each_loop!(&mut self.lp, l => {
             let now = l.last_sample().time;
             l.hold_with_board_servo(now)

@@ -1,0 +1,113 @@
+//! Teleoperation channels in the registry: configuring one (its two ends on this node, or this
+//! node's end linked over the data plane to the other node's), and what `describe` shows of
+//! its link.
+
+use super::*;
+
+/// `describe`'s lines about a channel's link to another node (none for a channel on this
+/// node, or before its first communication tick).
+pub(super) fn link_relations(t: &TeleopObj) -> Vec<(String, String)> {
+    let Some(r) = t.link.as_ref().and_then(TeleopLink::stats) else {
+        return Vec::new();
+    };
+    let peer = t.config.peer.clone().unwrap_or_default();
+    let micros = |v: Option<i64>| {
+        v.map_or("unknown".to_string(), |ns| {
+            format!("{:.1} µs", ns as f64 / 1e3)
+        })
+    };
+    vec![
+        (
+            "link".to_string(),
+            format!(
+                "{} to {peer}, lost {} times, restored {} times",
+                if r.down { "down" } else { "up" },
+                r.losses,
+                r.restorations
+            ),
+        ),
+        (
+            "link-stats".to_string(),
+            format!(
+                "{} samples taken, {} datagrams refused, clock offset {}, round trip {}, \
+                 heartbeats lost {:.1}%",
+                r.stream.accepted,
+                r.refused(),
+                micros(r.clock_offset_ns),
+                micros(r.round_trip_ns),
+                r.heartbeat_loss * 100.0
+            ),
+        ),
+    ]
+}
+
+impl Registry {
+    pub(super) fn configure_teleop(&mut self, name: &str) -> Result<(), WireError> {
+        let kind = "trajectory/teleop";
+        let Body::Teleop(t) = &self.get(name)?.body else {
+            return Err(WireError::Internal("teleop body".into()));
+        };
+        let (master, slave, mapping) = (
+            t.config.master.clone(),
+            t.config.slave.clone(),
+            t.config.mapping(),
+        );
+        let data_plane = t.config.data_plane(kind)?;
+        let faults = t.config.faults.clone().map(|f| (f, t.config.fault_seed));
+        penelope_rt_core::teleop::WorkspaceMapping::new(mapping).map_err(|e| {
+            WireError::BadConfig {
+                kind: kind.into(),
+                message: format!("{e:?}"),
+            }
+        })?;
+        let link = match data_plane {
+            None => {
+                self.expect_class(&master, Class::Robot)?;
+                self.expect_class(&slave, Class::Robot)?;
+                TeleopLink::new()
+            }
+            Some((listen, peer)) => {
+                let here = |r: &str| self.expect_class(r, Class::Robot).is_ok();
+                let side = match (here(&master), here(&slave)) {
+                    (true, false) => Side::Master,
+                    (false, true) => Side::Slave,
+                    (true, true) => {
+                        return Err(bad_arg(format!(
+                            "`{name}` has a `peer`, but both `{master}` and `{slave}` are on \
+                             this node (leave out listen and peer)"
+                        )));
+                    }
+                    (false, false) => {
+                        return Err(bad_arg(format!(
+                            "neither `{master}` nor `{slave}` is a robot on this node"
+                        )));
+                    }
+                };
+                let off_loopback = !(listen.ip().is_loopback() && peer.ip().is_loopback());
+                if off_loopback && self.datagram_key.is_none() {
+                    return Err(bad_arg(format!(
+                        "`{name}` crosses off loopback ({listen} to {peer}): the nodes need a \
+                         secret (--secret-file) so that its datagrams are authenticated"
+                    )));
+                }
+                let endpoint = Endpoint::bind(listen, self.datagram_key.clone()).map_err(|e| {
+                    WireError::Device(format!("data plane: cannot bind {listen}: {e}"))
+                })?;
+                TeleopLink::remote(
+                    side,
+                    endpoint,
+                    peer,
+                    faults.as_ref().map(|(f, seed)| (f, *seed)),
+                )
+                .map_err(|e| WireError::BadConfig {
+                    kind: kind.into(),
+                    message: format!("`faults`: {e}"),
+                })?
+            }
+        };
+        if let Body::Teleop(t) = &mut self.get_mut(name)?.body {
+            t.link = Some(link);
+        }
+        Ok(())
+    }
+}
