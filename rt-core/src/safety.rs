@@ -195,6 +195,7 @@ impl fmt::Display for SafetyConfigError {
 
 /// Where the safety machine is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum SafetyState {
     /// Not activated: amplifiers off.
     #[default]
@@ -230,6 +231,7 @@ impl fmt::Display for SafetyState {
 
 /// Why the robot faulted.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum FaultCause {
     /// The reference stayed stale past the watchdog and `stale_to_fault`.
     ReferenceTimeout,
@@ -354,6 +356,7 @@ impl SafetyEvent {
 
 /// A set of [`SafetyEvent`]s, one bit each (`Copy`, for telemetry).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct EventSet(pub u32);
 
 impl EventSet {

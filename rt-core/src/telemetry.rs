@@ -12,6 +12,7 @@ use crate::safety::{EventSet, FaultCause, SafetyState};
 
 /// Which kind of reference the controller followed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum ReferenceKind {
     /// No reference received yet.
     #[default]
@@ -41,6 +42,7 @@ impl ReferenceKind {
 /// One control tick, as the non-real-time side sees it. Units: seconds-based SI (rad, rad/s,
 /// N·m, m, N).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct TelemetrySample {
     /// The tick's time (its scheduled instant).
     pub time: Timestamp,

@@ -12,7 +12,7 @@ use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, latest};
 pub const MAX_TAP_READERS: usize = 4;
 
 /// The plant's true state at one instant.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct TapSample {
     /// When.
     pub time: Timestamp,

@@ -8,6 +8,7 @@
 //! one by waiting) and deactivates them at the end (amplifiers off). What a `penelope node
 //! --config` runs is exactly this, without the duration and the recording.
 
+pub mod recording;
 pub mod report;
 
 use std::net::SocketAddr;

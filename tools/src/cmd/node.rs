@@ -73,6 +73,11 @@ pub struct Args {
     /// `penelope ctl advance NODE DURATION` moves it (faster than real time, reproducible).
     #[arg(long)]
     pub sim_clock: bool,
+    /// Record every control tick of the controllers the system file activates on this node
+    /// to FILE, from their first tick until the node stops (read back by `penelope bench
+    /// layout` for its report).
+    #[arg(long, value_name = "FILE", requires = "config")]
+    pub record: Option<PathBuf>,
     /// Lease in the naming service, ms (renewed every third of it).
     #[arg(long, value_name = "MS", default_value_t = 3000)]
     pub lease_ms: u64,
@@ -143,8 +148,18 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         node.advertised(),
         node.context()
     );
+    let mut recorder = None;
     if let Some(file) = file {
-        match file.apply(&node) {
+        let applied = match &args.record {
+            None => file.apply(&node).map_err(anyhow::Error::new),
+            Some(path) => penelope_supervisor::runs::recording::apply_recorded(&node, &file, path)
+                .map(|(created, r)| {
+                    recorder = Some(r);
+                    created
+                })
+                .map_err(anyhow::Error::new),
+        };
+        match applied {
             Ok(created) => {
                 for info in created {
                     let state = node
@@ -156,7 +171,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             }
             Err(e) => {
                 node.shutdown();
-                return Err(anyhow::Error::new(e).context("applying the system file"));
+                return Err(e.context("applying the system file"));
             }
         }
     }
@@ -164,5 +179,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let signal = wait_for_stop(&signals)?;
     println!("{signal}: deactivating the loops and unregistering");
     node.shutdown();
+    if let Some(r) = recorder {
+        let ticks = r.finish().context("finishing the recording")?;
+        println!("recorded {ticks} control ticks");
+    }
     Ok(ExitCode::SUCCESS)
 }

@@ -121,7 +121,7 @@ pub struct RoutedGains {
 
 /// One control tick as the telemetry ring carries it: what the loop reported, and the simulated
 /// plant's true state at that instant (robots on simulated boards).
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct TickRecord {
     /// What the control loop reported.
     pub sample: TelemetrySample,

@@ -4,6 +4,7 @@ use std::process::ExitCode;
 
 pub mod fpga;
 pub mod jitter;
+pub mod layout;
 pub mod rpc;
 
 /// Which benchmark to run.
@@ -15,6 +16,9 @@ pub enum BenchCommand {
     Fpga(fpga::Args),
     /// Remote-call round trip beside a raw TCP echo and ICMP ping, idle and under load.
     Rpc(rpc::Args),
+    /// The task in the one-, two- and four-host layouts (network namespaces; needs root):
+    /// tracking, force, end-to-end latency beside a raw UDP echo, loop timing.
+    Layout(layout::Args),
 }
 
 /// Runs the chosen benchmark.
@@ -23,6 +27,7 @@ pub fn run(command: BenchCommand) -> anyhow::Result<ExitCode> {
         BenchCommand::Jitter(args) => jitter::run(args),
         BenchCommand::Fpga(args) => fpga::run(args),
         BenchCommand::Rpc(args) => rpc::run(args),
+        BenchCommand::Layout(args) => layout::run(args),
     }
 }
 

@@ -1,0 +1,473 @@
+//! `penelope bench layout`: the paper's modularity experiment with today's numbers. The demo's
+//! task runs from system files alone in three layouts of hosts (network namespaces joined by
+//! veth pairs to a bridge, each with its own address), with `penelope naming` and
+//! `penelope node` processes started in them, and for each layout the task's tracking and
+//! force results, end-to-end latencies, a raw UDP echo between the same hosts measured in the
+//! same run, and loop timing are reported:
+//!
+//! - `1-host`: naming service and one node (`config/demo.toml`) on one host;
+//! - `2-host`: the joystick (FRHC, hand) on one host; robot, sensor and naming service on the
+//!   other (`config/demo-two-nodes.toml`);
+//! - `4-host`: robot, joystick, sensor and naming service each alone
+//!   (`config/demo-four-nodes.toml`).
+//!
+//! Each node's data-plane address in the file (and a sensor's `publish` address) is moved to
+//! its host's address; nothing else changes. Needs root (namespaces) and `ip` (iproute2).
+
+pub mod hosts;
+pub mod latency;
+
+use std::net::{IpAddr, SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use penelope_supervisor::objects::clock::ClockMode;
+use penelope_supervisor::runs::recording::{from_recordings, read_recording};
+use penelope_supervisor::runs::report::{LoopTiming, report};
+use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, RunOutput};
+use penelope_supervisor::system::SystemFile;
+use serde::Serialize;
+
+use hosts::Hosts;
+use latency::{Echo, Percentiles};
+
+/// The demo's task split over two nodes.
+pub const TWO_NODES: &str = include_str!("../../../../../config/demo-two-nodes.toml");
+
+/// Where each process of a layout runs.
+#[derive(Clone, Copy, Debug)]
+pub struct Layout {
+    /// Its name in reports: `1-host`, `2-host`, `4-host`.
+    pub name: &'static str,
+    /// The system file.
+    pub system: &'static str,
+    /// Per host, what runs there: `None` the naming service, `Some(node)` a node.
+    pub hosts: &'static [&'static [Option<&'static str>]],
+    /// The joystick's host and the robot's (the echo runs between them).
+    pub ends: (usize, usize),
+}
+
+/// The three layouts of the paper's modularity experiment.
+pub const LAYOUTS: [Layout; 2] = [
+    Layout {
+        name: "1-host",
+        system: DEMO_SYSTEM,
+        hosts: &[&[None, Some("lab")]],
+        ends: (0, 0),
+    },
+    Layout {
+        name: "2-host",
+        system: TWO_NODES,
+        hosts: &[&[Some("master")], &[None, Some("slave")]],
+        ends: (0, 1),
+    },
+];
+
+/// The naming service's port on its host.
+const NAMING_PORT: u16 = 7300;
+/// A node's server port on its host.
+const NODE_PORT: u16 = 7301;
+/// How long a process may take to be ready.
+const READY: Duration = Duration::from_secs(30);
+
+/// Options of `penelope bench layout`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The layouts to run, comma-separated [default: all].
+    #[arg(long, value_delimiter = ',', value_parser = ["1-host", "2-host", "4-host"])]
+    pub layouts: Vec<String>,
+    /// Length of the task, s [default: the operator's script, 20 s].
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// One JSON record per layout on standard output instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// What one layout's run measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct LayoutRecord {
+    /// `1-host`, `2-host` or `4-host`.
+    pub layout: String,
+    /// Hosts (network namespaces).
+    pub hosts: usize,
+    /// Processes started (naming service and nodes).
+    pub processes: usize,
+    /// Length of the task measured, s.
+    pub duration_s: f64,
+    /// RMS distance of the slave's tool from its reference in free motion, mm.
+    pub tracking_rms_mm: f64,
+    /// RMS distance of the slave's tool from the master's mapped pose at the same instant, mm.
+    pub tracking_against_master_rms_mm: f64,
+    /// Mean contact force the wrist sensor measured, N.
+    pub sensed_force_n: f64,
+    /// `|displayed - expected| / |expected|` of the mean force in steady contact, percent.
+    pub display_error_pct: f64,
+    /// Master motion to slave command.
+    pub motion_to_command: Percentiles,
+    /// Slave contact to master force.
+    pub contact_to_force: Percentiles,
+    /// A raw UDP echo between the joystick's and the robot's hosts in the same run: half the
+    /// round trip.
+    pub udp_echo_one_way: Percentiles,
+    /// Echoes lost.
+    pub udp_echo_lost: usize,
+    /// Control ticks the recorders lost (master, slave).
+    pub dropped_ticks: (u64, u64),
+    /// Safety events per robot.
+    pub safety_events: std::collections::BTreeMap<String, u64>,
+    /// The control loops' timing.
+    pub loops: Vec<LoopTiming>,
+    /// What `ctl describe` shows of the channel on the joystick's node at the end.
+    pub channel: Vec<String>,
+}
+
+/// Runs `penelope bench layout`.
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let chosen: Vec<Layout> = all_layouts()
+        .into_iter()
+        .filter(|l| args.layouts.is_empty() || args.layouts.iter().any(|n| n == l.name))
+        .collect();
+    let duration = args.duration.map(Duration::from_secs_f64);
+    let mut records = Vec::new();
+    for layout in chosen {
+        if !args.json {
+            eprintln!("running the {} layout ...", layout.name);
+        }
+        let record =
+            run_layout(&layout, duration).with_context(|| format!("the {} layout", layout.name))?;
+        if args.json {
+            println!("{}", serde_json::to_string(&record)?);
+        }
+        records.push(record);
+    }
+    if !args.json {
+        print_table(&records);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Every layout this build knows.
+pub fn all_layouts() -> Vec<Layout> {
+    LAYOUTS.to_vec()
+}
+
+fn print_table(records: &[LayoutRecord]) {
+    println!(
+        "{:<7} {:>5} {:>9} {:>9} {:>8} {:>21} {:>21} {:>17}",
+        "layout",
+        "procs",
+        "track mm",
+        "display%",
+        "force N",
+        "motion->cmd p50/p99",
+        "contact->force p50/99",
+        "udp 1-way p50/p99"
+    );
+    for r in records {
+        println!(
+            "{:<7} {:>5} {:>9.3} {:>9.2} {:>8.2} {:>10.0}/{:<10.0} {:>10.0}/{:<10.0} {:>8.0}/{:<8.0}",
+            r.layout,
+            r.processes,
+            r.tracking_rms_mm,
+            r.display_error_pct,
+            r.sensed_force_n,
+            r.motion_to_command.p50_us,
+            r.motion_to_command.p99_us,
+            r.contact_to_force.p50_us,
+            r.contact_to_force.p99_us,
+            r.udp_echo_one_way.p50_us,
+            r.udp_echo_one_way.p99_us,
+        );
+    }
+    println!("latencies in µs; hosts are network namespaces of this machine");
+}
+
+/// A directory removed when dropped.
+struct ScratchDir(PathBuf);
+
+impl Drop for ScratchDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// `file` with each node's data-plane address, and each sensor's `publish` address, moved to
+/// the address of the host it runs on (ports kept).
+fn placed(file: &str, host_of: &dyn Fn(&str) -> Option<IpAddr>) -> anyhow::Result<String> {
+    let mut table: toml::Table = file.parse().context("parsing the system file")?;
+    let moved = |value: &mut toml::Value, ip: IpAddr| -> anyhow::Result<()> {
+        let addr: SocketAddr = value
+            .as_str()
+            .context("an address is not a string")?
+            .parse()
+            .context("an address is not HOST:PORT")?;
+        *value = toml::Value::String(SocketAddr::new(ip, addr.port()).to_string());
+        Ok(())
+    };
+    if let Some(nodes) = table.get_mut("nodes").and_then(toml::Value::as_table_mut) {
+        for (name, node) in nodes.iter_mut() {
+            if let (Some(v), Some(ip)) = (node.get_mut("data_plane"), host_of(name)) {
+                moved(v, ip)?;
+            }
+        }
+    }
+    if let Some(sensors) = table.get_mut("sensors").and_then(toml::Value::as_table_mut) {
+        for (_, sensor) in sensors.iter_mut() {
+            let node = sensor
+                .get("node")
+                .and_then(toml::Value::as_str)
+                .map(String::from);
+            if let (Some(node), Some(v)) = (node, sensor.get_mut("publish"))
+                && let Some(ip) = host_of(&node)
+            {
+                moved(v, ip)?;
+            }
+        }
+    }
+    Ok(table.to_string())
+}
+
+/// Runs the task in `layout` and measures it.
+pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result<LayoutRecord> {
+    let exe = std::env::current_exe().context("finding the penelope binary")?;
+    let scratch = ScratchDir(std::env::temp_dir().join(format!(
+        "penelope-layout-{}-{}",
+        layout.name,
+        std::process::id()
+    )));
+    std::fs::create_dir_all(&scratch.0)?;
+    let mut hosts = Hosts::create(layout.hosts.len())?;
+    let host_of_node = |node: &str| layout.hosts.iter().position(|h| h.contains(&Some(node)));
+    let naming_host = layout
+        .hosts
+        .iter()
+        .position(|h| h.contains(&None))
+        .context("a layout without a naming service")?;
+    let naming = SocketAddr::new(hosts.address(naming_host), NAMING_PORT);
+    let file_text = placed(layout.system, &|n| {
+        host_of_node(n).map(|h| hosts.address(h))
+    })?;
+    let system_path = scratch.0.join("system.toml");
+    std::fs::write(&system_path, &file_text)?;
+    let system = SystemFile::parse(&file_text).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let secret = scratch.0.join("secret");
+    write_secret(&secret)?;
+
+    let s = |p: &Path| p.display().to_string();
+    hosts.start(
+        naming_host,
+        "naming service",
+        &exe,
+        &[
+            "naming".into(),
+            "--listen".into(),
+            naming.to_string(),
+            "--secret-file".into(),
+            s(&secret),
+        ],
+        "naming service on",
+        READY,
+    )?;
+    // The robot's side first, the joystick last: the operator starts once the slave is there
+    // (its first sample anchors the slave; the hand's script starts with the master).
+    let mut nodes: Vec<(usize, &str)> = Vec::new();
+    for (h, roles) in layout.hosts.iter().enumerate() {
+        for node in roles.iter().flatten() {
+            nodes.push((h, node));
+        }
+    }
+    let task_nodes = system_nodes_of_task(&system)?;
+    nodes.sort_by_key(|(_, n)| (*n == task_nodes.0, *n == task_nodes.1));
+    let mut recordings = Vec::new();
+    for (h, node) in &nodes {
+        let record = scratch.0.join(format!("{node}.rec"));
+        let mut node_args = vec![
+            "node".into(),
+            "--name".into(),
+            node.to_string(),
+            "--config".into(),
+            s(&system_path),
+            "--naming".into(),
+            naming.to_string(),
+            "--listen".into(),
+            SocketAddr::new(hosts.address(*h), NODE_PORT).to_string(),
+            "--secret-file".into(),
+            s(&secret),
+        ];
+        if *node == task_nodes.0 || *node == task_nodes.1 {
+            node_args.extend(["--record".into(), s(&record)]);
+            recordings.push(record);
+        }
+        hosts.start(
+            *h,
+            &format!("node {node}"),
+            &exe,
+            &node_args,
+            "Ctrl-C stops the node",
+            READY,
+        )?;
+    }
+
+    // The raw UDP echo between the joystick's host and the robot's, alongside the task.
+    let (a, b) = layout.ends;
+    let (addr_a, addr_b) = (hosts.address(a), hosts.address(b));
+    let server = hosts
+        .spawn_in(b, move || {
+            let socket = UdpSocket::bind(SocketAddr::new(addr_b, 0))?;
+            let addr = socket.local_addr()?;
+            Ok((Echo::serve(socket)?, addr))
+        })
+        .join()
+        .map_err(|_| anyhow::anyhow!("the echo server's thread panicked"))??;
+    let (echo, echo_addr) = server;
+    let options = RunOptions {
+        duration,
+        clock: ClockMode::RealTime,
+        ..RunOptions::default()
+    };
+    let task_length = duration.unwrap_or(Duration::from_secs(20));
+    let count = (task_length.as_millis() / 2) as usize;
+    let pinger = hosts.spawn_in(a, move || {
+        let socket = UdpSocket::bind(SocketAddr::new(addr_a, 0))?;
+        Ok(latency::ping(
+            &socket,
+            echo_addr,
+            count,
+            Duration::from_millis(2),
+        )?)
+    });
+
+    // Until both recordings cover the task (bounded).
+    let deadline = Instant::now() + task_length + Duration::from_secs(60);
+    let output: RunOutput = loop {
+        std::thread::sleep(Duration::from_millis(250));
+        let read: Result<Vec<_>, _> = recordings.iter().map(|p| read_recording(p)).collect();
+        if let Ok(read) = read
+            && let Some(out) = from_recordings(&system, &options, &read)?
+        {
+            break out;
+        }
+        if Instant::now() >= deadline {
+            bail!("the recordings did not cover the task within {task_length:?} + 60 s");
+        }
+    };
+    let channel = describe_channel(&hosts, &exe, a, naming, &secret, &system, task_nodes.0);
+    let (echoes, lost) = pinger
+        .join()
+        .map_err(|_| anyhow::anyhow!("the echo client's thread panicked"))??;
+    drop(echo);
+    hosts.stop_all(Duration::from_secs(15))?;
+    // The finished recordings (their loss counts are written at the end).
+    let read: Vec<_> = recordings
+        .iter()
+        .map(|p| read_recording(p))
+        .collect::<Result<_, _>>()?;
+    let output = from_recordings(&system, &options, &read)?.unwrap_or(output);
+    let rep = report(&output);
+    Ok(LayoutRecord {
+        layout: layout.name.into(),
+        hosts: layout.hosts.len(),
+        processes: layout.hosts.iter().map(|h| h.len()).sum(),
+        duration_s: rep.duration_s,
+        tracking_rms_mm: rep.tracking.rms_mm,
+        tracking_against_master_rms_mm: rep.tracking.against_master_rms_mm,
+        sensed_force_n: rep.contact.sensed_force_n,
+        display_error_pct: rep.contact.display_error_pct,
+        motion_to_command: Percentiles::of(latency::motion_to_command(&output)),
+        contact_to_force: Percentiles::of(latency::contact_to_force(&output)),
+        udp_echo_one_way: Percentiles::of(echoes),
+        udp_echo_lost: lost,
+        dropped_ticks: output.dropped,
+        safety_events: rep.safety_events.clone(),
+        loops: rep.timing.clone(),
+        channel,
+    })
+}
+
+/// The nodes of the task's master and slave controllers.
+fn system_nodes_of_task(system: &SystemFile) -> anyhow::Result<(&str, &str)> {
+    let channel = system
+        .objects
+        .iter()
+        .find(|o| o.kind == "trajectory/teleop")
+        .context("no teleoperation channel")?;
+    let table: toml::Table = channel.config.parse()?;
+    let robot = |key: &str| -> anyhow::Result<&str> {
+        let name = table
+            .get(key)
+            .and_then(toml::Value::as_str)
+            .context(key.to_string())?;
+        let node = system
+            .objects
+            .iter()
+            .find(|o| o.kind.starts_with("robot/") && o.name == name)
+            .map(|o| o.node.as_str())
+            .with_context(|| format!("no robot `{name}`"))?;
+        Ok(node)
+    };
+    let (m, s) = (robot("master")?, robot("slave")?);
+    // A one-node file leaves `node` out: the node is then the file's only one.
+    fn only(n: &str) -> &str {
+        if n.is_empty() { "lab" } else { n }
+    }
+    Ok((only(m), only(s)))
+}
+
+fn write_secret(path: &Path) -> anyhow::Result<()> {
+    use std::io::Write;
+    use std::os::unix::fs::OpenOptionsExt;
+    let mut bytes = [0u8; 32];
+    getrandom_bytes(&mut bytes)?;
+    let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
+    let mut f = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .open(path)?;
+    writeln!(f, "{hex}")?;
+    Ok(())
+}
+
+fn getrandom_bytes(out: &mut [u8]) -> anyhow::Result<()> {
+    use std::io::Read;
+    std::fs::File::open("/dev/urandom")?.read_exact(out)?;
+    Ok(())
+}
+
+/// What `penelope ctl describe` shows of the channel on the master's node (empty when it
+/// cannot be read).
+fn describe_channel(
+    hosts: &Hosts,
+    exe: &Path,
+    host: usize,
+    naming: SocketAddr,
+    secret: &Path,
+    system: &SystemFile,
+    master_node: &str,
+) -> Vec<String> {
+    let Some(channel) = system
+        .objects
+        .iter()
+        .find(|o| o.kind == "trajectory/teleop")
+    else {
+        return Vec::new();
+    };
+    let out = std::process::Command::new("ip")
+        .args(["netns", "exec", hosts.namespace(host)])
+        .arg(exe)
+        .args(["ctl", "--naming", &naming.to_string(), "--secret-file"])
+        .arg(secret)
+        .args(["describe", &format!("{master_node}/{}", channel.name)])
+        .output();
+    match out {
+        Ok(o) if o.status.success() => String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .map(|l| l.trim().to_string())
+            .filter(|l| !l.is_empty())
+            .collect(),
+        _ => Vec::new(),
+    }
+}
