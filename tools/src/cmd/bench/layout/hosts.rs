@@ -274,3 +274,64 @@ impl Drop for Hosts {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn listed() -> String {
+        let out = Command::new("ip").args(["netns", "list"]).output().unwrap();
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    }
+
+    #[test]
+    fn hosts_reach_each_other_and_everything_goes_when_a_start_fails() {
+        let mut hosts = Hosts::create(2).expect("namespaces (needs root and iproute2)");
+        let names: Vec<String> = (0..2).map(|i| hosts.namespace(i).to_string()).collect();
+        // A datagram from host 0 to host 1 crosses the bridge.
+        let b = hosts.address(1);
+        let server = hosts
+            .spawn_in(1, move || {
+                let s = std::net::UdpSocket::bind((b, 0))?;
+                Ok((s.local_addr()?, s))
+            })
+            .join()
+            .unwrap()
+            .unwrap();
+        let (to, socket) = server;
+        let a = hosts.address(0);
+        hosts
+            .spawn_in(0, move || {
+                let s = std::net::UdpSocket::bind((a, 0))?;
+                s.send_to(b"hello", to)?;
+                Ok(())
+            })
+            .join()
+            .unwrap()
+            .unwrap();
+        socket
+            .set_read_timeout(Some(Duration::from_secs(5)))
+            .unwrap();
+        let mut buf = [0u8; 16];
+        let (n, from) = socket.recv_from(&mut buf).expect("the datagram arrives");
+        assert_eq!(&buf[..n], b"hello");
+        assert_eq!(from.ip(), a);
+        // A process that exits at once is an error naming it, and dropping removes it all.
+        let err = hosts
+            .start(
+                0,
+                "false",
+                std::path::Path::new("/bin/false"),
+                &[],
+                "never",
+                Duration::from_secs(10),
+            )
+            .unwrap_err();
+        assert!(err.to_string().contains("false exited"), "{err}");
+        drop(hosts);
+        let now = listed();
+        for n in names {
+            assert!(!now.contains(&n), "{n} is left in {now}");
+        }
+    }
+}

@@ -1,0 +1,109 @@
+//! The paper's modularity experiment as a test: the demo's task, from system files alone, in the
+//! two- and four-host layouts (hosts are network namespaces joined by veth pairs; `penelope
+//! naming` and `penelope node` processes in them), against the single-process demo. Runs as
+//! root (CI does); without namespaces it fails loudly.
+
+use std::process::Command;
+
+use penelope_supervisor::runs::report::report;
+use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, run};
+use penelope_supervisor::system::SystemFile;
+
+/// The layouts this test runs.
+const LAYOUTS: [&str; 1] = ["2-host"];
+
+/// The namespaces a `penelope` process with this pid made (they carry its pid).
+fn namespaces_of(pid: u32) -> Vec<String> {
+    let out = Command::new("ip")
+        .args(["netns", "list"])
+        .output()
+        .expect("ip runs");
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|n| n.starts_with(&format!("pen{pid}x")))
+        .map(String::from)
+        .collect()
+}
+
+#[test]
+fn the_two_and_four_host_layouts_complete_the_task_as_the_single_process_demo_does() {
+    let demo = report(
+        &run(
+            &SystemFile::parse(DEMO_SYSTEM).expect("the demo's file"),
+            &RunOptions::default(),
+            &mut |_| {},
+        )
+        .expect("the demo runs"),
+    );
+    let child = Command::new(env!("CARGO_BIN_EXE_penelope"))
+        .args(["bench", "layout", "--json", "--layouts", &LAYOUTS.join(",")])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("penelope starts");
+    let pid = child.id();
+    let output = child.wait_with_output().expect("penelope runs");
+    // Everything it made is gone, whatever happened.
+    assert_eq!(namespaces_of(pid), Vec::<String>::new());
+    assert!(
+        output.status.success(),
+        "penelope bench layout failed (hosts are network namespaces: this test needs root and \
+         iproute2): {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let records: Vec<serde_json::Value> = String::from_utf8_lossy(&output.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON record per line"))
+        .collect();
+    let layouts: Vec<&str> = records
+        .iter()
+        .map(|r| r["layout"].as_str().unwrap_or_default())
+        .collect();
+    assert_eq!(layouts, LAYOUTS);
+    for r in &records {
+        let name = r["layout"].as_str().unwrap_or_default();
+        let num = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
+        eprintln!(
+            "{name}: tracking {:.3} mm (demo {:.3}), display {:.2}% (demo {:.2}), sensed {:.2} N \
+             (demo {:.2}), motion->command p50 {} µs, contact->force p50 {} µs",
+            num("tracking_rms_mm"),
+            demo.tracking.rms_mm,
+            num("display_error_pct"),
+            demo.contact.display_error_pct,
+            num("sensed_force_n"),
+            demo.contact.sensed_force_n,
+            r["motion_to_command"]["p50_us"],
+            r["contact_to_force"]["p50_us"],
+        );
+        assert!((num("duration_s") - 20.0).abs() < 0.01, "{name}: {r}");
+        // Tracking: the same sub-millimetre class as the demo (real clock, several processes).
+        assert!(
+            num("tracking_rms_mm") <= 2.0 * demo.tracking.rms_mm + 0.1,
+            "{name}: {r}"
+        );
+        // Force: the same contact, displayed as faithfully.
+        assert!(
+            (num("sensed_force_n") - demo.contact.sensed_force_n).abs()
+                <= 0.1 * demo.contact.sensed_force_n,
+            "{name}: {r}"
+        );
+        assert!(
+            (num("display_error_pct") - demo.contact.display_error_pct).abs() <= 2.0,
+            "{name}: {r}"
+        );
+        // Nothing faulted; every tick was recorded; latencies were measured.
+        let events = r["safety_events"].as_object().expect("events");
+        assert!(
+            !events.keys().any(|k| k.ends_with("/faulted")),
+            "{name}: {events:?}"
+        );
+        assert_eq!(r["dropped_ticks"], serde_json::json!([0, 0]), "{name}");
+        for key in ["motion_to_command", "contact_to_force", "udp_echo_one_way"] {
+            assert!(
+                r[key]["samples"].as_u64().unwrap_or(0) > 1000,
+                "{name} {key}: {r}"
+            );
+        }
+    }
+}
