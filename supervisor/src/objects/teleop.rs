@@ -23,7 +23,8 @@ use penelope_hal::{
     CartesianReference, Frame, HybridReference, Kinematics, Pose, Reference, Timestamp, Twist,
     Wrench,
 };
-use penelope_rt_core::cell::{ArcLatestWriter, Stamped};
+use penelope_rt_core::cell::Stamped;
+use penelope_rt_core::safety::SafetyEvent;
 use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_rt_core::teleop::{
     ChannelConfig, ChannelDirection, ForceDisplay, ForceDisplayConfig, ImpedanceConfig,
@@ -33,6 +34,7 @@ use penelope_rt_core::teleop::{
 use serde::Deserialize;
 
 use super::kinematics::RobotKinematics;
+use super::runtime::ReferenceOut;
 use crate::proto::WireError;
 
 /// `trajectory/teleop` configuration.
@@ -315,12 +317,7 @@ impl TeleopComm {
     ///
     /// # Real-time
     /// No allocation, no locks: cell reads and writes, kinematics, the channel's bounded work.
-    pub fn tick(
-        &mut self,
-        now: Timestamp,
-        state: Option<TelemetrySample>,
-        out: &mut ArcLatestWriter<Stamped<Reference>>,
-    ) {
+    pub fn tick(&mut self, now: Timestamp, state: Option<TelemetrySample>, out: &mut ReferenceOut) {
         let Some(sample) = state else {
             return; // nothing measured yet: the channel starts from the measured pose
         };
@@ -386,11 +383,12 @@ impl TeleopComm {
             reference,
         });
         let received = self.end.take_newest(now);
+        let mut restored = false;
         if let Some(sample) = received {
             if self.lost_at.take().is_some() {
                 // Heard again: resume from where this robot is, re-anchored as after the
                 // clutch, so nothing jumps.
-                self.end.note_link(false);
+                restored = self.end.note_link(false);
                 self.channel.reset();
                 self.start_channel(now, &pose);
             }
@@ -403,13 +401,17 @@ impl TeleopComm {
             && now.saturating_since(at) >= timeout
         {
             let held = *self.lost_at.get_or_insert(pose);
-            self.end.note_link(true);
+            let lost = self.end.note_link(true);
             self.end.publish_stats();
             // Neutral and fresh: the slave holds where it was, the master displays no force.
             out.write(Stamped {
                 stamp: now,
                 value: neutral(self.end.side, &held, &pose),
             });
+            // A safety event of the loop, raised after the reference it goes with.
+            if lost {
+                out.raise(SafetyEvent::LinkLost);
+            }
             return;
         }
         // Stamped with the arrival of what it is made of: when the other side goes silent the
@@ -419,6 +421,9 @@ impl TeleopComm {
             && r.is_finite()
         {
             out.write(Stamped { stamp, value: r });
+        }
+        if restored {
+            out.raise(SafetyEvent::LinkRestored);
         }
         self.end.publish_stats();
     }
