@@ -101,7 +101,8 @@ rotation_rpy_deg = [0.0, 0.0, 0.0]  # master base frame -> slave base frame
 # listen = "127.0.0.1:7410"         # this node's address for the channel
 # peer = "127.0.0.1:7411"           # the other node's
 # faults = { delay_ms = 5.0, jitter_ms = 2.0, loss = 0.01, duplicate = 0.0, reorder = 0.0,
-#            outages = [{ from_s = 10.0, to_s = 12.0 }] }   # injected into what this end sends
+#            outages = [{ from_s = 10.0, to_s = 12.0 }],   # injected into what this end sends
+#            clock_offset_us = 0.0 }                       # this end's clock reads that far ahead
 # fault_seed = 1
 # link_timeout_ms = 0               # silence before the link counts as lost and the robot goes
 #                                   # neutral (slave holds, master no force); 0: two T_com.
