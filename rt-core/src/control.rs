@@ -86,6 +86,16 @@ pub trait ReferenceSource {
     /// # Real-time
     /// Implementations must be wait-free and allocation-free.
     fn read(&mut self) -> Fresh<Stamped<Reference>>;
+
+    /// Safety events raised by whatever produces the references since the last call (a
+    /// teleoperation channel's link lost or restored), noted in the tick's events. None by
+    /// default.
+    ///
+    /// # Real-time
+    /// Implementations must be wait-free and allocation-free.
+    fn take_events(&mut self) -> EventSet {
+        EventSet::EMPTY
+    }
 }
 
 impl<P: Deref<Target = LatestCell<Stamped<Reference>>>> ReferenceSource
@@ -286,6 +296,10 @@ where
                 None => break,
             }
         }
+        // Events raised with the reference (its link lost or back), taken before the reference
+        // is read: the source raises them after publishing the reference they go with, so an
+        // event seen here comes with its reference in this tick.
+        self.safety.note_all(self.ports.reference.take_events());
         if let Fresh::New(s) = self.ports.reference.read() {
             if s.value.is_finite() {
                 self.latest = Some(s);

@@ -4,6 +4,8 @@
 //!
 //! - [`cell`]: [`LatestCell`](cell::LatestCell), a wait-free triple buffer whose reads say
 //!   [`Fresh::New`](cell::Fresh), `Old` or `NoData`; [`Stamped`](cell::Stamped) values.
+//! - [`events`]: [`EventCell`](events::EventCell), safety events raised by one thread (a
+//!   communication thread that lost its link) and taken by the control loop, one atomic word.
 //! - [`ring`]: [`Ring`](ring::Ring), a wait-free SPSC ring that counts what it drops when full.
 //! - [`stats`]: [`LatencyHistogram`](stats::LatencyHistogram) (fixed buckets, percentiles) and
 //!   [`DurationStats`](stats::DurationStats).
@@ -28,6 +30,7 @@ pub mod clock;
 pub mod comm;
 pub mod control;
 pub mod controller;
+pub mod events;
 pub mod ring;
 pub mod safety;
 pub mod sim;

@@ -308,11 +308,18 @@ pub enum SafetyEvent {
     SensorError,
     /// The telemetry ring was full: this tick's sample was dropped.
     TelemetryDropped,
+    /// The link that carries the reference (a teleoperation channel to another node) was lost:
+    /// until it returns the reference is neutral (a slave holds its pose, a master displays no
+    /// force). Raised by the communication thread that noticed it.
+    LinkLost,
+    /// The link that carries the reference came back; the motion was re-anchored where the
+    /// robot is, so nothing jumps. Raised by the communication thread that noticed it.
+    LinkRestored,
 }
 
 impl SafetyEvent {
     /// Every event, in bit order.
-    pub const ALL: [SafetyEvent; 16] = [
+    pub const ALL: [SafetyEvent; 18] = [
         SafetyEvent::Activated,
         SafetyEvent::Deactivated,
         SafetyEvent::ReferenceStale,
@@ -329,6 +336,8 @@ impl SafetyEvent {
         SafetyEvent::BoardError,
         SafetyEvent::SensorError,
         SafetyEvent::TelemetryDropped,
+        SafetyEvent::LinkLost,
+        SafetyEvent::LinkRestored,
     ];
 
     /// A kebab-case name for logs.
@@ -350,6 +359,8 @@ impl SafetyEvent {
             SafetyEvent::BoardError => "board-error",
             SafetyEvent::SensorError => "sensor-error",
             SafetyEvent::TelemetryDropped => "telemetry-dropped",
+            SafetyEvent::LinkLost => "link-lost",
+            SafetyEvent::LinkRestored => "link-restored",
         }
     }
 }
@@ -497,6 +508,11 @@ impl Safety {
     /// Notes an event observed elsewhere (board, sensor, telemetry).
     pub fn note(&mut self, event: SafetyEvent) {
         self.events.insert(event);
+    }
+
+    /// Notes every event of `events`, observed elsewhere (a communication thread's link).
+    pub fn note_all(&mut self, events: EventSet) {
+        self.events = self.events.union(events);
     }
 
     /// Starts running from the measured state (holding until a fresh reference arrives).

@@ -472,3 +472,65 @@ fn master_caps_displayed_force_goes_to_zero_force_when_stale_then_faults_off() {
         "master fault: off, no hold"
     );
 }
+
+/// A reference port that carries events raised by its producer (as a teleoperation
+/// channel's communication thread raises its link's loss and restoration).
+struct WithEvents<'a, R> {
+    reference: R,
+    events: &'a penelope_rt_core::events::EventCell,
+}
+
+impl<R: penelope_rt_core::control::ReferenceSource> penelope_rt_core::control::ReferenceSource
+    for WithEvents<'_, R>
+{
+    fn read(&mut self) -> penelope_rt_core::cell::Fresh<Stamped<Reference>> {
+        self.reference.read()
+    }
+    fn take_events(&mut self) -> penelope_rt_core::safety::EventSet {
+        self.events.take()
+    }
+}
+
+#[test]
+fn events_raised_with_the_reference_appear_in_that_ticks_telemetry_once() {
+    let model = DecoupledChain::six_joint();
+    let board = ChainBoard::new(model.clone(), CPR);
+    let config = ControlConfig::new(T_CTRL, SafetyConfig::slave(6, *model.limits()))
+        .with_counts_per_radian(CPR);
+    let reference = LatestCell::<Stamped<Reference>>::new();
+    let (_ref_tx, ref_rx) = reference.split().unwrap();
+    let events = penelope_rt_core::events::EventCell::new();
+    let telemetry = Ring::<TelemetrySample, 64>::new();
+    let (tel_tx, mut tel_rx) = telemetry.split().unwrap();
+    let commands = Ring::<ControlCommand, 16>::new();
+    let (_cmd_tx, cmd_rx) = commands.split().unwrap();
+    let ports = ControlPorts {
+        reference: WithEvents {
+            reference: ref_rx,
+            events: &events,
+        },
+        telemetry: tel_tx,
+        commands: cmd_rx,
+    };
+    let mut control = ControlLoop::new(config, board, model, [pid(40.0)], ports).unwrap();
+    for k in 1..=10 {
+        match k {
+            3 => events.raise(SafetyEvent::LinkLost),
+            7 => events.raise(SafetyEvent::LinkRestored),
+            _ => {}
+        }
+        let out = control.tick(ms(k));
+        let sample = tel_rx.pop().unwrap();
+        assert_eq!(sample.events, out.events);
+        assert_eq!(
+            sample.events.contains(SafetyEvent::LinkLost),
+            k == 3,
+            "tick {k}"
+        );
+        assert_eq!(
+            sample.events.contains(SafetyEvent::LinkRestored),
+            k == 7,
+            "tick {k}"
+        );
+    }
+}

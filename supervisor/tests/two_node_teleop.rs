@@ -6,6 +6,7 @@
 use std::net::UdpSocket;
 use std::time::Duration;
 
+use penelope_rt_core::safety::SafetyEvent;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::proto::{
@@ -182,6 +183,9 @@ fn a_link_cut_in_contact_holds_the_slave_and_the_master_lets_go_then_resumes_wit
     let cut = "faults = { outages = [{ from_s = 13.0, to_s = 13.5 }] }";
     let secret = b"two-node test secret".as_slice();
     let (a, b) = master_and_slave(cut, Some(secret));
+    // Every control tick of both sides, for the safety events.
+    let ticks_a = a.creator().record_ticks("display", 1 << 15).unwrap();
+    let ticks_b = b.creator().record_ticks("follow", 1 << 15).unwrap();
     let step = |n: u32| {
         for _ in 0..n {
             a.creator().advance(Duration::from_millis(1)).unwrap();
@@ -271,6 +275,31 @@ fn a_link_cut_in_contact_holds_the_slave_and_the_master_lets_go_then_resumes_wit
         "after the link returns: largest slave step {:.4} mm per ms",
         largest_step * 1000.0
     );
+    // Each transition is a safety event of the loop that runs the end, once, in the control
+    // tick at the instant its communication thread noticed it: lost two communication periods
+    // (the 4 ms link timeout) after the last sample heard before the cut, restored at the
+    // first sample heard after it. The last samples before the cut left at 12.998 s; the nodes
+    // step in turn, the master's first at each instant, so the master hears each of the
+    // slave's samples one period (2 ms) after it left, the slave the master's at once.
+    for (name, stream, lost_ms, restored_ms) in [
+        ("master", &ticks_a, 13_004, 13_502),
+        ("slave", &ticks_b, 13_002, 13_500),
+    ] {
+        let mut ticks = Vec::new();
+        stream.drain_into(&mut ticks);
+        assert_eq!(stream.dropped.load(std::sync::atomic::Ordering::Relaxed), 0);
+        let at = |event: SafetyEvent| -> Vec<u64> {
+            ticks
+                .iter()
+                .filter(|t| t.sample.events.contains(event))
+                .map(|t| t.sample.time.as_nanos() / 1_000_000)
+                .collect()
+        };
+        let (lost, back) = (at(SafetyEvent::LinkLost), at(SafetyEvent::LinkRestored));
+        println!("{name}: link-lost at {lost:?} ms, link-restored at {back:?} ms");
+        assert_eq!(lost, [lost_ms], "{name}");
+        assert_eq!(back, [restored_ms], "{name}");
+    }
     assert!(
         largest_step < 2e-4,
         "the slave jumped {} mm",

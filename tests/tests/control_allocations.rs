@@ -169,7 +169,7 @@ fn control_and_comm_loops_allocate_nothing_over_100k_simulated_cycles() {
         sim::Flow::Continue
     };
     // The non-real-time side (not counted): commands and telemetry.
-    let mut events = [0u64; 16];
+    let mut events = [0u64; SafetyEvent::ALL.len()];
     let mut samples = 0u64;
     let mut operator_body = |now: Timestamp| {
         let t_ms = now.as_nanos() / 1_000_000;

@@ -57,6 +57,30 @@ pub struct Endpoint {
     key: Option<DatagramKey>,
     buf: Box<[u8; MAX_DATAGRAM]>,
     stats: EndpointStats,
+    /// Room for a receive timestamp's control message, once
+    /// [`enable_receive_timestamps`](Endpoint::enable_receive_timestamps) asked the kernel for
+    /// them.
+    control: Option<Box<ControlBuffer>>,
+}
+
+/// Room for the control messages of one `recvmsg` (a `SCM_TIMESTAMPNS` needs 32 bytes on
+/// 64-bit Linux); aligned as a `cmsghdr` must be.
+#[repr(C, align(8))]
+struct ControlBuffer([u8; 64]);
+
+/// A datagram that opened and decoded, with its sender and, when the endpoint asked the kernel
+/// for them, its receive time.
+#[derive(Clone, Copy, Debug)]
+pub struct Received<P> {
+    /// Who sent it.
+    pub from: SocketAddr,
+    /// Its header.
+    pub header: Header,
+    /// Its payload.
+    pub payload: P,
+    /// When the kernel received it, ns on `CLOCK_REALTIME` (`SO_TIMESTAMPNS`); `None` without
+    /// receive timestamps.
+    pub kernel_realtime_ns: Option<i64>,
 }
 
 impl std::fmt::Debug for Endpoint {
@@ -83,7 +107,21 @@ impl Endpoint {
             key,
             buf: Box::new([0; MAX_DATAGRAM]),
             stats: EndpointStats::default(),
+            control: None,
         })
+    }
+
+    /// Asks the kernel to stamp every datagram with its receive time (`SO_TIMESTAMPNS`), which
+    /// [`receive_stamped`](Self::receive_stamped) then returns: the arrival time without the
+    /// delay between arrival and the communication thread's next tick.
+    ///
+    /// # Errors
+    /// The operating system's, from `setsockopt`.
+    pub fn enable_receive_timestamps(&mut self) -> io::Result<()> {
+        use nix::sys::socket::{setsockopt, sockopt::ReceiveTimestampns};
+        setsockopt(&self.socket, ReceiveTimestampns, &true).map_err(io::Error::from)?;
+        self.control = Some(Box::new(ControlBuffer([0; 64])));
+        Ok(())
     }
 
     /// The address it is bound to.
@@ -128,22 +166,73 @@ impl Endpoint {
     /// Bounded: at most [`RECEIVE_BURST`] non-blocking `recvfrom` calls; no allocation for
     /// fixed-size payloads.
     pub fn receive<P: DeserializeOwned>(&mut self) -> Option<(SocketAddr, Header, P)> {
+        self.receive_stamped()
+            .map(|r: Received<P>| (r.from, r.header, r.payload))
+    }
+
+    /// As [`receive`](Self::receive), with the kernel's receive time of the datagram when
+    /// [`enable_receive_timestamps`](Self::enable_receive_timestamps) asked for it.
+    ///
+    /// # Real-time
+    /// Bounded: at most [`RECEIVE_BURST`] non-blocking `recvfrom` or `recvmsg` calls; no
+    /// allocation for fixed-size payloads.
+    pub fn receive_stamped<P: DeserializeOwned>(&mut self) -> Option<Received<P>> {
         for _ in 0..RECEIVE_BURST {
-            let (n, from) = match self.socket.recv_from(&mut self.buf[..]) {
-                Ok(x) => x,
-                // Would block: nothing waiting. Other errors (an ICMP refusal reported on this
-                // socket) say nothing about the next datagram: stop for this call.
-                Err(_) => return None,
-            };
+            // Would block: nothing waiting. Other errors (an ICMP refusal reported on this
+            // socket) say nothing about the next datagram: stop for this call.
+            let (n, from, kernel_realtime_ns) = self.receive_raw().ok()?;
             match decode::<P>(&self.buf[..n], self.key.as_ref()) {
                 Ok((header, payload)) => {
                     self.stats.received += 1;
-                    return Some((from, header, payload));
+                    return Some(Received {
+                        from,
+                        header,
+                        payload,
+                        kernel_realtime_ns,
+                    });
                 }
                 Err(e) => self.stats.refuse(e),
             }
         }
         None
+    }
+
+    /// One datagram into the buffer: its length, sender and kernel receive time (if asked for).
+    fn receive_raw(&mut self) -> io::Result<(usize, SocketAddr, Option<i64>)> {
+        use nix::sys::socket::{ControlMessageOwned, MsgFlags, SockaddrStorage, recvmsg};
+        use std::os::fd::AsRawFd;
+        let Some(control) = self.control.as_mut() else {
+            let (n, from) = self.socket.recv_from(&mut self.buf[..])?;
+            return Ok((n, from, None));
+        };
+        let mut iov = [io::IoSliceMut::new(&mut self.buf[..])];
+        let msg = recvmsg::<SockaddrStorage>(
+            self.socket.as_raw_fd(),
+            &mut iov,
+            Some(&mut control.0[..]),
+            MsgFlags::empty(),
+        )
+        .map_err(io::Error::from)?;
+        let from = msg.address.and_then(|a| {
+            if let Some(v4) = a.as_sockaddr_in() {
+                Some(SocketAddr::V4((*v4).into()))
+            } else {
+                a.as_sockaddr_in6().map(|v6| SocketAddr::V6((*v6).into()))
+            }
+        });
+        let Some(from) = from else {
+            return Err(io::Error::other("a datagram without an IP sender"));
+        };
+        let stamp = msg.cmsgs().ok().and_then(|mut c| {
+            c.find_map(|m| match m {
+                ControlMessageOwned::ScmTimestampns(t) => t
+                    .tv_sec()
+                    .checked_mul(1_000_000_000)
+                    .and_then(|s| s.checked_add(t.tv_nsec())),
+                _ => None,
+            })
+        });
+        Ok((msg.bytes, from, stamp))
     }
 
     /// The counters.

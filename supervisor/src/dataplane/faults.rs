@@ -49,9 +49,12 @@ pub const REORDER_HOLD_LIMIT: Duration = Duration::from_millis(50);
 /// duplicate = 0.001
 /// reorder = 0.01
 /// outages = [{ from_s = 10.0, to_s = 12.5 }]
+/// clock_offset_us = 3700.0
 /// ```
 ///
-/// Every key is optional (zero: no fault); unknown keys are refused.
+/// Every key is optional (zero: no fault); unknown keys are refused. `clock_offset_us` is not a
+/// fault of the link but of the end that sends: its clock reads that much ahead (negative:
+/// behind) in every time it stamps, so that heartbeats have an offset to find on one host.
 #[derive(Clone, Debug, Default, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct FaultConfig {
@@ -67,7 +70,13 @@ pub struct FaultConfig {
     pub reorder: f64,
     /// Windows in which every item sent is dropped.
     pub outages: Vec<OutageWindow>,
+    /// How far ahead the sending end's clock reads, µs, in
+    /// `-MAX_CLOCK_OFFSET_US..=MAX_CLOCK_OFFSET_US`.
+    pub clock_offset_us: f64,
 }
+
+/// The largest injected clock offset, µs (10 s either way).
+pub const MAX_CLOCK_OFFSET_US: f64 = 10_000_000.0;
 
 /// A window of time in which the link carries nothing: items sent at `from_s <= t < to_s`
 /// are dropped.
@@ -125,6 +134,11 @@ impl FaultConfig {
         Ok(config)
     }
 
+    /// The injected clock offset, ns (rounded).
+    pub fn clock_offset_ns(&self) -> i64 {
+        (self.clock_offset_us * 1_000.0).round() as i64
+    }
+
     /// Checks every value is in its range.
     ///
     /// # Errors
@@ -138,6 +152,14 @@ impl FaultConfig {
         check("loss", self.loss, 1.0, probability)?;
         check("duplicate", self.duplicate, 1.0, probability)?;
         check("reorder", self.reorder, 1.0, probability)?;
+        let offset = self.clock_offset_us;
+        if !(-MAX_CLOCK_OFFSET_US..=MAX_CLOCK_OFFSET_US).contains(&offset) {
+            return Err(FaultConfigError::OutOfRange {
+                key: "clock_offset_us".to_owned(),
+                value: offset,
+                expected: "a number of microseconds in -10000000..=10000000",
+            });
+        }
         let seconds = "a number of seconds in 0..=10000000";
         for (index, window) in self.outages.iter().enumerate() {
             let key = |field: &str| format!("outages[{index}].{field}");

@@ -6,10 +6,13 @@
 //! - [`endpoint`]: a non-blocking UDP socket that sends and receives frames and counts what it
 //!   refused;
 //! - [`clock`]: the common clock of a link, estimated from four-timestamp heartbeats;
+//! - [`end_clock`]: the times an end stamps (the tick's on a simulated clock, the real clock's
+//!   and the kernel's receive stamps on real time), with an injectable offset;
 //! - [`faults`]: seeded link faults (delay, jitter, loss, duplication, reordering, outages),
 //!   because these machines have no netem.
 
 pub mod clock;
+pub mod end_clock;
 pub mod endpoint;
 pub mod faults;
 pub mod frame;

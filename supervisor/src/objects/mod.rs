@@ -180,6 +180,7 @@ impl Creator {
             remote: Mutex::new(config.remote.clone()),
             registry: Mutex::new(Registry {
                 datagram_key: config.datagram_key.clone(),
+                clock: config.clock,
                 ..Registry::default()
             }),
             config,

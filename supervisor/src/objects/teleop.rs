@@ -23,7 +23,8 @@ use penelope_hal::{
     CartesianReference, Frame, HybridReference, Kinematics, Pose, Reference, Timestamp, Twist,
     Wrench,
 };
-use penelope_rt_core::cell::{ArcLatestWriter, Stamped};
+use penelope_rt_core::cell::Stamped;
+use penelope_rt_core::safety::SafetyEvent;
 use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_rt_core::teleop::{
     ChannelConfig, ChannelDirection, ForceDisplay, ForceDisplayConfig, ImpedanceConfig,
@@ -33,6 +34,7 @@ use penelope_rt_core::teleop::{
 use serde::Deserialize;
 
 use super::kinematics::RobotKinematics;
+use super::runtime::ReferenceOut;
 use crate::proto::WireError;
 
 /// `trajectory/teleop` configuration.
@@ -99,7 +101,8 @@ rotation_rpy_deg = [0.0, 0.0, 0.0]  # master base frame -> slave base frame
 # listen = "127.0.0.1:7410"         # this node's address for the channel
 # peer = "127.0.0.1:7411"           # the other node's
 # faults = { delay_ms = 5.0, jitter_ms = 2.0, loss = 0.01, duplicate = 0.0, reorder = 0.0,
-#            outages = [{ from_s = 10.0, to_s = 12.0 }] }   # injected into what this end sends
+#            outages = [{ from_s = 10.0, to_s = 12.0 }],   # injected into what this end sends
+#            clock_offset_us = 0.0 }                       # this end's clock reads that far ahead
 # fault_seed = 1
 # link_timeout_ms = 0               # silence before the link counts as lost and the robot goes
 #                                   # neutral (slave holds, master no force); 0: two T_com.
@@ -315,12 +318,7 @@ impl TeleopComm {
     ///
     /// # Real-time
     /// No allocation, no locks: cell reads and writes, kinematics, the channel's bounded work.
-    pub fn tick(
-        &mut self,
-        now: Timestamp,
-        state: Option<TelemetrySample>,
-        out: &mut ArcLatestWriter<Stamped<Reference>>,
-    ) {
+    pub fn tick(&mut self, now: Timestamp, state: Option<TelemetrySample>, out: &mut ReferenceOut) {
         let Some(sample) = state else {
             return; // nothing measured yet: the channel starts from the measured pose
         };
@@ -386,11 +384,12 @@ impl TeleopComm {
             reference,
         });
         let received = self.end.take_newest(now);
+        let mut restored = false;
         if let Some(sample) = received {
             if self.lost_at.take().is_some() {
                 // Heard again: resume from where this robot is, re-anchored as after the
                 // clutch, so nothing jumps.
-                self.end.note_link(false);
+                restored = self.end.note_link(false);
                 self.channel.reset();
                 self.start_channel(now, &pose);
             }
@@ -403,13 +402,17 @@ impl TeleopComm {
             && now.saturating_since(at) >= timeout
         {
             let held = *self.lost_at.get_or_insert(pose);
-            self.end.note_link(true);
+            let lost = self.end.note_link(true);
             self.end.publish_stats();
             // Neutral and fresh: the slave holds where it was, the master displays no force.
             out.write(Stamped {
                 stamp: now,
                 value: neutral(self.end.side, &held, &pose),
             });
+            // A safety event of the loop, raised after the reference it goes with.
+            if lost {
+                out.raise(SafetyEvent::LinkLost);
+            }
             return;
         }
         // Stamped with the arrival of what it is made of: when the other side goes silent the
@@ -419,6 +422,9 @@ impl TeleopComm {
             && r.is_finite()
         {
             out.write(Stamped { stamp, value: r });
+        }
+        if restored {
+            out.raise(SafetyEvent::LinkRestored);
         }
         self.end.publish_stats();
     }

@@ -17,7 +17,8 @@ use penelope_rt_core::teleop::TeleopSample;
 use serde::{Deserialize, Serialize};
 
 use crate::dataplane::clock::LinkClock;
-use crate::dataplane::endpoint::{Endpoint, EndpointStats, RECEIVE_BURST};
+use crate::dataplane::end_clock::{EndClock, LinkTime};
+use crate::dataplane::endpoint::{Endpoint, EndpointStats, RECEIVE_BURST, Received};
 use crate::dataplane::faults::{FaultConfig, FaultConfigError, FaultCounters, FaultyLink};
 use crate::dataplane::frame::Header;
 use crate::dataplane::frame::StreamId;
@@ -104,6 +105,13 @@ struct RemoteLink {
     heartbeats: StreamSender,
     /// The other node's clock as heartbeats estimate it.
     clock: LinkClock,
+    /// The clock this end stamps with (the tick's, or the real one and the kernel's receive
+    /// stamps), and its injected offset.
+    stamps: EndClock,
+    /// This end's time when it last looked for datagrams, and when the last one from the peer
+    /// arrived (its clock, ns): how long ago the other side was heard.
+    looked_at: Option<i64>,
+    heard_at: Option<i64>,
     /// Injected faults on what this end sends (tests, experiments), if configured.
     faults: Option<FaultyLink<(Header, LinkDatagram)>>,
     /// Samples taken so far: the channel's sequence numbers (newest wins there too), which stay
@@ -137,8 +145,16 @@ pub struct LinkStats {
     pub strangers: u64,
     /// The other node's clock minus this node's, ns, as heartbeats estimate it.
     pub clock_offset_ns: Option<i64>,
-    /// The heartbeats' round trip, ns, of the exchange the offset comes from.
+    /// The heartbeats' round trip, ns, of the exchange the offset comes from (the other
+    /// side's turnaround excluded).
     pub round_trip_ns: Option<i64>,
+    /// The one-way delay estimate, ns: half the round trip.
+    pub one_way_delay_ns: Option<i64>,
+    /// The jitter of the offset estimate, ns (RMS of the kept exchanges' offsets around it).
+    pub jitter_ns: Option<i64>,
+    /// How long before this end last looked for datagrams the other side's last one arrived,
+    /// ns (`None` before the first).
+    pub last_heard_ns: Option<i64>,
     /// The share of heartbeats not answered.
     pub heartbeat_loss: f64,
     /// What the injected faults did to what this end sent, if faults are configured.
@@ -154,7 +170,8 @@ impl LinkStats {
 }
 
 impl RemoteLink {
-    /// Sends a datagram now, or through the injected faults (which release what is due).
+    /// Sends a datagram now, or through the injected faults (which release what is due at the
+    /// tick's time `now`, the time their outage windows are measured in).
     fn emit(&mut self, now: i64, header: Header, datagram: LinkDatagram) {
         match &mut self.faults {
             None => {
@@ -173,16 +190,26 @@ impl RemoteLink {
 
 impl TeleopEnd {
     /// `side`'s end linked over the data plane: `endpoint` (bound on this node) exchanges
-    /// samples with the other side's endpoint at `peer`; what it sends goes through injected
-    /// `faults` (with their seed) when given; its counters go to `stats`.
+    /// samples with the other side's endpoint at `peer`, stamping times from `time`; what it
+    /// sends goes through injected `faults` (with their seed) when given, its clock offset by
+    /// theirs; its counters go to `stats`.
     fn remote(
         side: Side,
-        endpoint: Endpoint,
+        mut endpoint: Endpoint,
         peer: SocketAddr,
+        time: LinkTime,
         faults: Option<(&FaultConfig, u64)>,
         stats: StatsWriter,
     ) -> Result<Self, FaultConfigError> {
         let (out, inbound) = side.streams();
+        let offset = faults.map_or(0, |(config, _)| config.clock_offset_ns());
+        // Without the kernel's stamps an arrival is timed when the thread reads it: worse by
+        // the wait for the next tick, but still the real clock.
+        if time == LinkTime::Real
+            && let Err(e) = endpoint.enable_receive_timestamps()
+        {
+            log::warn!("data plane: no kernel receive timestamps ({e}); reading the clock instead");
+        }
         let faults = match faults {
             Some((config, seed)) => Some(FaultyLink::new(config, seed, FAULTY_CAPACITY)?),
             None => None,
@@ -196,6 +223,9 @@ impl TeleopEnd {
                 receiver: StreamReceiver::new(inbound),
                 heartbeats: StreamSender::new(HEARTBEATS),
                 clock: LinkClock::new(),
+                stamps: EndClock::new(time, offset),
+                looked_at: None,
+                heard_at: None,
                 faults,
                 taken: 0,
                 strangers: 0,
@@ -228,17 +258,19 @@ impl TeleopEnd {
         match &mut self.transport {
             Transport::Cells { send, .. } => send.write(sample),
             Transport::DataPlane(link) => {
-                let now = nanos(sample.sent);
-                let header = link.sender.next(now);
+                let tick = nanos(sample.sent);
+                let header = link.sender.next(link.stamps.now(tick));
                 let payload = LinkDatagram::Sample {
                     clutch: sample.clutch,
                     reference: sample.reference,
                 };
-                link.emit(now, header, payload);
+                link.emit(tick, header, payload);
                 if header.sequence % HEARTBEAT_EVERY == 1 {
-                    let beat = link.heartbeats.next(now);
-                    link.clock.note_sent(beat.sequence, now);
-                    link.emit(now, beat, LinkDatagram::Heartbeat);
+                    // t1: read as it leaves.
+                    let t1 = link.stamps.now(tick);
+                    let beat = link.heartbeats.next(t1);
+                    link.clock.note_sent(beat.sequence, t1);
+                    link.emit(tick, beat, LinkDatagram::Heartbeat);
                 }
             }
         }
@@ -246,12 +278,12 @@ impl TeleopEnd {
 
     /// The other side's newest sample since the last call, if one arrived, its send time on
     /// this node's clock; heartbeats are answered and answers taken into the link's clock.
-    /// `now` is this node's time (of the call: the datagrams' arrival to within a
-    /// communication period).
+    /// `now` is the communication tick's time: on a simulated clock the time of every arrival
+    /// (to within a communication period); on real time the kernel stamps arrivals.
     ///
     /// # Real-time
-    /// A cell read, or at most [`RECEIVE_BURST`] non-blocking `recvfrom` calls and as many
-    /// answers.
+    /// A cell read, or at most [`RECEIVE_BURST`] non-blocking `recvfrom` (or `recvmsg`) calls
+    /// and as many answers.
     pub fn take_newest(&mut self, now: Timestamp) -> Option<TeleopSample> {
         match &mut self.transport {
             Transport::Cells { receive, .. } => match receive.read() {
@@ -260,9 +292,15 @@ impl TeleopEnd {
             },
             Transport::DataPlane(link) => {
                 let mut newest = None;
-                let now = nanos(now);
+                let tick = nanos(now);
+                link.looked_at = Some(link.stamps.now(tick));
                 for _ in 0..RECEIVE_BURST {
-                    let Some((from, header, datagram)) = link.endpoint.receive::<LinkDatagram>()
+                    let Some(Received {
+                        from,
+                        header,
+                        payload: datagram,
+                        kernel_realtime_ns,
+                    }) = link.endpoint.receive_stamped::<LinkDatagram>()
                     else {
                         break;
                     };
@@ -270,6 +308,9 @@ impl TeleopEnd {
                         link.strangers += 1;
                         continue;
                     }
+                    // t2 of a heartbeat, t4 of an answer.
+                    let arrived = link.stamps.received(tick, kernel_realtime_ns);
+                    link.heard_at = Some(arrived);
                     match datagram {
                         LinkDatagram::Sample { clutch, reference } => {
                             if link.receiver.offer(&header) != Verdict::Accepted {
@@ -278,10 +319,11 @@ impl TeleopEnd {
                             link.taken += 1;
                             // The sender's time on this node's clock, once heartbeats know
                             // the offset (before that, taken as is: one host, one clock).
-                            let sent = link
-                                .clock
-                                .from_common(header.sent_ns)
-                                .unwrap_or(header.sent_ns);
+                            let sent = link.stamps.to_node(
+                                link.clock
+                                    .from_common(header.sent_ns)
+                                    .unwrap_or(header.sent_ns),
+                            );
                             newest = Some(TeleopSample {
                                 sequence: link.taken,
                                 sent: Timestamp::from_nanos(u64::try_from(sent).unwrap_or(0)),
@@ -290,12 +332,13 @@ impl TeleopEnd {
                             });
                         }
                         LinkDatagram::Heartbeat if header.stream == HEARTBEATS => {
-                            let answer = link.heartbeats.next(now);
+                            // t3: read as the answer leaves.
+                            let answer = link.heartbeats.next(link.stamps.now(tick));
                             let payload = LinkDatagram::Answer {
                                 heartbeat: header.sequence,
-                                received_ns: now,
+                                received_ns: arrived,
                             };
-                            link.emit(now, answer, payload);
+                            link.emit(tick, answer, payload);
                         }
                         LinkDatagram::Answer {
                             heartbeat,
@@ -303,9 +346,12 @@ impl TeleopEnd {
                         } if header.stream == HEARTBEATS => {
                             // Refusals (unmatched, duplicate, impossible times) are counted
                             // by the clock and leave its estimate alone.
-                            let _ =
-                                link.clock
-                                    .note_answer(heartbeat, received_ns, header.sent_ns, now);
+                            let _ = link.clock.note_answer(
+                                heartbeat,
+                                received_ns,
+                                header.sent_ns,
+                                arrived,
+                            );
                         }
                         _ => {}
                     }
@@ -320,8 +366,9 @@ impl TeleopEnd {
         matches!(self.transport, Transport::DataPlane(_))
     }
 
-    /// Notes that the link is lost (`true`) or back (`false`); a change is counted.
-    pub fn note_link(&mut self, lost: bool) {
+    /// Notes that the link is lost (`true`) or back (`false`); a change is counted, and
+    /// returned (`true`: this call changed it, a safety event for the loop).
+    pub fn note_link(&mut self, lost: bool) -> bool {
         if let Transport::DataPlane(link) = &mut self.transport
             && link.down != lost
         {
@@ -331,7 +378,9 @@ impl TeleopEnd {
             } else {
                 link.restorations += 1;
             }
+            return true;
         }
+        false
     }
 
     /// Publishes the link's counters for the channel object (each communication tick).
@@ -359,6 +408,12 @@ impl TeleopEnd {
                 strangers: link.strangers,
                 clock_offset_ns: link.clock.offset(),
                 round_trip_ns: link.clock.delay(),
+                one_way_delay_ns: link.clock.one_way_delay(),
+                jitter_ns: link.clock.jitter(),
+                last_heard_ns: match (link.looked_at, link.heard_at) {
+                    (Some(looked), Some(heard)) => Some(looked.saturating_sub(heard).max(0)),
+                    _ => None,
+                },
                 heartbeat_loss: link.clock.loss_ratio(),
                 faults: link.faults.as_ref().map(FaultyLink::counters),
             }),
@@ -412,8 +467,9 @@ impl TeleopLink {
     }
 
     /// Only `side`'s end on this node, linked over the data plane: `endpoint` (bound on this
-    /// node) exchanges samples with the other side's endpoint at `peer`, through injected
-    /// `faults` (with their seed) when given; the other side's end is on another node.
+    /// node) exchanges samples with the other side's endpoint at `peer`, stamping times from
+    /// `time` (the tick's on a simulated clock, the real clock's on real time), through
+    /// injected `faults` (with their seed) when given; the other side's end is on another node.
     ///
     /// # Errors
     /// [`FaultConfigError`] for a fault configuration out of range.
@@ -421,6 +477,7 @@ impl TeleopLink {
         side: Side,
         endpoint: Endpoint,
         peer: SocketAddr,
+        time: LinkTime,
         faults: Option<(&FaultConfig, u64)>,
     ) -> Result<Self, FaultConfigError> {
         let (writer, reader) = latest();
@@ -430,7 +487,9 @@ impl TeleopLink {
             local: (side == Side::Master, side == Side::Slave),
             stats: Some(Mutex::new(reader)),
         };
-        link.put_back(TeleopEnd::remote(side, endpoint, peer, faults, writer)?);
+        link.put_back(TeleopEnd::remote(
+            side, endpoint, peer, time, faults, writer,
+        )?);
         Ok(link)
     }
 
@@ -483,9 +542,94 @@ mod tests {
         // The peer is set below, once both are bound.
         let (stats, _) = latest();
         (
-            TeleopEnd::remote(side, endpoint, addr, None, stats).unwrap(),
+            TeleopEnd::remote(side, endpoint, addr, LinkTime::Tick, None, stats).unwrap(),
             addr,
         )
+    }
+
+    /// `side`'s end on the real clock, its clock `offset_us` ahead.
+    fn real_end(side: Side, key: &DatagramKey, offset_us: f64) -> (TeleopEnd, SocketAddr) {
+        let endpoint = Endpoint::bind("127.0.0.1:0".parse().unwrap(), Some(key.clone())).unwrap();
+        let addr = endpoint.local_addr().unwrap();
+        let (stats, _) = latest();
+        let faults = FaultConfig {
+            clock_offset_us: offset_us,
+            ..FaultConfig::default()
+        };
+        let end = TeleopEnd::remote(
+            side,
+            endpoint,
+            addr,
+            LinkTime::Real,
+            Some((&faults, 1)),
+            stats,
+        );
+        (end.unwrap(), addr)
+    }
+
+    #[test]
+    fn on_the_real_clock_an_injected_offset_is_found_to_within_100_microseconds() {
+        use penelope_rt_core::clock::MonotonicClock;
+        use std::sync::atomic::{AtomicBool, Ordering};
+        let key = DatagramKey::from_secret(b"lab");
+        let (mut master, m_addr) = real_end(Side::Master, &key, 0.0);
+        // The slave's end reads 3.7 ms ahead of the master's.
+        let (mut slave, s_addr) = real_end(Side::Slave, &key, 3_700.0);
+        set_peer(&mut master, s_addr);
+        set_peer(&mut slave, m_addr);
+        let done = std::sync::Arc::new(AtomicBool::new(false));
+        // Each end in a thread of its own, ticking every 2 ms as a communication thread does
+        // (the sleep paces the ticks; what the test waits for is the heartbeats below).
+        let run = |mut end: TeleopEnd, done: std::sync::Arc<AtomicBool>| {
+            std::thread::spawn(move || {
+                let deadline = std::time::Instant::now() + std::time::Duration::from_secs(20);
+                let mut k = 0u64;
+                while !done.load(Ordering::Acquire) && std::time::Instant::now() < deadline {
+                    k += 1;
+                    let now = MonotonicClock::read();
+                    end.publish(sample(now, k as f64));
+                    let _ = end.take_newest(now);
+                    std::thread::sleep(std::time::Duration::from_millis(2));
+                }
+                end
+            })
+        };
+        let slave = run(slave, done.clone());
+        // The master's thread stops itself once 100 of its heartbeats were answered (about a
+        // second), or at the deadline.
+        let master = std::thread::spawn(move || {
+            let deadline = std::time::Instant::now() + std::time::Duration::from_secs(20);
+            let mut k = 0u64;
+            while std::time::Instant::now() < deadline {
+                k += 1;
+                let now = MonotonicClock::read();
+                master.publish(sample(now, k as f64));
+                let _ = master.take_newest(now);
+                if let Transport::DataPlane(link) = &master.transport
+                    && link.clock.counts().accepted >= 100
+                {
+                    break;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(2));
+            }
+            master
+        });
+        let master = master.join().unwrap();
+        done.store(true, Ordering::Release);
+        let slave = slave.join().unwrap();
+        let m = master.link_stats().unwrap();
+        let s = slave.link_stats().unwrap();
+        let offset = m.clock_offset_ns.expect("an estimate");
+        let error = offset - 3_700_000;
+        println!(
+            "real clock, 3.7 ms injected: master's estimate {offset} ns (error {error} ns), \
+             round trip {:?} ns, jitter {:?} ns; slave's estimate {:?} ns",
+            m.round_trip_ns, m.jitter_ns, s.clock_offset_ns
+        );
+        assert!(error.abs() < 100_000, "off by {error} ns: {m:?}");
+        let back = s.clock_offset_ns.expect("the slave's estimate") + 3_700_000;
+        assert!(back.abs() < 100_000, "the slave's is off by {back} ns");
+        assert!(m.one_way_delay_ns.is_some() && m.last_heard_ns.is_some());
     }
 
     fn set_peer(end: &mut TeleopEnd, peer: SocketAddr) {

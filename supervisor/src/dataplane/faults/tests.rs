@@ -172,6 +172,7 @@ fn the_same_seed_gives_the_same_faults_and_different_seeds_differ() {
             from_s: 0.5,
             to_s: 0.6,
         }],
+        clock_offset_us: 0.0,
     };
     let outcome = |seed| {
         let mut link = link(&config, seed);
@@ -204,7 +205,7 @@ fn items_beyond_capacity_are_dropped_and_counted() {
 fn configurations_parse_from_toml_and_bad_ones_name_their_key() {
     let config = FaultConfig::from_toml(
         "delay_ms = 2.0\njitter_ms = 5.0\nloss = 0.01\nduplicate = 0.001\nreorder = 0.01\n\
-         outages = [{ from_s = 10.0, to_s = 12.5 }]",
+         outages = [{ from_s = 10.0, to_s = 12.5 }]\nclock_offset_us = -3700.0",
     )
     .unwrap();
     assert_eq!(
@@ -219,8 +220,10 @@ fn configurations_parse_from_toml_and_bad_ones_name_their_key() {
                 from_s: 10.0,
                 to_s: 12.5
             }],
+            clock_offset_us: -3700.0,
         }
     );
+    assert_eq!(config.clock_offset_ns(), -3_700_000);
     assert_eq!(FaultConfig::from_toml("").unwrap(), FaultConfig::default());
 
     let key_of = |text: &str| match FaultConfig::from_toml(text).unwrap_err() {
@@ -232,6 +235,8 @@ fn configurations_parse_from_toml_and_bad_ones_name_their_key() {
     assert_eq!(key_of("reorder = nan"), "reorder");
     assert_eq!(key_of("delay_ms = -1.0"), "delay_ms");
     assert_eq!(key_of("jitter_ms = inf"), "jitter_ms");
+    assert_eq!(key_of("clock_offset_us = 2e7"), "clock_offset_us");
+    assert_eq!(key_of("clock_offset_us = nan"), "clock_offset_us");
     assert_eq!(
         key_of("outages = [{ from_s = 1.0, to_s = 2.0 }, { from_s = -1.0, to_s = 2.0 }]"),
         "outages[1].from_s"
@@ -279,6 +284,7 @@ fn config() -> impl Strategy<Value = FaultConfig> {
                         to_s: from_s + length_s,
                     })
                     .collect(),
+                clock_offset_us: 0.0,
             },
         )
 }

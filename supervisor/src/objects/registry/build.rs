@@ -264,7 +264,7 @@ impl Registry {
         // Ports.
         use penelope_rt_core::cell::latest;
         use penelope_rt_core::ring::ring;
-        let (ref_w, ref_r) = latest();
+        let (ref_w, ref_r) = crate::objects::runtime::reference_port();
         let (tel_w, tel_r) = ring();
         let (comm_w, comm_r) = latest();
         let (probe_w, probe_r) = latest();

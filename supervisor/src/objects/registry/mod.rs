@@ -405,6 +405,9 @@ pub(crate) struct Registry {
     pub objects: BTreeMap<String, Object>,
     /// The key of this system's data-plane datagrams (from the nodes' secret), if it has one.
     pub datagram_key: Option<DatagramKey>,
+    /// How the creator's loops are clocked (a channel to another node stamps real times on
+    /// real time, tick times on a simulated clock).
+    pub clock: crate::objects::clock::ClockMode,
 }
 
 /// What activating a controller needs from the creator.

@@ -4,6 +4,9 @@
 
 use super::*;
 
+use crate::dataplane::end_clock::LinkTime;
+use crate::objects::clock::ClockMode;
+
 /// `describe`'s lines about a channel's link to another node (none for a channel on this
 /// node, or before its first communication tick).
 pub(super) fn link_relations(t: &TeleopObj) -> Vec<(String, String)> {
@@ -30,12 +33,15 @@ pub(super) fn link_relations(t: &TeleopObj) -> Vec<(String, String)> {
             "link-stats".to_string(),
             format!(
                 "{} samples taken, {} datagrams refused, clock offset {}, round trip {}, \
-                 heartbeats lost {:.1}%",
+                 one-way delay {}, jitter {}, heartbeats lost {:.1}%, last heard {} ago",
                 r.stream.accepted,
                 r.refused(),
                 micros(r.clock_offset_ns),
                 micros(r.round_trip_ns),
-                r.heartbeat_loss * 100.0
+                micros(r.one_way_delay_ns),
+                micros(r.jitter_ns),
+                r.heartbeat_loss * 100.0,
+                micros(r.last_heard_ns)
             ),
         ),
     ]
@@ -93,10 +99,17 @@ impl Registry {
                 let endpoint = Endpoint::bind(listen, self.datagram_key.clone()).map_err(|e| {
                     WireError::Device(format!("data plane: cannot bind {listen}: {e}"))
                 })?;
+                // Real times and kernel receive stamps on real time; the tick's on a
+                // simulated clock, so that simulated runs stay reproducible.
+                let time = match self.clock {
+                    ClockMode::RealTime => LinkTime::Real,
+                    ClockMode::Simulated => LinkTime::Tick,
+                };
                 TeleopLink::remote(
                     side,
                     endpoint,
                     peer,
+                    time,
                     faults.as_ref().map(|(f, seed)| (f, *seed)),
                 )
                 .map_err(|e| WireError::BadConfig {

@@ -76,13 +76,14 @@ pub const SPLINE_CAPACITY: usize = crate::objects::kinds::MAX_WAYPOINTS;
 /// joints are spread over several simulated boards is still one plant).
 pub type SimBody = SimBoard<DhRobotModel, ToolContact>;
 
-type RefWriter = ArcLatestWriter<Stamped<Reference>>;
-type RefReader = ArcLatestReader<Stamped<Reference>>;
+type RefWriter = ReferenceOut;
+type RefReader = ReferencePort;
 type Commands = ArcConsumer<penelope_rt_core::control::ControlCommand, COMMAND_CAPACITY>;
 
 mod board;
 mod comm;
 mod control;
+mod reference;
 mod sensors;
 mod telemetry;
 mod threads;
@@ -90,6 +91,7 @@ mod threads;
 pub use board::*;
 pub use comm::*;
 pub use control::*;
+pub use reference::*;
 pub use sensors::*;
 pub use telemetry::*;
 pub use threads::*;
