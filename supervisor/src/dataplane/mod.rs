@@ -8,6 +8,7 @@
 //! - [`clock`]: the common clock of a link, estimated from four-timestamp heartbeats;
 //! - [`end_clock`]: the times an end stamps (the tick's on a simulated clock, the real clock's
 //!   and the kernel's receive stamps on real time), with an injectable offset;
+//! - [`histogram`]: fixed-size latency histograms (the samples' one-way trips);
 //! - [`faults`]: seeded link faults (delay, jitter, loss, duplication, reordering, outages),
 //!   because these machines have no netem.
 
@@ -16,4 +17,5 @@ pub mod end_clock;
 pub mod endpoint;
 pub mod faults;
 pub mod frame;
+pub mod histogram;
 pub mod stream;

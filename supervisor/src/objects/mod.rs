@@ -214,6 +214,22 @@ impl Creator {
         self.lock().ok()?.objects.get(name).map(|o| o.info())
     }
 
+    /// Where the counters of channel `name`'s link to another node can be read (`None` for a
+    /// channel with both ends on this node, or not configured yet).
+    ///
+    /// # Errors
+    /// [`WireError::UnknownName`] for no such object.
+    pub fn link_stats_source(
+        &self,
+        name: &str,
+    ) -> Result<Option<teleop_end::LinkStatsSource>, WireError> {
+        let registry = self.lock()?;
+        Ok(match &registry.get(name)?.body {
+            registry::Body::Teleop(t) => t.link.as_ref().and_then(|l| l.stats_source()),
+            _ => None,
+        })
+    }
+
     /// How many objects it holds.
     pub fn object_count(&self) -> u32 {
         self.lock().map_or(0, |r| r.objects.len() as u32)

@@ -4,7 +4,7 @@
 //! communication thread that holds the end does the I/O; the control thread never does.
 
 use std::net::SocketAddr;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use penelope_hal::{Reference, Timestamp};
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, latest};
@@ -22,6 +22,7 @@ use crate::dataplane::endpoint::{Endpoint, EndpointStats, RECEIVE_BURST, Receive
 use crate::dataplane::faults::{FaultConfig, FaultConfigError, FaultCounters, FaultyLink};
 use crate::dataplane::frame::Header;
 use crate::dataplane::frame::StreamId;
+use crate::dataplane::histogram::LatencyHistogram;
 use crate::dataplane::stream::{StreamReceiver, StreamSender, StreamStats, Verdict};
 
 /// The stream of the master's samples to the slave.
@@ -112,6 +113,8 @@ struct RemoteLink {
     /// arrived (its clock, ns): how long ago the other side was heard.
     looked_at: Option<i64>,
     heard_at: Option<i64>,
+    /// The samples' one-way trips on the common clock.
+    one_way: LatencyHistogram,
     /// Injected faults on what this end sends (tests, experiments), if configured.
     faults: Option<FaultyLink<(Header, LinkDatagram)>>,
     /// Samples taken so far: the channel's sequence numbers (newest wins there too), which stay
@@ -157,11 +160,41 @@ pub struct LinkStats {
     pub last_heard_ns: Option<i64>,
     /// The share of heartbeats not answered.
     pub heartbeat_loss: f64,
+    /// The samples' one-way trips, ns: arrival (the kernel's stamp on real time) less the
+    /// sender's send time on the common clock (before the offset is known, as sent: right
+    /// when both nodes share a clock, as on one machine).
+    pub one_way: LatencyHistogram,
     /// What the injected faults did to what this end sent, if faults are configured.
     pub faults: Option<FaultCounters>,
 }
 
 impl LinkStats {
+    /// As a client sees it, read at `time_ns` (the node's clock).
+    pub fn record(&self, time_ns: u64) -> crate::proto::LinkRecord {
+        let s = &self.stream;
+        let trips = self.one_way.count();
+        crate::proto::LinkRecord {
+            time_ns,
+            down: self.down,
+            losses: self.losses,
+            restorations: self.restorations,
+            samples_taken: s.accepted,
+            samples_dropped: s.duplicate + s.late + s.stale_session,
+            samples_missed: s.missed,
+            refused: self.refused(),
+            clock_offset_ns: self.clock_offset_ns,
+            round_trip_ns: self.round_trip_ns,
+            one_way_delay_ns: self.one_way_delay_ns,
+            jitter_ns: self.jitter_ns,
+            last_heard_ns: self.last_heard_ns,
+            heartbeat_loss: self.heartbeat_loss,
+            trips,
+            trip_p50_ns: self.one_way.quantile(0.5),
+            trip_p99_ns: self.one_way.quantile(0.99),
+            trip_max_ns: (trips > 0).then(|| self.one_way.max_ns()),
+        }
+    }
+
     /// Datagrams refused: bad tag, wrong authentication, malformed, or from a stranger.
     pub fn refused(&self) -> u64 {
         let e = self.endpoint;
@@ -226,6 +259,7 @@ impl TeleopEnd {
                 stamps: EndClock::new(time, offset),
                 looked_at: None,
                 heard_at: None,
+                one_way: LatencyHistogram::default(),
                 faults,
                 taken: 0,
                 strangers: 0,
@@ -317,6 +351,11 @@ impl TeleopEnd {
                                 continue;
                             }
                             link.taken += 1;
+                            let sent_here = link
+                                .clock
+                                .from_common(header.sent_ns)
+                                .unwrap_or(header.sent_ns);
+                            link.one_way.record(arrived - sent_here);
                             // The sender's time on this node's clock, once heartbeats know
                             // the offset (before that, taken as is: one host, one clock).
                             let sent = link.stamps.to_node(
@@ -409,6 +448,7 @@ impl TeleopEnd {
                 clock_offset_ns: link.clock.offset(),
                 round_trip_ns: link.clock.delay(),
                 one_way_delay_ns: link.clock.one_way_delay(),
+                one_way: link.one_way,
                 jitter_ns: link.clock.jitter(),
                 last_heard_ns: match (link.looked_at, link.heard_at) {
                     (Some(looked), Some(heard)) => Some(looked.saturating_sub(heard).max(0)),
@@ -426,6 +466,17 @@ fn nanos(t: Timestamp) -> i64 {
     i64::try_from(t.as_nanos()).unwrap_or(i64::MAX)
 }
 
+/// A shared reader of a link's newest [`LinkStats`] (outside the real-time threads: it locks).
+#[derive(Clone)]
+pub struct LinkStatsSource(Arc<Mutex<ArcLatestReader<LinkStats>>>);
+
+impl LinkStatsSource {
+    /// The newest counters (`None` before the link's first communication tick).
+    pub fn latest(&self) -> Option<LinkStats> {
+        self.0.lock().ok()?.latest()
+    }
+}
+
 /// The ends of a configured channel on this node; each is lent to the loop that runs it. A
 /// channel whose other robot is on another node has only this node's end.
 pub struct TeleopLink {
@@ -436,7 +487,7 @@ pub struct TeleopLink {
     /// Which ends are on this node (the others are on another node).
     local: (bool, bool),
     /// The counters of this node's end's link to another node, if it has one.
-    stats: Option<Mutex<ArcLatestReader<LinkStats>>>,
+    stats: Option<LinkStatsSource>,
 }
 
 impl TeleopLink {
@@ -485,7 +536,7 @@ impl TeleopLink {
             master: None,
             slave: None,
             local: (side == Side::Master, side == Side::Slave),
-            stats: Some(Mutex::new(reader)),
+            stats: Some(LinkStatsSource(Arc::new(Mutex::new(reader)))),
         };
         link.put_back(TeleopEnd::remote(
             side, endpoint, peer, time, faults, writer,
@@ -496,7 +547,13 @@ impl TeleopLink {
     /// The newest counters of the link to another node (`None` for a channel on this node,
     /// or before its first communication tick).
     pub fn stats(&self) -> Option<LinkStats> {
-        self.stats.as_ref()?.lock().ok()?.latest()
+        self.stats.as_ref()?.latest()
+    }
+
+    /// Where the newest counters of the link to another node can be read from elsewhere (a
+    /// recorder, a telemetry pump): `None` for a channel on this node.
+    pub fn stats_source(&self) -> Option<LinkStatsSource> {
+        self.stats.clone()
     }
 
     /// Whether `side`'s end lives on this node.

@@ -60,7 +60,8 @@ pub use object::{
     BoardMethod, ControllerMethod, JointAxis, Method, RobotMethod, SensorMethod, TrajectoryMethod,
 };
 pub use replies::{
-    ControlStatus, KindInfo, NodeInfo, ObjectInfo, Reply, TelemetryBatch, TelemetryRecord,
+    ControlStatus, KindInfo, LinkRecord, NodeInfo, ObjectInfo, Reply, TelemetryBatch,
+    TelemetryRecord,
 };
 
 /// The first four bytes of every hello: `PNLP`.

@@ -142,6 +142,48 @@ pub struct TelemetryRecord {
     pub fault: Option<String>,
 }
 
+/// A data-plane link's state and statistics as a client sees them (one end's view of a
+/// `trajectory/teleop` channel whose other end is on another node).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LinkRecord {
+    /// When it was read, ns on the node's monotonic clock.
+    pub time_ns: u64,
+    /// The link is lost (the other side silent past the timeout).
+    pub down: bool,
+    /// Times it was lost.
+    pub losses: u64,
+    /// Times it came back.
+    pub restorations: u64,
+    /// Samples taken (newest wins).
+    pub samples_taken: u64,
+    /// Samples dropped as late, duplicate or of a stale session.
+    pub samples_dropped: u64,
+    /// Sequence numbers skipped between taken samples (lost, or overtaken).
+    pub samples_missed: u64,
+    /// Datagrams refused: bad tag, wrong authentication, malformed, from a stranger.
+    pub refused: u64,
+    /// The other node's clock minus this node's, ns, as heartbeats estimate it.
+    pub clock_offset_ns: Option<i64>,
+    /// The heartbeats' round trip, ns (the other side's turnaround excluded).
+    pub round_trip_ns: Option<i64>,
+    /// The one-way delay estimate, ns (half the round trip).
+    pub one_way_delay_ns: Option<i64>,
+    /// The jitter of the offset estimate, ns.
+    pub jitter_ns: Option<i64>,
+    /// Since the other side was last heard, ns.
+    pub last_heard_ns: Option<i64>,
+    /// The share of heartbeats not answered (0 to 1).
+    pub heartbeat_loss: f64,
+    /// The samples' one-way trips measured.
+    pub trips: u64,
+    /// Their median, ns (arrival less send time on the common clock).
+    pub trip_p50_ns: Option<i64>,
+    /// Their 99th percentile, ns.
+    pub trip_p99_ns: Option<i64>,
+    /// The longest, ns.
+    pub trip_max_ns: Option<i64>,
+}
+
 /// Samples of one subscription.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TelemetryBatch {

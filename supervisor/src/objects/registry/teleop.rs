@@ -44,6 +44,16 @@ pub(super) fn link_relations(t: &TeleopObj) -> Vec<(String, String)> {
                 micros(r.last_heard_ns)
             ),
         ),
+        (
+            "link-trips".to_string(),
+            format!(
+                "samples' one-way trip p50 {}, p99 {}, max {} ({} trips)",
+                micros(r.one_way.quantile(0.5)),
+                micros(r.one_way.quantile(0.99)),
+                micros((r.one_way.count() > 0).then(|| r.one_way.max_ns())),
+                r.one_way.count()
+            ),
+        ),
     ]
 }
 
