@@ -5,6 +5,7 @@
 //! - [`stream`]: numbering on the sending side, newest-wins on the receiving side;
 //! - [`endpoint`]: a non-blocking UDP socket that sends and receives frames and counts what it
 //!   refused;
+//! - [`sensor_stream`]: a force sensor published by its node to any number of readers;
 //! - [`clock`]: the common clock of a link, estimated from four-timestamp heartbeats;
 //! - [`faults`]: seeded link faults (delay, jitter, loss, duplication, reordering, outages),
 //!   because these machines have no netem.
@@ -13,4 +14,5 @@ pub mod clock;
 pub mod endpoint;
 pub mod faults;
 pub mod frame;
+pub mod sensor_stream;
 pub mod stream;
