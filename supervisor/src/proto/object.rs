@@ -184,8 +184,8 @@ pub enum ControllerMethod {
         trajectory: String,
     },
     /// Binds the force sensor: a name on this node or a naming path (`/node/sensors/name`) of a
-    /// sensor on another node, which the controller's communication thread then reads.
-    /// [`Reply::Unit`].
+    /// sensor on another node, which the controller's sensor feed then reads on the data plane
+    /// (that sensor needs `publish`; see [`SensorMethod::Stream`]). [`Reply::Unit`].
     SetSensor {
         /// Local name or naming path.
         sensor: String,
