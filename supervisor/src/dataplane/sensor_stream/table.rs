@@ -34,7 +34,8 @@ pub enum Refusal {
     /// The table is full.
     #[error("subscriber table full")]
     Full,
-    /// Not newer than what this subscriber sent before (duplicated, late, or replayed).
+    /// Not newer than what this subscriber sent before (duplicated, late, or replayed), or
+    /// another subscriber's session from a new address (replayed from elsewhere).
     #[error("subscription not newer than the subscriber's last")]
     Stale,
     /// Another stream's datagram.
@@ -87,6 +88,17 @@ impl SubscriberTable {
                 Admission::Renewed
             }
             None => {
+                // A session is one reader's endpoint: the same session from another address is
+                // a recorded subscription replayed from elsewhere, which would otherwise take a
+                // place in the table and draw samples to the replayer.
+                if self.entries.iter().any(|s| {
+                    s.subscriptions
+                        .newest()
+                        .is_some_and(|n| n.session == header.session)
+                }) {
+                    self.refused_stale += 1;
+                    return Err(Refusal::Stale);
+                }
                 if self.entries.len() >= self.capacity {
                     self.refused_full += 1;
                     return Err(Refusal::Full);
@@ -176,7 +188,8 @@ impl SubscriberTable {
         self.refused_full
     }
 
-    /// Subscriptions refused as not newer than the subscriber's last.
+    /// Subscriptions refused as not newer than the subscriber's last, or replayed from another
+    /// address.
     pub fn refused_stale(&self) -> u64 {
         self.refused_stale
     }
@@ -313,6 +326,14 @@ mod tests {
             .subscribe(addr(1), &a.next(7), Some(probe(0.3)), 7)
             .unwrap();
         assert_eq!(table.newest_probe(), Some(probe(0.3)));
+        // The same subscription replayed from another address takes no place.
+        let replayed = a.next(8);
+        table.subscribe(addr(1), &replayed, None, 8).unwrap();
+        assert_eq!(
+            table.subscribe(addr(7), &replayed, None, 8),
+            Err(Refusal::Stale)
+        );
+        assert_eq!(table.len(), 2);
         // Another stream's datagram from a newcomer leaves no entry behind.
         let other = StreamSender::new(crate::dataplane::frame::StreamId(99)).next(8);
         assert_eq!(
