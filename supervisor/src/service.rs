@@ -28,8 +28,9 @@ pub trait Service: Send + Sync + 'static {
 }
 
 /// How objects of one node reach objects of other nodes (a controller bound to a sensor that lives
-/// elsewhere). The node implements it with the naming service and a client connection; called
-/// only from non-real-time threads (a controller's communication thread, connection threads).
+/// elsewhere asks it, once at activation, where it is published on the data plane). The node
+/// implements it with the naming service and a client connection; called only from
+/// non-real-time threads (connection threads, never a loop's).
 pub trait Remote: Send + Sync + 'static {
     /// Calls `method` on the object bound at the naming `path` (`/node/sensors/ft`).
     ///

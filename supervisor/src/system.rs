@@ -32,7 +32,8 @@
 //! kind = "slave-tracking"
 //! robot = "puma"                        # relations: names on the same node...
 //! trajectory = "link"
-//! sensor = "wrist"                      # ...or, for a sensor, a naming path on another node
+//! sensor = "wrist"                      # a sensor on another node: its name (read over the
+//!                                       # data plane, see below) or its naming path
 //! active = true                         # activate at start (the default)
 //! ```
 //!
@@ -40,6 +41,11 @@
 //! (leave out its `node`), each copy with `listen` at its node's `data_plane` address and `peer`
 //! at the other's (the file's second such channel takes the next port of each, and so on); its
 //! samples cross on the data plane.
+//!
+//! A controller whose `sensor` names a sensor on another node reads it over the data plane: the
+//! relation becomes the sensor's naming path (`/node/sensors/wrist`), and the sensor needs
+//! `publish = "host:port"` (where its node serves it to every reader; port 0: any free port).
+//! A sensor read from several nodes is published once, and every reader gets the same samples.
 //!
 //! Order of work: every object is created (boards, sensors, robots, trajectories, controllers;
 //! in file order within a class), then related, then configured in the same order (so a hand
@@ -268,6 +274,7 @@ impl SystemFile {
             objects.extend(specs);
         }
         split_cross_node_channels(&mut objects, &nodes)?;
+        name_sensors_on_other_nodes(&mut objects)?;
         // With several nodes, every object says where it lives.
         let named: Vec<&str> = objects
             .iter()
@@ -553,6 +560,47 @@ fn split_cross_node_channels(
             Some(c) => objects.extend(c),
             None => objects.push(o),
         }
+    }
+    Ok(())
+}
+
+/// Turns a controller's `sensor = "wrist"`, where `wrist` is on another node, into that
+/// sensor's naming path (`/node/sensors/wrist`): the controller then reads it over the data
+/// plane, which needs the sensor's `publish` key.
+fn name_sensors_on_other_nodes(objects: &mut [ObjectSpec]) -> Result<(), SystemFileError> {
+    let sensors: Vec<(String, String, bool)> = objects
+        .iter()
+        .filter(|o| class_key(&o.kind) == "sensors")
+        .map(|o| {
+            let publishes = o
+                .config
+                .parse::<toml::Table>()
+                .is_ok_and(|t| t.contains_key("publish"));
+            (o.name.clone(), o.node.clone(), publishes)
+        })
+        .collect();
+    for c in objects.iter_mut() {
+        let Some(name) = c.sensor.clone().filter(|s| !s.starts_with('/')) else {
+            continue;
+        };
+        let mut named = sensors.iter().filter(|(n, _, _)| *n == name);
+        if named.clone().any(|(_, node, _)| *node == c.node) {
+            continue;
+        }
+        let (Some((_, node, publishes)), None) = (named.next(), named.next()) else {
+            continue;
+        };
+        if !publishes {
+            return Err(SystemFileError::Invalid {
+                line: c.line,
+                key: format!("controllers.{}.sensor", c.name),
+                message: format!(
+                    "sensor `{name}` is on node `{node}`: give it `publish = \"host:port\"` so \
+                     that this controller reads it over the data plane"
+                ),
+            });
+        }
+        c.sensor = Some(format!("/{node}/sensors/{name}"));
     }
     Ok(())
 }

@@ -86,12 +86,14 @@ fn two_nodes_a_client_and_the_naming_tree() {
     let tool_at = robot.forward_kinematics(Some(&q_start)).unwrap();
     assert!((tool.translation.vector - tool_at.translation.vector).norm() < 1e-3);
 
-    // Node B: a virtual force sensor whose floor (free space above) is 1 cm above the tool (so the probe pushes
-    // into it: about 5000 N/m × 0.01 m = 50 N along +z).
+    // Node B: a virtual force sensor whose floor (free space above) is 1 cm above the tool (so the
+    // probe pushes into it: about 5000 N/m × 0.01 m = 50 N along +z).
     let p = tool.translation.vector;
     let wall_z = p.z + 0.01;
+    // Published on the data plane (any free port on loopback): node A reads it there.
     let sensor_config = format!(
-        "[[shapes]]\nkind = \"plane\"\npoint = [{}, {}, {wall_z}]\nnormal = [0.0, 0.0, 1.0]\n",
+        "publish = \"127.0.0.1:0\"\n[[shapes]]\nkind = \"plane\"\npoint = [{}, {}, {wall_z}]\n\
+         normal = [0.0, 0.0, 1.0]\n",
         p.x, p.y
     );
     let sensor: SensorProxy = b.create_as("sensor/virtual", "ft", &sensor_config).unwrap();
@@ -132,8 +134,8 @@ fn two_nodes_a_client_and_the_naming_tree() {
     );
     assert_eq!(entries(&client, "/B/sensors"), ["ft"]);
 
-    // Telemetry: batches with increasing seq, and the wrench read remotely on B visible in A's
-    // loop.
+    // Telemetry: batches with increasing seq, and the wrench B publishes on the data plane
+    // visible in A's loop.
     let mut stream = client.subscribe("/A/controllers/pid", 1).unwrap();
     let mut last_seq = None;
     let mut samples = 0;

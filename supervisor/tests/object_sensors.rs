@@ -1,14 +1,19 @@
-//! The creator in-process (no network): a remote force sensor reached through a fake
-//! [`Remote`] (its wrench in telemetry, stale when the remote fails) and a local virtual sensor.
+//! The creator in-process (no network but loopback): a remote force sensor reached through a
+//! fake [`Remote`] that only says where the sensor is published, read over the data plane (its
+//! wrench in telemetry, stale when its publisher stops), and a local virtual sensor.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use penelope_hal::Transition;
+use nalgebra::Vector3;
+use penelope_hal::{Frame, Transition, Wrench};
+use penelope_supervisor::dataplane::endpoint::Endpoint;
+use penelope_supervisor::dataplane::sensor_stream::{Probe, SensorPublisher};
 use penelope_supervisor::objects::Creator;
 use penelope_supervisor::proto::{
-    ControllerMethod, Method, Reply, RobotMethod, SensorMethod, WireError, WrenchMsg,
+    ControllerMethod, Method, Reply, RobotMethod, SensorMethod, WireError,
 };
 use penelope_supervisor::service::Remote;
 
@@ -16,39 +21,48 @@ mod common;
 
 use common::*;
 
+/// Another node's naming service and sensor, as far as a controller needs them: where the
+/// sensor is published (and nothing per sample).
 struct FakeRemote {
     calls: AtomicU64,
-    fail: AtomicBool,
+    published: Mutex<Option<SocketAddr>>,
 }
 
 impl Remote for FakeRemote {
     fn call(&self, path: &str, method: Method) -> Result<Reply, WireError> {
         assert_eq!(path, "/other/sensors/ft");
         self.calls.fetch_add(1, Ordering::Relaxed);
-        if self.fail.load(Ordering::Relaxed) {
-            return Err(WireError::Remote("node `other` is unreachable".into()));
-        }
-        match method {
-            Method::Sensor(SensorMethod::Measure { pose, .. }) => {
-                assert!(pose.to_pose().is_ok());
-                Ok(Reply::Wrench(WrenchMsg {
-                    force: [1.0, 2.0, 3.0],
-                    torque: [0.0, 0.0, 0.5],
-                }))
-            }
-            other => Err(WireError::BadArgument(format!("{other:?}"))),
+        match (method, *self.published.lock().unwrap()) {
+            (Method::Sensor(SensorMethod::Stream), Some(a)) => Ok(Reply::Address(a.to_string())),
+            (Method::Sensor(SensorMethod::Stream), None) => Err(WireError::NotReady(
+                "sensor `ft` is not published on the data plane: it has no `publish` key".into(),
+            )),
+            (other, _) => Err(WireError::BadArgument(format!("{other:?}"))),
         }
     }
 }
 
+/// A publisher on loopback whose sensor reads a constant wrench, whatever the probe.
+fn constant_publisher() -> SensorPublisher {
+    let endpoint = Endpoint::bind("127.0.0.1:0".parse().unwrap(), None).unwrap();
+    let measure = Box::new(|_: Option<&Probe>| {
+        Some(Wrench {
+            force: Vector3::new(1.0, 2.0, 3.0),
+            torque: Vector3::new(0.0, 0.0, 0.5),
+            frame: Frame::Base,
+        })
+    });
+    SensorPublisher::start("ft", endpoint, Duration::from_millis(1), measure).unwrap()
+}
+
 #[test]
-fn a_remote_sensor_wrench_reaches_telemetry_and_goes_stale_when_the_remote_fails() {
+fn a_remote_sensor_is_read_over_the_data_plane_and_goes_stale_when_its_publisher_stops() {
     let c = creator();
     let (s, _rx) = session(1);
     puma_on_two_boards(&c, &s, "trajectory/step", "pose = \"start\"");
     let remote = Arc::new(FakeRemote {
         calls: AtomicU64::new(0),
-        fail: AtomicBool::new(false),
+        published: Mutex::new(None),
     });
     ctl(
         &c,
@@ -64,7 +78,19 @@ fn a_remote_sensor_wrench_reaches_telemetry_and_goes_stale_when_the_remote_fails
         lifecycle(&c, &s, "pid", Transition::Activate),
         Err(WireError::NotReady(_))
     ));
+    // A sensor that does not publish is refused, naming its path and the missing key.
     c.set_remote(remote.clone());
+    match lifecycle(&c, &s, "pid", Transition::Activate) {
+        Err(WireError::NotReady(why)) => {
+            assert!(
+                why.contains("/other/sensors/ft") && why.contains("publish"),
+                "{why}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+    let publisher = constant_publisher();
+    *remote.published.lock().unwrap() = Some(publisher.address());
     lifecycle(&c, &s, "pid", Transition::Activate).unwrap();
     let status = |c: &Creator| match ctl(c, &s, "pid", ControllerMethod::Status) {
         Ok(Reply::Status(st)) => st,
@@ -79,7 +105,11 @@ fn a_remote_sensor_wrench_reaches_telemetry_and_goes_stale_when_the_remote_fails
         call(&c, &s, ("robot", Method::Robot(RobotMethod::ToolWrench))),
         Ok(Reply::Wrench(w)) if w.force == [1.0, 2.0, 3.0]
     ));
-    remote.fail.store(true, Ordering::Relaxed);
+    // The feed's probes reached the publisher; samples came back.
+    wait_for("probes at the publisher", Duration::from_secs(5), || {
+        publisher.stats().probes > 10 && publisher.stats().samples > 10
+    });
+    drop(publisher);
     wait_for("the stale wrench", Duration::from_secs(5), || {
         status(&c)
             .last
@@ -87,7 +117,8 @@ fn a_remote_sensor_wrench_reaches_telemetry_and_goes_stale_when_the_remote_fails
     });
     // The loop keeps running (the sensor is optional for a joint PID).
     assert_eq!(status(&c).last.unwrap().state, "running");
-    assert!(remote.calls.load(Ordering::Relaxed) > 10);
+    // One request per activation (where is the sensor published?), none per sample.
+    assert_eq!(remote.calls.load(Ordering::Relaxed), 2);
     c.shutdown();
     assert!(!status(&c).running);
 }

@@ -5,6 +5,7 @@
 //! - [`stream`]: numbering on the sending side, newest-wins on the receiving side;
 //! - [`endpoint`]: a non-blocking UDP socket that sends and receives frames and counts what it
 //!   refused;
+//! - [`sensor_stream`]: a force sensor published by its node to any number of readers;
 //! - [`clock`]: the common clock of a link, estimated from four-timestamp heartbeats;
 //! - [`end_clock`]: the times an end stamps (the tick's on a simulated clock, the real clock's
 //!   and the kernel's receive stamps on real time), with an injectable offset;
@@ -18,4 +19,5 @@ pub mod endpoint;
 pub mod faults;
 pub mod frame;
 pub mod histogram;
+pub mod sensor_stream;
 pub mod stream;

@@ -29,13 +29,30 @@ impl Creator {
         })
     }
 
-    pub(super) fn activate(&self, name: &str) -> Result<(), WireError> {
-        let fifo = self.fifo_allowed();
+    /// What activating controller `name` needs from outside the registry: the remote link,
+    /// and, for a sensor on another node, where that sensor is published on the data plane
+    /// (asked of the sensor once, here, without the registry's lock: the only TCP call a
+    /// remote sensor costs).
+    fn launch(&self, name: &str) -> Result<Launch<'_>, WireError> {
         let remote = self.remote.lock().ok().and_then(|r| r.clone());
-        let launch = Launch {
+        let path = match &self.lock()?.get(name)?.body {
+            Body::Controller(c) => c.sensor.clone().filter(|s| s.starts_with('/')),
+            _ => None,
+        };
+        let sensor_stream = match (&path, &remote) {
+            (Some(path), Some(remote)) => Some(sensor_stream(remote.as_ref(), path)?),
+            _ => None,
+        };
+        Ok(Launch {
             rt: &self.config.rt,
             remote,
-        };
+            sensor_stream,
+        })
+    }
+
+    pub(super) fn activate(&self, name: &str) -> Result<(), WireError> {
+        let fifo = self.fifo_allowed();
+        let launch = self.launch(name)?;
         let mut reg = self.lock()?;
         let built = reg.build_loop(name, &launch)?;
         let rt = launch.rt;
@@ -333,10 +350,7 @@ impl Creator {
     /// # Errors
     /// As activating the controller.
     pub fn detach_loop(&self, name: &str) -> Result<DetachedLoop, WireError> {
-        let launch = Launch {
-            rt: &self.config.rt,
-            remote: self.remote.lock().ok().and_then(|r| r.clone()),
-        };
+        let launch = self.launch(name)?;
         let built = self.lock()?.build_loop(name, &launch)?;
         Ok(DetachedLoop {
             control: built.control,
@@ -500,4 +514,31 @@ fn start_threads(
         );
     }
     Ok(())
+}
+
+/// Asks the sensor at naming `path` (on another node) where it is published on the data plane.
+///
+/// # Errors
+/// The remote's error; a sensor without `publish` is refused with [`WireError::NotReady`]
+/// naming the path and the key.
+fn sensor_stream(
+    remote: &dyn crate::service::Remote,
+    path: &str,
+) -> Result<std::net::SocketAddr, WireError> {
+    let reply = remote
+        .call(path, Method::Sensor(crate::proto::SensorMethod::Stream))
+        .map_err(|e| match e {
+            WireError::NotReady(why) => WireError::NotReady(format!("sensor `{path}`: {why}")),
+            other => other,
+        })?;
+    match reply {
+        Reply::Address(a) => a.parse().map_err(|e| {
+            WireError::Remote(format!(
+                "sensor `{path}` answered the address {a:?}, which does not parse: {e}"
+            ))
+        }),
+        other => Err(WireError::Remote(format!(
+            "sensor `{path}` answered {other:?}, not its data-plane address"
+        ))),
+    }
 }

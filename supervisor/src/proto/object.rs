@@ -155,7 +155,8 @@ pub enum SensorMethod {
         /// The probe's linear velocity in the base frame, m/s.
         velocity: [f64; 3],
     },
-    /// Reads the wrench for a probe in one round trip (the data path of a remote sensor):
+    /// Reads the wrench for a probe in one round trip (a client's spot check; controllers on
+    /// other nodes read the data plane instead, see [`SensorMethod::Stream`]):
     /// [`Reply::Wrench`].
     Measure {
         /// The probe pose in the base frame.
@@ -163,6 +164,10 @@ pub enum SensorMethod {
         /// The probe's linear velocity in the base frame, m/s.
         velocity: [f64; 3],
     },
+    /// Where the sensor is published on the data plane (its `publish` key), asked once when a
+    /// controller on another node is activated: [`Reply::Address`]. Refused with
+    /// [`WireError::NotReady`](super::WireError::NotReady) for a sensor without `publish`.
+    Stream,
 }
 
 /// Controller methods (the paper's `ControllerImpl`).
@@ -179,8 +184,8 @@ pub enum ControllerMethod {
         trajectory: String,
     },
     /// Binds the force sensor: a name on this node or a naming path (`/node/sensors/name`) of a
-    /// sensor on another node, which the controller's communication thread then reads.
-    /// [`Reply::Unit`].
+    /// sensor on another node, which the controller's sensor feed then reads on the data plane
+    /// (that sensor needs `publish`; see [`SensorMethod::Stream`]). [`Reply::Unit`].
     SetSensor {
         /// Local name or naming path.
         sensor: String,

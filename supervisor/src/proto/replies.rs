@@ -59,6 +59,8 @@ pub enum Reply {
         /// Its id on this connection.
         subscription: u64,
     },
+    /// A data-plane address, `host:port`.
+    Address(String),
 }
 
 /// A node's identity.

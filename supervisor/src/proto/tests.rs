@@ -95,3 +95,20 @@ fn every_message_round_trips_through_postcard() {
     let bytes = postcard::to_stdvec(&reply).unwrap();
     assert_eq!(postcard::from_bytes::<ServerMsg>(&bytes).unwrap(), reply);
 }
+
+#[test]
+fn the_sensor_stream_variants_were_appended_and_moved_no_index() {
+    // postcard encodes a variant by its index: the earlier sensor methods and replies keep
+    // theirs, and the new ones come last.
+    let index = |bytes: Vec<u8>| bytes[0];
+    let method = |m: SensorMethod| index(postcard::to_stdvec(&m).unwrap());
+    assert_eq!(method(SensorMethod::Read), 0);
+    assert_eq!(method(SensorMethod::Bias), 1);
+    assert_eq!(method(SensorMethod::Stream), 4);
+    let subscribed = Reply::Subscribed { subscription: 1 };
+    assert_eq!(index(postcard::to_stdvec(&subscribed).unwrap()), 20);
+    let address = Reply::Address("127.0.0.1:7420".into());
+    let bytes = postcard::to_stdvec(&address).unwrap();
+    assert_eq!(bytes[0], 21);
+    assert_eq!(postcard::from_bytes::<Reply>(&bytes).unwrap(), address);
+}

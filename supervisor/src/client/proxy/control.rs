@@ -47,7 +47,8 @@ impl ControllerProxy {
     }
 
     /// Binds the force sensor: a name on the controller's node, or the naming path of a sensor
-    /// on another node (`/lab-b/sensors/wall`), read by the controller's communication thread.
+    /// on another node (`/lab-b/sensors/wall`), which its node publishes on the data plane (its
+    /// `publish` key) and the controller's sensor feed reads there.
     ///
     /// # Errors
     /// As [`ControllerProxy::set_robot`].

@@ -333,6 +333,11 @@ pub struct SensorConfig {
     pub seed: u64,
     /// The contact shapes (probe mode).
     pub shapes: Vec<ShapeConfig>,
+    /// Where the sensor is published on the data plane (`host:port`, an IP address; port 0:
+    /// any free port), so that controllers on other nodes read it over UDP (probe mode).
+    pub publish: Option<String>,
+    /// How often the publisher measures and sends, ms.
+    pub publish_period_ms: u64,
 }
 
 impl Default for SensorConfig {
@@ -346,6 +351,8 @@ impl Default for SensorConfig {
             cutoff_hz: 0.0,
             seed: 1,
             shapes: Vec::new(),
+            publish: None,
+            publish_period_ms: 1,
         }
     }
 }
@@ -378,7 +385,34 @@ impl SensorConfig {
         if let Some(r) = &self.robot {
             crate::proto::check_name(r).map_err(|e| bad(kind, format!("robot: {e}")))?;
         }
+        check_int(kind, "publish_period_ms", self.publish_period_ms, 1, 1000)?;
+        if self.publish.is_some() && self.robot.is_some() {
+            return Err(bad(
+                kind,
+                "`publish` serves a probe-mode sensor; a sensor reading a robot's plant \
+                 (`robot`) is read inside that robot's loop",
+            ));
+        }
+        self.publish_address(kind)?;
         Ok(())
+    }
+
+    /// The address of `publish`, if set.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for one that is not `host:port` with an IP address.
+    pub fn publish_address(&self, kind: &str) -> Result<Option<std::net::SocketAddr>, WireError> {
+        self.publish
+            .as_deref()
+            .map(|v| {
+                v.parse().map_err(|e| {
+                    bad(
+                        kind,
+                        format!("`publish` = {v:?}: {e} (host:port, an IP address)"),
+                    )
+                })
+            })
+            .transpose()
     }
 
     /// The driver's sensor settings (plant mode).

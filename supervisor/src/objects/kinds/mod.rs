@@ -318,6 +318,10 @@ force_noise = 0.0            # standard deviation per axis, N, 0..=100
 torque_noise = 0.0           # standard deviation per axis, N·m, 0..=10
 cutoff_hz = 0.0              # first-order low-pass, 0 (off) or 0.1..=10000 Hz
 seed = 1                     # noise seed (`penelope demo --seed` sets it)
+# Probe mode only: publish on the data plane for controllers on other nodes (read over UDP, the
+# same samples for every reader); without it, such a controller is refused at activation.
+publish = "127.0.0.1:7420"   # optional; host:port (an IP address), port 0: any free port
+publish_period_ms = 1        # measure and send every this many ms, 1..=1000
 # Probe mode (no `robot`): the wrench the environment applies to the probe (N, N·m, base frame,
 # about the probe point), minus the bias. Empty space by default:
 "#;

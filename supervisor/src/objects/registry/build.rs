@@ -89,6 +89,13 @@ impl Registry {
                 "no remote link to other nodes on this creator (set_remote)",
             ));
         }
+        // A sensor on another node: its stream's reader, made before anything is taken.
+        let stream_source = match &sensor_name {
+            Some(path) if path.starts_with('/') => {
+                Some(self.sensor_subscriber(path, launch.sensor_stream)?)
+            }
+            _ => None,
+        };
 
         // A wrist sensor reading a robot's plant is read in the loop, and only that robot's.
         let plant_sensor = match &local_sensor {
@@ -344,18 +351,12 @@ impl Registry {
                 )
             }
         };
-        let source =
-            match (&sensor_name, local_sensor) {
-                (Some(path), None) => launch.remote.clone().map(|remote| {
-                    crate::objects::runtime::SensorSource::Remote {
-                        remote,
-                        path: path.clone(),
-                    }
-                }),
-                (_, Some(_)) if plant_sensor.is_some() => None,
-                (_, Some((local, _))) => Some(crate::objects::runtime::SensorSource::Local(local)),
-                _ => None,
-            };
+        let source = match (&sensor_name, local_sensor) {
+            (Some(_), None) => stream_source,
+            (_, Some(_)) if plant_sensor.is_some() => None,
+            (_, Some((local, _))) => Some(crate::objects::runtime::SensorSource::Local(local)),
+            _ => None,
+        };
 
         // Mark the users.
         used.extend(maps.iter().map(|(b, _)| b.clone()));
@@ -657,4 +658,34 @@ pub(super) fn pid_gains(
         gravity_compensation: p.gravity_compensation,
         acceleration_feedforward: p.acceleration_feedforward,
     })
+}
+
+impl Registry {
+    /// The reader of the sensor at naming `path` on another node, published at `address`.
+    ///
+    /// # Errors
+    /// [`WireError::NotReady`] without an address, [`WireError::BadArgument`] for a stream off
+    /// loopback on a node without a secret, [`WireError::Device`] when no socket can be bound.
+    fn sensor_subscriber(
+        &self,
+        path: &str,
+        address: Option<std::net::SocketAddr>,
+    ) -> Result<crate::objects::runtime::SensorSource, WireError> {
+        let address = address.ok_or_else(|| {
+            not_ready(format!(
+                "sensor `{path}`: its data-plane address is not known (SensorMethod::Stream)"
+            ))
+        })?;
+        if !address.ip().is_loopback() && self.datagram_key.is_none() {
+            return Err(bad_arg(format!(
+                "sensor `{path}` is published off loopback ({address}): the nodes need a \
+                 secret (--secret-file) so that its datagrams are authenticated"
+            )));
+        }
+        let subscriber = SensorSubscriber::connect(address, self.datagram_key.clone())
+            .map_err(|e| WireError::Device(format!("data plane: reader of `{path}`: {e}")))?;
+        Ok(crate::objects::runtime::SensorSource::Stream(Box::new(
+            subscriber,
+        )))
+    }
 }

@@ -414,6 +414,9 @@ impl Registry {
             }
             _ => return Err(WireError::Internal("sensor body".into())),
         };
+        if m == SensorMethod::Stream {
+            return self.sensor_stream(name, s);
+        }
         let state = s.state.clone();
         let mut st = state
             .lock()
@@ -435,6 +438,7 @@ impl Registry {
                 let v = finite3(velocity)?;
                 Ok(Reply::Wrench(WrenchMsg::from(&st.measure(&pose, v))))
             }
+            SensorMethod::Stream => unreachable_body(),
         }
     }
 

@@ -5,6 +5,7 @@
 //!   lifecycle transitions (configure, cleanup);
 //! - [`build`]: a controller's loop from its objects, and a stopped loop taken back;
 //! - [`methods`]: every method an object answers, by class;
+//! - [`sensors`]: a sensor's publisher on the data plane;
 //! - [`trajectories`]: trajectories from their specifications.
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -47,6 +48,7 @@ use super::teleop::{
 };
 use crate::dataplane::endpoint::Endpoint;
 use crate::dataplane::frame::DatagramKey;
+use crate::dataplane::sensor_stream::{SensorPublisher, SensorSubscriber};
 use crate::objects::runtime::{
     CellSensor, ControlTask, GainsUpdate, GalilSet, GoToCommand, LoopBoard, NodeController,
     NodeLoop, NodeSink, NodeTrajectory, RoutedGains, SimBody, TrajectoryFeed, VirtualSensor,
@@ -60,11 +62,13 @@ use crate::proto::{
 mod build;
 mod groups;
 mod methods;
+mod sensors;
 mod teleop;
 mod trajectories;
 
 pub(crate) use build::Built;
 use build::{default_joint_gains, pid_gains};
+use sensors::publisher_relations;
 use teleop::link_relations;
 use trajectories::{build_standalone, build_trajectory, spec_is_tool, spec_joints};
 
@@ -126,6 +130,8 @@ pub(crate) struct SensorObj {
     /// The probe model's state (probe mode).
     pub state: Arc<Mutex<VirtualSensor>>,
     pub config: SensorConfig,
+    /// Its publisher on the data plane, while configured with `publish`.
+    pub publisher: Option<SensorPublisher>,
 }
 
 #[derive(Clone)]
@@ -219,6 +225,7 @@ impl Object {
                 }
             }
             Body::Hand(h) => relations.push(("robot".to_string(), h.config.robot.clone())),
+            Body::Sensor(s) => relations.extend(publisher_relations(s)),
             Body::Teleop(t) => {
                 relations.push(("master".to_string(), t.config.master.clone()));
                 relations.push(("slave".to_string(), t.config.slave.clone()));
@@ -311,6 +318,7 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
             Body::Sensor(SensorObj {
                 state: Arc::new(Mutex::new(VirtualSensor::new(env))),
                 config: cfg,
+                publisher: None,
             })
         }
         Kind::JointPid => {
@@ -414,6 +422,8 @@ pub(crate) struct Registry {
 pub(crate) struct Launch<'a> {
     pub rt: &'a crate::objects::RtPolicy,
     pub remote: Option<Arc<dyn crate::service::Remote>>,
+    /// Where the controller's sensor on another node is published, asked before the build.
+    pub sensor_stream: Option<std::net::SocketAddr>,
 }
 
 impl Registry {
@@ -508,6 +518,8 @@ impl Registry {
             match &mut o.body {
                 Body::Robot(r) => r.body = None,
                 Body::Teleop(t) => t.link = None,
+                // Its thread stops and is joined; readers fall silent and go stale.
+                Body::Sensor(s) => s.publisher = None,
                 Body::Galil(g) => {
                     // The driver's release: amplifiers off, watchdog halted.
                     if let Some(b) = g.board.take() {
@@ -531,6 +543,7 @@ impl Registry {
                 Ok(())
             }
             Kind::Teleop => self.configure_teleop(name),
+            Kind::VirtualSensor => self.configure_sensor(name),
             _ if kind.class() == Class::Controller => self.configure_controller(name),
             _ => Ok(()),
         }

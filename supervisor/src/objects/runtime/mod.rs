@@ -1,12 +1,13 @@
 //! What runs while a controller is active: the control task (period `T_ctrl`, SCHED_FIFO), the
 //! communication task (period `T_com`: the trajectory's reference into a latest-value cell), the
-//! sensor feed (a non-real-time thread that may block on the network) and the telemetry pump
-//! (non-real-time: drains the telemetry ring, keeps the newest sample, fans batches out).
+//! sensor feed (a non-real-time thread: a local sensor, or a sensor stream on the data plane)
+//! and the telemetry pump (non-real-time: drains the telemetry ring, keeps the newest sample,
+//! fans batches out).
 //!
 //! ```text
 //!  GoTo ──ring──> comm task ──LatestCell<reference>──> control task ──ring<telemetry>──> pump ──> outboxes
 //!                    ^ LatestCell<sample>                  │  ^ LatestCell<wrench>
-//!                    └─────────────────────────────────────┤  └── sensor feed <── remote.call(Measure)
+//!                    └─────────────────────────────────────┤  └── sensor feed <── sensor stream (UDP)
 //!                                  LatestCell<sample> ─────┘
 //! ```
 //!
@@ -53,11 +54,11 @@ use penelope_rt_core::trajectory::{
 
 use super::kinematics::RobotKinematics;
 use super::teleop::TeleopComm;
+use crate::dataplane::sensor_stream::{Probe, SensorSubscriber};
 use crate::proto::{
-    Method, PoseMsg, Reply, SensorMethod, ServerMsg, TelemetryBatch, TelemetryRecord, WireError,
-    WrenchMsg, joints_from_vector,
+    ServerMsg, TelemetryBatch, TelemetryRecord, WireError, WrenchMsg, joints_from_vector,
 };
-use crate::service::{Outbox, Remote};
+use crate::service::Outbox;
 
 /// Telemetry samples buffered between a control thread and its pump (4 s at 1 kHz).
 pub const TELEMETRY_CAPACITY: usize = 4096;

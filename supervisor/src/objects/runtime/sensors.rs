@@ -61,41 +61,39 @@ impl VirtualSensor {
 
 /// Where a controller's sensor feed gets its wrench.
 pub enum SensorSource {
-    /// A sensor on another node, at a naming path, through the node's [`Remote`].
-    Remote {
-        /// The node's remote.
-        remote: Arc<dyn Remote>,
-        /// The naming path.
-        path: String,
-    },
+    /// A sensor on another node, read over the data plane: the feed's probe goes out in a
+    /// subscription each period, and the newest sample the publisher sent comes back.
+    Stream(Box<SensorSubscriber>),
     /// A `sensor/virtual` on this node.
     Local(Arc<Mutex<VirtualSensor>>),
 }
 
 impl SensorSource {
-    /// One measurement for a probe at `pose` moving at `velocity`.
+    /// One measurement for a probe at `pose` moving at `velocity`, at `now_ns` on this node's
+    /// clock: for a local sensor, measured now; for a stream, the newest sample that arrived
+    /// since the last call (`None`: nothing new).
     ///
     /// # Errors
-    /// The remote's error, or [`WireError::Remote`] for an answer that is not a wrench.
-    pub fn measure(&self, pose: &Pose, velocity: Vector3<f64>) -> Result<Wrench, WireError> {
+    /// [`WireError::Internal`] for a local sensor whose state is poisoned.
+    pub fn measure(
+        &mut self,
+        pose: &Pose,
+        velocity: Vector3<f64>,
+        now_ns: i64,
+    ) -> Result<Option<Wrench>, WireError> {
         match self {
-            SensorSource::Remote { remote, path } => {
-                let method = Method::Sensor(SensorMethod::Measure {
-                    pose: PoseMsg::from(pose),
-                    velocity: [velocity.x, velocity.y, velocity.z],
-                });
-                match remote.call(path, method)? {
-                    Reply::Wrench(w) => w.to_wrench(Frame::Base),
-                    other => Err(WireError::Remote(format!(
-                        "sensor `{path}` answered {other:?}, not a wrench"
-                    ))),
-                }
+            SensorSource::Stream(subscriber) => {
+                let probe = Probe {
+                    pose: *pose,
+                    velocity,
+                };
+                Ok(subscriber.poll(now_ns, Some(&probe)).map(|s| s.wrench))
             }
             SensorSource::Local(s) => {
                 let mut s = s
                     .lock()
                     .map_err(|_| WireError::Internal("sensor state poisoned".into()))?;
-                Ok(s.measure(pose, velocity))
+                Ok(Some(s.measure(pose, velocity)))
             }
         }
     }
@@ -129,18 +127,23 @@ pub struct SensorFeed {
 
 impl SensorFeed {
     /// One measurement: the tool pose and velocity of the newest sample go to the source, and
-    /// the wrench, stamped `stamp`, into the loop's cell. A failing source publishes nothing,
-    /// so the loop's wrench goes stale.
+    /// the wrench, stamped `stamp` (when it reached this node), into the loop's cell. A
+    /// failing or silent source publishes nothing, so the loop's wrench goes stale.
     pub fn step(&mut self, stamp: Timestamp) {
         let Some(s) = self.state.latest() else { return };
         let pose = self.model.forward(&s.q);
         let v = self.model.jacobian(&s.q, JacobianFrame::Base) * s.qd;
-        match self.source.measure(&pose, Vector3::new(v[0], v[1], v[2])) {
-            Ok(w) if w.is_finite() => {
+        let now_ns = i64::try_from(stamp.as_nanos()).unwrap_or(i64::MAX);
+        match self
+            .source
+            .measure(&pose, Vector3::new(v[0], v[1], v[2]), now_ns)
+        {
+            Ok(None) => {}
+            Ok(Some(w)) if w.is_finite() => {
                 self.out.write(Stamped { stamp, value: w });
                 self.stats.ok.fetch_add(1, Ordering::Relaxed);
             }
-            Ok(_) | Err(_) => {
+            Ok(Some(_)) | Err(_) => {
                 if self.stats.failed.fetch_add(1, Ordering::Relaxed) == 0 {
                     log::warn!(
                         "controller `{}`: sensor measurement failed; the wrench goes stale",

@@ -49,6 +49,7 @@ Sensors:
   read | bias                       newest wrench (N, N m); take the current reading as zero
   set-probe X Y Z [VX VY VZ]        probe position (m) and velocity (m/s) of a virtual sensor
   measure X Y Z [VX VY VZ]          the wrench for that probe, in one round trip
+  stream                            where the sensor is published on the data plane
 Controllers:
   set-robot NAME | set-trajectory NAME | set-sensor NAME-OR-PATH
   set-gains TOML                    e.g. set-gains 'kp = [100, 100, 100, 10, 10, 10]'
@@ -377,6 +378,10 @@ pub fn parse(
                 Method::Sensor(SensorMethod::Measure { pose, velocity }),
                 none,
             ))
+        }
+        "stream" => {
+            no_args(name, args)?;
+            Ok((Method::Sensor(SensorMethod::Stream), none))
         }
         "set-robot" => {
             let robot = one(name, "the robot's name", args)?.to_string();

@@ -227,5 +227,6 @@ pub fn reply(reply: &Reply, hint: Hint) -> String {
             .collect::<Vec<_>>()
             .join("\n"),
         Reply::Subscribed { subscription } => format!("subscription {subscription}"),
+        Reply::Address(a) => format!("address: {a}"),
     }
 }

@@ -1,0 +1,85 @@
+//! Sensors in the registry: a `sensor/virtual` with `publish` serves its readers on the data
+//! plane from the moment it is configured until it is cleaned up or destroyed, and `describe`
+//! shows its publisher's counters.
+
+use super::*;
+
+/// `describe`'s lines about a sensor's publisher (none for a sensor that does not publish, or
+/// is not configured).
+pub(super) fn publisher_relations(s: &SensorObj) -> Vec<(String, String)> {
+    let Some(p) = &s.publisher else {
+        return Vec::new();
+    };
+    let st = p.stats();
+    vec![
+        ("publish".to_string(), p.address().to_string()),
+        (
+            "publisher".to_string(),
+            format!(
+                "{} subscribers, {} samples published, {} probes taken, {} datagrams refused \
+                 ({} bad tags, {} bad probes, {} over the subscriber bound)",
+                st.subscribers,
+                st.samples,
+                st.probes,
+                st.refused(),
+                st.endpoint.bad_tag,
+                st.bad_probes,
+                st.refused_full,
+            ),
+        ),
+    ]
+}
+
+impl Registry {
+    /// Configures a `sensor/virtual`: with `publish`, binds its data-plane endpoint (keyed with
+    /// the node's datagram key) and starts its publisher.
+    pub(super) fn configure_sensor(&mut self, name: &str) -> Result<(), WireError> {
+        let kind = "sensor/virtual";
+        let key = self.datagram_key.clone();
+        let Body::Sensor(s) = &mut self.get_mut(name)?.body else {
+            return Err(WireError::Internal("sensor body".into()));
+        };
+        let Some(address) = s.config.publish_address(kind)? else {
+            return Ok(());
+        };
+        if !address.ip().is_loopback() && key.is_none() {
+            return Err(bad_arg(format!(
+                "sensor `{name}` publishes off loopback ({address}): the nodes need a secret \
+                 (--secret-file) so that its datagrams are authenticated"
+            )));
+        }
+        let endpoint = Endpoint::bind(address, key)
+            .map_err(|e| WireError::Device(format!("data plane: cannot bind {address}: {e}")))?;
+        let state = s.state.clone();
+        let measure = Box::new(
+            move |probe: Option<&crate::dataplane::sensor_stream::Probe>| {
+                let mut sensor = state.lock().ok()?;
+                Some(match probe {
+                    Some(p) => sensor.measure(&p.pose, p.velocity),
+                    None => sensor.read(),
+                })
+            },
+        );
+        let period = Duration::from_millis(s.config.publish_period_ms);
+        let publisher = SensorPublisher::start(name, endpoint, period, measure)
+            .map_err(|e| WireError::Internal(format!("sensor `{name}`: publisher thread: {e}")))?;
+        s.publisher = Some(publisher);
+        Ok(())
+    }
+
+    /// The address sensor `name` publishes at.
+    ///
+    /// # Errors
+    /// [`WireError::NotReady`] naming the sensor and the `publish` key when it does not
+    /// publish.
+    pub(super) fn sensor_stream(&self, name: &str, s: &SensorObj) -> Result<Reply, WireError> {
+        match &s.publisher {
+            Some(p) => Ok(Reply::Address(p.address().to_string())),
+            None => Err(not_ready(format!(
+                "sensor `{name}` is not published on the data plane: it has no `publish` key \
+                 (host:port), and a controller on another node reads a sensor only over the \
+                 data plane"
+            ))),
+        }
+    }
+}
