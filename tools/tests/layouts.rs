@@ -10,7 +10,7 @@ use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, run};
 use penelope_supervisor::system::SystemFile;
 
 /// The layouts this test runs.
-const LAYOUTS: [&str; 1] = ["2-host"];
+const LAYOUTS: [&str; 2] = ["2-host", "4-host"];
 
 /// The namespaces a `penelope` process with this pid made (they carry its pid).
 fn namespaces_of(pid: u32) -> Vec<String> {
@@ -66,7 +66,7 @@ fn the_two_and_four_host_layouts_complete_the_task_as_the_single_process_demo_do
         let num = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
         eprintln!(
             "{name}: tracking {:.3} mm (demo {:.3}), display {:.2}% (demo {:.2}), sensed {:.2} N \
-             (demo {:.2}), motion->command p50 {} µs, contact->force p50 {} µs",
+             (demo {:.2}), motion->command p50 {} µs, contact->force p50 {} µs, link {}",
             num("tracking_rms_mm"),
             demo.tracking.rms_mm,
             num("display_error_pct"),
@@ -75,6 +75,7 @@ fn the_two_and_four_host_layouts_complete_the_task_as_the_single_process_demo_do
             demo.contact.sensed_force_n,
             r["motion_to_command"]["p50_us"],
             r["contact_to_force"]["p50_us"],
+            r["link"],
         );
         assert!((num("duration_s") - 20.0).abs() < 0.01, "{name}: {r}");
         // Tracking: the same sub-millimetre class as the demo (real clock, several processes).
@@ -99,6 +100,22 @@ fn the_two_and_four_host_layouts_complete_the_task_as_the_single_process_demo_do
             "{name}: {events:?}"
         );
         assert_eq!(r["dropped_ticks"], serde_json::json!([0, 0]), "{name}");
+        // The link: measured both ways, nothing refused or lost, and the clock estimate right
+        // (the hosts share the machine's clock: the true offset is zero).
+        let link = &r["link"];
+        for way in ["master_to_slave", "slave_to_master"] {
+            assert!(
+                link[way]["trips"].as_u64().unwrap_or(0) > 5000,
+                "{name} {way}: {link}"
+            );
+        }
+        assert_eq!(link["refused"], 0, "{name}: {link}");
+        // (A stall of two communication periods on a shared machine is a lost link, held
+        // safely and counted: `losses` is reported, not required to be zero.)
+        let offset = link["clock_offset_us"]
+            .as_f64()
+            .expect("an offset estimate");
+        assert!(offset.abs() < 100.0, "{name}: clock offset {offset} µs");
         for key in ["motion_to_command", "contact_to_force", "udp_echo_one_way"] {
             assert!(
                 r[key]["samples"].as_u64().unwrap_or(0) > 1000,

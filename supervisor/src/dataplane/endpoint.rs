@@ -66,7 +66,68 @@ pub struct Endpoint {
 /// Room for the control messages of one `recvmsg` (a `SCM_TIMESTAMPNS` needs 32 bytes on
 /// 64-bit Linux); aligned as a `cmsghdr` must be.
 #[repr(C, align(8))]
-struct ControlBuffer([u8; 64]);
+pub struct ControlBuffer([u8; 64]);
+
+impl Default for ControlBuffer {
+    fn default() -> Self {
+        ControlBuffer([0; 64])
+    }
+}
+
+/// Asks the kernel to stamp every datagram `socket` receives with its arrival time
+/// (`SO_TIMESTAMPNS`, read by [`receive_with_stamp`]).
+///
+/// # Errors
+/// The operating system's, from `setsockopt`.
+pub fn enable_kernel_stamps(socket: &UdpSocket) -> io::Result<()> {
+    use nix::sys::socket::{setsockopt, sockopt::ReceiveTimestampns};
+    setsockopt(socket, ReceiveTimestampns, &true).map_err(io::Error::from)
+}
+
+/// One datagram from `socket` into `buf`: its length, its sender, and when the kernel received
+/// it (ns on `CLOCK_REALTIME`; `None` unless [`enable_kernel_stamps`] was called).
+///
+/// # Errors
+/// The operating system's (`WouldBlock` on a non-blocking socket with nothing waiting).
+///
+/// # Real-time
+/// One `recvmsg`; no allocation.
+pub fn receive_with_stamp(
+    socket: &UdpSocket,
+    buf: &mut [u8],
+    control: &mut ControlBuffer,
+) -> io::Result<(usize, SocketAddr, Option<i64>)> {
+    use nix::sys::socket::{ControlMessageOwned, MsgFlags, SockaddrStorage, recvmsg};
+    use std::os::fd::AsRawFd;
+    let mut iov = [io::IoSliceMut::new(buf)];
+    let msg = recvmsg::<SockaddrStorage>(
+        socket.as_raw_fd(),
+        &mut iov,
+        Some(&mut control.0[..]),
+        MsgFlags::empty(),
+    )
+    .map_err(io::Error::from)?;
+    let from = msg.address.and_then(|a| {
+        if let Some(v4) = a.as_sockaddr_in() {
+            Some(SocketAddr::V4((*v4).into()))
+        } else {
+            a.as_sockaddr_in6().map(|v6| SocketAddr::V6((*v6).into()))
+        }
+    });
+    let Some(from) = from else {
+        return Err(io::Error::other("a datagram without an IP sender"));
+    };
+    let stamp = msg.cmsgs().ok().and_then(|mut c| {
+        c.find_map(|m| match m {
+            ControlMessageOwned::ScmTimestampns(t) => t
+                .tv_sec()
+                .checked_mul(1_000_000_000)
+                .and_then(|s| s.checked_add(t.tv_nsec())),
+            _ => None,
+        })
+    });
+    Ok((msg.bytes, from, stamp))
+}
 
 /// A datagram that opened and decoded, with its sender and, when the endpoint asked the kernel
 /// for them, its receive time.
@@ -118,9 +179,8 @@ impl Endpoint {
     /// # Errors
     /// The operating system's, from `setsockopt`.
     pub fn enable_receive_timestamps(&mut self) -> io::Result<()> {
-        use nix::sys::socket::{setsockopt, sockopt::ReceiveTimestampns};
-        setsockopt(&self.socket, ReceiveTimestampns, &true).map_err(io::Error::from)?;
-        self.control = Some(Box::new(ControlBuffer([0; 64])));
+        enable_kernel_stamps(&self.socket)?;
+        self.control = Some(Box::default());
         Ok(())
     }
 
@@ -199,40 +259,11 @@ impl Endpoint {
 
     /// One datagram into the buffer: its length, sender and kernel receive time (if asked for).
     fn receive_raw(&mut self) -> io::Result<(usize, SocketAddr, Option<i64>)> {
-        use nix::sys::socket::{ControlMessageOwned, MsgFlags, SockaddrStorage, recvmsg};
-        use std::os::fd::AsRawFd;
         let Some(control) = self.control.as_mut() else {
             let (n, from) = self.socket.recv_from(&mut self.buf[..])?;
             return Ok((n, from, None));
         };
-        let mut iov = [io::IoSliceMut::new(&mut self.buf[..])];
-        let msg = recvmsg::<SockaddrStorage>(
-            self.socket.as_raw_fd(),
-            &mut iov,
-            Some(&mut control.0[..]),
-            MsgFlags::empty(),
-        )
-        .map_err(io::Error::from)?;
-        let from = msg.address.and_then(|a| {
-            if let Some(v4) = a.as_sockaddr_in() {
-                Some(SocketAddr::V4((*v4).into()))
-            } else {
-                a.as_sockaddr_in6().map(|v6| SocketAddr::V6((*v6).into()))
-            }
-        });
-        let Some(from) = from else {
-            return Err(io::Error::other("a datagram without an IP sender"));
-        };
-        let stamp = msg.cmsgs().ok().and_then(|mut c| {
-            c.find_map(|m| match m {
-                ControlMessageOwned::ScmTimestampns(t) => t
-                    .tv_sec()
-                    .checked_mul(1_000_000_000)
-                    .and_then(|s| s.checked_add(t.tv_nsec())),
-                _ => None,
-            })
-        });
-        Ok((msg.bytes, from, stamp))
+        receive_with_stamp(&self.socket, &mut self.buf[..], control)
     }
 
     /// The counters.

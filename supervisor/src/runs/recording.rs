@@ -13,9 +13,8 @@ use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::RecvTimeoutError;
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use penelope_hal::Transition;
 use serde::{Deserialize, Serialize};
@@ -23,11 +22,18 @@ use serde::{Deserialize, Serialize};
 use super::{RECORD_CAPACITY, RunError, RunOptions, RunOutput, find_task};
 use crate::node::Node;
 use crate::objects::runtime::{TickRecord, TickStream};
-use crate::proto::{Call, Method};
+use crate::objects::teleop_end::LinkStatsSource;
+use crate::proto::{Call, LinkRecord, Method};
 use crate::system::SystemFile;
+use penelope_rt_core::clock::MonotonicClock;
 
 /// The format's version, in the first frame.
 pub const RECORDING_VERSION: u32 = 1;
+
+/// How often the recorder writes what its streams hold.
+const DRAIN_EVERY: Duration = Duration::from_millis(50);
+/// How often it writes each link's statistics.
+const LINK_EVERY: Duration = Duration::from_millis(100);
 
 /// The largest frame a reader accepts (a tick is a few hundred bytes).
 const MAX_FRAME: usize = 64 * 1024;
@@ -55,6 +61,14 @@ pub enum Entry {
         index: u16,
         /// The tick (boxed: a tick is far larger than the other entries).
         record: Box<TickRecord>,
+    },
+    /// The state and statistics of channel `channel`'s link to another node, now and then
+    /// (every tenth of a second, and at the end).
+    Link {
+        /// The channel's name on the node.
+        channel: String,
+        /// What its link counted (boxed, as a tick is).
+        record: Box<LinkRecord>,
     },
     /// Ticks of controller `index` its stream lost (the recorder fell behind), at the end.
     Dropped {
@@ -95,6 +109,8 @@ pub struct Recording {
     pub controllers: BTreeMap<String, Vec<TickRecord>>,
     /// Ticks lost by the recorder, by controller (written when the recording ends).
     pub dropped: BTreeMap<String, u64>,
+    /// The records of each channel's link to another node, in order, by channel.
+    pub links: BTreeMap<String, Vec<LinkRecord>>,
 }
 
 /// Reads the whole frames of the recording at `path` (a cut-off last frame, being written, is
@@ -154,6 +170,9 @@ pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
                     .or_default()
                     .push(*record);
             }
+            (false, Entry::Link { channel, record }) => {
+                recording.links.entry(channel).or_default().push(*record);
+            }
             (false, Entry::Dropped { index, count }) => {
                 let name = names
                     .get(&index)
@@ -177,7 +196,8 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    /// Starts writing `streams` (controller name, ticks) of node `node` to `path`.
+    /// Starts writing `streams` (controller name, ticks) of node `node` to `path`, with the
+    /// statistics of `links` (channel name, where its link's counters are).
     ///
     /// # Errors
     /// [`RecordingError::Io`] when the file cannot be created.
@@ -185,6 +205,7 @@ impl Recorder {
         path: &Path,
         node: &str,
         streams: Vec<(String, TickStream)>,
+        links: Vec<(String, LinkStatsSource)>,
     ) -> Result<Recorder, RecordingError> {
         let io = |source| RecordingError::Io {
             path: path.to_path_buf(),
@@ -223,6 +244,7 @@ impl Recorder {
                     source,
                 };
                 let mut written = 0u64;
+                let mut links_at: Option<Instant> = None;
                 loop {
                     let stopping = flag.load(Ordering::Relaxed);
                     for (i, (_, stream)) in streams.iter().enumerate() {
@@ -233,6 +255,19 @@ impl Recorder {
                             };
                             write(&mut out, &entry).map_err(io)?;
                             written += 1;
+                        }
+                    }
+                    if stopping || links_at.is_none_or(|t| t.elapsed() >= LINK_EVERY) {
+                        links_at = Some(Instant::now());
+                        let now = MonotonicClock::read().as_nanos();
+                        for (channel, source) in &links {
+                            if let Some(stats) = source.latest() {
+                                let entry = Entry::Link {
+                                    channel: channel.clone(),
+                                    record: Box::new(stats.record(now)),
+                                };
+                                write(&mut out, &entry).map_err(io)?;
+                            }
                         }
                     }
                     if stopping {
@@ -248,23 +283,9 @@ impl Recorder {
                         return Ok(written);
                     }
                     out.flush().map_err(io)?;
-                    // Wakes on the first stream's next tick (or a tenth of a second), then
-                    // drains them all.
-                    if let Some((_, s)) = streams.first() {
-                        match s.ticks.recv_timeout(Duration::from_millis(100)) {
-                            Ok(record) => {
-                                let entry = Entry::Tick {
-                                    index: 0,
-                                    record: Box::new(record),
-                                };
-                                write(&mut out, &entry).map_err(io)?;
-                                written += 1;
-                            }
-                            Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => {}
-                        }
-                    } else {
-                        std::thread::park_timeout(Duration::from_millis(100));
-                    }
+                    // A batch writer: the streams hold a minute of ticks, so a twentieth of a
+                    // second between batches costs nothing and keeps the writes few.
+                    std::thread::sleep(DRAIN_EVERY);
                 }
             })
             .map_err(io)?;
@@ -326,8 +347,17 @@ pub fn apply_recorded(
             .map_err(node_error(format!("recording `{name}`")))?;
         streams.push((name.clone(), stream));
     }
-    let recorder =
-        Recorder::start(path, node.name(), streams).map_err(|e| RunError::Task(e.to_string()))?;
+    // The links of this node's channels to other nodes.
+    let mut links = Vec::new();
+    for o in deferred.objects_on(node.name()) {
+        if o.kind == "trajectory/teleop"
+            && let Ok(Some(source)) = node.creator().link_stats_source(&o.name)
+        {
+            links.push((o.name.clone(), source));
+        }
+    }
+    let recorder = Recorder::start(path, node.name(), streams, links)
+        .map_err(|e| RunError::Task(e.to_string()))?;
     for name in &to_activate {
         node.call(Call::Object {
             object: name.clone(),

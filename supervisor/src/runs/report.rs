@@ -331,9 +331,17 @@ pub fn report(out: &RunOutput) -> Report {
         .filter(|s| in_window(info, s, contact_window))
         .collect();
     let slave_model = &info.slave_model;
-    let (sensed_base, contact_n) = mean_vector(slave_contact.iter().map(|s| {
-        let pose = slave_model.forward(&s.sample.q);
-        sensor_to_base(&s.sample.wrench, &info.sensor_mount, &pose).force
+    // The environment's push on the slave, base frame: a wrist sensor reads the robot pushing
+    // in its own frame (hence the minus); a sensor read over the data plane gives the push in
+    // the base frame already.
+    let (pushed, contact_n) = mean_vector(slave_contact.iter().map(|s| {
+        let w = &s.sample.wrench;
+        if w.frame == penelope_hal::Frame::Base {
+            w.force
+        } else {
+            let pose = slave_model.forward(&s.sample.q);
+            -sensor_to_base(w, &info.sensor_mount, &pose).force
+        }
     }));
     let (true_contact, _) = mean_vector(
         slave_contact
@@ -352,8 +360,8 @@ pub fn report(out: &RunOutput) -> Report {
             .filter_map(|s| s.truth.map(|t| t.base_wrench.force)),
     );
     // Expected display: the environment's push on the slave, rotated into the master frame and
-    // scaled by the force gain (the sensor reads the robot pushing, hence the minus).
-    let expected = info.rotation().inverse() * (-sensed_base * info.mapping.force_gain);
+    // scaled by the force gain.
+    let expected = info.rotation().inverse() * (pushed * info.mapping.force_gain);
     let display_error_pct = if expected.norm() > 1e-9 {
         (displayed - expected).norm() / expected.norm() * 100.0
     } else {
@@ -496,7 +504,7 @@ pub fn report(out: &RunOutput) -> Report {
             samples: track_n,
         },
         contact: ContactReport {
-            sensed_force_n: sensed_base.norm(),
+            sensed_force_n: pushed.norm(),
             expected_display_n: expected.norm(),
             displayed_force_n: displayed.norm(),
             commanded_force_n: commanded.norm(),

@@ -113,11 +113,6 @@ impl Hosts {
         IpAddr::V4(Ipv4Addr::new(SUBNET[0], SUBNET[1], SUBNET[2], i as u8 + 1))
     }
 
-    /// Host `i`'s namespace name.
-    pub fn namespace(&self, i: usize) -> &str {
-        &self.names[i]
-    }
-
     /// Starts `program args` on host `i` and waits (at most `deadline`) for a line of its
     /// standard output containing `ready`; the process is then kept (and killed on drop).
     ///
@@ -287,7 +282,7 @@ mod tests {
     #[test]
     fn hosts_reach_each_other_and_everything_goes_when_a_start_fails() {
         let mut hosts = Hosts::create(2).expect("namespaces (needs root and iproute2)");
-        let names: Vec<String> = (0..2).map(|i| hosts.namespace(i).to_string()).collect();
+        let names = hosts.names.clone();
         // A datagram from host 0 to host 1 crosses the bridge.
         let b = hosts.address(1);
         let server = hosts

@@ -24,6 +24,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use penelope_supervisor::objects::clock::ClockMode;
+use penelope_supervisor::proto::LinkRecord;
 use penelope_supervisor::runs::recording::{from_recordings, read_recording};
 use penelope_supervisor::runs::report::{LoopTiming, report};
 use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, RunOutput};
@@ -35,6 +36,9 @@ use latency::{Echo, Percentiles};
 
 /// The demo's task split over two nodes.
 pub const TWO_NODES: &str = include_str!("../../../../../config/demo-two-nodes.toml");
+
+/// The demo's task over four nodes: joystick, robot and sensor apart.
+pub const FOUR_NODES: &str = include_str!("../../../../../config/demo-four-nodes.toml");
 
 /// Where each process of a layout runs.
 #[derive(Clone, Copy, Debug)]
@@ -50,7 +54,7 @@ pub struct Layout {
 }
 
 /// The three layouts of the paper's modularity experiment.
-pub const LAYOUTS: [Layout; 2] = [
+pub const LAYOUTS: [Layout; 3] = [
     Layout {
         name: "1-host",
         system: DEMO_SYSTEM,
@@ -62,6 +66,17 @@ pub const LAYOUTS: [Layout; 2] = [
         system: TWO_NODES,
         hosts: &[&[Some("master")], &[None, Some("slave")]],
         ends: (0, 1),
+    },
+    Layout {
+        name: "4-host",
+        system: FOUR_NODES,
+        hosts: &[
+            &[None],
+            &[Some("master")],
+            &[Some("slave")],
+            &[Some("sensor")],
+        ],
+        ends: (1, 2),
     },
 ];
 
@@ -120,8 +135,80 @@ pub struct LayoutRecord {
     pub safety_events: std::collections::BTreeMap<String, u64>,
     /// The control loops' timing.
     pub loops: Vec<LoopTiming>,
-    /// What `ctl describe` shows of the channel on the joystick's node at the end.
-    pub channel: Vec<String>,
+    /// The channel's data-plane link, as its two ends recorded it at the end (`None` on one
+    /// node, where the channel is a pair of cells).
+    pub link: Option<LinkSummary>,
+}
+
+/// One direction's one-way trips on the data plane: from the sender's clock read before the
+/// send to the kernel's arrival stamp, on the common clock.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Trips {
+    /// Median, µs.
+    pub p50_us: Option<f64>,
+    /// 99th percentile, µs.
+    pub p99_us: Option<f64>,
+    /// Longest, µs.
+    pub max_us: Option<f64>,
+    /// Trips measured.
+    pub trips: u64,
+}
+
+/// A channel's link between two nodes at the end of a run.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct LinkSummary {
+    /// The master's samples to the slave (the slave end's record).
+    pub master_to_slave: Trips,
+    /// The slave's samples to the master (the master end's record).
+    pub slave_to_master: Trips,
+    /// The master end's estimate of the slave node's clock less its own, µs (the hosts share
+    /// one clock here, so this is the estimate's error).
+    pub clock_offset_us: Option<f64>,
+    /// The heartbeats' round trip, µs (the other side's turnaround excluded).
+    pub round_trip_us: Option<f64>,
+    /// Samples taken by both ends.
+    pub samples_taken: u64,
+    /// Sequence numbers skipped between taken samples, both ends (lost or overtaken).
+    pub samples_missed: u64,
+    /// Datagrams refused, both ends.
+    pub refused: u64,
+    /// Times either end lost the link.
+    pub losses: u64,
+    /// The data plane's trip over the raw UDP echo's, at the median (both directions' worse).
+    pub trip_over_echo_p50: Option<f64>,
+    /// The same at the 99th percentile.
+    pub trip_over_echo_p99: Option<f64>,
+}
+
+fn trips(r: &LinkRecord) -> Trips {
+    let us = |ns: Option<i64>| ns.map(|n| n as f64 / 1e3);
+    Trips {
+        p50_us: us(r.trip_p50_ns),
+        p99_us: us(r.trip_p99_ns),
+        max_us: us(r.trip_max_ns),
+        trips: r.trips,
+    }
+}
+
+/// The link as the two ends' last records show it, against the echo.
+fn summary(master: &LinkRecord, slave: &LinkRecord, echo: &Percentiles) -> LinkSummary {
+    let (m2s, s2m) = (trips(slave), trips(master));
+    let ratio = |a: Option<f64>, b: Option<f64>, base: f64| match (a, b) {
+        (Some(a), Some(b)) if base > 0.0 => Some(a.max(b) / base),
+        _ => None,
+    };
+    LinkSummary {
+        master_to_slave: m2s,
+        slave_to_master: s2m,
+        clock_offset_us: master.clock_offset_ns.map(|n| n as f64 / 1e3),
+        round_trip_us: master.round_trip_ns.map(|n| n as f64 / 1e3),
+        samples_taken: master.samples_taken + slave.samples_taken,
+        samples_missed: master.samples_missed + slave.samples_missed,
+        refused: master.refused + slave.refused,
+        losses: master.losses + slave.losses,
+        trip_over_echo_p50: ratio(m2s.p50_us, s2m.p50_us, echo.p50_us),
+        trip_over_echo_p99: ratio(m2s.p99_us, s2m.p99_us, echo.p99_us),
+    }
 }
 
 /// Runs `penelope bench layout`.
@@ -156,33 +243,58 @@ pub fn all_layouts() -> Vec<Layout> {
 
 fn print_table(records: &[LayoutRecord]) {
     println!(
-        "{:<7} {:>5} {:>9} {:>9} {:>8} {:>21} {:>21} {:>17}",
+        "{:<7} {:>5} {:>8} {:>8} {:>7} {:>15} {:>15} {:>13} {:>13} {:>9}",
         "layout",
         "procs",
         "track mm",
         "display%",
         "force N",
-        "motion->cmd p50/p99",
-        "contact->force p50/99",
-        "udp 1-way p50/p99"
+        "motion->cmd",
+        "contact->force",
+        "data plane",
+        "udp echo",
+        "offset µs"
     );
+    let pair = |a: f64, b: f64| format!("{a:.0}/{b:.0}");
+    let opt = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v:.0}"));
     for r in records {
+        let (trip, offset) = match &r.link {
+            Some(l) => {
+                let worse = |a: Option<f64>, b: Option<f64>| match (a, b) {
+                    (Some(a), Some(b)) => Some(a.max(b)),
+                    _ => None,
+                };
+                (
+                    format!(
+                        "{}/{}",
+                        opt(worse(l.master_to_slave.p50_us, l.slave_to_master.p50_us)),
+                        opt(worse(l.master_to_slave.p99_us, l.slave_to_master.p99_us))
+                    ),
+                    l.clock_offset_us.map_or("-".into(), |o| format!("{o:.1}")),
+                )
+            }
+            None => ("-".into(), "-".into()),
+        };
         println!(
-            "{:<7} {:>5} {:>9.3} {:>9.2} {:>8.2} {:>10.0}/{:<10.0} {:>10.0}/{:<10.0} {:>8.0}/{:<8.0}",
+            "{:<7} {:>5} {:>8.3} {:>8.2} {:>7.2} {:>15} {:>15} {:>13} {:>13} {:>9}",
             r.layout,
             r.processes,
             r.tracking_rms_mm,
             r.display_error_pct,
             r.sensed_force_n,
-            r.motion_to_command.p50_us,
-            r.motion_to_command.p99_us,
-            r.contact_to_force.p50_us,
-            r.contact_to_force.p99_us,
-            r.udp_echo_one_way.p50_us,
-            r.udp_echo_one_way.p99_us,
+            pair(r.motion_to_command.p50_us, r.motion_to_command.p99_us),
+            pair(r.contact_to_force.p50_us, r.contact_to_force.p99_us),
+            trip,
+            pair(r.udp_echo_one_way.p50_us, r.udp_echo_one_way.p99_us),
+            offset,
         );
     }
-    println!("latencies in µs; hosts are network namespaces of this machine");
+    println!(
+        "latencies in µs, p50/p99: motion->cmd from the master's control tick to the slave's \
+         that used it, contact->force from the slave's tick to the master's; data plane and udp \
+         echo one-way, send to kernel arrival (the worse direction); hosts are network \
+         namespaces of this machine"
+    );
 }
 
 /// A directory removed when dropped.
@@ -354,7 +466,6 @@ pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result
             bail!("the recordings did not cover the task within {task_length:?} + 60 s");
         }
     };
-    let channel = describe_channel(&hosts, &exe, a, naming, &secret, &system, task_nodes.0);
     let (echoes, lost) = pinger
         .join()
         .map_err(|_| anyhow::anyhow!("the echo client's thread panicked"))??;
@@ -367,6 +478,19 @@ pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result
         .collect::<Result<_, _>>()?;
     let output = from_recordings(&system, &options, &read)?.unwrap_or(output);
     let rep = report(&output);
+    let udp_echo_one_way = Percentiles::of(echoes);
+    // Each end's last record within the task (the nodes stopping afterwards lose the link).
+    let end_ns = output.master.last().map_or(0, |t| t.sample.time.as_nanos());
+    let last_link = |node: &str| {
+        read.iter()
+            .find(|r| r.node == node)
+            .and_then(|r| r.links.values().next())
+            .and_then(|l| l.iter().rev().find(|x| x.time_ns <= end_ns))
+    };
+    let link = match (last_link(task_nodes.0), last_link(task_nodes.1)) {
+        (Some(m), Some(s)) => Some(summary(m, s, &udp_echo_one_way)),
+        _ => None,
+    };
     Ok(LayoutRecord {
         layout: layout.name.into(),
         hosts: layout.hosts.len(),
@@ -378,12 +502,12 @@ pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result
         display_error_pct: rep.contact.display_error_pct,
         motion_to_command: Percentiles::of(latency::motion_to_command(&output)),
         contact_to_force: Percentiles::of(latency::contact_to_force(&output)),
-        udp_echo_one_way: Percentiles::of(echoes),
+        udp_echo_one_way,
         udp_echo_lost: lost,
         dropped_ticks: output.dropped,
         safety_events: rep.safety_events.clone(),
         loops: rep.timing.clone(),
-        channel,
+        link,
     })
 }
 
@@ -435,39 +559,4 @@ fn getrandom_bytes(out: &mut [u8]) -> anyhow::Result<()> {
     use std::io::Read;
     std::fs::File::open("/dev/urandom")?.read_exact(out)?;
     Ok(())
-}
-
-/// What `penelope ctl describe` shows of the channel on the master's node (empty when it
-/// cannot be read).
-fn describe_channel(
-    hosts: &Hosts,
-    exe: &Path,
-    host: usize,
-    naming: SocketAddr,
-    secret: &Path,
-    system: &SystemFile,
-    master_node: &str,
-) -> Vec<String> {
-    let Some(channel) = system
-        .objects
-        .iter()
-        .find(|o| o.kind == "trajectory/teleop")
-    else {
-        return Vec::new();
-    };
-    let out = std::process::Command::new("ip")
-        .args(["netns", "exec", hosts.namespace(host)])
-        .arg(exe)
-        .args(["ctl", "--naming", &naming.to_string(), "--secret-file"])
-        .arg(secret)
-        .args(["describe", &format!("{master_node}/{}", channel.name)])
-        .output();
-    match out {
-        Ok(o) if o.status.success() => String::from_utf8_lossy(&o.stdout)
-            .lines()
-            .map(|l| l.trim().to_string())
-            .filter(|l| !l.is_empty())
-            .collect(),
-        _ => Vec::new(),
-    }
 }
