@@ -441,3 +441,35 @@ fn a_controller_reads_its_sensor_on_another_node_over_the_data_plane() {
     wait_until("the reader gone", || publisher_counts(wrist, "ft")[0] == 0);
     lab.stop();
 }
+
+#[test]
+fn a_sensor_on_another_node_is_refused_to_a_loop_on_a_simulated_clock() {
+    let tool = start_tool_position();
+    let file = SystemFile::parse(&arm_and_wrist(tool, "publish = \"127.0.0.1:0\"")).unwrap();
+    let lab = Lab::start(&["wrist"]);
+    file.apply(lab.node("wrist")).expect("the wrist's half");
+    // The arm's node on a simulated clock: the published sensor measures in real time, so a
+    // stepped loop would read it stale tick after tick; its activation is refused instead.
+    let mut config = NodeConfig::new("arm", NamingChoice::Remote(lab.naming.local_addr()));
+    config.secret = Some(SECRET.to_vec());
+    config.creator.rt.priority = None;
+    config.creator.clock = penelope_supervisor::objects::clock::ClockMode::Simulated;
+    let arm = Node::start(config).unwrap();
+    wait_until("the sensor's naming entry", || {
+        arm.remote()
+            .call("/wrist/sensors/ft", Method::Describe)
+            .is_ok()
+    });
+    match file.apply(&arm) {
+        Err(SystemFileError::Step { step, error, .. }) => {
+            assert!(step.contains("activ"), "{step}");
+            assert!(
+                matches!(&error, WireError::NotReady(m) if m.contains("simulated clock")),
+                "{error:?}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+    arm.shutdown();
+    lab.stop();
+}

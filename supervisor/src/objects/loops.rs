@@ -39,6 +39,14 @@ impl Creator {
             Body::Controller(c) => c.sensor.clone().filter(|s| s.starts_with('/')),
             _ => None,
         };
+        // A published sensor measures on its own node's time, not in step with a simulated
+        // clock: the wrench would be stale to the stepped loop, tick after tick.
+        if let (Some(path), Some(_)) = (&path, &self.sim) {
+            return Err(WireError::NotReady(format!(
+                "sensor `{path}` is on another node, read over the data plane in real time; on a \
+                 simulated clock put the sensor on this node (or run the nodes in real time)"
+            )));
+        }
         let sensor_stream = match (&path, &remote) {
             (Some(path), Some(remote)) => Some(sensor_stream(remote.as_ref(), path)?),
             _ => None,
