@@ -139,10 +139,9 @@ fn read_samples(address: SocketAddr, probe: Option<Probe>, count: usize) -> Vec<
     samples
 }
 
-#[test]
-fn one_sensor_read_from_two_nodes_in_parallel_gives_both_the_same_samples() {
-    let lab = Lab::start(&["wrist", "a", "b"]);
-    let (wrist, a, b) = (lab.node("wrist"), lab.node("a"), lab.node("b"));
+/// Creates and configures sensor `ft` (a wall 0.5 m up, published) on `wrist`, and waits until
+/// `reader` can resolve it.
+fn publish_wall_sensor(wrist: &Node, reader: &Node) {
     wrist
         .call(Call::Creator(CreatorCall::Create {
             kind: "sensor/virtual".into(),
@@ -152,10 +151,18 @@ fn one_sensor_read_from_two_nodes_in_parallel_gives_both_the_same_samples() {
         .unwrap();
     object(wrist, "ft", Method::Transition(Transition::Configure)).unwrap();
     wait_until("the sensor's naming entry", || {
-        a.remote()
+        reader
+            .remote()
             .call("/wrist/sensors/ft", Method::Describe)
             .is_ok()
     });
+}
+
+#[test]
+fn one_sensor_read_from_two_nodes_in_parallel_gives_both_the_same_samples() {
+    let lab = Lab::start(&["wrist", "a", "b"]);
+    let (wrist, a, b) = (lab.node("wrist"), lab.node("a"), lab.node("b"));
+    publish_wall_sensor(wrist, a);
     // Each reader's node asks where the sensor is published (one request each), then reads
     // the data plane only.
     let (at_a, at_b) = (
@@ -224,19 +231,7 @@ fn one_sensor_read_from_two_nodes_in_parallel_gives_both_the_same_samples() {
 fn a_forged_datagram_to_the_publisher_is_refused_and_counted_and_it_keeps_serving() {
     let lab = Lab::start(&["wrist", "a"]);
     let (wrist, a) = (lab.node("wrist"), lab.node("a"));
-    wrist
-        .call(Call::Creator(CreatorCall::Create {
-            kind: "sensor/virtual".into(),
-            name: "ft".into(),
-            config: wall_sensor(0.5),
-        }))
-        .unwrap();
-    object(wrist, "ft", Method::Transition(Transition::Configure)).unwrap();
-    wait_until("the sensor's naming entry", || {
-        a.remote()
-            .call("/wrist/sensors/ft", Method::Describe)
-            .is_ok()
-    });
+    publish_wall_sensor(wrist, a);
     let address = published_at(a, "/wrist/sensors/ft");
 
     // A subscription tagged with another system's key, and raw bytes that are no datagram.
