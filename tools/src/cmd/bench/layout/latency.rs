@@ -73,8 +73,9 @@ fn us(later: Timestamp, earlier: Timestamp) -> f64 {
     later.saturating_since(earlier).as_secs_f64() * 1e6
 }
 
-/// The ticks of `ticks` (in time order) at or after `from` and at or before `to`.
-fn window(ticks: &[TickRecord], from: Timestamp, to: Timestamp) -> &[TickRecord] {
+/// The ticks of `ticks` (in time order) from [`WINDOW`] before `to` up to `to`.
+fn window(ticks: &[TickRecord], to: Timestamp) -> &[TickRecord] {
+    let from = Timestamp::from_nanos(to.as_nanos().saturating_sub(WINDOW.as_nanos() as u64));
     let a = ticks.partition_point(|t| t.sample.time < from);
     let b = ticks.partition_point(|t| t.sample.time <= to);
     &ticks[a..b.max(a)]
@@ -95,9 +96,7 @@ pub fn motion_to_command(out: &RunOutput) -> Vec<f64> {
         if moved < 1e-6 {
             continue;
         }
-        let from =
-            Timestamp::from_nanos(now.time.as_nanos().saturating_sub(WINDOW.as_nanos() as u64));
-        let master = window(&out.master, from, now.time);
+        let master = window(&out.master, now.time);
         // The latest master tick whose motion since an earlier one equals the step.
         let found = (1..master.len()).rev().find(|&j| {
             let p = master[j].sample.tool_position;
@@ -123,9 +122,7 @@ pub fn contact_to_force(out: &RunOutput) -> Vec<f64> {
         if force.norm() < 0.5 || force == prev.commanded_wrench.force {
             continue;
         }
-        let from =
-            Timestamp::from_nanos(now.time.as_nanos().saturating_sub(WINDOW.as_nanos() as u64));
-        let slave = window(&out.slave, from, now.time);
+        let slave = window(&out.slave, now.time);
         if let Some(s) = slave
             .iter()
             .rev()
