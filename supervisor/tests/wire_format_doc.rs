@@ -13,9 +13,9 @@ use std::collections::BTreeMap;
 use penelope_supervisor::net::auth::{self, ClientHandshake};
 use penelope_supervisor::net::frame;
 use penelope_supervisor::proto::{
-    Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, MAGIC, Method, PROTOCOL_VERSION, PoseMsg,
-    Reply, RobotMethod, Role, Security, ServerHello, ServerMsg, TelemetryBatch, TelemetryRecord,
-    WireError, WrenchMsg,
+    Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, LinkBatch, LinkRecord, MAGIC, Method,
+    PROTOCOL_VERSION, PoseMsg, Reply, RobotMethod, Role, Security, ServerHello, ServerMsg,
+    TelemetryBatch, TelemetryRecord, WireError, WrenchMsg,
 };
 use serde::Serialize;
 
@@ -49,6 +49,31 @@ fn record(seq: u64) -> TelemetryRecord {
         },
         state: "active".into(),
         fault: None,
+    }
+}
+
+/// A link record of a channel linked to another node over loopback: up, 1,234 samples taken,
+/// the other node's clock 2.5 µs ahead.
+fn link_record() -> LinkRecord {
+    LinkRecord {
+        time_ns: 1_000_000_000,
+        down: false,
+        losses: 0,
+        restorations: 0,
+        samples_taken: 1234,
+        samples_dropped: 0,
+        samples_missed: 2,
+        refused: 0,
+        clock_offset_ns: Some(2500),
+        round_trip_ns: Some(60_000),
+        one_way_delay_ns: Some(30_000),
+        jitter_ns: Some(1000),
+        last_heard_ns: Some(400_000),
+        heartbeat_loss: 0.0,
+        trips: 1234,
+        trip_p50_ns: Some(31_000),
+        trip_p99_ns: Some(90_000),
+        trip_max_ns: None,
     }
 }
 
@@ -178,6 +203,21 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
             dropped: 0,
             samples: vec![record(1000), record(1001)],
         })),
+    );
+    m.insert(
+        "link-batch",
+        framed(&ServerMsg::Link(LinkBatch {
+            subscription: 2,
+            dropped: 0,
+            records: vec![link_record()],
+        })),
+    );
+    m.insert(
+        "response-no-link",
+        framed(&ServerMsg::Response {
+            id: 3,
+            result: Err(WireError::NoLink("link".into())),
+        }),
     );
     m.insert(
         "error-frame-too-large",

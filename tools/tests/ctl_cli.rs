@@ -371,8 +371,106 @@ fn a_node_runs_the_teleoperation_system_file() {
         "{out}"
     );
 
+    // Both ends of this channel are on the node: no link to watch, and ctl says why.
+    let o = ctl(naming, &["watch", "lab/link", "--count", "1"]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("no data-plane link"), "{err}");
+
     let o = ctl(naming, &["deactivate", "lab/follow"]);
     assert!(o.status.success(), "{:?}", text(&o));
     let o = ctl(naming, &["describe", "lab/follow"]);
     assert!(text(&o).0.contains("inactive"), "{:?}", text(&o));
+}
+
+/// `config/demo-two-nodes.toml` on two node processes (free loopback ports, data plane
+/// included): `ctl watch` of the master's channel prints its link records as JSON, one per
+/// line, their counters growing.
+#[test]
+fn ctl_watches_a_channels_link_between_two_nodes() {
+    let naming = free_port();
+    let (master, slave) = (free_port(), free_port());
+    let udp = || {
+        std::net::UdpSocket::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port()
+    };
+    let file = include_str!("../../config/demo-two-nodes.toml")
+        .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", udp()))
+        .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", udp()));
+    let config = script("two-nodes.toml", &file);
+    let config = config.to_str().unwrap();
+    let node = |name: &str, listen: SocketAddr| {
+        spawn(&[
+            "node",
+            "--name",
+            name,
+            "--listen",
+            &listen.to_string(),
+            "--naming",
+            &naming.to_string(),
+            "--priority",
+            "0",
+            "--config",
+            config,
+        ])
+    };
+    let _children = Children(vec![
+        spawn(&["naming", "--listen", &naming.to_string()]),
+        node("master", master),
+        node("slave", slave),
+    ]);
+
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let o = ctl(naming, &["ls"]);
+        if o.status.success() && text(&o).0.contains(" link ") {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the master's channel never showed up: {:?}",
+            text(&o)
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+
+    let o = ctl(naming, &["watch", "master/link", "--count", "3", "--json"]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    let records: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect();
+    assert_eq!(records.len(), 3, "{out}");
+    let taken: Vec<u64> = records
+        .iter()
+        .map(|r| r["samples_taken"].as_u64().expect("a count"))
+        .collect();
+    assert!(taken.windows(2).all(|w| w[1] >= w[0]), "{taken:?}");
+    for key in [
+        "clock_offset_ns",
+        "one_way_delay_ns",
+        "jitter_ns",
+        "down",
+        "last_heard_ns",
+    ] {
+        assert!(
+            records[2].get(key).is_some(),
+            "{key} missing: {}",
+            records[2]
+        );
+    }
+
+    // And for humans, one line per record.
+    let o = ctl(naming, &["watch", "master/link", "--count", "2"]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(
+        out.lines().filter(|l| l.contains(" offset ")).count(),
+        2,
+        "{out}"
+    );
 }

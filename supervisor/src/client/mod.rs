@@ -27,7 +27,8 @@
 //! - The typed proxies in [`proxy`]: [`RobotProxy`], [`BoardProxy`], [`SensorProxy`],
 //!   [`ControllerProxy`], [`TrajectoryProxy`], and [`ObjectProxy`] for an object of any class.
 //!   Every one has the lifecycle methods of [`Lifecycle`].
-//! - [`TelemetryStream`]: the telemetry of a running loop on its own connection.
+//! - [`TelemetryStream`]: the telemetry of a running loop on its own connection;
+//!   [`LinkStream`]: the link records of a channel linked to another node, likewise.
 //!
 //! # Errors
 //! Everything returns [`RpcError`], the error of the transport, so that the client, the nodes'
@@ -61,7 +62,7 @@ pub use proxy::{
     BoardProxy, ControllerProxy, Lifecycle, ObjectHandle, ObjectProxy, RobotProxy, SensorProxy,
     TrajectoryProxy, TypedProxy,
 };
-pub use telemetry::TelemetryStream;
+pub use telemetry::{LinkStream, Streamed, Subscription, TelemetryStream};
 
 /// The deepest context [`NamingProxy::tree`] walks into.
 pub const MAX_TREE_DEPTH: usize = 16;
@@ -285,6 +286,19 @@ impl Client {
     pub fn subscribe(&self, path: &str, decimation: u32) -> Result<TelemetryStream, RpcError> {
         let reference = self.locate(path)?;
         TelemetryStream::open(&reference, &self.inner.config, decimation)
+    }
+
+    /// Opens a subscription to the link statistics of the `trajectory/teleop` channel at
+    /// `path` (its end on that node, linked to another node) on a connection of its own: one
+    /// record every 100 ms times `decimation` (0 is taken as 1).
+    ///
+    /// # Errors
+    /// [`WireError::UnknownName`], [`WireError::WrongClass`] for an object that is not a
+    /// trajectory, [`WireError::NoLink`] for a channel with both ends on one node,
+    /// [`WireError::NotReady`] for a channel not configured, or a transport error.
+    pub fn watch_link(&self, path: &str, decimation: u32) -> Result<LinkStream, RpcError> {
+        let reference = self.locate(path)?;
+        LinkStream::open(&reference, &self.inner.config, decimation)
     }
 
     /// A proxy of class `P` for the object at `path` (a naming path or `NODE/NAME`), after

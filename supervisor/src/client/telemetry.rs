@@ -1,42 +1,109 @@
-//! A telemetry subscription on a connection of its own.
+//! A subscription on a connection of its own: the control ticks of a running loop
+//! ([`TelemetryStream`]) or the link records of a channel linked to another node
+//! ([`LinkStream`]).
 //!
-//! The node pushes batches of samples as the loop runs and drops batches, never queues them
-//! without bound, when this side reads too slowly ([`TelemetryStream::dropped`] counts them).
+//! The node pushes batches as the loop runs (or, for a link, every 100 ms) and drops batches,
+//! never queues them without bound, when this side reads too slowly
+//! ([`Subscription::dropped`] counts them).
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 use super::{parse_address, unexpected};
-use crate::net::conn::{ClientConfig, Connection, RpcError};
-use crate::proto::{Call, ObjectRef, Reply, TelemetryRecord, object_path};
+use crate::net::conn::{ClientConfig, Connection, Pushed, RpcError};
+use crate::proto::{
+    Call, Class, LinkRecord, ObjectRef, Reply, TelemetryRecord, WireError, object_path,
+};
 
-/// The telemetry of one object, sample after sample. Unsubscribes (and closes its connection)
+/// What a subscription streams, record by record: a control tick or a link record.
+pub trait Streamed: Sized {
+    /// The class of object whose subscription streams these (a subscription to another class
+    /// is refused before anything is sent).
+    const CLASS: Class;
+
+    /// Whether an object of `class` streams these.
+    fn streamed_by(class: Class) -> bool;
+
+    /// `pushed`'s subscription, its count of dropped batches and its records, if it carries
+    /// this kind of record.
+    fn unpack(pushed: Pushed) -> Option<(u64, u64, Vec<Self>)>;
+}
+
+impl Streamed for TelemetryRecord {
+    const CLASS: Class = Class::Controller;
+
+    /// A controller, or a robot (the node finds the controller driving it).
+    fn streamed_by(class: Class) -> bool {
+        matches!(class, Class::Controller | Class::Robot)
+    }
+
+    fn unpack(pushed: Pushed) -> Option<(u64, u64, Vec<Self>)> {
+        match pushed {
+            Pushed::Telemetry(b) => Some((b.subscription, b.dropped, b.samples)),
+            Pushed::Link(_) => None,
+        }
+    }
+}
+
+impl Streamed for LinkRecord {
+    const CLASS: Class = Class::Trajectory;
+
+    /// A `trajectory/teleop` channel (the node refuses other trajectories, and a channel with
+    /// no link to another node).
+    fn streamed_by(class: Class) -> bool {
+        class == Class::Trajectory
+    }
+
+    fn unpack(pushed: Pushed) -> Option<(u64, u64, Vec<Self>)> {
+        match pushed {
+            Pushed::Link(b) => Some((b.subscription, b.dropped, b.records)),
+            Pushed::Telemetry(_) => None,
+        }
+    }
+}
+
+/// The control ticks of a controller (or of the robot it drives).
+pub type TelemetryStream = Subscription<TelemetryRecord>;
+
+/// The link records of a `trajectory/teleop` channel whose end on that node is linked to
+/// another node: its clock offset, delay, jitter, losses and counters, every 100 ms.
+pub type LinkStream = Subscription<LinkRecord>;
+
+/// The records of one object, one after the other. Unsubscribes (and closes its connection)
 /// when dropped.
 ///
-/// As an [`Iterator`], it waits up to [`TelemetryStream::timeout`] for each sample, yields
+/// As an [`Iterator`], it waits up to [`Subscription::timeout`] for each record, yields
 /// `Err(RpcError::Timeout)` when none came and ends after a transport error.
 #[derive(Debug)]
-pub struct TelemetryStream {
+pub struct Subscription<R> {
     conn: Connection,
     subscription: u64,
     path: String,
-    pending: VecDeque<TelemetryRecord>,
+    pending: VecDeque<R>,
     dropped: u64,
     timeout: Duration,
     broken: bool,
 }
 
-impl TelemetryStream {
-    /// Opens a connection to the node of `reference` and subscribes to the object, one tick in
-    /// `decimation`.
+impl<R: Streamed> Subscription<R> {
+    /// Opens a connection to the node of `reference` and subscribes to the object, one record
+    /// in `decimation`.
     ///
     /// # Errors
-    /// The node's refusal or a transport error.
+    /// [`WireError::WrongClass`] for an object that does not stream `R` (nothing is sent), the
+    /// node's refusal or a transport error.
     pub(crate) fn open(
         reference: &ObjectRef,
         config: &ClientConfig,
         decimation: u32,
-    ) -> Result<TelemetryStream, RpcError> {
+    ) -> Result<Self, RpcError> {
+        if !R::streamed_by(reference.class) {
+            return Err(RpcError::Remote(WireError::WrongClass {
+                name: reference.name.clone(),
+                expected: R::CLASS,
+                found: reference.class,
+            }));
+        }
         let address = parse_address(reference)?;
         let mut conn = Connection::connect(address, config)?;
         let subscription = match conn.call(Call::Subscribe {
@@ -46,7 +113,7 @@ impl TelemetryStream {
             Reply::Subscribed { subscription } => subscription,
             other => return Err(unexpected("a subscription", &other)),
         };
-        Ok(TelemetryStream {
+        Ok(Subscription {
             conn,
             subscription,
             path: object_path(&reference.node, reference.class, &reference.name),
@@ -72,34 +139,36 @@ impl TelemetryStream {
         self.dropped
     }
 
-    /// How long the iterator waits for one sample.
+    /// How long the iterator waits for one record.
     pub fn timeout(&self) -> Duration {
         self.timeout
     }
 
-    /// Sets how long the iterator waits for one sample.
+    /// Sets how long the iterator waits for one record.
     pub fn set_timeout(&mut self, timeout: Duration) {
         self.timeout = timeout;
     }
 
-    /// The next sample, waiting at most `timeout`; `Ok(None)` if none came in time.
+    /// The next record, waiting at most `timeout`; `Ok(None)` if none came in time.
     ///
     /// # Errors
     /// A transport error (the node went away); the stream is then finished.
-    pub fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<TelemetryRecord>, RpcError> {
-        if let Some(sample) = self.pending.pop_front() {
-            return Ok(Some(sample));
+    pub fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<R>, RpcError> {
+        if let Some(record) = self.pending.pop_front() {
+            return Ok(Some(record));
         }
         let deadline = Instant::now() + timeout;
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
-            match self.conn.next_telemetry(left) {
-                Ok(Some(batch)) => {
-                    if batch.subscription == self.subscription {
-                        self.dropped = self.dropped.max(batch.dropped);
-                        self.pending.extend(batch.samples);
-                        if let Some(sample) = self.pending.pop_front() {
-                            return Ok(Some(sample));
+            match self.conn.next_pushed(left) {
+                Ok(Some(pushed)) => {
+                    if let Some((subscription, dropped, records)) = R::unpack(pushed)
+                        && subscription == self.subscription
+                    {
+                        self.dropped = self.dropped.max(dropped);
+                        self.pending.extend(records);
+                        if let Some(record) = self.pending.pop_front() {
+                            return Ok(Some(record));
                         }
                     }
                 }
@@ -116,22 +185,22 @@ impl TelemetryStream {
     }
 }
 
-impl Iterator for TelemetryStream {
-    type Item = Result<TelemetryRecord, RpcError>;
+impl<R: Streamed> Iterator for Subscription<R> {
+    type Item = Result<R, RpcError>;
 
     fn next(&mut self) -> Option<Self::Item> {
         if self.broken {
             return None;
         }
         match self.recv_timeout(self.timeout) {
-            Ok(Some(sample)) => Some(Ok(sample)),
+            Ok(Some(record)) => Some(Ok(record)),
             Ok(None) => Some(Err(RpcError::Timeout)),
             Err(e) => Some(Err(e)),
         }
     }
 }
 
-impl Drop for TelemetryStream {
+impl<R> Drop for Subscription<R> {
     fn drop(&mut self) {
         if !self.broken {
             // Best effort: the node also drops the subscription when the connection closes.

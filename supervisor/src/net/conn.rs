@@ -6,8 +6,8 @@
 //! with a secret refuses a node that answers [`Security::Plain`] (it sends it nothing more), and a
 //! frame of the node that fails to open ends the connection. [`Connection::call`] sends one request and
 //! waits for its answer; [`Connection::call_many`] pipelines many (written back to back, answers
-//! read in order); telemetry frames that arrive meanwhile are kept (at most
-//! [`TELEMETRY_BACKLOG`] batches, the oldest dropped first) for [`Connection::next_telemetry`].
+//! read in order); telemetry and link frames that arrive meanwhile are kept (at most
+//! [`TELEMETRY_BACKLOG`] batches, the oldest dropped first) for [`Connection::next_pushed`].
 //!
 //! Request ids increase from 1. A call that timed out leaves its answer on the wire: it is
 //! recognised and skipped later. Any other surprise (an answer with an unexpected id, a frame a
@@ -23,11 +23,12 @@ use std::time::{Duration, Instant};
 use crate::net::auth::{self, ClientHandshake, Opener, SealError, Sealer, open_message};
 use crate::net::frame::{FrameDecoder, FrameError, encode_into};
 use crate::proto::{
-    Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, MAGIC, PROTOCOL_VERSION, Reply, Role,
-    Security, ServerMsg, TelemetryBatch, WireError,
+    Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, LinkBatch, MAGIC, PROTOCOL_VERSION, Reply,
+    Role, Security, ServerMsg, TelemetryBatch, WireError,
 };
 
-/// Telemetry batches kept while nobody asks for them; older ones are dropped.
+/// Pushed batches (telemetry and link records) kept while nobody asks for them; older ones are
+/// dropped.
 pub const TELEMETRY_BACKLOG: usize = 1024;
 
 /// Pipelined requests in flight at most in [`Connection::call_many`] (more wait for answers, so
@@ -141,16 +142,35 @@ pub struct Connection {
     next_id: u64,
     /// Answers to ids below this may still arrive from calls that timed out: skipped.
     stale_below: u64,
-    telemetry: VecDeque<TelemetryBatch>,
+    telemetry: VecDeque<Pushed>,
     /// Why the connection is unusable.
     broken: Option<String>,
+}
+
+/// What a node pushes to a subscriber between responses.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Pushed {
+    /// Control ticks of a controller's subscription.
+    Telemetry(TelemetryBatch),
+    /// Link records of a channel's subscription.
+    Link(LinkBatch),
+}
+
+impl Pushed {
+    /// The subscription it belongs to.
+    pub fn subscription(&self) -> u64 {
+        match self {
+            Pushed::Telemetry(b) => b.subscription,
+            Pushed::Link(b) => b.subscription,
+        }
+    }
 }
 
 /// A frame of the node, classified.
 #[allow(clippy::large_enum_variant)] // moved once per frame; boxing would allocate per call
 enum Incoming {
     Response(u64, Result<Reply, WireError>),
-    Telemetry(TelemetryBatch),
+    Pushed(Pushed),
 }
 
 impl Connection {
@@ -354,15 +374,12 @@ impl Connection {
         }
     }
 
-    /// The next telemetry batch (first those that arrived during calls), waiting at most
-    /// `timeout`; `Ok(None)` if none came.
+    /// The next pushed batch, telemetry or link records (first those that arrived during
+    /// calls), waiting at most `timeout`; `Ok(None)` if none came.
     ///
     /// # Errors
     /// Transport and protocol failures.
-    pub fn next_telemetry(
-        &mut self,
-        timeout: Duration,
-    ) -> Result<Option<TelemetryBatch>, RpcError> {
+    pub fn next_pushed(&mut self, timeout: Duration) -> Result<Option<Pushed>, RpcError> {
         if let Some(b) = self.telemetry.pop_front() {
             return Ok(Some(b));
         }
@@ -370,7 +387,7 @@ impl Connection {
         let mut deadline = Deadline::after(timeout);
         loop {
             match self.read_incoming(&mut deadline) {
-                Ok(Incoming::Telemetry(b)) => return Ok(Some(b)),
+                Ok(Incoming::Pushed(b)) => return Ok(Some(b)),
                 Ok(Incoming::Response(id, _)) if id < self.stale_below => {}
                 Ok(Incoming::Response(id, _)) => {
                     return Err(self.protocol(format!("an answer to request {id}, never sent")));
@@ -426,7 +443,8 @@ impl Connection {
         r.map_err(|e| RpcError::Io(self.fail(e)))
     }
 
-    /// Waits for the answer to `id`, keeping telemetry and skipping answers of timed-out calls.
+    /// Waits for the answer to `id`, keeping pushed batches and skipping answers of timed-out
+    /// calls.
     fn wait_response(
         &mut self,
         id: u64,
@@ -439,7 +457,7 @@ impl Connection {
                 Incoming::Response(got, _) => {
                     return Err(self.protocol(format!("expected the answer to {id}, got {got}")));
                 }
-                Incoming::Telemetry(b) => {
+                Incoming::Pushed(b) => {
                     if self.telemetry.len() >= TELEMETRY_BACKLOG {
                         self.telemetry.pop_front();
                     }
@@ -452,7 +470,8 @@ impl Connection {
     fn read_incoming(&mut self, deadline: &mut Deadline) -> Result<Incoming, RpcError> {
         match self.read_msg(deadline)? {
             ServerMsg::Response { id, result } => Ok(Incoming::Response(id, result)),
-            ServerMsg::Telemetry(b) => Ok(Incoming::Telemetry(b)),
+            ServerMsg::Telemetry(b) => Ok(Incoming::Pushed(Pushed::Telemetry(b))),
+            ServerMsg::Link(b) => Ok(Incoming::Pushed(Pushed::Link(b))),
             ServerMsg::Error(e) => {
                 let e = self.fail(e);
                 let _ = self.stream.shutdown(Shutdown::Both);
@@ -585,200 +604,4 @@ impl Drop for Connection {
 }
 
 #[cfg(test)]
-mod tests {
-    use std::net::TcpListener;
-    use std::sync::Arc;
-
-    use super::*;
-    use crate::net::frame::{read_frame, write_frame};
-    use crate::net::server::{Server, ServerConfig};
-    use crate::proto::{ServerHello, TelemetryRecord};
-    use crate::service::{Service, Session};
-
-    struct Echo;
-
-    impl Service for Echo {
-        fn call(&self, session: &Session, call: Call) -> Result<Reply, WireError> {
-            match call {
-                Call::Ping { payload } => Ok(Reply::Pong(payload)),
-                Call::Unsubscribe { subscription } => {
-                    // A test hook: push that many empty telemetry batches first.
-                    for s in 0..subscription {
-                        session.outbox.push(ServerMsg::Telemetry(TelemetryBatch {
-                            subscription: s,
-                            dropped: 0,
-                            samples: Vec::<TelemetryRecord>::new(),
-                        }));
-                    }
-                    Ok(Reply::Unit)
-                }
-                _ => Err(WireError::NotReady("echo only".into())),
-            }
-        }
-    }
-
-    fn server(secret: Option<&[u8]>) -> Server {
-        let mut c = ServerConfig::new("unit");
-        c.secret = secret.map(<[u8]>::to_vec);
-        Server::bind("127.0.0.1:0".parse().unwrap(), c, Arc::new(Echo)).unwrap()
-    }
-
-    #[test]
-    fn calls_pipelines_and_telemetry_over_a_real_server() {
-        let s = server(None);
-        let mut c = Connection::connect(s.local_addr(), &ClientConfig::new("t")).unwrap();
-        assert_eq!(c.node(), "unit");
-        assert_eq!(
-            c.call(Call::Ping {
-                payload: vec![1, 2]
-            })
-            .unwrap(),
-            Reply::Pong(vec![1, 2])
-        );
-        assert!(matches!(
-            c.call(Call::NodeInfo),
-            Err(RpcError::Remote(WireError::NotReady(_)))
-        ));
-        let calls = (0..2000u32)
-            .map(|i| Call::Ping {
-                payload: i.to_le_bytes().to_vec(),
-            })
-            .collect();
-        let replies = c.call_many(calls).unwrap();
-        assert_eq!(replies.len(), 2000);
-        assert_eq!(
-            replies[1234],
-            Ok(Reply::Pong(1234u32.to_le_bytes().to_vec()))
-        );
-        assert_eq!(
-            c.call(Call::Unsubscribe { subscription: 3 }).unwrap(),
-            Reply::Unit
-        );
-        let mut subs = Vec::new();
-        while let Some(b) = c.next_telemetry(Duration::from_millis(300)).unwrap() {
-            subs.push(b.subscription);
-        }
-        assert_eq!(subs, [0, 1, 2]);
-        assert!(c.call_many(Vec::new()).unwrap().is_empty());
-        drop(c);
-        s.shutdown();
-    }
-
-    #[test]
-    fn the_secret_is_required_and_checked() {
-        let s = server(Some(b"k"));
-        let mut cfg = ClientConfig::new("t");
-        assert!(matches!(
-            Connection::connect(s.local_addr(), &cfg),
-            Err(RpcError::Remote(WireError::AuthFailed))
-        ));
-        cfg.secret = Some(b"wrong".to_vec());
-        assert!(matches!(
-            Connection::connect(s.local_addr(), &cfg),
-            Err(RpcError::Remote(WireError::AuthFailed))
-        ));
-        cfg.secret = Some(b"k".to_vec());
-        let mut c = Connection::connect(s.local_addr(), &cfg).unwrap();
-        assert_eq!(
-            c.call(Call::Ping { payload: vec![] }).unwrap(),
-            Reply::Pong(vec![])
-        );
-        assert_eq!(s.stats().auth_failures, 2);
-        drop(c);
-        s.shutdown();
-    }
-
-    /// A scripted node: answers the hello, then whatever `script` writes.
-    fn fake_node(script: impl FnOnce(&mut TcpStream) + Send + 'static) -> SocketAddr {
-        let l = TcpListener::bind("127.0.0.1:0").unwrap();
-        let addr = l.local_addr().unwrap();
-        std::thread::spawn(move || {
-            let (mut s, _) = l.accept().unwrap();
-            let _: ClientMsg = read_frame(&mut s, 1000).unwrap();
-            let hello = ServerMsg::Hello(ServerHello {
-                magic: MAGIC,
-                version: PROTOCOL_VERSION,
-                node: "fake".into(),
-                security: Security::Plain,
-            });
-            write_frame(&mut s, &hello, 1000).unwrap();
-            script(&mut s);
-            std::thread::sleep(Duration::from_millis(200));
-        });
-        addr
-    }
-
-    #[test]
-    fn wrong_ids_errors_garbage_and_silence_are_typed_errors() {
-        let mut cfg = ClientConfig::new("t");
-        cfg.timeout = Duration::from_millis(300);
-        let addr = fake_node(|s| {
-            let _: ClientMsg = read_frame(s, 1000).unwrap();
-            let r = ServerMsg::Response {
-                id: 99,
-                result: Ok(Reply::Unit),
-            };
-            write_frame(s, &r, 1000).unwrap();
-        });
-        let mut c = Connection::connect(addr, &cfg).unwrap();
-        assert!(matches!(c.call(Call::NodeInfo), Err(RpcError::Protocol(_))));
-        assert!(!c.is_usable());
-        assert!(matches!(c.call(Call::NodeInfo), Err(RpcError::Protocol(_))));
-
-        let addr = fake_node(|s| {
-            let e = ServerMsg::Error(WireError::RateLimited { limit: 1 });
-            write_frame(s, &e, 1000).unwrap();
-        });
-        let mut c = Connection::connect(addr, &cfg).unwrap();
-        assert!(matches!(
-            c.call(Call::NodeInfo),
-            Err(RpcError::Remote(WireError::RateLimited { limit: 1 }))
-        ));
-
-        let addr = fake_node(|s| s.write_all(&[3, 0, 0, 0, 0xff, 0xff, 0xff]).unwrap());
-        let mut c = Connection::connect(addr, &cfg).unwrap();
-        assert!(matches!(
-            c.call(Call::NodeInfo),
-            Err(RpcError::Frame(FrameError::Malformed(_)))
-        ));
-
-        let addr = fake_node(|_| {});
-        cfg.timeout = Duration::from_millis(100);
-        let mut c = Connection::connect(addr, &cfg).unwrap();
-        assert!(matches!(c.call(Call::NodeInfo), Err(RpcError::Timeout)));
-        assert!(
-            c.next_telemetry(Duration::from_millis(10))
-                .unwrap()
-                .is_none()
-        );
-    }
-
-    #[test]
-    fn a_late_answer_of_a_timed_out_call_is_skipped() {
-        let mut cfg = ClientConfig::new("t");
-        cfg.timeout = Duration::from_millis(200);
-        let addr = fake_node(|s| {
-            let _: ClientMsg = read_frame(s, 1000).unwrap();
-            std::thread::sleep(Duration::from_millis(400));
-            write_frame(
-                s,
-                &ServerMsg::Response {
-                    id: 1,
-                    result: Ok(Reply::Unit),
-                },
-                1000,
-            )
-            .unwrap();
-            let _: ClientMsg = read_frame(s, 1000).unwrap();
-            let r = ServerMsg::Response {
-                id: 2,
-                result: Ok(Reply::Pong(vec![7])),
-            };
-            write_frame(s, &r, 1000).unwrap();
-        });
-        let mut c = Connection::connect(addr, &cfg).unwrap();
-        assert!(matches!(c.call(Call::NodeInfo), Err(RpcError::Timeout)));
-        std::thread::sleep(Duration::from_millis(300));
-        assert_eq!(c.call(Call::NodeInfo).unwrap(), Reply::Pong(vec![7]));
-    }
-}
+mod tests;

@@ -404,6 +404,8 @@ impl Creator {
             .lock()
             .map_err(|_| WireError::Internal("simulated clock poisoned".into()))?
             .advance(by);
+        // Link records follow the simulated clock that moves the links.
+        self.subscriptions.links().publish(now.as_nanos());
         self.reap_failed();
         Ok(now)
     }

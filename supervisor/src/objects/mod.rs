@@ -51,7 +51,7 @@ use crate::proto::{
 use crate::service::{Remote, Service, Session};
 use clock::{ClockMode, SimWorld};
 use registry::{Body, Registry};
-use runtime::{CommTask, ControlTask, Subscriptions};
+use runtime::{CommTask, ControlTask, LinkPump, Subscriptions};
 
 /// Real-time settings of the control threads a creator starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -134,6 +134,8 @@ pub struct Creator {
     registry: Mutex<Registry>,
     remote: Mutex<Option<Arc<dyn Remote>>>,
     subscriptions: Arc<Subscriptions>,
+    /// Publishes link records on the real clock; started by the first link subscription.
+    link_pump: Mutex<Option<LinkPump>>,
     fifo: OnceLock<bool>,
     /// The loops and the clock, on a simulated clock.
     sim: Option<Mutex<SimWorld>>,
@@ -185,6 +187,7 @@ impl Creator {
             }),
             config,
             subscriptions: Arc::new(Subscriptions::default()),
+            link_pump: Mutex::new(None),
             fifo: OnceLock::new(),
         }
     }
@@ -321,6 +324,8 @@ impl Creator {
             use penelope_hal::Board;
             let _ = b.set_enabled(false);
         }
+        drop(reg);
+        self.subscriptions.links().end_stale(name, None);
         Ok(())
     }
 
@@ -352,6 +357,11 @@ impl Creator {
             }
             _ => self.lock()?.transition(name, t)?,
         }
+        if class == Class::Trajectory {
+            // A channel cleaned up or configured anew has lost the link its watchers read.
+            let current = self.link_stats_source(name)?;
+            self.subscriptions.links().end_stale(name, current.as_ref());
+        }
         self.info(name)
             .ok_or_else(|| WireError::UnknownName(name.into()))
     }
@@ -365,14 +375,26 @@ impl Creator {
         let controller = {
             let reg = self.lock()?;
             let o = reg.get(object)?;
-            match o.kind.class() {
-                Class::Controller => object.to_string(),
-                Class::Robot => reg.driver_of(object).ok_or_else(|| {
+            match (o.kind.class(), &o.body) {
+                (_, Body::Teleop(t)) => {
+                    let link = t.link.as_ref().ok_or_else(|| {
+                        WireError::NotReady(format!(
+                            "channel `{object}` is not configured: its link exists from `configure`"
+                        ))
+                    })?;
+                    let source = link
+                        .stats_source()
+                        .ok_or_else(|| WireError::NoLink(object.into()))?;
+                    drop(reg);
+                    return self.subscribe_link(session, object, source, decimation);
+                }
+                (Class::Controller, _) => object.to_string(),
+                (Class::Robot, _) => reg.driver_of(object).ok_or_else(|| {
                     WireError::NotReady(format!(
                         "robot `{object}` is not driven by an active controller; subscribe to a controller"
                     ))
                 })?,
-                found => {
+                (found, _) => {
                     return Err(WireError::WrongClass {
                         name: object.into(),
                         expected: Class::Controller,
@@ -384,6 +406,39 @@ impl Creator {
         let id = self.subscriptions.add(
             session.id,
             &controller,
+            decimation,
+            session.outbox.clone(),
+            self.config.max_subscriptions,
+        )?;
+        Ok(Reply::Subscribed { subscription: id })
+    }
+
+    /// Subscribes `session` to the link of channel `channel`, read from `source`: records
+    /// published by the [`LinkPump`] on the real clock, by [`Creator::advance`] on a simulated
+    /// one.
+    fn subscribe_link(
+        &self,
+        session: &Session,
+        channel: &str,
+        source: teleop_end::LinkStatsSource,
+        decimation: u32,
+    ) -> Result<Reply, WireError> {
+        if self.sim.is_none() {
+            let mut pump = self
+                .link_pump
+                .lock()
+                .map_err(|_| WireError::Internal("link pump poisoned".into()))?;
+            if pump.is_none() {
+                let started = LinkPump::start(self.subscriptions.clone()).map_err(|e| {
+                    WireError::Internal(format!("cannot start the link telemetry thread: {e}"))
+                })?;
+                *pump = Some(started);
+            }
+        }
+        let id = self.subscriptions.add_link(
+            session.id,
+            channel,
+            source,
             decimation,
             session.outbox.clone(),
             self.config.max_subscriptions,

@@ -475,6 +475,12 @@ impl LinkStatsSource {
     pub fn latest(&self) -> Option<LinkStats> {
         self.0.lock().ok()?.latest()
     }
+
+    /// Whether both read the same link (a channel configured anew has a new link, and so a
+    /// new source).
+    pub fn same_link(&self, other: &LinkStatsSource) -> bool {
+        Arc::ptr_eq(&self.0, &other.0)
+    }
 }
 
 /// The ends of a configured channel on this node; each is lent to the loop that runs it. A

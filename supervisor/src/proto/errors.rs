@@ -144,6 +144,10 @@ pub enum WireError {
     /// writing the naming tree, unregistering another node without the admin credential).
     #[error("forbidden: {0}")]
     Forbidden(String),
+    /// The channel has both ends on this node: no data-plane link, so no link statistics to
+    /// stream (appended last, so every earlier variant keeps its encoding).
+    #[error("`{0}` has both ends on this node: it has no data-plane link to watch")]
+    NoLink(String),
 }
 
 /// Short names of the lifecycle transitions a user types (`configure`, ...).

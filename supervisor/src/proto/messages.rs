@@ -6,7 +6,8 @@ use serde::{Deserialize, Serialize};
 #[cfg(doc)]
 use super::NOISE_PATTERN;
 use super::{
-    CreatorCall, MAGIC, Method, NamingCall, PROTOCOL_VERSION, Reply, TelemetryBatch, WireError,
+    CreatorCall, LinkBatch, MAGIC, Method, NamingCall, PROTOCOL_VERSION, Reply, TelemetryBatch,
+    WireError,
 };
 
 /// A message from a client to a node.
@@ -109,6 +110,9 @@ pub enum ServerMsg {
     Telemetry(TelemetryBatch),
     /// A connection-level error; the node closes the connection after sending it.
     Error(WireError),
+    /// Link records of a subscription to a channel linked to another node (appended last, so
+    /// every earlier variant keeps its encoding).
+    Link(LinkBatch),
 }
 
 /// The node's hello.
@@ -147,12 +151,16 @@ pub enum Call {
     },
     /// The naming service, if this node hosts it (else [`WireError::NoNamingService`]).
     Naming(NamingCall),
-    /// Stream the telemetry of `object` (a controller, or a robot driven by an active
-    /// controller) to this connection: [`Reply::Subscribed`], then [`ServerMsg::Telemetry`].
+    /// Stream the telemetry of `object` to this connection: [`Reply::Subscribed`], then, for a
+    /// controller (or a robot driven by an active controller), [`ServerMsg::Telemetry`]; for a
+    /// `trajectory/teleop` channel whose end here is linked to another node,
+    /// [`ServerMsg::Link`] every 100 ms (a channel with both ends on one node has no link:
+    /// [`WireError::NoLink`]).
     Subscribe {
         /// The object's name on the node.
         object: String,
-        /// Send one control tick in `decimation` (1 = every tick; 0 is taken as 1).
+        /// Send one control tick (or one link record) in `decimation` (1 = every one; 0 is
+        /// taken as 1).
         decimation: u32,
     },
     /// Stop a subscription of this connection.

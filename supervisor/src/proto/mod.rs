@@ -24,8 +24,10 @@
 //! 3. The client sends [`ClientMsg::Request`]s, each with an id of its choice; the node answers each
 //!    with a [`ServerMsg::Response`] carrying the same id. Requests may be pipelined (sent before
 //!    earlier answers arrive); answers come back in request order.
-//! 4. After [`Call::Subscribe`], the node also sends [`ServerMsg::Telemetry`] frames for that
-//!    subscription until [`Call::Unsubscribe`] or the end of the connection. They are dropped,
+//! 4. After [`Call::Subscribe`], the node also sends [`ServerMsg::Telemetry`] frames (a
+//!    controller) or [`ServerMsg::Link`] frames (a channel linked to another node) for that
+//!    subscription until [`Call::Unsubscribe`], the end of the connection or, for a channel, its
+//!    destruction or cleanup. They are dropped,
 //!    never queued without bound, when the client reads too slowly (`dropped` counts them).
 //! 5. Either side may close. A connection-level problem (bad frame, wrong version, failed
 //!    authentication, rate limit) is reported with [`ServerMsg::Error`] before the node closes.
@@ -60,7 +62,7 @@ pub use object::{
     BoardMethod, ControllerMethod, JointAxis, Method, RobotMethod, SensorMethod, TrajectoryMethod,
 };
 pub use replies::{
-    ControlStatus, KindInfo, LinkRecord, NodeInfo, ObjectInfo, Reply, TelemetryBatch,
+    ControlStatus, KindInfo, LinkBatch, LinkRecord, NodeInfo, ObjectInfo, Reply, TelemetryBatch,
     TelemetryRecord,
 };
 

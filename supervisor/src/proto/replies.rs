@@ -1,5 +1,5 @@
 //! The replies: every successful answer and the records it carries (node, kind and object
-//! information, control status, telemetry).
+//! information, control status, telemetry, link statistics).
 
 use penelope_hal::LifecycleState;
 use serde::{Deserialize, Serialize};
@@ -195,4 +195,16 @@ pub struct TelemetryBatch {
     pub dropped: u64,
     /// Samples in time order.
     pub samples: Vec<TelemetryRecord>,
+}
+
+/// Link records of one subscription to a `trajectory/teleop` channel linked to another node
+/// (pushed every 100 ms, times the subscription's decimation).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LinkBatch {
+    /// The subscription's id.
+    pub subscription: u64,
+    /// Batches dropped for this subscription so far because the client read too slowly.
+    pub dropped: u64,
+    /// Records in time order.
+    pub records: Vec<LinkRecord>,
 }

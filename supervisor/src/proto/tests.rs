@@ -112,3 +112,23 @@ fn the_sensor_stream_variants_were_appended_and_moved_no_index() {
     assert_eq!(bytes[0], 21);
     assert_eq!(postcard::from_bytes::<Reply>(&bytes).unwrap(), address);
 }
+
+#[test]
+fn the_link_telemetry_variants_were_appended_and_moved_no_index() {
+    // A link batch is the last server message, the refusal of a channel without a link the
+    // last error: every earlier message keeps its bytes.
+    let batch = ServerMsg::Link(LinkBatch {
+        subscription: 1,
+        dropped: 0,
+        records: Vec::new(),
+    });
+    let bytes = postcard::to_stdvec(&batch).unwrap();
+    assert_eq!(bytes, [5, 1, 0, 0]);
+    assert_eq!(postcard::from_bytes::<ServerMsg>(&bytes).unwrap(), batch);
+    let forbidden = WireError::Forbidden(String::new());
+    assert_eq!(postcard::to_stdvec(&forbidden).unwrap()[0], 25);
+    let no_link = WireError::NoLink("link".into());
+    let bytes = postcard::to_stdvec(&no_link).unwrap();
+    assert_eq!(bytes[0], 26);
+    assert_eq!(postcard::from_bytes::<WireError>(&bytes).unwrap(), no_link);
+}

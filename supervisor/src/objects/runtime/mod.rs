@@ -84,6 +84,7 @@ type Commands = ArcConsumer<penelope_rt_core::control::ControlCommand, COMMAND_C
 mod board;
 mod comm;
 mod control;
+mod link_telemetry;
 mod reference;
 mod sensors;
 mod telemetry;
@@ -92,6 +93,7 @@ mod threads;
 pub use board::*;
 pub use comm::*;
 pub use control::*;
+pub use link_telemetry::*;
 pub use reference::*;
 pub use sensors::*;
 pub use telemetry::*;

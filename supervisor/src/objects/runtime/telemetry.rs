@@ -1,6 +1,8 @@
-//! Telemetry: the pump and the subscriptions.
+//! Telemetry: the pump and the subscriptions (of controllers here; of channels' links in
+//! `link_telemetry`).
 
 use super::*;
+use crate::objects::teleop_end::LinkStatsSource;
 
 /// The newest state of a running loop, as the pump keeps it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -40,10 +42,12 @@ struct Subscription {
     dropped: u64,
 }
 
-/// Every subscription of a creator (non-real-time side only).
+/// Every subscription of a creator (non-real-time side only): to controllers' ticks, and to
+/// channels' links (one id space, one limit).
 #[derive(Debug, Default)]
 pub struct Subscriptions {
     list: Mutex<Vec<Subscription>>,
+    links: LinkSubscriptions,
     next: AtomicU64,
     recorders: Mutex<Vec<Recorder>>,
 }
@@ -76,9 +80,14 @@ impl TickStream {
 }
 
 impl Subscriptions {
-    /// How many there are.
+    /// How many there are (of controllers and of links).
     pub fn len(&self) -> usize {
-        self.list.lock().map(|l| l.len()).unwrap_or(0)
+        self.list.lock().map(|l| l.len()).unwrap_or(0) + self.links.len()
+    }
+
+    /// The subscriptions to channels' links.
+    pub fn links(&self) -> &LinkSubscriptions {
+        &self.links
     }
 
     /// True when there are none.
@@ -86,7 +95,8 @@ impl Subscriptions {
         self.len() == 0
     }
 
-    /// Adds one (at most `limit`), returning its id.
+    /// Adds one to `controller`'s ticks (at most `limit` subscriptions in all), returning its
+    /// id.
     ///
     /// # Errors
     /// [`WireError::LimitReached`].
@@ -103,7 +113,8 @@ impl Subscriptions {
             .lock()
             .map_err(|_| WireError::Internal("subscriptions poisoned".into()))?;
         list.retain(|s| !s.outbox.is_closed());
-        if list.len() >= limit as usize {
+        self.links.retain_open();
+        if list.len() + self.links.len() >= limit as usize {
             return Err(WireError::LimitReached {
                 what: "subscriptions".into(),
                 limit,
@@ -121,6 +132,39 @@ impl Subscriptions {
         Ok(id)
     }
 
+    /// Adds one to `channel`'s link, read from `source` (at most `limit` subscriptions in
+    /// all), returning its id: a record every [`LINK_PERIOD`] times `decimation`.
+    ///
+    /// # Errors
+    /// [`WireError::LimitReached`].
+    pub fn add_link(
+        &self,
+        session: u64,
+        channel: &str,
+        source: LinkStatsSource,
+        decimation: u32,
+        outbox: Outbox,
+        limit: u32,
+    ) -> Result<u64, WireError> {
+        // The controllers' list is held while counting, so two adds cannot both pass the limit.
+        let mut list = self
+            .list
+            .lock()
+            .map_err(|_| WireError::Internal("subscriptions poisoned".into()))?;
+        list.retain(|s| !s.outbox.is_closed());
+        self.links.retain_open();
+        if list.len() + self.links.len() >= limit as usize {
+            return Err(WireError::LimitReached {
+                what: "subscriptions".into(),
+                limit,
+            });
+        }
+        let id = self.next.fetch_add(1, Ordering::Relaxed) + 1;
+        self.links
+            .add(id, session, channel, source, decimation, outbox)?;
+        Ok(id)
+    }
+
     /// Removes subscription `id` of `session`; false if there was none.
     pub fn remove(&self, session: u64, id: u64) -> bool {
         let Ok(mut list) = self.list.lock() else {
@@ -128,7 +172,7 @@ impl Subscriptions {
         };
         let before = list.len();
         list.retain(|s| !(s.id == id && s.session == session));
-        list.len() != before
+        list.len() != before || self.links.remove(session, id)
     }
 
     /// Removes every subscription of `session`.
@@ -136,6 +180,7 @@ impl Subscriptions {
         if let Ok(mut list) = self.list.lock() {
             list.retain(|s| s.session != session);
         }
+        self.links.remove_session(session);
     }
 
     /// Records every tick of `controller` from now on into a stream holding up to `capacity`

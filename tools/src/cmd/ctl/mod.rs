@@ -16,22 +16,23 @@
 //! | `configure PATH`, `activate PATH`, `deactivate PATH`, `cleanup PATH` | lifecycle transitions (ROS 2 words) |
 //! | `describe PATH` | kind, state and relations of an object |
 //! | `call PATH METHOD [ARGS...]` | any method of the object: see [`method::METHODS`] (`joint-positions`, `fk [Q]`, `jacobian`, `ik X Y Z`, `gravity`, `inertia`, `named-pose work`, `go-to work 2.0`, `read`, `bias`, `set-robot NAME`, `set-gains TOML`, `status`, `estop`, `rearm`, `reference 0.5`, `map-joints BOARD J:A ...`) |
-//! | `watch PATH [--decimation N] [--count N \| --seconds S]` | live telemetry lines: time, sequence, joints, tool position, force, safety state |
+//! | `watch PATH [--decimation N] [--count N \| --seconds S]` | live telemetry lines: time, sequence, joints, tool position, force, safety state; for a `trajectory/teleop` channel linked to another node, its link every 100 ms: clock offset, one-way delay, jitter, trip p50/p99, samples taken/missed, refused, heartbeats lost, up/down, last heard |
 //! | `run SCRIPT` | runs a file of these verbs, one per line (`#` comments, shell quoting), stopping at the first error with its line number; `-` reads standard input |
 //!
 //! Output is for humans unless `--json` (one JSON value per verb; for `call`, the reply as the
-//! protocol defines it; for `watch`, one JSON telemetry record per line). Bad input exits with
+//! protocol defines it; for `watch`, one JSON telemetry or link record per line). Bad input exits with
 //! code 2 (nothing is sent), an error from a node with code 1 and the node's message.
 
 mod method;
 mod show;
+mod watch;
 
 use std::collections::HashMap;
 use std::io::{Read, Write};
 use std::net::{SocketAddr, ToSocketAddrs};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::Context as _;
 use clap::Parser;
@@ -65,6 +66,7 @@ Examples:
   penelope ctl call lab-a/slave fk work
   penelope ctl --json call lab-a/slave jacobian 0 0.5 -0.5 0 0 0
   penelope ctl watch /lab-a/controllers/pid --count 20
+  penelope ctl watch master/link --json --count 3
   penelope ctl run setup.ctl
 
 Objects are named by naming path (/lab-a/robots/slave) or NODE/NAME (lab-a/slave).
@@ -196,14 +198,15 @@ pub enum Verb {
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },
-    /// Live telemetry of a running controller (or the robot it drives), one line per sample.
+    /// Live telemetry of a running controller (or the robot it drives), one line per sample;
+    /// of a teleoperation channel linked to another node, its link's statistics every 100 ms.
     Watch {
         /// The object: naming path or NODE/NAME.
         path: String,
-        /// Show one control tick in N.
+        /// Show one control tick (or one link record) in N.
         #[arg(long, value_name = "N", default_value_t = 1)]
         decimation: u32,
-        /// Stop after N samples.
+        /// Stop after N samples (or records).
         #[arg(long, value_name = "N")]
         count: Option<u64>,
         /// Stop after S seconds.
@@ -512,94 +515,6 @@ impl Ctl {
             for k in &kinds {
                 say!("{}", show::kind(k));
             }
-        }
-        Ok(())
-    }
-
-    fn watch(
-        &mut self,
-        path: &str,
-        decimation: u32,
-        count: Option<u64>,
-        seconds: Option<f64>,
-        json: bool,
-        in_script: bool,
-    ) -> anyhow::Result<()> {
-        if in_script && count.is_none() && seconds.is_none() {
-            return Err(usage("in a script, `watch` needs --count or --seconds"));
-        }
-        let limit = match seconds {
-            Some(s) if !(s.is_finite() && s > 0.0) => {
-                return Err(usage(format!("--seconds must be > 0, got {s}")));
-            }
-            Some(s) => Some(Duration::from_secs_f64(s)),
-            None => None,
-        };
-        let client = self.client()?;
-        let mut stream = client.subscribe(path, decimation)?;
-        if !json {
-            eprintln!(
-                "watching {} (one tick in {}){}",
-                stream.path(),
-                decimation.max(1),
-                if count.is_none() && limit.is_none() {
-                    "; Ctrl-C to stop"
-                } else {
-                    ""
-                }
-            );
-        }
-        let stall = self.config.timeout;
-        let start = Instant::now();
-        let mut last = Instant::now();
-        let mut t0 = None;
-        let mut n = 0u64;
-        let mut out = std::io::stdout().lock();
-        loop {
-            if count.is_some_and(|c| n >= c) {
-                break;
-            }
-            let mut wait = Duration::from_millis(100);
-            if let Some(limit) = limit {
-                let left = limit.saturating_sub(start.elapsed());
-                if left.is_zero() {
-                    break;
-                }
-                wait = wait.min(left);
-            }
-            match stream.recv_timeout(wait)? {
-                Some(rec) => {
-                    n += 1;
-                    last = Instant::now();
-                    let t0 = *t0.get_or_insert(rec.time_ns);
-                    if json {
-                        writeln!(out, "{}", serde_json::to_string(&rec)?)?;
-                    } else {
-                        writeln!(out, "{}", show::telemetry(&rec, t0))?;
-                    }
-                    out.flush()?;
-                }
-                None if last.elapsed() >= stall => {
-                    anyhow::bail!(
-                        "no telemetry from {} for {:.1} s: is its control loop running?",
-                        stream.path(),
-                        stall.as_secs_f64()
-                    );
-                }
-                None => {}
-            }
-        }
-        if n == 0 {
-            anyhow::bail!(
-                "no telemetry from {}: is its control loop running?",
-                stream.path()
-            );
-        }
-        if stream.dropped() > 0 && !json {
-            eprintln!(
-                "{} batch(es) dropped by the node because this side read too slowly",
-                stream.dropped()
-            );
         }
         Ok(())
     }

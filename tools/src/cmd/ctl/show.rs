@@ -1,10 +1,10 @@
-//! Human output of `penelope ctl`: replies, objects, kinds, telemetry lines.
+//! Human output of `penelope ctl`: replies, objects, kinds, telemetry and link lines.
 
 use std::fmt::Write as _;
 
 use penelope_supervisor::proto::{
-    ControlStatus, KindInfo, MatrixMsg, NameEntry, ObjectInfo, ObjectRef, PoseMsg, ReferenceMsg,
-    Reply, TelemetryRecord, WrenchMsg,
+    ControlStatus, KindInfo, LinkRecord, MatrixMsg, NameEntry, ObjectInfo, ObjectRef, PoseMsg,
+    ReferenceMsg, Reply, TelemetryRecord, WrenchMsg,
 };
 
 use super::method::Hint;
@@ -129,6 +129,29 @@ pub fn telemetry(r: &TelemetryRecord, t0_ns: u64) -> String {
         let _ = write!(s, "  fault: {fault}");
     }
     s
+}
+
+/// A link record in one line, its time from `t0_ns`: clock offset, one-way delay, jitter,
+/// the samples' trip p50/p99, samples taken and missed, datagrams refused, heartbeats lost,
+/// up or down, and when the other side was last heard (µs; `-` while unknown).
+pub fn link(r: &LinkRecord, t0_ns: u64) -> String {
+    let t = r.time_ns.saturating_sub(t0_ns) as f64 * 1e-9;
+    let us = |v: Option<i64>| v.map_or("-".to_string(), |ns| format!("{:.1}", ns as f64 / 1e3));
+    format!(
+        "t {t:9.4} s  {}  offset {} µs  delay {} µs  jitter {} µs  trip p50 {} p99 {} µs  \
+         samples {} taken {} missed  {} refused  heartbeats lost {:.1}%  last heard {} µs ago",
+        if r.down { "down" } else { "up" },
+        us(r.clock_offset_ns),
+        us(r.one_way_delay_ns),
+        us(r.jitter_ns),
+        us(r.trip_p50_ns),
+        us(r.trip_p99_ns),
+        r.samples_taken,
+        r.samples_missed,
+        r.refused,
+        r.heartbeat_loss * 100.0,
+        us(r.last_heard_ns)
+    )
 }
 
 /// A naming reference in one line.
