@@ -8,6 +8,8 @@
 //!   communication task (trajectory to reference cell), the sensor feed and the telemetry pump.
 //! - [`teleop`]: the teleoperation channel, its ends, the operator's hand and the halves of
 //!   the bilateral laws.
+//! - [`delay_line`]: the seeded delay (jitter, loss) a channel on one node injects between its
+//!   ends when it has `faults`, as the data plane's fault layer does between nodes.
 //! - `registry` (private): the objects, relations, lifecycles and methods.
 //!
 //! # Relations are data
@@ -32,6 +34,7 @@
 //! joins the threads and gives the boards back.
 
 pub mod clock;
+pub mod delay_line;
 pub mod kinds;
 pub mod kinematics;
 mod loops;

@@ -59,9 +59,10 @@ pub struct TeleopConfig {
     /// When the other robot is on another node: the other node's data-plane address for it.
     pub peer: Option<String>,
     /// Faults injected into what this node's end sends (tests and experiments; these
-    /// machines have no netem).
+    /// machines have no netem); on a channel with both ends on this node, into both
+    /// directions of the cells that join them (a seeded delay line each way).
     pub faults: Option<crate::dataplane::faults::FaultConfig>,
-    /// The seed of the injected faults.
+    /// The seed of the injected faults (both directions draw from it).
     pub fault_seed: u64,
     /// How long this node's end may hear nothing from the other node before the link counts
     /// as lost and its robot goes neutral, ms (0: two communication periods).
@@ -94,6 +95,14 @@ scale = 1.0                         # slave motion = scale x master motion
 force_gain = 0.5                    # displayed force = force_gain x mapped sensor force
 torque_gain = 0.5                   # displayed moment = torque_gain x mapped sensor moment
 rotation_rpy_deg = [0.0, 0.0, 0.0]  # master base frame -> slave base frame
+# faults = { delay_ms = 50.0, jitter_ms = 5.0, loss = 0.01, duplicate = 0.0, reorder = 0.0,
+#            outages = [{ from_s = 10.0, to_s = 12.0 }] }
+#                                   # both ends on this node: each direction through a seeded
+#                                   # delay line, samples arriving delay + U(0, jitter) later
+#                                   # (to within one T_com), some lost; the same draws on the
+#                                   # simulated clock for the same fault_seed. One-way values:
+#                                   # the round trip is twice delay_ms
+# fault_seed = 1
 # When the master and the slave are on different nodes, the same channel is created on both,
 # each node holding the end of its own robot; samples cross on the data plane (UDP, one stream
 # per direction, newest wins; authenticated when the nodes have a secret, required off
@@ -145,12 +154,15 @@ impl TeleopConfig {
             )));
         }
         if let Some(f) = &self.faults {
-            if plane.is_none() {
+            f.validate().map_err(|e| bad(format!("`faults`: {e}")))?;
+            // On one node both ends read one clock: there is no other clock to be off.
+            if plane.is_none() && f.clock_offset_us != 0.0 {
                 return Err(bad(
-                    "`faults` are injected on the data plane: they need `listen` and `peer`".into(),
+                    "`faults.clock_offset_us` offsets the clock of an end on another node: \
+                     it needs `listen` and `peer`"
+                        .into(),
                 ));
             }
-            f.validate().map_err(|e| bad(format!("`faults`: {e}")))?;
         }
         Ok(())
     }

@@ -24,6 +24,7 @@ use crate::dataplane::frame::Header;
 use crate::dataplane::frame::StreamId;
 use crate::dataplane::histogram::LatencyHistogram;
 use crate::dataplane::stream::{StreamReceiver, StreamSender, StreamStats, Verdict};
+use crate::objects::delay_line::DelayLine;
 
 /// The stream of the master's samples to the slave.
 pub const MASTER_TO_SLAVE: StreamId = StreamId(1);
@@ -88,10 +89,12 @@ pub struct TeleopEnd {
 }
 
 enum Transport {
-    /// Both ends on this node.
+    /// Both ends on this node; what this end sends goes through a delay line when the
+    /// channel has faults.
     Cells {
         send: ArcLatestWriter<TeleopSample>,
         receive: ArcLatestReader<TeleopSample>,
+        delay: Option<Box<DelayLine>>,
     },
     /// The other end on another node.
     DataPlane(Box<RemoteLink>),
@@ -290,7 +293,14 @@ impl TeleopEnd {
     /// waited on).
     pub fn publish(&mut self, sample: TeleopSample) {
         match &mut self.transport {
-            Transport::Cells { send, .. } => send.write(sample),
+            Transport::Cells {
+                send, delay: None, ..
+            } => send.write(sample),
+            Transport::Cells {
+                send,
+                delay: Some(line),
+                ..
+            } => line.send(sample, send),
             Transport::DataPlane(link) => {
                 let tick = nanos(sample.sent);
                 let header = link.sender.next(link.stamps.now(tick));
@@ -499,6 +509,25 @@ pub struct TeleopLink {
 impl TeleopLink {
     /// Both ends on this node, joined by new cells.
     pub fn new() -> Self {
+        Self::joined(None, None)
+    }
+
+    /// Both ends on this node, joined by new cells through a seeded delay line each way: the
+    /// faults of `faults` (delay, jitter, loss, duplication, reordering, outages), drawn from
+    /// `seed` in both directions, as two nodes given the same channel configuration draw
+    /// them (each end's own sends from the same seed).
+    ///
+    /// # Errors
+    /// [`FaultConfigError`] for a fault configuration out of range.
+    pub fn delayed(faults: &FaultConfig, seed: u64) -> Result<Self, FaultConfigError> {
+        Ok(Self::joined(
+            Some(Box::new(DelayLine::new(faults, seed)?)),
+            Some(Box::new(DelayLine::new(faults, seed)?)),
+        ))
+    }
+
+    /// Both ends on this node, each direction through its delay line if given.
+    fn joined(to_slave: Option<Box<DelayLine>>, to_master: Option<Box<DelayLine>>) -> Self {
         let (m2s_w, m2s_r) = latest::<TeleopSample>();
         let (s2m_w, s2m_r) = latest::<TeleopSample>();
         TeleopLink {
@@ -507,6 +536,7 @@ impl TeleopLink {
                 transport: Transport::Cells {
                     send: m2s_w,
                     receive: s2m_r,
+                    delay: to_slave,
                 },
                 sent: 0,
             }),
@@ -515,6 +545,7 @@ impl TeleopLink {
                 transport: Transport::Cells {
                     send: s2m_w,
                     receive: m2s_r,
+                    delay: to_master,
                 },
                 sent: 0,
             }),

@@ -80,7 +80,15 @@ impl Registry {
             None => {
                 self.expect_class(&master, Class::Robot)?;
                 self.expect_class(&slave, Class::Robot)?;
-                TeleopLink::new()
+                match &faults {
+                    None => TeleopLink::new(),
+                    Some((f, seed)) => {
+                        TeleopLink::delayed(f, *seed).map_err(|e| WireError::BadConfig {
+                            kind: kind.into(),
+                            message: format!("`faults`: {e}"),
+                        })?
+                    }
+                }
             }
             Some((listen, peer)) => {
                 let here = |r: &str| self.expect_class(r, Class::Robot).is_ok();
