@@ -25,6 +25,9 @@ enum Command {
     /// Benchmarks: jitter beside cyclictest, FPGA model throughput.
     #[command(subcommand)]
     Bench(cmd::bench::BenchCommand),
+    /// Experiments on the simulated clock: `delay` (each law against each round-trip delay).
+    #[command(subcommand)]
+    Experiment(cmd::experiment::ExperimentCommand),
     /// Check this host for real-time use and print what to fix.
     Doctor(cmd::doctor::Args),
     /// Drive a Galil DMC motion controller over a serial line.
@@ -46,6 +49,7 @@ fn main() -> ExitCode {
         Command::Demo(args) => cmd::demo::run_demo(args),
         Command::Kin(args) => cmd::kin::run(args),
         Command::Bench(bench) => cmd::bench::run(bench),
+        Command::Experiment(e) => cmd::experiment::run(e),
         Command::Doctor(args) => cmd::doctor::run(args),
         Command::Galil(args) => cmd::galil::run(args),
         Command::GalilSim(args) => cmd::galil_sim::run(args),

@@ -8,6 +8,7 @@
 //! one by waiting) and deactivates them at the end (amplifiers off). What a `penelope node
 //! --config` runs is exactly this, without the duration and the recording.
 
+pub mod delay;
 pub mod recording;
 pub mod report;
 
@@ -44,6 +45,14 @@ pub enum Law {
 }
 
 impl Law {
+    /// Every law, in the order experiments list them.
+    pub const ALL: [Law; 2] = [Law::ForcePosition, Law::PositionError];
+
+    /// The law named `name` (its [`as_str`](Self::as_str)), if there is one.
+    pub fn from_name(name: &str) -> Option<Law> {
+        Law::ALL.into_iter().find(|l| l.as_str() == name)
+    }
+
     /// Its name on the command line.
     pub fn as_str(self) -> &'static str {
         match self {

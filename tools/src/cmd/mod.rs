@@ -6,6 +6,7 @@ pub mod bench;
 pub mod ctl;
 pub mod demo;
 pub mod doctor;
+pub mod experiment;
 pub mod galil;
 pub mod galil_sim;
 pub mod kin;
