@@ -72,6 +72,11 @@ impl DelayLine {
         self.link.counters()
     }
 
+    /// Samples on their way.
+    pub fn in_flight(&self) -> usize {
+        self.link.in_flight()
+    }
+
     /// The most samples the line holds at once.
     pub fn capacity(&self) -> usize {
         self.link.capacity()
