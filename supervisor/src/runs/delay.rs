@@ -333,26 +333,26 @@ pub fn judge(out: &RunOutput, r: &Report) -> DelayRun {
         reasons.push(format!("faults: {}", r.faults.join("; ")));
     }
     let growth = r.energy.growth_ratio;
-    if !(growth <= MAX_GROWTH_RATIO) {
+    if !within(growth, MAX_GROWTH_RATIO) {
         reasons.push(format!(
             "tap energy grows: last/largest earlier cycle peak {growth:.2} > {MAX_GROWTH_RATIO} \
              (peaks {:.3?} J)",
             r.energy.tap_cycle_peaks_j
         ));
     }
-    if !(contact_ripple <= MAX_CONTACT_RIPPLE) {
+    if !within(contact_ripple, MAX_CONTACT_RIPPLE) {
         reasons.push(format!(
             "limit cycle in steady contact: force ripple {contact_ripple:.2} > \
              {MAX_CONTACT_RIPPLE}"
         ));
     }
-    if !(rest_motion_mm <= MAX_REST_MOTION_MM) {
+    if !within(rest_motion_mm, MAX_REST_MOTION_MM) {
         reasons.push(format!(
             "limit cycle at rest: the slave moves {rest_motion_mm:.2} mm RMS > \
              {MAX_REST_MOTION_MM} mm"
         ));
     }
-    if !(r.tracking.max_mm <= MAX_TRACKING_MM) {
+    if !within(r.tracking.max_mm, MAX_TRACKING_MM) {
         reasons.push(format!(
             "tracking blows up: {:.1} mm from its reference > {MAX_TRACKING_MM} mm",
             r.tracking.max_mm
@@ -389,4 +389,10 @@ pub fn judge(out: &RunOutput, r: &Report) -> DelayRun {
         faults: r.faults.clone(),
         wall_time_s: 0.0,
     }
+}
+
+/// `value` is a number no larger than `limit` (NaN is not: a figure that is not a number
+/// fails its criterion).
+fn within(value: f64, limit: f64) -> bool {
+    value.partial_cmp(&limit).is_some_and(|o| o.is_le())
 }

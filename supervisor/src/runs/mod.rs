@@ -7,6 +7,10 @@
 //! (the simulated clock by [`Creator::advance`](crate::objects::Creator::advance), the real
 //! one by waiting) and deactivates them at the end (amplifiers off). What a `penelope node
 //! --config` runs is exactly this, without the duration and the recording.
+//!
+//! [`report`] turns a run's ticks into the figures a person wants; [`delay`] runs the task
+//! for several laws against several delays and judges each run's stability (`penelope
+//! experiment delay`).
 
 pub mod delay;
 pub mod recording;
