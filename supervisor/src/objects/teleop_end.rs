@@ -289,8 +289,9 @@ impl TeleopEnd {
     /// every [`HEARTBEAT_EVERY`] samples a heartbeat.
     ///
     /// # Real-time
-    /// A cell write, or one or two non-blocking `sendto` calls (a refusal is counted, not
-    /// waited on).
+    /// A cell write (on a channel with faults, through the delay line: a few random draws and
+    /// bounded heap work in a queue made at configure time, no allocation), or one or two
+    /// non-blocking `sendto` calls (a refusal is counted, not waited on).
     pub fn publish(&mut self, sample: TeleopSample) {
         match &mut self.transport {
             Transport::Cells {
