@@ -43,10 +43,10 @@ fn find<'a>(runs: &'a [Value], law: &str, delay_ms: f64) -> &'a Value {
 }
 
 #[test]
-fn without_delay_every_law_is_stable_and_tracks_and_at_200_ms_force_position_is_not() {
+fn without_delay_every_law_is_stable_and_tracks_and_with_delay_force_position_is_not() {
     let out = scratch("map");
-    let runs = experiment(&["--delays", "0,200ms", "--jobs", "2"], &out);
-    assert_eq!(runs.len(), 4, "two laws at two delays");
+    let runs = experiment(&["--delays", "0,10,200ms", "--jobs", "2"], &out);
+    assert_eq!(runs.len(), 6, "two laws at three delays");
     for r in &runs {
         println!(
             "{} at {} ms round trip: stable {} (growth {:.2}, ripple {:.2}, rest {:.2} mm, \
@@ -82,6 +82,14 @@ fn without_delay_every_law_is_stable_and_tracks_and_at_200_ms_force_position_is_
         "force-position at 200 ms must be detected unstable: {r:#}"
     );
     assert!(!r["reasons"].as_array().unwrap().is_empty());
+    // 10 ms round trip: no fault stops it, but the slave bounces on the wall while the
+    // operator holds still (a limit cycle the energy growth alone would miss).
+    let r = find(&runs, "force-position", 10.0);
+    assert_eq!(r["stable"], false, "force-position at 10 ms: {r:#}");
+    assert!(
+        r["contact_ripple"].as_f64().unwrap() > 0.25,
+        "a limit cycle in steady contact: {r:#}"
+    );
     for file in ["runs.json", "stability-map.svg"] {
         assert!(out.join(file).is_file(), "{file} written");
     }
