@@ -221,8 +221,9 @@ pub fn run_one(
     Ok(judged)
 }
 
-/// Every law at every delay of `plan`, at most `plan.jobs` at once; `on_done` is called (from
-/// the calling thread's scope, under a lock) as each run ends. Runs come back in plan order:
+/// Every law at every delay of `plan`, at most `plan.jobs` at once (each run has its own
+/// nodes and simulated clock, so runs in parallel give the same results as one by one);
+/// `on_done` is called from the worker thread as each run ends. Runs come back in plan order:
 /// law by law, delay by delay.
 ///
 /// # Errors
