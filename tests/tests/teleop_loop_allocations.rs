@@ -2,7 +2,7 @@
 //! by the scripted hand under force display, the PUMA 200 under slave tracking against a wall,
 //! with its sensor cell) and both communication tasks (the two ends of the channel), built by
 //! the creator exactly as `activate` builds them and stepped here on a simulated clock for
-//! 100,000 control ticks each.
+//! 100,000 control ticks each; then again with the channel's delay line each way (`faults`).
 //!
 //! The counting allocator counts the allocations of this test's thread (where the loops are
 //! stepped); this binary holds this one test only.
@@ -23,6 +23,17 @@ fn call(c: &Creator, object: &str, method: Method) {
 
 #[test]
 fn a_hundred_thousand_teleoperation_ticks_allocate_nothing() {
+    // The channel as cells, and through its delay line each way (delay, jitter, loss).
+    for faults in [
+        "",
+        "\nfaults = { delay_ms = 20.0, jitter_ms = 5.0, loss = 0.01 }",
+    ] {
+        ticks_allocate_nothing(faults);
+    }
+}
+
+/// The task with `faults` added to the channel's configuration, stepped 100,000 ticks.
+fn ticks_allocate_nothing(faults: &str) {
     let mut config = CreatorConfig::new("alloc");
     config.rt.priority = None;
     let c = Creator::new(config);
@@ -37,7 +48,7 @@ fn a_hundred_thousand_teleoperation_ticks_allocate_nothing() {
         (
             "trajectory/teleop",
             "link",
-            "master = \"frhc\"\nslave = \"puma\"",
+            &format!("master = \"frhc\"\nslave = \"puma\"{faults}"),
         ),
         ("controller/force-display", "display", ""),
         ("controller/slave-tracking", "follow", ""),
@@ -95,7 +106,7 @@ fn a_hundred_thousand_teleoperation_ticks_allocate_nothing() {
     let allocated = step_teleop_pair(&mut master, &mut slave, 1001..101_001, &mut feed);
     assert_eq!(
         allocated, 0,
-        "the teleoperation loops allocated or freed {allocated} times"
+        "the teleoperation loops ({faults:?}) allocated or freed {allocated} times"
     );
     assert_pair_ran(&master, &slave, 101_000, 50_000);
 }
