@@ -163,7 +163,9 @@ pub fn delayed_system(
                 set_key(o, "fault_seed", toml::Value::Integer(seed as i64))?;
             }
         }
-        if let (Some(k), "board/sim") = (wall_stiffness, o.kind.as_str()) {
+        // The plant's shapes, and a virtual sensor's own copy of them if it has one: the
+        // same wall for both.
+        if let (Some(k), "board/sim" | "sensor/virtual") = (wall_stiffness, o.kind.as_str()) {
             let mut table: toml::Table = o
                 .config
                 .parse()
@@ -396,4 +398,47 @@ pub fn judge(out: &RunOutput, r: &Report) -> DelayRun {
 /// fails its criterion).
 fn within(value: f64, limit: f64) -> bool {
     value.partial_cmp(&limit).is_some_and(|o| o.is_le())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::objects::kinds::{self, SimBoardConfig};
+    use crate::objects::teleop::TeleopConfig;
+    use crate::runs::DEMO_SYSTEM;
+
+    fn object<'a>(file: &'a SystemFile, kind: &str) -> &'a crate::system::ObjectSpec {
+        file.objects.iter().find(|o| o.kind == kind).unwrap()
+    }
+
+    #[test]
+    fn a_round_trip_is_split_half_each_way_and_the_wall_is_set() {
+        let demo = SystemFile::parse(DEMO_SYSTEM).unwrap();
+        let file = delayed_system(&demo, 200.0, 5.0, Some(1500.0), 9).unwrap();
+        let link: TeleopConfig = kinds::parse(
+            "trajectory/teleop",
+            &object(&file, "trajectory/teleop").config,
+        )
+        .unwrap();
+        let faults = link.faults.expect("faults on the channel");
+        assert_eq!((faults.delay_ms, faults.jitter_ms), (100.0, 5.0));
+        assert_eq!(link.fault_seed, 9);
+        let board = file
+            .objects
+            .iter()
+            .filter(|o| o.kind == "board/sim")
+            .map(|o| kinds::parse::<SimBoardConfig>(&o.kind, &o.config).unwrap())
+            .find(|b| !b.shapes.is_empty())
+            .expect("the demo's wall");
+        assert!(board.shapes.iter().all(|s| s.stiffness == 1500.0));
+        // No delay, no jitter: the channel as it was, plain cells.
+        let plain = delayed_system(&demo, 0.0, 0.0, None, 9).unwrap();
+        assert_eq!(plain, demo);
+    }
+
+    #[test]
+    fn within_refuses_what_is_not_a_number() {
+        assert!(within(1.0, 1.25) && within(1.25, 1.25));
+        assert!(!within(1.3, 1.25) && !within(f64::NAN, 1.25));
+    }
 }
