@@ -23,6 +23,8 @@
 //!   [`ForceDisplay`] (force-back master: `tau = J^T F`, deadband, damping, caps),
 //!   [`PositionErrorMaster`] (position-error master: spring-damper to the mapped slave pose).
 //! - [`passivity`]: [`PassivityObserver`] and [`PassivityController`] (Hannaford & Ryu).
+//! - [`wave`]: wave variables ([`WaveMaster`], [`WaveSlave`]): passive under any delay, loss,
+//!   duplication and reordering (an energy reserve on each receiving end).
 //!
 //! Which law sends what:
 //!
@@ -42,6 +44,7 @@ pub mod impedance;
 pub mod mapping;
 pub mod passivity;
 pub mod tracking;
+pub mod wave;
 
 use core::fmt;
 
@@ -59,6 +62,10 @@ pub use impedance::{CartesianImpedance, ImpedanceConfig, PositionErrorMaster};
 pub use mapping::{Anchors, MappingConfig, MappingError, WorkspaceMapping};
 pub use passivity::{PassivityConfig, PassivityController, PassivityObserver};
 pub use tracking::{SlaveTracking, TrackingConfig, TrackingOutput};
+pub use wave::{
+    MissingWave, WaveConfig, WaveMaster, WaveMasterOutput, WaveReceiver, WaveSample, WaveSender,
+    WaveSlave, WaveSlaveOutput, WaveStats,
+};
 
 /// A configuration value that cannot be used.
 #[non_exhaustive]
