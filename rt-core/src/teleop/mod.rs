@@ -56,8 +56,8 @@ use penelope_hal::{
 };
 
 pub use channel::{
-    ChannelConfig, ChannelDirection, ChannelStats, ReceiveError, TeleopChannel, TeleopSample,
-    VelocityFeedForward,
+    ChannelConfig, ChannelDirection, ChannelStats, PortPayload, ReceiveError, TeleopChannel,
+    TeleopSample, VelocityFeedForward,
 };
 pub use display::{ForceDisplay, ForceDisplayConfig};
 pub use impedance::{CartesianImpedance, ImpedanceConfig, PositionErrorMaster};
