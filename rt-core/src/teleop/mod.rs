@@ -35,6 +35,7 @@
 //! | position-forward / force-back | tool pose (+ clutch) | sensor wrench (base) | [`ForceDisplay`] | [`SlaveTracking`] (or [`CartesianImpedance`]) |
 //! | position-error | tool pose (+ clutch) | tool pose | [`PositionErrorMaster`] | [`CartesianImpedance`] |
 //! | both (hybrid samples) | tool pose | pose + wrench (`Reference::Hybrid`) | either | either |
+//! | wave variables | wave `u` (+ pose) in [`TeleopSample::port`] | wave `w` (+ pose, wrench) | [`WaveMaster`] transform, then [`ForceDisplay`] | [`WaveSlave`] transform, then [`SlaveTracking`] |
 //!
 //! # Real-time
 //! Every `update`, `activate`, `receive`, `reference` and mapping call runs without allocation,

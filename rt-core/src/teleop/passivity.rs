@@ -391,7 +391,8 @@ impl TwoPortConfig {
 
 /// A [`TwoPortObserver`] with the controller that dissipates exactly the deficit, bounded.
 ///
-/// Each tick: [`correct`](Self::correct) proposes the corrected output from the law's output
+/// Each tick: [`correct_force`](Self::correct_force) or
+/// [`correct_velocity`](Self::correct_velocity) proposes the corrected output from the law's output
 /// and the port's measured flow, then [`commit`](Self::commit) records what was actually applied
 /// (after any caps), so the observer stays true to the device.
 ///

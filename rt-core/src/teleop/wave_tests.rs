@@ -101,16 +101,8 @@ impl Network {
 
     /// Sends at tick `k` with a delay of `base` ticks plus up to `jitter`; `loss` dropped,
     /// `dup` duplicated (the copy arrives later).
-    fn send(
-        &mut self,
-        k: u64,
-        seq: u64,
-        s: WaveSample,
-        base: u64,
-        jitter: u64,
-        loss: f64,
-        dup: f64,
-    ) {
+    fn send(&mut self, k: u64, seq: u64, s: WaveSample, net: (u64, u64, f64, f64)) {
+        let (base, jitter, loss, dup) = net;
         if self.rand() < loss {
             return;
         }
@@ -149,7 +141,6 @@ fn closed_loop(
     net: (u64, u64, f64, f64),
     wall: f64,
 ) -> (f64, Vector3<f64>, Vector3<f64>) {
-    let (base, jitter, loss, dup) = net;
     let mut m = WaveMaster::new(config).unwrap();
     let mut s = WaveSlave::new(config).unwrap();
     let b = config.impedance;
@@ -174,7 +165,7 @@ fn closed_loop(
         line += DT * vm.dot(&(-out_m.display));
         vm += acc * DT;
         xm += vm * DT;
-        to_slave.send(k, k + 1, out_m.sample, base, jitter, loss, dup);
+        to_slave.send(k, k + 1, out_m.sample, net);
 
         for (seq, smp) in to_slave.due(k) {
             s.receive(seq, &smp);
@@ -189,7 +180,7 @@ fn closed_loop(
         xs = out_s.displacement;
         // A stiff wall: 5 kN/m past `wall` along x, pushing back.
         force_s = v3(5000.0 * (xs.x - wall).max(0.0), 0.0, 0.0);
-        to_master.send(k, k + 1, out_s.sample, base, jitter, loss, dup);
+        to_master.send(k, k + 1, out_s.sample, net);
         min_line = min_line.min(line);
     }
     (min_line, xm, xs)

@@ -741,7 +741,6 @@ impl ForceDisplayToml {
                 },
                 ..PassivityConfig::default()
             },
-            ..ForceDisplayConfig::default()
         })
         .map_err(|e| bad_law(kind, e))
     }
