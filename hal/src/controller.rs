@@ -104,4 +104,16 @@ pub trait Controller {
     /// # Errors
     /// [`ControllerError`]; the loop then applies its safe fallback.
     fn update(&mut self, input: &ControlInput<'_>) -> Result<JointCommand, ControllerError>;
+
+    /// The energy its passivity observer reads on the law's port since activation, J, if the
+    /// law has one: energy that has flowed from the device into the law (or, for a two-port
+    /// observer, what the law may still give out). Negative means the law has given out more
+    /// than it received: a live stability monitor, copied into every telemetry sample. `None`
+    /// (the default) for laws without an observer.
+    ///
+    /// # Real-time
+    /// Constant time, no allocation.
+    fn port_energy(&self) -> Option<f64> {
+        None
+    }
 }

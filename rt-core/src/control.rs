@@ -597,6 +597,10 @@ where
         commanded_wrench: Wrench,
         events: EventSet,
     ) {
+        let port_energy = self
+            .controllers
+            .get_mut(self.active)
+            .and_then(|c| c.port_energy());
         let s = &mut self.last;
         s.time = now;
         s.seq = self.seq;
@@ -637,6 +641,7 @@ where
             nalgebra::Vector3::zeros()
         };
         s.controller = u8::try_from(self.active).unwrap_or(u8::MAX);
+        s.port_energy = port_energy;
         s.state = self.safety.state();
         s.events = events;
         s.fault = self.safety.fault_cause();

@@ -85,6 +85,11 @@ pub struct TelemetrySample {
     pub wake_latency: Duration,
     /// Execution time of the previous tick, as reported by the executor (zero in simulation).
     pub exec_time: Duration,
+    /// The active law's passivity observer energy after this tick, J
+    /// ([`Controller::port_energy`](penelope_hal::Controller::port_energy)): negative when the
+    /// law has given out more energy than it received. `None` for laws without an observer.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub port_energy: Option<f64>,
 }
 
 impl Default for TelemetrySample {
@@ -109,6 +114,7 @@ impl Default for TelemetrySample {
             fault: None,
             wake_latency: Duration::ZERO,
             exec_time: Duration::ZERO,
+            port_energy: None,
         }
     }
 }

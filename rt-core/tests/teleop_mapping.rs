@@ -516,7 +516,7 @@ mod properties {
                     }),
                 };
                 ch.track_master(at(k), &p, clutch);
-                let _ = ch.receive(TeleopSample { sequence: seq, sent: at(k), clutch, reference });
+                let _ = ch.receive(TeleopSample { clutch, ..TeleopSample::new(seq, at(k), reference) });
                 if let Ok(r) = ch.reference(at(k + 1)) {
                     prop_assert!(r.is_finite());
                 }

@@ -47,6 +47,8 @@ use penelope_hal::{
 };
 
 use super::mapping::{MappingConfig, WorkspaceMapping};
+use super::passivity::PortEnergy;
+use super::wave::WaveSample;
 use super::{TeleopConfigError, bottom, lowpass_gain, stack, top};
 
 /// One reference sent over the link.
@@ -64,6 +66,21 @@ pub struct TeleopSample {
     /// joint positions (`Joint`, passed through unmapped for kinematically identical pairs).
     /// Poses and wrenches are in the sender's base frame (wrenches about the tool origin).
     pub reference: Reference,
+    /// What passivity-preserving laws add (a wave, energy counters); empty for the others.
+    /// The channel itself ignores it: the communication thread hands it to the law's
+    /// transform.
+    pub port: PortPayload,
+}
+
+/// The passivity payload of a [`TeleopSample`]: small, `Copy`, no_std.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PortPayload {
+    /// The wave of a wave-variable law ([`WaveMaster`](super::WaveMaster),
+    /// [`WaveSlave`](super::WaveSlave)), with the sender's running totals.
+    pub wave: Option<WaveSample>,
+    /// The sender's two-port energy counters
+    /// ([`TwoPortObserver`](super::TwoPortObserver)).
+    pub energy: Option<PortEnergy>,
 }
 
 impl TeleopSample {
@@ -74,6 +91,7 @@ impl TeleopSample {
             sent,
             clutch: false,
             reference,
+            port: PortPayload::default(),
         }
     }
 }

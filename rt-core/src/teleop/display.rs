@@ -155,6 +155,10 @@ impl Controller for ForceDisplay {
         "force-display"
     }
 
+    fn port_energy(&self) -> Option<f64> {
+        Some(self.passivity.observer().energy())
+    }
+
     fn activate(&mut self, _now: Timestamp, _measured: &JointState, _model: &dyn RobotModel) {
         self.filtered = Vector6::zeros();
         self.passivity.reset();

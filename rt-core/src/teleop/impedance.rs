@@ -92,6 +92,8 @@ pub struct CartesianImpedance {
     config: ImpedanceConfig,
     activated_at: Timestamp,
     last_wrench: Wrench,
+    /// Energy into the law at the tool (the robot's push `-f` on the spring, tool twist).
+    observer: PassivityObserver,
 }
 
 impl CartesianImpedance {
@@ -105,6 +107,7 @@ impl CartesianImpedance {
             config,
             activated_at: Timestamp::ZERO,
             last_wrench: Wrench::zero(Frame::Base),
+            observer: PassivityObserver::new(),
         })
     }
 
@@ -124,6 +127,12 @@ impl CartesianImpedance {
         config.validate()?;
         self.config = config;
         Ok(())
+    }
+
+    /// The energy observer at the tool (the robot's push on the spring, tool twist): negative
+    /// when the law has given the robot more energy than it took from it.
+    pub fn passivity(&self) -> &PassivityObserver {
+        &self.observer
     }
 
     /// The wrench commanded on the last tick (base frame, about the tool origin), after caps.
@@ -221,10 +230,18 @@ impl Controller for CartesianImpedance {
     fn activate(&mut self, now: Timestamp, _measured: &JointState, _model: &dyn RobotModel) {
         self.activated_at = now;
         self.last_wrench = Wrench::zero(Frame::Base);
+        self.observer.reset();
     }
 
     fn update(&mut self, input: &ControlInput<'_>) -> Result<JointCommand, ControllerError> {
-        self.torques(input).map(|(c, _, _)| c)
+        let (cmd, f, v) = self.torques(input)?;
+        // The robot pushes the spring with -f: the power into the law at this port.
+        self.observer.observe(input.period.as_secs_f64(), &(-f), &v);
+        Ok(cmd)
+    }
+
+    fn port_energy(&self) -> Option<f64> {
+        Some(self.observer.energy())
     }
 }
 
@@ -297,6 +314,10 @@ impl Controller for PositionErrorMaster {
     fn activate(&mut self, now: Timestamp, measured: &JointState, model: &dyn RobotModel) {
         self.law.activate(now, measured, model);
         self.observer.reset();
+    }
+
+    fn port_energy(&self) -> Option<f64> {
+        Some(self.observer.energy())
     }
 
     fn update(&mut self, input: &ControlInput<'_>) -> Result<JointCommand, ControllerError> {

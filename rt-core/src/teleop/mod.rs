@@ -22,7 +22,11 @@
 //!   [`SlaveTracking`] (position-forward slave: IK + computed torque),
 //!   [`ForceDisplay`] (force-back master: `tau = J^T F`, deadband, damping, caps),
 //!   [`PositionErrorMaster`] (position-error master: spring-damper to the mapped slave pose).
-//! - [`passivity`]: [`PassivityObserver`] and [`PassivityController`] (Hannaford & Ryu).
+//! - [`passivity`]: [`PassivityObserver`] and [`PassivityController`] (Hannaford & Ryu, one
+//!   port), and the two-port delayed form: [`TwoPortObserver`], [`TwoPortController`]
+//!   (impedance or admittance form), the counters [`PortEnergy`] that travel with the samples.
+//! - [`wave`]: wave variables ([`WaveMaster`], [`WaveSlave`]): passive under any delay, loss,
+//!   duplication and reordering (an energy reserve on each receiving end).
 //!
 //! Which law sends what:
 //!
@@ -31,6 +35,7 @@
 //! | position-forward / force-back | tool pose (+ clutch) | sensor wrench (base) | [`ForceDisplay`] | [`SlaveTracking`] (or [`CartesianImpedance`]) |
 //! | position-error | tool pose (+ clutch) | tool pose | [`PositionErrorMaster`] | [`CartesianImpedance`] |
 //! | both (hybrid samples) | tool pose | pose + wrench (`Reference::Hybrid`) | either | either |
+//! | wave variables | wave `u` (+ pose) in [`TeleopSample::port`] | wave `w` (+ pose, wrench) | [`WaveMaster`] transform, then [`ForceDisplay`] | [`WaveSlave`] transform, then [`SlaveTracking`] |
 //!
 //! # Real-time
 //! Every `update`, `activate`, `receive`, `reference` and mapping call runs without allocation,
@@ -42,6 +47,7 @@ pub mod impedance;
 pub mod mapping;
 pub mod passivity;
 pub mod tracking;
+pub mod wave;
 
 use core::fmt;
 
@@ -51,14 +57,21 @@ use penelope_hal::{
 };
 
 pub use channel::{
-    ChannelConfig, ChannelDirection, ChannelStats, ReceiveError, TeleopChannel, TeleopSample,
-    VelocityFeedForward,
+    ChannelConfig, ChannelDirection, ChannelStats, PortPayload, ReceiveError, TeleopChannel,
+    TeleopSample, VelocityFeedForward,
 };
 pub use display::{ForceDisplay, ForceDisplayConfig};
 pub use impedance::{CartesianImpedance, ImpedanceConfig, PositionErrorMaster};
 pub use mapping::{Anchors, MappingConfig, MappingError, WorkspaceMapping};
-pub use passivity::{PassivityConfig, PassivityController, PassivityObserver};
+pub use passivity::{
+    PassivityConfig, PassivityController, PassivityForm, PassivityObserver, PortEnergy,
+    TwoPortConfig, TwoPortController, TwoPortObserver,
+};
 pub use tracking::{SlaveTracking, TrackingConfig, TrackingOutput};
+pub use wave::{
+    MissingWave, WaveConfig, WaveMaster, WaveMasterOutput, WaveReceiver, WaveSample, WaveSender,
+    WaveSlave, WaveSlaveOutput, WaveStats,
+};
 
 /// A configuration value that cannot be used.
 #[non_exhaustive]

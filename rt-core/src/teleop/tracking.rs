@@ -6,6 +6,7 @@ use penelope_hal::{
     KinematicsError, MAX_JOINTS, Pose, Reference, RobotModel, Timestamp,
 };
 
+use super::passivity::PassivityObserver;
 use super::{TeleopConfigError, check_gain, check_gains, effort, lowpass_gain, twist_in_base};
 
 /// What [`SlaveTracking`] commands.
@@ -129,6 +130,8 @@ pub struct SlaveTracking {
     last_pose: Option<Pose>,
     ik_failures: u64,
     last_error: JointVector,
+    /// Energy into the law through its feedback torque (the joints push `-tau_fb` at `qd`).
+    port: PassivityObserver,
 }
 
 impl SlaveTracking {
@@ -147,6 +150,7 @@ impl SlaveTracking {
             last_pose: None,
             ik_failures: 0,
             last_error: JointVector::zeros(),
+            port: PassivityObserver::new(),
         })
     }
 
@@ -177,6 +181,14 @@ impl SlaveTracking {
     /// The joint tracking error `q_ref - q` of the last tick, rad.
     pub fn joint_error(&self) -> &JointVector {
         &self.last_error
+    }
+
+    /// The energy observer of the slave port: energy into the law through its feedback torque
+    /// (the joints push `-tau_fb` at `qd`), J. Negative while the law drives the slave with
+    /// energy that came from the master: compare with the master's input (the two-port form,
+    /// [`TwoPortObserver`](super::TwoPortObserver)) to judge passivity.
+    pub fn passivity(&self) -> &PassivityObserver {
+        &self.port
     }
 
     /// How many ticks the inverse kinematics failed and the reference was held, since
@@ -236,6 +248,11 @@ impl Controller for SlaveTracking {
         self.last_pose = None;
         self.ik_failures = 0;
         self.last_error = JointVector::zeros();
+        self.port.reset();
+    }
+
+    fn port_energy(&self) -> Option<f64> {
+        Some(self.port.energy())
     }
 
     fn update(&mut self, input: &ControlInput<'_>) -> Result<JointCommand, ControllerError> {
@@ -304,9 +321,15 @@ impl Controller for SlaveTracking {
         let ki = Vector6::from(self.config.ki);
         let lim = self.config.integral_limit;
         let integral = (self.integral + e * dt).map(|x| x.clamp(-lim, lim));
-        let u =
-            qdd_ref + kp.component_mul(&e) + kd.component_mul(&ed) + ki.component_mul(&integral);
-        let mut tau = model.inertia(q) * u + model.inverse_dynamics(q, qd, &JointVector::zeros());
+        let feedback = kp.component_mul(&e) + kd.component_mul(&ed) + ki.component_mul(&integral);
+        let inertia = model.inertia(q);
+        let mut tau =
+            inertia * (qdd_ref + feedback) + model.inverse_dynamics(q, qd, &JointVector::zeros());
+        // The port: the feedback torque is the coupling between the (delayed) reference and the
+        // slave; the joints push it with -tau_fb. The model terms only cancel the arm's own
+        // dynamics and are left out.
+        self.port
+            .observe_scalar(dt, -(inertia * feedback).dot(qd), 1.0);
         if self.config.friction_compensation > 0.0 {
             let fr = model.friction(&qd_ref);
             for j in 0..n {

@@ -28,13 +28,14 @@ use penelope_rt_core::safety::SafetyEvent;
 use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_rt_core::teleop::{
     ChannelConfig, ChannelDirection, ForceDisplay, ForceDisplayConfig, ImpedanceConfig,
-    MappingConfig, PositionErrorMaster, SlaveTracking, TeleopChannel, TeleopSample, TrackingConfig,
-    TrackingOutput,
+    MappingConfig, PassivityConfig, PortPayload, PositionErrorMaster, SlaveTracking, TeleopChannel,
+    TeleopSample, TrackingConfig, TrackingOutput, WaveConfig,
 };
 use serde::Deserialize;
 
 use super::kinematics::RobotKinematics;
 use super::runtime::ReferenceOut;
+use super::teleop_wave::WaveEnd;
 use crate::proto::WireError;
 
 /// `trajectory/teleop` configuration.
@@ -243,6 +244,8 @@ pub struct TeleopComm {
     /// While the link is lost: the pose this robot had when it was (a slave holds it); neutral
     /// references until the other side is heard again.
     lost_at: Option<Pose>,
+    /// The wave-variable transform, when the law is a wave half (`controller/wave-*`).
+    wave: Option<WaveEnd>,
 }
 
 impl TeleopComm {
@@ -279,7 +282,33 @@ impl TeleopComm {
             received_at: None,
             link_timeout: None,
             lost_at: None,
+            wave: None,
         })
+    }
+
+    /// Runs the wave-variable transform `wave` in this end (a `controller/wave-*` law); `None`
+    /// leaves the end as it is.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for an end linked to another node (the data plane's datagram
+    /// does not carry waves yet) or settings the transform refuses.
+    pub fn with_wave(
+        mut self,
+        wave: Option<WaveConfig>,
+        mapping: &MappingConfig,
+    ) -> Result<Self, WireError> {
+        if let Some(config) = wave {
+            if self.end.is_remote() {
+                return Err(WireError::BadConfig {
+                    kind: "trajectory/teleop".into(),
+                    message: "the wave-variable law needs both robots on this node: the data \
+                              plane does not carry waves yet"
+                        .into(),
+                });
+            }
+            self.wave = Some(WaveEnd::new(self.end.side, config, mapping)?);
+        }
+        Ok(self)
     }
 
     /// Reads the master's clutch button from `clutch` (an operator's hand), if any.
@@ -325,6 +354,91 @@ impl TeleopComm {
         &self.channel
     }
 
+    /// The world's wrench on the robot in `sample`, base frame, about the tool point (what the
+    /// channel carries). A feed's is that already; a wrist sensor's is in its own frame with
+    /// the opposite sign; a tool-frame wrench is rotated.
+    fn contact(&self, sample: &TelemetrySample, pose: &Pose) -> Wrench {
+        let w = sample.wrench;
+        match (w.frame, self.sensor_mount) {
+            (Frame::Base, _) => w,
+            (Frame::Sensor, Some(mount)) => {
+                let at_tool = sensor_to_base(&w, &mount, pose);
+                Wrench {
+                    force: -at_tool.force,
+                    torque: -at_tool.torque,
+                    frame: Frame::Base,
+                }
+            }
+            _ => Wrench {
+                force: pose.rotation * w.force,
+                torque: pose.rotation * w.torque,
+                frame: Frame::Base,
+            },
+        }
+    }
+
+    /// One wave-variable tick: receive the other side's wave, run this side's transform, send
+    /// its wave with this robot's pose (and wrench), publish the transform's reference. Stamped
+    /// now: the transform itself handles a silent other side passively (a master feels the
+    /// damping `b`, a slave holds).
+    fn wave_tick(
+        &mut self,
+        now: Timestamp,
+        sample: &TelemetrySample,
+        pose: &Pose,
+        out: &mut ReferenceOut,
+    ) {
+        if let Some(received) = self.end.take_newest(now) {
+            if let (Some(w), Some(wave)) = (received.port.wave, self.wave.as_mut()) {
+                wave.receive(received.sequence, &w);
+            }
+            self.received_at = Some(now);
+        }
+        let clutch = self
+            .clutch
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::Relaxed));
+        let contact = self.contact(sample, pose);
+        let Some(wave) = self.wave.as_mut() else {
+            return;
+        };
+        let at = |pose: &Pose| CartesianReference {
+            pose: *pose,
+            twist: Twist::default(),
+        };
+        let (reference, sent, clutch, own) = match self.end.side {
+            Side::Master => {
+                let (r, w) = wave.master_tick(now, &self.model, sample, clutch);
+                (r, w, clutch, Reference::Cartesian(at(pose)))
+            }
+            Side::Slave => {
+                let (r, w) = wave.slave_tick(now, pose, &contact);
+                let own = Reference::Hybrid(HybridReference {
+                    motion: at(pose),
+                    wrench: contact,
+                    force_axes: [true; 6],
+                });
+                (r, w, false, own)
+            }
+        };
+        self.sequence += 1;
+        self.end.publish(TeleopSample {
+            clutch,
+            port: PortPayload {
+                wave: Some(sent),
+                energy: None,
+            },
+            ..TeleopSample::new(self.sequence, now, own)
+        });
+        if reference.is_finite() {
+            out.write(Stamped {
+                stamp: now,
+                value: reference,
+            });
+        }
+        self.end.publish_stats();
+    }
+
     /// One communication tick at `now`, with the loop's newest sample `state`: send, receive,
     /// publish the reference into `out`.
     ///
@@ -335,6 +449,10 @@ impl TeleopComm {
             return; // nothing measured yet: the channel starts from the measured pose
         };
         let pose = self.model.forward(&sample.q);
+        if self.wave.is_some() {
+            self.wave_tick(now, &sample, &pose, out);
+            return;
+        }
         if !self.started {
             self.start_channel(now, &pose);
             self.started = true;
@@ -356,26 +474,7 @@ impl TeleopComm {
                 )
             }
             Side::Slave => {
-                // What the channel carries: the world's wrench on the robot, base frame, about
-                // the tool point. A feed's is that already; a wrist sensor's is in its own frame
-                // with the opposite sign; a tool-frame wrench is rotated.
-                let w = sample.wrench;
-                let wrench = match (w.frame, self.sensor_mount) {
-                    (Frame::Base, _) => w,
-                    (Frame::Sensor, Some(mount)) => {
-                        let at_tool = sensor_to_base(&w, &mount, &pose);
-                        Wrench {
-                            force: -at_tool.force,
-                            torque: -at_tool.torque,
-                            frame: Frame::Base,
-                        }
-                    }
-                    _ => Wrench {
-                        force: pose.rotation * w.force,
-                        torque: pose.rotation * w.torque,
-                        frame: Frame::Base,
-                    },
-                };
+                let wrench = self.contact(&sample, &pose);
                 (
                     false,
                     Reference::Hybrid(HybridReference {
@@ -390,10 +489,8 @@ impl TeleopComm {
             }
         };
         self.end.publish(TeleopSample {
-            sequence: self.sequence,
-            sent: now,
             clutch,
-            reference,
+            ..TeleopSample::new(self.sequence, now, reference)
         });
         let received = self.end.take_newest(now);
         let mut restored = false;
@@ -568,6 +665,7 @@ crate::objects::kinds::loop_keys!(ForceDisplayToml {
     torque_deadband: f64 = ForceDisplayConfig::default().torque_deadband, #[doc = "Moments below this are not displayed, N·m."]
     filter_cutoff_hz: f64 = ForceDisplayConfig::default().filter_cutoff_hz, #[doc = "Low-pass on the displayed wrench, Hz (0: none)."]
     gravity_compensation: bool = true, #[doc = "Add g(q)."]
+    passivity: String = "off".into(), #[doc = "Time-domain passivity controller on the master port: `off` or `impedance`."]
 });
 
 crate::objects::kinds::loop_keys!(PositionErrorToml {
@@ -593,6 +691,10 @@ force_deadband = 0.2      # N: smaller forces (sensor noise) are not displayed
 torque_deadband = 0.01    # N·m
 filter_cutoff_hz = 30.0   # low-pass on the displayed wrench (0: none)
 gravity_compensation = true
+passivity = "off"         # "impedance": a time-domain passivity controller on the master port
+                          # (Hannaford & Ryu: a variable damper dissipating exactly the energy
+                          # the port has given out, at most 200 N·s/m). The observer always runs:
+                          # its energy is in every telemetry sample (`port_energy`)
 # trajectory: a trajectory/teleop whose master is this robot; plus the loop keys:
 "#;
 
@@ -635,7 +737,22 @@ impl ForceDisplayToml {
             torque_deadband: self.torque_deadband,
             filter_cutoff_hz: self.filter_cutoff_hz,
             gravity_compensation: self.gravity_compensation,
-            ..ForceDisplayConfig::default()
+            passivity: PassivityConfig {
+                enabled: match self.passivity.as_str() {
+                    "off" => false,
+                    "impedance" => true,
+                    other => {
+                        return Err(bad_law(
+                            kind,
+                            format!(
+                                "`passivity` = {other:?}: \"off\" or \"impedance\" (a force \
+                                 display has impedance causality)"
+                            ),
+                        ));
+                    }
+                },
+                ..PassivityConfig::default()
+            },
         })
         .map_err(|e| bad_law(kind, e))
     }

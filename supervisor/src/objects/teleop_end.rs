@@ -379,6 +379,8 @@ impl TeleopEnd {
                                 sent: Timestamp::from_nanos(u64::try_from(sent).unwrap_or(0)),
                                 clutch,
                                 reference,
+                                // (The datagram does not carry the passivity payload yet.)
+                                port: Default::default(),
                             });
                         }
                         LinkDatagram::Heartbeat if header.stream == HEARTBEATS => {

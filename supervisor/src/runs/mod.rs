@@ -46,6 +46,8 @@ pub enum Law {
     ForcePosition,
     /// Position error both ways (`controller/position-error-master`).
     PositionError,
+    /// Wave variables (`controller/wave-master` and `controller/wave-slave`).
+    Wave,
 }
 
 impl Law {
@@ -62,6 +64,7 @@ impl Law {
         match self {
             Law::ForcePosition => "force-position",
             Law::PositionError => "position-error",
+            Law::Wave => "wave",
         }
     }
 
@@ -70,9 +73,19 @@ impl Law {
         match self {
             Law::ForcePosition => "controller/force-display",
             Law::PositionError => "controller/position-error-master",
+            Law::Wave => "controller/wave-master",
         }
     }
+
+    /// Whether the slave half is the wave law's own (`controller/wave-slave`) rather than the
+    /// file's other slave half.
+    fn wave_slave(self) -> bool {
+        self == Law::Wave
+    }
 }
+
+/// The wave law's slave half.
+const WAVE_SLAVE: &str = "controller/wave-slave";
 
 /// What to change in the file for a run, and how long and on which clock it runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -249,16 +262,32 @@ fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task, RunError> 
             .map_or(Law::ForcePosition, |o| {
                 if o.kind == Law::PositionError.master_kind() {
                     Law::PositionError
+                } else if o.kind == Law::Wave.master_kind() {
+                    Law::Wave
                 } else {
                     Law::ForcePosition
                 }
             }),
     };
+    // The other laws share the file's slave half; the wave law has its own.
+    let slave_fallback = file
+        .objects
+        .iter()
+        .any(|o| o.active && o.kind == WAVE_SLAVE && !law.wave_slave());
     for o in &mut file.objects {
-        if o.trajectory.as_deref() == Some(channel_name.as_str())
-            && o.robot.as_deref() == Some(teleop.master.as_str())
-        {
+        if o.trajectory.as_deref() != Some(channel_name.as_str()) {
+            continue;
+        }
+        if o.robot.as_deref() == Some(teleop.master.as_str()) {
             o.active = o.kind == law.master_kind();
+        } else if o.robot.as_deref() == Some(teleop.slave.as_str()) {
+            if law.wave_slave() {
+                o.active = o.kind == WAVE_SLAVE;
+            } else if o.kind == WAVE_SLAVE {
+                o.active = false;
+            } else if slave_fallback && o.kind == "controller/slave-tracking" {
+                o.active = true;
+            }
         }
     }
     let on_channel = |robot: &str| {

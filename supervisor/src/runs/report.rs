@@ -76,6 +76,19 @@ pub struct EnergyReport {
     pub growth_ratio: f64,
     /// Work the operator's hand did on the master during the tapping, J.
     pub operator_work_j: f64,
+    /// The lowest energy the master law's passivity observer read over the run, J (negative:
+    /// the law gave out more than it took); `None` when the law has no observer.
+    pub master_port_min_j: Option<f64>,
+    /// The same for the slave law.
+    pub slave_port_min_j: Option<f64>,
+}
+
+/// The lowest `port_energy` of `ticks`, if any tick had one.
+fn min_port_energy(ticks: &[TickRecord]) -> Option<f64> {
+    ticks
+        .iter()
+        .filter_map(|t| t.sample.port_energy)
+        .reduce(f64::min)
 }
 
 /// Indexing (clutch) behaviour.
@@ -521,6 +534,8 @@ pub fn report(out: &RunOutput) -> Report {
             tap_cycle_peaks_j: peaks,
             growth_ratio,
             operator_work_j: operator_work,
+            master_port_min_j: min_port_energy(&out.master),
+            slave_port_min_j: min_port_energy(&out.slave),
         },
         clutch,
         timing,

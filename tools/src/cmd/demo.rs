@@ -26,8 +26,9 @@ pub struct Args {
     /// Length of the run, for example `20s` or `1500ms` (default: the operator script, 20 s).
     #[arg(long, value_parser = parse_duration)]
     duration: Option<Duration>,
-    /// Bilateral law: `force-position` (position forward, force back) or `position-error`.
-    #[arg(long, value_parser = ["force-position", "position-error"])]
+    /// Bilateral law: `force-position` (position forward, force back), `position-error`, or
+    /// `wave` (wave variables).
+    #[arg(long, value_parser = ["force-position", "position-error", "wave"])]
     law: Option<String>,
     /// Position scale: slave motion per master motion.
     #[arg(long)]
@@ -89,6 +90,7 @@ pub fn run_demo(args: Args) -> anyhow::Result<ExitCode> {
     let system = SystemFile::parse(&text).map_err(|e| usage(format!("{where_}: {e}")))?;
     let law = match args.law.as_deref() {
         Some("position-error") => Some(Law::PositionError),
+        Some("wave") => Some(Law::Wave),
         Some(_) => Some(Law::ForcePosition),
         None => None,
     };

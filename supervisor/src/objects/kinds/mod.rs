@@ -27,10 +27,11 @@ use penelope_rt_core::safety::Role;
 use super::teleop::{
     FORCE_DISPLAY_KEYS, HAND_KEYS, POSITION_ERROR_KEYS, SLAVE_TRACKING_KEYS, TELEOP_KEYS,
 };
+use super::teleop_wave::{WAVE_MASTER_KEYS, WAVE_SLAVE_KEYS};
 use crate::proto::{Class, KindInfo, WireError};
 
 /// Every kind this creator makes, in listing order.
-pub const KINDS: [&str; 20] = [
+pub const KINDS: [&str; 22] = [
     "robot/puma560",
     "robot/puma200",
     "robot/frhc",
@@ -46,6 +47,8 @@ pub const KINDS: [&str; 20] = [
     "controller/position-error-master",
     "controller/slave-tracking",
     "controller/slave-position",
+    "controller/wave-master",
+    "controller/wave-slave",
     "trajectory/step",
     "trajectory/ramp",
     "trajectory/trapezoidal",
@@ -82,6 +85,10 @@ pub enum Kind {
     SlaveTracking,
     /// `controller/slave-position`: the slave half for a board with its own servo.
     SlavePosition,
+    /// `controller/wave-master`: the master half of the wave-variable law.
+    WaveMaster,
+    /// `controller/wave-slave`: the slave half of the wave-variable law.
+    WaveSlave,
     /// `trajectory/step`.
     Step,
     /// `trajectory/ramp`.
@@ -113,6 +120,8 @@ impl Kind {
             "controller/position-error-master" => Kind::PositionErrorMaster,
             "controller/slave-tracking" => Kind::SlaveTracking,
             "controller/slave-position" => Kind::SlavePosition,
+            "controller/wave-master" => Kind::WaveMaster,
+            "controller/wave-slave" => Kind::WaveSlave,
             "trajectory/step" => Kind::Step,
             "trajectory/ramp" => Kind::Ramp,
             "trajectory/trapezoidal" => Kind::Trapezoidal,
@@ -140,6 +149,8 @@ impl Kind {
             Kind::PositionErrorMaster => "controller/position-error-master",
             Kind::SlaveTracking => "controller/slave-tracking",
             Kind::SlavePosition => "controller/slave-position",
+            Kind::WaveMaster => "controller/wave-master",
+            Kind::WaveSlave => "controller/wave-slave",
             Kind::Step => "trajectory/step",
             Kind::Ramp => "trajectory/ramp",
             Kind::Trapezoidal => "trajectory/trapezoidal",
@@ -161,7 +172,9 @@ impl Kind {
             | Kind::ForceDisplay
             | Kind::PositionErrorMaster
             | Kind::SlaveTracking
-            | Kind::SlavePosition => Class::Controller,
+            | Kind::SlavePosition
+            | Kind::WaveMaster
+            | Kind::WaveSlave => Class::Controller,
             Kind::Step | Kind::Ramp | Kind::Trapezoidal | Kind::Spline | Kind::Teleop => {
                 Class::Trajectory
             }
@@ -213,6 +226,16 @@ impl Kind {
             Kind::SlavePosition => (
                 "teleoperation slave for a board with its own servo: IK, then position targets",
                 SLAVE_TRACKING_KEYS.to_string() + LOOP_KEYS,
+            ),
+            Kind::WaveMaster => (
+                "teleoperation master, wave variables: passive under any delay and loss (the \
+                 waves cross; an energy reserve on each receiver)",
+                WAVE_MASTER_KEYS.to_string() + LOOP_KEYS,
+            ),
+            Kind::WaveSlave => (
+                "teleoperation slave, wave variables: follows the wave's pose (matched line, \
+                 IK, computed torque); its contact force goes back as a wave",
+                WAVE_SLAVE_KEYS.to_string() + LOOP_KEYS,
             ),
             Kind::Teleop => (
                 "the channel between a master and a slave: the master's pose forward (scaled, \
@@ -762,7 +785,7 @@ mod tests {
         let kinds = all_kinds();
         // Every listed name parses (a name that does not would be dropped from the list).
         assert_eq!(kinds.len(), KINDS.len());
-        assert_eq!(kinds.len(), 20);
+        assert_eq!(kinds.len(), 22);
         for k in &kinds {
             let parsed = Kind::parse(&k.kind).unwrap();
             assert_eq!(parsed.as_str(), k.kind);

@@ -161,13 +161,15 @@ impl Registry {
                             side,
                             t.config.mapping(),
                             t.config.link_timeout(timing.comm_period),
+                            law.wave(kind)?,
                         )
                     }
                     (Body::Teleop(_), None) => {
                         return Err(bad_arg(format!(
                             "`{traj_name}` is a teleoperation channel: it is followed by the \
                              halves of the teleoperation laws (force-display, \
-                             position-error-master, slave-tracking, slave-position), not by {kind}"
+                             position-error-master, slave-tracking, slave-position, wave-master, \
+                             wave-slave), not by {kind}"
                         )));
                     }
                     (_, Some(_)) => {
@@ -320,7 +322,7 @@ impl Registry {
                 goto_r,
                 kinematics.clone(),
             )?,
-            LoopSource::Teleop(side, mapping, link_timeout) => {
+            LoopSource::Teleop(side, mapping, link_timeout, wave) => {
                 // The master's clutch is its operator's hand's button, if a hand holds it.
                 let clutch = self.objects.values().find_map(|o| match &o.body {
                     Body::Hand(h) if side == Side::Master && h.config.robot == robot_name => {
@@ -341,6 +343,7 @@ impl Registry {
                     .ok_or_else(|| WireError::Internal("teleop end".into()))?;
                 crate::objects::runtime::CommTask::teleop(
                     TeleopComm::new(end, mapping, kinematics.clone())?
+                        .with_wave(wave, &mapping)?
                         .with_clutch(clutch)
                         .with_sensor_mount(plant_sensor.map(|c| c.mount))
                         .with_link_timeout(link_timeout),
@@ -524,6 +527,7 @@ enum LoopSource {
         Side,
         penelope_rt_core::teleop::MappingConfig,
         std::time::Duration,
+        Option<penelope_rt_core::teleop::WaveConfig>,
     ),
     /// One trajectory per joint group.
     Groups(Vec<(JointSet, TrajectoryFeed)>),
@@ -559,6 +563,8 @@ pub(super) fn node_law(
         ControllerConfig::ForceDisplay(c) => NodeController::ForceDisplay(c.law(kind)?),
         ControllerConfig::PositionError(c) => NodeController::PositionErrorMaster(c.law(kind)?),
         ControllerConfig::Tracking(c, servo) => NodeController::SlaveTracking(c.law(kind, *servo)?),
+        ControllerConfig::WaveMaster(c) => NodeController::ForceDisplay(c.law(kind)?),
+        ControllerConfig::WaveSlave(c) => NodeController::SlaveTracking(c.law(kind)?),
         ControllerConfig::Groups(_) => {
             return Err(WireError::Internal(
                 "a joint group inside a joint group".into(),

@@ -742,6 +742,26 @@ fn gains_from(
                 Some(GainsUpdate::Tracking(*law.config())),
             )
         }
+        // The display and tracking gains change live; the wave keys when the loop next starts
+        // (both sides' transforms must restart together).
+        ControllerConfig::WaveMaster(_) => {
+            let cfg: WaveMasterToml = kinds::parse(kind, text)?;
+            cfg.wave(kind)?;
+            let law = cfg.law(kind)?;
+            (
+                ControllerConfig::WaveMaster(cfg),
+                Some(GainsUpdate::ForceDisplay(*law.config())),
+            )
+        }
+        ControllerConfig::WaveSlave(_) => {
+            let cfg: WaveSlaveToml = kinds::parse(kind, text)?;
+            cfg.wave(kind)?;
+            let law = cfg.law(kind)?;
+            (
+                ControllerConfig::WaveSlave(cfg),
+                Some(GainsUpdate::Tracking(*law.config())),
+            )
+        }
         ControllerConfig::Position(_) | ControllerConfig::Groups(_) => {
             return Err(WireError::Internal(format!("{kind} has no gains")));
         }

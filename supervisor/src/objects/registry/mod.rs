@@ -46,6 +46,7 @@ use super::teleop::{
     ForceDisplayToml, HandConfig, HandObj, PositionErrorToml, Side, SlaveTrackingToml, TeleopComm,
     TeleopConfig, TeleopLink,
 };
+use super::teleop_wave::{WaveMasterToml, WaveSlaveToml};
 use crate::dataplane::endpoint::Endpoint;
 use crate::dataplane::frame::DatagramKey;
 use crate::dataplane::sensor_stream::{SensorPublisher, SensorSubscriber};
@@ -145,17 +146,36 @@ pub(crate) enum ControllerConfig {
     PositionError(PositionErrorToml),
     /// The slave half: torques, or position targets for the board's servo (`true`).
     Tracking(SlaveTrackingToml, bool),
+    /// The master half of the wave-variable law.
+    WaveMaster(WaveMasterToml),
+    /// The slave half of the wave-variable law.
+    WaveSlave(WaveSlaveToml),
 }
 
 impl ControllerConfig {
     /// The side of a teleoperation channel the law runs, if it is a teleoperation law.
     pub fn teleop_side(&self) -> Option<Side> {
         match self {
-            ControllerConfig::ForceDisplay(_) | ControllerConfig::PositionError(_) => {
-                Some(Side::Master)
-            }
-            ControllerConfig::Tracking(..) => Some(Side::Slave),
+            ControllerConfig::ForceDisplay(_)
+            | ControllerConfig::PositionError(_)
+            | ControllerConfig::WaveMaster(_) => Some(Side::Master),
+            ControllerConfig::Tracking(..) | ControllerConfig::WaveSlave(_) => Some(Side::Slave),
             _ => None,
+        }
+    }
+
+    /// The wave transform of a wave-variable half (`controller/wave-*`), checked.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn wave(
+        &self,
+        kind: &str,
+    ) -> Result<Option<penelope_rt_core::teleop::WaveConfig>, WireError> {
+        match self {
+            ControllerConfig::WaveMaster(c) => c.wave(kind).map(Some),
+            ControllerConfig::WaveSlave(c) => c.wave(kind).map(Some),
+            _ => Ok(None),
         }
     }
 }
@@ -376,6 +396,20 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
             cfg.law(k, servo)?;
             let timing = cfg.timing(k)?;
             controller_body(ControllerConfig::Tracking(cfg, servo), timing, config)
+        }
+        Kind::WaveMaster => {
+            let cfg: WaveMasterToml = kinds::parse(k, config)?;
+            cfg.law(k)?;
+            cfg.wave(k)?;
+            let timing = cfg.timing(k)?;
+            controller_body(ControllerConfig::WaveMaster(cfg), timing, config)
+        }
+        Kind::WaveSlave => {
+            let cfg: WaveSlaveToml = kinds::parse(k, config)?;
+            cfg.law(k)?;
+            cfg.wave(k)?;
+            let timing = cfg.timing(k)?;
+            controller_body(ControllerConfig::WaveSlave(cfg), timing, config)
         }
         Kind::Step | Kind::Ramp | Kind::Trapezoidal | Kind::Spline => {
             Body::Trajectory(TrajectoryObj {

@@ -92,6 +92,17 @@ impl Controller for NodeController {
     fn update(&mut self, input: &ControlInput<'_>) -> Result<JointCommand, ControllerError> {
         self.inner().update(input)
     }
+    fn port_energy(&self) -> Option<f64> {
+        match self {
+            NodeController::Pid(c) => c.port_energy(),
+            NodeController::Impedance(c) => c.port_energy(),
+            NodeController::Position(c) => c.port_energy(),
+            NodeController::ForceDisplay(c) => c.port_energy(),
+            NodeController::PositionErrorMaster(c) => c.port_energy(),
+            NodeController::SlaveTracking(c) => c.port_energy(),
+            NodeController::Groups(c) => c.port_energy(),
+        }
+    }
 }
 
 /// Gains sent to a running loop (`SetGains`).

@@ -1,0 +1,327 @@
+//! The wave-variable law as objects: `controller/wave-master` and `controller/wave-slave`.
+//!
+//! The wave transforms ([`WaveMaster`], [`WaveSlave`], rt-core) run in each side's
+//! communication thread, where the samples cross: the waves are what travels
+//! ([`PortPayload::wave`](penelope_rt_core::teleop::PortPayload)), so the line between the two
+//! transforms is passive whatever delay, loss, duplication or reordering it suffers (rt-core's
+//! `teleop::wave` docs give the argument). Each side's control thread runs an existing law on
+//! what its transform makes:
+//!
+//! ```text
+//!  master comm: x'_m = J qd  -> WaveMaster -> F = -F_m -> Reference::Wrench -> ForceDisplay
+//!              (no dead band, no filter: both would break the port's power balance)
+//!  slave comm:  F_s = -contact -> WaveSlave -> x_sd, x'_sd -> Reference::Cartesian -> SlaveTracking
+//! ```
+//!
+//! The line is expressed in the master's base frame. The slave maps it with the channel's
+//! rotation `R_ms` and scale `sigma` as a power-preserving transformer: velocity `sigma R x'`,
+//! force `sigma R^T F_s` (so the channel's `force_gain` does not apply: a force gain other than
+//! the scale would make the mapping itself active).
+//!
+//! *NOTE*: translational only: the slave holds the orientation it started with, and the
+//! master's wrist gets no wave force (its rotational damping only). While the master's clutch
+//! is held the line sees a master at rest and the operator feels no force.
+//!
+//! *NOTE*: the transforms run at the communication period, and the master's control loop holds
+//! the displayed force between communication ticks: the port's power balance holds per
+//! communication tick, not per control tick (a small, bounded difference at 2 ms).
+
+use nalgebra::{UnitQuaternion, Vector3};
+use penelope_hal::{
+    CartesianReference, Frame, JacobianFrame, Kinematics, Pose, Reference, Timestamp, Twist, Wrench,
+};
+use penelope_rt_core::telemetry::TelemetrySample;
+use penelope_rt_core::teleop::{
+    ForceDisplay, ForceDisplayConfig, MappingConfig, MissingWave, SlaveTracking, TrackingConfig,
+    TrackingOutput, WaveConfig, WaveMaster, WaveSample, WaveSlave,
+};
+
+use super::kinematics::RobotKinematics;
+use super::teleop_end::Side;
+use crate::proto::WireError;
+
+/// The wave transform of one side, in its communication thread.
+#[derive(Clone, Copy, Debug)]
+pub struct WaveEnd {
+    law: WaveLaw,
+    rotation: UnitQuaternion<f64>,
+    scale: f64,
+    /// The slave's tool pose when the law started: its displacement is added to it.
+    origin: Option<Pose>,
+    last_tick: Option<Timestamp>,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum WaveLaw {
+    Master(WaveMaster),
+    Slave(WaveSlave),
+}
+
+impl WaveEnd {
+    /// The `side` transform with `config`, mapped by the channel's `mapping`.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for a configuration the transform refuses.
+    pub fn new(side: Side, config: WaveConfig, mapping: &MappingConfig) -> Result<Self, WireError> {
+        let bad = |e| WireError::BadConfig {
+            kind: "controller/wave".into(),
+            message: format!("{e:?}"),
+        };
+        let law = match side {
+            Side::Master => WaveLaw::Master(WaveMaster::new(config).map_err(bad)?),
+            Side::Slave => WaveLaw::Slave(WaveSlave::new(config).map_err(bad)?),
+        };
+        Ok(WaveEnd {
+            law,
+            rotation: mapping.rotation,
+            scale: mapping.scale,
+            origin: None,
+            last_tick: None,
+        })
+    }
+
+    /// Takes the other side's wave with its sender's `sequence`.
+    pub fn receive(&mut self, sequence: u64, sample: &WaveSample) {
+        match &mut self.law {
+            WaveLaw::Master(m) => m.receive(sequence, sample),
+            WaveLaw::Slave(s) => s.receive(sequence, sample),
+        }
+    }
+
+    /// Seconds since the previous tick (0 on the first).
+    fn dt(&mut self, now: Timestamp) -> f64 {
+        let dt = self
+            .last_tick
+            .map_or(0.0, |t| now.saturating_since(t).as_secs_f64());
+        self.last_tick = Some(now);
+        dt
+    }
+
+    /// One master tick at `now`: the loop's newest `sample` (joint velocities) gives the tool
+    /// velocity; returns the wrench to display and the wave to send.
+    ///
+    /// # Real-time
+    /// No allocation: a Jacobian and the transform's constant-time step.
+    pub fn master_tick(
+        &mut self,
+        now: Timestamp,
+        model: &RobotKinematics,
+        sample: &TelemetrySample,
+        clutch: bool,
+    ) -> (Reference, WaveSample) {
+        let dt = self.dt(now);
+        let twist = model.jacobian(&sample.q, JacobianFrame::Base) * sample.qd;
+        let velocity = if clutch {
+            Vector3::zeros()
+        } else {
+            Vector3::new(twist[0], twist[1], twist[2])
+        };
+        let WaveLaw::Master(m) = &mut self.law else {
+            return (
+                Reference::Wrench(Wrench::zero(Frame::Base)),
+                WaveSample::default(),
+            );
+        };
+        let out = m.step(dt, &velocity);
+        let force = if clutch {
+            Vector3::zeros()
+        } else {
+            out.display
+        };
+        (
+            Reference::Wrench(Wrench {
+                force,
+                torque: Vector3::zeros(),
+                frame: Frame::Base,
+            }),
+            out.sample,
+        )
+    }
+
+    /// One slave tick at `now` with the tool `pose` and the world's `contact` wrench on the
+    /// robot (base frame): returns the pose to follow and the wave to send.
+    ///
+    /// # Real-time
+    /// No allocation, constant time.
+    pub fn slave_tick(
+        &mut self,
+        now: Timestamp,
+        pose: &Pose,
+        contact: &Wrench,
+    ) -> (Reference, WaveSample) {
+        let dt = self.dt(now);
+        let origin = *self.origin.get_or_insert(*pose);
+        // The force the slave puts on its environment, onto the line (master frame).
+        let force = self.rotation.inverse() * (-contact.force) * self.scale;
+        let WaveLaw::Slave(s) = &mut self.law else {
+            return (cartesian(origin, Vector3::zeros()), WaveSample::default());
+        };
+        let out = s.step(dt, &force);
+        let mut target = origin;
+        target.translation.vector += self.rotation * out.displacement * self.scale;
+        (
+            cartesian(target, self.rotation * out.velocity * self.scale),
+            out.sample,
+        )
+    }
+
+    /// The energy the side's environment (operator or contact) has put into the line, J: the
+    /// master's port, or the slave's port (energy into the slave's environment counts
+    /// negative).
+    pub fn port_energy(&self) -> f64 {
+        match &self.law {
+            WaveLaw::Master(m) => m.port().energy(),
+            WaveLaw::Slave(s) => -s.port().energy(),
+        }
+    }
+}
+
+fn cartesian(pose: Pose, velocity: Vector3<f64>) -> Reference {
+    Reference::Cartesian(CartesianReference {
+        pose,
+        twist: Twist {
+            linear: velocity,
+            angular: Vector3::zeros(),
+            frame: Frame::Base,
+        },
+    })
+}
+
+fn missing(kind: &str, word: &str) -> Result<MissingWave, WireError> {
+    match word {
+        "hold" => Ok(MissingWave::HoldWithinReserve),
+        "zero" => Ok(MissingWave::Zero),
+        other => Err(WireError::BadConfig {
+            kind: kind.into(),
+            message: format!(
+                "`missing` = {other:?}: \"hold\" (within the energy reserve) or \"zero\""
+            ),
+        }),
+    }
+}
+
+fn bad(kind: &str, e: impl std::fmt::Debug) -> WireError {
+    WireError::BadConfig {
+        kind: kind.into(),
+        message: format!("{e:?}"),
+    }
+}
+
+crate::objects::kinds::loop_keys!(WaveMasterToml {
+    impedance: f64 = WaveConfig::default().impedance, #[doc = "Wave impedance b, N·s/m."]
+    missing: String = "hold".into(), #[doc = "On a missing wave: `hold` (within the reserve) or `zero`."]
+    drift_gain: f64 = WaveConfig::default().drift_gain, #[doc = "Wave-integral feedback, 1/s."]
+    max_drift_correction: f64 = WaveConfig::default().max_drift_correction, #[doc = "Its bound, sqrt(W)."]
+    max_force: f64 = ForceDisplayConfig::default().max_force, #[doc = "Largest displayed force, N."]
+    angular_damping: [f64; 3] = [0.02; 3], #[doc = "Damping of the master's wrist, N·m·s/rad."]
+    gravity_compensation: bool = true, #[doc = "Add g(q)."]
+});
+
+crate::objects::kinds::loop_keys!(WaveSlaveToml {
+    impedance: f64 = WaveConfig::default().impedance, #[doc = "Wave impedance b, N·s/m."]
+    missing: String = "hold".into(), #[doc = "On a missing wave: `hold` (within the reserve) or `zero`."]
+    drift_gain: f64 = WaveConfig::default().drift_gain, #[doc = "Wave-integral feedback, 1/s."]
+    max_drift_correction: f64 = WaveConfig::default().max_drift_correction, #[doc = "Its bound, sqrt(W)."]
+    matching: bool = true, #[doc = "Terminate the line with its impedance (no reflections)."]
+    kp: [f64; 6] = TrackingConfig::default().kp, #[doc = "Position gain per joint, 1/s²."]
+    kd: [f64; 6] = TrackingConfig::default().kd, #[doc = "Velocity gain per joint, 1/s."]
+    ki: [f64; 6] = TrackingConfig::default().ki, #[doc = "Integral gain per joint, 1/s³."]
+});
+
+/// What `ctl kinds` lists for `controller/wave-master`.
+pub const WAVE_MASTER_KEYS: &str = r#"
+impedance = 20.0          # wave impedance b, N·s/m: the damping felt in free motion (same on
+                          # both halves for transparency; any b keeps the line passive)
+missing = "hold"          # a late or lost wave: "hold" (within the energy reserve) or "zero"
+drift_gain = 0.0          # wave-integral feedback, 1/s (bounded, passive; off: see rt-core docs)
+max_drift_correction = 1.0
+max_force = 10.0          # N, the largest displayed force
+angular_damping = [0.02, 0.02, 0.02]  # the wrist has no wave force: N·m·s/rad
+gravity_compensation = true
+# trajectory: a trajectory/teleop on this node whose master is this robot (the waves cross
+# in its samples; the data plane does not carry them yet); plus the loop keys:
+"#;
+
+/// What `ctl kinds` lists for `controller/wave-slave`.
+pub const WAVE_SLAVE_KEYS: &str = r#"
+impedance = 20.0          # wave impedance b, N·s/m
+missing = "hold"          # "hold" (within the energy reserve) or "zero"
+drift_gain = 0.0          # wave-integral feedback, 1/s
+max_drift_correction = 1.0
+matching = true           # terminate the line with b: no wave reflected in free motion
+kp = [6400.0, 6400.0, 6400.0, 6400.0, 6400.0, 6400.0]  # computed-torque gains to the wave pose
+kd = [160.0, 160.0, 160.0, 160.0, 160.0, 160.0]
+ki = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+# trajectory: a trajectory/teleop on this node whose slave is this robot; sensor: the wrist
+# sensor whose contact force goes into the wave; plus the loop keys:
+"#;
+
+impl WaveMasterToml {
+    /// The wave transform's settings, checked.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn wave(&self, kind: &str) -> Result<WaveConfig, WireError> {
+        let c = WaveConfig {
+            impedance: self.impedance,
+            drift_gain: self.drift_gain,
+            max_drift_correction: self.max_drift_correction,
+            missing: missing(kind, &self.missing)?,
+            matching: true,
+        };
+        c.validate().map_err(|e| bad(kind, e))?;
+        Ok(c)
+    }
+
+    /// The display the control thread runs: no dead band, no filter, no translational damping
+    /// (the wave's `b` is the damping).
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<ForceDisplay, WireError> {
+        let [a, b, c] = self.angular_damping;
+        ForceDisplay::new(ForceDisplayConfig {
+            force_deadband: 0.0,
+            torque_deadband: 0.0,
+            damping: [0.0, 0.0, 0.0, a, b, c],
+            max_force: self.max_force,
+            filter_cutoff_hz: 0.0,
+            gravity_compensation: self.gravity_compensation,
+            ..ForceDisplayConfig::default()
+        })
+        .map_err(|e| bad(kind, e))
+    }
+}
+
+impl WaveSlaveToml {
+    /// The wave transform's settings, checked.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn wave(&self, kind: &str) -> Result<WaveConfig, WireError> {
+        let c = WaveConfig {
+            impedance: self.impedance,
+            drift_gain: self.drift_gain,
+            max_drift_correction: self.max_drift_correction,
+            missing: missing(kind, &self.missing)?,
+            matching: self.matching,
+        };
+        c.validate().map_err(|e| bad(kind, e))?;
+        Ok(c)
+    }
+
+    /// The tracking law the control thread runs.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<SlaveTracking, WireError> {
+        SlaveTracking::new(TrackingConfig {
+            kp: self.kp,
+            kd: self.kd,
+            ki: self.ki,
+            output: TrackingOutput::Torque,
+            ..TrackingConfig::default()
+        })
+        .map_err(|e| bad(kind, e))
+    }
+}

@@ -1,0 +1,145 @@
+//! The wave-variable law (`controller/wave-master`, `controller/wave-slave`) and the passivity
+//! observers in telemetry, on the demo's task and simulated clock (issue 14). Zero delay here:
+//! the delayed runs come with the delay channel.
+
+use penelope_supervisor::objects::clock::ClockMode;
+use penelope_supervisor::runs::report::{Report, report};
+use penelope_supervisor::runs::{DEMO_SYSTEM, Law, RunOptions, RunOutput, run};
+use penelope_supervisor::system::SystemFile;
+
+fn simulate(law: Law) -> (RunOutput, Report) {
+    let file = SystemFile::parse(DEMO_SYSTEM).expect("config/demo.toml is a valid system file");
+    let options = RunOptions {
+        law: Some(law),
+        clock: ClockMode::Simulated,
+        ..RunOptions::default()
+    };
+    let out = run(&file, &options, &mut |_| {}).expect("the demo system builds and runs");
+    let r = report(&out);
+    (out, r)
+}
+
+#[test]
+fn the_wave_law_completes_the_demo_task_with_zero_delay() {
+    let (out, r) = simulate(Law::Wave);
+    eprintln!(
+        "wave: tracking rms {:.3} mm max {:.3} mm, against master rms {:.3} mm max {:.3} mm; \
+         contact sensed {:.2} N displayed {:.2} N; drag {:?}; energy growth {:.3}; \
+         port min master {:?} J slave {:?} J",
+        r.tracking.rms_mm,
+        r.tracking.max_mm,
+        r.tracking.against_master_rms_mm,
+        r.tracking.against_master_max_mm,
+        r.contact.sensed_force_n,
+        r.contact.displayed_force_n,
+        r.drag,
+        r.energy.growth_ratio,
+        r.energy.master_port_min_j,
+        r.energy.slave_port_min_j,
+    );
+    assert_eq!(out.info.law, Law::Wave);
+    assert!(r.faults.is_empty(), "faults {:?}", r.faults);
+    assert!(
+        r.tracking.samples > 5_000,
+        "free-motion ticks: {}",
+        r.tracking.samples
+    );
+    // The demo's tracking bound, 2 mm RMS, against the wave's own pose (measured 0.11 mm) and,
+    // stricter, against the master's mapped pose at the same instant (measured 1.11 mm RMS,
+    // 1.84 mm max: the line's damping b lags the slave a little behind the hand).
+    assert!(
+        r.tracking.rms_mm < 2.0,
+        "tracking RMS {} mm",
+        r.tracking.rms_mm
+    );
+    assert!(
+        r.tracking.against_master_rms_mm < 2.0,
+        "against the master: RMS {} mm",
+        r.tracking.against_master_rms_mm
+    );
+    // The slave presses on the wall and the operator feels it (measured 8.77 N both: the line
+    // maps force with the position scale, 1, not the channel's force gain).
+    assert!(
+        r.contact.sensed_force_n > 2.0,
+        "sensed {} N",
+        r.contact.sensed_force_n
+    );
+    assert!(
+        r.contact.displayed_force_n > 1.0,
+        "displayed {} N",
+        r.contact.displayed_force_n
+    );
+    // Energy does not build up while tapping.
+    assert!(
+        r.energy.growth_ratio < 1.5,
+        "growth {}",
+        r.energy.growth_ratio
+    );
+}
+
+#[test]
+fn every_law_reports_its_port_energy_in_the_recorded_ticks() {
+    for law in [Law::ForcePosition, Law::PositionError, Law::Wave] {
+        let (out, r) = simulate(law);
+        for (side, ticks) in [("master", &out.master), ("slave", &out.slave)] {
+            let with = ticks
+                .iter()
+                .filter(|t| t.sample.port_energy.is_some())
+                .count();
+            assert!(
+                with * 10 > ticks.len() * 9,
+                "{law:?} {side}: {with} of {} ticks carry the observer's energy",
+                ticks.len()
+            );
+            assert!(
+                ticks
+                    .iter()
+                    .filter_map(|t| t.sample.port_energy)
+                    .all(f64::is_finite)
+            );
+        }
+        assert!(r.energy.master_port_min_j.is_some() && r.energy.slave_port_min_j.is_some());
+        eprintln!(
+            "{law:?}: port min master {:?} J slave {:?} J",
+            r.energy.master_port_min_j, r.energy.slave_port_min_j
+        );
+    }
+}
+
+/// The demo with `passivity = ...` on its force display.
+fn with_passivity(word: &str) -> SystemFile {
+    let text = DEMO_SYSTEM.replacen(
+        "kind = \"force-display\"",
+        &format!("passivity = \"{word}\"\nkind = \"force-display\""),
+        1,
+    );
+    SystemFile::parse(&text).expect("a valid system file")
+}
+
+#[test]
+fn the_force_display_takes_a_passivity_controller_from_its_config() {
+    let options = RunOptions {
+        law: Some(Law::ForcePosition),
+        clock: ClockMode::Simulated,
+        ..RunOptions::default()
+    };
+    let out = run(&with_passivity("impedance"), &options, &mut |_| {}).expect("runs");
+    let r = report(&out);
+    eprintln!(
+        "force-position with passivity: tracking rms {:.3} mm, port min master {:?} J",
+        r.tracking.rms_mm, r.energy.master_port_min_j
+    );
+    assert!(r.faults.is_empty(), "faults {:?}", r.faults);
+    assert!(
+        r.tracking.rms_mm < 2.0,
+        "tracking RMS {} mm",
+        r.tracking.rms_mm
+    );
+    // The observer's energy stays >= 0 (measured 0.0 J; at zero delay the force display's port
+    // is passive with or without the controller, so this checks the wiring, not the damper:
+    // rt-core's passivity tests check the damper with numbers).
+    let min = r.energy.master_port_min_j.expect("the observer's energy");
+    assert!(min > -1e-3, "master port energy went down to {min} J");
+    // A force display has impedance causality: the admittance form is refused.
+    assert!(run(&with_passivity("admittance"), &options, &mut |_| {}).is_err());
+}
