@@ -52,7 +52,7 @@ pub enum Law {
 
 impl Law {
     /// Every law, in the order experiments list them.
-    pub const ALL: [Law; 2] = [Law::ForcePosition, Law::PositionError];
+    pub const ALL: [Law; 3] = [Law::ForcePosition, Law::PositionError, Law::Wave];
 
     /// The law named `name` (its [`as_str`](Self::as_str)), if there is one.
     pub fn from_name(name: &str) -> Option<Law> {

@@ -373,8 +373,14 @@ pub fn report(out: &RunOutput) -> Report {
             .filter_map(|s| s.truth.map(|t| t.base_wrench.force)),
     );
     // Expected display: the environment's push on the slave, rotated into the master frame and
-    // scaled by the force gain.
-    let expected = info.rotation().inverse() * (pushed * info.mapping.force_gain);
+    // scaled by the force gain (by the position scale for the wave law, whose power-preserving
+    // mapping has no force gain of its own).
+    let gain = if info.law == super::Law::Wave {
+        info.mapping.scale
+    } else {
+        info.mapping.force_gain
+    };
+    let expected = info.rotation().inverse() * (pushed * gain);
     let display_error_pct = if expected.norm() > 1e-9 {
         (displayed - expected).norm() / expected.norm() * 100.0
     } else {
