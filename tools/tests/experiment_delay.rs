@@ -43,10 +43,10 @@ fn find<'a>(runs: &'a [Value], law: &str, delay_ms: f64) -> &'a Value {
 }
 
 #[test]
-fn without_delay_every_law_is_stable_and_tracks_and_with_delay_force_position_is_not() {
+fn without_delay_every_law_is_stable_and_with_delay_force_position_is_not_and_waves_are() {
     let out = scratch("map");
     let runs = experiment(&["--delays", "0,10,200ms", "--jobs", "2"], &out);
-    assert_eq!(runs.len(), 6, "two laws at three delays");
+    assert_eq!(runs.len(), 9, "three laws at three delays");
     for r in &runs {
         println!(
             "{} at {} ms round trip: stable {} (growth {:.2}, ripple {:.2}, rest {:.2} mm, \
@@ -69,7 +69,7 @@ fn without_delay_every_law_is_stable_and_tracks_and_with_delay_force_position_is
     }
     // Zero delay: the demo's bounds (supervisor/tests/demo.rs): free-motion tracking under 2 mm
     // RMS and 5 mm at most, and stable by every criterion.
-    for law in ["force-position", "position-error"] {
+    for law in ["force-position", "position-error", "wave"] {
         let r = find(&runs, law, 0.0);
         assert_eq!(r["stable"], true, "{law} without delay: {:#}", r["reasons"]);
         assert!(r["tracking_rms_mm"].as_f64().unwrap() < 2.0, "{law}: {r:#}");
@@ -82,6 +82,12 @@ fn without_delay_every_law_is_stable_and_tracks_and_with_delay_force_position_is
         "force-position at 200 ms must be detected unstable: {r:#}"
     );
     assert!(!r["reasons"].as_array().unwrap().is_empty());
+    // 200 ms round trip: the wave-variable law completes the task, its tapping energy bounded
+    // (no growth from cycle to cycle), no fault, no limit cycle.
+    let r = find(&runs, "wave", 200.0);
+    assert_eq!(r["stable"], true, "wave at 200 ms: {r:#}");
+    assert!(r["energy_growth"].as_f64().unwrap() <= 1.0, "{r:#}");
+    assert_eq!(r["faults"].as_array().map(Vec::len), Some(0), "{r:#}");
     // 10 ms round trip: no fault stops it, but the slave bounces on the wall while the
     // operator holds still (a limit cycle the energy growth alone would miss).
     let r = find(&runs, "force-position", 10.0);

@@ -30,8 +30,8 @@ pub enum ExperimentCommand {
 /// Options of `penelope experiment delay`.
 #[derive(clap::Args, Debug)]
 pub struct DelayArgs {
-    /// The laws, by name, comma-separated (`force-position`, `position-error`).
-    #[arg(long, default_value = "force-position,position-error")]
+    /// The laws, by name, comma-separated (`force-position`, `position-error`, `wave`).
+    #[arg(long, default_value = "force-position,position-error,wave")]
     laws: String,
     /// Round-trip delays, comma-separated, in ms unless a unit says otherwise (`0,10,50ms`,
     /// `0.1s`); each direction gets half.
@@ -268,7 +268,7 @@ mod tests {
         assert_eq!(parse_delays("0.1s, 20").unwrap(), vec![100.0, 20.0]);
         assert!(parse_delays("soon").is_err());
         assert!(parse_delays("-5").is_err());
-        assert!(parse_laws("force-position,wave").is_err());
+        assert!(parse_laws("force-position,telepathy").is_err());
         assert_eq!(
             parse_laws("position-error").unwrap(),
             vec![Law::PositionError]
