@@ -290,22 +290,14 @@ impl TeleopComm {
     /// leaves the end as it is.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for an end linked to another node (the data plane's datagram
-    /// does not carry waves yet) or settings the transform refuses.
+    /// [`WireError::BadConfig`] for settings the transform refuses. An end linked to another
+    /// node is fine: the data plane's sample carries the wave and the energy counters.
     pub fn with_wave(
         mut self,
         wave: Option<WaveConfig>,
         mapping: &MappingConfig,
     ) -> Result<Self, WireError> {
         if let Some(config) = wave {
-            if self.end.is_remote() {
-                return Err(WireError::BadConfig {
-                    kind: "trajectory/teleop".into(),
-                    message: "the wave-variable law needs both robots on this node: the data \
-                              plane does not carry waves yet"
-                        .into(),
-                });
-            }
             self.wave = Some(WaveEnd::new(self.end.side, config, mapping)?);
         }
         Ok(self)

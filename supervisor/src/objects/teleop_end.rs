@@ -12,7 +12,7 @@ use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, latest};
 /// Where an end linked to another node publishes its [`LinkStats`] (read by the channel
 /// object for `describe`).
 type StatsWriter = ArcLatestWriter<LinkStats>;
-use penelope_rt_core::teleop::TeleopSample;
+use penelope_rt_core::teleop::{PortEnergy, PortPayload, TeleopSample, WaveSample};
 
 use serde::{Deserialize, Serialize};
 
@@ -57,6 +57,9 @@ impl Side {
 }
 
 /// What crosses a channel's data-plane link (the header carries stream, sequence and send time).
+// A sample is the datagram sent every communication tick, built on the stack and encoded at
+// once: boxing it to shrink the heartbeat variants would allocate on the real-time path.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
 enum LinkDatagram {
     /// A sample of the sending side.
@@ -65,6 +68,12 @@ enum LinkDatagram {
         clutch: bool,
         /// The sample.
         reference: Reference,
+        /// The passivity payload's wave (a wave-variable law's), with the sender's running
+        /// totals: the wave transform runs in each side's communication thread, so the wave
+        /// has to cross with the sample.
+        wave: Option<WaveSample>,
+        /// The passivity payload's two-port energy counters.
+        energy: Option<PortEnergy>,
     },
     /// A heartbeat, sent at the header's send time (the sender's clock).
     Heartbeat,
@@ -308,6 +317,8 @@ impl TeleopEnd {
                 let payload = LinkDatagram::Sample {
                     clutch: sample.clutch,
                     reference: sample.reference,
+                    wave: sample.port.wave,
+                    energy: sample.port.energy,
                 };
                 link.emit(tick, header, payload);
                 if header.sequence % HEARTBEAT_EVERY == 1 {
@@ -357,7 +368,12 @@ impl TeleopEnd {
                     let arrived = link.stamps.received(tick, kernel_realtime_ns);
                     link.heard_at = Some(arrived);
                     match datagram {
-                        LinkDatagram::Sample { clutch, reference } => {
+                        LinkDatagram::Sample {
+                            clutch,
+                            reference,
+                            wave,
+                            energy,
+                        } => {
                             if link.receiver.offer(&header) != Verdict::Accepted {
                                 continue;
                             }
@@ -379,8 +395,7 @@ impl TeleopEnd {
                                 sent: Timestamp::from_nanos(u64::try_from(sent).unwrap_or(0)),
                                 clutch,
                                 reference,
-                                // (The datagram does not carry the passivity payload yet.)
-                                port: Default::default(),
+                                port: PortPayload { wave, energy },
                             });
                         }
                         LinkDatagram::Heartbeat if header.stream == HEARTBEATS => {
@@ -789,5 +804,54 @@ mod tests {
         let last = last_from_slave.expect("samples from the slave");
         assert_eq!(last.sent, Timestamp::from_nanos(400_000_000));
         assert_eq!(stats.stream.accepted, 200);
+    }
+
+    #[test]
+    fn the_passivity_payload_and_the_clutch_cross_the_data_plane() {
+        // A wave law's transform runs in each side's communication thread: what it puts in the
+        // sample's port has to come out of the other end as it went in.
+        let key = DatagramKey::from_secret(b"lab");
+        let (mut master, m_addr) = end(Side::Master, &key);
+        let (mut slave, s_addr) = end(Side::Slave, &key);
+        set_peer(&mut master, s_addr);
+        set_peer(&mut slave, m_addr);
+        let t = Timestamp::from_nanos(2_000_000);
+        let mut sent = sample(t, 0.25);
+        sent.clutch = true;
+        sent.port = PortPayload {
+            wave: Some(WaveSample {
+                wave: nalgebra::Vector3::new(0.5, -1.25, 3.0),
+                integral: nalgebra::Vector3::new(1e-3, 2e-3, -3e-3),
+                energy: nalgebra::Vector3::new(0.125, 0.0, 7.5),
+            }),
+            energy: Some(PortEnergy { input: 0.375 }),
+        };
+        master.publish(sent);
+        let mut got = None;
+        for _ in 0..10_000 {
+            got = slave.take_newest(t);
+            if got.is_some() {
+                break;
+            }
+            std::thread::yield_now();
+        }
+        let got = got.expect("the master's sample");
+        assert_eq!(got.port, sent.port);
+        assert!(got.clutch);
+        assert_eq!(got.reference, sent.reference);
+        // And an empty payload stays empty (the other laws').
+        slave.publish(sample(t, -0.25));
+        let mut back = None;
+        for _ in 0..10_000 {
+            back = master.take_newest(t);
+            if back.is_some() {
+                break;
+            }
+            std::thread::yield_now();
+        }
+        assert_eq!(
+            back.expect("the slave's sample").port,
+            PortPayload::default()
+        );
     }
 }

@@ -239,7 +239,7 @@ max_force = 10.0          # N, the largest displayed force
 angular_damping = [0.02, 0.02, 0.02]  # the wrist has no wave force: N·m·s/rad
 gravity_compensation = true
 # trajectory: a trajectory/teleop on this node whose master is this robot (the waves cross
-# in its samples; the data plane does not carry them yet); plus the loop keys:
+# in its samples, through the data plane when the slave is on another node); plus the loop keys:
 "#;
 
 /// What `ctl kinds` lists for `controller/wave-slave`.
