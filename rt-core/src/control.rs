@@ -96,6 +96,16 @@ pub trait ReferenceSource {
     fn take_events(&mut self) -> EventSet {
         EventSet::EMPTY
     }
+
+    /// The two-port passivity observer's energy at this side's port, as last published by
+    /// whatever produces the references (a teleoperation channel's end), J; recorded in the
+    /// tick's telemetry. `None` by default.
+    ///
+    /// # Real-time
+    /// Implementations must be wait-free and allocation-free.
+    fn channel_energy(&mut self) -> Option<f64> {
+        None
+    }
 }
 
 impl<P: Deref<Target = LatestCell<Stamped<Reference>>>> ReferenceSource
@@ -642,6 +652,7 @@ where
         };
         s.controller = u8::try_from(self.active).unwrap_or(u8::MAX);
         s.port_energy = port_energy;
+        s.channel_energy = self.ports.reference.channel_energy();
         s.state = self.safety.state();
         s.events = events;
         s.fault = self.safety.fault_cause();

@@ -90,6 +90,13 @@ pub struct TelemetrySample {
     /// law has given out more energy than it received. `None` for laws without an observer.
     #[cfg_attr(feature = "serde", serde(default))]
     pub port_energy: Option<f64>,
+    /// The teleoperation two-port's energy at this side's port after this tick, J: what the
+    /// other side has put in minus what this side has taken out (time-domain passivity's
+    /// delayed observer, run by the communication thread that feeds the loop; see
+    /// [`TwoPortObserver`](crate::teleop::TwoPortObserver)). Negative: the channel with its
+    /// delays has given out energy that never entered it. `None` for laws without one.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub channel_energy: Option<f64>,
 }
 
 impl Default for TelemetrySample {
@@ -115,6 +122,7 @@ impl Default for TelemetrySample {
             wake_latency: Duration::ZERO,
             exec_time: Duration::ZERO,
             port_energy: None,
+            channel_energy: None,
         }
     }
 }

@@ -359,6 +359,40 @@ fn the_two_node_demo_file_meets_the_demos_bounds() {
     assert!((two.tracking.rms_mm - one.tracking.rms_mm).abs() < 0.05);
 }
 
+/// Time-domain passivity split over two nodes: each side's energy counters cross the data plane
+/// with its samples, so both two-port observers run, and their controllers hold them at zero.
+#[test]
+fn the_two_port_observers_hear_each_other_across_the_data_plane() {
+    use penelope_supervisor::runs::report::report;
+    use penelope_supervisor::runs::{Law, RunOptions, run};
+    let system = SystemFile::parse(include_str!("../../config/demo-two-nodes.toml")).unwrap();
+    let run_law = |law| {
+        let options = RunOptions {
+            law: Some(law),
+            clock: ClockMode::Simulated,
+            ..RunOptions::default()
+        };
+        report(&run(&system, &options, &mut |_| {}).expect("the system runs"))
+    };
+    let (plain, tdpa) = (run_law(Law::ForcePosition), run_law(Law::Tdpa));
+    let sides = |r: &penelope_supervisor::runs::report::Report| {
+        (
+            r.energy
+                .master_channel_min_j
+                .expect("the master's observer heard the slave"),
+            r.energy
+                .slave_channel_min_j
+                .expect("the slave's observer heard the master"),
+        )
+    };
+    let ((pm, ps), (tm, ts)) = (sides(&plain), sides(&tdpa));
+    println!("two nodes, least channel energy: plain {pm:.4}/{ps:.4} J, tdpa {tm:.5}/{ts:.5} J");
+    assert!(tdpa.faults.is_empty(), "{:?}", tdpa.faults);
+    assert!(tm > -1e-3 && ts > -1e-2, "tdpa: {tm} / {ts} J");
+    assert!(pm < -0.01 && ps < -0.01, "plain: {pm} / {ps} J");
+    assert!(tdpa.tracking.rms_mm < 2.0, "{}", tdpa.tracking.rms_mm);
+}
+
 #[test]
 fn a_channel_between_nodes_of_one_file_lands_on_both_with_their_addresses() {
     let file = SystemFile::parse(include_str!("../../config/demo-two-nodes.toml")).unwrap();

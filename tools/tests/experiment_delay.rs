@@ -43,10 +43,10 @@ fn find<'a>(runs: &'a [Value], law: &str, delay_ms: f64) -> &'a Value {
 }
 
 #[test]
-fn without_delay_every_law_is_stable_and_with_delay_force_position_is_not_and_waves_are() {
+fn without_delay_every_law_is_stable_and_with_delay_force_position_is_not_and_waves_and_tdpa_are() {
     let out = scratch("map");
     let runs = experiment(&["--delays", "0,10,200ms", "--jobs", "2"], &out);
-    assert_eq!(runs.len(), 9, "three laws at three delays");
+    assert_eq!(runs.len(), 12, "four laws at three delays");
     for r in &runs {
         println!(
             "{} at {} ms round trip: stable {} (growth {:.2}, ripple {:.2}, rest {:.2} mm, \
@@ -69,7 +69,7 @@ fn without_delay_every_law_is_stable_and_with_delay_force_position_is_not_and_wa
     }
     // Zero delay: the demo's bounds (supervisor/tests/demo.rs): free-motion tracking under 2 mm
     // RMS and 5 mm at most, and stable by every criterion.
-    for law in ["force-position", "position-error", "wave"] {
+    for law in ["force-position", "position-error", "wave", "tdpa"] {
         let r = find(&runs, law, 0.0);
         assert_eq!(r["stable"], true, "{law} without delay: {:#}", r["reasons"]);
         assert!(r["tracking_rms_mm"].as_f64().unwrap() < 2.0, "{law}: {r:#}");
@@ -88,6 +88,22 @@ fn without_delay_every_law_is_stable_and_with_delay_force_position_is_not_and_wa
     assert_eq!(r["stable"], true, "wave at 200 ms: {r:#}");
     assert!(r["energy_growth"].as_f64().unwrap() <= 1.0, "{r:#}");
     assert_eq!(r["faults"].as_array().map(Vec::len), Some(0), "{r:#}");
+    // 200 ms round trip: time-domain passivity completes it too, and its two-port observer
+    // stays bounded where the plain law's does not.
+    let r = find(&runs, "tdpa", 200.0);
+    assert_eq!(r["stable"], true, "tdpa at 200 ms: {r:#}");
+    assert!(r["energy_growth"].as_f64().unwrap() <= 1.0, "{r:#}");
+    assert_eq!(r["faults"].as_array().map(Vec::len), Some(0), "{r:#}");
+    let plain = find(&runs, "force-position", 200.0);
+    for side in ["master_channel_min_j", "slave_channel_min_j"] {
+        let (with, without) = (r[side].as_f64().unwrap(), plain[side].as_f64().unwrap());
+        println!("{side}: tdpa {with:.4} J, plain {without:.4} J");
+        assert!(with > -0.01, "tdpa's observer at {side}: {with} J");
+        assert!(
+            without < 10.0 * with.min(-1e-3),
+            "plain: {without} J, tdpa: {with} J"
+        );
+    }
     // 10 ms round trip: no fault stops it, but the slave bounces on the wall while the
     // operator holds still (a limit cycle the energy growth alone would miss).
     let r = find(&runs, "force-position", 10.0);

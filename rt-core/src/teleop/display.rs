@@ -6,7 +6,7 @@ use penelope_hal::{
     Reference, RobotModel, Timestamp, Wrench,
 };
 
-use super::passivity::{PassivityConfig, PassivityController, PassivityObserver};
+use super::passivity::PassivityObserver;
 use super::{
     TeleopConfigError, bottom, cap_wrench, check_cap, check_gain, check_gains, deadband, effort,
     lowpass_gain, stack, top, wrench_in_base,
@@ -30,14 +30,11 @@ pub struct ForceDisplayConfig {
     pub filter_cutoff_hz: f64,
     /// Add the master's gravity torque `g(q)`.
     pub gravity_compensation: bool,
-    /// The time-domain passivity controller on the master port (off by default; the observer
-    /// always runs).
-    pub passivity: PassivityConfig,
 }
 
 impl Default for ForceDisplayConfig {
     /// For an FRHC: 0.2 N / 0.01 N·m dead band, 2 N·s/m and 0.02 N·m·s/rad damping, 10 N /
-    /// 0.5 N·m caps, 30 Hz filter, gravity compensated, passivity controller off.
+    /// 0.5 N·m caps, 30 Hz filter, gravity compensated.
     fn default() -> Self {
         ForceDisplayConfig {
             force_deadband: 0.2,
@@ -47,7 +44,6 @@ impl Default for ForceDisplayConfig {
             max_torque: 0.5,
             filter_cutoff_hz: 30.0,
             gravity_compensation: true,
-            passivity: PassivityConfig::default(),
         }
     }
 }
@@ -63,19 +59,23 @@ impl ForceDisplayConfig {
         check_gains(&self.damping, "damping")?;
         check_cap(self.max_force, "max_force")?;
         check_cap(self.max_torque, "max_torque")?;
-        check_gain(self.filter_cutoff_hz, "filter_cutoff_hz")?;
-        self.passivity.validate()
+        check_gain(self.filter_cutoff_hz, "filter_cutoff_hz")
     }
 }
 
 /// Displays a wrench on a master hand controller:
-/// `F = cap(deadband(lowpass(F_ref)) - D v - alpha v)`, `tau = J^T F + g(q)`.
+/// `F = cap(deadband(lowpass(F_ref)) - D v)`, `tau = J^T F + g(q)`.
 ///
 /// The reference is a `Reference::Wrench` (or the wrench of a `Reference::Hybrid`) already in the
 /// master's base frame with the force gain applied: what a `SlaveToMaster`
 /// [`TeleopChannel`](super::TeleopChannel) produces (`Base`/`Master` frame; a `Tool`-frame wrench
 /// is rotated with the forward kinematics). The cap scales the whole wrench by one factor so its
-/// direction is kept. `alpha` is the passivity controller's damping (zero unless enabled).
+/// direction is kept.
+///
+/// A one-port [`PassivityObserver`] watches the master port (operator force `-F`, tool twist).
+/// Under delay the two-port form is the one to act on: a teleoperation channel's end runs it on
+/// the reference wrench before it gets here
+/// ([`TwoPortController`](super::TwoPortController), impedance form).
 ///
 /// On activation the filter starts from zero, so the display fades in over the filter's time
 /// constant instead of jumping.
@@ -86,7 +86,7 @@ impl ForceDisplayConfig {
 pub struct ForceDisplay {
     config: ForceDisplayConfig,
     filtered: Vector6<f64>,
-    passivity: PassivityController,
+    observer: PassivityObserver,
     last_wrench: Wrench,
     saturation: f64,
 }
@@ -101,7 +101,7 @@ impl ForceDisplay {
         Ok(ForceDisplay {
             config,
             filtered: Vector6::zeros(),
-            passivity: PassivityController::new(config.passivity)?,
+            observer: PassivityObserver::new(),
             last_wrench: Wrench::zero(Frame::Base),
             saturation: 1.0,
         })
@@ -112,8 +112,8 @@ impl ForceDisplay {
         &self.config
     }
 
-    /// New settings while running: the filter and the passivity observer keep their state (a
-    /// new passivity setting starts its controller afresh), so nothing jumps but the gains.
+    /// New settings while running: the filter and the passivity observer keep their state, so
+    /// nothing jumps but the gains.
     ///
     /// # Errors
     /// As [`ForceDisplayConfig::validate`]; the old settings stay.
@@ -122,9 +122,6 @@ impl ForceDisplay {
     /// Constant time, no allocation.
     pub fn set_config(&mut self, config: ForceDisplayConfig) -> Result<(), TeleopConfigError> {
         config.validate()?;
-        if config.passivity != self.config.passivity {
-            self.passivity = PassivityController::new(config.passivity)?;
-        }
         self.config = config;
         Ok(())
     }
@@ -141,12 +138,7 @@ impl ForceDisplay {
 
     /// The energy observer of the master port (operator force `-F`, tool twist).
     pub fn passivity(&self) -> &PassivityObserver {
-        self.passivity.observer()
-    }
-
-    /// The damping the passivity controller added on the last tick, N·s/m.
-    pub fn passivity_damping(&self) -> f64 {
-        self.passivity.last_damping()
+        &self.observer
     }
 }
 
@@ -156,12 +148,12 @@ impl Controller for ForceDisplay {
     }
 
     fn port_energy(&self) -> Option<f64> {
-        Some(self.passivity.observer().energy())
+        Some(self.observer.energy())
     }
 
     fn activate(&mut self, _now: Timestamp, _measured: &JointState, _model: &dyn RobotModel) {
         self.filtered = Vector6::zeros();
-        self.passivity.reset();
+        self.observer.reset();
         self.last_wrench = Wrench::zero(Frame::Base);
         self.saturation = 1.0;
     }
@@ -190,12 +182,10 @@ impl Controller for ForceDisplay {
             &deadband(top(&self.filtered), self.config.force_deadband),
             &deadband(bottom(&self.filtered), self.config.torque_deadband),
         );
-        let mut f = shown - Vector6::from(self.config.damping).component_mul(&v);
-        // The operator applies about -f to the device: that is the power into the system.
-        let alpha = self.passivity.damping(dt, &(-f), &v);
-        f -= v * alpha;
+        let f = shown - Vector6::from(self.config.damping).component_mul(&v);
         let (f, k) = cap_wrench(&f, self.config.max_force, self.config.max_torque);
-        self.passivity.commit(dt, &(-f), &v, alpha);
+        // The operator applies about -f to the device: that is the power into the system.
+        self.observer.observe(dt, &(-f), &v);
         self.saturation = k;
         let mut tau = jac.transpose() * f;
         if self.config.gravity_compensation {

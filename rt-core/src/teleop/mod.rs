@@ -22,8 +22,8 @@
 //!   [`SlaveTracking`] (position-forward slave: IK + computed torque),
 //!   [`ForceDisplay`] (force-back master: `tau = J^T F`, deadband, damping, caps),
 //!   [`PositionErrorMaster`] (position-error master: spring-damper to the mapped slave pose).
-//! - [`passivity`]: [`PassivityObserver`] and [`PassivityController`] (Hannaford & Ryu, one
-//!   port), and the two-port delayed form: [`TwoPortObserver`], [`TwoPortController`]
+//! - [`passivity`]: [`PassivityObserver`] (Hannaford & Ryu, one port), and the two-port
+//!   delayed form: [`TwoPortObserver`], [`TwoPortController`]
 //!   (impedance or admittance form), the counters [`PortEnergy`] that travel with the samples.
 //! - [`wave`]: wave variables ([`WaveMaster`], [`WaveSlave`]): passive under any delay, loss,
 //!   duplication and reordering (an energy reserve on each receiving end).
@@ -64,8 +64,7 @@ pub use display::{ForceDisplay, ForceDisplayConfig};
 pub use impedance::{CartesianImpedance, ImpedanceConfig, PositionErrorMaster};
 pub use mapping::{Anchors, MappingConfig, MappingError, WorkspaceMapping};
 pub use passivity::{
-    PassivityConfig, PassivityController, PassivityForm, PassivityObserver, PortEnergy,
-    TwoPortConfig, TwoPortController, TwoPortObserver,
+    PassivityForm, PassivityObserver, PortEnergy, TwoPortConfig, TwoPortController, TwoPortObserver,
 };
 pub use tracking::{SlaveTracking, TrackingConfig, TrackingOutput};
 pub use wave::{

@@ -42,6 +42,7 @@ mod registry;
 pub mod runtime;
 pub mod teleop;
 pub mod teleop_end;
+pub mod teleop_passivity;
 pub mod teleop_wave;
 
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};

@@ -28,13 +28,14 @@ use penelope_rt_core::safety::SafetyEvent;
 use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_rt_core::teleop::{
     ChannelConfig, ChannelDirection, ForceDisplay, ForceDisplayConfig, ImpedanceConfig,
-    MappingConfig, PassivityConfig, PortPayload, PositionErrorMaster, SlaveTracking, TeleopChannel,
-    TeleopSample, TrackingConfig, TrackingOutput, WaveConfig,
+    MappingConfig, PassivityForm, PortPayload, PositionErrorMaster, SlaveTracking, TeleopChannel,
+    TeleopSample, TrackingConfig, TrackingOutput, TwoPortConfig,
 };
 use serde::Deserialize;
 
 use super::kinematics::RobotKinematics;
 use super::runtime::ReferenceOut;
+use super::teleop_passivity::{PortLaw, TwoPortEnd};
 use super::teleop_wave::WaveEnd;
 use crate::proto::WireError;
 
@@ -246,6 +247,8 @@ pub struct TeleopComm {
     lost_at: Option<Pose>,
     /// The wave-variable transform, when the law is a wave half (`controller/wave-*`).
     wave: Option<WaveEnd>,
+    /// The two-port passivity observer (and controller), when the law is a force-position half.
+    two_port: Option<TwoPortEnd>,
 }
 
 impl TeleopComm {
@@ -283,22 +286,31 @@ impl TeleopComm {
             link_timeout: None,
             lost_at: None,
             wave: None,
+            two_port: None,
         })
     }
 
-    /// Runs the wave-variable transform `wave` in this end (a `controller/wave-*` law); `None`
-    /// leaves the end as it is.
+    /// Runs what the law's half needs in this end: the wave-variable transform (a
+    /// `controller/wave-*` half), or the two-port passivity observer and controller (a
+    /// force-position half).
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for settings the transform refuses. An end linked to another
-    /// node is fine: the data plane's sample carries the wave and the energy counters.
-    pub fn with_wave(
+    /// [`WireError::BadConfig`] for settings the transform or the controller refuses. An end
+    /// linked to another node is fine: the data plane's sample carries the wave and the energy
+    /// counters.
+    pub fn with_port_law(
         mut self,
-        wave: Option<WaveConfig>,
+        law: PortLaw,
         mapping: &MappingConfig,
     ) -> Result<Self, WireError> {
-        if let Some(config) = wave {
-            self.wave = Some(WaveEnd::new(self.end.side, config, mapping)?);
+        match law {
+            PortLaw::Plain => {}
+            PortLaw::Wave(config) => {
+                self.wave = Some(WaveEnd::new(self.end.side, config, mapping)?);
+            }
+            PortLaw::TwoPort(config) => {
+                self.two_port = Some(TwoPortEnd::new(self.end.side, config, mapping)?);
+            }
         }
         Ok(self)
     }
@@ -450,6 +462,10 @@ impl TeleopComm {
             self.started = true;
         }
         self.sequence += 1;
+        let contact = match self.end.side {
+            Side::Master => Wrench::default(),
+            Side::Slave => self.contact(&sample, &pose),
+        };
         let (clutch, reference) = match self.end.side {
             Side::Master => {
                 let clutch = self
@@ -465,23 +481,24 @@ impl TeleopComm {
                     }),
                 )
             }
-            Side::Slave => {
-                let wrench = self.contact(&sample, &pose);
-                (
-                    false,
-                    Reference::Hybrid(HybridReference {
-                        motion: CartesianReference {
-                            pose,
-                            twist: Twist::default(),
-                        },
-                        wrench,
-                        force_axes: [true; 6],
-                    }),
-                )
-            }
+            Side::Slave => (
+                false,
+                Reference::Hybrid(HybridReference {
+                    motion: CartesianReference {
+                        pose,
+                        twist: Twist::default(),
+                    },
+                    wrench: contact,
+                    force_axes: [true; 6],
+                }),
+            ),
         };
         self.end.publish(TeleopSample {
             clutch,
+            port: PortPayload {
+                wave: None,
+                energy: self.two_port.as_ref().map(TwoPortEnd::counters),
+            },
             ..TeleopSample::new(self.sequence, now, reference)
         });
         let received = self.end.take_newest(now);
@@ -493,6 +510,12 @@ impl TeleopComm {
                 restored = self.end.note_link(false);
                 self.channel.reset();
                 self.start_channel(now, &pose);
+                if let Some(t) = self.two_port.as_mut() {
+                    t.restart_motion();
+                }
+            }
+            if let Some(t) = self.two_port.as_mut() {
+                t.receive(sample.port.energy.as_ref());
             }
             if self.channel.receive(sample).is_ok() {
                 // (A stale or malformed sample is counted by the channel and dropped.)
@@ -522,6 +545,16 @@ impl TeleopComm {
             && let Ok(r) = penelope_hal::Trajectory::reference(&mut self.channel, now)
             && r.is_finite()
         {
+            let r = match self.two_port.as_mut() {
+                Some(t) => {
+                    let r = t.tick(now, r, &self.model, &sample, &contact);
+                    if let Some(e) = t.energy() {
+                        out.set_channel_energy(e);
+                    }
+                    r
+                }
+                None => r,
+            };
             out.write(Stamped { stamp, value: r });
         }
         if restored {
@@ -657,7 +690,7 @@ crate::objects::kinds::loop_keys!(ForceDisplayToml {
     torque_deadband: f64 = ForceDisplayConfig::default().torque_deadband, #[doc = "Moments below this are not displayed, N·m."]
     filter_cutoff_hz: f64 = ForceDisplayConfig::default().filter_cutoff_hz, #[doc = "Low-pass on the displayed wrench, Hz (0: none)."]
     gravity_compensation: bool = true, #[doc = "Add g(q)."]
-    passivity: String = "off".into(), #[doc = "Time-domain passivity controller on the master port: `off` or `impedance`."]
+    passivity: String = "off".into(), #[doc = "The channel's two-port passivity controller at the master port: `off` or `impedance`."]
 });
 
 crate::objects::kinds::loop_keys!(PositionErrorToml {
@@ -672,6 +705,7 @@ crate::objects::kinds::loop_keys!(SlaveTrackingToml {
     kp: [f64; 6] = TrackingConfig::default().kp, #[doc = "Position gain per joint, 1/s²."]
     kd: [f64; 6] = TrackingConfig::default().kd, #[doc = "Velocity gain per joint, 1/s."]
     ki: [f64; 6] = TrackingConfig::default().ki, #[doc = "Integral gain per joint, 1/s³."]
+    passivity: String = "off".into(), #[doc = "The channel's two-port passivity controller at the slave port: `off` or `admittance`."]
 });
 
 /// What `ctl kinds` lists for `controller/force-display`.
@@ -683,10 +717,11 @@ force_deadband = 0.2      # N: smaller forces (sensor noise) are not displayed
 torque_deadband = 0.01    # N·m
 filter_cutoff_hz = 30.0   # low-pass on the displayed wrench (0: none)
 gravity_compensation = true
-passivity = "off"         # "impedance": a time-domain passivity controller on the master port
-                          # (Hannaford & Ryu: a variable damper dissipating exactly the energy
-                          # the port has given out, at most 200 N·s/m). The observer always runs:
-                          # its energy is in every telemetry sample (`port_energy`)
+passivity = "off"         # "impedance": time-domain passivity, the two-port delayed form: the
+                          # channel's end damps the displayed force by exactly the energy the
+                          # master port would give out beyond what the slave put in (at most
+                          # 200 N·s/m). With "admittance" on the slave half: passive under any
+                          # delay. The observer always runs: telemetry's `channel_energy`
 # trajectory: a trajectory/teleop whose master is this robot; plus the loop keys:
 "#;
 
@@ -705,6 +740,11 @@ pub const SLAVE_TRACKING_KEYS: &str = r#"
 kp = [6400.0, 6400.0, 6400.0, 6400.0, 6400.0, 6400.0]  # 1/s², computed-torque position gain ((80 rad/s)²)
 kd = [160.0, 160.0, 160.0, 160.0, 160.0, 160.0]        # 1/s (critically damped)
 ki = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]                    # 1/s³
+passivity = "off"         # "admittance": time-domain passivity, the two-port delayed form: the
+                          # channel's end slows the reference motion by exactly the energy the
+                          # slave port would give out (into the contact) beyond what the master
+                          # put in; the slave then stops short of the master's pose (drift).
+                          # Needs a force-display master (its energy counters)
 # trajectory: a trajectory/teleop whose slave is this robot; plus the loop keys:
 "#;
 
@@ -721,6 +761,7 @@ impl ForceDisplayToml {
     /// # Errors
     /// [`WireError::BadConfig`].
     pub fn law(&self, kind: &str) -> Result<ForceDisplay, WireError> {
+        self.port_law(kind)?;
         ForceDisplay::new(ForceDisplayConfig {
             max_force: self.max_force,
             max_torque: self.max_torque,
@@ -729,24 +770,17 @@ impl ForceDisplayToml {
             torque_deadband: self.torque_deadband,
             filter_cutoff_hz: self.filter_cutoff_hz,
             gravity_compensation: self.gravity_compensation,
-            passivity: PassivityConfig {
-                enabled: match self.passivity.as_str() {
-                    "off" => false,
-                    "impedance" => true,
-                    other => {
-                        return Err(bad_law(
-                            kind,
-                            format!(
-                                "`passivity` = {other:?}: \"off\" or \"impedance\" (a force \
-                                 display has impedance causality)"
-                            ),
-                        ));
-                    }
-                },
-                ..PassivityConfig::default()
-            },
         })
         .map_err(|e| bad_law(kind, e))
+    }
+
+    /// What the channel's master end runs for this half: the two-port observer, with the
+    /// impedance-form controller when `passivity` asks for it.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for another word.
+    pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
+        two_port(kind, &self.passivity, PassivityForm::Impedance, "impedance")
     }
 }
 
@@ -775,6 +809,7 @@ impl SlaveTrackingToml {
     /// # Errors
     /// [`WireError::BadConfig`].
     pub fn law(&self, kind: &str, board_servo: bool) -> Result<SlaveTracking, WireError> {
+        self.port_law(kind)?;
         SlaveTracking::new(TrackingConfig {
             kp: self.kp,
             kd: self.kd,
@@ -788,4 +823,36 @@ impl SlaveTrackingToml {
         })
         .map_err(|e| bad_law(kind, e))
     }
+
+    /// What the channel's slave end runs for this half: the two-port observer, with the
+    /// admittance-form controller when `passivity` asks for it.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for another word.
+    pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
+        two_port(
+            kind,
+            &self.passivity,
+            PassivityForm::Admittance,
+            "admittance",
+        )
+    }
+}
+
+/// The two-port observer for `word`: `off`, or `on` (the one form the port's causality allows).
+fn two_port(kind: &str, word: &str, form: PassivityForm, on: &str) -> Result<PortLaw, WireError> {
+    let form = match word {
+        "off" => PassivityForm::Off,
+        w if w == on => form,
+        other => {
+            return Err(bad_law(
+                kind,
+                format!("`passivity` = {other:?}: \"off\" or \"{on}\" (the port's causality)"),
+            ));
+        }
+    };
+    Ok(PortLaw::TwoPort(TwoPortConfig {
+        form,
+        ..TwoPortConfig::default()
+    }))
 }

@@ -132,6 +132,11 @@ pub struct DelayRun {
     pub drag_rms_n: f64,
     /// Largest true contact force on the slave over the run, N.
     pub max_contact_force_n: f64,
+    /// The lowest energy of the channel's two-port observer at the master port, J (`None`
+    /// for laws that run none).
+    pub master_channel_min_j: Option<f64>,
+    /// The same at the slave port, J.
+    pub slave_channel_min_j: Option<f64>,
     /// Safety faults seen (robot at time: cause).
     pub faults: Vec<String>,
     /// Wall-clock time the run took, s.
@@ -389,6 +394,8 @@ pub fn judge(out: &RunOutput, r: &Report) -> DelayRun {
         force_error_pct: r.contact.display_error_pct,
         drag_rms_n: r.drag.rms_n,
         max_contact_force_n,
+        master_channel_min_j: r.energy.master_channel_min_j,
+        slave_channel_min_j: r.energy.slave_channel_min_j,
         faults: r.faults.clone(),
         wall_time_s: 0.0,
     }

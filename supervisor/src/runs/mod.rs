@@ -48,11 +48,14 @@ pub enum Law {
     PositionError,
     /// Wave variables (`controller/wave-master` and `controller/wave-slave`).
     Wave,
+    /// Force-position with time-domain passivity: the two-port controllers on the channel
+    /// (`passivity = "impedance"` on the force display, `"admittance"` on the slave half).
+    Tdpa,
 }
 
 impl Law {
     /// Every law, in the order experiments list them.
-    pub const ALL: [Law; 3] = [Law::ForcePosition, Law::PositionError, Law::Wave];
+    pub const ALL: [Law; 4] = [Law::ForcePosition, Law::PositionError, Law::Wave, Law::Tdpa];
 
     /// The law named `name` (its [`as_str`](Self::as_str)), if there is one.
     pub fn from_name(name: &str) -> Option<Law> {
@@ -65,13 +68,14 @@ impl Law {
             Law::ForcePosition => "force-position",
             Law::PositionError => "position-error",
             Law::Wave => "wave",
+            Law::Tdpa => "tdpa",
         }
     }
 
     /// The master half's kind.
     fn master_kind(self) -> &'static str {
         match self {
-            Law::ForcePosition => "controller/force-display",
+            Law::ForcePosition | Law::Tdpa => "controller/force-display",
             Law::PositionError => "controller/position-error-master",
             Law::Wave => "controller/wave-master",
         }
@@ -81,6 +85,15 @@ impl Law {
     /// file's other slave half.
     fn wave_slave(self) -> bool {
         self == Law::Wave
+    }
+
+    /// The `passivity` word of the master and of the slave half, where the law sets one.
+    fn passivity(self) -> Option<(&'static str, &'static str)> {
+        match self {
+            Law::Tdpa => Some(("impedance", "admittance")),
+            // (Force-position keeps the file's words.)
+            Law::ForcePosition | Law::PositionError | Law::Wave => None,
+        }
     }
 }
 
@@ -255,19 +268,24 @@ fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task, RunError> 
     // The law picks the master half: its kind is activated, the other master half is not.
     let law = match options.law {
         Some(l) => l,
-        None => file
-            .objects
-            .iter()
-            .find(|o| o.active && o.robot.as_deref() == Some(teleop.master.as_str()))
-            .map_or(Law::ForcePosition, |o| {
-                if o.kind == Law::PositionError.master_kind() {
-                    Law::PositionError
-                } else if o.kind == Law::Wave.master_kind() {
-                    Law::Wave
-                } else {
-                    Law::ForcePosition
-                }
-            }),
+        None => {
+            file.objects
+                .iter()
+                .find(|o| o.active && o.robot.as_deref() == Some(teleop.master.as_str()))
+                .map_or(Law::ForcePosition, |o| {
+                    if o.kind == Law::PositionError.master_kind() {
+                        Law::PositionError
+                    } else if o.kind == Law::Wave.master_kind() {
+                        Law::Wave
+                    } else if o.config.parse::<toml::Table>().is_ok_and(|t| {
+                        t.get("passivity").and_then(|v| v.as_str()) == Some("impedance")
+                    }) {
+                        Law::Tdpa
+                    } else {
+                        Law::ForcePosition
+                    }
+                })
+        }
     };
     // The other laws share the file's slave half; the wave law has its own.
     let slave_fallback = file
@@ -278,9 +296,22 @@ fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task, RunError> 
         if o.trajectory.as_deref() != Some(channel_name.as_str()) {
             continue;
         }
+        let passivity = law.passivity().filter(|_| options.law.is_some());
         if o.robot.as_deref() == Some(teleop.master.as_str()) {
             o.active = o.kind == law.master_kind();
+            if let (true, Some((word, _))) = (o.active, passivity) {
+                set_key(o, "passivity", toml::Value::String(word.into()))?;
+            }
         } else if o.robot.as_deref() == Some(teleop.slave.as_str()) {
+            if let (true, Some((_, word))) = (
+                matches!(
+                    o.kind.as_str(),
+                    "controller/slave-tracking" | "controller/slave-position"
+                ),
+                passivity,
+            ) {
+                set_key(o, "passivity", toml::Value::String(word.into()))?;
+            }
             if law.wave_slave() {
                 o.active = o.kind == WAVE_SLAVE;
             } else if o.kind == WAVE_SLAVE {

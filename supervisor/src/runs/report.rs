@@ -81,14 +81,17 @@ pub struct EnergyReport {
     pub master_port_min_j: Option<f64>,
     /// The same for the slave law.
     pub slave_port_min_j: Option<f64>,
+    /// The lowest energy of the channel's two-port observer at the master port, J (what the
+    /// slave put in minus what the master gave out: negative, the channel with its delays gave
+    /// out energy that never entered it); `None` when the law runs none (position-error, wave).
+    pub master_channel_min_j: Option<f64>,
+    /// The same at the slave port.
+    pub slave_channel_min_j: Option<f64>,
 }
 
-/// The lowest `port_energy` of `ticks`, if any tick had one.
-fn min_port_energy(ticks: &[TickRecord]) -> Option<f64> {
-    ticks
-        .iter()
-        .filter_map(|t| t.sample.port_energy)
-        .reduce(f64::min)
+/// The lowest value of `energy` over `ticks`, if any tick had one.
+fn min_energy(ticks: &[TickRecord], energy: fn(&TickRecord) -> Option<f64>) -> Option<f64> {
+    ticks.iter().filter_map(energy).reduce(f64::min)
 }
 
 /// Indexing (clutch) behaviour.
@@ -540,8 +543,10 @@ pub fn report(out: &RunOutput) -> Report {
             tap_cycle_peaks_j: peaks,
             growth_ratio,
             operator_work_j: operator_work,
-            master_port_min_j: min_port_energy(&out.master),
-            slave_port_min_j: min_port_energy(&out.slave),
+            master_port_min_j: min_energy(&out.master, |t| t.sample.port_energy),
+            slave_port_min_j: min_energy(&out.slave, |t| t.sample.port_energy),
+            master_channel_min_j: min_energy(&out.master, |t| t.sample.channel_energy),
+            slave_channel_min_j: min_energy(&out.slave, |t| t.sample.channel_energy),
         },
         clutch,
         timing,

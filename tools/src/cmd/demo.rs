@@ -26,9 +26,10 @@ pub struct Args {
     /// Length of the run, for example `20s` or `1500ms` (default: the operator script, 20 s).
     #[arg(long, value_parser = parse_duration)]
     duration: Option<Duration>,
-    /// Bilateral law: `force-position` (position forward, force back), `position-error`, or
-    /// `wave` (wave variables).
-    #[arg(long, value_parser = ["force-position", "position-error", "wave"])]
+    /// Bilateral law: `force-position` (position forward, force back), `position-error`, `wave`
+    /// (wave variables), or `tdpa` (force-position with time-domain passivity's two-port
+    /// controllers).
+    #[arg(long, value_parser = ["force-position", "position-error", "wave", "tdpa"])]
     law: Option<String>,
     /// Position scale: slave motion per master motion.
     #[arg(long)]
@@ -88,12 +89,8 @@ pub fn run_demo(args: Args) -> anyhow::Result<ExitCode> {
         |p| p.display().to_string(),
     );
     let system = SystemFile::parse(&text).map_err(|e| usage(format!("{where_}: {e}")))?;
-    let law = match args.law.as_deref() {
-        Some("position-error") => Some(Law::PositionError),
-        Some("wave") => Some(Law::Wave),
-        Some(_) => Some(Law::ForcePosition),
-        None => None,
-    };
+    // (clap has checked the word.)
+    let law = args.law.as_deref().and_then(Law::from_name);
     if let Some(s) = args.scale
         && !(s.is_finite() && s > 0.0)
     {

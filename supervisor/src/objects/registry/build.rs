@@ -161,7 +161,7 @@ impl Registry {
                             side,
                             t.config.mapping(),
                             t.config.link_timeout(timing.comm_period),
-                            law.wave(kind)?,
+                            law.port_law(kind)?,
                         )
                     }
                     (Body::Teleop(_), None) => {
@@ -322,7 +322,7 @@ impl Registry {
                 goto_r,
                 kinematics.clone(),
             )?,
-            LoopSource::Teleop(side, mapping, link_timeout, wave) => {
+            LoopSource::Teleop(side, mapping, link_timeout, port_law) => {
                 // The master's clutch is its operator's hand's button, if a hand holds it.
                 let clutch = self.objects.values().find_map(|o| match &o.body {
                     Body::Hand(h) if side == Side::Master && h.config.robot == robot_name => {
@@ -343,7 +343,7 @@ impl Registry {
                     .ok_or_else(|| WireError::Internal("teleop end".into()))?;
                 crate::objects::runtime::CommTask::teleop(
                     TeleopComm::new(end, mapping, kinematics.clone())?
-                        .with_wave(wave, &mapping)?
+                        .with_port_law(port_law, &mapping)?
                         .with_clutch(clutch)
                         .with_sensor_mount(plant_sensor.map(|c| c.mount))
                         .with_link_timeout(link_timeout),
@@ -527,7 +527,7 @@ enum LoopSource {
         Side,
         penelope_rt_core::teleop::MappingConfig,
         std::time::Duration,
-        Option<penelope_rt_core::teleop::WaveConfig>,
+        crate::objects::teleop_passivity::PortLaw,
     ),
     /// One trajectory per joint group.
     Groups(Vec<(JointSet, TrajectoryFeed)>),

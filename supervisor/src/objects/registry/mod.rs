@@ -12,6 +12,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+use crate::objects::teleop_passivity::PortLaw;
 use nalgebra::Vector3;
 use penelope_drivers::galil::board::LinkFactory;
 use penelope_drivers::galil::{GalilBoard, GalilBoardConfig, Link, TcpLink};
@@ -164,18 +165,18 @@ impl ControllerConfig {
         }
     }
 
-    /// The wave transform of a wave-variable half (`controller/wave-*`), checked.
+    /// What a teleoperation half runs in its channel end, checked: the wave transform, the
+    /// two-port passivity observer (and controller), or nothing more.
     ///
     /// # Errors
     /// [`WireError::BadConfig`].
-    pub fn wave(
-        &self,
-        kind: &str,
-    ) -> Result<Option<penelope_rt_core::teleop::WaveConfig>, WireError> {
+    pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
         match self {
-            ControllerConfig::WaveMaster(c) => c.wave(kind).map(Some),
-            ControllerConfig::WaveSlave(c) => c.wave(kind).map(Some),
-            _ => Ok(None),
+            ControllerConfig::WaveMaster(c) => c.wave(kind).map(PortLaw::Wave),
+            ControllerConfig::WaveSlave(c) => c.wave(kind).map(PortLaw::Wave),
+            ControllerConfig::ForceDisplay(c) => c.port_law(kind),
+            ControllerConfig::Tracking(c, _) => c.port_law(kind),
+            _ => Ok(PortLaw::Plain),
         }
     }
 }

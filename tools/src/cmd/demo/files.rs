@@ -42,6 +42,7 @@ pub fn write_telemetry(
             "kinetic_energy_j",
             "interaction_work_j",
             "port_energy_j",
+            "channel_energy_j",
             "wake_latency_us",
             "exec_us",
             "events",
@@ -90,6 +91,11 @@ pub fn write_telemetry(
         ));
         // The law's passivity observer; empty for a law without one.
         record.push(t.port_energy.map_or(String::new(), |e| format!("{e:.9}")));
+        // The channel's two-port observer at this side's port; empty for a law without one.
+        record.push(
+            t.channel_energy
+                .map_or(String::new(), |e| format!("{e:.9}")),
+        );
         record.push(format!("{:.3}", t.wake_latency.as_secs_f64() * 1e6));
         record.push(format!("{:.3}", t.exec_time.as_secs_f64() * 1e6));
         let events: Vec<&str> = t.events.iter().map(|e| e.as_str()).collect();

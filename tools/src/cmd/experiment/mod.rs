@@ -30,8 +30,8 @@ pub enum ExperimentCommand {
 /// Options of `penelope experiment delay`.
 #[derive(clap::Args, Debug)]
 pub struct DelayArgs {
-    /// The laws, by name, comma-separated (`force-position`, `position-error`, `wave`).
-    #[arg(long, default_value = "force-position,position-error,wave")]
+    /// The laws, by name, comma-separated (`force-position`, `position-error`, `wave`, `tdpa`).
+    #[arg(long, default_value = "force-position,position-error,wave,tdpa")]
     laws: String,
     /// Round-trip delays, comma-separated, in ms unless a unit says otherwise (`0,10,50ms`,
     /// `0.1s`); each direction gets half.
