@@ -69,7 +69,9 @@ impl ForceDisplayConfig {
 }
 
 /// Displays a wrench on a master hand controller:
-/// `F = cap(deadband(lowpass(F_ref)) - D v - alpha v)`, `tau = J^T F + g(q)`.
+/// `F = cap(deadband(lowpass(F_ref)) - D v - alpha v)`, `tau = J^T F + g(q)`, with `J^T F` from
+/// the model's [`RobotModel::wrench_to_torques`] (where the robot's board computes it, the
+/// board's result).
 ///
 /// The reference is a `Reference::Wrench` (or the wrench of a `Reference::Hybrid`) already in the
 /// master's base frame with the force gain applied: what a `SlaveToMaster`
@@ -197,15 +199,19 @@ impl Controller for ForceDisplay {
         let (f, k) = cap_wrench(&f, self.config.max_force, self.config.max_torque);
         self.passivity.commit(dt, &(-f), &v, alpha);
         self.saturation = k;
-        let mut tau = jac.transpose() * f;
-        if self.config.gravity_compensation {
-            tau += model.gravity(q);
-        }
-        self.last_wrench = Wrench {
+        let shown = Wrench {
             force: top(&f),
             torque: bottom(&f),
             frame: Frame::Base,
         };
+        // The model's own force transformation: on an FPGA board, the board computes it.
+        let mut tau = model
+            .wrench_to_torques(q, &shown)
+            .map_err(|_| ControllerError::NonFinite)?;
+        if self.config.gravity_compensation {
+            tau += model.gravity(q);
+        }
+        self.last_wrench = shown;
         effort(tau)
     }
 }
