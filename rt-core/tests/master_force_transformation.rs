@@ -4,7 +4,6 @@
 //! result.
 
 #[path = "teleop_model.rs"]
-#[allow(dead_code)]
 mod model;
 
 use core::time::Duration;
