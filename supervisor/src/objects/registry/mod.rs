@@ -37,6 +37,7 @@ use penelope_rt_core::trajectory::{
     CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
 };
 
+use super::fpga_board::{FpgaBoardError, robot_on_boards};
 use super::kinds::{
     self, GalilConfig, GoalConfig, ImpedanceConfigToml, JointPidConfig, JointPositionConfig, Kind,
     LoopTiming, RobotConfig, SensorConfig, SimBoardConfig, TrajectorySpec,
@@ -105,7 +106,8 @@ pub(crate) struct TeleopObj {
 pub(crate) struct RobotObj {
     /// The float model: dynamics, named poses, encoder scaling, and the simulated body.
     pub model: DhRobotModel,
-    /// What the robot's loops and kinematic methods compute with.
+    /// What the robot's loops and kinematic methods compute with: the float model, or, once
+    /// configured on a `board/fpga`, the board's.
     pub kinematics: RobotKinematics,
     /// Master or slave: what its loops' safety does.
     pub role: Role,
@@ -120,6 +122,8 @@ pub(crate) struct RobotObj {
 
 pub(crate) struct SimBoardObj {
     pub config: SimBoardConfig,
+    /// A `board/fpga`: the FRHC's FPGA kinematics in front of the plant.
+    pub fpga: bool,
 }
 
 pub(crate) struct GalilObj {
@@ -243,6 +247,14 @@ impl Object {
                         .collect();
                     relations.push(("board".to_string(), format!("{b} [{}]", list.join(" "))));
                 }
+                relations.push(("kinematics".to_string(), r.kinematics.describe().into()));
+                if r.kinematics.is_fpga_board() {
+                    relations.extend(crate::objects::fpga_board::describe());
+                }
+            }
+            Body::SimBoard(b) if b.fpga => {
+                relations.push(("kinematics".to_string(), "frhc, bit-exact".into()));
+                relations.extend(crate::objects::fpga_board::describe());
             }
             Body::Hand(h) => relations.push(("robot".to_string(), h.config.robot.clone())),
             Body::Sensor(s) => relations.extend(publisher_relations(s)),
@@ -302,15 +314,9 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
             let start = cfg.start_pose(k)?;
             let role = cfg.role(k)?;
             let model = models::by_name(model).ok_or_else(|| WireError::UnknownKind(k.into()))?;
-            let kinematics = RobotKinematics::new(model.clone(), cfg.fpga(k)?).map_err(|e| {
-                WireError::BadConfig {
-                    kind: k.into(),
-                    message: e.to_string(),
-                }
-            })?;
             Body::Robot(Box::new(RobotObj {
+                kinematics: RobotKinematics::Float(model.clone()),
                 model,
-                kinematics,
                 role,
                 caps: (cfg.max_force_n, cfg.max_moment_nm),
                 start,
@@ -318,10 +324,13 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
                 body: None,
             }))
         }
-        Kind::SimBoard => {
+        Kind::SimBoard | Kind::FpgaBoard => {
             let cfg: SimBoardConfig = kinds::parse(k, config)?;
             cfg.check(k)?;
-            Body::SimBoard(SimBoardObj { config: cfg })
+            Body::SimBoard(SimBoardObj {
+                config: cfg,
+                fpga: kind == Kind::FpgaBoard,
+            })
         }
         Kind::GalilBoard => {
             let cfg: GalilConfig = kinds::parse(k, config)?;
@@ -550,7 +559,10 @@ impl Registry {
     fn release(&mut self, name: &str) {
         if let Some(o) = self.objects.get_mut(name) {
             match &mut o.body {
-                Body::Robot(r) => r.body = None,
+                Body::Robot(r) => {
+                    r.body = None;
+                    r.kinematics = RobotKinematics::Float(r.model.clone());
+                }
                 Body::Teleop(t) => t.link = None,
                 // Its thread stops and is joined; readers fall silent and go stale.
                 Body::Sensor(s) => s.publisher = None,
@@ -636,6 +648,14 @@ impl Registry {
                 "robot `{name}` mixes simulated and galil boards: a simulated body cannot move a real joint"
             )));
         }
+        let kinematics = match self.fpga_board_of(name)? {
+            Some(_) => RobotKinematics::on_fpga_board(r.model.clone())
+                .ok_or_else(|| WireError::Internal("fpga model".into()))?,
+            None => RobotKinematics::Float(r.model.clone()),
+        };
+        if let Body::Robot(r) = &mut self.get_mut(name)?.body {
+            r.kinematics = kinematics;
+        }
         if let Some(first) = sim_boards.first() {
             let Body::SimBoard(s) = &self.get(first)?.body else {
                 return Err(WireError::Internal("sim body".into()));
@@ -688,6 +708,33 @@ impl Registry {
             }
         }
         Ok(())
+    }
+
+    /// The `board/fpga` robot `name`'s joints are on, if any (boards not yet created count as
+    /// other boards).
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] of `board/fpga` from an [`FpgaBoardError`]: a robot other than
+    /// the FRHC, or joints split between the fpga board and another.
+    pub fn fpga_board_of(&self, name: &str) -> Result<Option<String>, WireError> {
+        let r = self.robot(name)?;
+        let boards: Vec<(&str, bool)> = r
+            .maps
+            .iter()
+            .map(|(b, _)| {
+                let fpga = self
+                    .objects
+                    .get(b)
+                    .is_some_and(|o| matches!(&o.body, Body::SimBoard(s) if s.fpga));
+                (b.as_str(), fpga)
+            })
+            .collect();
+        robot_on_boards(name, r.model.name(), &boards).map_err(|e: FpgaBoardError| {
+            WireError::BadConfig {
+                kind: Kind::FpgaBoard.as_str().into(),
+                message: e.to_string(),
+            }
+        })
     }
 
     fn configure_controller(&mut self, name: &str) -> Result<(), WireError> {
