@@ -272,7 +272,7 @@ impl Creator {
             return Err(WireError::Unsupported {
                 kind: kind.into(),
                 method: "a node on the simulated clock (a real board cannot be stepped by it: \
-                         use board/sim, or start the node without --sim-clock)"
+                         use board/sim or board/fpga, or start the node without --sim-clock)"
                     .into(),
             });
         }
