@@ -37,7 +37,6 @@ use penelope_rt_core::trajectory::{
     CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
 };
 
-use super::fpga_board::{FpgaBoardError, robot_on_boards};
 use super::kinds::{
     self, GalilConfig, GoalConfig, ImpedanceConfigToml, JointPidConfig, JointPositionConfig, Kind,
     LoopTiming, RobotConfig, SensorConfig, SimBoardConfig, TrajectorySpec,
@@ -62,6 +61,8 @@ use crate::proto::{
 };
 
 mod build;
+mod fpga;
+mod galil;
 mod groups;
 mod methods;
 mod sensors;
@@ -70,6 +71,7 @@ mod trajectories;
 
 pub(crate) use build::Built;
 use build::{default_joint_gains, pid_gains};
+use galil::open_galil;
 use sensors::publisher_relations;
 use teleop::link_relations;
 use trajectories::{build_standalone, build_trajectory, spec_is_tool, spec_joints};
@@ -710,33 +712,6 @@ impl Registry {
         Ok(())
     }
 
-    /// The `board/fpga` robot `name`'s joints are on, if any (boards not yet created count as
-    /// other boards).
-    ///
-    /// # Errors
-    /// [`WireError::BadConfig`] of `board/fpga` from an [`FpgaBoardError`]: a robot other than
-    /// the FRHC, or joints split between the fpga board and another.
-    pub fn fpga_board_of(&self, name: &str) -> Result<Option<String>, WireError> {
-        let r = self.robot(name)?;
-        let boards: Vec<(&str, bool)> = r
-            .maps
-            .iter()
-            .map(|(b, _)| {
-                let fpga = self
-                    .objects
-                    .get(b)
-                    .is_some_and(|o| matches!(&o.body, Body::SimBoard(s) if s.fpga));
-                (b.as_str(), fpga)
-            })
-            .collect();
-        robot_on_boards(name, r.model.name(), &boards).map_err(|e: FpgaBoardError| {
-            WireError::BadConfig {
-                kind: Kind::FpgaBoard.as_str().into(),
-                message: e.to_string(),
-            }
-        })
-    }
-
     fn configure_controller(&mut self, name: &str) -> Result<(), WireError> {
         let c = self.controller_mut(name)?;
         if let ControllerConfig::Groups(groups) = &c.config {
@@ -784,54 +759,3 @@ fn impedance(i: &ImpedanceConfigToml) -> ImpedanceConfig {
         ramp_in: Duration::from_millis(i.ramp_in_ms),
     }
 }
-
-/// Opens a Galil board.
-fn open_galil(cfg: &GalilConfig) -> Result<GalilBoard, WireError> {
-    let volts = cfg.volts();
-    let path = cfg.device.clone().unwrap_or_else(|| "tcp".into());
-    let mut board_cfg = GalilBoardConfig::new(path.clone(), cfg.axes as usize, &volts);
-    board_cfg.serial.baud = cfg.baud;
-    board_cfg.watchdog = (cfg.watchdog_ms > 0).then(|| Duration::from_millis(cfg.watchdog_ms));
-    let result = match &cfg.address {
-        Some(address) => {
-            let address = address.clone();
-            let timeout = Duration::from_millis(cfg.connect_timeout_ms);
-            let factory: LinkFactory = Box::new(move || {
-                use std::net::ToSocketAddrs;
-                let addr = address
-                    .to_socket_addrs()
-                    .map_err(|e| penelope_drivers::galil::GalilError::Io(e.kind()))?
-                    .next()
-                    .ok_or(penelope_drivers::galil::GalilError::Closed)?;
-                let stream = std::net::TcpStream::connect_timeout(&addr, timeout)
-                    .map_err(|e| penelope_drivers::galil::GalilError::Io(e.kind()))?;
-                TcpLink::new(stream).map(|l| Box::new(l) as Box<dyn Link + Send>)
-            });
-            GalilBoard::with_link_factory(board_cfg, factory)
-        }
-        None => GalilBoard::open(board_cfg),
-    };
-    let place = cfg
-        .address
-        .as_deref()
-        .or(cfg.device.as_deref())
-        .unwrap_or("?")
-        .to_string();
-    let board = result.map_err(|e| WireError::Device(format!("galil board at {place}: {e}")))?;
-    // Configured means ready: wait for the I/O thread's first exchange, so the encoders can be
-    // read as soon as `configure` returns.
-    let deadline = std::time::Instant::now() + FIRST_EXCHANGE_TIMEOUT;
-    while board.cycles() == 0 {
-        if board.is_faulted() || std::time::Instant::now() >= deadline {
-            return Err(WireError::Device(format!(
-                "galil board at {place}: no answer within {} ms",
-                FIRST_EXCHANGE_TIMEOUT.as_millis()
-            )));
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    Ok(board)
-}
-
-/// How long `configure` of a Galil board waits for the first exchange with the controller.
-const FIRST_EXCHANGE_TIMEOUT: Duration = Duration::from_secs(2);
