@@ -13,7 +13,7 @@
 
 # Robots first, then the boards they sit on.
 create lab robot/puma200 puma start=start
-create lab robot/frhc frhc kinematics=float start=start
+create lab robot/frhc frhc start=start
 create lab board/sim puma-io --config 'shapes = [{ kind = "plane", point = [0.350868, 0.127, 0.2902], normal = [0.0, 0.0, 1.0], stiffness = 4000.0, damping = 20.0 }]'
 create lab board/sim frhc-io
 call lab/puma map-joints puma-io 0:0 1:1 2:2 3:3 4:4 5:5

@@ -1,7 +1,7 @@
-//! A robot's options on a node: `kinematics = "fpga"` (the FRHC's FPGA board computes its
-//! forward kinematics and Jacobian, for its methods and its loops) and `role` (a master's loop
-//! displays zero force when its reference goes stale, with its force caps; a slave holds its
-//! pose).
+//! A robot's options on a node: the board its joints are on (on a `board/fpga`, the FRHC's FPGA
+//! board computes its forward kinematics, Jacobian frames and `J^T F`, for its methods and its
+//! loops) and `role` (a master's loop displays zero force when its reference goes stale, with
+//! its force caps; a slave holds its pose).
 
 use penelope_hal::{JointVector, Timestamp, Transition};
 use penelope_rt_core::safety::SafetyState;
@@ -25,11 +25,12 @@ fn ok(c: &Creator, name: &str, method: Method) -> Reply {
         .unwrap_or_else(|e| panic!("{name}: {e}"))
 }
 
-/// An FRHC named `name` on its own simulated board, configured.
-fn frhc(c: &Creator, name: &str, config: &str) {
+/// An FRHC named `name` on its own board of `board_kind` (`board/sim` or `board/fpga`),
+/// configured.
+fn frhc(c: &Creator, name: &str, board_kind: &str, config: &str) {
     create(c, "robot/frhc", name, config).unwrap();
     let board = format!("{name}-io");
-    create(c, "board/sim", &board, "").unwrap();
+    create(c, board_kind, &board, "").unwrap();
     ok(
         c,
         name,
@@ -58,8 +59,8 @@ fn tool_position(c: &Creator, robot: &str, q: &[f64]) -> [f64; 3] {
 #[test]
 fn the_fpga_kinematics_answer_the_robots_methods_within_the_fixed_point_error() {
     let c = creator();
-    frhc(&c, "float", "");
-    frhc(&c, "fpga", "kinematics = \"fpga\"");
+    frhc(&c, "float", "board/sim", "");
+    frhc(&c, "fpga", "board/fpga", "");
     let mut largest: f64 = 0.0;
     let mut differs = false;
     for q in [
@@ -84,14 +85,22 @@ fn the_fpga_kinematics_answer_the_robots_methods_within_the_fixed_point_error() 
         "FPGA and float tool positions differ by {largest} m"
     );
 
-    // Only the FRHC has an FPGA board.
-    let refused = create(&c, "robot/puma560", "arm", "kinematics = \"fpga\"");
+    // Only the FRHC goes on an FPGA board.
+    create(&c, "robot/puma560", "arm", "").unwrap();
+    let refused = c.call_object(
+        "arm",
+        Method::Robot(RobotMethod::MapJoints {
+            board: "fpga-io".into(),
+            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
+        }),
+    );
     assert!(
         matches!(&refused, Err(WireError::BadConfig { message, .. }) if message.contains("FRHC")),
         "{refused:?}"
     );
+    // The board chooses the kinematics: the robot has no such key.
     for bad in [
-        "kinematics = \"abacus\"",
+        "kinematics = \"fpga\"",
         "role = \"boss\"",
         "max_force_n = 0",
     ] {
@@ -109,7 +118,7 @@ fn the_fpga_kinematics_answer_the_robots_methods_within_the_fixed_point_error() 
 /// communication task never runs), after 300 control ticks.
 fn efforts_without_reference(robot_config: &str) -> (JointVector, SafetyState) {
     let c = creator();
-    frhc(&c, "hand", robot_config);
+    frhc(&c, "hand", "board/sim", robot_config);
     create(&c, "trajectory/step", "hold", "pose = \"start\"").unwrap();
     create(&c, "controller/joint-pid", "pid", "watchdog_ms = 20").unwrap();
     for m in [

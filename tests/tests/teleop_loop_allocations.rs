@@ -2,7 +2,9 @@
 //! by the scripted hand under force display, the PUMA 200 under slave tracking against a wall,
 //! with its sensor cell) and both communication tasks (the two ends of the channel), built by
 //! the creator exactly as `activate` builds them and stepped here on a simulated clock for
-//! 100,000 control ticks each; then again with the channel's delay line each way (`faults`).
+//! 100,000 control ticks each; then again with the channel's delay line each way (`faults`);
+//! then with the FRHC on its FPGA board (`board/fpga`: the board's bit-exact kinematics and
+//! force transformation in the master's law, its command delay on the plant).
 //!
 //! The counting allocator counts the allocations of this test's thread (where the loops are
 //! stepped); this binary holds this one test only.
@@ -23,24 +25,30 @@ fn call(c: &Creator, object: &str, method: Method) {
 
 #[test]
 fn a_hundred_thousand_teleoperation_ticks_allocate_nothing() {
-    // The channel as cells, and through its delay line each way (delay, jitter, loss).
-    for faults in [
-        "",
-        "\nfaults = { delay_ms = 20.0, jitter_ms = 5.0, loss = 0.01 }",
+    // The channel as cells, and through its delay line each way (delay, jitter, loss); the
+    // FRHC on a simulated board, then on its FPGA board.
+    for (frhc_board, faults) in [
+        ("board/sim", ""),
+        (
+            "board/sim",
+            "\nfaults = { delay_ms = 20.0, jitter_ms = 5.0, loss = 0.01 }",
+        ),
+        ("board/fpga", ""),
     ] {
-        ticks_allocate_nothing(faults);
+        ticks_allocate_nothing(frhc_board, faults);
     }
 }
 
-/// The task with `faults` added to the channel's configuration, stepped 100,000 ticks.
-fn ticks_allocate_nothing(faults: &str) {
+/// The task with the FRHC on `frhc_board` and `faults` added to the channel's configuration,
+/// stepped 100,000 ticks.
+fn ticks_allocate_nothing(frhc_board: &str, faults: &str) {
     let mut config = CreatorConfig::new("alloc");
     config.rt.priority = None;
     let c = Creator::new(config);
     let wall = "[[shapes]]\nkind = \"plane\"\npoint = [0, 0, 0.1]";
     for (kind, name, cfg) in [
         ("robot/frhc", "frhc", ""),
-        ("board/sim", "frhc-io", ""),
+        (frhc_board, "frhc-io", ""),
         ("sensor/operator-hand", "hand", "robot = \"frhc\""),
         ("robot/puma200", "puma", ""),
         ("board/sim", "puma-io", wall),
@@ -91,6 +99,13 @@ fn ticks_allocate_nothing(faults: &str) {
     ] {
         call(&c, name, Method::Transition(Transition::Configure));
     }
+    let on_fpga = c
+        .info("frhc")
+        .expect("the FRHC")
+        .relations
+        .iter()
+        .any(|(k, v)| k == "kinematics" && v.starts_with("fpga board"));
+    assert_eq!(on_fpga, frhc_board == "board/fpga");
     let mut master = c.detach_loop("display").expect("the master's loop builds");
     let mut slave = c.detach_loop("follow").expect("the slave's loop builds");
     let mut wrench = slave.wrench.take().expect("a sensor is bound");
@@ -106,7 +121,7 @@ fn ticks_allocate_nothing(faults: &str) {
     let allocated = step_teleop_pair(&mut master, &mut slave, 1001..101_001, &mut feed);
     assert_eq!(
         allocated, 0,
-        "the teleoperation loops ({faults:?}) allocated or freed {allocated} times"
+        "the teleoperation loops ({frhc_board}, {faults:?}) allocated or freed {allocated} times"
     );
     assert_pair_ran(&master, &slave, 101_000, 50_000);
 }

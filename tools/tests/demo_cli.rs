@@ -85,3 +85,42 @@ fn bad_options_exit_with_code_two_and_say_why() {
         assert!(!output.stderr.is_empty(), "{args:?} explains itself");
     }
 }
+
+#[test]
+fn the_kinematics_option_runs_the_master_on_its_fpga_board_and_reports_the_latency() {
+    let out = scratch("fpga");
+    let output = penelope()
+        .args([
+            "demo",
+            "--sim-clock",
+            "--duration",
+            "5s",
+            "--kinematics",
+            "fpga",
+            "--json",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .expect("penelope runs");
+    assert!(
+        output.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    let k = &report["kinematics"];
+    assert_eq!(k["master"], "fpga", "{k}");
+    assert_eq!(k["fk_cycles"], 61);
+    assert_eq!(k["fk_force_cycles"], 92);
+    assert!(k["command_delay_us"].as_f64().unwrap() > 2.3, "{k}");
+    assert!(report["tracking"]["rms_mm"].as_f64().unwrap() < 2.0);
+    // A word it does not know is a usage error.
+    let bad = penelope()
+        .args(["demo", "--sim-clock", "--kinematics", "abacus", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+    let _ = std::fs::remove_dir_all(out);
+}

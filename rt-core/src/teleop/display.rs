@@ -64,7 +64,9 @@ impl ForceDisplayConfig {
 }
 
 /// Displays a wrench on a master hand controller:
-/// `F = cap(deadband(lowpass(F_ref)) - D v)`, `tau = J^T F + g(q)`.
+/// `F = cap(deadband(lowpass(F_ref)) - D v)`, `tau = J^T F + g(q)`, with `J^T F` from
+/// the model's [`RobotModel::wrench_to_torques`] (where the robot's board computes it, the
+/// board's result).
 ///
 /// The reference is a `Reference::Wrench` (or the wrench of a `Reference::Hybrid`) already in the
 /// master's base frame with the force gain applied: what a `SlaveToMaster`
@@ -187,15 +189,19 @@ impl Controller for ForceDisplay {
         // The operator applies about -f to the device: that is the power into the system.
         self.observer.observe(dt, &(-f), &v);
         self.saturation = k;
-        let mut tau = jac.transpose() * f;
-        if self.config.gravity_compensation {
-            tau += model.gravity(q);
-        }
-        self.last_wrench = Wrench {
+        let shown = Wrench {
             force: top(&f),
             torque: bottom(&f),
             frame: Frame::Base,
         };
+        // The model's own force transformation: on an FPGA board, the board computes it.
+        let mut tau = model
+            .wrench_to_torques(q, &shown)
+            .map_err(|_| ControllerError::NonFinite)?;
+        if self.config.gravity_compensation {
+            tau += model.gravity(q);
+        }
+        self.last_wrench = shown;
         effort(tau)
     }
 }

@@ -4,8 +4,8 @@ use core::time::Duration;
 
 use nalgebra::{Matrix3, Vector6};
 use penelope_hal::{
-    ControlInput, Controller, ControllerError, Frame, Jacobian, JacobianFrame, JointCommand,
-    JointState, Reference, RobotModel, Timestamp, Wrench,
+    ControlInput, Controller, ControllerError, Frame, JacobianFrame, JointCommand, JointState,
+    Reference, RobotModel, Timestamp, Wrench,
 };
 
 use super::passivity::PassivityObserver;
@@ -144,7 +144,7 @@ impl CartesianImpedance {
     fn wrench(
         &self,
         input: &ControlInput<'_>,
-    ) -> Result<(Vector6<f64>, Vector6<f64>, Jacobian), ControllerError> {
+    ) -> Result<(Vector6<f64>, Vector6<f64>), ControllerError> {
         let model = input.model;
         let q = &input.state.position;
         if !input.state.is_finite() {
@@ -188,24 +188,29 @@ impl CartesianImpedance {
             f = super::stack(&(rot * lin), &(rot * ang));
         }
         let (f, _) = cap_wrench(&f, self.config.max_force, self.config.max_torque);
-        Ok((f, v, jac))
+        Ok((f, v))
     }
 
     fn torques(
         &mut self,
         input: &ControlInput<'_>,
     ) -> Result<(JointCommand, Vector6<f64>, Vector6<f64>), ControllerError> {
-        let (f, v, jac) = self.wrench(input)?;
+        let (f, v) = self.wrench(input)?;
         let q = &input.state.position;
-        let mut tau = jac.transpose() * f;
-        if self.config.gravity_compensation {
-            tau += input.model.gravity(q);
-        }
-        self.last_wrench = Wrench {
+        let wrench = Wrench {
             force: top(&f),
             torque: bottom(&f),
             frame: Frame::Base,
         };
+        // The model's own force transformation: on an FPGA board, the board computes it.
+        let mut tau = input
+            .model
+            .wrench_to_torques(q, &wrench)
+            .map_err(|_| ControllerError::NonFinite)?;
+        if self.config.gravity_compensation {
+            tau += input.model.gravity(q);
+        }
+        self.last_wrench = wrench;
         Ok((effort(tau)?, f, v))
     }
 }

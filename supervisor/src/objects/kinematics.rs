@@ -1,58 +1,37 @@
-//! The model a robot's loops compute with, chosen by the robot's `kinematics` key: the float
-//! model, or (for the FRHC) the bit-exact FPGA kinematics with the float dynamics. Plants behind
-//! simulated boards are physics and always use the float model.
+//! The model a robot's loops compute with, chosen by the boards its joints are on: the float
+//! model, or, for the FRHC on a `board/fpga`, the board's bit-exact FPGA kinematics and force
+//! transformation with the float dynamics. Plants behind simulated boards are physics and always
+//! use the float model.
 
 use penelope_drivers::model::DhRobotModel;
 use penelope_fpga::FpgaKinematics;
+use penelope_hal::robot::check_finite;
 use penelope_hal::{
     Dynamics, IkSolutions, InverseKinematics, Jacobian, JacobianFrame, JointLimits,
-    JointSpaceMatrix, JointVector, Kinematics, KinematicsError, Pose, RobotModel,
+    JointSpaceMatrix, JointVector, Kinematics, KinematicsError, Pose, RobotModel, Wrench,
 };
 
-/// A robot model with the kinematics its configuration chose.
+/// A robot model with the kinematics its boards give it.
 #[derive(Clone, Debug)]
 pub enum RobotKinematics {
     /// Float kinematics and dynamics.
     Float(DhRobotModel),
-    /// Forward kinematics and Jacobian from the bit-exact model of the FPGA board; inverse
-    /// kinematics and dynamics from the float model.
-    Fpga {
-        /// The FPGA model.
+    /// The FRHC on a `board/fpga`: forward kinematics, Jacobian and `tau = J^T F` from the
+    /// bit-exact model of the board's pipelines; inverse kinematics and dynamics from the float
+    /// model.
+    FpgaBoard {
+        /// The board's kinematics.
         fpga: Box<FpgaKinematics>,
-        /// The float model, for everything the FPGA does not compute.
+        /// The float model, for everything the board does not compute.
         float: DhRobotModel,
     },
 }
 
-/// The FPGA kinematics were asked for a robot the FPGA board does not model.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct NoFpgaModel(pub String);
-
-impl std::fmt::Display for NoFpgaModel {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "kinematics = \"fpga\" models the FRHC's FPGA board; robot model `{}` has none",
-            self.0
-        )
-    }
-}
-
-impl std::error::Error for NoFpgaModel {}
-
 impl RobotKinematics {
-    /// The model for `float` with the kinematics the configuration chose.
-    ///
-    /// # Errors
-    /// [`NoFpgaModel`] when `fpga` is asked for a robot other than the FRHC.
-    pub fn new(float: DhRobotModel, fpga: bool) -> Result<Self, NoFpgaModel> {
-        if !fpga {
-            return Ok(RobotKinematics::Float(float));
-        }
-        if float.name() != "frhc" {
-            return Err(NoFpgaModel(float.name().to_string()));
-        }
-        Ok(RobotKinematics::Fpga {
+    /// The board's kinematics for `float`, which must be the FRHC's model (what the board
+    /// computes); `None` for any other model.
+    pub fn on_fpga_board(float: DhRobotModel) -> Option<Self> {
+        (float.name() == "frhc").then(|| RobotKinematics::FpgaBoard {
             fpga: Box::new(FpgaKinematics::frhc()),
             float,
         })
@@ -62,7 +41,22 @@ impl RobotKinematics {
     pub fn float(&self) -> &DhRobotModel {
         match self {
             RobotKinematics::Float(m) => m,
-            RobotKinematics::Fpga { float, .. } => float,
+            RobotKinematics::FpgaBoard { float, .. } => float,
+        }
+    }
+
+    /// Whether the kinematics are an fpga board's.
+    pub fn is_fpga_board(&self) -> bool {
+        matches!(self, RobotKinematics::FpgaBoard { .. })
+    }
+
+    /// In words, for `describe` and reports.
+    pub fn describe(&self) -> &'static str {
+        match self {
+            RobotKinematics::Float(_) => "float (f64 on the host)",
+            RobotKinematics::FpgaBoard { .. } => {
+                "fpga board (bit-exact FK and tau = J^T F on the board; IK and dynamics float)"
+            }
         }
     }
 }
@@ -74,13 +68,13 @@ impl Kinematics for RobotKinematics {
     fn forward(&self, q: &JointVector) -> Pose {
         match self {
             RobotKinematics::Float(m) => m.forward(q),
-            RobotKinematics::Fpga { fpga, .. } => fpga.forward(q),
+            RobotKinematics::FpgaBoard { fpga, .. } => fpga.forward(q),
         }
     }
     fn jacobian(&self, q: &JointVector, frame: JacobianFrame) -> Jacobian {
         match self {
             RobotKinematics::Float(m) => m.jacobian(q, frame),
-            RobotKinematics::Fpga { fpga, .. } => fpga.jacobian(q, frame),
+            RobotKinematics::FpgaBoard { fpga, .. } => fpga.jacobian(q, frame),
         }
     }
 }
@@ -121,5 +115,65 @@ impl Dynamics for RobotKinematics {
 impl RobotModel for RobotKinematics {
     fn limits(&self) -> &JointLimits {
         self.float().limits()
+    }
+
+    /// On an fpga board: the board's force pipeline (a tool-side wrench is rotated to the base
+    /// on the board). Else `J^T F` in f64.
+    ///
+    /// # Real-time
+    /// Constant time, no allocation.
+    fn wrench_to_torques(
+        &self,
+        q: &JointVector,
+        wrench: &Wrench,
+    ) -> Result<JointVector, KinematicsError> {
+        match self {
+            RobotKinematics::Float(m) => m.wrench_to_torques(q, wrench),
+            RobotKinematics::FpgaBoard { fpga, .. } => {
+                check_finite(q)?;
+                fpga.joint_torques(q, wrench)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+    use penelope_drivers::model;
+    use penelope_hal::Frame;
+
+    #[test]
+    fn on_the_fpga_board_every_result_is_the_bit_exact_models() {
+        let kin = RobotKinematics::on_fpga_board(model::frhc()).expect("the FRHC");
+        let float = RobotKinematics::Float(model::frhc());
+        let fpga = FpgaKinematics::frhc();
+        let q = JointVector::from([0.3, 1.1, 2.2, -0.4, 0.7, 1.2]);
+        let w = Wrench {
+            force: Vector3::new(3.0, -2.0, 5.0),
+            torque: Vector3::new(0.1, 0.2, -0.3),
+            frame: Frame::Base,
+        };
+        assert_eq!(kin.forward(&q), fpga.forward(&q));
+        assert_eq!(
+            kin.jacobian(&q, JacobianFrame::Base),
+            fpga.jacobian(&q, JacobianFrame::Base)
+        );
+        let tau = kin.wrench_to_torques(&q, &w).unwrap();
+        assert_eq!(tau, fpga.joint_torques(&q, &w).unwrap());
+        // Not the float J^T F: the board's words, within their quantization of it.
+        let tau_float = float.wrench_to_torques(&q, &w).unwrap();
+        assert_ne!(tau, tau_float);
+        assert!((tau - tau_float).norm() < 1e-4, "{tau} vs {tau_float}");
+        // Dynamics stay the float model's.
+        assert_eq!(kin.gravity(&q), float.gravity(&q));
+        let mut bad = q;
+        bad[1] = f64::NAN;
+        assert_eq!(
+            kin.wrench_to_torques(&bad, &w),
+            Err(KinematicsError::NonFinite)
+        );
+        assert!(RobotKinematics::on_fpga_board(model::puma560()).is_none());
     }
 }

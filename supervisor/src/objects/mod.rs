@@ -3,6 +3,7 @@
 //! active controllers.
 //!
 //! - [`kinematics`]: the model a robot's loops compute with (float, or the FPGA board's).
+//! - [`fpga_board`]: `board/fpga`, the FRHC's FPGA board: its latency model and what it accepts.
 //! - [`kinds`]: every kind and its TOML configuration (keys, units, defaults, ranges).
 //! - [`runtime`]: what runs while a controller is active: the control task (SCHED_FIFO), the
 //!   communication task (trajectory to reference cell), the sensor feed and the telemetry pump.
@@ -24,7 +25,8 @@
 //! robot's body (one rigid-body plant of its whole chain, since joints are dynamically coupled)
 //! is built when the robot is configured, from the first simulated board's settings (DAC bits,
 //! sub-step, friction, environment), at the robot's `start` pose; it persists across
-//! activations (the loop takes it and gives it back) and is dropped at `cleanup`.
+//! activations (the loop takes it and gives it back) and is dropped at `cleanup`. A `board/fpga`
+//! is the same simulated board with the FRHC's FPGA kinematics in front of it ([`fpga_board`]).
 //!
 //! # Lifecycle
 //! ROS 2 words. Robots, boards, sensors and trajectories are configured by hand and show
@@ -35,6 +37,7 @@
 
 pub mod clock;
 pub mod delay_line;
+pub mod fpga_board;
 pub mod kinds;
 pub mod kinematics;
 mod loops;
@@ -270,7 +273,7 @@ impl Creator {
             return Err(WireError::Unsupported {
                 kind: kind.into(),
                 method: "a node on the simulated clock (a real board cannot be stepped by it: \
-                         use board/sim, or start the node without --sim-clock)"
+                         use board/sim or board/fpga, or start the node without --sim-clock)"
                     .into(),
             });
         }

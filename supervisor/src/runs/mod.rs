@@ -29,6 +29,7 @@ use penelope_rt_core::teleop::MappingConfig;
 
 use crate::node::{NamingChoice, Node, NodeConfig};
 use crate::objects::clock::ClockMode;
+use crate::objects::fpga_board;
 use crate::objects::kinds::{self, RobotConfig, SensorConfig, SimBoardConfig};
 use crate::objects::kinematics::RobotKinematics;
 use crate::objects::runtime::{TickRecord, TickStream};
@@ -38,6 +39,81 @@ use crate::system::{ObjectSpec, SystemFile, SystemFileError};
 
 /// The demo's system file (`config/demo.toml`), built in.
 pub const DEMO_SYSTEM: &str = include_str!("../../../config/demo.toml");
+
+/// The simulated board's kind.
+const SIM_BOARD: &str = "board/sim";
+/// The FPGA board's kind: the simulated board with the FRHC's FPGA kinematics in front.
+const FPGA_BOARD: &str = "board/fpga";
+
+/// The kinematics a run's master computes with: the board its joints are on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MasterKinematics {
+    /// Float kinematics on the host: the master's joints on `board/sim`.
+    Float,
+    /// The FPGA board's bit-exact kinematics and force transformation: on `board/fpga`.
+    Fpga,
+}
+
+impl MasterKinematics {
+    /// The word for it (`float`, `fpga`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            MasterKinematics::Float => "float",
+            MasterKinematics::Fpga => "fpga",
+        }
+    }
+
+    /// The kinematics named `name`, if there is one.
+    pub fn from_name(name: &str) -> Option<MasterKinematics> {
+        [MasterKinematics::Float, MasterKinematics::Fpga]
+            .into_iter()
+            .find(|k| k.as_str() == name)
+    }
+}
+
+/// `file` with the master of its teleoperation channel on the board kind `kinematics` names:
+/// each simulated board its joints are on becomes `board/fpga` (or back to `board/sim`), the
+/// one word a person would change in the file.
+///
+/// # Errors
+/// [`RunError::Task`] when the file has no channel or master, or the master's joints are on a
+/// board that is neither simulated nor an fpga board (a Galil board stays what it is).
+pub fn with_master_kinematics(
+    file: &SystemFile,
+    kinematics: MasterKinematics,
+) -> Result<SystemFile, RunError> {
+    let mut file = file.clone();
+    let channel = file
+        .objects
+        .iter()
+        .find(|o| o.kind == "trajectory/teleop")
+        .ok_or_else(|| task("the system has no trajectory/teleop channel"))?;
+    let teleop: TeleopConfig = parse(channel)?;
+    let boards: Vec<String> = file
+        .objects
+        .iter()
+        .find(|o| o.kind.starts_with("robot/") && o.name == teleop.master)
+        .ok_or_else(|| task(format!("no robot `{}`", teleop.master)))?
+        .joints
+        .iter()
+        .map(|m| m.board.clone())
+        .collect();
+    let kind = match kinematics {
+        MasterKinematics::Float => SIM_BOARD,
+        MasterKinematics::Fpga => FPGA_BOARD,
+    };
+    for o in file.objects.iter_mut().filter(|o| boards.contains(&o.name)) {
+        if o.kind != SIM_BOARD && o.kind != FPGA_BOARD {
+            return Err(task(format!(
+                "the master's board `{}` is {}: only a simulated board (board/sim) and \
+                 board/fpga swap kinematics",
+                o.name, o.kind
+            )));
+        }
+        o.kind = kind.to_string();
+    }
+    Ok(file)
+}
 
 /// The bilateral law of a run: which master half is active.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -346,13 +422,31 @@ fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task, RunError> 
             .find(|o| o.kind.starts_with("robot/") && o.name == name)
             .ok_or_else(|| task(format!("no robot `{name}`")))
     };
+    // A robot computes with its boards' kinematics: an fpga board's, or the float model.
     let model_of = |name: &str| -> Result<(RobotKinematics, models::DhRobotModel), RunError> {
         let o = robot(name)?;
-        let cfg: RobotConfig = parse(o)?;
+        let _: RobotConfig = parse(o)?;
         let word = o.kind.trim_start_matches("robot/");
         let model = models::by_name(word).ok_or_else(|| task(format!("robot kind {word}")))?;
-        let kin = RobotKinematics::new(model.clone(), cfg.kinematics == "fpga")
-            .map_err(|e| task(format!("{name}: {e}")))?;
+        let boards: Vec<(&str, bool)> = o
+            .joints
+            .iter()
+            .map(|m| {
+                let fpga = file
+                    .objects
+                    .iter()
+                    .any(|b| b.name == m.board && b.kind == FPGA_BOARD);
+                (m.board.as_str(), fpga)
+            })
+            .collect();
+        let on_fpga = fpga_board::robot_on_boards(name, word, &boards)
+            .map_err(|e| task(e.to_string()))?
+            .is_some();
+        let kin = match on_fpga {
+            true => RobotKinematics::on_fpga_board(model.clone())
+                .ok_or_else(|| task(format!("{name}: no fpga model")))?,
+            false => RobotKinematics::Float(model.clone()),
+        };
         Ok((kin, model))
     };
     let (master_model, master_dynamics) = model_of(&teleop.master)?;
@@ -384,7 +478,7 @@ fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task, RunError> 
         .map(|m| m.board.clone())
         .unwrap_or_default();
     let environment = match file.objects.iter().find(|o| o.name == slave_board) {
-        Some(o) if o.kind == "board/sim" => {
+        Some(o) if o.kind == SIM_BOARD || o.kind == FPGA_BOARD => {
             let c: SimBoardConfig = parse(o)?;
             kinds::environment(&o.kind, &c.shapes).map_err(|e| task(e.to_string()))?
         }

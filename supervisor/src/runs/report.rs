@@ -123,6 +123,47 @@ pub struct LoopTiming {
     pub realtime: bool,
 }
 
+/// The kinematics the master computed with and, on its FPGA board, the board's modelled
+/// latency per tick ([`crate::objects::fpga_board`]).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct KinematicsReport {
+    /// `float` (on the host) or `fpga` (on the master's `board/fpga`).
+    pub master: String,
+    /// Cycles at 40 MHz of one forward kinematics on the board (0: float).
+    pub fk_cycles: u32,
+    /// Encoder latch to the pose and Jacobian frames on the host, µs (0: float).
+    pub fk_latency_us: f64,
+    /// Cycles of one forward kinematics plus force transformation on the board (0: float).
+    pub fk_force_cycles: u32,
+    /// The law's wrench written to `tau = J^T F` on the host, µs (0: float).
+    pub fk_force_latency_us: f64,
+    /// Encoder latch to the tick's command on the motors, µs (0: float).
+    pub command_delay_us: f64,
+}
+
+fn kinematics_report(info: &RunInfo) -> KinematicsReport {
+    use crate::objects::fpga_board::{FK, FK_FORCE, command_delay_ns};
+    if info.master_model.is_fpga_board() {
+        KinematicsReport {
+            master: "fpga".into(),
+            fk_cycles: FK.cycles,
+            fk_latency_us: FK.latency_ns() as f64 / 1e3,
+            fk_force_cycles: FK_FORCE.cycles,
+            fk_force_latency_us: FK_FORCE.latency_ns() as f64 / 1e3,
+            command_delay_us: command_delay_ns() as f64 / 1e3,
+        }
+    } else {
+        KinematicsReport {
+            master: "float".into(),
+            fk_cycles: 0,
+            fk_latency_us: 0.0,
+            fk_force_cycles: 0,
+            fk_force_latency_us: 0.0,
+            command_delay_us: 0.0,
+        }
+    }
+}
+
 /// The whole report.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Report {
@@ -140,6 +181,8 @@ pub struct Report {
     pub scale: f64,
     /// Force gain.
     pub force_gain: f64,
+    /// The master's kinematics (float, or its FPGA board's, with the board's latency).
+    pub kinematics: KinematicsReport,
     /// Free-motion tracking.
     pub tracking: TrackingReport,
     /// Steady contact.
@@ -518,6 +561,7 @@ pub fn report(out: &RunOutput) -> Report {
             .map_or(0.0, |s| (s.sample.time - info.start).as_secs_f64()),
         scale: info.mapping.scale,
         force_gain: info.mapping.force_gain,
+        kinematics: kinematics_report(info),
         tracking: TrackingReport {
             rms_mm: track_rms * 1e3,
             max_mm: track_max * 1e3,

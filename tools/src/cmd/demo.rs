@@ -9,7 +9,9 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::runs::report::{Report, report};
-use penelope_supervisor::runs::{DEMO_SYSTEM, Law, RunOptions, RunOutput, run};
+use penelope_supervisor::runs::{
+    DEMO_SYSTEM, Law, MasterKinematics, RunOptions, RunOutput, run, with_master_kinematics,
+};
 use penelope_supervisor::system::SystemFile;
 
 use super::usage;
@@ -47,6 +49,11 @@ pub struct Args {
     /// reproducible for a given seed.
     #[arg(long)]
     sim_clock: bool,
+    /// The master's kinematics: `float` (the FRHC's joints on `board/sim`, f64 on the host) or
+    /// `fpga` (on `board/fpga`: the board's bit-exact forward kinematics and tau = J^T F, with
+    /// its latency). Default: the file's boards.
+    #[arg(long, value_parser = ["float", "fpga"])]
+    kinematics: Option<String>,
 }
 
 /// Parses `20s`, `1.5s`, `1500ms`, `2m` or a bare number of seconds.
@@ -88,7 +95,14 @@ pub fn run_demo(args: Args) -> anyhow::Result<ExitCode> {
         || "config/demo.toml".to_string(),
         |p| p.display().to_string(),
     );
-    let system = SystemFile::parse(&text).map_err(|e| usage(format!("{where_}: {e}")))?;
+    let mut system = SystemFile::parse(&text).map_err(|e| usage(format!("{where_}: {e}")))?;
+    if let Some(k) = args
+        .kinematics
+        .as_deref()
+        .and_then(MasterKinematics::from_name)
+    {
+        system = with_master_kinematics(&system, k).map_err(|e| usage(format!("{where_}: {e}")))?;
+    }
     // (clap has checked the word.)
     let law = args.law.as_deref().and_then(Law::from_name);
     if let Some(s) = args.scale
@@ -189,6 +203,19 @@ fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
         "  run: {:.1} s, scale {}, force gain {}",
         r.duration_s, r.scale, r.force_gain
     );
+    let k = &r.kinematics;
+    if k.master == "fpga" {
+        println!(
+            "  master kinematics: fpga board (bit-exact): FK {} cycles, {:.3} µs to the host; FK + force {} cycles, {:.3} µs; command on the motors {:.3} µs after the encoder latch",
+            k.fk_cycles,
+            k.fk_latency_us,
+            k.fk_force_cycles,
+            k.fk_force_latency_us,
+            k.command_delay_us
+        );
+    } else {
+        println!("  master kinematics: float (on the host)");
+    }
     println!();
     println!("  free-motion tracking (slave tool)");
     println!(

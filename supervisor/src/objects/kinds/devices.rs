@@ -98,8 +98,6 @@ pub fn environment(kind: &str, shapes: &[ShapeConfig]) -> Result<Environment, Wi
 pub struct RobotConfig {
     /// The named pose a simulated body starts in, and where Galil encoders read zero.
     pub start: String,
-    /// `float`, or `fpga` (the FRHC's FPGA board model).
-    pub kinematics: String,
     /// `master` or `slave` (`None`: master for the FRHC, else slave).
     pub role: Option<String>,
     /// A master's largest displayed force, N.
@@ -112,7 +110,6 @@ impl Default for RobotConfig {
     fn default() -> Self {
         RobotConfig {
             start: "start".into(),
-            kinematics: "float".into(),
             role: None,
             max_force_n: 10.0,
             max_moment_nm: 0.5,
@@ -121,21 +118,6 @@ impl Default for RobotConfig {
 }
 
 impl RobotConfig {
-    /// Whether the FPGA kinematics were chosen.
-    ///
-    /// # Errors
-    /// [`WireError::BadConfig`] for a word other than float or fpga.
-    pub fn fpga(&self, kind: &str) -> Result<bool, WireError> {
-        match self.kinematics.as_str() {
-            "float" => Ok(false),
-            "fpga" => Ok(true),
-            other => Err(bad(
-                kind,
-                format!("`kinematics` = {other:?} is not \"float\" or \"fpga\""),
-            )),
-        }
-    }
-
     /// The robot's role, defaulting by model (`frhc` is a master), and its checked caps.
     ///
     /// # Errors
@@ -175,7 +157,7 @@ impl RobotConfig {
     }
 }
 
-/// `board/sim` configuration.
+/// `board/sim` configuration, and the plant behind a `board/fpga`.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SimBoardConfig {

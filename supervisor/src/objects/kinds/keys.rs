@@ -4,8 +4,6 @@
 pub(super) const ROBOT_KEYS: &str = r#"
 start = "start"       # named pose (nest, start, work) where a simulated body starts and where
                       # Galil encoders read zero (the arm is parked there at power-up)
-kinematics = "float"  # "float", or "fpga": forward kinematics and Jacobian from the bit-exact
-                      # model of the FRHC's FPGA board (frhc only; dynamics stay float)
 role = "slave"        # "master" (a hand controller: force and moment caps, zero force on a
                       # fault) or "slave" (holds its pose); default: master for frhc, else slave
 max_force_n = 10.0    # a master's largest displayed force, N (the FRHC's)
@@ -28,6 +26,14 @@ dac_bits = 16      # DAC resolution, 8..=24 bits
 substep_us = 200   # plant integration sub-step, 20..=2000 µs
 friction = true    # joint friction of the model in the plant
 # the environment the plant's tool touches (none by default):
+"#;
+
+pub(super) const FPGA_BOARD_KEYS: &str = r#"
+# The FRHC's kinematics board: a robot whose joints are on it (the FRHC only, all six joints)
+# computes its forward kinematics, Jacobian frames and tau = J^T F with the board's bit-exact
+# model; the results reach the host after 61 (FK) and 92 (FK + force) cycles at 40 MHz plus
+# the DMA transfers (`penelope ctl describe` of the board shows the figures). Behind it, the
+# simulated plant, with the keys of board/sim:
 "#;
 
 pub(super) const GALIL_KEYS: &str = r#"

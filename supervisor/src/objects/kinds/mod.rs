@@ -34,11 +34,12 @@ use super::teleop_wave::{WAVE_MASTER_KEYS, WAVE_SLAVE_KEYS};
 use crate::proto::{Class, KindInfo, WireError};
 
 /// Every kind this creator makes, in listing order.
-pub const KINDS: [&str; 22] = [
+pub const KINDS: [&str; 23] = [
     "robot/puma560",
     "robot/puma200",
     "robot/frhc",
     "board/sim",
+    "board/fpga",
     "board/galil",
     "sensor/virtual",
     "sensor/operator-hand",
@@ -66,6 +67,8 @@ pub enum Kind {
     Robot(&'static str),
     /// `board/sim`.
     SimBoard,
+    /// `board/fpga`: a `board/sim` plant behind the FRHC's FPGA kinematics.
+    FpgaBoard,
     /// `board/galil`.
     GalilBoard,
     /// `sensor/virtual`.
@@ -112,6 +115,7 @@ impl Kind {
             "robot/puma200" => Kind::Robot("puma200"),
             "robot/frhc" => Kind::Robot("frhc"),
             "board/sim" => Kind::SimBoard,
+            "board/fpga" => Kind::FpgaBoard,
             "board/galil" => Kind::GalilBoard,
             "sensor/virtual" => Kind::VirtualSensor,
             "sensor/operator-hand" => Kind::OperatorHand,
@@ -141,6 +145,7 @@ impl Kind {
             Kind::Robot("puma200") => "robot/puma200",
             Kind::Robot(_) => "robot/frhc",
             Kind::SimBoard => "board/sim",
+            Kind::FpgaBoard => "board/fpga",
             Kind::GalilBoard => "board/galil",
             Kind::VirtualSensor => "sensor/virtual",
             Kind::OperatorHand => "sensor/operator-hand",
@@ -166,7 +171,7 @@ impl Kind {
     pub fn class(self) -> Class {
         match self {
             Kind::Robot(_) => Class::Robot,
-            Kind::SimBoard | Kind::GalilBoard => Class::Board,
+            Kind::SimBoard | Kind::FpgaBoard | Kind::GalilBoard => Class::Board,
             Kind::VirtualSensor | Kind::OperatorHand => Class::Sensor,
             Kind::JointPid
             | Kind::CartesianImpedance
@@ -198,6 +203,11 @@ impl Kind {
             Kind::SimBoard => (
                 "simulated motion board; the rigid-body plant of the robot mapped onto it",
                 SIM_BOARD_KEYS.to_string() + SHAPE_KEYS,
+            ),
+            Kind::FpgaBoard => (
+                "NI PCI-7831R FPGA board for the FRHC: the simulated plant's encoders and motors, \
+                 bit-exact forward kinematics and tau = J^T F on the board, with their latency",
+                FPGA_BOARD_KEYS.to_string() + SIM_BOARD_KEYS + SHAPE_KEYS,
             ),
             Kind::GalilBoard => (
                 "Galil DMC motion board over a serial line or TCP (a DMC or `penelope galil-sim`)",
@@ -688,7 +698,7 @@ mod tests {
         let kinds = all_kinds();
         // Every listed name parses (a name that does not would be dropped from the list).
         assert_eq!(kinds.len(), KINDS.len());
-        assert_eq!(kinds.len(), 22);
+        assert_eq!(kinds.len(), 23);
         for k in &kinds {
             let parsed = Kind::parse(&k.kind).unwrap();
             assert_eq!(parsed.as_str(), k.kind);

@@ -239,7 +239,11 @@ impl Registry {
                 contact = Some(tap.reader().map_err(tap_failed)?);
             }
             body.set_tap(tap);
-            LoopBoard::Sim(body, None)
+            if r.kinematics.is_fpga_board() {
+                LoopBoard::Fpga(body, None)
+            } else {
+                LoopBoard::Sim(body, None)
+            }
         } else {
             let mut boards: Vec<(String, GalilBoard)> = Vec::new();
             let mut map = [(0u8, 0u8); MAX_JOINTS];
@@ -472,7 +476,7 @@ impl Registry {
             let _ = board.set_enabled(false);
         }
         match board {
-            LoopBoard::Sim(body, _) => {
+            LoopBoard::Sim(body, _) | LoopBoard::Fpga(body, _) => {
                 if let Some(Object {
                     body: Body::Robot(r),
                     ..

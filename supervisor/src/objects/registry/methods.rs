@@ -138,7 +138,10 @@ impl Registry {
                     return Err(bad_arg("damping must be finite, 0..=10"));
                 }
                 let q = self.q_or_measured(name, &q)?;
-                let j = self.robot(name)?.model.jacobian_damped_inverse(&q, damping);
+                let j = self
+                    .robot(name)?
+                    .kinematics
+                    .jacobian_damped_inverse(&q, damping);
                 Ok(Reply::Matrix(MatrixMsg::from_block(&j, n, 6)))
             }
             RobotMethod::InverseKinematics { pose } => {
@@ -158,7 +161,7 @@ impl Registry {
                 let q = self.q_or_measured(name, &q)?;
                 let tau = self
                     .robot(name)?
-                    .model
+                    .kinematics
                     .wrench_to_torques(&q, &w)
                     .map_err(|e| bad_arg(e.to_string()))?;
                 Ok(Reply::Joints(joints_from_vector(&tau, n)))
@@ -267,7 +270,17 @@ impl Registry {
                     js.retain(|x| !joints.iter().any(|y| y.joint == x.joint));
                 }
                 r.maps.retain(|(_, js)| !js.is_empty());
+                let previous = std::mem::take(&mut r.maps);
+                r.maps.clone_from(&previous);
                 r.maps.push((board, joints));
+                // An fpga board takes the FRHC only, and all of it: refused here already when
+                // the board exists (again at configure, when every board must).
+                if let Err(e) = self.fpga_board_of(name) {
+                    if let Body::Robot(r) = &mut self.get_mut(name)?.body {
+                        r.maps = previous;
+                    }
+                    return Err(e);
+                }
                 Ok(Reply::Unit)
             }
         }

@@ -62,6 +62,8 @@ use crate::proto::{
 };
 
 mod build;
+mod fpga;
+mod galil;
 mod groups;
 mod methods;
 mod sensors;
@@ -70,6 +72,7 @@ mod trajectories;
 
 pub(crate) use build::Built;
 use build::{default_joint_gains, pid_gains};
+use galil::open_galil;
 use sensors::publisher_relations;
 use teleop::link_relations;
 use trajectories::{build_standalone, build_trajectory, spec_is_tool, spec_joints};
@@ -106,7 +109,8 @@ pub(crate) struct TeleopObj {
 pub(crate) struct RobotObj {
     /// The float model: dynamics, named poses, encoder scaling, and the simulated body.
     pub model: DhRobotModel,
-    /// What the robot's loops and kinematic methods compute with.
+    /// What the robot's loops and kinematic methods compute with: the float model, or, once
+    /// configured on a `board/fpga`, the board's.
     pub kinematics: RobotKinematics,
     /// Master or slave: what its loops' safety does.
     pub role: Role,
@@ -121,6 +125,8 @@ pub(crate) struct RobotObj {
 
 pub(crate) struct SimBoardObj {
     pub config: SimBoardConfig,
+    /// A `board/fpga`: the FRHC's FPGA kinematics in front of the plant.
+    pub fpga: bool,
 }
 
 pub(crate) struct GalilObj {
@@ -244,6 +250,14 @@ impl Object {
                         .collect();
                     relations.push(("board".to_string(), format!("{b} [{}]", list.join(" "))));
                 }
+                relations.push(("kinematics".to_string(), r.kinematics.describe().into()));
+                if r.kinematics.is_fpga_board() {
+                    relations.extend(crate::objects::fpga_board::describe());
+                }
+            }
+            Body::SimBoard(b) if b.fpga => {
+                relations.push(("kinematics".to_string(), "frhc, bit-exact".into()));
+                relations.extend(crate::objects::fpga_board::describe());
             }
             Body::Hand(h) => relations.push(("robot".to_string(), h.config.robot.clone())),
             Body::Sensor(s) => relations.extend(publisher_relations(s)),
@@ -303,15 +317,9 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
             let start = cfg.start_pose(k)?;
             let role = cfg.role(k)?;
             let model = models::by_name(model).ok_or_else(|| WireError::UnknownKind(k.into()))?;
-            let kinematics = RobotKinematics::new(model.clone(), cfg.fpga(k)?).map_err(|e| {
-                WireError::BadConfig {
-                    kind: k.into(),
-                    message: e.to_string(),
-                }
-            })?;
             Body::Robot(Box::new(RobotObj {
+                kinematics: RobotKinematics::Float(model.clone()),
                 model,
-                kinematics,
                 role,
                 caps: (cfg.max_force_n, cfg.max_moment_nm),
                 start,
@@ -319,10 +327,13 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
                 body: None,
             }))
         }
-        Kind::SimBoard => {
+        Kind::SimBoard | Kind::FpgaBoard => {
             let cfg: SimBoardConfig = kinds::parse(k, config)?;
             cfg.check(k)?;
-            Body::SimBoard(SimBoardObj { config: cfg })
+            Body::SimBoard(SimBoardObj {
+                config: cfg,
+                fpga: kind == Kind::FpgaBoard,
+            })
         }
         Kind::GalilBoard => {
             let cfg: GalilConfig = kinds::parse(k, config)?;
@@ -551,7 +562,10 @@ impl Registry {
     fn release(&mut self, name: &str) {
         if let Some(o) = self.objects.get_mut(name) {
             match &mut o.body {
-                Body::Robot(r) => r.body = None,
+                Body::Robot(r) => {
+                    r.body = None;
+                    r.kinematics = RobotKinematics::Float(r.model.clone());
+                }
                 Body::Teleop(t) => t.link = None,
                 // Its thread stops and is joined; readers fall silent and go stale.
                 Body::Sensor(s) => s.publisher = None,
@@ -636,6 +650,14 @@ impl Registry {
             return Err(bad_arg(format!(
                 "robot `{name}` mixes simulated and galil boards: a simulated body cannot move a real joint"
             )));
+        }
+        let kinematics = match self.fpga_board_of(name)? {
+            Some(_) => RobotKinematics::on_fpga_board(r.model.clone())
+                .ok_or_else(|| WireError::Internal("fpga model".into()))?,
+            None => RobotKinematics::Float(r.model.clone()),
+        };
+        if let Body::Robot(r) = &mut self.get_mut(name)?.body {
+            r.kinematics = kinematics;
         }
         if let Some(first) = sim_boards.first() {
             let Body::SimBoard(s) = &self.get(first)?.body else {
@@ -738,54 +760,3 @@ fn impedance(i: &ImpedanceConfigToml) -> ImpedanceConfig {
         ramp_in: Duration::from_millis(i.ramp_in_ms),
     }
 }
-
-/// Opens a Galil board.
-fn open_galil(cfg: &GalilConfig) -> Result<GalilBoard, WireError> {
-    let volts = cfg.volts();
-    let path = cfg.device.clone().unwrap_or_else(|| "tcp".into());
-    let mut board_cfg = GalilBoardConfig::new(path.clone(), cfg.axes as usize, &volts);
-    board_cfg.serial.baud = cfg.baud;
-    board_cfg.watchdog = (cfg.watchdog_ms > 0).then(|| Duration::from_millis(cfg.watchdog_ms));
-    let result = match &cfg.address {
-        Some(address) => {
-            let address = address.clone();
-            let timeout = Duration::from_millis(cfg.connect_timeout_ms);
-            let factory: LinkFactory = Box::new(move || {
-                use std::net::ToSocketAddrs;
-                let addr = address
-                    .to_socket_addrs()
-                    .map_err(|e| penelope_drivers::galil::GalilError::Io(e.kind()))?
-                    .next()
-                    .ok_or(penelope_drivers::galil::GalilError::Closed)?;
-                let stream = std::net::TcpStream::connect_timeout(&addr, timeout)
-                    .map_err(|e| penelope_drivers::galil::GalilError::Io(e.kind()))?;
-                TcpLink::new(stream).map(|l| Box::new(l) as Box<dyn Link + Send>)
-            });
-            GalilBoard::with_link_factory(board_cfg, factory)
-        }
-        None => GalilBoard::open(board_cfg),
-    };
-    let place = cfg
-        .address
-        .as_deref()
-        .or(cfg.device.as_deref())
-        .unwrap_or("?")
-        .to_string();
-    let board = result.map_err(|e| WireError::Device(format!("galil board at {place}: {e}")))?;
-    // Configured means ready: wait for the I/O thread's first exchange, so the encoders can be
-    // read as soon as `configure` returns.
-    let deadline = std::time::Instant::now() + FIRST_EXCHANGE_TIMEOUT;
-    while board.cycles() == 0 {
-        if board.is_faulted() || std::time::Instant::now() >= deadline {
-            return Err(WireError::Device(format!(
-                "galil board at {place}: no answer within {} ms",
-                FIRST_EXCHANGE_TIMEOUT.as_millis()
-            )));
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    Ok(board)
-}
-
-/// How long `configure` of a Galil board waits for the first exchange with the controller.
-const FIRST_EXCHANGE_TIMEOUT: Duration = Duration::from_secs(2);

@@ -1,4 +1,5 @@
-//! The board a loop drives: a robot's simulated body, or its joints on Galil boards.
+//! The board a loop drives: a robot's simulated body (behind a simulated board or the FRHC's
+//! FPGA board), or its joints on Galil boards.
 
 use super::*;
 
@@ -9,6 +10,12 @@ pub enum LoopBoard {
     /// the first call, so the plant goes on from its own time whenever a loop starts; grown by
     /// stalls longer than [`MAX_PLANT_STEP_NS`]).
     Sim(Box<SimBody>, Option<u64>),
+    /// The robot's simulated body behind a `board/fpga` (the FRHC): as [`LoopBoard::Sim`], but
+    /// a tick's command reaches the motors
+    /// [`command_delay_ns`](crate::objects::fpga_board::command_delay_ns) after its encoders
+    /// were latched (the board's kinematics, force transformation and DMA transfers); the
+    /// plant runs on with the previous command until then.
+    Fpga(Box<SimBody>, Option<u64>),
     /// One or more Galil boards.
     Galil(Box<GalilSet>),
 }
@@ -86,7 +93,7 @@ impl Board for LoopBoard {
 
     fn axis_count(&self) -> usize {
         match self {
-            LoopBoard::Sim(b, _) => b.axis_count(),
+            LoopBoard::Sim(b, _) | LoopBoard::Fpga(b, _) => b.axis_count(),
             LoopBoard::Galil(g) => g.joints,
         }
     }
@@ -95,7 +102,7 @@ impl Board for LoopBoard {
     /// Simulated: steps the plant (bounded sub-steps). Galil: one wait-free cell read per board.
     fn read_axes(&mut self, now: Timestamp, out: &mut [AxisState]) -> Result<(), LoopBoardError> {
         match self {
-            LoopBoard::Sim(b, offset) => {
+            LoopBoard::Sim(b, offset) | LoopBoard::Fpga(b, offset) => {
                 let now = plant_time(b, offset, now);
                 b.read_axes(now, out).map_err(LoopBoardError::Sim)
             }
@@ -130,6 +137,15 @@ impl Board for LoopBoard {
                 let now = plant_time(b, offset, now);
                 b.write_axes(now, commands).map_err(LoopBoardError::Sim)
             }
+            LoopBoard::Fpga(b, offset) => {
+                let delay = crate::objects::fpga_board::command_delay_ns();
+                let now = plant_time(
+                    b,
+                    offset,
+                    Timestamp::from_nanos(now.as_nanos().saturating_add(delay)),
+                );
+                b.write_axes(now, commands).map_err(LoopBoardError::Sim)
+            }
             LoopBoard::Galil(g) => {
                 if commands.len() < g.joints {
                     return Err(LoopBoardError::WrongLength);
@@ -157,7 +173,7 @@ impl Board for LoopBoard {
     /// I/O thread.
     fn rearm(&mut self) -> Result<(), LoopBoardError> {
         match self {
-            LoopBoard::Sim(b, _) => b.rearm().map_err(LoopBoardError::Sim),
+            LoopBoard::Sim(b, _) | LoopBoard::Fpga(b, _) => b.rearm().map_err(LoopBoardError::Sim),
             LoopBoard::Galil(g) => {
                 for (_, board) in g.boards.iter_mut() {
                     board.rearm().map_err(LoopBoardError::Galil)?;
@@ -169,7 +185,9 @@ impl Board for LoopBoard {
 
     fn set_enabled(&mut self, enabled: bool) -> Result<(), LoopBoardError> {
         match self {
-            LoopBoard::Sim(b, _) => b.set_enabled(enabled).map_err(LoopBoardError::Sim),
+            LoopBoard::Sim(b, _) | LoopBoard::Fpga(b, _) => {
+                b.set_enabled(enabled).map_err(LoopBoardError::Sim)
+            }
             LoopBoard::Galil(g) => {
                 let mut result = Ok(());
                 for (_, board) in g.boards.iter_mut() {
@@ -190,10 +208,9 @@ mod tests {
     use penelope_drivers::sim::board::SimBoardConfig as DriverSimConfig;
     use penelope_drivers::sim::plant::PlantConfig;
 
-    #[test]
-    fn a_stalled_loop_finds_the_simulated_world_paused_not_fast_forwarded() {
+    fn body() -> SimBody {
         let model = puma560();
-        let body = SimBody::new(
+        SimBody::new(
             model.clone(),
             PlantConfig::default(),
             DriverSimConfig {
@@ -207,17 +224,55 @@ mod tests {
             ToolContact::Environment(Environment::new()),
             JointVector::zeros(),
             Timestamp::ZERO,
-        );
-        let mut board = LoopBoard::Sim(Box::new(body), None);
+        )
+    }
+
+    fn plant_ns(b: &LoopBoard) -> u64 {
+        match b {
+            LoopBoard::Sim(s, _) | LoopBoard::Fpga(s, _) => s.plant().snapshot().time.as_nanos(),
+            LoopBoard::Galil(_) => unreachable!(),
+        }
+    }
+
+    #[test]
+    fn an_fpga_boards_command_reaches_the_motors_after_the_modelled_delay() {
+        let delay = crate::objects::fpga_board::command_delay_ns();
+        assert!(delay > 20_000 && delay < 40_000, "{delay} ns");
+        let now = Timestamp::from_nanos(1_000_000);
+        let push = [AxisCommand::Effort(20.0); 6];
+        let mut out = [AxisState::default(); MAX_AXES];
+        let mut ticked = |mut board: LoopBoard| {
+            board.set_enabled(true).unwrap();
+            board.read_axes(now, &mut out[..6]).unwrap();
+            board.write_axes(now, &push).unwrap();
+            let at_write = plant_ns(&board);
+            let later = Timestamp::from_nanos(now.as_nanos() + 1_000_000);
+            board.read_axes(later, &mut out[..6]).unwrap();
+            let v = match &board {
+                LoopBoard::Sim(s, _) | LoopBoard::Fpga(s, _) => {
+                    s.plant().snapshot().joints.velocity
+                }
+                LoopBoard::Galil(_) => unreachable!(),
+            };
+            (at_write, v[0])
+        };
+        let (sim_write, sim_v) = ticked(LoopBoard::Sim(Box::new(body()), None));
+        let (fpga_write, fpga_v) = ticked(LoopBoard::Fpga(Box::new(body()), None));
+        // The plain board applies the command at once; the FPGA board holds the old one (none)
+        // for the delay, so its joint has had less time to speed up.
+        assert_eq!(sim_write, 0);
+        assert_eq!(fpga_write, delay);
+        assert!(fpga_v.abs() < sim_v.abs(), "{fpga_v} vs {sim_v}");
+    }
+
+    #[test]
+    fn a_stalled_loop_finds_the_simulated_world_paused_not_fast_forwarded() {
+        let mut board = LoopBoard::Sim(Box::new(body()), None);
         let mut out = [AxisState::default(); MAX_AXES];
         let start = 5_000_000_000_u64;
         board
             .read_axes(Timestamp::from_nanos(start), &mut out[..6])
             .unwrap();
-        let plant_ns = |b: &LoopBoard| match b {
-            LoopBoard::Sim(s, _) => s.plant().snapshot().time.as_nanos(),
-            LoopBoard::Galil(_) => unreachable!(),
-        };
         // The first call anchors the loop's clock to the plant's.
         assert_eq!(plant_ns(&board), 0);
         // A 1 ms tick advances the plant by 1 ms.

@@ -1,6 +1,7 @@
 //! `penelope bench fpga`: throughput of the bit-exact FPGA kinematics model beside the float
 //! (f64) forward kinematics of the same DH table, single-threaded, and the modelled hardware
-//! latency at 40 MHz.
+//! latency at 40 MHz, alone and as `board/fpga` hands results to the host (with its DMA FIFO
+//! transfers, `penelope_supervisor::objects::fpga_board`).
 //!
 //! Every implementation runs over the same batch of seeded random FRHC configurations (the
 //! float one at the exact values of the binary angles), one call after another on one thread;
@@ -18,6 +19,7 @@ use penelope_fpga::sincos::angle_to_radians;
 use penelope_fpga::{FkWords, FpgaKinematics};
 use penelope_hal::joint::JointVector;
 use penelope_hal::robot::Kinematics;
+use penelope_supervisor::objects::fpga_board::{self, FK, FK_FORCE};
 use serde_json::json;
 
 /// Options of `penelope bench fpga`.
@@ -164,6 +166,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 "force_cycles": FORCE_CYCLES,
                 "force_latency_s": hw_force_s,
                 "force_per_second": cycles::per_second(FORCE_CYCLES),
+                "fk_to_host_s": FK.latency_ns() as f64 * 1e-9,
+                "force_to_host_s": FK_FORCE.latency_ns() as f64 * 1e-9,
+                "command_delay_s": fpga_board::command_delay_ns() as f64 * 1e-9,
             },
         });
         println!("{out}");
@@ -193,17 +198,32 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "\nModelled hardware (NI PCI-7831R at {:.0} MHz, one FSM, pipelined multipliers):\n",
         cycles::CLOCK_HZ / 1e6
     );
-    println!("| operation | cycles | latency | results per second |");
-    println!("|---|---|---|---|");
     println!(
-        "| forward kinematics | {FK_CYCLES} | {:.3} us | {:.0} |",
+        "| operation | cycles | latency on the board | results per second | to the host with DMA (board/fpga) |"
+    );
+    println!("|---|---|---|---|---|");
+    println!(
+        "| forward kinematics | {FK_CYCLES} | {:.3} us | {:.0} | {:.3} us |",
         hw_fk_s * 1e6,
-        cycles::per_second(FK_CYCLES)
+        cycles::per_second(FK_CYCLES),
+        FK.latency_ns() as f64 / 1e3
     );
     println!(
-        "| FK + force (tau = J^T F) | {FORCE_CYCLES} | {:.3} us | {:.0} |",
+        "| FK + force (tau = J^T F) | {FORCE_CYCLES} | {:.3} us | {:.0} | {:.3} us |",
         hw_force_s * 1e6,
-        cycles::per_second(FORCE_CYCLES)
+        cycles::per_second(FORCE_CYCLES),
+        FK_FORCE.latency_ns() as f64 / 1e3
+    );
+    println!(
+        "\nDMA model (assumed): {} us per FIFO transfer + {:.1} ns per 32-bit word; FK reads back {} \
+         words, FK + force writes {} and reads {}; a tick's command reaches the motors {:.3} us \
+         after the encoder latch.",
+        fpga_board::DMA_TRANSFER_NS as f64 / 1e3,
+        fpga_board::DMA_WORD_PS as f64 / 1e3,
+        FK.words_to_host,
+        FK_FORCE.words_to_board,
+        FK_FORCE.words_to_host,
+        fpga_board::command_delay_ns() as f64 / 1e3
     );
     println!(
         "\nbit-exact FK takes {fk_ratio:.2}x the float FK's time per call (goal: within 3x); \

@@ -1,0 +1,34 @@
+//! Which `board/fpga` a robot's joints are on, checked: the board computes the FRHC's whole
+//! chain.
+
+use super::*;
+use crate::objects::fpga_board::{FpgaBoardError, robot_on_boards};
+
+impl Registry {
+    /// The `board/fpga` robot `name`'s joints are on, if any (boards not yet created count as
+    /// other boards).
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] of `board/fpga` from an [`FpgaBoardError`]: a robot other than
+    /// the FRHC, or joints split between the fpga board and another.
+    pub fn fpga_board_of(&self, name: &str) -> Result<Option<String>, WireError> {
+        let r = self.robot(name)?;
+        let boards: Vec<(&str, bool)> = r
+            .maps
+            .iter()
+            .map(|(b, _)| {
+                let fpga = self
+                    .objects
+                    .get(b)
+                    .is_some_and(|o| matches!(&o.body, Body::SimBoard(s) if s.fpga));
+                (b.as_str(), fpga)
+            })
+            .collect();
+        robot_on_boards(name, r.model.name(), &boards).map_err(|e: FpgaBoardError| {
+            WireError::BadConfig {
+                kind: Kind::FpgaBoard.as_str().into(),
+                message: e.to_string(),
+            }
+        })
+    }
+}
