@@ -344,7 +344,8 @@ fn the_two_node_demo_file_meets_the_demos_bounds() {
         };
         report(&run(&system, &options, &mut |_| {}).expect("the system runs"))
     };
-    let two = options(include_str!("../../config/demo-two-nodes.toml"));
+    // (On free ports: the file's own would clash with the other tests' runs in parallel.)
+    let two = options(&two_nodes(""));
     let one = options(DEMO_SYSTEM);
     println!(
         "two nodes: tracking {:.3} mm RMS (one node {:.3}), display {:.2}% off (one node {:.2}%)",
@@ -365,7 +366,7 @@ fn the_two_node_demo_file_meets_the_demos_bounds() {
 fn the_two_port_observers_hear_each_other_across_the_data_plane() {
     use penelope_supervisor::runs::report::report;
     use penelope_supervisor::runs::{Law, RunOptions, run};
-    let system = SystemFile::parse(include_str!("../../config/demo-two-nodes.toml")).unwrap();
+    let system = SystemFile::parse(&two_nodes("")).unwrap();
     let run_law = |law| {
         let options = RunOptions {
             law: Some(law),
