@@ -294,9 +294,26 @@ fn position_error_master_springs_toward_the_slave_and_is_capped() {
     let mut pem = PositionErrorMaster::new(ImpedanceConfig::master()).unwrap();
     assert_eq!(pem.kind(), "position-error-master");
     pem.activate(at(0), &state, &frhc);
-    let r = still(shifted(&pose, Vector3::new(0.0, 0.01, 0.0)));
+    let r = still(shifted(&pose, Vector3::new(0.0, 0.005, 0.0)));
     pem.update(&input(0, &state, &r, &frhc)).unwrap();
-    assert!((pem.last_wrench().force - Vector3::new(0.0, 2.0, 0.0)).norm() < 1e-9);
+    assert!((pem.last_wrench().force - Vector3::new(0.0, 5.0, 0.0)).norm() < 1e-9);
+    // The slave's samples come as hybrid references (its pose and its sensed wrench): the
+    // spring follows the pose, the wrench is not this law's to show (it once replaced the
+    // spring, every axis being a force axis, and position-error displayed the slave's force).
+    let Reference::Cartesian(motion) = r else {
+        unreachable!()
+    };
+    let hybrid = Reference::Hybrid(penelope_hal::HybridReference {
+        motion,
+        wrench: Wrench {
+            force: Vector3::new(7.0, 0.0, 0.0),
+            torque: Vector3::zeros(),
+            frame: Frame::Base,
+        },
+        force_axes: [true; 6],
+    });
+    pem.update(&input(0, &state, &hybrid, &frhc)).unwrap();
+    assert!((pem.last_wrench().force - Vector3::new(0.0, 5.0, 0.0)).norm() < 1e-9);
     let far = still(shifted(&pose, Vector3::new(0.0, 0.1, -0.1)));
     let tau = effort(pem.update(&input(1, &state, &far, &frhc)).unwrap());
     let f = pem.last_wrench().force;

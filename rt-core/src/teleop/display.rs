@@ -144,6 +144,21 @@ impl ForceDisplay {
     }
 }
 
+/// The force channel of a master: `wanted` (base frame) through the low-pass whose state is
+/// `filtered`, then the dead bands of `config`. Shared with the four-channel master.
+pub(crate) fn force_channel(
+    filtered: &mut Vector6<f64>,
+    wanted: &Vector6<f64>,
+    config: &ForceDisplayConfig,
+    dt: f64,
+) -> Vector6<f64> {
+    *filtered += (wanted - *filtered) * lowpass_gain(config.filter_cutoff_hz, dt);
+    stack(
+        &deadband(top(filtered), config.force_deadband),
+        &deadband(bottom(filtered), config.torque_deadband),
+    )
+}
+
 impl Controller for ForceDisplay {
     fn kind(&self) -> &'static str {
         "force-display"
@@ -178,12 +193,8 @@ impl Controller for ForceDisplay {
                 .ok_or(ControllerError::UnsupportedReference)?,
         };
         let dt = input.period.as_secs_f64();
-        self.filtered += (wanted - self.filtered) * lowpass_gain(self.config.filter_cutoff_hz, dt);
+        let shown = force_channel(&mut self.filtered, &wanted, &self.config, dt);
         let v = jac * input.state.velocity;
-        let shown = stack(
-            &deadband(top(&self.filtered), self.config.force_deadband),
-            &deadband(bottom(&self.filtered), self.config.torque_deadband),
-        );
         let f = shown - Vector6::from(self.config.damping).component_mul(&v);
         let (f, k) = cap_wrench(&f, self.config.max_force, self.config.max_torque);
         // The operator applies about -f to the device: that is the power into the system.

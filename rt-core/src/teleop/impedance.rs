@@ -4,8 +4,8 @@ use core::time::Duration;
 
 use nalgebra::{Matrix3, Vector6};
 use penelope_hal::{
-    ControlInput, Controller, ControllerError, Frame, JacobianFrame, JointCommand, JointState,
-    Reference, RobotModel, Timestamp, Wrench,
+    CartesianReference, ControlInput, Controller, ControllerError, Frame, JacobianFrame,
+    JointCommand, JointState, Pose, Reference, RobotModel, Timestamp, Wrench,
 };
 
 use super::passivity::PassivityObserver;
@@ -49,12 +49,12 @@ impl Default for ImpedanceConfig {
 }
 
 impl ImpedanceConfig {
-    /// An FRHC-sized master for position-error: 200 N/m and 2 N·m/rad, 5 N·s/m and
+    /// An FRHC-sized master for position-error: 1000 N/m and 2 N·m/rad, 20 N·s/m and
     /// 0.05 N·m·s/rad, gravity compensated, capped at 10 N and 0.5 N·m.
     pub fn master() -> Self {
         ImpedanceConfig {
-            stiffness: [200.0, 200.0, 200.0, 2.0, 2.0, 2.0],
-            damping: [5.0, 5.0, 5.0, 0.05, 0.05, 0.05],
+            stiffness: [1000.0, 1000.0, 1000.0, 2.0, 2.0, 2.0],
+            damping: [20.0, 20.0, 20.0, 0.05, 0.05, 0.05],
             gravity_compensation: true,
             max_force: 10.0,
             max_torque: 0.5,
@@ -158,13 +158,8 @@ impl CartesianImpedance {
         let pose = model.forward(q);
         let jac = model.jacobian(q, JacobianFrame::Base);
         let v = jac * input.state.velocity;
-        let v_ref = twist_in_base(&motion.twist, &motion.pose)
-            .ok_or(ControllerError::UnsupportedReference)?;
-        let e = pose_error(&motion.pose, &pose);
         let ramp = ramp_factor(self.config.ramp_in, self.activated_at, input.now);
-        let k = Vector6::from(self.config.stiffness);
-        let d = Vector6::from(self.config.damping);
-        let mut f = k.component_mul(&e) * ramp + d.component_mul(&(v_ref - v));
+        let mut f = spring(&self.config, ramp, motion, &pose, &v)?;
         if let Some(h) = hybrid {
             // Selection in the wrench's frame: rotate in, substitute the force axes, rotate back.
             let rot: Matrix3<f64> = match h.wrench.frame {
@@ -213,6 +208,27 @@ impl CartesianImpedance {
         self.last_wrench = wrench;
         Ok((effort(tau)?, f, v))
     }
+}
+
+/// The spring-damper `K e ramp + D (v_ref - v)` toward `motion` from the tool at `pose` moving
+/// at `v` (base frame): the Cartesian impedance's law, and the position channel of the
+/// four-channel master.
+///
+/// # Errors
+/// [`ControllerError::UnsupportedReference`] for a twist in the sensor frame.
+pub(crate) fn spring(
+    config: &ImpedanceConfig,
+    ramp: f64,
+    motion: &CartesianReference,
+    pose: &Pose,
+    v: &Vector6<f64>,
+) -> Result<Vector6<f64>, ControllerError> {
+    let v_ref =
+        twist_in_base(&motion.twist, &motion.pose).ok_or(ControllerError::UnsupportedReference)?;
+    let e = pose_error(&motion.pose, pose);
+    let k = Vector6::from(config.stiffness);
+    let d = Vector6::from(config.damping);
+    Ok(k.component_mul(&e) * ramp + d.component_mul(&(v_ref - v)))
 }
 
 fn ramp_factor(ramp: Duration, since: Timestamp, now: Timestamp) -> f64 {
@@ -326,6 +342,19 @@ impl Controller for PositionErrorMaster {
     }
 
     fn update(&mut self, input: &ControlInput<'_>) -> Result<JointCommand, ControllerError> {
+        // The spring to the slave's pose only: a hybrid reference's wrench (the slave's sensed
+        // force, on its way to a force display) is not this law's to show.
+        let motion;
+        let input = match input.reference {
+            Reference::Hybrid(h) => {
+                motion = Reference::Cartesian(h.motion);
+                &ControlInput {
+                    reference: &motion,
+                    ..*input
+                }
+            }
+            _ => input,
+        };
         let (cmd, f, v) = self.law.torques(input)?;
         self.observer.observe(input.period.as_secs_f64(), &(-f), &v);
         Ok(cmd)

@@ -25,6 +25,9 @@
 //! - [`passivity`]: [`PassivityObserver`] (Hannaford & Ryu, one port), and the two-port
 //!   delayed form: [`TwoPortObserver`], [`TwoPortController`]
 //!   (impedance or admittance form), the counters [`PortEnergy`] that travel with the samples.
+//! - [`four_channel`]: Lawrence's four-channel architecture ([`FourChannelMaster`], `C_2`, `C_4`,
+//!   `C_6` and the local impedance), the general form of which force-position and position-error
+//!   are special cases.
 //! - [`wave`]: wave variables ([`WaveMaster`], [`WaveSlave`]): passive under any delay, loss,
 //!   duplication and reordering (an energy reserve on each receiving end).
 //!
@@ -43,6 +46,7 @@
 
 pub mod channel;
 pub mod display;
+pub mod four_channel;
 pub mod impedance;
 pub mod mapping;
 pub mod passivity;
@@ -61,6 +65,7 @@ pub use channel::{
     TeleopSample, VelocityFeedForward,
 };
 pub use display::{ForceDisplay, ForceDisplayConfig};
+pub use four_channel::{FourChannelConfig, FourChannelMaster};
 pub use impedance::{CartesianImpedance, ImpedanceConfig, PositionErrorMaster};
 pub use mapping::{Anchors, MappingConfig, MappingError, WorkspaceMapping};
 pub use passivity::{

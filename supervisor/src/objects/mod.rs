@@ -45,6 +45,7 @@ mod registry;
 pub mod runtime;
 pub mod teleop;
 pub mod teleop_end;
+pub mod teleop_laws;
 pub mod teleop_passivity;
 pub mod teleop_wave;
 

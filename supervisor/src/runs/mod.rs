@@ -374,7 +374,11 @@ fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task, RunError> 
         }
         let passivity = law.passivity().filter(|_| options.law.is_some());
         if o.robot.as_deref() == Some(teleop.master.as_str()) {
-            o.active = o.kind == law.master_kind();
+            // Without a law asked for, the file's own master half runs (whatever its kind: a
+            // four-channel master is either classical law, as its coefficients say).
+            if options.law.is_some() {
+                o.active = o.kind == law.master_kind();
+            }
             if let (true, Some((word, _))) = (o.active, passivity) {
                 set_key(o, "passivity", toml::Value::String(word.into()))?;
             }

@@ -28,13 +28,14 @@ use trajectory::{RAMP_KEYS, SPLINE_KEYS, STEP_KEYS, TRAPEZOIDAL_KEYS};
 use penelope_rt_core::safety::Role;
 
 use super::teleop::{
-    FORCE_DISPLAY_KEYS, HAND_KEYS, POSITION_ERROR_KEYS, SLAVE_TRACKING_KEYS, TELEOP_KEYS,
+    FORCE_DISPLAY_KEYS, FOUR_CHANNEL_KEYS, HAND_KEYS, POSITION_ERROR_KEYS, SLAVE_TRACKING_KEYS,
+    TELEOP_KEYS,
 };
 use super::teleop_wave::{WAVE_MASTER_KEYS, WAVE_SLAVE_KEYS};
 use crate::proto::{Class, KindInfo, WireError};
 
 /// Every kind this creator makes, in listing order.
-pub const KINDS: [&str; 23] = [
+pub const KINDS: [&str; 24] = [
     "robot/puma560",
     "robot/puma200",
     "robot/frhc",
@@ -49,6 +50,7 @@ pub const KINDS: [&str; 23] = [
     "controller/joint-groups",
     "controller/force-display",
     "controller/position-error-master",
+    "controller/four-channel-master",
     "controller/slave-tracking",
     "controller/slave-position",
     "controller/wave-master",
@@ -87,6 +89,8 @@ pub enum Kind {
     ForceDisplay,
     /// `controller/position-error-master`: the master half of position-error.
     PositionErrorMaster,
+    /// `controller/four-channel-master`: the master half of Lawrence's four channels.
+    FourChannelMaster,
     /// `controller/slave-tracking`: the slave half (computed torque to the mapped master pose).
     SlaveTracking,
     /// `controller/slave-position`: the slave half for a board with its own servo.
@@ -125,6 +129,7 @@ impl Kind {
             "controller/joint-groups" => Kind::JointGroups,
             "controller/force-display" => Kind::ForceDisplay,
             "controller/position-error-master" => Kind::PositionErrorMaster,
+            "controller/four-channel-master" => Kind::FourChannelMaster,
             "controller/slave-tracking" => Kind::SlaveTracking,
             "controller/slave-position" => Kind::SlavePosition,
             "controller/wave-master" => Kind::WaveMaster,
@@ -155,6 +160,7 @@ impl Kind {
             Kind::JointGroups => "controller/joint-groups",
             Kind::ForceDisplay => "controller/force-display",
             Kind::PositionErrorMaster => "controller/position-error-master",
+            Kind::FourChannelMaster => "controller/four-channel-master",
             Kind::SlaveTracking => "controller/slave-tracking",
             Kind::SlavePosition => "controller/slave-position",
             Kind::WaveMaster => "controller/wave-master",
@@ -179,6 +185,7 @@ impl Kind {
             | Kind::JointGroups
             | Kind::ForceDisplay
             | Kind::PositionErrorMaster
+            | Kind::FourChannelMaster
             | Kind::SlaveTracking
             | Kind::SlavePosition
             | Kind::WaveMaster
@@ -231,6 +238,11 @@ impl Kind {
             Kind::PositionErrorMaster => (
                 "teleoperation master, position-error: a spring-damper to the mapped slave pose",
                 POSITION_ERROR_KEYS.to_string() + LOOP_KEYS,
+            ),
+            Kind::FourChannelMaster => (
+                "teleoperation master, Lawrence's four channels: force channel (C2), position \
+                 channel (C4), hand force (C6), local damping; the classical masters as cases",
+                FOUR_CHANNEL_KEYS.to_string() + LOOP_KEYS,
             ),
             Kind::SlaveTracking => (
                 "teleoperation slave: follows the mapped master pose (IK, computed torque)",
@@ -698,7 +710,7 @@ mod tests {
         let kinds = all_kinds();
         // Every listed name parses (a name that does not would be dropped from the list).
         assert_eq!(kinds.len(), KINDS.len());
-        assert_eq!(kinds.len(), 23);
+        assert_eq!(kinds.len(), 24);
         for k in &kinds {
             let parsed = Kind::parse(&k.kind).unwrap();
             assert_eq!(parsed.as_str(), k.kind);

@@ -566,6 +566,7 @@ pub(super) fn node_law(
         }
         ControllerConfig::ForceDisplay(c) => NodeController::ForceDisplay(c.law(kind)?),
         ControllerConfig::PositionError(c) => NodeController::PositionErrorMaster(c.law(kind)?),
+        ControllerConfig::FourChannel(c) => NodeController::FourChannel(c.law(kind)?),
         ControllerConfig::Tracking(c, servo) => NodeController::SlaveTracking(c.law(kind, *servo)?),
         ControllerConfig::WaveMaster(c) => NodeController::ForceDisplay(c.law(kind)?),
         ControllerConfig::WaveSlave(c) => NodeController::SlaveTracking(c.law(kind)?),

@@ -747,6 +747,14 @@ fn gains_from(
                 Some(GainsUpdate::PositionError(*law.config())),
             )
         }
+        ControllerConfig::FourChannel(_) => {
+            let cfg: FourChannelToml = kinds::parse(kind, text)?;
+            let law = cfg.law(kind)?;
+            (
+                ControllerConfig::FourChannel(cfg),
+                Some(GainsUpdate::FourChannel(*law.config())),
+            )
+        }
         ControllerConfig::Tracking(_, servo) => {
             let cfg: SlaveTrackingToml = kinds::parse(kind, text)?;
             let law = cfg.law(kind, *servo)?;

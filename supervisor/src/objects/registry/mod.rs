@@ -44,8 +44,8 @@ use super::kinds::{
 };
 use super::kinematics::RobotKinematics;
 use super::teleop::{
-    ForceDisplayToml, HandConfig, HandObj, PositionErrorToml, Side, SlaveTrackingToml, TeleopComm,
-    TeleopConfig, TeleopLink,
+    ForceDisplayToml, FourChannelToml, HandConfig, HandObj, PositionErrorToml, Side,
+    SlaveTrackingToml, TeleopComm, TeleopConfig, TeleopLink,
 };
 use super::teleop_wave::{WaveMasterToml, WaveSlaveToml};
 use crate::dataplane::endpoint::Endpoint;
@@ -151,6 +151,8 @@ pub(crate) enum ControllerConfig {
     Groups(kinds::JointGroupsConfig),
     ForceDisplay(ForceDisplayToml),
     PositionError(PositionErrorToml),
+    /// The master half of Lawrence's four channels.
+    FourChannel(FourChannelToml),
     /// The slave half: torques, or position targets for the board's servo (`true`).
     Tracking(SlaveTrackingToml, bool),
     /// The master half of the wave-variable law.
@@ -165,6 +167,7 @@ impl ControllerConfig {
         match self {
             ControllerConfig::ForceDisplay(_)
             | ControllerConfig::PositionError(_)
+            | ControllerConfig::FourChannel(_)
             | ControllerConfig::WaveMaster(_) => Some(Side::Master),
             ControllerConfig::Tracking(..) | ControllerConfig::WaveSlave(_) => Some(Side::Slave),
             _ => None,
@@ -401,6 +404,12 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
             cfg.law(k)?;
             let timing = cfg.timing(k)?;
             controller_body(ControllerConfig::PositionError(cfg), timing, config)
+        }
+        Kind::FourChannelMaster => {
+            let cfg: FourChannelToml = kinds::parse(k, config)?;
+            cfg.law(k)?;
+            let timing = cfg.timing(k)?;
+            controller_body(ControllerConfig::FourChannel(cfg), timing, config)
         }
         Kind::SlaveTracking | Kind::SlavePosition => {
             let cfg: SlaveTrackingToml = kinds::parse(k, config)?;

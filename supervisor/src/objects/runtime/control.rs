@@ -17,6 +17,8 @@ pub enum NodeController {
     ForceDisplay(ForceDisplay),
     /// `controller/position-error-master`.
     PositionErrorMaster(PositionErrorMaster),
+    /// `controller/four-channel-master`.
+    FourChannel(FourChannelMaster),
     /// `controller/slave-tracking` and `controller/slave-position`.
     SlaveTracking(SlaveTracking),
     /// `controller/joint-groups`: members on joint subsets, in one loop.
@@ -37,6 +39,7 @@ impl NodeController {
             NodeController::Position(c) => c,
             NodeController::ForceDisplay(c) => c,
             NodeController::PositionErrorMaster(c) => c,
+            NodeController::FourChannel(c) => c,
             NodeController::SlaveTracking(c) => c,
             NodeController::Groups(c) => &mut **c,
         }
@@ -66,6 +69,9 @@ impl NodeController {
             (NodeController::PositionErrorMaster(c), GainsUpdate::PositionError(g)) => {
                 let _ = c.set_config(*g);
             }
+            (NodeController::FourChannel(c), GainsUpdate::FourChannel(g)) => {
+                let _ = c.set_config(*g);
+            }
             (NodeController::SlaveTracking(c), GainsUpdate::Tracking(g)) => {
                 let _ = c.set_config(*g);
             }
@@ -82,6 +88,7 @@ impl Controller for NodeController {
             NodeController::Position(c) => c.kind(),
             NodeController::ForceDisplay(c) => c.kind(),
             NodeController::PositionErrorMaster(c) => c.kind(),
+            NodeController::FourChannel(c) => c.kind(),
             NodeController::SlaveTracking(c) => c.kind(),
             NodeController::Groups(c) => c.kind(),
         }
@@ -99,6 +106,7 @@ impl Controller for NodeController {
             NodeController::Position(c) => c.port_energy(),
             NodeController::ForceDisplay(c) => c.port_energy(),
             NodeController::PositionErrorMaster(c) => c.port_energy(),
+            NodeController::FourChannel(c) => c.port_energy(),
             NodeController::SlaveTracking(c) => c.port_energy(),
             NodeController::Groups(c) => c.port_energy(),
         }
@@ -116,6 +124,8 @@ pub enum GainsUpdate {
     ForceDisplay(ForceDisplayConfig),
     /// Position-error master settings.
     PositionError(ImpedanceConfig),
+    /// Four-channel master settings.
+    FourChannel(FourChannelConfig),
     /// Slave-tracking settings.
     Tracking(TrackingConfig),
 }

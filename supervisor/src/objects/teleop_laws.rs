@@ -1,0 +1,256 @@
+//! The halves of the classical teleoperation laws as object kinds: their configuration keys,
+//! what `ctl kinds` lists for them, and the checked laws they make (force-display and
+//! slave-tracking for force-position; position-error-master, with the same slave half, for
+//! position-error).
+
+use penelope_rt_core::teleop::{
+    ForceDisplay, ForceDisplayConfig, FourChannelConfig, FourChannelMaster, ImpedanceConfig,
+    PassivityForm, PositionErrorMaster, SlaveTracking, TrackingConfig, TrackingOutput,
+    TwoPortConfig,
+};
+
+use super::teleop_passivity::PortLaw;
+use crate::proto::WireError;
+
+crate::objects::kinds::loop_keys!(ForceDisplayToml {
+    max_force: f64 = ForceDisplayConfig::default().max_force, #[doc = "Largest displayed force, N."]
+    max_torque: f64 = ForceDisplayConfig::default().max_torque, #[doc = "Largest displayed moment, N·m."]
+    damping: [f64; 6] = ForceDisplayConfig::default().damping, #[doc = "Added damping on the tool twist, N·s/m then N·m·s/rad."]
+    force_deadband: f64 = ForceDisplayConfig::default().force_deadband, #[doc = "Forces below this are not displayed, N."]
+    torque_deadband: f64 = ForceDisplayConfig::default().torque_deadband, #[doc = "Moments below this are not displayed, N·m."]
+    filter_cutoff_hz: f64 = ForceDisplayConfig::default().filter_cutoff_hz, #[doc = "Low-pass on the displayed wrench, Hz (0: none)."]
+    gravity_compensation: bool = true, #[doc = "Add g(q)."]
+    passivity: String = "off".into(), #[doc = "The channel's two-port passivity controller at the master port: `off` or `impedance`."]
+});
+
+crate::objects::kinds::loop_keys!(PositionErrorToml {
+    stiffness: [f64; 6] = ImpedanceConfig::master().stiffness, #[doc = "Spring to the mapped slave pose, N/m then N·m/rad."]
+    damping: [f64; 6] = ImpedanceConfig::master().damping, #[doc = "N·s/m then N·m·s/rad."]
+    max_force: f64 = ImpedanceConfig::master().max_force, #[doc = "Force cap, N."]
+    max_torque: f64 = ImpedanceConfig::master().max_torque, #[doc = "Moment cap, N·m."]
+    gravity_compensation: bool = true, #[doc = "Add g(q)."]
+});
+
+crate::objects::kinds::loop_keys!(FourChannelToml {
+    c2: f64 = 1.0, #[doc = "C2: weight of the force channel (the slave's mapped wrench)."]
+    c4: f64 = 0.0, #[doc = "C4: weight of the position channel (the spring to the slave's pose)."]
+    c6: f64 = 0.0, #[doc = "C6: weight of the operator's wrench on the handle (a handle sensor)."]
+    damping: [f64; 6] = ForceDisplayConfig::default().damping, #[doc = "C_m: local damping on the tool twist, N·s/m then N·m·s/rad."]
+    stiffness: [f64; 6] = ImpedanceConfig::master().stiffness, #[doc = "The position channel's spring, N/m then N·m/rad."]
+    spring_damping: [f64; 6] = ImpedanceConfig::master().damping, #[doc = "The position channel's damper on the twist error."]
+    max_force: f64 = ForceDisplayConfig::default().max_force, #[doc = "Cap on the whole wrench, N."]
+    max_torque: f64 = ForceDisplayConfig::default().max_torque, #[doc = "Cap on the whole moment, N·m."]
+    force_deadband: f64 = ForceDisplayConfig::default().force_deadband, #[doc = "The force channel's dead band, N."]
+    torque_deadband: f64 = ForceDisplayConfig::default().torque_deadband, #[doc = "The force channel's moment dead band, N·m."]
+    filter_cutoff_hz: f64 = ForceDisplayConfig::default().filter_cutoff_hz, #[doc = "The force channel's low-pass, Hz (0: none)."]
+    gravity_compensation: bool = true, #[doc = "Add g(q)."]
+});
+
+crate::objects::kinds::loop_keys!(SlaveTrackingToml {
+    kp: [f64; 6] = TrackingConfig::default().kp, #[doc = "Position gain per joint, 1/s²."]
+    kd: [f64; 6] = TrackingConfig::default().kd, #[doc = "Velocity gain per joint, 1/s."]
+    ki: [f64; 6] = TrackingConfig::default().ki, #[doc = "Integral gain per joint, 1/s³."]
+    passivity: String = "off".into(), #[doc = "The channel's two-port passivity controller at the slave port: `off` or `admittance`."]
+});
+
+/// What `ctl kinds` lists for `controller/force-display`.
+pub const FORCE_DISPLAY_KEYS: &str = r#"
+max_force = 10.0          # N, the largest displayed force (the robot's role caps it too)
+max_torque = 0.5          # N·m
+damping = [2.0, 2.0, 2.0, 0.02, 0.02, 0.02]  # added damping on the tool twist
+force_deadband = 0.2      # N: smaller forces (sensor noise) are not displayed
+torque_deadband = 0.01    # N·m
+filter_cutoff_hz = 30.0   # low-pass on the displayed wrench (0: none)
+gravity_compensation = true
+passivity = "off"         # "impedance": time-domain passivity, the two-port delayed form: the
+                          # channel's end damps the displayed force by exactly the energy the
+                          # master port would give out beyond what the slave put in (at most
+                          # 200 N·s/m). With "admittance" on the slave half: passive under any
+                          # delay. The observer always runs: telemetry's `channel_energy`
+# trajectory: a trajectory/teleop whose master is this robot; plus the loop keys:
+"#;
+
+/// What `ctl kinds` lists for `controller/position-error-master`.
+pub const POSITION_ERROR_KEYS: &str = r#"
+stiffness = [1000.0, 1000.0, 1000.0, 2.0, 2.0, 2.0]  # spring to the mapped slave pose (the slave
+                          # half follows the master stiffly: in contact this spring is what the
+                          # operator feels of the wall, capped by max_force)
+damping = [20.0, 20.0, 20.0, 0.05, 0.05, 0.05]
+max_force = 10.0          # N
+max_torque = 0.5          # N·m
+gravity_compensation = true
+# trajectory: a trajectory/teleop whose master is this robot; plus the loop keys:
+"#;
+
+/// What `ctl kinds` lists for `controller/four-channel-master`.
+pub const FOUR_CHANNEL_KEYS: &str = r#"
+# Lawrence's four channels, master side: F = c2 F_slave + c4 spring(slave pose) + c6 F_hand
+#   - C_m v, capped, tau = J^T F + g. c2 = 1, c4 = 0 is force-display (the same torques, bit for
+#   bit, with the same keys); c2 = 0, c4 = 1, damping 0 is position-error-master. The slave half
+#   is slave-tracking (C1 = C_s; C3 = C5 = 0)
+c2 = 1.0                  # the force channel: the slave's sensed wrench x the channel's force gain
+c4 = 0.0                  # the position channel: the spring-damper to the slave's mapped pose
+c6 = 0.0                  # the operator's wrench on the handle, fed back (needs a handle sensor:
+                          # the loop's `sensor`; without one the loop faults: zero force)
+damping = [2.0, 2.0, 2.0, 0.02, 0.02, 0.02]  # C_m, on the tool twist
+stiffness = [1000.0, 1000.0, 1000.0, 2.0, 2.0, 2.0]  # the position channel's spring
+spring_damping = [20.0, 20.0, 20.0, 0.05, 0.05, 0.05]
+max_force = 10.0          # N, on the whole wrench
+max_torque = 0.5          # N·m
+force_deadband = 0.2      # N, the force channel's
+torque_deadband = 0.01    # N·m
+filter_cutoff_hz = 30.0   # the force channel's low-pass (0: none)
+gravity_compensation = true
+# trajectory: a trajectory/teleop whose master is this robot; plus the loop keys:
+"#;
+
+/// What `ctl kinds` lists for `controller/slave-tracking` and `controller/slave-position`.
+pub const SLAVE_TRACKING_KEYS: &str = r#"
+kp = [6400.0, 6400.0, 6400.0, 6400.0, 6400.0, 6400.0]  # 1/s², computed-torque position gain ((80 rad/s)²)
+kd = [160.0, 160.0, 160.0, 160.0, 160.0, 160.0]        # 1/s (critically damped)
+ki = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]                    # 1/s³
+passivity = "off"         # "admittance": time-domain passivity, the two-port delayed form: the
+                          # channel's end slows the reference motion by exactly the energy the
+                          # slave port would give out (into the contact) beyond what the master
+                          # put in; the slave then stops short of the master's pose (drift).
+                          # Needs a force-display master (its energy counters)
+# trajectory: a trajectory/teleop whose slave is this robot; plus the loop keys:
+"#;
+
+fn bad_law(kind: &str, e: impl std::fmt::Debug) -> WireError {
+    WireError::BadConfig {
+        kind: kind.into(),
+        message: format!("{e:?}"),
+    }
+}
+
+impl ForceDisplayToml {
+    /// The law, checked.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<ForceDisplay, WireError> {
+        self.port_law(kind)?;
+        ForceDisplay::new(ForceDisplayConfig {
+            max_force: self.max_force,
+            max_torque: self.max_torque,
+            damping: self.damping,
+            force_deadband: self.force_deadband,
+            torque_deadband: self.torque_deadband,
+            filter_cutoff_hz: self.filter_cutoff_hz,
+            gravity_compensation: self.gravity_compensation,
+        })
+        .map_err(|e| bad_law(kind, e))
+    }
+
+    /// What the channel's master end runs for this half: the two-port observer, with the
+    /// impedance-form controller when `passivity` asks for it.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for another word.
+    pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
+        two_port(kind, &self.passivity, PassivityForm::Impedance, "impedance")
+    }
+}
+
+impl PositionErrorToml {
+    /// The law, checked.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<PositionErrorMaster, WireError> {
+        PositionErrorMaster::new(ImpedanceConfig {
+            stiffness: self.stiffness,
+            damping: self.damping,
+            max_force: self.max_force,
+            max_torque: self.max_torque,
+            gravity_compensation: self.gravity_compensation,
+            ..ImpedanceConfig::master()
+        })
+        .map_err(|e| bad_law(kind, e))
+    }
+}
+
+impl FourChannelToml {
+    /// The law, checked.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<FourChannelMaster, WireError> {
+        FourChannelMaster::new(FourChannelConfig {
+            c2: self.c2,
+            c4: self.c4,
+            c6: self.c6,
+            display: ForceDisplayConfig {
+                max_force: self.max_force,
+                max_torque: self.max_torque,
+                damping: self.damping,
+                force_deadband: self.force_deadband,
+                torque_deadband: self.torque_deadband,
+                filter_cutoff_hz: self.filter_cutoff_hz,
+                gravity_compensation: self.gravity_compensation,
+            },
+            spring: ImpedanceConfig {
+                stiffness: self.stiffness,
+                damping: self.spring_damping,
+                ..ImpedanceConfig::master()
+            },
+        })
+        .map_err(|e| bad_law(kind, e))
+    }
+}
+
+impl SlaveTrackingToml {
+    /// The law, checked: torques (`board_servo` false) or position targets for a board's own
+    /// servo.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn law(&self, kind: &str, board_servo: bool) -> Result<SlaveTracking, WireError> {
+        self.port_law(kind)?;
+        SlaveTracking::new(TrackingConfig {
+            kp: self.kp,
+            kd: self.kd,
+            ki: self.ki,
+            output: if board_servo {
+                TrackingOutput::BoardServo
+            } else {
+                TrackingOutput::Torque
+            },
+            ..TrackingConfig::default()
+        })
+        .map_err(|e| bad_law(kind, e))
+    }
+
+    /// What the channel's slave end runs for this half: the two-port observer, with the
+    /// admittance-form controller when `passivity` asks for it.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for another word.
+    pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
+        two_port(
+            kind,
+            &self.passivity,
+            PassivityForm::Admittance,
+            "admittance",
+        )
+    }
+}
+
+/// The two-port observer for `word`: `off`, or `on` (the one form the port's causality allows).
+fn two_port(kind: &str, word: &str, form: PassivityForm, on: &str) -> Result<PortLaw, WireError> {
+    let form = match word {
+        "off" => PassivityForm::Off,
+        w if w == on => form,
+        other => {
+            return Err(bad_law(
+                kind,
+                format!("`passivity` = {other:?}: \"off\" or \"{on}\" (the port's causality)"),
+            ));
+        }
+    };
+    Ok(PortLaw::TwoPort(TwoPortConfig {
+        form,
+        ..TwoPortConfig::default()
+    }))
+}
