@@ -34,6 +34,7 @@
 //! Every kinematics and dynamics call works on fixed-size stack values: no allocation, no
 //! locks, bounded time. Loading a model (parsing a file) allocates and belongs at start-up.
 
+pub mod axis_joint;
 pub mod chain;
 pub mod dh;
 pub mod dynamics;
@@ -42,7 +43,8 @@ pub mod numeric_ik;
 pub mod puma;
 pub mod robot;
 
-pub use chain::{ChainError, SerialChain};
+pub use axis_joint::AxisJoint;
+pub use chain::{ChainError, ChainJoint, SerialChain};
 pub use dh::{DhLink, JointKind};
 pub use dynamics::LinkDynamics;
 pub use file::{FileError, RobotFile};

@@ -411,7 +411,7 @@ impl DhRobotModel {
     }
 
     fn kind_of(&self, j: usize) -> JointKind {
-        self.chain.geometry(j).link.kind
+        self.chain.geometry(j).kind()
     }
 
     /// The flange frame (in frame 0) for a tool pose in the world frame.
