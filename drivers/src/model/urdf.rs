@@ -160,7 +160,7 @@ pub enum UrdfError {
         tip: String,
     },
     /// No tip given and several leaf links below the base.
-    #[error("several leaf links ({}): choose the tip link (for example tip = \"{}\")", .0.join(", "), .0.last().map_or("", String::as_str))]
+    #[error("several leaf links ({}): choose the tip link, for example `{}`", .0.join(", "), .0.last().map_or("", String::as_str))]
     AmbiguousTip(Vec<String>),
     /// More moving joints on the chain than a model holds.
     #[error(
