@@ -19,8 +19,10 @@
 //!   behind moving joints that are not on it are left out of the dynamics and listed in the
 //!   model's assumptions.
 //! - The world frame is the base link's frame; gravity is `[0, 0, -9.81]`. Named poses `nest`,
-//!   `start` and `work` are all the zero configuration, clamped into the limits. Encoders read
-//!   1 count per joint radian (or metre).
+//!   `start` and `work` are all the zero configuration (a joint whose limits do not hold zero
+//!   strictly inside: the middle of its range). URDF gives no encoders: a joint is read as by a
+//!   19-bit absolute encoder on the joint ([`URDF_COUNTS_PER_RADIAN`]), a prismatic one at 1 µm
+//!   ([`URDF_COUNTS_PER_METRE`]).
 //!
 //! Refused, with a [`UrdfError`] naming the element: `floating`, `planar` and `spherical` joints,
 //! `<mimic>` joints, closed chains (a link with two parents, or a loop of joints), links that a
@@ -39,9 +41,16 @@ use penelope_hal::{JointLimits, JointVector, MAX_JOINTS, Pose};
 
 use super::axis_joint::AxisJoint;
 use super::chain::ChainJoint;
-use super::dh::Rt;
+use super::dh::{JointKind, Rt};
 use super::dynamics::LinkDynamics;
 use super::robot::{DhRobotModel, IkMethod, ModelError, ModelSpec};
+
+/// Encoder counts per joint radian a URDF robot is given (URDF has no encoders): a 19-bit
+/// absolute encoder on the joint, `2^19 / 2π`.
+pub const URDF_COUNTS_PER_RADIAN: f64 = 524_288.0 / core::f64::consts::TAU;
+
+/// Encoder counts per metre of a URDF robot's prismatic joint: 1 µm per count.
+pub const URDF_COUNTS_PER_METRE: f64 = 1e6;
 
 /// Which part of a URDF's tree becomes the chain.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -678,13 +687,23 @@ pub fn spec_from_robot(robot: &urdf_rs::Robot, chain: &UrdfChain) -> Result<Mode
     let n = joints.len();
     let mut home = JointVector::zeros();
     for j in 0..n {
-        home[j] = 0.0f64.clamp(limits.position_min[j], limits.position_max[j]);
+        let (lo, hi) = (limits.position_min[j], limits.position_max[j]);
+        // Zero when strictly inside the limits (a pose on a limit would trip the limit
+        // supervision at once), else the middle of the range.
+        home[j] = if lo < 0.0 && 0.0 < hi {
+            0.0
+        } else if lo.is_finite() && hi.is_finite() {
+            0.5 * (lo + hi)
+        } else {
+            0.0f64.clamp(lo, hi)
+        };
     }
     let mut assumptions = vec![
-        "URDF has no rotor inertia, gear ratio or encoder resolution: none are modelled \
-         (1 count per joint radian or metre)"
+        "URDF has no rotor inertia, gear ratio or encoders: no rotor inertia, gear ratio 1, \
+         a 19-bit encoder on each revolute joint and 1 µm counts on each prismatic one"
             .to_string(),
-        "named poses nest, start and work are all the zero configuration clamped into the limits"
+        "named poses nest, start and work are all the zero configuration (a joint whose limits \
+         do not hold zero strictly inside: the middle of its range)"
             .to_string(),
     ];
     if !left_out.is_empty() {
@@ -693,6 +712,13 @@ pub fn spec_from_robot(robot: &urdf_rs::Robot, chain: &UrdfChain) -> Result<Mode
             left_out.join(", ")
         ));
     }
+    let counts_per_radian = joints
+        .iter()
+        .map(|j| match j.kind() {
+            JointKind::Revolute => URDF_COUNTS_PER_RADIAN,
+            JointKind::Prismatic => URDF_COUNTS_PER_METRE,
+        })
+        .collect();
     Ok(ModelSpec {
         name: robot.name.clone(),
         description: format!("URDF robot `{}`, chain `{base}` to `{tip}`", robot.name),
@@ -704,7 +730,7 @@ pub fn spec_from_robot(robot: &urdf_rs::Robot, chain: &UrdfChain) -> Result<Mode
         tool: pending.to_pose(),
         gravity: Vector3::new(0.0, 0.0, -9.81),
         limits,
-        counts_per_radian: vec![1.0; n],
+        counts_per_radian,
         poses: ["nest", "start", "work"]
             .iter()
             .map(|p| (p.to_string(), home))

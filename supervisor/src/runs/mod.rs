@@ -319,7 +319,9 @@ fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task, RunError> 
         let o = robot(name)?;
         let cfg: RobotConfig = parse(o)?;
         let word = o.kind.trim_start_matches("robot/");
-        let model = models::by_name(word).ok_or_else(|| task(format!("robot kind {word}")))?;
+        let model = cfg
+            .model(&o.kind, word)
+            .map_err(|e| task(format!("{name}: {e}")))?;
         let kin = RobotKinematics::new(model.clone(), cfg.kinematics == "fpga")
             .map_err(|e| task(format!("{name}: {e}")))?;
         Ok((kin, model))

@@ -34,10 +34,11 @@ use super::teleop_wave::{WAVE_MASTER_KEYS, WAVE_SLAVE_KEYS};
 use crate::proto::{Class, KindInfo, WireError};
 
 /// Every kind this creator makes, in listing order.
-pub const KINDS: [&str; 22] = [
+pub const KINDS: [&str; 23] = [
     "robot/puma560",
     "robot/puma200",
     "robot/frhc",
+    "robot/urdf",
     "board/sim",
     "board/galil",
     "sensor/virtual",
@@ -62,7 +63,8 @@ pub const KINDS: [&str; 22] = [
 /// A kind, parsed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Kind {
-    /// `robot/<model>`: one of the built-in DH models.
+    /// `robot/<model>`: one of the built-in DH models, or `urdf` (a URDF file named in the
+    /// configuration).
     Robot(&'static str),
     /// `board/sim`.
     SimBoard,
@@ -111,6 +113,7 @@ impl Kind {
             "robot/puma560" => Kind::Robot("puma560"),
             "robot/puma200" => Kind::Robot("puma200"),
             "robot/frhc" => Kind::Robot("frhc"),
+            "robot/urdf" => Kind::Robot("urdf"),
             "board/sim" => Kind::SimBoard,
             "board/galil" => Kind::GalilBoard,
             "sensor/virtual" => Kind::VirtualSensor,
@@ -139,6 +142,7 @@ impl Kind {
         match self {
             Kind::Robot("puma560") => "robot/puma560",
             Kind::Robot("puma200") => "robot/puma200",
+            Kind::Robot("urdf") => "robot/urdf",
             Kind::Robot(_) => "robot/frhc",
             Kind::SimBoard => "board/sim",
             Kind::GalilBoard => "board/galil",
@@ -187,6 +191,11 @@ impl Kind {
     /// What `kinds` lists for it.
     pub fn info(self) -> KindInfo {
         let (summary, config) = match self {
+            Kind::Robot("urdf") => (
+                "any serial robot from a URDF file: the joints from a base link to a tip link, \
+                 the links' inertials for the dynamics",
+                URDF_KEYS.to_string() + ROBOT_KEYS,
+            ),
             Kind::Robot(m) => (
                 match m {
                     "puma560" => "Unimation PUMA 560 (Robotics Toolbox DH model with dynamics)",
@@ -688,7 +697,7 @@ mod tests {
         let kinds = all_kinds();
         // Every listed name parses (a name that does not would be dropped from the list).
         assert_eq!(kinds.len(), KINDS.len());
-        assert_eq!(kinds.len(), 22);
+        assert_eq!(kinds.len(), 23);
         for k in &kinds {
             let parsed = Kind::parse(&k.kind).unwrap();
             assert_eq!(parsed.as_str(), k.kind);
