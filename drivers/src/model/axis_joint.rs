@@ -54,7 +54,9 @@ impl AxisJoint {
 }
 
 /// An [`AxisJoint`] prepared for fast evaluation: the origin as a matrix, and the three matrices
-/// whose combination `c·M1 + s·M2 + (1 − c)·M3` is `R_origin · Rot(axis, q)` (Rodrigues).
+/// whose combination `c·M1 + s·M2 + (1 − c)·M3` is `R_origin · Rot(axis, q)` (Rodrigues). An axis
+/// along a coordinate axis of the joint frame (most URDFs) takes a shorter path: the joint
+/// frame `R · R_origin`, then two of its columns turned (like a DH row's `Rz`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct AxisGeometry {
     pub joint: AxisJoint,
@@ -68,6 +70,10 @@ pub(crate) struct AxisGeometry {
     r0_outer: Matrix3<f64>,
     /// `R_origin · a`: the axis in the parent link's frame.
     axis_parent: Vector3<f64>,
+    /// `Some((k, ±1))` when the axis is `±e_k`.
+    coordinate: Option<(usize, f64)>,
+    /// The origin has no rotation.
+    origin_unrotated: bool,
 }
 
 impl AxisGeometry {
@@ -78,6 +84,10 @@ impl AxisGeometry {
         let r0 = *joint.origin.rotation.to_rotation_matrix().matrix();
         let p0 = joint.origin.translation.vector;
         let axis_parent = r0 * a;
+        let coordinate = (0..3).find_map(|k| {
+            let others_zero = (0..3).all(|i| i == k || a[i] == 0.0);
+            (others_zero && a[k].abs() == 1.0).then(|| (k, a[k]))
+        });
         AxisGeometry {
             joint,
             r0,
@@ -85,6 +95,8 @@ impl AxisGeometry {
             r0_skew: r0 * a.cross_matrix(),
             r0_outer: axis_parent * a.transpose(),
             axis_parent,
+            coordinate,
+            origin_unrotated: r0 == Matrix3::identity(),
         }
     }
 
@@ -98,11 +110,27 @@ impl AxisGeometry {
     ) -> (Matrix3<f64>, Vector3<f64>) {
         let pj = p + r * self.p0;
         match self.joint.kind {
-            JointKind::Revolute => {
-                let (s, c) = libm::sincos(q);
-                let local = self.r0 * c + self.r0_skew * s + self.r0_outer * (1.0 - c);
-                (r * local, pj)
-            }
+            JointKind::Revolute => match self.coordinate {
+                Some((k, sign)) => {
+                    // Rotation about e_k turns columns i = k+1 and j = k+2 (cyclic).
+                    let mut f = if self.origin_unrotated {
+                        *r
+                    } else {
+                        r * self.r0
+                    };
+                    let (s, c) = libm::sincos(sign * q);
+                    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+                    let (ci, cj) = (f.column(i).into_owned(), f.column(j).into_owned());
+                    f.set_column(i, &(ci * c + cj * s));
+                    f.set_column(j, &(cj * c - ci * s));
+                    (f, pj)
+                }
+                None => {
+                    let (s, c) = libm::sincos(q);
+                    let local = self.r0 * c + self.r0_skew * s + self.r0_outer * (1.0 - c);
+                    (r * local, pj)
+                }
+            },
             JointKind::Prismatic => (r * self.r0, pj + r * (self.axis_parent * q)),
         }
     }
@@ -112,5 +140,74 @@ impl AxisGeometry {
     #[inline(always)]
     pub fn axis_in(&self, r: &Matrix3<f64>, p: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
         (r * self.axis_parent, p + r * self.p0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Rotation3, Translation3, Unit, UnitQuaternion};
+
+    /// The child frame by the definition: `R · R_origin · Rot(axis, q)`.
+    fn reference(j: &AxisJoint, r: &Matrix3<f64>, q: f64) -> Matrix3<f64> {
+        let r0 = j.origin.rotation.to_rotation_matrix();
+        let turn = Rotation3::from_axis_angle(&Unit::new_normalize(j.axis), q);
+        r * r0.matrix() * turn.matrix()
+    }
+
+    #[test]
+    fn both_rotation_paths_are_the_definition() {
+        let parent = *Rotation3::from_euler_angles(0.3, -1.1, 2.0).matrix();
+        let p = Vector3::new(0.1, -0.2, 0.3);
+        let origins = [
+            Pose::identity(),
+            Pose::from_parts(
+                Translation3::new(0.2, 0.0, -0.1),
+                UnitQuaternion::from_euler_angles(0.4, 0.5, -0.6),
+            ),
+        ];
+        let axes = [
+            Vector3::z(),
+            -Vector3::z(),
+            Vector3::x() * 3.0,
+            -Vector3::y(),
+            Vector3::new(1.0, 1.0, 0.0),
+            Vector3::new(0.2, -0.7, 0.4),
+        ];
+        for origin in origins {
+            for axis in axes {
+                let j = AxisJoint::revolute(origin, axis);
+                let g = AxisGeometry::new(j);
+                let coordinate = axis.iter().filter(|x| **x != 0.0).count() == 1;
+                assert_eq!(g.coordinate.is_some(), coordinate, "{axis:?}");
+                for q in [-2.5, -0.3, 0.0, 0.7, 3.0] {
+                    let (r, pn) = g.compose(&parent, &p, q);
+                    let e = (r - reference(&j, &parent, q)).abs().max();
+                    assert!(e < 1e-14, "axis {axis:?} q {q}: off by {e:e}");
+                    let want_p = p + parent * origin.translation.vector;
+                    assert!((pn - want_p).norm() < 1e-15);
+                    let (z, o) = g.axis_in(&parent, &p);
+                    assert!((z - parent * (origin.rotation * axis.normalize())).norm() < 1e-14);
+                    assert!((o - want_p).norm() < 1e-15);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_prismatic_joint_slides_along_its_axis() {
+        let origin = Pose::from_parts(
+            Translation3::new(0.3, 0.0, 0.0),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5),
+        );
+        let g = AxisGeometry::new(AxisJoint::prismatic(origin, Vector3::new(0.0, 0.0, -2.0)));
+        let (r, p) = g.compose(&Matrix3::identity(), &Vector3::zeros(), 0.25);
+        assert!((p - Vector3::new(0.3, 0.0, -0.25)).norm() < 1e-15);
+        assert!(
+            (r - origin.rotation.to_rotation_matrix().matrix())
+                .abs()
+                .max()
+                < 1e-15
+        );
     }
 }
