@@ -108,6 +108,13 @@ impl JointGeometry {
         }
     }
 
+    /// True when the joint's axis passes through the origin of the frame before it (a DH row's
+    /// does: it is that frame's z axis).
+    #[inline(always)]
+    pub fn axis_through_origin(&self) -> bool {
+        matches!(self, JointGeometry::Dh(_))
+    }
+
     /// The joint's unit axis and a point on it, from the frame `(r, p)` before it.
     #[inline(always)]
     pub fn axis_in(&self, r: &Matrix3<f64>, p: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
@@ -124,10 +131,6 @@ impl JointGeometry {
 pub(crate) struct Frames {
     pub r: [Matrix3<f64>; MAX_JOINTS + 1],
     pub p: [Vector3<f64>; MAX_JOINTS + 1],
-    /// Joint `j`'s unit axis (0-based), world frame.
-    pub axis: [Vector3<f64>; MAX_JOINTS],
-    /// A point on joint `j`'s axis, world frame.
-    pub point: [Vector3<f64>; MAX_JOINTS],
 }
 
 /// A serial chain: up to [`MAX_JOINTS`] joints (standard-DH rows or axis joints), a base
@@ -235,6 +238,13 @@ impl SerialChain {
         &self.links[j]
     }
 
+    /// Joint `j`'s (0-based) unit axis and a point on it in the world frame, from the frames of
+    /// one configuration.
+    #[inline(always)]
+    pub(crate) fn joint_axis(&self, f: &Frames, j: usize) -> (Vector3<f64>, Vector3<f64>) {
+        self.links[j].axis_in(&f.r[j], &f.p[j])
+    }
+
     /// The DH geometry of joint `j`, `None` for an axis joint.
     pub(crate) fn dh_geometry(&self, j: usize) -> Option<&LinkGeometry> {
         match &self.links[j] {
@@ -260,11 +270,8 @@ impl SerialChain {
         let mut f = Frames {
             r: [self.base.r; MAX_JOINTS + 1],
             p: [self.base.p; MAX_JOINTS + 1],
-            axis: [Vector3::zeros(); MAX_JOINTS],
-            point: [Vector3::zeros(); MAX_JOINTS],
         };
         for j in 0..self.n {
-            (f.axis[j], f.point[j]) = self.links[j].axis_in(&f.r[j], &f.p[j]);
             let (r, p) = self.links[j].compose(&f.r[j], &f.p[j], q[j]);
             f.r[j + 1] = r;
             f.p[j + 1] = p;

@@ -99,9 +99,9 @@ pub(crate) fn gravity(
         let c = f.p[j + 1] + f.r[j + 1] * l.com;
         mass += l.mass;
         first_moment += c * l.mass;
-        let z = f.axis[j];
+        let (z, o) = chain.joint_axis(&f, j);
         tau[j] = match chain.geometry(j).kind() {
-            JointKind::Revolute => z.dot(&(first_moment - f.point[j] * mass).cross(&a0)),
+            JointKind::Revolute => z.dot(&(first_moment - o * mass).cross(&a0)),
             JointKind::Prismatic => z.dot(&a0) * mass,
         };
     }
@@ -122,11 +122,11 @@ pub(crate) fn inertia(
     let mut s_w = [Vector3::zeros(); MAX_JOINTS];
     let mut s_v = [Vector3::zeros(); MAX_JOINTS];
     for j in 0..n {
-        let z = f.axis[j];
+        let (z, o) = chain.joint_axis(&f, j);
         match chain.geometry(j).kind() {
             JointKind::Revolute => {
                 s_w[j] = z;
-                s_v[j] = f.point[j].cross(&z);
+                s_v[j] = o.cross(&z);
             }
             JointKind::Prismatic => s_v[j] = z,
         }
@@ -178,18 +178,21 @@ pub(crate) fn rne(
     let mut moment = [Vector3::zeros(); MAX_JOINTS];
     let mut com = [Vector3::zeros(); MAX_JOINTS];
     for j in 0..n {
-        let z = f.axis[j];
+        let (z, o) = chain.joint_axis(&f, j);
         let r = f.p[j + 1] - f.p[j];
-        match chain.geometry(j).kind() {
+        let geometry = chain.geometry(j);
+        match geometry.kind() {
             JointKind::Revolute => {
-                // The point on the axis moves with the previous link (a DH frame's origin is on
-                // it already; a URDF joint's is at the joint origin).
-                let to_axis = f.point[j] - f.p[j];
-                a += wd.cross(&to_axis) + w.cross(&w.cross(&to_axis));
+                // The point on the axis moves with the previous link (a DH frame's origin is
+                // that point already; a URDF joint's is at the joint origin).
+                if !geometry.axis_through_origin() {
+                    let to_axis = o - f.p[j];
+                    a += wd.cross(&to_axis) + w.cross(&w.cross(&to_axis));
+                }
                 let w_prev = w;
                 w += z * qd[j];
                 wd += z * qdd[j] + w_prev.cross(&z) * qd[j];
-                let r = f.p[j + 1] - f.point[j];
+                let r = f.p[j + 1] - o;
                 a += wd.cross(&r) + w.cross(&w.cross(&r));
             }
             JointKind::Prismatic => {
@@ -212,10 +215,9 @@ pub(crate) fn rne(
     let mut n_out = Vector3::zeros(); // its moment about `n_point`, the axis point of joint j+1
     let mut n_point = f.p[n];
     for j in (0..n).rev() {
-        let o = f.point[j];
+        let (z, o) = chain.joint_axis(&f, j);
         let n_j = n_out + (n_point - o).cross(&f_out) + (com[j] - o).cross(&force[j]) + moment[j];
         let f_j = f_out + force[j];
-        let z = f.axis[j];
         let l = &links[j];
         tau[j] = match chain.geometry(j).kind() {
             JointKind::Revolute => z.dot(&n_j),
