@@ -191,14 +191,24 @@ fn the_urdf_is_a_chain_of_six_axis_joints_with_the_limits() {
 #[test]
 fn kinematics_equal_the_dh_model() {
     let (u, d) = (urdf_puma(), model::puma560());
+    let mut largest = [0.0f64; 3];
     for q in configurations(500) {
         let e = max_diff(&u.forward_matrix(&q), &d.forward_matrix(&q));
         assert!(e < 1e-9, "FK differs by {e:e} at {q:?}");
-        for frame in [JacobianFrame::Base, JacobianFrame::Tool] {
+        largest[0] = largest[0].max(e);
+        for (k, frame) in [JacobianFrame::Base, JacobianFrame::Tool]
+            .into_iter()
+            .enumerate()
+        {
             let e = max_diff(&u.jacobian(&q, frame), &d.jacobian(&q, frame));
             assert!(e < 1e-9, "{frame:?} Jacobian differs by {e:e} at {q:?}");
+            largest[1 + k] = largest[1 + k].max(e);
         }
     }
+    println!(
+        "largest differences over 500 configurations: FK {:.1e}, Jacobian base {:.1e}, tool {:.1e}",
+        largest[0], largest[1], largest[2]
+    );
 }
 
 #[test]
@@ -206,26 +216,36 @@ fn dynamics_equal_the_dh_model() {
     let (u, d) = (urdf_puma(), dh_puma_without_rotors());
     let full = model::puma560();
     let mut rng = ChaCha8Rng::seed_from_u64(18);
+    let mut largest = [0.0f64; 4];
     for q in configurations(500) {
         let qd = JointVector::from_fn(|_, _| rng.random_range(-2.0..2.0));
         let qdd = JointVector::from_fn(|_, _| rng.random_range(-5.0..5.0));
         let e = max_diff(&u.gravity(&q), &Dynamics::gravity(&d, &q));
         assert!(e < 1e-9, "gravity differs by {e:e} at {q:?}");
+        largest[0] = largest[0].max(e);
         // Gravity does not involve the rotors: the full DH model agrees too.
         let e = max_diff(&u.gravity(&q), &Dynamics::gravity(&full, &q));
         assert!(e < 1e-9, "gravity differs from the full model by {e:e}");
         let e = max_diff(&u.inertia(&q), &d.inertia(&q));
         assert!(e < 1e-9, "inertia differs by {e:e} at {q:?}");
+        largest[1] = largest[1].max(e);
         let tu = u.inverse_dynamics(&q, &qd, &qdd);
         let e = max_diff(&tu, &d.inverse_dynamics(&q, &qd, &qdd));
         assert!(e < 1e-9, "RNE differs by {e:e} at {q:?}");
+        largest[2] = largest[2].max(e);
         // Against the full model the difference is exactly the reflected rotor inertia.
         let rotors = JointVector::from_fn(|j, _| {
             full.link_dynamics(j).unwrap().reflected_motor_inertia() * qdd[j]
         });
         let e = max_diff(&(tu + rotors), &full.inverse_dynamics(&q, &qd, &qdd));
         assert!(e < 1e-9, "RNE + Jm G² qdd differs by {e:e}");
+        largest[3] = largest[3].max(e);
     }
+    println!(
+        "largest differences over 500 configurations: gravity {:.1e} N·m, inertia {:.1e} kg·m², \
+         RNE {:.1e} N·m, RNE + rotors vs the full model {:.1e} N·m",
+        largest[0], largest[1], largest[2], largest[3]
+    );
 }
 
 #[test]
