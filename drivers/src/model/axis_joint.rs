@@ -108,30 +108,50 @@ impl AxisGeometry {
         p: &Vector3<f64>,
         q: f64,
     ) -> (Matrix3<f64>, Vector3<f64>) {
+        let (frame, _) = self.step(r, p, q);
+        frame
+    }
+
+    /// [`compose`](Self::compose) and [`axis_in`](Self::axis_in) in one: the child link's frame,
+    /// and the joint's unit axis and a point on it, sharing the joint frame's computation (for a
+    /// coordinate axis the axis is a column of it, for free).
+    #[inline(always)]
+    #[allow(clippy::type_complexity)]
+    pub fn step(
+        &self,
+        r: &Matrix3<f64>,
+        p: &Vector3<f64>,
+        q: f64,
+    ) -> ((Matrix3<f64>, Vector3<f64>), (Vector3<f64>, Vector3<f64>)) {
         let pj = p + r * self.p0;
-        match self.joint.kind {
-            JointKind::Revolute => match self.coordinate {
-                Some((k, sign)) => {
-                    // Rotation about e_k turns columns i = k+1 and j = k+2 (cyclic).
-                    let mut f = if self.origin_unrotated {
-                        *r
-                    } else {
-                        r * self.r0
-                    };
-                    let (s, c) = libm::sincos(sign * q);
-                    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-                    let (ci, cj) = (f.column(i).into_owned(), f.column(j).into_owned());
-                    f.set_column(i, &(ci * c + cj * s));
-                    f.set_column(j, &(cj * c - ci * s));
-                    (f, pj)
+        match (self.joint.kind, self.coordinate) {
+            (kind, Some((k, sign))) => {
+                let mut f = if self.origin_unrotated {
+                    *r
+                } else {
+                    r * self.r0
+                };
+                let z = f.column(k) * sign;
+                if kind == JointKind::Prismatic {
+                    return ((f, pj + z * q), (z, pj));
                 }
-                None => {
-                    let (s, c) = libm::sincos(q);
-                    let local = self.r0 * c + self.r0_skew * s + self.r0_outer * (1.0 - c);
-                    (r * local, pj)
-                }
-            },
-            JointKind::Prismatic => (r * self.r0, pj + r * (self.axis_parent * q)),
+                // Rotation about e_k turns columns i = k+1 and j = k+2 (cyclic).
+                let (s, c) = libm::sincos(sign * q);
+                let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+                let (ci, cj) = (f.column(i).into_owned(), f.column(j).into_owned());
+                f.set_column(i, &(ci * c + cj * s));
+                f.set_column(j, &(cj * c - ci * s));
+                ((f, pj), (z, pj))
+            }
+            (JointKind::Revolute, None) => {
+                let (s, c) = libm::sincos(q);
+                let local = self.r0 * c + self.r0_skew * s + self.r0_outer * (1.0 - c);
+                ((r * local, pj), (r * self.axis_parent, pj))
+            }
+            (JointKind::Prismatic, None) => {
+                let z = r * self.axis_parent;
+                ((r * self.r0, pj + z * q), (z, pj))
+            }
         }
     }
 
@@ -186,7 +206,9 @@ mod tests {
                     assert!(e < 1e-14, "axis {axis:?} q {q}: off by {e:e}");
                     let want_p = p + parent * origin.translation.vector;
                     assert!((pn - want_p).norm() < 1e-15);
+                    let (_, (zs, os)) = g.step(&parent, &p, q);
                     let (z, o) = g.axis_in(&parent, &p);
+                    assert!((zs - z).norm() < 1e-14 && (os - o).norm() < 1e-15);
                     assert!((z - parent * (origin.rotation * axis.normalize())).norm() < 1e-14);
                     assert!((o - want_p).norm() < 1e-15);
                 }
@@ -196,6 +218,13 @@ mod tests {
 
     #[test]
     fn a_prismatic_joint_slides_along_its_axis() {
+        // Oblique axis (the general path) under a rotated parent.
+        let parent = *Rotation3::from_euler_angles(0.3, -1.1, 2.0).matrix();
+        let a = Vector3::new(0.2, -0.7, 0.4);
+        let g = AxisGeometry::new(AxisJoint::prismatic(Pose::identity(), a));
+        let (r, p) = g.compose(&parent, &Vector3::zeros(), 0.5);
+        assert!((p - parent * a.normalize() * 0.5).norm() < 1e-15);
+        assert_eq!(r, parent);
         let origin = Pose::from_parts(
             Translation3::new(0.3, 0.0, 0.0),
             UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5),

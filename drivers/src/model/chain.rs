@@ -115,6 +115,22 @@ impl JointGeometry {
         matches!(self, JointGeometry::Dh(_))
     }
 
+    /// The frame of the link this joint moves, and the joint's unit axis and a point on it, from
+    /// the frame `(r, p)` before it, at `q`.
+    #[inline(always)]
+    #[allow(clippy::type_complexity)]
+    pub fn step(
+        &self,
+        r: &Matrix3<f64>,
+        p: &Vector3<f64>,
+        q: f64,
+    ) -> ((Matrix3<f64>, Vector3<f64>), (Vector3<f64>, Vector3<f64>)) {
+        match self {
+            JointGeometry::Dh(g) => (g.compose(r, p, q), (r.column(2).into(), *p)),
+            JointGeometry::Axis(g) => g.step(r, p, q),
+        }
+    }
+
     /// The joint's unit axis and a point on it, from the frame `(r, p)` before it.
     #[inline(always)]
     pub fn axis_in(&self, r: &Matrix3<f64>, p: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
@@ -347,8 +363,7 @@ impl SerialChain {
         let mut r = self.base.r;
         let mut p = self.base.p;
         for j in 0..self.n {
-            (axis[j], origin[j]) = self.links[j].axis_in(&r, &p);
-            (r, p) = self.links[j].compose(&r, &p, q[j]);
+            ((r, p), (axis[j], origin[j])) = self.links[j].step(&r, &p, q[j]);
         }
         let e = self.tool_of(&Rt { r, p });
         let mut jac = Jacobian::zeros();
