@@ -63,7 +63,7 @@ fn bad_config(e: WireError) -> String {
 fn robot_urdf_is_listed_with_its_keys() {
     let kinds = penelope_supervisor::objects::kinds::all_kinds();
     let info = kinds.iter().find(|k| k.kind == "robot/urdf").unwrap();
-    for key in ["file =", "tip =", "base =", "start =", "role ="] {
+    for key in ["file =", "tip =", "base =", "poses =", "start =", "role ="] {
         assert!(
             info.config.contains(key),
             "{key} missing from {}",
@@ -76,14 +76,19 @@ fn robot_urdf_is_listed_with_its_keys() {
 fn the_puma_urdf_on_a_sim_board_answers_like_robot_puma560() {
     let c = creator();
     let file = urdf("puma560.urdf");
-    on_sim_board(&c, "robot/urdf", "u", &format!("file = {file:?}"), 6);
+    // puma560's start pose (the toolbox's nominal qn), given to the URDF robot by `poses`.
+    let start = "[0.0, 0.7853981633974483, -3.141592653589793, 0.0, 0.7853981633974483, 0.0]";
+    let config = format!("file = {file:?}\nposes = {{ start = {start} }}");
+    on_sim_board(&c, "robot/urdf", "u", &config, 6);
     on_sim_board(&c, "robot/puma560", "d", "", 6);
     let q = vec![0.1, 0.7, -2.0, 0.4, 0.5, 0.6];
     let methods = [
+        // At the measured joints: both bodies started at the same pose.
         RobotMethod::ForwardKinematics { q: None },
         RobotMethod::ForwardKinematics { q: Some(q.clone()) },
         RobotMethod::Jacobian { q: Some(q.clone()) },
         RobotMethod::Gravity { q: Some(q.clone()) },
+        RobotMethod::Gravity { q: None },
     ];
     for m in methods {
         let a = numbers(ok(&c, "u", Method::Robot(m.clone())));
@@ -94,19 +99,12 @@ fn the_puma_urdf_on_a_sim_board_answers_like_robot_puma560() {
             .zip(&b)
             .map(|(x, y)| (x - y).abs())
             .fold(0.0, f64::max);
-        // FK at `None` reads the measured joints: both bodies start at their `start` pose, which
-        // for the URDF is the zero configuration, for puma560 its nominal pose.
-        if matches!(m, RobotMethod::ForwardKinematics { q: None }) {
-            assert!(e > 0.01, "the two start poses should differ");
-        } else {
-            assert!(e < 1e-9, "{m:?} differs by {e:e}");
-        }
+        assert!(e < 1e-9, "{m:?} differs by {e:e}");
     }
-    match ok(
-        &c,
-        "u",
-        Method::Robot(RobotMethod::ForwardKinematics { q: None }),
-    ) {
+    let zero = RobotMethod::ForwardKinematics {
+        q: Some(vec![0.0; 6]),
+    };
+    match ok(&c, "u", Method::Robot(zero)) {
         // Zero configuration: arm straight up, forearm forward (d3 sideways, a3 + d4 up).
         Reply::Pose(p) => {
             let want = [0.4318 + 0.0203, -0.15005, 0.67183 + 0.4318];
@@ -196,6 +194,15 @@ fn bad_robot_urdf_configurations_are_refused_by_name() {
             .unwrap_err(),
     );
     assert!(msg.contains("robot/urdf only"), "{msg}");
+    let msg = bad_config(
+        c.create(
+            "robot/urdf",
+            "g",
+            &format!("file = {scara:?}\ntip = \"tool\"\nposes = {{ start = [0.1, 0.2] }}"),
+        )
+        .unwrap_err(),
+    );
+    assert!(msg.contains("pose `start` needs 3 finite values"), "{msg}");
 
     let dir = std::env::temp_dir().join(format!("penelope-urdf-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

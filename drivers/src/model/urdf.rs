@@ -246,12 +246,21 @@ pub fn model_from_file(
     path: impl AsRef<Path>,
     chain: &UrdfChain,
 ) -> Result<DhRobotModel, UrdfError> {
+    Ok(DhRobotModel::new("urdf", spec_from_file(path, chain)?)?)
+}
+
+/// The model definition of a URDF file's chain, to adjust (named poses, encoders, gravity)
+/// before [`DhRobotModel::new`].
+///
+/// # Errors
+/// [`UrdfError::Io`] when the file cannot be read, else as [`spec_from_robot`].
+pub fn spec_from_file(path: impl AsRef<Path>, chain: &UrdfChain) -> Result<ModelSpec, UrdfError> {
     let path = path.as_ref();
     let text = std::fs::read_to_string(path).map_err(|source| UrdfError::Io {
         path: path.display().to_string(),
         source,
     })?;
-    model_from_str(&text, chain)
+    spec_from_robot(&parse(&text)?, chain)
 }
 
 fn pose_of(origin: &urdf_rs::Pose) -> Pose {

@@ -2,6 +2,8 @@
 //! virtual sensor touches.
 
 use super::*;
+use std::collections::BTreeMap;
+
 use penelope_drivers::model as models;
 use penelope_hal::{Frame, Pose, Wrench};
 
@@ -113,6 +115,9 @@ pub struct RobotConfig {
     pub tip: Option<String>,
     /// `robot/urdf`: the base link (`None`: the root link).
     pub base: Option<String>,
+    /// `robot/urdf`: named poses (`nest`, `start`, `work`, or others), rad (m for prismatic
+    /// joints), replacing the URDF's default (the zero configuration).
+    pub poses: BTreeMap<String, Vec<f64>>,
 }
 
 impl Default for RobotConfig {
@@ -126,6 +131,7 @@ impl Default for RobotConfig {
             file: None,
             tip: None,
             base: None,
+            poses: BTreeMap::new(),
         }
     }
 }
@@ -155,7 +161,23 @@ impl RobotConfig {
             base: self.base.clone(),
             tip: self.tip.clone(),
         };
-        models::urdf::model_from_file(file, &chain).map_err(|e| bad(kind, e.to_string()))
+        let mut spec =
+            models::urdf::spec_from_file(file, &chain).map_err(|e| bad(kind, e.to_string()))?;
+        let n = spec.joints.len();
+        for (name, q) in &self.poses {
+            if q.len() != n || !q.iter().all(|x| x.is_finite()) {
+                return Err(bad(
+                    kind,
+                    format!("pose `{name}` needs {n} finite values (one per joint)"),
+                ));
+            }
+            let q = JointVector::from_fn(|j, _| q.get(j).copied().unwrap_or(0.0));
+            match spec.poses.iter_mut().find(|(p, _)| p == name) {
+                Some((_, old)) => *old = q,
+                None => spec.poses.push((name.clone(), q)),
+            }
+        }
+        models::DhRobotModel::new("urdf", spec).map_err(|e| bad(kind, e.to_string()))
     }
 
     /// Whether the FPGA kinematics were chosen.
