@@ -1,5 +1,6 @@
 //! Kinematics and dynamics calls allocate nothing: a counting global allocator around every
-//! real-time call of every built-in model and a numerical one.
+//! real-time call of every built-in model, a numerical one, and two URDF robots (the PUMA 560's
+//! URDF and the SCARA with its prismatic quill and fixed tool).
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -56,7 +57,18 @@ fn no_call_allocates() {
         model::puma200(),
         model::frhc(),
         model::from_toml_str(&frhc_text).unwrap(),
+        model::urdf::model_from_str(
+            include_str!("../robots/puma560.urdf"),
+            &model::UrdfChain::whole(),
+        )
+        .unwrap(),
+        model::urdf::model_from_str(
+            include_str!("../robots/scara.urdf"),
+            &model::UrdfChain::to_tip("tool"),
+        )
+        .unwrap(),
     ];
+    assert_eq!(models[4].kind(), "urdf");
     // The counter does see this thread's allocations.
     let before = allocations();
     let probe = std::hint::black_box(vec![1.0_f64; 4]);
@@ -65,7 +77,11 @@ fn no_call_allocates() {
     let mut sols = IkSolutions::new();
     let qd = JointVector::from_column_slice(&[0.1, -0.2, 0.3, -0.4, 0.5, -0.6]);
     for m in &models {
-        let q = m.named_pose(NamedPose::Work);
+        // Away from the named poses (a URDF's are all one configuration), inside the limits.
+        let mut q = m.named_pose(NamedPose::Work);
+        for j in 0..m.joint_count() {
+            q[j] += 0.05;
+        }
         let seed = m.named_pose(NamedPose::Start);
         let target = m.forward(&q);
         let before = allocations();

@@ -1,12 +1,14 @@
-//! A serial chain of DH links between a base transform and a tool transform: forward
-//! kinematics and the geometric Jacobian.
+//! A serial chain of joints between a base transform and a tool transform: forward kinematics
+//! and the geometric Jacobian.
 //!
-//! Every link transform is computed once per call (one `sin_cos` per revolute joint) and composed
-//! in place on the stack; nothing allocates.
+//! A joint is either a standard-DH row ([`DhLink`]) or an axis joint ([`AxisJoint`], what a URDF
+//! joint becomes); one chain may mix them. Every joint transform is computed once per call (one
+//! `sin_cos` per revolute joint) and composed in place on the stack; nothing allocates.
 
 use nalgebra::{Matrix3, Vector3};
 use penelope_hal::{Jacobian, JacobianFrame, JointVector, MAX_JOINTS, Pose};
 
+use super::axis_joint::{AxisGeometry, AxisJoint};
 use super::dh::{DhLink, JointKind, LinkGeometry, Rt};
 
 /// Why a chain could not be built.
@@ -15,10 +17,128 @@ pub enum ChainError {
     /// No links, or more than [`MAX_JOINTS`].
     #[error("a chain needs 1 to {max} links, got {0}", max = MAX_JOINTS)]
     LinkCount(usize),
-    /// A DH parameter, the base or the tool is NaN or infinite (`joint` is 0-based; `None` for
-    /// the base or tool transform).
+    /// A DH parameter, an axis joint's origin, the base or the tool is NaN or infinite (`joint`
+    /// is 0-based; `None` for the base or tool transform).
     #[error("non-finite DH parameter or transform (joint {0:?})")]
     NonFinite(Option<usize>),
+    /// An axis joint's axis has zero length (`joint` is 0-based).
+    #[error("joint {0}: the axis has zero length")]
+    ZeroAxis(usize),
+}
+
+/// One joint of a [`SerialChain`]: how the frame of the link it moves follows from the frame
+/// before it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ChainJoint {
+    /// A standard-DH row: `A = Rz(theta) Tz(d) Tx(a) Rx(alpha)`; the joint moves about (along)
+    /// the previous frame's z axis.
+    Dh(DhLink),
+    /// A fixed origin, then motion about (along) a unit axis: a URDF joint.
+    Axis(AxisJoint),
+}
+
+impl ChainJoint {
+    /// Revolute or prismatic.
+    pub fn kind(&self) -> JointKind {
+        match self {
+            ChainJoint::Dh(l) => l.kind,
+            ChainJoint::Axis(a) => a.kind,
+        }
+    }
+}
+
+impl From<DhLink> for ChainJoint {
+    fn from(link: DhLink) -> Self {
+        ChainJoint::Dh(link)
+    }
+}
+
+impl From<AxisJoint> for ChainJoint {
+    fn from(joint: AxisJoint) -> Self {
+        ChainJoint::Axis(joint)
+    }
+}
+
+/// A joint prepared for evaluation.
+// The joints live in a fixed array inside the (Copy) chain; boxing the larger variant would put
+// them on the heap for no gain (a chain is at most MAX_JOINTS of them, ~2 KiB).
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum JointGeometry {
+    Dh(LinkGeometry),
+    Axis(AxisGeometry),
+}
+
+impl JointGeometry {
+    fn new(joint: ChainJoint) -> Self {
+        match joint {
+            ChainJoint::Dh(l) => JointGeometry::Dh(LinkGeometry::new(l)),
+            ChainJoint::Axis(a) => JointGeometry::Axis(AxisGeometry::new(a)),
+        }
+    }
+
+    /// The joint as given (an axis joint's axis normalised).
+    pub fn joint(&self) -> ChainJoint {
+        match self {
+            JointGeometry::Dh(g) => ChainJoint::Dh(g.link),
+            JointGeometry::Axis(g) => ChainJoint::Axis(g.joint),
+        }
+    }
+
+    /// Revolute or prismatic.
+    #[inline(always)]
+    pub fn kind(&self) -> JointKind {
+        match self {
+            JointGeometry::Dh(g) => g.link.kind,
+            JointGeometry::Axis(g) => g.joint.kind,
+        }
+    }
+
+    /// The frame of the link this joint moves, from the frame `(r, p)` before it, at `q`.
+    #[inline(always)]
+    pub fn compose(
+        &self,
+        r: &Matrix3<f64>,
+        p: &Vector3<f64>,
+        q: f64,
+    ) -> (Matrix3<f64>, Vector3<f64>) {
+        match self {
+            JointGeometry::Dh(g) => g.compose(r, p, q),
+            JointGeometry::Axis(g) => g.compose(r, p, q),
+        }
+    }
+
+    /// True when the joint's axis passes through the origin of the frame before it (a DH row's
+    /// does: it is that frame's z axis).
+    #[inline(always)]
+    pub fn axis_through_origin(&self) -> bool {
+        matches!(self, JointGeometry::Dh(_))
+    }
+
+    /// The frame of the link this joint moves, and the joint's unit axis and a point on it, from
+    /// the frame `(r, p)` before it, at `q`.
+    #[inline(always)]
+    #[allow(clippy::type_complexity)]
+    pub fn step(
+        &self,
+        r: &Matrix3<f64>,
+        p: &Vector3<f64>,
+        q: f64,
+    ) -> ((Matrix3<f64>, Vector3<f64>), (Vector3<f64>, Vector3<f64>)) {
+        match self {
+            JointGeometry::Dh(g) => (g.compose(r, p, q), (r.column(2).into(), *p)),
+            JointGeometry::Axis(g) => g.step(r, p, q),
+        }
+    }
+
+    /// The joint's unit axis and a point on it, from the frame `(r, p)` before it.
+    #[inline(always)]
+    pub fn axis_in(&self, r: &Matrix3<f64>, p: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+        match self {
+            JointGeometry::Dh(_) => (r.column(2).into(), *p),
+            JointGeometry::Axis(g) => g.axis_in(r, p),
+        }
+    }
 }
 
 /// Every link frame of one configuration, in the world frame: index 0 is the base frame, index
@@ -29,12 +149,12 @@ pub(crate) struct Frames {
     pub p: [Vector3<f64>; MAX_JOINTS + 1],
 }
 
-/// A serial chain: up to [`MAX_JOINTS`] standard-DH links, a base transform (world to frame 0)
-/// and a tool transform (last link frame to the tool frame).
+/// A serial chain: up to [`MAX_JOINTS`] joints (standard-DH rows or axis joints), a base
+/// transform (world to frame 0) and a tool transform (last link frame to the tool frame).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SerialChain {
     n: usize,
-    links: [LinkGeometry; MAX_JOINTS],
+    links: [JointGeometry; MAX_JOINTS],
     base: Rt,
     tool: Rt,
     tool_identity: bool,
@@ -46,11 +166,37 @@ impl SerialChain {
     /// # Errors
     /// [`ChainError`] for a wrong link count or a non-finite number.
     pub fn new(links: &[DhLink], base: &Pose, tool: &Pose) -> Result<Self, ChainError> {
+        let mut joints = [ChainJoint::Dh(DhLink::revolute(0.0, 0.0, 0.0, 0.0)); MAX_JOINTS];
         if links.is_empty() || links.len() > MAX_JOINTS {
             return Err(ChainError::LinkCount(links.len()));
         }
-        if let Some(j) = links.iter().position(|l| !l.is_finite()) {
-            return Err(ChainError::NonFinite(Some(j)));
+        for (j, l) in joints.iter_mut().zip(links) {
+            *j = ChainJoint::Dh(*l);
+        }
+        Self::from_joints(&joints[..links.len()], base, tool)
+    }
+
+    /// A chain from its joints (1 to [`MAX_JOINTS`], DH rows or axis joints, mixed as needed),
+    /// base and tool transforms.
+    ///
+    /// # Errors
+    /// [`ChainError`] for a wrong joint count, a non-finite number or a zero axis.
+    pub fn from_joints(links: &[ChainJoint], base: &Pose, tool: &Pose) -> Result<Self, ChainError> {
+        if links.is_empty() || links.len() > MAX_JOINTS {
+            return Err(ChainError::LinkCount(links.len()));
+        }
+        for (j, l) in links.iter().enumerate() {
+            match l {
+                ChainJoint::Dh(l) if !l.is_finite() => return Err(ChainError::NonFinite(Some(j))),
+                ChainJoint::Axis(a) if !a.is_valid() => {
+                    return Err(if a.axis.iter().all(|x| x.is_finite()) {
+                        ChainError::ZeroAxis(j)
+                    } else {
+                        ChainError::NonFinite(Some(j))
+                    });
+                }
+                _ => {}
+            }
         }
         let finite = |p: &Pose| {
             p.translation.vector.iter().all(|x| x.is_finite())
@@ -59,9 +205,10 @@ impl SerialChain {
         if !finite(base) || !finite(tool) {
             return Err(ChainError::NonFinite(None));
         }
-        let mut geo = [LinkGeometry::new(DhLink::revolute(0.0, 0.0, 0.0, 0.0)); MAX_JOINTS];
+        let mut geo =
+            [JointGeometry::new(ChainJoint::Dh(DhLink::revolute(0.0, 0.0, 0.0, 0.0))); MAX_JOINTS];
         for (g, l) in geo.iter_mut().zip(links) {
-            *g = LinkGeometry::new(*l);
+            *g = JointGeometry::new(*l);
         }
         let base = Rt::from_pose(base);
         let tool = Rt::from_pose(tool);
@@ -79,9 +226,18 @@ impl SerialChain {
         self.n
     }
 
-    /// The DH row of joint `j` (0-based), or `None` past the joint count.
+    /// The DH row of joint `j` (0-based), or `None` past the joint count or for an axis joint.
     pub fn link(&self, j: usize) -> Option<DhLink> {
-        (j < self.n).then(|| self.links[j].link)
+        match self.joint(j)? {
+            ChainJoint::Dh(l) => Some(l),
+            ChainJoint::Axis(_) => None,
+        }
+    }
+
+    /// Joint `j` (0-based) as given (an axis joint's axis normalised), or `None` past the joint
+    /// count.
+    pub fn joint(&self, j: usize) -> Option<ChainJoint> {
+        (j < self.n).then(|| self.links[j].joint())
     }
 
     /// The base transform: pose of frame 0 in the world frame.
@@ -94,8 +250,23 @@ impl SerialChain {
         self.tool.to_pose()
     }
 
-    pub(crate) fn geometry(&self, j: usize) -> &LinkGeometry {
+    pub(crate) fn geometry(&self, j: usize) -> &JointGeometry {
         &self.links[j]
+    }
+
+    /// Joint `j`'s (0-based) unit axis and a point on it in the world frame, from the frames of
+    /// one configuration.
+    #[inline(always)]
+    pub(crate) fn joint_axis(&self, f: &Frames, j: usize) -> (Vector3<f64>, Vector3<f64>) {
+        self.links[j].axis_in(&f.r[j], &f.p[j])
+    }
+
+    /// The DH geometry of joint `j`, `None` for an axis joint.
+    pub(crate) fn dh_geometry(&self, j: usize) -> Option<&LinkGeometry> {
+        match &self.links[j] {
+            JointGeometry::Dh(g) => Some(g),
+            JointGeometry::Axis(_) => None,
+        }
     }
 
     /// The flange frame (after the last link) in the world frame, without storing the others.
@@ -179,8 +350,8 @@ impl SerialChain {
         (t.to_pose(), j)
     }
 
-    /// One sweep storing only each joint's axis and origin (not whole frames), then one column
-    /// per joint.
+    /// One sweep storing only each joint's axis and a point on it (not whole frames), then one
+    /// column per joint.
     #[inline]
     pub(crate) fn forward_and_jacobian_rt(
         &self,
@@ -192,15 +363,13 @@ impl SerialChain {
         let mut r = self.base.r;
         let mut p = self.base.p;
         for j in 0..self.n {
-            axis[j] = r.column(2).into();
-            origin[j] = p;
-            (r, p) = self.links[j].compose(&r, &p, q[j]);
+            ((r, p), (axis[j], origin[j])) = self.links[j].step(&r, &p, q[j]);
         }
         let e = self.tool_of(&Rt { r, p });
         let mut jac = Jacobian::zeros();
         for j in 0..self.n {
             let z = axis[j];
-            let (v, w) = match self.links[j].link.kind {
+            let (v, w) = match self.links[j].kind() {
                 JointKind::Revolute => (z.cross(&(e.p - origin[j])), z),
                 JointKind::Prismatic => (z, Vector3::zeros()),
             };

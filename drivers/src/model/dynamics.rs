@@ -1,4 +1,4 @@
-//! Rigid-body dynamics of a DH chain: gravity (holding) torque, the joint-space inertia matrix by
+//! Rigid-body dynamics of a serial chain (DH rows or axis joints): gravity (holding) torque, the joint-space inertia matrix by
 //! the composite-rigid-body algorithm, recursive Newton-Euler inverse dynamics, and friction.
 //!
 //! Conventions are those of Corke's Robotics Toolbox, so numbers compare directly:
@@ -13,7 +13,7 @@
 use nalgebra::{Matrix3, Vector3};
 use penelope_hal::{JointSpaceMatrix, JointVector, MAX_JOINTS};
 
-use super::chain::{Frames, SerialChain};
+use super::chain::SerialChain;
 use super::dh::JointKind;
 
 /// The mass properties and drive of one link.
@@ -21,7 +21,8 @@ use super::dh::JointKind;
 pub struct LinkDynamics {
     /// Link mass, kg.
     pub mass: f64,
-    /// Centre of mass in the link's own (DH) frame, m.
+    /// Centre of mass in the link's own frame (the DH frame after the joint, or a URDF child
+    /// link's frame), m.
     pub com: Vector3<f64>,
     /// Inertia tensor about the centre of mass, in the link frame, kg·m².
     pub inertia: Matrix3<f64>,
@@ -79,12 +80,6 @@ impl LinkDynamics {
     }
 }
 
-/// The axis of joint `j` (0-based) in the world frame: the z axis of frame `j`.
-#[inline(always)]
-fn axis(f: &Frames, j: usize) -> Vector3<f64> {
-    f.r[j].column(2).into()
-}
-
 /// Holding torque against gravity (`gravity` is the gravitational acceleration in the world
 /// frame, m/s²): for each joint, the moment of the composite mass outboard of it.
 pub(crate) fn gravity(
@@ -104,9 +99,9 @@ pub(crate) fn gravity(
         let c = f.p[j + 1] + f.r[j + 1] * l.com;
         mass += l.mass;
         first_moment += c * l.mass;
-        let z = axis(&f, j);
-        tau[j] = match chain.geometry(j).link.kind {
-            JointKind::Revolute => z.dot(&(first_moment - f.p[j] * mass).cross(&a0)),
+        let (z, o) = chain.joint_axis(&f, j);
+        tau[j] = match chain.geometry(j).kind() {
+            JointKind::Revolute => z.dot(&(first_moment - o * mass).cross(&a0)),
             JointKind::Prismatic => z.dot(&a0) * mass,
         };
     }
@@ -127,11 +122,11 @@ pub(crate) fn inertia(
     let mut s_w = [Vector3::zeros(); MAX_JOINTS];
     let mut s_v = [Vector3::zeros(); MAX_JOINTS];
     for j in 0..n {
-        let z = axis(&f, j);
-        match chain.geometry(j).link.kind {
+        let (z, o) = chain.joint_axis(&f, j);
+        match chain.geometry(j).kind() {
             JointKind::Revolute => {
                 s_w[j] = z;
-                s_v[j] = f.p[j].cross(&z);
+                s_v[j] = o.cross(&z);
             }
             JointKind::Prismatic => s_v[j] = z,
         }
@@ -183,13 +178,21 @@ pub(crate) fn rne(
     let mut moment = [Vector3::zeros(); MAX_JOINTS];
     let mut com = [Vector3::zeros(); MAX_JOINTS];
     for j in 0..n {
-        let z = axis(&f, j);
+        let (z, o) = chain.joint_axis(&f, j);
         let r = f.p[j + 1] - f.p[j];
-        match chain.geometry(j).link.kind {
+        let geometry = chain.geometry(j);
+        match geometry.kind() {
             JointKind::Revolute => {
+                // The point on the axis moves with the previous link (a DH frame's origin is
+                // that point already; a URDF joint's is at the joint origin).
+                if !geometry.axis_through_origin() {
+                    let to_axis = o - f.p[j];
+                    a += wd.cross(&to_axis) + w.cross(&w.cross(&to_axis));
+                }
                 let w_prev = w;
                 w += z * qd[j];
                 wd += z * qdd[j] + w_prev.cross(&z) * qd[j];
+                let r = f.p[j + 1] - o;
                 a += wd.cross(&r) + w.cross(&w.cross(&r));
             }
             JointKind::Prismatic => {
@@ -209,20 +212,20 @@ pub(crate) fn rne(
     // Backward pass: force and moment (about the joint's axis point) transmitted to each link.
     let mut tau = JointVector::zeros();
     let mut f_out = Vector3::zeros(); // force link j+1 receives from link j
-    let mut n_out = Vector3::zeros(); // its moment about the origin of frame j+1
+    let mut n_out = Vector3::zeros(); // its moment about `n_point`, the axis point of joint j+1
+    let mut n_point = f.p[n];
     for j in (0..n).rev() {
-        let o = f.p[j];
-        let n_j =
-            n_out + (f.p[j + 1] - o).cross(&f_out) + (com[j] - o).cross(&force[j]) + moment[j];
+        let (z, o) = chain.joint_axis(&f, j);
+        let n_j = n_out + (n_point - o).cross(&f_out) + (com[j] - o).cross(&force[j]) + moment[j];
         let f_j = f_out + force[j];
-        let z = axis(&f, j);
         let l = &links[j];
-        tau[j] = match chain.geometry(j).link.kind {
+        tau[j] = match chain.geometry(j).kind() {
             JointKind::Revolute => z.dot(&n_j),
             JointKind::Prismatic => z.dot(&f_j),
         } + l.reflected_motor_inertia() * qdd[j];
         f_out = f_j;
         n_out = n_j;
+        n_point = o;
     }
     tau
 }

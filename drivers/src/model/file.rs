@@ -54,6 +54,7 @@ use nalgebra::{Matrix3, Translation3, UnitQuaternion, Vector3};
 use penelope_hal::{JointLimits, JointVector, MAX_JOINTS, Pose};
 use serde::{Deserialize, Serialize};
 
+use super::chain::ChainJoint;
 use super::dh::DhLink;
 use super::dynamics::LinkDynamics;
 use super::robot::{DhRobotModel, IkMethod, ModelError, ModelSpec};
@@ -75,6 +76,9 @@ pub enum FileError {
     /// The values do not make a valid model.
     #[error("{0}")]
     Model(#[from] ModelError),
+    /// A URDF file that does not make a model.
+    #[error("{0}")]
+    Urdf(#[from] super::urdf::UrdfError),
 }
 
 /// Length unit of a DH file.
@@ -302,14 +306,14 @@ impl RobotFile {
         let mut names = Vec::with_capacity(n);
         let mut limits = JointLimits::unbounded();
         for (j, e) in self.joints.iter().enumerate() {
-            links.push(match e.kind {
+            links.push(ChainJoint::Dh(match e.kind {
                 JointType::Revolute => {
                     DhLink::revolute(e.d * len, e.a * len, ang(e.alpha), ang(e.offset))
                 }
                 JointType::Prismatic => {
                     DhLink::prismatic(ang(e.theta), e.a * len, ang(e.alpha), e.offset * len)
                 }
-            });
+            }));
             names.push(e.name.clone().unwrap_or_else(|| format!("q{}", j + 1)));
             if let Some([lo, hi]) = e.limits {
                 limits.position_min[j] = var(j, lo);
@@ -377,7 +381,7 @@ impl RobotFile {
             description: self.description.clone(),
             assumptions: self.assumptions.clone(),
             joint_names: names,
-            links,
+            joints: links,
             dynamics,
             base: transform(&self.base),
             tool: transform(&self.tool),

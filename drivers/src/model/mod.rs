@@ -1,5 +1,5 @@
-//! Robot models from DH tables: the PUMA 560, the PUMA 200, the FRHC, or any robot a lab
-//! describes in a DH file.
+//! Robot models from DH tables (the PUMA 560, the PUMA 200, the FRHC, or any robot a lab
+//! describes in a DH file) or from URDF files.
 //!
 //! # Layers
 //!
@@ -14,6 +14,8 @@
 //!   `Dynamics`, `RobotModel`) and [`DhRobot`] (the hal `Robot`: model + measured state).
 //! - [`file`](mod@file): the TOML DH-file format. The built-in robots are the files in
 //!   `drivers/robots/`, embedded, so they are defined exactly as a lab's file is.
+//! - [`urdf`]: a robot from a URDF file: the joints between a base and a tip link become
+//!   [`AxisJoint`]s of the same [`SerialChain`], the links' inertials its [`LinkDynamics`].
 //!
 //! # Example
 //!
@@ -34,6 +36,7 @@
 //! Every kinematics and dynamics call works on fixed-size stack values: no allocation, no
 //! locks, bounded time. Loading a model (parsing a file) allocates and belongs at start-up.
 
+pub mod axis_joint;
 pub mod chain;
 pub mod dh;
 pub mod dynamics;
@@ -41,13 +44,16 @@ pub mod file;
 pub mod numeric_ik;
 pub mod puma;
 pub mod robot;
+pub mod urdf;
 
-pub use chain::{ChainError, SerialChain};
+pub use axis_joint::AxisJoint;
+pub use chain::{ChainError, ChainJoint, SerialChain};
 pub use dh::{DhLink, JointKind};
 pub use dynamics::LinkDynamics;
 pub use file::{FileError, RobotFile};
 pub use numeric_ik::DlsOptions;
 pub use robot::{DhRobot, DhRobotModel, IkMethod, ModelError, ModelSpec};
+pub use urdf::{UrdfChain, UrdfError};
 
 /// The PUMA 560 DH file (the Robotics Toolbox reference model).
 pub const PUMA560_TOML: &str = include_str!("../../robots/puma560.toml");
@@ -81,7 +87,9 @@ pub fn puma560_with_pedestal(d1: f64) -> Result<DhRobotModel, ModelError> {
     let mut spec = RobotFile::parse(PUMA560_TOML)
         .map_err(|e| ModelError::Invalid(e.to_string()))?
         .to_spec()?;
-    spec.links[0].d = d1;
+    if let Some(ChainJoint::Dh(waist)) = spec.joints.first_mut() {
+        waist.d = d1;
+    }
     DhRobotModel::new("puma560", spec)
 }
 
@@ -121,13 +129,38 @@ pub fn from_file(path: impl AsRef<std::path::Path>) -> Result<DhRobotModel, File
     file::model_from_file(path)
 }
 
-/// A built-in name, or else the path of a DH file (what the command line accepts).
+/// A model from a URDF file, from its root link to `tip` (`None`: the single leaf link); its
+/// kind is `"urdf"`.
+///
+/// # Errors
+/// [`UrdfError`] naming the element at fault.
+pub fn from_urdf_file(
+    path: impl AsRef<std::path::Path>,
+    tip: Option<&str>,
+) -> Result<DhRobotModel, UrdfError> {
+    let chain = UrdfChain {
+        base: None,
+        tip: tip.map(str::to_string),
+    };
+    urdf::model_from_file(path, &chain)
+}
+
+/// True when `path` names a URDF file (it ends in `.urdf`, any case).
+pub fn is_urdf_path(path: &str) -> bool {
+    std::path::Path::new(path)
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("urdf"))
+}
+
+/// A built-in name, or else the path of a DH file, or of a URDF file when it ends in `.urdf`
+/// (the chain from the root to the single leaf link): what the command line accepts.
 ///
 /// # Errors
 /// [`FileError`]; a name that is neither built in nor an existing file gives [`FileError::Io`].
 pub fn load(name_or_path: &str) -> Result<DhRobotModel, FileError> {
     match by_name(name_or_path) {
         Some(m) => Ok(m),
+        None if is_urdf_path(name_or_path) => Ok(from_urdf_file(name_or_path, None)?),
         None => from_file(name_or_path),
     }
 }

@@ -47,6 +47,8 @@ pub(crate) struct PumaIk {
     lateral: f64,
     d4: f64,
     d6: f64,
+    /// Joint offsets `theta = q + offset`.
+    offset: [f64; 6],
 }
 
 /// Joint angles `theta` (offsets included) of one branch.
@@ -59,9 +61,9 @@ impl PumaIk {
             return None;
         }
         let alphas = [PI / 2.0, 0.0, -PI / 2.0, PI / 2.0, -PI / 2.0, 0.0];
-        let mut l = [chain.geometry(0).link; 6];
+        let mut l = [chain.dh_geometry(0)?.link; 6];
         for (j, lj) in l.iter_mut().enumerate() {
-            *lj = chain.geometry(j).link;
+            *lj = chain.dh_geometry(j)?.link;
             if lj.kind != JointKind::Revolute || (lj.alpha - alphas[j]).abs() > STRUCTURE_TOL {
                 return None;
             }
@@ -80,6 +82,7 @@ impl PumaIk {
             lateral: l[1].d + l[2].d,
             d4: l[3].d,
             d6: l[5].d,
+            offset: l.map(|lj| lj.offset),
         })
     }
 
@@ -142,13 +145,12 @@ impl PumaIk {
                 let arm = [t1, t2, t3];
                 let r36 = self.wrist_rotation(chain, &arm, r);
                 for flip in [false, true] {
-                    let (t4, t5, t6) =
-                        wrist(&r36, flip, wrist_hint + chain.geometry(3).link.offset);
+                    let (t4, t5, t6) = wrist(&r36, flip, wrist_hint + self.offset[3]);
                     let theta: Theta = [t1, t2, t3, t4, t5, t6];
                     let k = 4 * usize::from(right) + 2 * usize::from(down) + usize::from(flip);
                     let mut q = JointVector::zeros();
                     for j in 0..6 {
-                        q[j] = principal(theta[j] - chain.geometry(j).link.offset);
+                        q[j] = principal(theta[j] - self.offset[j]);
                     }
                     out[k] = q;
                 }
@@ -167,8 +169,7 @@ impl PumaIk {
         let mut r = Matrix3::identity();
         let mut p = Vector3::zeros();
         for (j, t) in theta.iter().enumerate() {
-            let g = chain.geometry(j);
-            (r, p) = g.compose(&r, &p, t - g.link.offset);
+            (r, p) = chain.geometry(j).compose(&r, &p, t - self.offset[j]);
         }
         r.tr_mul(r06)
     }

@@ -9,8 +9,8 @@ use penelope_hal::{
     Pose, Robot, RobotModel,
 };
 
-use super::chain::{ChainError, SerialChain};
-use super::dh::{DhLink, JointKind, Rt};
+use super::chain::{ChainError, ChainJoint, SerialChain};
+use super::dh::{JointKind, Rt};
 use super::dynamics::{self, LinkDynamics};
 use super::numeric_ik::{self, DlsOptions};
 use super::puma::{self, PumaIk};
@@ -38,8 +38,8 @@ pub struct ModelSpec {
     pub assumptions: Vec<String>,
     /// Joint names, one per link.
     pub joint_names: Vec<String>,
-    /// The DH table, 1 to [`MAX_JOINTS`] rows.
-    pub links: Vec<DhLink>,
+    /// The joints, base to tip, 1 to [`MAX_JOINTS`]: DH rows (a DH file) or axis joints (a URDF).
+    pub joints: Vec<ChainJoint>,
     /// Mass properties and drives, one per link.
     pub dynamics: Vec<LinkDynamics>,
     /// Pose of the robot's frame 0 in the world frame.
@@ -129,7 +129,7 @@ impl DhRobotModel {
     /// [`ModelError`] for a malformed table, mismatched lengths, non-finite or out-of-domain
     /// values, or a missing named pose.
     pub fn new(kind: &'static str, spec: ModelSpec) -> Result<Self, ModelError> {
-        let chain = SerialChain::new(&spec.links, &spec.base, &spec.tool)?;
+        let chain = SerialChain::from_joints(&spec.joints, &spec.base, &spec.tool)?;
         let n = chain.joint_count();
         let check_len = |what, got| {
             if got == n {
@@ -411,7 +411,7 @@ impl DhRobotModel {
     }
 
     fn kind_of(&self, j: usize) -> JointKind {
-        self.chain.geometry(j).link.kind
+        self.chain.geometry(j).kind()
     }
 
     /// The flange frame (in frame 0) for a tool pose in the world frame.

@@ -429,9 +429,11 @@ fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task, RunError> 
     // A robot computes with its boards' kinematics: an fpga board's, or the float model.
     let model_of = |name: &str| -> Result<(RobotKinematics, models::DhRobotModel), RunError> {
         let o = robot(name)?;
-        let _: RobotConfig = parse(o)?;
+        let cfg: RobotConfig = parse(o)?;
         let word = o.kind.trim_start_matches("robot/");
-        let model = models::by_name(word).ok_or_else(|| task(format!("robot kind {word}")))?;
+        let model = cfg
+            .model(&o.kind, word)
+            .map_err(|e| task(format!("{name}: {e}")))?;
         let boards: Vec<(&str, bool)> = o
             .joints
             .iter()

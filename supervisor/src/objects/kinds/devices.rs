@@ -2,6 +2,9 @@
 //! virtual sensor touches.
 
 use super::*;
+use std::collections::BTreeMap;
+
+use penelope_drivers::model as models;
 use penelope_hal::{Frame, Pose, Wrench};
 
 /// One contact shape of an environment.
@@ -104,6 +107,15 @@ pub struct RobotConfig {
     pub max_force_n: f64,
     /// A master's largest displayed moment, N·m.
     pub max_moment_nm: f64,
+    /// `robot/urdf`: the URDF file.
+    pub file: Option<String>,
+    /// `robot/urdf`: the tool link (`None`: the single leaf link).
+    pub tip: Option<String>,
+    /// `robot/urdf`: the base link (`None`: the root link).
+    pub base: Option<String>,
+    /// `robot/urdf`: named poses (`nest`, `start`, `work`, or others), rad (m for prismatic
+    /// joints), replacing the URDF's default (the zero configuration).
+    pub poses: BTreeMap<String, Vec<f64>>,
 }
 
 impl Default for RobotConfig {
@@ -113,11 +125,58 @@ impl Default for RobotConfig {
             role: None,
             max_force_n: 10.0,
             max_moment_nm: 0.5,
+            file: None,
+            tip: None,
+            base: None,
+            poses: BTreeMap::new(),
         }
     }
 }
 
 impl RobotConfig {
+    /// The model of `robot/<model>`: a built-in one by name, or for `urdf` the chain of the
+    /// URDF file `file` from `base` to `tip`.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for a missing `file`, a URDF that does not make a model (the
+    /// message names the element), or `file`, `tip` or `base` given to a built-in robot;
+    /// [`WireError::UnknownKind`] for an unknown model.
+    pub fn model(&self, kind: &str, model: &str) -> Result<models::DhRobotModel, WireError> {
+        if model != "urdf" {
+            if self.file.is_some() || self.tip.is_some() || self.base.is_some() {
+                return Err(bad(
+                    kind,
+                    "`file`, `tip` and `base` apply to robot/urdf only",
+                ));
+            }
+            return models::by_name(model).ok_or_else(|| WireError::UnknownKind(kind.into()));
+        }
+        let Some(file) = &self.file else {
+            return Err(bad(kind, "`file` (the URDF file) is required"));
+        };
+        let chain = models::UrdfChain {
+            base: self.base.clone(),
+            tip: self.tip.clone(),
+        };
+        let mut spec =
+            models::urdf::spec_from_file(file, &chain).map_err(|e| bad(kind, e.to_string()))?;
+        let n = spec.joints.len();
+        for (name, q) in &self.poses {
+            if q.len() != n || !q.iter().all(|x| x.is_finite()) {
+                return Err(bad(
+                    kind,
+                    format!("pose `{name}` needs {n} finite values (one per joint)"),
+                ));
+            }
+            let q = JointVector::from_fn(|j, _| q.get(j).copied().unwrap_or(0.0));
+            match spec.poses.iter_mut().find(|(p, _)| p == name) {
+                Some((_, old)) => *old = q,
+                None => spec.poses.push((name.clone(), q)),
+            }
+        }
+        models::DhRobotModel::new("urdf", spec).map_err(|e| bad(kind, e.to_string()))
+    }
+
     /// The robot's role, defaulting by model (`frhc` is a master), and its checked caps.
     ///
     /// # Errors

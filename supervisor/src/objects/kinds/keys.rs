@@ -10,6 +10,16 @@ max_force_n = 10.0    # a master's largest displayed force, N (the FRHC's)
 max_moment_nm = 0.5   # a master's largest displayed moment, N·m
 "#;
 
+pub(super) const URDF_KEYS: &str = r#"
+file = "arm.urdf"     # the URDF file (required): absolute, or relative to the node's working
+                      # directory; read when the robot is created
+tip = "tool0"         # the link whose frame is the tool frame (default: the single leaf link)
+base = "base_link"    # the link whose frame is the robot's base frame (default: the root link)
+poses = { start = [0.0, 0.8, -3.1, 0.0, 0.8, 0.0] }  # named poses (nest, start, work, ...), rad (m
+                      # for prismatic joints), one value per joint; default: all at the zero
+                      # configuration (mid-range for a joint whose limits exclude zero)
+"#;
+
 pub(super) const SHAPE_KEYS: &str = r#"
 [[shapes]]                       # up to 8 contact shapes, base frame of the robot
 kind = "plane"                   # "plane" or "sphere"

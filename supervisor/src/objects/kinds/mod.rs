@@ -35,10 +35,11 @@ use super::teleop_wave::{WAVE_MASTER_KEYS, WAVE_SLAVE_KEYS};
 use crate::proto::{Class, KindInfo, WireError};
 
 /// Every kind this creator makes, in listing order.
-pub const KINDS: [&str; 24] = [
+pub const KINDS: [&str; 25] = [
     "robot/puma560",
     "robot/puma200",
     "robot/frhc",
+    "robot/urdf",
     "board/sim",
     "board/fpga",
     "board/galil",
@@ -65,7 +66,8 @@ pub const KINDS: [&str; 24] = [
 /// A kind, parsed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Kind {
-    /// `robot/<model>`: one of the built-in DH models.
+    /// `robot/<model>`: one of the built-in DH models, or `urdf` (a URDF file named in the
+    /// configuration).
     Robot(&'static str),
     /// `board/sim`.
     SimBoard,
@@ -118,6 +120,7 @@ impl Kind {
             "robot/puma560" => Kind::Robot("puma560"),
             "robot/puma200" => Kind::Robot("puma200"),
             "robot/frhc" => Kind::Robot("frhc"),
+            "robot/urdf" => Kind::Robot("urdf"),
             "board/sim" => Kind::SimBoard,
             "board/fpga" => Kind::FpgaBoard,
             "board/galil" => Kind::GalilBoard,
@@ -148,6 +151,7 @@ impl Kind {
         match self {
             Kind::Robot("puma560") => "robot/puma560",
             Kind::Robot("puma200") => "robot/puma200",
+            Kind::Robot("urdf") => "robot/urdf",
             Kind::Robot(_) => "robot/frhc",
             Kind::SimBoard => "board/sim",
             Kind::FpgaBoard => "board/fpga",
@@ -199,6 +203,11 @@ impl Kind {
     /// What `kinds` lists for it.
     pub fn info(self) -> KindInfo {
         let (summary, config) = match self {
+            Kind::Robot("urdf") => (
+                "any serial robot from a URDF file: the joints from a base link to a tip link, \
+                 the links' inertials for the dynamics",
+                URDF_KEYS.to_string() + ROBOT_KEYS,
+            ),
             Kind::Robot(m) => (
                 match m {
                     "puma560" => "Unimation PUMA 560 (Robotics Toolbox DH model with dynamics)",
@@ -710,7 +719,7 @@ mod tests {
         let kinds = all_kinds();
         // Every listed name parses (a name that does not would be dropped from the list).
         assert_eq!(kinds.len(), KINDS.len());
-        assert_eq!(kinds.len(), 24);
+        assert_eq!(kinds.len(), 25);
         for k in &kinds {
             let parsed = Kind::parse(&k.kind).unwrap();
             assert_eq!(parsed.as_str(), k.kind);

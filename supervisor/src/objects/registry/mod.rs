@@ -319,7 +319,7 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
             let cfg: RobotConfig = kinds::parse(k, config)?;
             let start = cfg.start_pose(k)?;
             let role = cfg.role(k)?;
-            let model = models::by_name(model).ok_or_else(|| WireError::UnknownKind(k.into()))?;
+            let model = cfg.model(k, model)?;
             Body::Robot(Box::new(RobotObj {
                 kinematics: RobotKinematics::Float(model.clone()),
                 model,

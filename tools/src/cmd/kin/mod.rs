@@ -1,7 +1,8 @@
 //! `penelope kin <robot> <op>`: kinematics and dynamics of a robot model from the command line.
 //!
-//! `<robot>` is `puma560`, `puma200`, `frhc`, or the path of a DH file (see
-//! `drivers/robots/*.toml` for the format). Joint values are comma-separated radians (metres for
+//! `<robot>` is `puma560`, `puma200`, `frhc`, the path of a DH file (see
+//! `drivers/robots/*.toml` for the format), or the path of a URDF file (`*.urdf`; the chain from
+//! its root link to `--tip`, default the single leaf link). Joint values are comma-separated radians (metres for
 //! prismatic joints), or the name of a pose in the robot's file (`start`, `qn`, ...).
 //! `--json` prints one JSON object; bad input exits with code 2.
 
@@ -17,11 +18,18 @@ use serde_json::json;
 
 use crate::cmd::usage;
 
+mod info;
+use info::info;
+
 /// Options of `penelope kin`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The robot: puma560, puma200, frhc, or the path of a DH file (TOML).
+    /// The robot: puma560, puma200, frhc, the path of a DH file (TOML), or of a URDF file
+    /// (`*.urdf`).
     pub robot: String,
+    /// A URDF robot's tip link (the tool frame); default: the single leaf link.
+    #[arg(long, global = true)]
+    pub tip: Option<String>,
     /// What to compute.
     #[command(subcommand)]
     pub op: Op,
@@ -102,7 +110,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 
 /// What `penelope kin` prints.
 fn output(args: &Args) -> anyhow::Result<String> {
-    let m = load(&args.robot)?;
+    let m = load(&args.robot, args.tip.as_deref())?;
     let n = m.joint_count();
     if args.fpga {
         return fpga_output(args, &m);
@@ -310,16 +318,26 @@ fn fpga_output(args: &Args, m: &DhRobotModel) -> anyhow::Result<String> {
     }
 }
 
-fn load(robot: &str) -> anyhow::Result<DhRobotModel> {
+fn load(robot: &str, tip: Option<&str>) -> anyhow::Result<DhRobotModel> {
+    let urdf = model::is_urdf_path(robot);
+    if tip.is_some() && !urdf {
+        return Err(usage(
+            "--tip applies to a URDF robot (a path ending in .urdf)",
+        ));
+    }
     if let Some(m) = model::by_name(robot) {
         return Ok(m);
     }
     let path = std::path::Path::new(robot);
     if !path.is_file() {
         return Err(usage(format!(
-            "unknown robot `{robot}`: expected one of {} or the path of a DH file",
+            "unknown robot `{robot}`: expected one of {} or the path of a DH or URDF file",
             model::BUILT_IN.join(", ")
         )));
+    }
+    if urdf {
+        return model::from_urdf_file(path, tip)
+            .map_err(|e| usage(format!("invalid URDF file {robot}: {e}")));
     }
     model::from_file(path).map_err(|e| usage(format!("invalid DH file {robot}: {e}")))
 }
@@ -451,96 +469,6 @@ fn per_joint(m: &DhRobotModel, tau: &JointVector, unit: &str) -> String {
     s
 }
 
-fn info(m: &DhRobotModel, as_json: bool) -> String {
-    let n = m.joint_count();
-    let chain = m.chain();
-    let links: Vec<_> = (0..n).filter_map(|j| chain.link(j)).collect();
-    let lim = penelope_hal::RobotModel::limits(m);
-    if as_json {
-        let joints: Vec<_> = links
-            .iter()
-            .enumerate()
-            .map(|(j, l)| {
-                json!({
-                    "name": m.joint_names()[j],
-                    "type": if l.kind == model::JointKind::Revolute { "revolute" } else { "prismatic" },
-                    "theta": l.theta, "d": l.d, "a": l.a, "alpha": l.alpha, "offset": l.offset,
-                    "limits": [finite_or_null(lim.position_min[j]), finite_or_null(lim.position_max[j])],
-                    "counts_per_radian": m.counts_per_radian(j),
-                })
-            })
-            .collect();
-        let poses: serde_json::Map<String, serde_json::Value> = m
-            .poses()
-            .iter()
-            .map(|(name, q)| (name.clone(), json!(&q.as_slice()[..n])))
-            .collect();
-        return json!({
-            "name": m.name(),
-            "kind": m.kind(),
-            "description": m.description(),
-            "assumptions": m.assumptions(),
-            "inverse_kinematics": if m.has_closed_form() { "closed-form" } else { "numerical" },
-            "joints": joints,
-            "poses": poses,
-        })
-        .to_string();
-    }
-    let mut s = format!("{} — {}\n", m.name(), m.description());
-    let _ = writeln!(
-        s,
-        "inverse kinematics: {}",
-        if m.has_closed_form() {
-            "closed form, 8 branches"
-        } else {
-            "damped least squares"
-        }
-    );
-    let _ = writeln!(
-        s,
-        "{:>2} {:<14} {:>10} {:>10} {:>8} {:>8}  {:>17}",
-        "j", "name", "d (m)", "a (m)", "alpha°", "offset°", "limits (deg)"
-    );
-    for (j, l) in links.iter().enumerate() {
-        let _ = writeln!(
-            s,
-            "{:>2} {:<14} {:>10.5} {:>10.5} {:>8.2} {:>8.2}  {:>8.1} {:>8.1}",
-            j + 1,
-            m.joint_names()[j],
-            l.d,
-            l.a,
-            l.alpha.to_degrees(),
-            l.offset.to_degrees(),
-            lim.position_min[j].to_degrees(),
-            lim.position_max[j].to_degrees()
-        );
-    }
-    s += "named poses (deg):\n";
-    for (name, q) in m.poses() {
-        let q: Vec<String> = q
-            .iter()
-            .take(n)
-            .map(|x| format!("{:.1}", x.to_degrees()))
-            .collect();
-        let _ = writeln!(s, "  {name:<8} [{}]", q.join(", "));
-    }
-    if !m.assumptions().is_empty() {
-        s += "assumptions:\n";
-        for a in m.assumptions() {
-            let _ = writeln!(s, "  - {a}");
-        }
-    }
-    s
-}
-
-fn finite_or_null(x: f64) -> serde_json::Value {
-    if x.is_finite() {
-        json!(x)
-    } else {
-        serde_json::Value::Null
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -567,6 +495,7 @@ mod tests {
             op,
             json: true,
             fpga: false,
+            tip: None,
         };
         serde_json::from_str(&output(&args).unwrap()).unwrap()
     }
@@ -583,6 +512,7 @@ mod tests {
             op: Op::Fk(q("0.1,1,2.5,0.2,0.3,0.1")),
             json: true,
             fpga: true,
+            tip: None,
         };
         let fpga: serde_json::Value = serde_json::from_str(&output(&args).unwrap()).unwrap();
         for i in 0..3 {
@@ -601,6 +531,7 @@ mod tests {
             op: Op::Fk(q("qn")),
             json: true,
             fpga: true,
+            tip: None,
         };
         let err = output(&not_frhc).unwrap_err();
         assert!(
@@ -668,6 +599,7 @@ mod tests {
                 op,
                 json: false,
                 fpga: false,
+                tip: None,
             };
             output(&args).unwrap_err()
         };
@@ -702,5 +634,86 @@ mod tests {
         assert!(joints(&m, "--q", "0,0,0").is_err());
         assert!(joints(&m, "--q", "0,0,0,0,0,inf").is_err());
         assert!(joints(&m, "--q", "0,0,0,0,0,x").is_err());
+    }
+
+    fn urdf(file: &str) -> String {
+        format!("{}/../drivers/robots/{file}", env!("CARGO_MANIFEST_DIR"))
+    }
+
+    #[test]
+    fn a_urdf_path_is_a_robot_like_the_built_in_names() {
+        let puma = urdf("puma560.urdf");
+        for op in ["fk", "jacobian", "gravity", "rne"] {
+            let make = || match op {
+                "fk" => Op::Fk(q("0.1,0.2,0.3,0.4,0.5,0.6")),
+                "jacobian" => Op::Jacobian {
+                    joints: q("0.1,0.2,0.3,0.4,0.5,0.6"),
+                    frame: FrameArg::Tool,
+                },
+                "gravity" => Op::Gravity(q("0.1,0.2,0.3,0.4,0.5,0.6")),
+                // No acceleration: the DH file's rotor inertia (which URDF lacks) stays out.
+                _ => Op::Rne {
+                    joints: q("0.1,0.2,0.3,0.4,0.5,0.6"),
+                    qd: "0.5,-1,0.3,2,-0.7,1".into(),
+                    qdd: "0,0,0,0,0,0".into(),
+                },
+            };
+            let (from_urdf, from_dh) = (json(&puma, make()), json("puma560", make()));
+            let flat = |v: &serde_json::Value| -> Vec<f64> {
+                let mut out = Vec::new();
+                let mut stack = vec![v.clone()];
+                while let Some(x) = stack.pop() {
+                    match x {
+                        serde_json::Value::Array(a) => stack.extend(a),
+                        serde_json::Value::Object(o) => stack.extend(o.into_iter().map(|(_, x)| x)),
+                        serde_json::Value::Number(n) => out.push(n.as_f64().unwrap()),
+                        _ => {}
+                    }
+                }
+                out
+            };
+            let (a, b) = (flat(&from_urdf), flat(&from_dh));
+            assert_eq!(a.len(), b.len(), "{op}");
+            assert!(a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-9), "{op}");
+        }
+        let ik = json(
+            &puma,
+            Op::Ik {
+                pose: "0,0,1,0.5, 0,1,0,0.1, -1,0,0,0.4, 0,0,0,1".into(),
+            },
+        );
+        assert!(!ik["solutions"].as_array().unwrap().is_empty(), "{ik}");
+        let info = json(&puma, Op::Info);
+        assert_eq!(info["kind"], "urdf");
+        assert_eq!(info["inverse_kinematics"], "numerical");
+        assert_eq!(info["joints"][1]["origin_xyz"][2], 0.67183);
+    }
+
+    #[test]
+    fn a_urdf_tip_is_chosen_with_tip() {
+        let scara = urdf("scara.urdf");
+        let mut args = Args {
+            robot: scara.clone(),
+            op: Op::Fk(q("0,0,0.1")),
+            json: true,
+            fpga: false,
+            tip: None,
+        };
+        let err = output(&args).unwrap_err();
+        assert!(err.downcast_ref::<crate::cmd::UsageError>().is_some());
+        assert!(err.to_string().contains("camera, tool"), "{err}");
+        args.tip = Some("tool".into());
+        let t: serde_json::Value = serde_json::from_str(&output(&args).unwrap()).unwrap();
+        // 0.7 m out along x, 0.5 - 0.1 - 0.1 m up.
+        assert!((t["T"][0][3].as_f64().unwrap() - 0.7).abs() < 1e-12, "{t}");
+        assert!((t["T"][2][3].as_f64().unwrap() - 0.3).abs() < 1e-12, "{t}");
+        let dh_with_tip = Args {
+            robot: "puma560".into(),
+            op: Op::Info,
+            json: false,
+            fpga: false,
+            tip: Some("tool".into()),
+        };
+        assert!(output(&dh_with_tip).is_err());
     }
 }
