@@ -389,8 +389,9 @@ fn the_two_port_observers_hear_each_other_across_the_data_plane() {
     let ((pm, ps), (tm, ts)) = (sides(&plain), sides(&tdpa));
     println!("two nodes, least channel energy: plain {pm:.4}/{ps:.4} J, tdpa {tm:.5}/{ts:.5} J");
     assert!(tdpa.faults.is_empty(), "{:?}", tdpa.faults);
-    assert!(tm > -1e-3 && ts > -1e-2, "tdpa: {tm} / {ts} J");
-    assert!(pm < -0.01 && ps < -0.01, "plain: {pm} / {ps} J");
+    // Held at the ports' allowed initial energy, -10 mJ; the plain law goes below it.
+    assert!(tm > -0.012 && ts > -0.012, "tdpa: {tm} / {ts} J");
+    assert!(pm < -0.03 && ps < -0.03, "plain: {pm} / {ps} J");
     assert!(tdpa.tracking.rms_mm < 2.0, "{}", tdpa.tracking.rms_mm);
 }
 

@@ -233,6 +233,11 @@ pub struct TwoPortConfig {
     /// Below this speed (impedance) or force (admittance) nothing is added: it could not
     /// dissipate anything and would blow the gain up. m/s, N.
     pub min_flow: f64,
+    /// Energy the port may give out beyond what it received before the controller acts, J:
+    /// the initial stored energy `E0` of the passivity inequality `integral(P) >= -E0`, so a
+    /// port held at `-E0` is still passive. Zero acts at once: on every sign of deficit, which
+    /// in steady contact means acting on and off every few ticks (chatter).
+    pub initial_energy: f64,
 }
 
 impl Default for TwoPortConfig {
@@ -243,6 +248,7 @@ impl Default for TwoPortConfig {
             max_damping: 200.0,
             max_conductance: 0.05,
             min_flow: 1e-3,
+            initial_energy: 0.0,
         }
     }
 }
@@ -255,7 +261,8 @@ impl TwoPortConfig {
     pub fn validate(&self) -> Result<(), TeleopConfigError> {
         check_cap(self.max_damping, "passivity.max_damping")?;
         check_cap(self.max_conductance, "passivity.max_conductance")?;
-        check_gain(self.min_flow, "passivity.min_flow")
+        check_gain(self.min_flow, "passivity.min_flow")?;
+        check_gain(self.initial_energy, "passivity.initial_energy")
     }
 }
 
@@ -343,7 +350,7 @@ impl TwoPortController {
         if !(dt.is_finite() && dt > 0.0) || flow2 < self.config.min_flow * self.config.min_flow {
             return 0.0;
         }
-        let w = self.observer.energy_after(dt, power);
+        let w = self.observer.energy_after(dt, power) + self.config.initial_energy;
         if w.is_finite() && w < 0.0 && flow2 > 0.0 {
             (-w / (dt * flow2)).min(max)
         } else {

@@ -180,3 +180,34 @@ fn delayed_two_port_stays_passive_with_the_controllers() {
         "without: {off_m} J, {off_s} J"
     );
 }
+
+#[test]
+fn an_initial_energy_lets_the_port_go_that_far_down_and_no_further() {
+    let mut pc = TwoPortController::new(TwoPortConfig {
+        form: PassivityForm::Impedance,
+        initial_energy: 0.05,
+        max_damping: f64::INFINITY,
+        ..TwoPortConfig::default()
+    })
+    .unwrap();
+    // 1 W out for 10 ms at a time, nothing received: free until -0.05 J, then held there.
+    let (dt, f, v) = (0.01, x(-1.0), x(1.0));
+    let mut first_action = None;
+    for k in 0..20 {
+        let (f2, alpha) = pc.correct_force(dt, &f, &v);
+        if alpha > 0.0 && first_action.is_none() {
+            first_action = Some(k);
+        }
+        pc.commit(dt, f2.dot(&v), alpha, alpha * v.norm_squared());
+        assert!(pc.observer().energy() >= -0.05 - 1e-12, "tick {k}");
+    }
+    // Ticks 0-4 give out 0.05 J untouched; the sixth would go below.
+    assert_eq!(first_action, Some(5));
+    assert!((pc.observer().energy() + 0.05).abs() < 1e-12);
+    // A negative allowance is refused.
+    let bad = TwoPortConfig {
+        initial_energy: -1.0,
+        ..TwoPortConfig::default()
+    };
+    assert!(TwoPortController::new(bad).is_err());
+}

@@ -237,6 +237,13 @@ impl SlaveTrackingToml {
     }
 }
 
+/// The energy each port of the channel may give out beyond what it received before its
+/// passivity controller acts, J. Acting on every sign of deficit damps the sensor's noise at zero
+/// delay (tracking 0.25 mm against 0.17 mm for the plain law, display 2.7 % off against 2.5 %);
+/// 10 mJ leaves the zero-delay task as the plain law runs it and changes nothing from 50 ms up
+/// (`penelope experiment delay`, BENCHMARKS.md).
+pub const TWO_PORT_INITIAL_ENERGY: f64 = 0.01;
+
 /// The two-port observer for `word`: `off`, or `on` (the one form the port's causality allows).
 fn two_port(kind: &str, word: &str, form: PassivityForm, on: &str) -> Result<PortLaw, WireError> {
     let form = match word {
@@ -251,6 +258,7 @@ fn two_port(kind: &str, word: &str, form: PassivityForm, on: &str) -> Result<Por
     };
     Ok(PortLaw::TwoPort(TwoPortConfig {
         form,
+        initial_energy: TWO_PORT_INITIAL_ENERGY,
         ..TwoPortConfig::default()
     }))
 }
