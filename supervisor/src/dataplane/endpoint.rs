@@ -26,8 +26,13 @@ pub struct EndpointStats {
     pub bad_tag: u64,
     /// Datagrams tagged when this end has no key, or untagged when it has one.
     pub wrong_authentication: u64,
-    /// Datagrams of another version, kind or shape, or too long.
+    /// Datagrams of another kind or shape, or too long.
     pub malformed: u64,
+    /// Datagrams of another data-plane version: the other node runs another build, and the
+    /// two will exchange nothing until both run the same one.
+    pub wrong_version: u64,
+    /// The version those datagrams carried (the last one heard).
+    pub other_version: Option<u8>,
 }
 
 impl EndpointStats {
@@ -35,6 +40,10 @@ impl EndpointStats {
         match e {
             FrameError::BadTag => self.bad_tag += 1,
             FrameError::Authentication(..) => self.wrong_authentication += 1,
+            FrameError::Version(v) => {
+                self.wrong_version += 1;
+                self.other_version = Some(v);
+            }
             _ => self.malformed += 1,
         }
     }
@@ -275,7 +284,7 @@ impl Endpoint {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dataplane::frame::StreamId;
+    use crate::dataplane::frame::{DATAPLANE_VERSION, StreamId};
     use crate::dataplane::stream::{StreamReceiver, StreamSender, Verdict};
     use std::time::{Duration, Instant};
 
@@ -340,6 +349,23 @@ mod tests {
         assert_eq!(
             (s.bad_tag, s.wrong_authentication, s.malformed, s.received),
             (1, 1, 1, 502)
+        );
+        // Another build's datagram (another data-plane version), genuine otherwise: counted
+        // apart, with the version it spoke, so a lab can see why the link stays down.
+        let mut other = tx.next(2);
+        other.version = DATAPLANE_VERSION + 1;
+        let n = encode(&other, &[1.0f64; 6], Some(&genuine_key), &mut buf).unwrap();
+        raw.send_to(&buf[..n], to).unwrap();
+        raw.send_to(&buf[..n], to).unwrap();
+        let deadline = Instant::now() + Duration::from_secs(2);
+        while b.stats().wrong_version < 2 && Instant::now() < deadline {
+            let _ = b.receive::<[f64; 6]>();
+            std::thread::yield_now();
+        }
+        let s = b.stats();
+        assert_eq!(
+            (s.wrong_version, s.other_version, s.malformed),
+            (2, Some(DATAPLANE_VERSION + 1), 1)
         );
     }
 

@@ -207,10 +207,11 @@ impl LinkStats {
         }
     }
 
-    /// Datagrams refused: bad tag, wrong authentication, malformed, or from a stranger.
+    /// Datagrams refused: bad tag, wrong authentication, another data-plane version,
+    /// malformed, or from a stranger.
     pub fn refused(&self) -> u64 {
         let e = self.endpoint;
-        e.bad_tag + e.wrong_authentication + e.malformed + self.strangers
+        e.bad_tag + e.wrong_authentication + e.wrong_version + e.malformed + self.strangers
     }
 }
 

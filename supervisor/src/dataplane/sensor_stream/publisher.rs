@@ -57,6 +57,7 @@ impl PublisherStats {
         let e = self.endpoint;
         e.bad_tag
             + e.wrong_authentication
+            + e.wrong_version
             + e.malformed
             + self.bad_probes
             + self.refused_full

@@ -19,11 +19,21 @@ pub(super) fn link_relations(t: &TeleopObj) -> Vec<(String, String)> {
             format!("{:.1} µs", ns as f64 / 1e3)
         })
     };
+    // A link down because the other node runs another build says so, not just "down".
+    let other_build = match r.endpoint.other_version {
+        Some(v) if r.endpoint.wrong_version > 0 => format!(
+            "; {} datagrams of data-plane version {v} refused (this node speaks {}: the other \
+             node runs another build)",
+            r.endpoint.wrong_version,
+            crate::dataplane::frame::DATAPLANE_VERSION
+        ),
+        _ => String::new(),
+    };
     vec![
         (
             "link".to_string(),
             format!(
-                "{} to {peer}, lost {} times, restored {} times",
+                "{} to {peer}, lost {} times, restored {} times{other_build}",
                 if r.down { "down" } else { "up" },
                 r.losses,
                 r.restorations
