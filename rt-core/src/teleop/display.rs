@@ -159,6 +159,51 @@ pub(crate) fn force_channel(
     )
 }
 
+/// The reference's wrench (a `Wrench`, or a `Hybrid`'s) as a base-frame `[f; m]`.
+///
+/// # Errors
+/// [`ControllerError::UnsupportedReference`] for a reference without a wrench, or one in the
+/// sensor frame.
+pub(crate) fn reference_wrench(input: &ControlInput<'_>) -> Result<Vector6<f64>, ControllerError> {
+    let wanted = match input.reference {
+        Reference::Wrench(w) => w,
+        Reference::Hybrid(h) => &h.wrench,
+        _ => return Err(ControllerError::UnsupportedReference),
+    };
+    match wanted.frame {
+        Frame::Base | Frame::Master => Ok(wanted.to_vector()),
+        _ => wrench_in_base(wanted, &input.model.forward(&input.state.position))
+            .ok_or(ControllerError::UnsupportedReference),
+    }
+}
+
+/// The joint torques that display the base-frame wrench `f` (plus gravity when asked), and `f`
+/// as a [`Wrench`]: `J^T f` is the model's own force transformation (on an FPGA board, the
+/// board computes it).
+///
+/// # Errors
+/// [`ControllerError::NonFinite`] when the model refuses the wrench.
+pub(crate) fn display_torques(
+    input: &ControlInput<'_>,
+    f: &Vector6<f64>,
+    gravity_compensation: bool,
+) -> Result<(penelope_hal::JointVector, Wrench), ControllerError> {
+    let q = &input.state.position;
+    let shown = Wrench {
+        force: top(f),
+        torque: bottom(f),
+        frame: Frame::Base,
+    };
+    let mut tau = input
+        .model
+        .wrench_to_torques(q, &shown)
+        .map_err(|_| ControllerError::NonFinite)?;
+    if gravity_compensation {
+        tau += input.model.gravity(q);
+    }
+    Ok((tau, shown))
+}
+
 impl Controller for ForceDisplay {
     fn kind(&self) -> &'static str {
         "force-display"
@@ -179,19 +224,10 @@ impl Controller for ForceDisplay {
         if !input.state.is_finite() {
             return Err(ControllerError::NonFinite);
         }
-        let wanted = match input.reference {
-            Reference::Wrench(w) => w,
-            Reference::Hybrid(h) => &h.wrench,
-            _ => return Err(ControllerError::UnsupportedReference),
-        };
         let model = input.model;
         let q = &input.state.position;
         let jac = model.jacobian(q, JacobianFrame::Base);
-        let wanted = match wanted.frame {
-            Frame::Base | Frame::Master => wanted.to_vector(),
-            _ => wrench_in_base(wanted, &model.forward(q))
-                .ok_or(ControllerError::UnsupportedReference)?,
-        };
+        let wanted = reference_wrench(input)?;
         let dt = input.period.as_secs_f64();
         let shown = force_channel(&mut self.filtered, &wanted, &self.config, dt);
         let v = jac * input.state.velocity;
@@ -200,18 +236,7 @@ impl Controller for ForceDisplay {
         // The operator applies about -f to the device: that is the power into the system.
         self.observer.observe(dt, &(-f), &v);
         self.saturation = k;
-        let shown = Wrench {
-            force: top(&f),
-            torque: bottom(&f),
-            frame: Frame::Base,
-        };
-        // The model's own force transformation: on an FPGA board, the board computes it.
-        let mut tau = model
-            .wrench_to_torques(q, &shown)
-            .map_err(|_| ControllerError::NonFinite)?;
-        if self.config.gravity_compensation {
-            tau += model.gravity(q);
-        }
+        let (tau, shown) = display_torques(input, &f, self.config.gravity_compensation)?;
         self.last_wrench = shown;
         effort(tau)
     }

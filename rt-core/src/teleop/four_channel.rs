@@ -41,10 +41,10 @@ use penelope_hal::{
     Reference, RobotModel, Timestamp, Wrench,
 };
 
-use super::display::{ForceDisplayConfig, force_channel};
+use super::display::{ForceDisplayConfig, display_torques, force_channel, reference_wrench};
 use super::impedance::{ImpedanceConfig, spring};
 use super::passivity::PassivityObserver;
-use super::{TeleopConfigError, bottom, cap_wrench, effort, top, wrench_in_base};
+use super::{TeleopConfigError, cap_wrench, effort};
 
 /// Settings of a [`FourChannelMaster`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -185,16 +185,7 @@ impl Controller for FourChannelMaster {
         let v = jac * input.state.velocity;
         let mut f = Vector6::zeros();
         if c.c2 != 0.0 {
-            let wanted = match input.reference {
-                Reference::Wrench(w) => w,
-                Reference::Hybrid(h) => &h.wrench,
-                _ => return Err(ControllerError::UnsupportedReference),
-            };
-            let wanted = match wanted.frame {
-                Frame::Base | Frame::Master => wanted.to_vector(),
-                _ => wrench_in_base(wanted, &model.forward(q))
-                    .ok_or(ControllerError::UnsupportedReference)?,
-            };
+            let wanted = reference_wrench(input)?;
             f += force_channel(&mut self.filtered, &wanted, &c.display, dt) * c.c2;
         }
         if c.c4 != 0.0 {
@@ -219,17 +210,7 @@ impl Controller for FourChannelMaster {
         let (f, _) = cap_wrench(&f, c.display.max_force, c.display.max_torque);
         // The operator applies about -f to the device: that is the power into the system.
         self.observer.observe(dt, &(-f), &v);
-        let shown = Wrench {
-            force: top(&f),
-            torque: bottom(&f),
-            frame: Frame::Base,
-        };
-        let mut tau = model
-            .wrench_to_torques(q, &shown)
-            .map_err(|_| ControllerError::NonFinite)?;
-        if c.display.gravity_compensation {
-            tau += model.gravity(q);
-        }
+        let (tau, shown) = display_torques(input, &f, c.display.gravity_compensation)?;
         self.last_wrench = shown;
         effort(tau)
     }

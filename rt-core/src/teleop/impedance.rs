@@ -8,6 +8,7 @@ use penelope_hal::{
     JointCommand, JointState, Pose, Reference, RobotModel, Timestamp, Wrench,
 };
 
+use super::display::display_torques;
 use super::passivity::PassivityObserver;
 use super::{
     TeleopConfigError, bottom, cap_wrench, check_cap, check_gains, effort, pose_error, top,
@@ -191,20 +192,7 @@ impl CartesianImpedance {
         input: &ControlInput<'_>,
     ) -> Result<(JointCommand, Vector6<f64>, Vector6<f64>), ControllerError> {
         let (f, v) = self.wrench(input)?;
-        let q = &input.state.position;
-        let wrench = Wrench {
-            force: top(&f),
-            torque: bottom(&f),
-            frame: Frame::Base,
-        };
-        // The model's own force transformation: on an FPGA board, the board computes it.
-        let mut tau = input
-            .model
-            .wrench_to_torques(q, &wrench)
-            .map_err(|_| ControllerError::NonFinite)?;
-        if self.config.gravity_compensation {
-            tau += input.model.gravity(q);
-        }
+        let (tau, wrench) = display_torques(input, &f, self.config.gravity_compensation)?;
         self.last_wrench = wrench;
         Ok((effort(tau)?, f, v))
     }
