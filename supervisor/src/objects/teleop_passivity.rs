@@ -156,15 +156,6 @@ impl TwoPortEnd {
         self.last_tick = None;
     }
 
-    /// Seconds since the previous tick (0 on the first).
-    fn dt(&mut self, now: Timestamp) -> f64 {
-        let dt = self
-            .last_tick
-            .map_or(0.0, |t| now.saturating_since(t).as_secs_f64());
-        self.last_tick = Some(now);
-        dt
-    }
-
     /// One tick at `now` on the channel's `reference` for this side's loop: observes the port
     /// and, when the controller is on, corrects the reference. The master reads its tool twist
     /// from the loop's newest `sample`; the slave its `contact` (the world's wrench on it, base
@@ -180,7 +171,7 @@ impl TwoPortEnd {
         sample: &TelemetrySample,
         contact: &Wrench,
     ) -> Reference {
-        let dt = self.dt(now);
+        let dt = super::teleop_wave::seconds_since(&mut self.last_tick, now);
         if !self.heard {
             return reference;
         }

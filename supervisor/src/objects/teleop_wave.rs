@@ -40,6 +40,14 @@ use super::kinematics::RobotKinematics;
 use super::teleop_end::Side;
 use crate::proto::WireError;
 
+/// Seconds from `*last` to `now` (0 when there is no `last`), and `now` becomes `last`: the
+/// period of a communication-thread transform's tick, as the clock measured it.
+pub(crate) fn seconds_since(last: &mut Option<Timestamp>, now: Timestamp) -> f64 {
+    let dt = last.map_or(0.0, |t| now.saturating_since(t).as_secs_f64());
+    *last = Some(now);
+    dt
+}
+
 /// The wave transform of one side, in its communication thread.
 #[derive(Clone, Copy, Debug)]
 pub struct WaveEnd {
@@ -90,11 +98,7 @@ impl WaveEnd {
 
     /// Seconds since the previous tick (0 on the first).
     fn dt(&mut self, now: Timestamp) -> f64 {
-        let dt = self
-            .last_tick
-            .map_or(0.0, |t| now.saturating_since(t).as_secs_f64());
-        self.last_tick = Some(now);
-        dt
+        seconds_since(&mut self.last_tick, now)
     }
 
     /// One master tick at `now`: the loop's newest `sample` (joint velocities) gives the tool

@@ -83,12 +83,7 @@ pub fn with_master_kinematics(
     kinematics: MasterKinematics,
 ) -> Result<SystemFile, RunError> {
     let mut file = file.clone();
-    let channel = file
-        .objects
-        .iter()
-        .find(|o| o.kind == "trajectory/teleop")
-        .ok_or_else(|| task("the system has no trajectory/teleop channel"))?;
-    let teleop: TeleopConfig = parse(channel)?;
+    let (_, teleop) = teleop_channel(&file)?;
     let boards: Vec<String> = file
         .objects
         .iter()
@@ -301,6 +296,16 @@ struct Task {
     node_of: (String, String),
 }
 
+/// The file's teleoperation channel and its configuration.
+fn teleop_channel(file: &SystemFile) -> Result<(&ObjectSpec, TeleopConfig), RunError> {
+    let channel = file
+        .objects
+        .iter()
+        .find(|o| o.kind == "trajectory/teleop")
+        .ok_or_else(|| task("the system has no trajectory/teleop channel"))?;
+    Ok((channel, parse(channel)?))
+}
+
 fn parse<T: serde::de::DeserializeOwned + Default>(o: &ObjectSpec) -> Result<T, RunError> {
     kinds::parse(&o.kind, &o.config).map_err(|e| RunError::Task(format!("{}: {e}", o.name)))
 }
@@ -331,12 +336,7 @@ fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task, RunError> 
             set_key(o, "scale", toml::Value::Float(scale))?;
         }
     }
-    let channel = file
-        .objects
-        .iter()
-        .find(|o| o.kind == "trajectory/teleop")
-        .ok_or_else(|| task("the system has no trajectory/teleop channel"))?;
-    let teleop: TeleopConfig = parse(channel)?;
+    let (channel, teleop) = teleop_channel(&file)?;
     teleop
         .check(&channel.kind)
         .map_err(|e| task(format!("{}: {e}", channel.name)))?;
