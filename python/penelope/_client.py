@@ -68,7 +68,7 @@ def _joints(q: Optional[JointsLike]) -> Optional[List[float]]:
     a = np.asarray(q, dtype=np.float64)
     if a.ndim != 1:
         raise _error("BadArgument", f"joint values must be a 1-D sequence, got shape {a.shape}")
-    return a.tolist()
+    return [float(x) for x in a]
 
 
 def _error(kind: str, message: str) -> Exception:
@@ -200,6 +200,8 @@ def _spec(obj: Union[str, "Proxy"]) -> str:
 class Proxy:
     """What every remote object answers: its path, description and lifecycle."""
 
+    _native: _native._Lifecycle
+
     def __init__(self, client: Client, native: Any) -> None:
         self._client = client
         self._native = native
@@ -224,7 +226,7 @@ class Proxy:
     @property
     def state(self) -> str:
         """The lifecycle state now (``unconfigured``, ``inactive``, ``active``, ...)."""
-        return self.describe()["state"]
+        return str(self.describe()["state"])
 
     def configure(self) -> Dict[str, Any]:
         """``unconfigured -> inactive``: checks the relations and builds the object."""
@@ -258,6 +260,8 @@ class Object(Proxy):
 class Robot(Proxy):
     """A remote robot (manipulator or joystick), read like the Rust ``RobotProxy``. Joint
     arguments ``q`` default to the measured positions."""
+
+    _native: _native.Robot
 
     def joint_count(self) -> int:
         """Number of joints."""
@@ -319,6 +323,8 @@ class Robot(Proxy):
 class Sensor(Proxy):
     """A remote force/torque sensor."""
 
+    _native: _native.Sensor
+
     def read(self) -> Array:
         """The newest reading, ``[fx, fy, fz, tx, ty, tz]`` (N, N·m) in the sensor frame."""
         return np.array(self._native.read(), dtype=np.float64)
@@ -330,6 +336,8 @@ class Sensor(Proxy):
 
 class Controller(Proxy):
     """A remote controller."""
+
+    _native: _native.Controller
 
     def set_gains(self, gains: Optional[ConfigLike] = None, **keys: Any) -> None:
         """Replaces gains at run time: TOML text, a mapping, or keywords with the kind's keys,
