@@ -40,9 +40,12 @@ impl Watch {
 
     /// Batches the node dropped because this side read too slowly.
     #[getter]
-    fn dropped(&self) -> u64 {
-        let stream = self.stream.lock().unwrap_or_else(PoisonError::into_inner);
-        stream.as_ref().map_or(0, |s| s.dropped())
+    fn dropped(&self, py: Python<'_>) -> u64 {
+        // Without the GIL: another thread may hold the stream while it waits for a record.
+        py.detach(|| {
+            let stream = self.stream.lock().unwrap_or_else(PoisonError::into_inner);
+            stream.as_ref().map_or(0, |s| s.dropped())
+        })
     }
 
     fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
@@ -51,16 +54,21 @@ impl Watch {
 
     /// The next record, as a dict; `StopIteration` after `count` records or `close()`.
     fn __next__<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        {
+        let finished = {
             let mut left = self.left.lock().unwrap_or_else(PoisonError::into_inner);
             match *left {
-                Some(0) => {
-                    self.close(py);
-                    return Ok(None);
+                Some(0) => true,
+                Some(n) => {
+                    *left = Some(n - 1);
+                    false
                 }
-                Some(n) => *left = Some(n - 1),
-                None => {}
+                None => false,
             }
+        };
+        // (`left` is released before `close` lets the GIL go: no lock is held across it.)
+        if finished {
+            self.close(py);
+            return Ok(None);
         }
         let got = py.detach(|| {
             let mut stream = self.stream.lock().unwrap_or_else(PoisonError::into_inner);
