@@ -5,6 +5,7 @@ errors of the right kind, and authentication with a secret file."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 from pathlib import Path
 from typing import List
@@ -187,3 +188,19 @@ def test_the_secret_file_authenticates_and_its_absence_is_refused(secure_node, s
     wrong.chmod(0o644)
     with pytest.raises(PermissionError, match="chmod 600"):
         penelope.connect(secure_node.naming, secret_file=wrong)
+
+
+def test_every_wire_error_kind_has_its_class() -> None:
+    # The variants of WireError, read from the Rust source: a new one needs its class here.
+    source = (Path(__file__).resolve().parents[2] / "supervisor/src/proto/errors.rs").read_text()
+    body = source[source.index("pub enum WireError {"):]
+    body = body[: body.index("\n}\n")]
+    variants = re.findall(r"^    ([A-Z][A-Za-z]*)\b", body, re.MULTILINE)
+    assert "UnknownName" in variants and "NoLink" in variants, variants
+    for v in variants:
+        cls = getattr(penelope, v, None)
+        assert isinstance(cls, type) and issubclass(cls, penelope.PenelopeError), v
+        assert cls.kind == v
+    # A kind this package does not know (a newer node's) is still a PenelopeError with it.
+    e = penelope._errors._from_kind("SomethingNew", "a newer node's error")
+    assert type(e) is penelope.PenelopeError and e.kind == "SomethingNew"
