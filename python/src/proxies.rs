@@ -1,0 +1,228 @@
+//! The typed proxies of remote objects, as Python classes: a robot, a sensor, a controller,
+//! and an object of any class (its lifecycle only).
+
+use penelope_supervisor::client::{
+    ControllerProxy, Lifecycle, ObjectProxy, RobotProxy, SensorProxy,
+};
+use penelope_supervisor::proto::parse_transition;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::errors::{Error, Result, bad_argument};
+use crate::values;
+
+/// Runs the lifecycle transition `word` (`configure`, `activate`, ...) on `p`.
+pub fn transition<'py, P: Lifecycle + Sync>(
+    py: Python<'py>,
+    p: &P,
+    word: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let t = parse_transition(word).ok_or_else(|| {
+        bad_argument(format!(
+            "unknown transition `{word}` (configure, activate, deactivate, cleanup, shutdown, reset)"
+        ))
+    })?;
+    let info = py.detach(|| p.transition(t)).map_err(Error)?;
+    values::object_info(py, &info)
+}
+
+/// `p`'s description.
+pub fn describe<'py, P: Lifecycle + Sync>(py: Python<'py>, p: &P) -> PyResult<Bound<'py, PyDict>> {
+    let info = py.detach(|| p.describe()).map_err(Error)?;
+    values::object_info(py, &info)
+}
+
+/// The lifecycle methods every proxy class has.
+macro_rules! methods_with_lifecycle {
+    ($class:ident { $($body:tt)* }) => {
+        #[pymethods]
+        impl $class {
+            $($body)*
+
+            /// The object's naming path.
+            #[getter]
+            fn path(&self) -> String {
+                self.p.path()
+            }
+
+            /// Runs the lifecycle transition `word`; returns the new description.
+            fn transition<'py>(
+                &self,
+                py: Python<'py>,
+                word: &str,
+            ) -> PyResult<Bound<'py, PyDict>> {
+                transition(py, &self.p, word)
+            }
+
+            /// The object's description.
+            fn describe<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+                describe(py, &self.p)
+            }
+        }
+    };
+}
+
+/// A remote robot.
+#[pyclass(module = "penelope._native", frozen)]
+pub struct Robot {
+    /// The Rust proxy.
+    pub p: RobotProxy,
+}
+
+/// A remote sensor.
+#[pyclass(module = "penelope._native", frozen)]
+pub struct Sensor {
+    /// The Rust proxy.
+    pub p: SensorProxy,
+}
+
+/// A remote controller.
+#[pyclass(module = "penelope._native", frozen)]
+pub struct Controller {
+    /// The Rust proxy.
+    pub p: ControllerProxy,
+}
+
+/// A remote object of any class.
+#[pyclass(module = "penelope._native", frozen)]
+pub struct Object {
+    /// The Rust proxy.
+    pub p: ObjectProxy,
+}
+methods_with_lifecycle!(Object {});
+
+impl Robot {
+    /// The joint vector of `q`, `None` for the measured one.
+    fn q(q: Option<Vec<f64>>) -> Result<Option<penelope_hal::JointVector>> {
+        q.as_deref().map(values::joints).transpose()
+    }
+}
+
+methods_with_lifecycle!(Robot {
+    /// Number of joints.
+    fn joint_count(&self, py: Python<'_>) -> PyResult<usize> {
+        Ok(py.detach(|| self.p.joint_count()).map_err(Error)?)
+    }
+
+    /// Forward kinematics at `q` (`None`: measured): the 4x4 transform, row by row.
+    #[pyo3(signature = (q=None))]
+    fn fk(&self, py: Python<'_>, q: Option<Vec<f64>>) -> PyResult<Vec<f64>> {
+        let q = Self::q(q)?;
+        let pose = py
+            .detach(|| self.p.forward_kinematics(q.as_ref()))
+            .map_err(Error)?;
+        Ok(values::pose_rows(&pose))
+    }
+
+    /// The base-frame Jacobian at `q`: its 6xN values row by row, and N.
+    #[pyo3(signature = (q=None))]
+    fn jacobian(&self, py: Python<'_>, q: Option<Vec<f64>>) -> PyResult<(Vec<f64>, usize)> {
+        let q = Self::q(q)?;
+        let (j, n) = py
+            .detach(|| Ok::<_, Error>((self.p.jacobian(q.as_ref())?, self.p.joint_count()?)))?;
+        let flat = (0..6)
+            .flat_map(|i| (0..n).map(move |k| (i, k)))
+            .map(|(i, k)| j[(i, k)])
+            .collect();
+        Ok((flat, n))
+    }
+
+    /// Inverse kinematics of the 4x4 transform `t` (row by row): every branch.
+    fn ik(&self, py: Python<'_>, t: Vec<f64>) -> PyResult<Vec<Vec<f64>>> {
+        let pose = values::pose_of_rows(&t)?;
+        let (branches, n) = py.detach(|| {
+            Ok::<_, Error>((
+                self.p.inverse_kinematics(&pose)?,
+                self.p.joint_count()?,
+            ))
+        })?;
+        Ok(branches.iter().map(|q| values::first(q, n)).collect())
+    }
+
+    /// Measured joint positions.
+    fn joint_positions(&self, py: Python<'_>) -> PyResult<Vec<f64>> {
+        let (q, n) = py.detach(|| {
+            Ok::<_, Error>((self.p.joint_positions()?, self.p.joint_count()?))
+        })?;
+        Ok(values::first(&q, n))
+    }
+
+    /// Measured joint velocities.
+    fn joint_velocities(&self, py: Python<'_>) -> PyResult<Vec<f64>> {
+        let (q, n) = py.detach(|| {
+            Ok::<_, Error>((self.p.joint_velocities()?, self.p.joint_count()?))
+        })?;
+        Ok(values::first(&q, n))
+    }
+
+    /// Gravity torques at `q` (`None`: measured).
+    #[pyo3(signature = (q=None))]
+    fn gravity(&self, py: Python<'_>, q: Option<Vec<f64>>) -> PyResult<Vec<f64>> {
+        let q = Self::q(q)?;
+        let (g, n) = py.detach(|| {
+            Ok::<_, Error>((self.p.gravity(q.as_ref())?, self.p.joint_count()?))
+        })?;
+        Ok(values::first(&g, n))
+    }
+
+    /// Maps joint `j` to axis `a` of `board` for each `(j, a)`.
+    fn map_joints(&self, py: Python<'_>, board: &str, joints: Vec<(usize, usize)>) -> PyResult<()> {
+        Ok(py.detach(|| self.p.map_joints(board, &joints)).map_err(Error)?)
+    }
+});
+
+methods_with_lifecycle!(Sensor {
+    /// The newest reading, `[fx, fy, fz, tx, ty, tz]` in the sensor frame.
+    fn read(&self, py: Python<'_>) -> PyResult<Vec<f64>> {
+        let w = py.detach(|| self.p.read()).map_err(Error)?;
+        Ok(values::wrench_values(&w))
+    }
+
+    /// Takes the current reading as the zero.
+    fn bias(&self, py: Python<'_>) -> PyResult<()> {
+        Ok(py.detach(|| self.p.bias()).map_err(Error)?)
+    }
+});
+
+methods_with_lifecycle!(Controller {
+    /// Replaces gains: TOML text with the kind's keys.
+    fn set_gains(&self, py: Python<'_>, gains: &str) -> PyResult<()> {
+        Ok(py.detach(|| self.p.set_gains(gains)).map_err(Error)?)
+    }
+
+    /// Relates the controller to the robot at `robot` (a name on its node).
+    fn set_robot(&self, py: Python<'_>, robot: &str) -> PyResult<()> {
+        Ok(py.detach(|| self.p.set_robot(robot)).map_err(Error)?)
+    }
+
+    /// Relates the controller to the trajectory `trajectory`.
+    fn set_trajectory(&self, py: Python<'_>, trajectory: &str) -> PyResult<()> {
+        Ok(py.detach(|| self.p.set_trajectory(trajectory)).map_err(Error)?)
+    }
+
+    /// Latches the emergency stop.
+    fn estop(&self, py: Python<'_>) -> PyResult<()> {
+        Ok(py.detach(|| self.p.estop()).map_err(Error)?)
+    }
+
+    /// Re-arms the loop from the measured state.
+    fn rearm(&self, py: Python<'_>) -> PyResult<()> {
+        Ok(py.detach(|| self.p.rearm()).map_err(Error)?)
+    }
+
+    /// The loop's state, counters and newest sample.
+    fn status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = py.detach(|| self.p.status()).map_err(Error)?;
+        let d = PyDict::new(py);
+        d.set_item("state", s.state.to_string())?;
+        d.set_item("running", s.running)?;
+        d.set_item("ticks", s.ticks)?;
+        d.set_item("overruns", s.overruns)?;
+        d.set_item("telemetry_dropped", s.telemetry_dropped)?;
+        match &s.last {
+            Some(r) => d.set_item("last", values::record(py, r)?)?,
+            None => d.set_item("last", py.None())?,
+        }
+        Ok(d)
+    }
+});
