@@ -90,6 +90,14 @@ pub enum RecordingError {
         /// The error.
         source: std::io::Error,
     },
+    /// The MCAP library refused to write or read the file.
+    #[error("{path}: {source}")]
+    Mcap {
+        /// The file.
+        path: PathBuf,
+        /// The error.
+        source: mcap::McapError,
+    },
     /// The file is not a recording of this version, or a frame is malformed.
     #[error("{path}: not a recording: {message}")]
     Format {
