@@ -1,5 +1,5 @@
 //! `penelope demo`'s `run.mcap` read back with the `mcap` crate against the run's CSV files,
-//! and `penelope replay` on it.
+//! and `penelope replay` on it; `penelope node --record FILE` on the simulated clock, read back.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -118,21 +118,26 @@ fn the_demo_writes_run_mcap_with_every_tick_of_its_csv_files_and_replay_lists_it
                 (since - num(row, "time_s")).abs() < 1e-6,
                 "{topic}: time {since}"
             );
-            assert_eq!(m.value["time_ns"].as_u64(), Some(m.log_time));
-            assert_eq!(m.value["state"].as_str().unwrap(), row["state"]);
+            assert_eq!(m.value["sample"]["time"].as_u64(), Some(m.log_time));
+            assert_eq!(
+                m.value["sample"]["state"].as_str().unwrap().to_lowercase(),
+                row["state"]
+            );
             for j in 0..6 {
-                let q = m.value["q"][j].as_f64().unwrap();
+                let q = m.value["sample"]["q"][j].as_f64().unwrap();
                 let csv = num(row, &format!("q_rad{}", j + 1));
                 assert!((q - csv).abs() < 1e-8, "{topic} q{j}: {q} vs {csv}");
-                let e = m.value["effort"][j].as_f64().unwrap();
+                let e = m.value["sample"]["effort"][j].as_f64().unwrap();
                 let csv = num(row, &format!("effort_nm{}", j + 1));
                 assert!((e - csv).abs() < 1e-8, "{topic} effort{j}: {e} vs {csv}");
             }
-            for (axis, key) in [("x", "tool_m_x"), ("y", "tool_m_y"), ("z", "tool_m_z")] {
-                let v = m.value["tool_position"][axis].as_f64().unwrap();
+            for (axis, key) in [(0, "tool_m_x"), (1, "tool_m_y"), (2, "tool_m_z")] {
+                let v = m.value["sample"]["tool_position"][axis].as_f64().unwrap();
                 assert!((v - num(row, key)).abs() < 1e-8, "{topic} {key}");
             }
-            let truth = m.value["truth"]["force"]["z"].as_f64().unwrap();
+            let truth = m.value["truth"]["base_wrench"]["force"][2]
+                .as_f64()
+                .unwrap();
             assert!(
                 (truth - num(row, "true_force_n_z")).abs() < 1e-8,
                 "{topic} truth"
@@ -214,5 +219,124 @@ fn replay_of_a_missing_or_foreign_file_exits_with_code_two() {
         assert_eq!(out.status.code(), Some(2), "{}", file.display());
         assert!(String::from_utf8_lossy(&out.stderr).contains("error:"));
     }
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+/// A child process, killed when the test ends, passed or failed.
+struct Child(std::process::Child);
+
+impl Drop for Child {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn ctl(naming: std::net::SocketAddr, args: &[&str]) -> std::process::Output {
+    penelope()
+        .args(["ctl", "--naming", &naming.to_string(), "--timeout", "300"])
+        .args(args)
+        .stdin(std::process::Stdio::null())
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn a_node_records_every_tick_from_the_first_to_mcap_and_it_reads_back() {
+    use std::time::{Duration, Instant};
+    let dir = scratch("node");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("lab.mcap");
+    let listen = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap();
+    let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../config/demo.toml");
+    let mut node = Child(
+        penelope()
+            .args(["node", "--name", "lab", "--host-naming", "--listen"])
+            .arg(listen.to_string())
+            .args([
+                "--sim-clock",
+                "--priority",
+                "0",
+                "--config",
+                config,
+                "--record",
+            ])
+            .arg(&file)
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    // The node says so once the file is applied, its controllers recorded and active.
+    let mut out = std::io::BufReader::new(node.0.stdout.take().unwrap());
+    let mut line = String::new();
+    while !line.contains("Ctrl-C stops the node") {
+        line.clear();
+        let n = std::io::BufRead::read_line(&mut out, &mut line).unwrap();
+        assert!(n > 0, "the node ended before applying its file");
+    }
+    let o = ctl(listen, &["advance", "lab", "1500ms"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // Readable while the node still writes it (what `penelope bench layout` does).
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        let r = penelope_supervisor::runs::recording::read_recording(&file).unwrap();
+        if r.controllers.get("follow").is_some_and(|t| t.len() >= 1000) {
+            break;
+        }
+        assert!(Instant::now() < deadline, "ticks not flushed while running");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(node.0.id() as i32),
+        nix::sys::signal::Signal::SIGINT,
+    )
+    .unwrap();
+    let status = node.0.wait().unwrap();
+    assert!(status.success(), "the node stops cleanly on SIGINT");
+
+    let r = penelope_supervisor::runs::recording::read_recording(&file).unwrap();
+    assert_eq!(r.node, "lab");
+    for name in ["display", "follow"] {
+        let ticks = &r.controllers[name];
+        // Every tick from the first: 1.5 s at 1 kHz, then those of the deactivation.
+        assert!(ticks.len() >= 1500, "{name}: {}", ticks.len());
+        for (i, t) in ticks.iter().enumerate() {
+            assert_eq!(
+                t.sample.seq,
+                i as u64 + 1,
+                "{name}: tick {i} not decimated, none lost"
+            );
+        }
+        assert_eq!(r.dropped[name], 0);
+    }
+    let replay = penelope()
+        .arg("replay")
+        .arg(&file)
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(replay.status.success());
+    let listed: serde_json::Value = serde_json::from_slice(&replay.stdout).unwrap();
+    let count = |topic: &str| {
+        listed["channels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["topic"] == topic)
+            .and_then(|c| c["messages"].as_u64())
+    };
+    assert_eq!(
+        count("/controllers/follow"),
+        Some(r.controllers["follow"].len() as u64)
+    );
+    assert!(
+        count("/safety").unwrap() >= 2,
+        "activation and deactivation of each"
+    );
     let _ = std::fs::remove_dir_all(dir);
 }

@@ -34,7 +34,7 @@ use std::path::{Path, PathBuf};
 
 use penelope_rt_core::safety::{FaultCause, SafetyState};
 use serde::Serialize;
-use serde_json::{Value, json};
+use serde_json::json;
 
 use super::recording::RecordingError;
 use crate::objects::runtime::TickRecord;
@@ -53,30 +53,39 @@ pub const LINK_TOPIC: &str = "/links/";
 /// The topic of the recorder's own losses.
 pub const RECORDER_TOPIC: &str = "/recorder";
 
-const VEC3: &str = r#"{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}},"required":["x","y","z"]}"#;
+const VEC3: &str = r#"{"type":"array","items":{"type":"number"},"minItems":3,"maxItems":3,"description":"x, y, z"}"#;
+const JOINTS: &str = r#"{"type":"array","items":{"type":"number"},"description":"one per joint (unused joints zero)"}"#;
+const DURATION: &str = r#"{"type":"object","properties":{"secs":{"type":"integer"},"nanos":{"type":"integer"}},"required":["secs","nanos"]}"#;
 
 fn tick_schema() -> String {
-    let joints = r#"{"type":"array","items":{"type":"number"}}"#;
     let wrench = format!(
-        r#"{{"type":"object","properties":{{"force":{VEC3},"torque":{VEC3}}},"required":["force","torque"]}}"#
+        r#"{{"type":"object","properties":{{"force":{VEC3},"torque":{VEC3},"frame":{{"type":"string"}}}},"required":["force","torque"]}}"#
     );
+    let optional_number = r#"{"type":["number","null"]}"#;
     format!(
-        r#"{{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.Tick","description":"One control tick: what the loop reported (TelemetrySample) and, behind a simulated board, the plant's truth. Units: SI (rad, rad/s, N·m, m, N, J); times in ns on the node's clock.","type":"object","properties":{{
-"time_ns":{{"type":"integer","description":"the tick's scheduled instant, ns"}},
+        r#"{{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.Tick","description":"One control tick (TickRecord): what the loop reported (sample: rt-core's TelemetrySample) and, behind a simulated board, the plant's truth. Units: SI (rad, rad/s, N·m, m, N, J); times in ns on the node's clock.","type":"object","properties":{{
+"sample":{{"type":"object","properties":{{
+"time":{{"type":"integer","description":"the tick's scheduled instant, ns"}},
 "seq":{{"type":"integer","description":"tick counter of the loop, 1 for the first"}},
-"state":{{"type":"string","description":"safety state after the tick"}},
-"fault":{{"type":["string","null"],"description":"the latched fault's cause"}},
-"events":{{"type":"array","items":{{"type":"string"}},"description":"safety events of this tick"}},
-"controller":{{"type":"integer","description":"index of the active controller"}},
-"q":{joints},"qd":{joints},"effort":{joints},"position_command":{joints},
-"reference_kind":{{"type":"string"}},"reference_q":{joints},
-"reference_position":{VEC3},
-"reference_age_s":{{"type":["number","null"],"description":"age of the reference; null when none arrived"}},
+"q":{JOINTS},"qd":{JOINTS},"effort":{JOINTS},"position_command":{JOINTS},
+"reference_kind":{{"type":"string"}},"reference_q":{JOINTS},"reference_position":{VEC3},
+"reference_age":{DURATION},
 "wrench":{wrench},"commanded_wrench":{wrench},"tool_position":{VEC3},
-"wake_latency_us":{{"type":"number"}},"exec_us":{{"type":"number"}},
-"port_energy_j":{{"type":["number","null"]}},"channel_energy_j":{{"type":["number","null"]}},
-"truth":{{"type":["object","null"],"description":"the simulated plant's ground truth","properties":{{"tool_position":{VEC3},"force":{VEC3},"kinetic_energy_j":{{"type":"number"}},"interaction_work_j":{{"type":"number"}}}}}}
-}},"required":["time_ns","seq","state","q","qd","effort","tool_position","wrench"]}}"#
+"controller":{{"type":"integer","description":"index of the active controller"}},
+"state":{{"type":"string","description":"safety state after the tick"}},
+"events":{{"type":"integer","description":"safety events of the tick, one bit each (named in /safety)"}},
+"fault":{{"description":"the latched fault's cause, null when none"}},
+"wake_latency":{DURATION},"exec_time":{DURATION},
+"port_energy":{optional_number},"channel_energy":{optional_number}
+}},"required":["time","seq","q","qd","effort","state"]}},
+"truth":{{"type":["object","null"],"description":"the simulated plant's ground truth","properties":{{
+"time":{{"type":"integer"}},
+"joints":{{"type":"object","properties":{{"position":{JOINTS},"velocity":{JOINTS},"effort":{JOINTS}}}}},
+"tool_pose":{{"type":"object","properties":{{"rotation":{{"type":"array","items":{{"type":"number"}},"description":"unit quaternion x, y, z, w"}},"translation":{VEC3}}}}},
+"base_wrench":{wrench},"tool_wrench":{wrench},
+"kinetic_energy":{{"type":"number"}},"interaction_work":{{"type":"number"}}
+}}}}
+}},"required":["sample","truth"]}}"#
     )
 }
 
@@ -85,53 +94,6 @@ const SAFETY_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12
 const LINK_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.LinkStats","description":"One end's view of a data-plane link (LinkRecord in docs/wire-format.md); times in ns.","type":"object","properties":{"time_ns":{"type":"integer"},"down":{"type":"boolean"},"losses":{"type":"integer"},"restorations":{"type":"integer"},"samples_taken":{"type":"integer"},"samples_dropped":{"type":"integer"},"samples_missed":{"type":"integer"},"refused":{"type":"integer"},"clock_offset_ns":{"type":["integer","null"]},"round_trip_ns":{"type":["integer","null"]},"one_way_delay_ns":{"type":["integer","null"]},"jitter_ns":{"type":["integer","null"]},"last_heard_ns":{"type":["integer","null"]},"heartbeat_loss":{"type":"number"},"trips":{"type":"integer"},"trip_p50_ns":{"type":["integer","null"]},"trip_p99_ns":{"type":["integer","null"]},"trip_max_ns":{"type":["integer","null"]}},"required":["time_ns","down"]}"#;
 
 const RECORDER_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.RecorderDropped","description":"Ticks of a controller the recorder lost because it fell behind (the loops never wait for it).","type":"object","properties":{"controller":{"type":"string"},"dropped":{"type":"integer"},"written":{"type":"integer"}},"required":["controller","dropped","written"]}"#;
-
-fn vec3(v: &nalgebra::Vector3<f64>) -> Value {
-    json!({ "x": v.x, "y": v.y, "z": v.z })
-}
-
-/// One tick as its JSON message.
-pub fn tick_message(t: &TickRecord) -> Value {
-    let s = &t.sample;
-    let joints = |v: &penelope_hal::JointVector| -> Vec<f64> { v.iter().copied().collect() };
-    let wrench =
-        |w: &penelope_hal::Wrench| json!({ "force": vec3(&w.force), "torque": vec3(&w.torque) });
-    let events: Vec<&str> = s.events.iter().map(|e| e.as_str()).collect();
-    let age =
-        (s.reference_age != core::time::Duration::MAX).then_some(s.reference_age.as_secs_f64());
-    let truth = t.truth.map(|x| {
-        json!({
-            "tool_position": vec3(&x.tool_pose.translation.vector),
-            "force": vec3(&x.base_wrench.force),
-            "kinetic_energy_j": x.kinetic_energy,
-            "interaction_work_j": x.interaction_work,
-        })
-    });
-    json!({
-        "time_ns": s.time.as_nanos(),
-        "seq": s.seq,
-        "state": s.state.as_str(),
-        "fault": s.fault.map(|f| f.to_string()),
-        "events": events,
-        "controller": s.controller,
-        "q": joints(&s.q),
-        "qd": joints(&s.qd),
-        "effort": joints(&s.effort),
-        "position_command": joints(&s.position_command),
-        "reference_kind": format!("{:?}", s.reference_kind),
-        "reference_q": joints(&s.reference_q),
-        "reference_position": vec3(&s.reference_position),
-        "reference_age_s": age,
-        "wrench": wrench(&s.wrench),
-        "commanded_wrench": wrench(&s.commanded_wrench),
-        "tool_position": vec3(&s.tool_position),
-        "wake_latency_us": s.wake_latency.as_secs_f64() * 1e6,
-        "exec_us": s.exec_time.as_secs_f64() * 1e6,
-        "port_energy_j": s.port_energy,
-        "channel_energy_j": s.channel_energy,
-        "truth": truth,
-    })
-}
 
 /// A recorded controller's channel.
 struct ControllerChannel {
@@ -315,7 +277,7 @@ impl McapLog {
             })
         });
         let time = s.time.as_nanos();
-        self.write(channel, time, &tick_message(record))?;
+        self.write(channel, time, record)?;
         if let Some(e) = event {
             self.write(self.safety, time, &e)?;
         }
@@ -349,6 +311,18 @@ impl McapLog {
             }
         };
         self.write(id, record.time_ns, record)
+    }
+
+    /// Ends the chunk being written and writes it out, so that a reader sees every message
+    /// so far.
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`].
+    pub fn flush(&mut self) -> Result<(), RecordingError> {
+        self.writer.flush().map_err(|source| RecordingError::Mcap {
+            path: self.path.clone(),
+            source,
+        })
     }
 
     /// Writes what the recorder lost per controller (`dropped`, by index: to `/recorder` and

@@ -73,9 +73,10 @@ pub struct Args {
     /// `penelope ctl advance NODE DURATION` moves it (faster than real time, reproducible).
     #[arg(long)]
     pub sim_clock: bool,
-    /// Record every control tick of the controllers the system file activates on this node
-    /// to FILE, from their first tick until the node stops (read back by `penelope bench
-    /// layout` for its report).
+    /// Record every control tick of the controllers the system file activates on this node,
+    /// their safety events and the statistics of its channels' links to the MCAP file FILE,
+    /// from their first tick until the node stops (`penelope replay FILE` lists it; `penelope
+    /// bench layout` reads it back for its report).
     #[arg(long, value_name = "FILE", requires = "config")]
     pub record: Option<PathBuf>,
     /// Lease in the naming service, ms (renewed every third of it).
