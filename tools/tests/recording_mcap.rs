@@ -340,3 +340,82 @@ fn a_node_records_every_tick_from_the_first_to_mcap_and_it_reads_back() {
     );
     let _ = std::fs::remove_dir_all(dir);
 }
+
+#[test]
+fn ctl_record_starts_and_stops_a_recording_and_refuses_bad_input_with_the_reason() {
+    let dir = scratch("ctl");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("part.mcap");
+    let listen = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap();
+    let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../config/demo.toml");
+    let mut node = Child(
+        penelope()
+            .args(["node", "--name", "lab", "--host-naming", "--listen"])
+            .arg(listen.to_string())
+            .args(["--sim-clock", "--priority", "0", "--config", config])
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let mut out = std::io::BufReader::new(node.0.stdout.take().unwrap());
+    let mut line = String::new();
+    while !line.contains("Ctrl-C stops the node") {
+        line.clear();
+        let n = std::io::BufRead::read_line(&mut out, &mut line).unwrap();
+        assert!(n > 0, "the node ended before applying its file");
+    }
+    let path = file.to_str().unwrap();
+    let refused = |args: &[&str], why: &str| {
+        let o = ctl(listen, args);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(!o.status.success(), "{args:?} refused");
+        assert!(err.contains(why), "{args:?}: {err}");
+    };
+    let txt = dir.join("part.txt");
+    refused(&["record", "start", "lab", txt.to_str().unwrap()], "*.mcap");
+    refused(&["record", "start", "lab", path, "nosuch"], "nosuch");
+    refused(
+        &["record", "start", "lab", path, "hand"],
+        "only controllers and channels",
+    );
+    refused(&["record", "stop", "lab"], "not recording");
+    assert!(!file.exists(), "nothing created by a refused start");
+
+    let o = ctl(
+        listen,
+        &[
+            "record", "start", "lab", path, "display", "follow", "--json",
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let started: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(
+        started["controllers"],
+        serde_json::json!(["display", "follow"])
+    );
+    refused(&["record", "start", "lab", path], "already recording");
+    let o = ctl(listen, &["advance", "lab", "500ms"]);
+    assert!(o.status.success());
+    let o = ctl(listen, &["record", "stop", "lab", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stopped: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let ticks = stopped["ticks"].as_u64().unwrap();
+    assert_eq!(ticks, 1000, "500 ms of both controllers at 1 kHz");
+    let r = penelope_supervisor::runs::recording::read_recording(&file).unwrap();
+    for name in ["display", "follow"] {
+        let t = &r.controllers[name];
+        assert_eq!(t.len(), 500, "{name}");
+        for w in t.windows(2) {
+            assert_eq!(w[1].sample.seq, w[0].sample.seq + 1, "{name}: every tick");
+        }
+    }
+    // Never overwritten; the node still serves.
+    refused(&["record", "start", "lab", path], "exists");
+    assert!(ctl(listen, &["ls"]).status.success());
+    let _ = std::fs::remove_dir_all(dir);
+}
