@@ -419,3 +419,55 @@ fn ctl_record_starts_and_stops_a_recording_and_refuses_bad_input_with_the_reason
     assert!(ctl(listen, &["ls"]).status.success());
     let _ = std::fs::remove_dir_all(dir);
 }
+
+#[test]
+fn the_system_files_record_key_records_a_node_from_its_first_tick() {
+    let dir = scratch("file");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("from-file.mcap");
+    let demo = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../config/demo.toml"))
+        .unwrap();
+    let text = demo.replacen(
+        "[nodes.lab]\n",
+        &format!("[nodes.lab]\nrecord = {:?}\n", file.to_str().unwrap()),
+        1,
+    );
+    assert_ne!(text, demo);
+    let config = dir.join("system.toml");
+    std::fs::write(&config, text).unwrap();
+    let listen = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap();
+    let mut node = Child(
+        penelope()
+            .args(["node", "--name", "lab", "--host-naming", "--listen"])
+            .arg(listen.to_string())
+            .args(["--sim-clock", "--priority", "0", "--config"])
+            .arg(&config)
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    let mut out = std::io::BufReader::new(node.0.stdout.take().unwrap());
+    let mut line = String::new();
+    while !line.contains("Ctrl-C stops the node") {
+        line.clear();
+        let n = std::io::BufRead::read_line(&mut out, &mut line).unwrap();
+        assert!(n > 0, "the node ended before applying its file");
+    }
+    assert!(ctl(listen, &["advance", "lab", "300ms"]).status.success());
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(node.0.id() as i32),
+        nix::sys::signal::Signal::SIGINT,
+    )
+    .unwrap();
+    assert!(node.0.wait().unwrap().success());
+    let r = penelope_supervisor::runs::recording::read_recording(&file).unwrap();
+    let follow = &r.controllers["follow"];
+    assert!(follow.len() >= 300, "{}", follow.len());
+    assert_eq!(follow[0].sample.seq, 1, "from the first tick");
+    let _ = std::fs::remove_dir_all(dir);
+}
