@@ -8,7 +8,12 @@
 //! Python, C++, Go, TypeScript) decode them without generated code; a person can read one with
 //! `mcap cat --json`. Protobuf or ROS 2 messages would be smaller, but need generated types on
 //! both sides and a build step for a schema that follows `TelemetrySample` as it grows; flatbuffers
-//! are read by fewer tools. JSON costs bytes, which the chunks' zstd compression takes back.
+//! are read by fewer tools. JSON costs bytes: a tick is about 600 after the chunks' zstd
+//! compression, a little more than the same tick as a CSV row.
+//!
+//! A tick's message is the serde form of [`TickRecord`] (`{"sample": .., "truth": ..}`), so
+//! that it reads back bit for bit (`recording::read_recording`; serde_json's
+//! `float_roundtrip`); plot paths look like `/controllers/follow.sample.q[0]`.
 //!
 //! Topics:
 //! - `/controllers/<name>` (schema `penelope.Tick`): every tick of controller `<name>`;
