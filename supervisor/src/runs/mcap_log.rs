@@ -105,6 +105,8 @@ struct ControllerChannel {
     name: String,
     channel: u16,
     written: u64,
+    /// The loss last written to `/recorder`.
+    reported: u64,
     last: Option<(SafetyState, Option<FaultCause>)>,
 }
 
@@ -219,6 +221,7 @@ impl McapLog {
             name: name.to_string(),
             channel,
             written: 0,
+            reported: 0,
             last: None,
         });
         Ok(self.controllers.len() - 1)
@@ -328,6 +331,25 @@ impl McapLog {
             path: self.path.clone(),
             source,
         })
+    }
+
+    /// Writes to `/recorder` that controller `index`'s stream has lost `count` ticks so far,
+    /// if that is more than it last wrote (so a file whose node died still says what it lost):
+    /// true when it wrote.
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`].
+    pub fn dropped(&mut self, index: usize, count: u64) -> Result<bool, RecordingError> {
+        let Some(c) = self.controllers.get(index) else {
+            return Ok(false);
+        };
+        if count <= c.reported {
+            return Ok(false);
+        }
+        let message = json!({ "controller": c.name, "dropped": count, "written": c.written });
+        self.write(self.recorder, self.last_time, &message)?;
+        self.controllers[index].reported = count;
+        Ok(true)
     }
 
     /// Writes what the recorder lost per controller (`dropped`, by index: to `/recorder` and

@@ -193,6 +193,10 @@ impl Recorder {
                                 log.link(channel, &stats.record(now))?;
                             }
                         }
+                        // What the streams lost so far, when it grew.
+                        for (i, (_, stream)) in streams.iter().enumerate() {
+                            log.dropped(i, stream.dropped.load(Ordering::Relaxed))?;
+                        }
                     }
                     if stopping {
                         let dropped: Vec<u64> = streams
@@ -488,6 +492,25 @@ mod tests {
         );
         let _ = std::fs::remove_file(path);
         let _ = std::fs::remove_file(cut);
+    }
+
+    #[test]
+    fn losses_are_written_as_they_grow_so_a_file_cut_off_still_has_them() {
+        let path = scratch("losses.mcap");
+        let mut log = McapLog::create(&path, "lab").unwrap();
+        log.add_controller("display").unwrap();
+        log.tick(0, &ticks(1)[0]).unwrap();
+        assert!(!log.dropped(0, 0).unwrap(), "nothing lost, nothing written");
+        assert!(log.dropped(0, 5).unwrap());
+        assert!(!log.dropped(0, 5).unwrap(), "written once");
+        assert!(!log.dropped(3, 5).unwrap(), "no such controller");
+        log.flush().unwrap();
+        // The node dies here: no summary, no final counts.
+        std::mem::forget(log);
+        let r = read_recording(&path).unwrap();
+        assert_eq!(r.dropped["display"], 5);
+        assert_eq!(r.controllers["display"].len(), 1);
+        let _ = std::fs::remove_file(path);
     }
 
     #[test]
