@@ -16,6 +16,7 @@
 //! cpu = 1                               # pin them to this CPU
 //! lock_memory = false                   # mlockall before the first tick
 //! data_plane = "127.0.0.1:7410"         # where a channel to a robot on another node binds
+//! record = "lab.mcap"                   # `penelope node` records from the first tick (MCAP)
 //!
 //! [boards.puma-io]                      # <class>.<name>: boards, robots, sensors,
 //! kind = "sim"                          #   trajectories, controllers; `kind` without the class
@@ -74,7 +75,7 @@ pub const CLASSES: [&str; 5] = ["boards", "sensors", "robots", "trajectories", "
 const COMMON_KEYS: [&str; 2] = ["kind", "node"];
 
 /// A node's real-time policy in a system file.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NodePolicy {
     /// SCHED_FIFO priority of control threads (1-99; 0: normal scheduling).
@@ -87,6 +88,10 @@ pub struct NodePolicy {
     /// and one on another binds it (the file's first such channel on this port, the next on
     /// the port after, and so on).
     pub data_plane: Option<std::net::SocketAddr>,
+    /// `penelope node` records every tick of the controllers the file activates on this node,
+    /// their safety events and its channels' links, from the first tick, to this MCAP file
+    /// (relative to the node's working directory; `--record` overrides it).
+    pub record: Option<std::path::PathBuf>,
 }
 
 impl NodePolicy {
@@ -241,7 +246,7 @@ impl SystemFile {
         let nodes: BTreeMap<String, NodePolicy> = raw
             .nodes
             .iter()
-            .map(|(k, v)| (k.clone(), *v.get_ref()))
+            .map(|(k, v)| (k.clone(), v.get_ref().clone()))
             .collect();
         for (name, policy) in &raw.nodes {
             let invalid = |message: String| SystemFileError::Invalid {

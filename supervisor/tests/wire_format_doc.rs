@@ -13,8 +13,8 @@ use std::collections::BTreeMap;
 use penelope_supervisor::net::auth::{self, ClientHandshake};
 use penelope_supervisor::net::frame;
 use penelope_supervisor::proto::{
-    Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, LinkBatch, LinkRecord, MAGIC, Method,
-    PROTOCOL_VERSION, PoseMsg, Reply, RobotMethod, Role, Security, ServerHello, ServerMsg,
+    Call, ClientHello, ClientMsg, CreatorCall, DEFAULT_MAX_FRAME, LinkBatch, LinkRecord, MAGIC,
+    Method, PROTOCOL_VERSION, PoseMsg, Reply, RobotMethod, Role, Security, ServerHello, ServerMsg,
     TelemetryBatch, TelemetryRecord, WireError, WrenchMsg,
 };
 use serde::Serialize;
@@ -225,6 +225,26 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
             len: u64::from(u32::MAX),
             max: DEFAULT_MAX_FRAME as u64,
         })),
+    );
+    m.insert(
+        "request-record-start",
+        framed(&ClientMsg::Request {
+            id: 4,
+            call: Call::Creator(CreatorCall::RecordStart {
+                path: "run.mcap".into(),
+                objects: vec!["follow".into()],
+            }),
+        }),
+    );
+    m.insert(
+        "response-recorded",
+        framed(&ServerMsg::Response {
+            id: 4,
+            result: Ok(Reply::Recorded {
+                path: "run.mcap".into(),
+                ticks: 1000,
+            }),
+        }),
     );
     m.insert("client-bye", framed(&ClientMsg::Bye));
     m

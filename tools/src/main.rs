@@ -38,6 +38,8 @@ enum Command {
     Node(cmd::node::Args),
     /// Run the naming service alone.
     Naming(cmd::naming::Args),
+    /// What a recording (MCAP) holds: channels, schemas, message counts, start, end, duration.
+    Replay(cmd::replay::Args),
     /// Talk to the nodes: list, create, configure, activate, call methods, watch telemetry.
     Ctl(cmd::ctl::Args),
 }
@@ -56,6 +58,7 @@ fn main() -> ExitCode {
         Command::Node(args) => cmd::node::run(args),
         Command::Naming(args) => cmd::naming::run(args),
         Command::Ctl(args) => cmd::ctl::run(args),
+        Command::Replay(args) => cmd::replay::run(args),
     };
     match result {
         Ok(code) => code,

@@ -665,6 +665,38 @@ impl NodeProxy {
         }
     }
 
+    /// Starts recording `objects` (none: every controller and linked channel) to the MCAP
+    /// file `path` on the node's host; returns the controllers and channels recorded.
+    ///
+    /// # Errors
+    /// What [`CreatorCall::RecordStart`] lists; transport errors.
+    pub fn record_start(
+        &self,
+        path: &str,
+        objects: &[String],
+    ) -> Result<(Vec<String>, Vec<String>), RpcError> {
+        match self.creator(CreatorCall::RecordStart {
+            path: path.to_string(),
+            objects: objects.to_vec(),
+        })? {
+            Reply::Recording {
+                controllers, links, ..
+            } => Ok((controllers, links)),
+            other => Err(unexpected("a recording", &other)),
+        }
+    }
+
+    /// Ends the node's recording: its file and the ticks written.
+    ///
+    /// # Errors
+    /// What [`CreatorCall::RecordStop`] lists; transport errors.
+    pub fn record_stop(&self) -> Result<(String, u64), RpcError> {
+        match self.creator(CreatorCall::RecordStop)? {
+            Reply::Recorded { path, ticks } => Ok((path, ticks)),
+            other => Err(unexpected("a finished recording", &other)),
+        }
+    }
+
     /// The reference of one of this node's objects.
     pub fn reference_of(&self, info: &ObjectInfo) -> ObjectRef {
         ObjectRef {

@@ -135,6 +135,10 @@ impl CreatorConfig {
     }
 }
 
+/// Ticks a recorder's stream holds per controller before it loses them (over a minute at
+/// 1 kHz).
+const RECORDER_CAPACITY: usize = 1 << 16;
+
 /// The creator of a node (the paper's `creatorImpl`): makes, lists and destroys objects and
 /// serves their methods. `Send + Sync`; its mutex is taken by connection threads only, never by
 /// a real-time thread.
@@ -148,6 +152,8 @@ pub struct Creator {
     fifo: OnceLock<bool>,
     /// The loops and the clock, on a simulated clock.
     sim: Option<Mutex<SimWorld>>,
+    /// The recording `ctl record start` began (its file and writer thread).
+    recording: Mutex<Option<(String, crate::runs::recording::Recorder)>>,
 }
 
 impl std::fmt::Debug for Creator {
@@ -198,6 +204,7 @@ impl Creator {
             subscriptions: Arc::new(Subscriptions::default()),
             link_pump: Mutex::new(None),
             fifo: OnceLock::new(),
+            recording: Mutex::new(None),
         }
     }
 
@@ -240,6 +247,100 @@ impl Creator {
             registry::Body::Teleop(t) => t.link.as_ref().and_then(|l| l.stats_source()),
             _ => None,
         })
+    }
+
+    /// Starts recording `objects` (none: every controller and linked channel) to the new
+    /// MCAP file `path`: see [`CreatorCall::RecordStart`]. The recorder is a thread of normal
+    /// priority fed by the telemetry pump through bounded streams; no loop waits for it.
+    ///
+    /// # Errors
+    /// [`WireError::NotReady`] while recording; [`WireError::BadArgument`] for a path not
+    /// ending `.mcap`, an existing or uncreatable file, an object neither a controller nor a
+    /// channel; [`WireError::UnknownName`].
+    pub fn record_start(&self, path: &str, objects: &[String]) -> Result<Reply, WireError> {
+        let mut recording = self
+            .recording
+            .lock()
+            .map_err(|_| WireError::Internal("recording poisoned".into()))?;
+        if let Some((current, _)) = recording.as_ref() {
+            return Err(WireError::NotReady(format!(
+                "already recording to {current}"
+            )));
+        }
+        if !path.ends_with(".mcap") {
+            return Err(WireError::BadArgument(format!(
+                "a recording is an MCAP file named *.mcap, not `{path}`"
+            )));
+        }
+        let file = std::path::Path::new(path);
+        if file.exists() {
+            return Err(WireError::BadArgument(format!(
+                "{path} exists: a recording never overwrites a file"
+            )));
+        }
+        let names: Vec<String> = if objects.is_empty() {
+            self.list()
+                .into_iter()
+                .filter(|o| o.class == Class::Controller || o.kind == "trajectory/teleop")
+                .map(|o| o.name)
+                .collect()
+        } else {
+            objects.to_vec()
+        };
+        let mut streams = Vec::new();
+        let mut links = Vec::new();
+        for name in &names {
+            let info = self
+                .info(name)
+                .ok_or_else(|| WireError::UnknownName(name.clone()))?;
+            if info.class == Class::Controller {
+                streams.push((name.clone(), self.record_ticks(name, RECORDER_CAPACITY)?));
+            } else if info.kind == "trajectory/teleop" {
+                match self.link_stats_source(name)? {
+                    Some(source) => links.push((name.clone(), source)),
+                    None if objects.is_empty() => {}
+                    None => {
+                        return Err(WireError::NoLink(name.clone()));
+                    }
+                }
+            } else {
+                return Err(WireError::BadArgument(format!(
+                    "`{name}` is a {}: only controllers and channels are recorded",
+                    info.kind
+                )));
+            }
+        }
+        let controllers: Vec<String> = streams.iter().map(|(n, _)| n.clone()).collect();
+        let linked: Vec<String> = links.iter().map(|(n, _)| n.clone()).collect();
+        let recorder =
+            crate::runs::recording::Recorder::start(file, &self.config.node, streams, links)
+                .map_err(|e| WireError::BadArgument(e.to_string()))?;
+        *recording = Some((path.to_string(), recorder));
+        Ok(Reply::Recording {
+            path: path.to_string(),
+            controllers,
+            links: linked,
+        })
+    }
+
+    /// Ends the recording [`record_start`](Self::record_start) began.
+    ///
+    /// # Errors
+    /// [`WireError::NotReady`] when there is none; [`WireError::Device`] when its file could
+    /// not be finished.
+    pub fn record_stop(&self) -> Result<Reply, WireError> {
+        let taken = self
+            .recording
+            .lock()
+            .map_err(|_| WireError::Internal("recording poisoned".into()))?
+            .take();
+        let Some((path, recorder)) = taken else {
+            return Err(WireError::NotReady("not recording".into()));
+        };
+        let ticks = recorder
+            .finish()
+            .map_err(|e| WireError::Device(e.to_string()))?;
+        Ok(Reply::Recorded { path, ticks })
     }
 
     /// How many objects it holds.
@@ -506,6 +607,10 @@ impl Service for Creator {
                 let now = self.advance(std::time::Duration::from_secs_f64(seconds))?;
                 Ok(Reply::Duration(Some(now.as_nanos() as f64 * 1e-9)))
             }
+            Call::Creator(CreatorCall::RecordStart { path, objects }) => {
+                self.record_start(&path, &objects)
+            }
+            Call::Creator(CreatorCall::RecordStop) => self.record_stop(),
             Call::Object { object, method } => self.object_call(&object, method),
             Call::Naming(_) => Err(WireError::NoNamingService),
             Call::Subscribe { object, decimation } => self.subscribe(session, &object, decimation),

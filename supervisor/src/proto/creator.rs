@@ -41,4 +41,21 @@ pub enum CreatorCall {
         /// How far, s.
         seconds: f64,
     },
+    /// Starts recording to the MCAP file `path` on the node's host (a new file, named
+    /// `*.mcap`; an existing file is never overwritten): every tick of the controllers among
+    /// `objects`, their safety events, and the link statistics of the `trajectory/teleop`
+    /// channels among them; no `objects` records every controller and linked channel of the
+    /// node. [`Reply::Recording`] with the path and what is recorded. One recording per node
+    /// at a time ([`WireError::NotReady`] for a second); an object that is neither a
+    /// controller nor a channel is [`WireError::BadArgument`], a missing one
+    /// [`WireError::UnknownName`]. (Appended last: every earlier variant keeps its encoding.)
+    RecordStart {
+        /// The file, on the node's host.
+        path: String,
+        /// The objects' names on the node (none: all of them).
+        objects: Vec<String>,
+    },
+    /// Ends the recording and closes its file: [`Reply::Recorded`]. [`WireError::NotReady`]
+    /// when there is none.
+    RecordStop,
 }

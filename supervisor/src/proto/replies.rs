@@ -61,6 +61,23 @@ pub enum Reply {
     },
     /// A data-plane address, `host:port`.
     Address(String),
+    /// A recording started ([`CreatorCall::RecordStart`](super::CreatorCall::RecordStart);
+    /// appended last, as is the next).
+    Recording {
+        /// The file, on the node's host.
+        path: String,
+        /// The controllers recorded.
+        controllers: Vec<String>,
+        /// The channels whose links are recorded.
+        links: Vec<String>,
+    },
+    /// A recording ended ([`CreatorCall::RecordStop`](super::CreatorCall::RecordStop)).
+    Recorded {
+        /// The file.
+        path: String,
+        /// Control ticks written.
+        ticks: u64,
+    },
 }
 
 /// A node's identity.

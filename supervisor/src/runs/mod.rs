@@ -13,6 +13,7 @@
 //! experiment delay`).
 
 pub mod delay;
+pub mod mcap_log;
 pub mod recording;
 pub mod report;
 

@@ -1,15 +1,13 @@
-//! Recordings: every control tick of a node's controllers, written to a file while the node runs
-//! (`penelope node --record FILE`), so that a task run by several processes, on several hosts,
-//! can be reported on as [`run`](super::run) reports on one process ([`from_recordings`]).
+//! Recordings: every control tick of a node's controllers, their safety events and the
+//! statistics of its channels' links, written to an MCAP file while the node runs (`penelope
+//! node --record FILE`), so that a task run by several processes, on several hosts, can be
+//! reported on as [`run`](super::run) reports on one process ([`from_recordings`]).
 //!
-//! The file is a sequence of frames, each a little-endian `u32` length and a postcard
-//! [`Entry`]: first the node's name, then each recorded controller's name with its index, then
-//! ticks tagged with that index. A reader takes every whole frame and stops at a cut-off last
-//! one, so a recording can be read while its node is still writing it.
+//! The file's channels and messages are [`mcap_log`](super::mcap_log)'s. The [`Recorder`]
+//! finishes a chunk every [`FLUSH_EVERY`], and [`read_recording`] takes every message up to a
+//! cut-off last record, so a recording can be read while its node is still writing it.
 
 use std::collections::BTreeMap;
-use std::fs::File;
-use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -17,8 +15,8 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use penelope_hal::Transition;
-use serde::{Deserialize, Serialize};
 
+use super::mcap_log::{CONTROLLER_TOPIC, LINK_TOPIC, McapLog, RECORDER_TOPIC};
 use super::{RECORD_CAPACITY, RunError, RunOptions, RunOutput, find_task};
 use crate::node::Node;
 use crate::objects::runtime::{TickRecord, TickStream};
@@ -27,57 +25,12 @@ use crate::proto::{Call, LinkRecord, Method};
 use crate::system::SystemFile;
 use penelope_rt_core::clock::MonotonicClock;
 
-/// The format's version, in the first frame.
-pub const RECORDING_VERSION: u32 = 1;
-
 /// How often the recorder writes what its streams hold.
 const DRAIN_EVERY: Duration = Duration::from_millis(50);
 /// How often it writes each link's statistics.
 const LINK_EVERY: Duration = Duration::from_millis(100);
-
-/// The largest frame a reader accepts (a tick is a few hundred bytes).
-const MAX_FRAME: usize = 64 * 1024;
-
-/// One frame of a recording.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub enum Entry {
-    /// The first frame: the format's version and the recording node.
-    Header {
-        /// [`RECORDING_VERSION`].
-        version: u32,
-        /// The node's name.
-        node: String,
-    },
-    /// A recorded controller and the index its ticks carry.
-    Controller {
-        /// The index.
-        index: u16,
-        /// The controller's name on the node.
-        name: String,
-    },
-    /// One control tick of controller `index`.
-    Tick {
-        /// The controller's index.
-        index: u16,
-        /// The tick (boxed: a tick is far larger than the other entries).
-        record: Box<TickRecord>,
-    },
-    /// The state and statistics of channel `channel`'s link to another node, now and then
-    /// (every tenth of a second, and at the end).
-    Link {
-        /// The channel's name on the node.
-        channel: String,
-        /// What its link counted (boxed, as a tick is).
-        record: Box<LinkRecord>,
-    },
-    /// Ticks of controller `index` its stream lost (the recorder fell behind), at the end.
-    Dropped {
-        /// The controller's index.
-        index: u16,
-        /// Ticks lost.
-        count: u64,
-    },
-}
+/// How often it ends the MCAP chunk being written, so that a reader sees the ticks so far.
+pub const FLUSH_EVERY: Duration = Duration::from_millis(200);
 
 /// Why a recording could not be written or read.
 #[derive(Debug, thiserror::Error)]
@@ -90,7 +43,15 @@ pub enum RecordingError {
         /// The error.
         source: std::io::Error,
     },
-    /// The file is not a recording of this version, or a frame is malformed.
+    /// The MCAP library refused to write or read the file.
+    #[error("{path}: {source}")]
+    Mcap {
+        /// The file.
+        path: PathBuf,
+        /// The error.
+        source: mcap::McapError,
+    },
+    /// The file is not a recording, or a message is malformed.
     #[error("{path}: not a recording: {message}")]
     Format {
         /// The file.
@@ -113,83 +74,81 @@ pub struct Recording {
     pub links: BTreeMap<String, Vec<LinkRecord>>,
 }
 
-/// Reads the whole frames of the recording at `path` (a cut-off last frame, being written, is
-/// left out).
+/// Reads the recording at `path`: every message up to a cut-off last record (a file being
+/// written, or left by a node that died, has no summary yet).
 ///
 /// # Errors
 /// [`RecordingError`] for a file that cannot be read, or is not a recording.
 pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
-    let mut bytes = Vec::new();
-    File::open(path)
-        .and_then(|mut f| f.read_to_end(&mut bytes))
-        .map_err(|source| RecordingError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+    let bytes = std::fs::read(path).map_err(|source| RecordingError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let bad = |message: String| RecordingError::Format {
         path: path.to_path_buf(),
         message,
     };
+    if !bytes.starts_with(mcap::MAGIC) {
+        return Err(bad("not an MCAP file".into()));
+    }
+    let options = mcap::read::Options::IgnoreEndMagic;
     let mut recording = Recording::default();
-    let mut names: BTreeMap<u16, String> = BTreeMap::new();
-    let mut rest = bytes.as_slice();
-    let mut first = true;
-    while rest.len() >= 4 {
-        let len = u32::from_le_bytes([rest[0], rest[1], rest[2], rest[3]]) as usize;
-        if len > MAX_FRAME {
-            return Err(bad(format!("a frame of {len} bytes")));
+    // The node, from the metadata record written first.
+    if let Ok(reader) = mcap::read::LinearReader::new_with_options(&bytes, options.into()) {
+        for record in reader {
+            match record {
+                Ok(mcap::records::Record::Header(h)) if h.profile != super::mcap_log::PROFILE => {
+                    return Err(bad(format!("profile {:?}, not a node's", h.profile)));
+                }
+                Ok(mcap::records::Record::Metadata(m)) if m.name == "node" => {
+                    recording.node = m.metadata.get("node").cloned().unwrap_or_default();
+                    break;
+                }
+                Ok(_) => {}
+                Err(_) => break, // cut off
+            }
         }
-        let Some(frame) = rest.get(4..4 + len) else {
+    }
+    let stream =
+        mcap::MessageStream::new_with_options(&bytes, options.into()).map_err(|source| {
+            RecordingError::Mcap {
+                path: path.to_path_buf(),
+                source,
+            }
+        })?;
+    for message in stream {
+        let Ok(m) = message else {
             break; // being written
         };
-        rest = &rest[4 + len..];
-        let entry: Entry =
-            postcard::from_bytes(frame).map_err(|e| bad(format!("a malformed frame: {e}")))?;
-        match (first, entry) {
-            (true, Entry::Header { version, node }) if version == RECORDING_VERSION => {
-                recording.node = node;
-            }
-            (true, Entry::Header { version, .. }) => {
-                return Err(bad(format!(
-                    "version {version}, this program reads {RECORDING_VERSION}"
-                )));
-            }
-            (true, _) => return Err(bad("no header".into())),
-            (false, Entry::Header { .. }) => return Err(bad("a second header".into())),
-            (false, Entry::Controller { index, name }) => {
-                recording.controllers.entry(name.clone()).or_default();
-                names.insert(index, name);
-            }
-            (false, Entry::Tick { index, record }) => {
-                let name = names
-                    .get(&index)
-                    .ok_or_else(|| bad(format!("a tick of unknown controller {index}")))?;
-                recording
-                    .controllers
-                    .entry(name.clone())
-                    .or_default()
-                    .push(*record);
-            }
-            (false, Entry::Link { channel, record }) => {
-                recording.links.entry(channel).or_default().push(*record);
-            }
-            (false, Entry::Dropped { index, count }) => {
-                let name = names
-                    .get(&index)
-                    .ok_or_else(|| bad(format!("a count of unknown controller {index}")))?;
-                recording.dropped.insert(name.clone(), count);
+        let topic = m.channel.topic.as_str();
+        let json = |e: serde_json::Error| bad(format!("a malformed message on {topic}: {e}"));
+        if let Some(name) = topic.strip_prefix(CONTROLLER_TOPIC) {
+            let tick: TickRecord = serde_json::from_slice(&m.data).map_err(json)?;
+            recording
+                .controllers
+                .entry(name.to_string())
+                .or_default()
+                .push(tick);
+        } else if let Some(channel) = topic.strip_prefix(LINK_TOPIC) {
+            let link: LinkRecord = serde_json::from_slice(&m.data).map_err(json)?;
+            recording
+                .links
+                .entry(channel.to_string())
+                .or_default()
+                .push(link);
+        } else if topic == RECORDER_TOPIC {
+            let v: serde_json::Value = serde_json::from_slice(&m.data).map_err(json)?;
+            if let (Some(name), Some(count)) = (v["controller"].as_str(), v["dropped"].as_u64()) {
+                recording.dropped.insert(name.to_string(), count);
             }
         }
-        first = false;
-    }
-    if first {
-        return Err(bad("empty".into()));
     }
     Ok(recording)
 }
 
 /// Writes a node's recorded controllers to a file from a thread of its own (normal priority:
-/// the loops hand their ticks over through bounded streams and never wait for it).
+/// the loops hand their ticks to the telemetry pump, which hands them to the recorder through
+/// bounded streams; neither waits for it, a full stream loses ticks and counts them).
 pub struct Recorder {
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<Result<u64, RecordingError>>>,
@@ -207,54 +166,23 @@ impl Recorder {
         streams: Vec<(String, TickStream)>,
         links: Vec<(String, LinkStatsSource)>,
     ) -> Result<Recorder, RecordingError> {
-        let io = |source| RecordingError::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        let mut out = BufWriter::new(File::create(path).map_err(io)?);
-        let write = move |out: &mut BufWriter<File>, e: &Entry| -> std::io::Result<()> {
-            let bytes = postcard::to_allocvec(e).map_err(std::io::Error::other)?;
-            out.write_all(&(bytes.len() as u32).to_le_bytes())?;
-            out.write_all(&bytes)
-        };
-        write(
-            &mut out,
-            &Entry::Header {
-                version: RECORDING_VERSION,
-                node: node.to_string(),
-            },
-        )
-        .map_err(io)?;
-        for (i, (name, _)) in streams.iter().enumerate() {
-            let entry = Entry::Controller {
-                index: i as u16,
-                name: name.clone(),
-            };
-            write(&mut out, &entry).map_err(io)?;
+        let mut log = McapLog::create(path, node)?;
+        for (name, _) in &streams {
+            log.add_controller(name)?;
         }
-        out.flush().map_err(io)?;
+        log.flush()?;
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
-        let file = path.to_path_buf();
         let thread = std::thread::Builder::new()
             .name("recorder".into())
             .spawn(move || {
-                let io = |source| RecordingError::Io {
-                    path: file.clone(),
-                    source,
-                };
-                let mut written = 0u64;
                 let mut links_at: Option<Instant> = None;
+                let mut flushed = Instant::now();
                 loop {
                     let stopping = flag.load(Ordering::Relaxed);
                     for (i, (_, stream)) in streams.iter().enumerate() {
                         while let Ok(record) = stream.ticks.try_recv() {
-                            let entry = Entry::Tick {
-                                index: i as u16,
-                                record: Box::new(record),
-                            };
-                            write(&mut out, &entry).map_err(io)?;
-                            written += 1;
+                            log.tick(i, &record)?;
                         }
                     }
                     if stopping || links_at.is_none_or(|t| t.elapsed() >= LINK_EVERY) {
@@ -262,33 +190,34 @@ impl Recorder {
                         let now = MonotonicClock::read().as_nanos();
                         for (channel, source) in &links {
                             if let Some(stats) = source.latest() {
-                                let entry = Entry::Link {
-                                    channel: channel.clone(),
-                                    record: Box::new(stats.record(now)),
-                                };
-                                write(&mut out, &entry).map_err(io)?;
+                                log.link(channel, &stats.record(now))?;
                             }
+                        }
+                        // What the streams lost so far, when it grew.
+                        for (i, (_, stream)) in streams.iter().enumerate() {
+                            log.dropped(i, stream.dropped.load(Ordering::Relaxed))?;
                         }
                     }
                     if stopping {
-                        for (i, (_, stream)) in streams.iter().enumerate() {
-                            let count = stream.dropped.load(Ordering::Relaxed);
-                            let entry = Entry::Dropped {
-                                index: i as u16,
-                                count,
-                            };
-                            write(&mut out, &entry).map_err(io)?;
-                        }
-                        out.flush().map_err(io)?;
-                        return Ok(written);
+                        let dropped: Vec<u64> = streams
+                            .iter()
+                            .map(|(_, s)| s.dropped.load(Ordering::Relaxed))
+                            .collect();
+                        return log.finish(&dropped).map(|t| t.ticks);
                     }
-                    out.flush().map_err(io)?;
+                    if flushed.elapsed() >= FLUSH_EVERY {
+                        flushed = Instant::now();
+                        log.flush()?;
+                    }
                     // A batch writer: the streams hold a minute of ticks, so a twentieth of a
                     // second between batches costs nothing and keeps the writes few.
                     std::thread::sleep(DRAIN_EVERY);
                 }
             })
-            .map_err(io)?;
+            .map_err(|source| RecordingError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
         Ok(Recorder {
             stop,
             thread: Some(thread),
@@ -298,7 +227,7 @@ impl Recorder {
     /// Writes what is left and closes the file: the ticks written.
     ///
     /// # Errors
-    /// [`RecordingError::Io`] when a write failed.
+    /// [`RecordingError`] when a write failed.
     pub fn finish(mut self) -> Result<u64, RecordingError> {
         self.stop.store(true, Ordering::Relaxed);
         match self.thread.take().map(JoinHandle::join) {
@@ -429,4 +358,178 @@ pub fn from_recordings(
         info,
         dropped,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::mcap_log::McapLog;
+    use super::*;
+    use penelope_drivers::sim::tap::TapSample;
+    use penelope_hal::{JointVector, Timestamp};
+    use penelope_rt_core::safety::{EventSet, FaultCause, SafetyEvent, SafetyState};
+    use penelope_rt_core::telemetry::TelemetrySample;
+
+    fn scratch(name: &str) -> PathBuf {
+        std::env::temp_dir().join(format!("penelope-recording-{}-{name}", std::process::id()))
+    }
+
+    /// Ticks whose values need every bit of an f64 (thirds, tiny and huge numbers).
+    fn ticks(n: u64) -> Vec<TickRecord> {
+        (1..=n)
+            .map(|i| {
+                let x = i as f64 / 3.0;
+                let mut events = EventSet::EMPTY;
+                if i == 7 {
+                    events.insert(SafetyEvent::LinkLost);
+                }
+                TickRecord {
+                    sample: TelemetrySample {
+                        time: Timestamp::from_nanos(1_000_000 * i + 17),
+                        seq: i,
+                        q: JointVector::from_fn(|j, _| x * (j as f64 + 0.1) + 1e-300),
+                        qd: JointVector::from_fn(|j, _| -x / (j as f64 + 7.0)),
+                        effort: JointVector::from_fn(|j, _| 1e300 / (x + j as f64)),
+                        state: if i > 5 {
+                            SafetyState::Fault
+                        } else {
+                            SafetyState::Running
+                        },
+                        fault: (i > 5).then_some(FaultCause::VelocityLimit { joint: 3 }),
+                        events,
+                        port_energy: (i % 2 == 0).then_some(-x),
+                        ..TelemetrySample::default()
+                    },
+                    truth: Some(TapSample {
+                        kinetic_energy: x.sqrt(),
+                        interaction_work: -x * 1e-9,
+                        ..TapSample::default()
+                    }),
+                }
+            })
+            .collect()
+    }
+
+    fn link(time_ns: u64) -> LinkRecord {
+        LinkRecord {
+            time_ns,
+            down: false,
+            losses: 1,
+            restorations: 1,
+            samples_taken: 99,
+            samples_dropped: 2,
+            samples_missed: 3,
+            refused: 0,
+            clock_offset_ns: Some(-12_345),
+            round_trip_ns: Some(250_000),
+            one_way_delay_ns: Some(125_000),
+            jitter_ns: None,
+            last_heard_ns: Some(1_000),
+            heartbeat_loss: 0.1 + 0.2,
+            trips: 40,
+            trip_p50_ns: Some(120_000),
+            trip_p99_ns: Some(300_000),
+            trip_max_ns: None,
+        }
+    }
+
+    #[test]
+    fn a_recording_reads_back_bit_for_bit_with_its_links_and_losses() {
+        let path = scratch("roundtrip.mcap");
+        let (a, b) = (ticks(40), ticks(25));
+        let mut log = McapLog::create(&path, "lab").unwrap();
+        log.add_controller("display").unwrap();
+        log.add_controller("follow").unwrap();
+        for t in &a {
+            log.tick(0, t).unwrap();
+        }
+        for t in &b {
+            log.tick(1, t).unwrap();
+        }
+        log.link("link", &link(5)).unwrap();
+        log.link("link", &link(9)).unwrap();
+        let totals = log.finish(&[0, 4]).unwrap();
+        assert_eq!(totals.ticks, 65);
+        let r = read_recording(&path).unwrap();
+        assert_eq!(r.node, "lab");
+        assert_eq!(r.controllers["display"], a, "every bit of every tick");
+        assert_eq!(r.controllers["follow"], b);
+        assert_eq!(r.links["link"], vec![link(5), link(9)]);
+        assert_eq!(r.dropped["display"], 0);
+        assert_eq!(r.dropped["follow"], 4);
+        let _ = std::fs::remove_file(path);
+    }
+
+    #[test]
+    fn a_recording_cut_off_anywhere_reads_as_a_prefix_of_its_ticks() {
+        let path = scratch("cut.mcap");
+        let all = ticks(60);
+        let mut log = McapLog::create(&path, "lab").unwrap();
+        log.add_controller("display").unwrap();
+        for chunk in all.chunks(10) {
+            for t in chunk {
+                log.tick(0, t).unwrap();
+            }
+            log.flush().unwrap(); // what the recorder does every FLUSH_EVERY
+        }
+        log.finish(&[0]).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let cut = scratch("cut-part.mcap");
+        let mut seen = 0;
+        for len in (16..bytes.len()).step_by(97) {
+            std::fs::write(&cut, &bytes[..len]).unwrap();
+            let r = read_recording(&cut).unwrap();
+            let got = r
+                .controllers
+                .get("display")
+                .map_or(&[][..], |v| v.as_slice());
+            assert_eq!(got, &all[..got.len()], "cut at {len}: a prefix");
+            assert!(got.len() >= seen, "more of the file, no fewer ticks");
+            seen = got.len();
+        }
+        assert!(
+            seen >= 50,
+            "flushed chunks are read before the file ends: {seen}"
+        );
+        let _ = std::fs::remove_file(path);
+        let _ = std::fs::remove_file(cut);
+    }
+
+    #[test]
+    fn losses_are_written_as_they_grow_so_a_file_cut_off_still_has_them() {
+        let path = scratch("losses.mcap");
+        let mut log = McapLog::create(&path, "lab").unwrap();
+        log.add_controller("display").unwrap();
+        log.tick(0, &ticks(1)[0]).unwrap();
+        assert!(!log.dropped(0, 0).unwrap(), "nothing lost, nothing written");
+        assert!(log.dropped(0, 5).unwrap());
+        assert!(!log.dropped(0, 5).unwrap(), "written once");
+        assert!(!log.dropped(3, 5).unwrap(), "no such controller");
+        log.flush().unwrap();
+        // The node dies here: no summary, no final counts.
+        std::mem::forget(log);
+        let r = read_recording(&path).unwrap();
+        assert_eq!(r.dropped["display"], 5);
+        assert_eq!(r.controllers["display"].len(), 1);
+        let _ = std::fs::remove_file(path);
+    }
+
+    #[test]
+    fn an_unwritable_path_or_a_foreign_file_is_a_typed_error() {
+        let nowhere = Path::new("/nonexistent-dir/run.mcap");
+        assert!(matches!(
+            McapLog::create(nowhere, "lab"),
+            Err(RecordingError::Io { .. })
+        ));
+        assert!(matches!(
+            Recorder::start(nowhere, "lab", Vec::new(), Vec::new()),
+            Err(RecordingError::Io { .. })
+        ));
+        let foreign = scratch("foreign.mcap");
+        std::fs::write(&foreign, b"time_s,q\n0,1\n").unwrap();
+        assert!(matches!(
+            read_recording(&foreign),
+            Err(RecordingError::Format { .. })
+        ));
+        let _ = std::fs::remove_file(foreign);
+    }
 }

@@ -186,6 +186,10 @@ fn write_outputs(dir: &Path, output: &RunOutput, report: &Report) -> anyhow::Res
             .with_context(|| format!("writing {}", path.display()))?;
         written.push(path);
     }
+    let path = dir.join("run.mcap");
+    penelope_supervisor::runs::mcap_log::write_run(&path, output)
+        .with_context(|| format!("writing {}", path.display()))?;
+    written.push(path);
     let path = dir.join("report.json");
     std::fs::write(&path, serde_json::to_string_pretty(report)?)
         .with_context(|| format!("writing {}", path.display()))?;

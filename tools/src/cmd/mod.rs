@@ -12,6 +12,7 @@ pub mod galil_sim;
 pub mod kin;
 pub mod naming;
 pub mod node;
+pub mod replay;
 
 /// Bad input from the user (unknown robot, wrong joint count, NaN): exit code 2.
 #[derive(Debug)]

@@ -73,9 +73,11 @@ pub struct Args {
     /// `penelope ctl advance NODE DURATION` moves it (faster than real time, reproducible).
     #[arg(long)]
     pub sim_clock: bool,
-    /// Record every control tick of the controllers the system file activates on this node
-    /// to FILE, from their first tick until the node stops (read back by `penelope bench
-    /// layout` for its report).
+    /// Record every control tick of the controllers the system file activates on this node,
+    /// their safety events and the statistics of its channels' links to the MCAP file FILE,
+    /// from their first tick until the node stops (`penelope replay FILE` lists it; `penelope
+    /// bench layout` reads it back for its report). Overrides the system file's `record` for
+    /// this node.
     #[arg(long, value_name = "FILE", requires = "config")]
     pub record: Option<PathBuf>,
     /// Lease in the naming service, ms (renewed every third of it).
@@ -150,7 +152,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     );
     let mut recorder = None;
     if let Some(file) = file {
-        let applied = match &args.record {
+        // `--record`, else the file's `record` for this node.
+        let record = args
+            .record
+            .clone()
+            .or_else(|| file.nodes.get(node.name()).and_then(|p| p.record.clone()));
+        let applied = match &record {
             None => file.apply(&node).map_err(anyhow::Error::new),
             Some(path) => penelope_supervisor::runs::recording::apply_recorded(&node, &file, path)
                 .map(|(created, r)| {

@@ -213,10 +213,33 @@ pub enum Verb {
         #[arg(long, value_name = "S")]
         seconds: Option<f64>,
     },
+    /// Record to MCAP on a node: `record start NODE PATH [OBJECTS...]`, `record stop NODE`.
+    #[command(subcommand)]
+    Record(RecordVerb),
     /// Run a script: one verb per line, `#` comments, shell quoting; stops at the first error.
     Run {
         /// The script file, or `-` for standard input.
         script: String,
+    },
+}
+
+/// `penelope ctl record`.
+#[derive(clap::Subcommand, Debug)]
+pub enum RecordVerb {
+    /// Start recording every tick of controllers, their safety events and channels' link
+    /// statistics to a new MCAP file on the node's host (`penelope replay FILE` lists it).
+    Start {
+        /// The node (its name in the naming tree).
+        node: String,
+        /// The file, on the node's host: a new `*.mcap` (never overwritten).
+        path: String,
+        /// The controllers and channels to record, by name on the node (default: all).
+        objects: Vec<String>,
+    },
+    /// Stop the node's recording and close its file.
+    Stop {
+        /// The node (its name in the naming tree).
+        node: String,
     },
 }
 
@@ -331,6 +354,40 @@ impl Ctl {
                     say!("{}", json!({ "node": node, "time_s": now.as_secs_f64() }));
                 } else {
                     say!("{node}: simulated clock at {:.3} s", now.as_secs_f64());
+                }
+                Ok(())
+            }
+            Verb::Record(RecordVerb::Start {
+                node,
+                path,
+                objects,
+            }) => {
+                let (controllers, links) =
+                    self.client()?.node(&node)?.record_start(&path, &objects)?;
+                if json {
+                    say!(
+                        "{}",
+                        json!({ "node": node, "path": path, "controllers": controllers, "links": links })
+                    );
+                } else {
+                    say!(
+                        "{node}: recording {} to {path}{}",
+                        controllers.join(", "),
+                        if links.is_empty() {
+                            String::new()
+                        } else {
+                            format!(" (links of {})", links.join(", "))
+                        }
+                    );
+                }
+                Ok(())
+            }
+            Verb::Record(RecordVerb::Stop { node }) => {
+                let (path, ticks) = self.client()?.node(&node)?.record_stop()?;
+                if json {
+                    say!("{}", json!({ "node": node, "path": path, "ticks": ticks }));
+                } else {
+                    say!("{node}: recorded {ticks} control ticks to {path}");
                 }
                 Ok(())
             }

@@ -251,5 +251,9 @@ pub fn reply(reply: &Reply, hint: Hint) -> String {
             .join("\n"),
         Reply::Subscribed { subscription } => format!("subscription {subscription}"),
         Reply::Address(a) => format!("address: {a}"),
+        Reply::Recording {
+            path, controllers, ..
+        } => format!("recording {} to {path}", controllers.join(", ")),
+        Reply::Recorded { path, ticks } => format!("recorded {ticks} control ticks to {path}"),
     }
 }

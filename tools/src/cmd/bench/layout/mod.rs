@@ -395,7 +395,7 @@ pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result
     nodes.sort_by_key(|(_, n)| (*n == task_nodes.0, *n == task_nodes.1));
     let mut recordings = Vec::new();
     for (h, node) in &nodes {
-        let record = scratch.0.join(format!("{node}.rec"));
+        let record = scratch.0.join(format!("{node}.mcap"));
         let mut node_args = vec![
             "node".into(),
             "--name".into(),

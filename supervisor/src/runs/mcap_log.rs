@@ -1,0 +1,540 @@
+//! Recordings as MCAP files: one channel per recorded controller (every control tick, with
+//! the plant's truth), one for the safety events, one per data-plane link's statistics, and one
+//! for what the recorder itself lost.
+//!
+//! Every channel has a schema in JSON Schema and carries JSON messages (MCAP's well-known
+//! `jsonschema` / `json` pair). Foxglove and Lichtblick show and plot them without plugins,
+//! PlotJuggler's MCAP loader reads them, the `mcap` command line and every MCAP library (Rust,
+//! Python, C++, Go, TypeScript) decode them without generated code; a person can read one with
+//! `mcap cat --json`. Protobuf or ROS 2 messages would be smaller, but need generated types on
+//! both sides and a build step for a schema that follows `TelemetrySample` as it grows; flatbuffers
+//! are read by fewer tools. JSON costs bytes: a tick is about 600 after the chunks' zstd
+//! compression, a little more than the same tick as a CSV row.
+//!
+//! A tick's message is the serde form of [`TickRecord`] (`{"sample": .., "truth": ..}`), so
+//! that it reads back bit for bit (`recording::read_recording`; serde_json's
+//! `float_roundtrip`); plot paths look like `/controllers/follow.sample.q[0]`.
+//!
+//! Topics:
+//! - `/controllers/<name>` (schema `penelope.Tick`): every tick of controller `<name>`;
+//! - `/safety` (schema `penelope.SafetyEvent`): a message for every tick whose safety state or
+//!   fault changed, or that raised events (watchdog, limits, link lost, ...);
+//! - `/links/<channel>` (schema `penelope.LinkStats`): channel `<channel>`'s link to another
+//!   node, now and then;
+//! - `/recorder` (schema `penelope.RecorderDropped`): at the end, the ticks the recorder lost
+//!   per controller (it also goes into the file's `recorder` metadata record).
+//!
+//! Log and publish times are the ticks' times: nanoseconds on the node's clock (the simulated
+//! clock in a simulated run; the monotonic clock otherwise, which the data plane's heartbeats
+//! relate to other nodes' clocks: see `/links/<channel>`'s `clock_offset_ns`).
+//!
+//! [`McapLog`] is the writer (not thread-safe, not real-time: it allocates and writes files;
+//! it is fed by the telemetry pump's recorder streams, never by a loop). [`summarize`] reads a
+//! file's channels, counts and times back (`penelope replay`).
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use penelope_rt_core::safety::{FaultCause, SafetyState};
+use serde::Serialize;
+use serde_json::json;
+
+use super::recording::RecordingError;
+use crate::objects::runtime::TickRecord;
+use crate::proto::LinkRecord;
+
+/// The MCAP profile written in the header (none of the well-known ones fits: JSON messages
+/// of our own).
+pub const PROFILE: &str = "penelope";
+
+/// The topic prefix of controllers' ticks.
+pub const CONTROLLER_TOPIC: &str = "/controllers/";
+/// The topic of safety events.
+pub const SAFETY_TOPIC: &str = "/safety";
+/// The topic prefix of links' statistics.
+pub const LINK_TOPIC: &str = "/links/";
+/// The topic of the recorder's own losses.
+pub const RECORDER_TOPIC: &str = "/recorder";
+
+const VEC3: &str = r#"{"type":"array","items":{"type":"number"},"minItems":3,"maxItems":3,"description":"x, y, z"}"#;
+const JOINTS: &str = r#"{"type":"array","items":{"type":"number"},"description":"one per joint (unused joints zero)"}"#;
+const DURATION: &str = r#"{"type":"object","properties":{"secs":{"type":"integer"},"nanos":{"type":"integer"}},"required":["secs","nanos"]}"#;
+
+fn tick_schema() -> String {
+    let wrench = format!(
+        r#"{{"type":"object","properties":{{"force":{VEC3},"torque":{VEC3},"frame":{{"type":"string"}}}},"required":["force","torque"]}}"#
+    );
+    let optional_number = r#"{"type":["number","null"]}"#;
+    format!(
+        r#"{{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.Tick","description":"One control tick (TickRecord): what the loop reported (sample: rt-core's TelemetrySample) and, behind a simulated board, the plant's truth. Units: SI (rad, rad/s, N·m, m, N, J); times in ns on the node's clock.","type":"object","properties":{{
+"sample":{{"type":"object","properties":{{
+"time":{{"type":"integer","description":"the tick's scheduled instant, ns"}},
+"seq":{{"type":"integer","description":"tick counter of the loop, 1 for the first"}},
+"q":{JOINTS},"qd":{JOINTS},"effort":{JOINTS},"position_command":{JOINTS},
+"reference_kind":{{"type":"string"}},"reference_q":{JOINTS},"reference_position":{VEC3},
+"reference_age":{DURATION},
+"wrench":{wrench},"commanded_wrench":{wrench},"tool_position":{VEC3},
+"controller":{{"type":"integer","description":"index of the active controller"}},
+"state":{{"type":"string","description":"safety state after the tick"}},
+"events":{{"type":"integer","description":"safety events of the tick, one bit each (named in /safety)"}},
+"fault":{{"description":"the latched fault's cause, null when none"}},
+"wake_latency":{DURATION},"exec_time":{DURATION},
+"port_energy":{optional_number},"channel_energy":{optional_number}
+}},"required":["time","seq","q","qd","effort","state"]}},
+"truth":{{"type":["object","null"],"description":"the simulated plant's ground truth","properties":{{
+"time":{{"type":"integer"}},
+"joints":{{"type":"object","properties":{{"position":{JOINTS},"velocity":{JOINTS},"effort":{JOINTS}}}}},
+"tool_pose":{{"type":"object","properties":{{"rotation":{{"type":"array","items":{{"type":"number"}},"description":"unit quaternion x, y, z, w"}},"translation":{VEC3}}}}},
+"base_wrench":{wrench},"tool_wrench":{wrench},
+"kinetic_energy":{{"type":"number"}},"interaction_work":{{"type":"number"}}
+}}}}
+}},"required":["sample","truth"]}}"#
+    )
+}
+
+const SAFETY_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.SafetyEvent","description":"A tick whose safety state or fault changed, or that raised safety events.","type":"object","properties":{"time_ns":{"type":"integer"},"controller":{"type":"string","description":"the controller object's name"},"seq":{"type":"integer"},"state":{"type":"string"},"previous_state":{"type":["string","null"]},"fault":{"type":["string","null"]},"events":{"type":"array","items":{"type":"string"}}},"required":["time_ns","controller","state","events"]}"#;
+
+const LINK_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.LinkStats","description":"One end's view of a data-plane link (LinkRecord in docs/wire-format.md); times in ns.","type":"object","properties":{"time_ns":{"type":"integer"},"down":{"type":"boolean"},"losses":{"type":"integer"},"restorations":{"type":"integer"},"samples_taken":{"type":"integer"},"samples_dropped":{"type":"integer"},"samples_missed":{"type":"integer"},"refused":{"type":"integer"},"clock_offset_ns":{"type":["integer","null"]},"round_trip_ns":{"type":["integer","null"]},"one_way_delay_ns":{"type":["integer","null"]},"jitter_ns":{"type":["integer","null"]},"last_heard_ns":{"type":["integer","null"]},"heartbeat_loss":{"type":"number"},"trips":{"type":"integer"},"trip_p50_ns":{"type":["integer","null"]},"trip_p99_ns":{"type":["integer","null"]},"trip_max_ns":{"type":["integer","null"]}},"required":["time_ns","down"]}"#;
+
+const RECORDER_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.RecorderDropped","description":"Ticks of a controller the recorder lost because it fell behind (the loops never wait for it).","type":"object","properties":{"controller":{"type":"string"},"dropped":{"type":"integer"},"written":{"type":"integer"}},"required":["controller","dropped","written"]}"#;
+
+/// A recorded controller's channel.
+struct ControllerChannel {
+    name: String,
+    channel: u16,
+    written: u64,
+    /// The loss last written to `/recorder`.
+    reported: u64,
+    last: Option<(SafetyState, Option<FaultCause>)>,
+}
+
+/// What a finished recording holds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct McapTotals {
+    /// Ticks written, all controllers.
+    pub ticks: u64,
+    /// Messages written, all channels.
+    pub messages: u64,
+}
+
+/// An MCAP file being written: see the [module](self).
+pub struct McapLog {
+    writer: mcap::Writer<BufWriter<File>>,
+    path: PathBuf,
+    tick_schema: u16,
+    link_schema: u16,
+    safety: u16,
+    recorder: u16,
+    controllers: Vec<ControllerChannel>,
+    links: BTreeMap<String, u16>,
+    sequence: BTreeMap<u16, u32>,
+    last_time: u64,
+    totals: McapTotals,
+}
+
+impl McapLog {
+    /// Creates `path` for node `node`'s recording.
+    ///
+    /// # Errors
+    /// [`RecordingError::Io`] when the file cannot be created; [`RecordingError::Mcap`] when
+    /// the header cannot be written.
+    pub fn create(path: &Path, node: &str) -> Result<McapLog, RecordingError> {
+        let file = File::create(path).map_err(|source| RecordingError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mcap_err = |source| RecordingError::Mcap {
+            path: path.to_path_buf(),
+            source,
+        };
+        let mut writer = mcap::WriteOptions::new()
+            .profile(PROFILE)
+            .library(concat!("penelope ", env!("CARGO_PKG_VERSION")))
+            .compression(Some(mcap::Compression::Zstd))
+            .create(BufWriter::new(file))
+            .map_err(mcap_err)?;
+        let tick_schema = writer
+            .add_schema("penelope.Tick", "jsonschema", tick_schema().as_bytes())
+            .map_err(mcap_err)?;
+        let safety_schema = writer
+            .add_schema(
+                "penelope.SafetyEvent",
+                "jsonschema",
+                SAFETY_SCHEMA.as_bytes(),
+            )
+            .map_err(mcap_err)?;
+        let link_schema = writer
+            .add_schema("penelope.LinkStats", "jsonschema", LINK_SCHEMA.as_bytes())
+            .map_err(mcap_err)?;
+        let recorder_schema = writer
+            .add_schema(
+                "penelope.RecorderDropped",
+                "jsonschema",
+                RECORDER_SCHEMA.as_bytes(),
+            )
+            .map_err(mcap_err)?;
+        let meta = BTreeMap::from([("node".to_string(), node.to_string())]);
+        let safety = writer
+            .add_channel(safety_schema, SAFETY_TOPIC, "json", &meta)
+            .map_err(mcap_err)?;
+        let recorder = writer
+            .add_channel(recorder_schema, RECORDER_TOPIC, "json", &meta)
+            .map_err(mcap_err)?;
+        writer
+            .write_metadata(&mcap::records::Metadata {
+                name: "node".into(),
+                metadata: meta,
+            })
+            .map_err(mcap_err)?;
+        Ok(McapLog {
+            writer,
+            path: path.to_path_buf(),
+            tick_schema,
+            link_schema,
+            safety,
+            recorder,
+            controllers: Vec::new(),
+            links: BTreeMap::new(),
+            sequence: BTreeMap::new(),
+            last_time: 0,
+            totals: McapTotals::default(),
+        })
+    }
+
+    /// Adds controller `name`'s channel; the index its ticks are written with.
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`].
+    pub fn add_controller(&mut self, name: &str) -> Result<usize, RecordingError> {
+        let meta = BTreeMap::from([("controller".to_string(), name.to_string())]);
+        let topic = format!("{CONTROLLER_TOPIC}{name}");
+        let channel = self
+            .writer
+            .add_channel(self.tick_schema, &topic, "json", &meta)
+            .map_err(|source| RecordingError::Mcap {
+                path: self.path.clone(),
+                source,
+            })?;
+        self.controllers.push(ControllerChannel {
+            name: name.to_string(),
+            channel,
+            written: 0,
+            reported: 0,
+            last: None,
+        });
+        Ok(self.controllers.len() - 1)
+    }
+
+    fn write(
+        &mut self,
+        channel: u16,
+        time: u64,
+        message: &impl Serialize,
+    ) -> Result<(), RecordingError> {
+        let bytes = serde_json::to_vec(message).map_err(|e| RecordingError::Format {
+            path: self.path.clone(),
+            message: e.to_string(),
+        })?;
+        let seq = self.sequence.entry(channel).or_insert(0);
+        *seq = seq.wrapping_add(1);
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: *seq,
+            log_time: time,
+            publish_time: time,
+        };
+        self.writer
+            .write_to_known_channel(&header, &bytes)
+            .map_err(|source| RecordingError::Mcap {
+                path: self.path.clone(),
+                source,
+            })?;
+        self.last_time = self.last_time.max(time);
+        self.totals.messages += 1;
+        Ok(())
+    }
+
+    /// Writes tick `record` of controller `index` (from [`add_controller`](Self::add_controller)),
+    /// and a safety event when its state or fault changed or it raised events.
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`]; [`RecordingError::Format`] for an unknown index.
+    pub fn tick(&mut self, index: usize, record: &TickRecord) -> Result<(), RecordingError> {
+        let Some(c) = self.controllers.get(index) else {
+            return Err(RecordingError::Format {
+                path: self.path.clone(),
+                message: format!("no controller {index}"),
+            });
+        };
+        let channel = c.channel;
+        let s = &record.sample;
+        let now = (s.state, s.fault);
+        let changed = c.last != Some(now);
+        let event = (changed || !s.events.is_empty()).then(|| {
+            let events: Vec<&str> = s.events.iter().map(|e| e.as_str()).collect();
+            json!({
+                "time_ns": s.time.as_nanos(),
+                "controller": c.name,
+                "seq": s.seq,
+                "state": s.state.as_str(),
+                "previous_state": c.last.map(|(p, _)| p.as_str()),
+                "fault": s.fault.map(|f| f.to_string()),
+                "events": events,
+            })
+        });
+        let time = s.time.as_nanos();
+        self.write(channel, time, record)?;
+        if let Some(e) = event {
+            self.write(self.safety, time, &e)?;
+        }
+        let c = &mut self.controllers[index];
+        c.last = Some(now);
+        c.written += 1;
+        self.totals.ticks += 1;
+        Ok(())
+    }
+
+    /// Writes a statistics record of channel `channel`'s link (its channel is added the first
+    /// time), at the record's time.
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`].
+    pub fn link(&mut self, channel: &str, record: &LinkRecord) -> Result<(), RecordingError> {
+        let id = match self.links.get(channel) {
+            Some(id) => *id,
+            None => {
+                let meta = BTreeMap::from([("channel".to_string(), channel.to_string())]);
+                let topic = format!("{LINK_TOPIC}{channel}");
+                let id = self
+                    .writer
+                    .add_channel(self.link_schema, &topic, "json", &meta)
+                    .map_err(|source| RecordingError::Mcap {
+                        path: self.path.clone(),
+                        source,
+                    })?;
+                self.links.insert(channel.to_string(), id);
+                id
+            }
+        };
+        self.write(id, record.time_ns, record)
+    }
+
+    /// Ends the chunk being written and writes it out, so that a reader sees every message
+    /// so far.
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`].
+    pub fn flush(&mut self) -> Result<(), RecordingError> {
+        self.writer.flush().map_err(|source| RecordingError::Mcap {
+            path: self.path.clone(),
+            source,
+        })
+    }
+
+    /// Writes to `/recorder` that controller `index`'s stream has lost `count` ticks so far,
+    /// if that is more than it last wrote (so a file whose node died still says what it lost):
+    /// true when it wrote.
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`].
+    pub fn dropped(&mut self, index: usize, count: u64) -> Result<bool, RecordingError> {
+        let Some(c) = self.controllers.get(index) else {
+            return Ok(false);
+        };
+        if count <= c.reported {
+            return Ok(false);
+        }
+        let message = json!({ "controller": c.name, "dropped": count, "written": c.written });
+        self.write(self.recorder, self.last_time, &message)?;
+        self.controllers[index].reported = count;
+        Ok(true)
+    }
+
+    /// Writes what the recorder lost per controller (`dropped`, by index: to `/recorder` and
+    /// to the `recorder` metadata record) and closes the file (its summary and index).
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`].
+    pub fn finish(mut self, dropped: &[u64]) -> Result<McapTotals, RecordingError> {
+        let time = self.last_time;
+        let mut meta = BTreeMap::new();
+        for i in 0..self.controllers.len() {
+            let lost = dropped.get(i).copied().unwrap_or(0);
+            let c = &self.controllers[i];
+            let message = json!({ "controller": c.name, "dropped": lost, "written": c.written });
+            meta.insert(format!("dropped.{}", c.name), lost.to_string());
+            meta.insert(format!("written.{}", c.name), c.written.to_string());
+            self.write(self.recorder, time, &message)?;
+        }
+        let err = |source| RecordingError::Mcap {
+            path: self.path.clone(),
+            source,
+        };
+        self.writer
+            .write_metadata(&mcap::records::Metadata {
+                name: "recorder".into(),
+                metadata: meta,
+            })
+            .map_err(err)?;
+        self.writer.finish().map_err(err)?;
+        Ok(self.totals)
+    }
+}
+
+/// One channel of a recording, as [`summarize`] finds it.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct ChannelSummary {
+    /// The topic.
+    pub topic: String,
+    /// The schema's name (empty for none).
+    pub schema: String,
+    /// The schema's encoding (`jsonschema`, ...).
+    pub schema_encoding: String,
+    /// The messages' encoding (`json`, ...).
+    pub message_encoding: String,
+    /// Messages on it.
+    pub messages: u64,
+}
+
+/// A recording's channels and times.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct McapSummary {
+    /// The file's profile.
+    pub profile: String,
+    /// Its channels, by topic.
+    pub channels: Vec<ChannelSummary>,
+    /// Messages, all channels.
+    pub messages: u64,
+    /// The first message's log time, ns (0 without messages).
+    pub start_ns: u64,
+    /// The last message's log time, ns (0 without messages).
+    pub end_ns: u64,
+    /// Its metadata records, by name.
+    pub metadata: BTreeMap<String, BTreeMap<String, String>>,
+}
+
+impl McapSummary {
+    /// From the first message to the last, ns.
+    pub fn duration_ns(&self) -> u64 {
+        self.end_ns.saturating_sub(self.start_ns)
+    }
+}
+
+/// Reads the channels, message counts and times of the MCAP file at `path`, reading every
+/// message (so that a file cut off before its summary, by a node that died, is read too).
+///
+/// # Errors
+/// [`RecordingError::Io`] when it cannot be read; [`RecordingError::Mcap`] when it is not MCAP.
+pub fn summarize(path: &Path) -> Result<McapSummary, RecordingError> {
+    let bytes = std::fs::read(path).map_err(|source| RecordingError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let err = |source| RecordingError::Mcap {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut profile = String::new();
+    let mut metadata = BTreeMap::new();
+    let mut channels: BTreeMap<u16, ChannelSummary> = BTreeMap::new();
+    let (mut start, mut end, mut messages) = (u64::MAX, 0u64, 0u64);
+    let options = mcap::read::Options::IgnoreEndMagic;
+    let mut reader =
+        mcap::read::LinearReader::new_with_options(&bytes, options.into()).map_err(err)?;
+    for record in &mut reader {
+        match record {
+            Ok(mcap::records::Record::Header(h)) => profile = h.profile,
+            Ok(mcap::records::Record::Metadata(m)) => {
+                metadata.insert(m.name, m.metadata);
+            }
+            Ok(mcap::records::Record::Chunk { .. }) => {}
+            Ok(_) => {}
+            Err(e) => return Err(err(e)),
+        }
+    }
+    // Channels and messages, chunks decompressed.
+    let stream = mcap::MessageStream::new_with_options(&bytes, options.into()).map_err(err)?;
+    for m in stream {
+        let m = m.map_err(err)?;
+        let c = channels
+            .entry(m.channel.id)
+            .or_insert_with(|| ChannelSummary {
+                topic: m.channel.topic.clone(),
+                schema: m
+                    .channel
+                    .schema
+                    .as_ref()
+                    .map_or(String::new(), |s| s.name.clone()),
+                schema_encoding: m
+                    .channel
+                    .schema
+                    .as_ref()
+                    .map_or(String::new(), |s| s.encoding.clone()),
+                message_encoding: m.channel.message_encoding.clone(),
+                messages: 0,
+            });
+        c.messages += 1;
+        messages += 1;
+        start = start.min(m.log_time);
+        end = end.max(m.log_time);
+    }
+    // Channels without messages are listed too (from the summary, when there is one).
+    if let Ok(Some(summary)) = mcap::Summary::read(&bytes) {
+        for (id, c) in summary.channels {
+            channels.entry(id).or_insert_with(|| ChannelSummary {
+                topic: c.topic.clone(),
+                schema: c.schema.as_ref().map_or(String::new(), |s| s.name.clone()),
+                schema_encoding: c
+                    .schema
+                    .as_ref()
+                    .map_or(String::new(), |s| s.encoding.clone()),
+                message_encoding: c.message_encoding.clone(),
+                messages: 0,
+            });
+        }
+    }
+    let mut channels: Vec<ChannelSummary> = channels.into_values().collect();
+    channels.sort_by(|a, b| a.topic.cmp(&b.topic));
+    if messages == 0 {
+        start = 0;
+    }
+    Ok(McapSummary {
+        profile,
+        channels,
+        messages,
+        start_ns: start,
+        end_ns: end,
+        metadata,
+    })
+}
+
+/// Writes run `output` to `path`: both controllers' ticks (what the pump's recorder streams
+/// gave the run, cut to the run's duration as its CSV files are), their safety events, and
+/// what the streams lost. (`penelope demo`'s `run.mcap`.)
+///
+/// # Errors
+/// [`RecordingError`] when the file cannot be written.
+pub fn write_run(path: &Path, output: &super::RunOutput) -> Result<McapTotals, RecordingError> {
+    let mut log = McapLog::create(path, &output.info.system)?;
+    let (master, slave) = &output.info.controllers;
+    let m = log.add_controller(master)?;
+    let s = log.add_controller(slave)?;
+    // In time order, as a reader plays them.
+    let (mut a, mut b) = (
+        output.master.iter().peekable(),
+        output.slave.iter().peekable(),
+    );
+    loop {
+        let next = match (a.peek(), b.peek()) {
+            (Some(x), Some(y)) if x.sample.time <= y.sample.time => a.next().map(|t| (m, t)),
+            (Some(_), Some(_)) | (None, Some(_)) => b.next().map(|t| (s, t)),
+            (Some(_), None) => a.next().map(|t| (m, t)),
+            (None, None) => None,
+        };
+        let Some((index, tick)) = next else { break };
+        log.tick(index, tick)?;
+    }
+    log.finish(&[output.dropped.0, output.dropped.1])
+}
