@@ -19,7 +19,9 @@
 //! only what the *other* side has put in (Ryu, Artigas & Preusche). The master's power is scaled
 //! by `s = sigma / force_gain`, the power gain of the mapping, so that both ports count in the
 //! same units (with a force gain of 0.5 the master feels half the force the slave meets: half
-//! the power at the same speed).
+//! the power at the same speed). The laws allow each port an initial energy of 10 mJ before
+//! its controller acts (the `E0` of the passivity inequality), so that sensor noise at zero
+//! delay does not set it off.
 //!
 //! *NOTE*: the observers run at the communication period on what the channel hands the loops:
 //! the display's dead band, damping and caps only take energy away, but its 30 Hz filter shifts
