@@ -222,8 +222,12 @@ fn replay_of_a_missing_or_foreign_file_exits_with_code_two() {
     let _ = std::fs::remove_dir_all(dir);
 }
 
-/// A child process, killed when the test ends, passed or failed.
-struct Child(std::process::Child);
+/// A child process, killed when the test ends, passed or failed; with its stdout reader, kept
+/// open so that the node never writes into a closed pipe.
+struct Child(
+    std::process::Child,
+    Option<std::io::BufReader<std::process::ChildStdout>>,
+);
 
 impl Drop for Child {
     fn drop(&mut self) {
@@ -231,6 +235,40 @@ impl Drop for Child {
         let _ = self.0.wait();
     }
 }
+
+/// A `--sim-clock` node hosting its naming service on a free loopback port, running the system
+/// file `config` (with `extra` arguments), returned once it says it has applied the file.
+fn sim_node(config: &std::path::Path, extra: &[&str]) -> (std::net::SocketAddr, Child) {
+    let listen = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap();
+    let child = penelope()
+        .args(["node", "--name", "lab", "--host-naming", "--listen"])
+        .arg(listen.to_string())
+        .args(["--sim-clock", "--priority", "0", "--config"])
+        .arg(config)
+        .args(extra)
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut node = Child(child, None);
+    let mut out = std::io::BufReader::new(node.0.stdout.take().unwrap());
+    // The node says so once the file is applied, its controllers recorded and active.
+    let mut line = String::new();
+    while !line.contains("Ctrl-C stops the node") {
+        line.clear();
+        let n = std::io::BufRead::read_line(&mut out, &mut line).unwrap();
+        assert!(n > 0, "the node ended before applying its file");
+    }
+    node.1 = Some(out);
+    (listen, node)
+}
+
+/// The demo's system file.
+const DEMO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../config/demo.toml");
 
 fn ctl(naming: std::net::SocketAddr, args: &[&str]) -> std::process::Output {
     penelope()
@@ -247,38 +285,7 @@ fn a_node_records_every_tick_from_the_first_to_mcap_and_it_reads_back() {
     let dir = scratch("node");
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("lab.mcap");
-    let listen = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap();
-    let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../config/demo.toml");
-    let mut node = Child(
-        penelope()
-            .args(["node", "--name", "lab", "--host-naming", "--listen"])
-            .arg(listen.to_string())
-            .args([
-                "--sim-clock",
-                "--priority",
-                "0",
-                "--config",
-                config,
-                "--record",
-            ])
-            .arg(&file)
-            .stdin(std::process::Stdio::null())
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap(),
-    );
-    // The node says so once the file is applied, its controllers recorded and active.
-    let mut out = std::io::BufReader::new(node.0.stdout.take().unwrap());
-    let mut line = String::new();
-    while !line.contains("Ctrl-C stops the node") {
-        line.clear();
-        let n = std::io::BufRead::read_line(&mut out, &mut line).unwrap();
-        assert!(n > 0, "the node ended before applying its file");
-    }
+    let (listen, mut node) = sim_node(DEMO.as_ref(), &["--record", file.to_str().unwrap()]);
     let o = ctl(listen, &["advance", "lab", "1500ms"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // Readable while the node still writes it (what `penelope bench layout` does).
@@ -346,29 +353,7 @@ fn ctl_record_starts_and_stops_a_recording_and_refuses_bad_input_with_the_reason
     let dir = scratch("ctl");
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("part.mcap");
-    let listen = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap();
-    let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../config/demo.toml");
-    let mut node = Child(
-        penelope()
-            .args(["node", "--name", "lab", "--host-naming", "--listen"])
-            .arg(listen.to_string())
-            .args(["--sim-clock", "--priority", "0", "--config", config])
-            .stdin(std::process::Stdio::null())
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap(),
-    );
-    let mut out = std::io::BufReader::new(node.0.stdout.take().unwrap());
-    let mut line = String::new();
-    while !line.contains("Ctrl-C stops the node") {
-        line.clear();
-        let n = std::io::BufRead::read_line(&mut out, &mut line).unwrap();
-        assert!(n > 0, "the node ended before applying its file");
-    }
+    let (listen, _node) = sim_node(DEMO.as_ref(), &[]);
     let path = file.to_str().unwrap();
     let refused = |args: &[&str], why: &str| {
         let o = ctl(listen, args);
@@ -435,29 +420,7 @@ fn the_system_files_record_key_records_a_node_from_its_first_tick() {
     assert_ne!(text, demo);
     let config = dir.join("system.toml");
     std::fs::write(&config, text).unwrap();
-    let listen = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap();
-    let mut node = Child(
-        penelope()
-            .args(["node", "--name", "lab", "--host-naming", "--listen"])
-            .arg(listen.to_string())
-            .args(["--sim-clock", "--priority", "0", "--config"])
-            .arg(&config)
-            .stdin(std::process::Stdio::null())
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap(),
-    );
-    let mut out = std::io::BufReader::new(node.0.stdout.take().unwrap());
-    let mut line = String::new();
-    while !line.contains("Ctrl-C stops the node") {
-        line.clear();
-        let n = std::io::BufRead::read_line(&mut out, &mut line).unwrap();
-        assert!(n > 0, "the node ended before applying its file");
-    }
+    let (listen, mut node) = sim_node(&config, &[]);
     assert!(ctl(listen, &["advance", "lab", "300ms"]).status.success());
     nix::sys::signal::kill(
         nix::unistd::Pid::from_raw(node.0.id() as i32),
