@@ -4,7 +4,8 @@
 //! the creator exactly as `activate` builds them and stepped here on a simulated clock for
 //! 100,000 control ticks each; then again with the channel's delay line each way (`faults`);
 //! then with the FRHC on its FPGA board (`board/fpga`: the board's bit-exact kinematics and
-//! force transformation in the master's law, its command delay on the plant).
+//! force transformation in the master's law, its command delay on the plant); then with
+//! Lawrence's four-channel halves (both master channels, and the slave's local force feedback).
 //!
 //! The counting allocator counts the allocations of this test's thread (where the loops are
 //! stepped); this binary holds this one test only.
@@ -27,21 +28,38 @@ fn call(c: &Creator, object: &str, method: Method) {
 fn a_hundred_thousand_teleoperation_ticks_allocate_nothing() {
     // The channel as cells, and through its delay line each way (delay, jitter, loss); the
     // FRHC on a simulated board, then on its FPGA board.
-    for (frhc_board, faults) in [
-        ("board/sim", ""),
+    let classic = (
+        "controller/force-display",
+        "",
+        "controller/slave-tracking",
+        "",
+    );
+    for (frhc_board, faults, laws) in [
+        ("board/sim", "", classic),
         (
             "board/sim",
             "\nfaults = { delay_ms = 20.0, jitter_ms = 5.0, loss = 0.01 }",
+            classic,
         ),
-        ("board/fpga", ""),
+        ("board/fpga", "", classic),
+        (
+            "board/sim",
+            "",
+            (
+                "controller/four-channel-master",
+                "c2 = 1.0\nc4 = 0.5",
+                "controller/four-channel-slave",
+                "c5 = 0.5",
+            ),
+        ),
     ] {
-        ticks_allocate_nothing(frhc_board, faults);
+        ticks_allocate_nothing(frhc_board, faults, laws);
     }
 }
 
-/// The task with the FRHC on `frhc_board` and `faults` added to the channel's configuration,
-/// stepped 100,000 ticks.
-fn ticks_allocate_nothing(frhc_board: &str, faults: &str) {
+/// The task with the FRHC on `frhc_board`, `faults` added to the channel's configuration, and
+/// the laws' halves `(master kind, its keys, slave kind, its keys)`, stepped 100,000 ticks.
+fn ticks_allocate_nothing(frhc_board: &str, faults: &str, laws: (&str, &str, &str, &str)) {
     let mut config = CreatorConfig::new("alloc");
     config.rt.priority = None;
     let c = Creator::new(config);
@@ -58,8 +76,8 @@ fn ticks_allocate_nothing(frhc_board: &str, faults: &str) {
             "link",
             &format!("master = \"frhc\"\nslave = \"puma\"{faults}"),
         ),
-        ("controller/force-display", "display", ""),
-        ("controller/slave-tracking", "follow", ""),
+        (laws.0, "display", laws.1),
+        (laws.2, "follow", laws.3),
     ] {
         c.create(kind, name, cfg)
             .unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -121,7 +139,8 @@ fn ticks_allocate_nothing(frhc_board: &str, faults: &str) {
     let allocated = step_teleop_pair(&mut master, &mut slave, 1001..101_001, &mut feed);
     assert_eq!(
         allocated, 0,
-        "the teleoperation loops ({frhc_board}, {faults:?}) allocated or freed {allocated} times"
+        "the teleoperation loops ({frhc_board}, {faults:?}, {laws:?}) allocated or freed \
+         {allocated} times"
     );
     assert_pair_ran(&master, &slave, 101_000, 50_000);
 }

@@ -14,13 +14,13 @@
 //!   gain, through the display's low-pass and dead bands, times `c2`;
 //! - `C_4`, the position channel: a spring-damper toward the slave's mapped pose and twist
 //!   ([`ImpedanceConfig`] stiffness and damping), times `c4`;
-//! - `C_6`, local force feedback: the operator's wrench on the handle (the loop's wrench, base
-//!   frame: a force sensor on the master's handle), times `c6`.
+//! - `C_6`, local force feedback: the operator's wrench on the handle (the loop's sensor on the
+//!   handle, turned into the base frame at the tool: [`contact_in_base`]), times `c6`.
 //!
 //! The sum is capped as one wrench (direction kept) and displayed as `tau = J^T F + g(q)`. On
-//! the slave side, `C_1 = C_s` is the slave halves' stiff tracking of the master's mapped pose
-//! (`slave-tracking`); `C_3` and `C_5` are zero (see the crate's notes: they need the operator's
-//! force measured at the master and sent, which no master has yet).
+//! the slave side ([`FourChannelSlave`](super::FourChannelSlave)), `C_1` is the stiff tracking of
+//! the master's mapped pose, `C_3` the operator's wrench the master sends when its loop reads a
+//! handle sensor, and `C_5` the slave's own contact.
 //!
 //! The special cases, which a test shows equal the classical laws sample for sample:
 //!
@@ -38,13 +38,13 @@
 use nalgebra::Vector6;
 use penelope_hal::{
     ControlInput, Controller, ControllerError, Frame, JacobianFrame, JointCommand, JointState,
-    Reference, RobotModel, Timestamp, Wrench,
+    Pose, Reference, RobotModel, Timestamp, Wrench,
 };
 
 use super::display::{ForceDisplayConfig, display_torques, force_channel, reference_wrench};
 use super::impedance::{ImpedanceConfig, spring};
 use super::passivity::PassivityObserver;
-use super::{TeleopConfigError, cap_wrench, effort};
+use super::{TeleopConfigError, cap_wrench, contact_in_base, effort};
 
 /// Settings of a [`FourChannelMaster`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -61,6 +61,9 @@ pub struct FourChannelConfig {
     /// The position channel's stiffness and damping (its caps, ramp and gravity compensation are
     /// not used: the display's apply to the whole).
     pub spring: ImpedanceConfig,
+    /// Where the handle's force sensor sits in the tool frame (`C_6` on a `Sensor`-frame reading
+    /// needs it; the node sets it from the loop's sensor).
+    pub sensor_mount: Option<Pose>,
 }
 
 impl FourChannelConfig {
@@ -72,6 +75,7 @@ impl FourChannelConfig {
             c6: 0.0,
             display,
             spring: ImpedanceConfig::master(),
+            sensor_mount: None,
         }
     }
 
@@ -90,6 +94,7 @@ impl FourChannelConfig {
                 ..ForceDisplayConfig::default()
             },
             spring,
+            sensor_mount: None,
         }
     }
 
@@ -137,13 +142,23 @@ impl FourChannelMaster {
         &self.config
     }
 
-    /// New settings while running (the filter and the observer keep their state).
+    /// Sets where the handle's force sensor sits in the tool frame (`C_6` on a `Sensor`-frame
+    /// reading).
+    pub fn set_sensor_mount(&mut self, mount: Option<Pose>) {
+        self.config.sensor_mount = mount;
+    }
+
+    /// New settings while running (the filter and the observer keep their state; the sensor
+    /// mount stays, it belongs to the loop's sensor).
     ///
     /// # Errors
     /// As [`FourChannelConfig::validate`]; the old settings stay.
     pub fn set_config(&mut self, config: FourChannelConfig) -> Result<(), TeleopConfigError> {
         config.validate()?;
-        self.config = config;
+        self.config = FourChannelConfig {
+            sensor_mount: self.config.sensor_mount,
+            ..config
+        };
         Ok(())
     }
 
@@ -197,10 +212,10 @@ impl Controller for FourChannelMaster {
             f += spring(&c.spring, 1.0, motion, &model.forward(q), &v)? * c.c4;
         }
         if c.c6 != 0.0 {
-            let hand = match input.wrench {
-                Some(w) if matches!(w.frame, Frame::Base | Frame::Master) => w.to_vector(),
-                _ => return Err(ControllerError::MissingInput),
-            };
+            let hand = input
+                .wrench
+                .and_then(|w| contact_in_base(w, &model.forward(q), c.sensor_mount.as_ref()))
+                .ok_or(ControllerError::MissingInput)?;
             f += hand * c.c6;
         }
         let local = Vector6::from(c.display.damping);

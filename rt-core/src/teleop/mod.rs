@@ -25,9 +25,10 @@
 //! - [`passivity`]: [`PassivityObserver`] (Hannaford & Ryu, one port), and the two-port
 //!   delayed form: [`TwoPortObserver`], [`TwoPortController`]
 //!   (impedance or admittance form), the counters [`PortEnergy`] that travel with the samples.
-//! - [`four_channel`]: Lawrence's four-channel architecture ([`FourChannelMaster`], `C_2`, `C_4`,
-//!   `C_6` and the local impedance), the general form of which force-position and position-error
-//!   are special cases.
+//! - [`four_channel`] and [`four_channel_slave`]: Lawrence's four-channel architecture
+//!   ([`FourChannelMaster`]: `C_2`, `C_4`, `C_6` and the local impedance; [`FourChannelSlave`]:
+//!   `C_1`, `C_3`, `C_5`), the general form of which force-position and position-error are
+//!   special cases.
 //! - [`wave`]: wave variables ([`WaveMaster`], [`WaveSlave`]): passive under any delay, loss,
 //!   duplication and reordering (an energy reserve on each receiving end).
 //!
@@ -47,6 +48,7 @@
 pub mod channel;
 pub mod display;
 pub mod four_channel;
+pub mod four_channel_slave;
 pub mod impedance;
 pub mod mapping;
 pub mod passivity;
@@ -66,6 +68,7 @@ pub use channel::{
 };
 pub use display::{ForceDisplay, ForceDisplayConfig};
 pub use four_channel::{FourChannelConfig, FourChannelMaster};
+pub use four_channel_slave::{FourChannelSlave, FourChannelSlaveConfig};
 pub use impedance::{CartesianImpedance, ImpedanceConfig, PositionErrorMaster};
 pub use mapping::{Anchors, MappingConfig, MappingError, WorkspaceMapping};
 pub use passivity::{
@@ -169,6 +172,26 @@ pub(crate) fn wrench_in_base(w: &Wrench, pose: &Pose) -> Option<Vector6<f64>> {
         Frame::Sensor => return None,
     };
     Some(Vector6::new(f.x, f.y, f.z, m.x, m.y, m.z))
+}
+
+/// The world's wrench on the robot as a base-frame `[f; m]` about the tool origin, for a tool
+/// at `pose`: what a force law adds to its command.
+///
+/// - `Base`/`Master`/`Tool`/`Flange`: a feed or a model, already the world's wrench on the
+///   robot, rotated into the base frame by the tool's orientation;
+/// - `Sensor`: a six-axis sensor mounted at `mount` in the tool frame, which reads the robot
+///   pushing on the world: moved to the tool origin, rotated into the base frame and negated.
+///   `None` without a mount.
+pub fn contact_in_base(w: &Wrench, pose: &Pose, mount: Option<&Pose>) -> Option<Vector6<f64>> {
+    match (w.frame, mount) {
+        (Frame::Sensor, Some(mount)) => {
+            let at_tool = w.expressed_in(&mount.inverse(), Frame::Tool);
+            let f = pose.rotation * at_tool.force;
+            let m = pose.rotation * at_tool.torque;
+            Some(-Vector6::new(f.x, f.y, f.z, m.x, m.y, m.z))
+        }
+        _ => wrench_in_base(w, pose),
+    }
 }
 
 /// Scales the whole wrench `[f; m]` by one factor so that `|f| <= max_force` and

@@ -247,6 +247,8 @@ pub struct TeleopComm {
     wave: Option<WaveEnd>,
     /// The two-port passivity observer (and controller), when the law is a force-position half.
     two_port: Option<TwoPortEnd>,
+    /// A master's end sends the operator's wrench beside its pose ([`Self::with_hand_wrench`]).
+    hand_wrench: bool,
 }
 
 impl TeleopComm {
@@ -285,6 +287,7 @@ impl TeleopComm {
             lost_at: None,
             wave: None,
             two_port: None,
+            hand_wrench: false,
         })
     }
 
@@ -316,6 +319,15 @@ impl TeleopComm {
     /// Reads the master's clutch button from `clutch` (an operator's hand), if any.
     pub fn with_clutch(mut self, clutch: Option<Arc<AtomicBool>>) -> Self {
         self.clutch = clutch;
+        self
+    }
+
+    /// Makes the master's end send the operator's wrench on the handle (its loop's sensor,
+    /// turned into the base frame at the tool) beside its pose, as a `Reference::Hybrid`: what
+    /// a four-channel slave's `C_3` adds. Without a handle sensor the master sends its pose
+    /// alone.
+    pub fn with_hand_wrench(mut self, send: bool) -> Self {
+        self.hand_wrench = send && self.end.side == Side::Master;
         self
     }
 
@@ -471,13 +483,22 @@ impl TeleopComm {
                     .as_ref()
                     .is_some_and(|c| c.load(Ordering::Relaxed));
                 self.channel.track_master(now, &pose, clutch);
-                (
-                    clutch,
-                    Reference::Cartesian(CartesianReference {
-                        pose,
-                        twist: Twist::default(),
-                    }),
-                )
+                let motion = CartesianReference {
+                    pose,
+                    twist: Twist::default(),
+                };
+                let reference = if self.hand_wrench {
+                    Reference::Hybrid(HybridReference {
+                        motion,
+                        wrench: self.contact(&sample, &pose),
+                        // Information for the slave's C3, not a force-control request: every
+                        // axis stays motion-controlled for a hybrid-aware slave.
+                        force_axes: [false; 6],
+                    })
+                } else {
+                    Reference::Cartesian(motion)
+                };
+                (clutch, reference)
             }
             Side::Slave => (
                 false,
@@ -677,6 +698,7 @@ pub struct HandObj {
 }
 
 pub use super::teleop_laws::{
-    FORCE_DISPLAY_KEYS, FOUR_CHANNEL_KEYS, ForceDisplayToml, FourChannelToml, POSITION_ERROR_KEYS,
-    PositionErrorToml, SLAVE_TRACKING_KEYS, SlaveTrackingToml,
+    FORCE_DISPLAY_KEYS, FOUR_CHANNEL_KEYS, FOUR_CHANNEL_SLAVE_KEYS, ForceDisplayToml,
+    FourChannelSlaveToml, FourChannelToml, POSITION_ERROR_KEYS, PositionErrorToml,
+    SLAVE_TRACKING_KEYS, SlaveTrackingToml,
 };

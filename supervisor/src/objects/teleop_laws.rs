@@ -4,9 +4,9 @@
 //! position-error).
 
 use penelope_rt_core::teleop::{
-    ForceDisplay, ForceDisplayConfig, FourChannelConfig, FourChannelMaster, ImpedanceConfig,
-    PassivityForm, PositionErrorMaster, SlaveTracking, TrackingConfig, TrackingOutput,
-    TwoPortConfig,
+    ForceDisplay, ForceDisplayConfig, FourChannelConfig, FourChannelMaster, FourChannelSlave,
+    FourChannelSlaveConfig, ImpedanceConfig, PassivityForm, PositionErrorMaster, SlaveTracking,
+    TrackingConfig, TrackingOutput, TwoPortConfig,
 };
 
 use super::teleop_passivity::PortLaw;
@@ -44,6 +44,18 @@ crate::objects::kinds::loop_keys!(FourChannelToml {
     torque_deadband: f64 = ForceDisplayConfig::default().torque_deadband, #[doc = "The force channel's moment dead band, N·m."]
     filter_cutoff_hz: f64 = ForceDisplayConfig::default().filter_cutoff_hz, #[doc = "The force channel's low-pass, Hz (0: none)."]
     gravity_compensation: bool = true, #[doc = "Add g(q)."]
+});
+
+crate::objects::kinds::loop_keys!(FourChannelSlaveToml {
+    c1: f64 = 1.0, #[doc = "C1: weight of the position channel (the tracking's feedback gains)."]
+    c3: f64 = 0.0, #[doc = "C3: weight of the operator's wrench the master sends."]
+    c5: f64 = 0.0, #[doc = "C5: weight of the slave's own sensed contact wrench (above -1)."]
+    kp: [f64; 6] = TrackingConfig::default().kp, #[doc = "Position gain per joint, 1/s²."]
+    kd: [f64; 6] = TrackingConfig::default().kd, #[doc = "Velocity gain per joint, 1/s."]
+    ki: [f64; 6] = TrackingConfig::default().ki, #[doc = "Integral gain per joint, 1/s³."]
+    max_force: f64 = FourChannelSlaveConfig::default().max_force, #[doc = "Cap on the force channels' force, N."]
+    max_torque: f64 = FourChannelSlaveConfig::default().max_torque, #[doc = "Cap on the force channels' moment, N·m."]
+    passivity: String = "off".into(), #[doc = "The channel's two-port passivity controller at the slave port: `off` or `admittance`."]
 });
 
 crate::objects::kinds::loop_keys!(SlaveTrackingToml {
@@ -87,7 +99,7 @@ pub const FOUR_CHANNEL_KEYS: &str = r#"
 # Lawrence's four channels, master side: F = c2 F_slave + c4 spring(slave pose) + c6 F_hand
 #   - C_m v, capped, tau = J^T F + g. c2 = 1, c4 = 0 is force-display (the same torques, bit for
 #   bit, with the same keys); c2 = 0, c4 = 1, damping 0 is position-error-master. The slave half
-#   is slave-tracking (C1 = C_s; C3 = C5 = 0)
+#   is slave-tracking or four-channel-slave (C1, C3, C5)
 c2 = 1.0                  # the force channel: the slave's sensed wrench x the channel's force gain
 c4 = 0.0                  # the position channel: the spring-damper to the slave's mapped pose
 c6 = 0.0                  # the operator's wrench on the handle, fed back (needs a handle sensor:
@@ -102,6 +114,26 @@ torque_deadband = 0.01    # N·m
 filter_cutoff_hz = 30.0   # the force channel's low-pass (0: none)
 gravity_compensation = true
 # trajectory: a trajectory/teleop whose master is this robot; plus the loop keys:
+"#;
+
+/// What `ctl kinds` lists for `controller/four-channel-slave`.
+pub const FOUR_CHANNEL_SLAVE_KEYS: &str = r#"
+# Lawrence's four channels, slave side: tau = tracking(master pose; gains x c1)
+#   + J^T (c3 F_hand + c5 F_contact), both wrenches the world's on the robot, at the tool, base
+#   frame. c1 = 1, c3 = c5 = 0 is slave-tracking (the same torques, bit for bit, with the same
+#   gains). Pushing a wall with c1 = 0 the wall gets c3 / (1 + c5) of the operator's push
+c1 = 1.0                  # the position channel: the tracking's feedback gains x c1
+c3 = 0.0                  # the operator's wrench on the handle, sent by the master when its loop
+                          # reads a handle sensor (a `sensor` on the master's controller), divided
+                          # by the channel's force gain; without it the loop faults (it holds)
+c5 = 0.0                  # the slave's own contact (its `sensor`), fed back locally; above -1
+kp = [6400.0, 6400.0, 6400.0, 6400.0, 6400.0, 6400.0]  # 1/s², as slave-tracking
+kd = [160.0, 160.0, 160.0, 160.0, 160.0, 160.0]        # 1/s
+ki = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]                    # 1/s³
+max_force = 60.0          # N, cap on c3 F_hand + c5 F_contact
+max_torque = 5.0          # N·m
+passivity = "off"         # "admittance": as slave-tracking's
+# trajectory: a trajectory/teleop whose slave is this robot; plus the loop keys:
 "#;
 
 /// What `ctl kinds` lists for `controller/slave-tracking` and `controller/slave-position`.
@@ -195,8 +227,47 @@ impl FourChannelToml {
                 damping: self.spring_damping,
                 ..ImpedanceConfig::master()
             },
+            sensor_mount: None,
         })
         .map_err(|e| bad_law(kind, e))
+    }
+}
+
+impl FourChannelSlaveToml {
+    /// The law, checked (its sensor mount is set when a loop runs it).
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<FourChannelSlave, WireError> {
+        self.port_law(kind)?;
+        FourChannelSlave::new(FourChannelSlaveConfig {
+            c1: self.c1,
+            c3: self.c3,
+            c5: self.c5,
+            tracking: TrackingConfig {
+                kp: self.kp,
+                kd: self.kd,
+                ki: self.ki,
+                ..TrackingConfig::default()
+            },
+            max_force: self.max_force,
+            max_torque: self.max_torque,
+            sensor_mount: None,
+        })
+        .map_err(|e| bad_law(kind, e))
+    }
+
+    /// What the channel's slave end runs for this half, as for slave-tracking.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] for another word.
+    pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
+        two_port(
+            kind,
+            &self.passivity,
+            PassivityForm::Admittance,
+            "admittance",
+        )
     }
 }
 

@@ -28,14 +28,14 @@ use trajectory::{RAMP_KEYS, SPLINE_KEYS, STEP_KEYS, TRAPEZOIDAL_KEYS};
 use penelope_rt_core::safety::Role;
 
 use super::teleop::{
-    FORCE_DISPLAY_KEYS, FOUR_CHANNEL_KEYS, HAND_KEYS, POSITION_ERROR_KEYS, SLAVE_TRACKING_KEYS,
-    TELEOP_KEYS,
+    FORCE_DISPLAY_KEYS, FOUR_CHANNEL_KEYS, FOUR_CHANNEL_SLAVE_KEYS, HAND_KEYS, POSITION_ERROR_KEYS,
+    SLAVE_TRACKING_KEYS, TELEOP_KEYS,
 };
 use super::teleop_wave::{WAVE_MASTER_KEYS, WAVE_SLAVE_KEYS};
 use crate::proto::{Class, KindInfo, WireError};
 
 /// Every kind this creator makes, in listing order.
-pub const KINDS: [&str; 25] = [
+pub const KINDS: [&str; 26] = [
     "robot/puma560",
     "robot/puma200",
     "robot/frhc",
@@ -52,6 +52,7 @@ pub const KINDS: [&str; 25] = [
     "controller/force-display",
     "controller/position-error-master",
     "controller/four-channel-master",
+    "controller/four-channel-slave",
     "controller/slave-tracking",
     "controller/slave-position",
     "controller/wave-master",
@@ -93,6 +94,8 @@ pub enum Kind {
     PositionErrorMaster,
     /// `controller/four-channel-master`: the master half of Lawrence's four channels.
     FourChannelMaster,
+    /// `controller/four-channel-slave`: the slave half of Lawrence's four channels.
+    FourChannelSlave,
     /// `controller/slave-tracking`: the slave half (computed torque to the mapped master pose).
     SlaveTracking,
     /// `controller/slave-position`: the slave half for a board with its own servo.
@@ -133,6 +136,7 @@ impl Kind {
             "controller/force-display" => Kind::ForceDisplay,
             "controller/position-error-master" => Kind::PositionErrorMaster,
             "controller/four-channel-master" => Kind::FourChannelMaster,
+            "controller/four-channel-slave" => Kind::FourChannelSlave,
             "controller/slave-tracking" => Kind::SlaveTracking,
             "controller/slave-position" => Kind::SlavePosition,
             "controller/wave-master" => Kind::WaveMaster,
@@ -165,6 +169,7 @@ impl Kind {
             Kind::ForceDisplay => "controller/force-display",
             Kind::PositionErrorMaster => "controller/position-error-master",
             Kind::FourChannelMaster => "controller/four-channel-master",
+            Kind::FourChannelSlave => "controller/four-channel-slave",
             Kind::SlaveTracking => "controller/slave-tracking",
             Kind::SlavePosition => "controller/slave-position",
             Kind::WaveMaster => "controller/wave-master",
@@ -190,6 +195,7 @@ impl Kind {
             | Kind::ForceDisplay
             | Kind::PositionErrorMaster
             | Kind::FourChannelMaster
+            | Kind::FourChannelSlave
             | Kind::SlaveTracking
             | Kind::SlavePosition
             | Kind::WaveMaster
@@ -252,6 +258,11 @@ impl Kind {
                 "teleoperation master, Lawrence's four channels: force channel (C2), position \
                  channel (C4), hand force (C6), local damping; the classical masters as cases",
                 FOUR_CHANNEL_KEYS.to_string() + LOOP_KEYS,
+            ),
+            Kind::FourChannelSlave => (
+                "teleoperation slave, Lawrence's four channels: position channel (C1, the \
+                 tracking), the operator's force (C3), local force feedback (C5)",
+                FOUR_CHANNEL_SLAVE_KEYS.to_string() + LOOP_KEYS,
             ),
             Kind::SlaveTracking => (
                 "teleoperation slave: follows the mapped master pose (IK, computed torque)",
@@ -719,7 +730,7 @@ mod tests {
         let kinds = all_kinds();
         // Every listed name parses (a name that does not would be dropped from the list).
         assert_eq!(kinds.len(), KINDS.len());
-        assert_eq!(kinds.len(), 25);
+        assert_eq!(kinds.len(), 26);
         for k in &kinds {
             let parsed = Kind::parse(&k.kind).unwrap();
             assert_eq!(parsed.as_str(), k.kind);

@@ -168,8 +168,9 @@ impl Registry {
                         return Err(bad_arg(format!(
                             "`{traj_name}` is a teleoperation channel: it is followed by the \
                              halves of the teleoperation laws (force-display, \
-                             position-error-master, slave-tracking, slave-position, wave-master, \
-                             wave-slave), not by {kind}"
+                             position-error-master, four-channel-master, slave-tracking, \
+                             slave-position, four-channel-slave, wave-master, wave-slave), not by \
+                             {kind}"
                         )));
                     }
                     (_, Some(_)) => {
@@ -182,6 +183,10 @@ impl Registry {
                 (source, node_law(&law, kind, &model, hold)?)
             }
         };
+
+        // A law that adds the sensed wrench turns the sensor's reading into the tool's.
+        let mut controller = controller;
+        controller.set_sensor_mount(plant_sensor.map(|c| c.mount));
 
         // Safety by role (a master: display caps, zero force on a stale reference, amplifiers
         // off on a fault; a slave holds its pose), and axis bindings.
@@ -350,6 +355,7 @@ impl Registry {
                         .with_port_law(port_law, &mapping)?
                         .with_clutch(clutch)
                         .with_sensor_mount(plant_sensor.map(|c| c.mount))
+                        .with_hand_wrench(side == Side::Master && sensor_name.is_some())
                         .with_link_timeout(link_timeout),
                     ref_w,
                     comm_r,
@@ -568,6 +574,7 @@ pub(super) fn node_law(
         ControllerConfig::PositionError(c) => NodeController::PositionErrorMaster(c.law(kind)?),
         ControllerConfig::FourChannel(c) => NodeController::FourChannel(c.law(kind)?),
         ControllerConfig::Tracking(c, servo) => NodeController::SlaveTracking(c.law(kind, *servo)?),
+        ControllerConfig::FourChannelSlave(c) => NodeController::FourChannelSlave(c.law(kind)?),
         ControllerConfig::WaveMaster(c) => NodeController::ForceDisplay(c.law(kind)?),
         ControllerConfig::WaveSlave(c) => NodeController::SlaveTracking(c.law(kind)?),
         ControllerConfig::Groups(_) => {

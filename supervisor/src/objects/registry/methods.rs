@@ -755,6 +755,14 @@ fn gains_from(
                 Some(GainsUpdate::FourChannel(*law.config())),
             )
         }
+        ControllerConfig::FourChannelSlave(_) => {
+            let cfg: FourChannelSlaveToml = kinds::parse(kind, text)?;
+            let law = cfg.law(kind)?;
+            (
+                ControllerConfig::FourChannelSlave(cfg),
+                Some(GainsUpdate::FourChannelSlave(*law.config())),
+            )
+        }
         ControllerConfig::Tracking(_, servo) => {
             let cfg: SlaveTrackingToml = kinds::parse(kind, text)?;
             let law = cfg.law(kind, *servo)?;

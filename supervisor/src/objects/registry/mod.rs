@@ -44,8 +44,8 @@ use super::kinds::{
 };
 use super::kinematics::RobotKinematics;
 use super::teleop::{
-    ForceDisplayToml, FourChannelToml, HandConfig, HandObj, PositionErrorToml, Side,
-    SlaveTrackingToml, TeleopComm, TeleopConfig, TeleopLink,
+    ForceDisplayToml, FourChannelSlaveToml, FourChannelToml, HandConfig, HandObj,
+    PositionErrorToml, Side, SlaveTrackingToml, TeleopComm, TeleopConfig, TeleopLink,
 };
 use super::teleop_wave::{WaveMasterToml, WaveSlaveToml};
 use crate::dataplane::endpoint::Endpoint;
@@ -155,6 +155,8 @@ pub(crate) enum ControllerConfig {
     FourChannel(FourChannelToml),
     /// The slave half: torques, or position targets for the board's servo (`true`).
     Tracking(SlaveTrackingToml, bool),
+    /// The slave half of Lawrence's four channels.
+    FourChannelSlave(FourChannelSlaveToml),
     /// The master half of the wave-variable law.
     WaveMaster(WaveMasterToml),
     /// The slave half of the wave-variable law.
@@ -169,7 +171,9 @@ impl ControllerConfig {
             | ControllerConfig::PositionError(_)
             | ControllerConfig::FourChannel(_)
             | ControllerConfig::WaveMaster(_) => Some(Side::Master),
-            ControllerConfig::Tracking(..) | ControllerConfig::WaveSlave(_) => Some(Side::Slave),
+            ControllerConfig::Tracking(..)
+            | ControllerConfig::FourChannelSlave(_)
+            | ControllerConfig::WaveSlave(_) => Some(Side::Slave),
             _ => None,
         }
     }
@@ -185,6 +189,7 @@ impl ControllerConfig {
             ControllerConfig::WaveSlave(c) => c.wave(kind).map(PortLaw::Wave),
             ControllerConfig::ForceDisplay(c) => c.port_law(kind),
             ControllerConfig::Tracking(c, _) => c.port_law(kind),
+            ControllerConfig::FourChannelSlave(c) => c.port_law(kind),
             _ => Ok(PortLaw::Plain),
         }
     }
@@ -410,6 +415,12 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
             cfg.law(k)?;
             let timing = cfg.timing(k)?;
             controller_body(ControllerConfig::FourChannel(cfg), timing, config)
+        }
+        Kind::FourChannelSlave => {
+            let cfg: FourChannelSlaveToml = kinds::parse(k, config)?;
+            cfg.law(k)?;
+            let timing = cfg.timing(k)?;
+            controller_body(ControllerConfig::FourChannelSlave(cfg), timing, config)
         }
         Kind::SlaveTracking | Kind::SlavePosition => {
             let cfg: SlaveTrackingToml = kinds::parse(k, config)?;

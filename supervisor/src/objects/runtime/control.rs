@@ -21,6 +21,8 @@ pub enum NodeController {
     FourChannel(FourChannelMaster),
     /// `controller/slave-tracking` and `controller/slave-position`.
     SlaveTracking(SlaveTracking),
+    /// `controller/four-channel-slave`.
+    FourChannelSlave(FourChannelSlave),
     /// `controller/joint-groups`: members on joint subsets, in one loop.
     Groups(Box<JointGroups<NodeController>>),
 }
@@ -29,6 +31,16 @@ impl NodeController {
     /// True when the law follows Cartesian references.
     pub fn is_cartesian(&self) -> bool {
         matches!(self, NodeController::Impedance(_))
+    }
+
+    /// Tells a law that adds a sensed wrench where the loop's force sensor sits in the tool
+    /// frame (the four-channel halves; the others read no mount).
+    pub fn set_sensor_mount(&mut self, mount: Option<Pose>) {
+        match self {
+            NodeController::FourChannel(c) => c.set_sensor_mount(mount),
+            NodeController::FourChannelSlave(c) => c.set_sensor_mount(mount),
+            _ => {}
+        }
     }
 
     /// The law's inner controller.
@@ -41,6 +53,7 @@ impl NodeController {
             NodeController::PositionErrorMaster(c) => c,
             NodeController::FourChannel(c) => c,
             NodeController::SlaveTracking(c) => c,
+            NodeController::FourChannelSlave(c) => c,
             NodeController::Groups(c) => &mut **c,
         }
     }
@@ -75,6 +88,9 @@ impl NodeController {
             (NodeController::SlaveTracking(c), GainsUpdate::Tracking(g)) => {
                 let _ = c.set_config(*g);
             }
+            (NodeController::FourChannelSlave(c), GainsUpdate::FourChannelSlave(g)) => {
+                let _ = c.set_config(*g);
+            }
             _ => {}
         }
     }
@@ -90,6 +106,7 @@ impl Controller for NodeController {
             NodeController::PositionErrorMaster(c) => c.kind(),
             NodeController::FourChannel(c) => c.kind(),
             NodeController::SlaveTracking(c) => c.kind(),
+            NodeController::FourChannelSlave(c) => c.kind(),
             NodeController::Groups(c) => c.kind(),
         }
     }
@@ -108,6 +125,7 @@ impl Controller for NodeController {
             NodeController::PositionErrorMaster(c) => c.port_energy(),
             NodeController::FourChannel(c) => c.port_energy(),
             NodeController::SlaveTracking(c) => c.port_energy(),
+            NodeController::FourChannelSlave(c) => c.port_energy(),
             NodeController::Groups(c) => c.port_energy(),
         }
     }
@@ -128,6 +146,8 @@ pub enum GainsUpdate {
     FourChannel(FourChannelConfig),
     /// Slave-tracking settings.
     Tracking(TrackingConfig),
+    /// Four-channel slave settings.
+    FourChannelSlave(FourChannelSlaveConfig),
 }
 
 /// Gains on their way to a running loop: for the loop's own law, or for member `member` of a

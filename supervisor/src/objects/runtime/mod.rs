@@ -46,7 +46,8 @@ use penelope_rt_core::ring::{ArcConsumer, ArcProducer};
 use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
 use penelope_rt_core::teleop::{
     CartesianImpedance, ForceDisplay, ForceDisplayConfig, FourChannelConfig, FourChannelMaster,
-    ImpedanceConfig, PositionErrorMaster, SlaveTracking, TrackingConfig,
+    FourChannelSlave, FourChannelSlaveConfig, ImpedanceConfig, PositionErrorMaster, SlaveTracking,
+    TrackingConfig,
 };
 use penelope_rt_core::trajectory::{
     CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
