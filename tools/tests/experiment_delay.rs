@@ -66,6 +66,16 @@ fn without_delay_every_law_is_stable_and_with_delay_force_position_is_not_and_wa
             r["one_way_ms"].as_f64(),
             r["delay_ms"].as_f64().map(|d| d / 2.0)
         );
+        // Every law's channel is observed on both sides (the live stability monitor): the
+        // two-port observers, or the wave line's reserve, which cannot go below zero.
+        for side in ["master_channel_min_j", "slave_channel_min_j"] {
+            let e = r[side]
+                .as_f64()
+                .unwrap_or_else(|| panic!("{} has no {side}: {r:#}", r["law"]));
+            if r["law"] == "wave" {
+                assert!(e >= 0.0, "the wave line's reserve at {side}: {e} J");
+            }
+        }
     }
     // Zero delay: the demo's bounds (supervisor/tests/demo.rs): free-motion tracking under 2 mm
     // RMS and 5 mm at most, and stable by every criterion.

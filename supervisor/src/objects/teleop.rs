@@ -312,6 +312,9 @@ impl TeleopComm {
             PortLaw::TwoPort(config) => {
                 self.two_port = Some(TwoPortEnd::new(self.end.side, config, mapping)?);
             }
+            PortLaw::Observer => {
+                self.two_port = Some(TwoPortEnd::observer(self.end.side, mapping)?);
+            }
         }
         Ok(self)
     }
@@ -444,6 +447,7 @@ impl TeleopComm {
             },
             ..TeleopSample::new(self.sequence, now, own)
         });
+        out.set_channel_energy(wave.channel_energy());
         if reference.is_finite() {
             out.write(Stamped {
                 stamp: now,

@@ -30,7 +30,7 @@
 //! less deep than the master asks, never deeper.
 
 use nalgebra::{Translation3, UnitQuaternion, Vector6};
-use penelope_hal::{JacobianFrame, Kinematics, Pose, Reference, Timestamp, Wrench};
+use penelope_hal::{Dynamics, JacobianFrame, Pose, Reference, Timestamp, Wrench};
 use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_rt_core::teleop::{
     MappingConfig, PassivityForm, PortEnergy, TwoPortConfig, TwoPortController, pose_error,
@@ -42,11 +42,15 @@ use crate::proto::WireError;
 /// What a law's half runs in its channel end, besides the channel's mapping.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum PortLaw {
-    /// Nothing more (position-error: its master's force is made by its control law, so the
-    /// channel has no force of its own to observe).
+    /// Nothing more.
     Plain,
     /// Force-position: the two-port observer, with its controller when the form is not off.
     TwoPort(TwoPortConfig),
+    /// A master half whose force its own control law makes (position-error, four-channel):
+    /// the two-port observer alone, with the master port's power read from what the motors
+    /// do beyond gravity (`(tau - g(q))·qd`), since the channel hands the loop no force of its
+    /// own. Its counters let the slave's half observe, and control in admittance form.
+    Observer,
     /// The wave-variable transform.
     Wave(penelope_rt_core::teleop::WaveConfig),
 }
@@ -64,8 +68,10 @@ pub struct TwoPortEnd {
     /// The slave's reference pose handed to the loop last tick.
     previous: Option<Pose>,
     /// Whether the other side's counters have been heard: until then the other half runs
-    /// no observer (a position-error master), so this side only passes the reference on.
+    /// no observer, so this side only passes the reference on.
     heard: bool,
+    /// A master port's power from the loop's joint efforts rather than the displayed wrench.
+    power_from_effort: bool,
 }
 
 impl TwoPortEnd {
@@ -113,7 +119,23 @@ impl TwoPortEnd {
             offset: Vector6::zeros(),
             previous: None,
             heard: false,
+            power_from_effort: false,
         })
+    }
+
+    /// The observer alone, for a master whose own law makes its force ([`PortLaw::Observer`]):
+    /// its port's power comes from the loop's joint efforts.
+    ///
+    /// # Errors
+    /// As [`TwoPortEnd::new`].
+    pub fn observer(side: Side, mapping: &MappingConfig) -> Result<Self, WireError> {
+        let config = TwoPortConfig {
+            form: PassivityForm::Off,
+            ..TwoPortConfig::default()
+        };
+        let mut end = TwoPortEnd::new(side, config, mapping)?;
+        end.power_from_effort = side == Side::Master;
+        Ok(end)
     }
 
     /// Takes the other side's counters, if its sample carried them.
@@ -169,7 +191,7 @@ impl TwoPortEnd {
         &mut self,
         now: Timestamp,
         reference: Reference,
-        model: &impl Kinematics,
+        model: &impl Dynamics,
         sample: &TelemetrySample,
         contact: &Wrench,
     ) -> Reference {
@@ -178,6 +200,15 @@ impl TwoPortEnd {
             return reference;
         }
         match self.side {
+            Side::Master if self.power_from_effort => {
+                // What the motors do beyond holding the arm up goes to the operator; the
+                // operator puts its opposite into the two-port.
+                let out = (sample.effort - model.gravity(&sample.q)).dot(&sample.qd);
+                if dt > 0.0 && out.is_finite() {
+                    self.controller.commit(dt, -out * self.scale, 0.0, 0.0);
+                }
+                reference
+            }
             Side::Master => {
                 let v = model.jacobian(&sample.q, JacobianFrame::Base) * sample.qd;
                 self.master(dt, reference, &v)
@@ -256,7 +287,7 @@ fn shifted(pose: &Pose, offset: &Vector6<f64>) -> Pose {
 mod tests {
     use super::*;
     use nalgebra::Vector3;
-    use penelope_hal::{CartesianReference, Frame, Twist};
+    use penelope_hal::{CartesianReference, Frame, Kinematics, Twist};
 
     fn at(ms: u64) -> Timestamp {
         Timestamp::from_nanos(ms * 1_000_000)

@@ -169,6 +169,18 @@ impl WaveEnd {
         )
     }
 
+    /// The line's energy at this side, J: the wave energy the other side has sent that this
+    /// side has not yet released (its receiver's reserve, summed over the axes). Never below
+    /// zero: the reserve is how the wave law stays passive; the two-port observers' counterpart
+    /// for `channel_energy`.
+    pub fn channel_energy(&self) -> f64 {
+        let receiver = match &self.law {
+            WaveLaw::Master(m) => m.receiver(),
+            WaveLaw::Slave(s) => s.receiver(),
+        };
+        (receiver.heard_energy() - receiver.used_energy()).sum()
+    }
+
     /// The energy the side's environment (operator or contact) has put into the line, J: the
     /// master's port, or the slave's port (energy into the slave's environment counts
     /// negative).

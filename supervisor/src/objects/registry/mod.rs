@@ -189,6 +189,9 @@ impl ControllerConfig {
             ControllerConfig::WaveSlave(c) => c.wave(kind).map(PortLaw::Wave),
             ControllerConfig::ForceDisplay(c) => c.port_law(kind),
             ControllerConfig::Tracking(c, _) => c.port_law(kind),
+            ControllerConfig::PositionError(_) | ControllerConfig::FourChannel(_) => {
+                Ok(PortLaw::Observer)
+            }
             ControllerConfig::FourChannelSlave(c) => c.port_law(kind),
             _ => Ok(PortLaw::Plain),
         }
