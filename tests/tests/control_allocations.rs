@@ -379,7 +379,9 @@ fn wave_halves_and_two_port_passivity_allocate_nothing() {
             {
                 slave.receive(k / 2, &s); // duplicates and stale sequence numbers
             }
-            let back = slave.step(dt, &Vector3::new(0.0, 0.0, 1.0));
+            // A master position for the drift correction (any finite point will do here).
+            let master_at = v * t;
+            let back = slave.step(dt, &Vector3::new(0.0, 0.0, 1.0), Some(&master_at));
             to_master = Some(back.sample);
             let f = Vector6::new(-out.display.x, 0.0, 0.0, 0.0, 0.0, 0.0);
             let vel = Vector6::new(v.x, 0.0, 0.0, 0.0, 0.0, 0.0);

@@ -408,6 +408,9 @@ impl TeleopComm {
         if let Some(received) = self.end.take_newest(now) {
             if let (Some(w), Some(wave)) = (received.port.wave, self.wave.as_mut()) {
                 wave.receive(received.sequence, &w);
+                if let Reference::Cartesian(m) = &received.reference {
+                    wave.hear_master(&m.pose.translation.vector);
+                }
             }
             self.received_at = Some(now);
         }
@@ -426,7 +429,10 @@ impl TeleopComm {
         let (reference, sent, clutch, own) = match self.end.side {
             Side::Master => {
                 let (r, w) = wave.master_tick(now, &self.model, sample, clutch);
-                (r, w, clutch, Reference::Cartesian(at(pose)))
+                let mut sent = *pose;
+                sent.translation.vector =
+                    wave.indexed_master_position(&pose.translation.vector, clutch);
+                (r, w, clutch, Reference::Cartesian(at(&sent)))
             }
             Side::Slave => {
                 let (r, w) = wave.slave_tick(now, pose, &contact);

@@ -56,6 +56,15 @@ pub struct WaveEnd {
     scale: f64,
     /// The slave's tool pose when the law started: its displacement is added to it.
     origin: Option<Pose>,
+    /// The first master position heard, and the newest one's displacement from it (master
+    /// frame): what the slave's drift correction follows.
+    master_origin: Option<Vector3<f64>>,
+    master_displacement: Option<Vector3<f64>>,
+    /// The master's position when its clutch was pressed, while it is held.
+    clutched_at: Option<Vector3<f64>>,
+    /// The master's motion while its clutch was held, summed: taken off the position it sends,
+    /// as the wave (zero velocity while clutched) takes it off the slave's motion.
+    clutch_offset: Vector3<f64>,
     last_tick: Option<Timestamp>,
 }
 
@@ -84,8 +93,43 @@ impl WaveEnd {
             rotation: mapping.rotation,
             scale: mapping.scale,
             origin: None,
+            master_origin: None,
+            master_displacement: None,
+            clutched_at: None,
+            clutch_offset: Vector3::zeros(),
             last_tick: None,
         })
+    }
+
+    /// The master's tool `position` as it sends it beside its wave (the master's end): less the
+    /// motion made while the `clutch` was held, so that it matches what the waves carried and
+    /// the slave's drift correction does not undo the re-indexing.
+    pub fn indexed_master_position(
+        &mut self,
+        position: &Vector3<f64>,
+        clutch: bool,
+    ) -> Vector3<f64> {
+        match (clutch, self.clutched_at) {
+            (true, None) => {
+                self.clutched_at = Some(*position);
+                position - self.clutch_offset
+            }
+            (true, Some(at)) => at - self.clutch_offset,
+            (false, Some(at)) => {
+                self.clutch_offset += position - at;
+                self.clutched_at = None;
+                position - self.clutch_offset
+            }
+            (false, None) => position - self.clutch_offset,
+        }
+    }
+
+    /// Takes the master's tool position that came with its newest wave (the slave's end).
+    pub fn hear_master(&mut self, position: &Vector3<f64>) {
+        if position.iter().all(|x| x.is_finite()) {
+            let origin = *self.master_origin.get_or_insert(*position);
+            self.master_displacement = Some(position - origin);
+        }
     }
 
     /// Takes the other side's wave with its sender's `sequence`.
@@ -160,7 +204,7 @@ impl WaveEnd {
         let WaveLaw::Slave(s) = &mut self.law else {
             return (cartesian(origin, Vector3::zeros()), WaveSample::default());
         };
-        let out = s.step(dt, &force);
+        let out = s.step(dt, &force, self.master_displacement.as_ref());
         let mut target = origin;
         target.translation.vector += self.rotation * out.displacement * self.scale;
         (
@@ -226,8 +270,6 @@ fn bad(kind: &str, e: impl std::fmt::Debug) -> WireError {
 crate::objects::kinds::loop_keys!(WaveMasterToml {
     impedance: f64 = WaveConfig::default().impedance, #[doc = "Wave impedance b, N·s/m."]
     missing: String = "hold".into(), #[doc = "On a missing wave: `hold` (within the reserve) or `zero`."]
-    drift_gain: f64 = WaveConfig::default().drift_gain, #[doc = "Wave-integral feedback, 1/s."]
-    max_drift_correction: f64 = WaveConfig::default().max_drift_correction, #[doc = "Its bound, sqrt(W)."]
     max_force: f64 = ForceDisplayConfig::default().max_force, #[doc = "Largest displayed force, N."]
     angular_damping: [f64; 3] = [0.02; 3], #[doc = "Damping of the master's wrist, N·m·s/rad."]
     gravity_compensation: bool = true, #[doc = "Add g(q)."]
@@ -236,8 +278,8 @@ crate::objects::kinds::loop_keys!(WaveMasterToml {
 crate::objects::kinds::loop_keys!(WaveSlaveToml {
     impedance: f64 = WaveConfig::default().impedance, #[doc = "Wave impedance b, N·s/m."]
     missing: String = "hold".into(), #[doc = "On a missing wave: `hold` (within the reserve) or `zero`."]
-    drift_gain: f64 = WaveConfig::default().drift_gain, #[doc = "Wave-integral feedback, 1/s."]
-    max_drift_correction: f64 = WaveConfig::default().max_drift_correction, #[doc = "Its bound, sqrt(W)."]
+    drift_gain: f64 = WaveConfig::default().drift_gain, #[doc = "Position drift correction toward the master, 1/s (0: none)."]
+    max_drift_speed: f64 = WaveConfig::default().max_drift_speed, #[doc = "Its largest speed, m/s."]
     matching: bool = true, #[doc = "Terminate the line with its impedance (no reflections)."]
     kp: [f64; 6] = TrackingConfig::default().kp, #[doc = "Position gain per joint, 1/s²."]
     kd: [f64; 6] = TrackingConfig::default().kd, #[doc = "Velocity gain per joint, 1/s."]
@@ -249,8 +291,6 @@ pub const WAVE_MASTER_KEYS: &str = r#"
 impedance = 20.0          # wave impedance b, N·s/m: the damping felt in free motion (same on
                           # both halves for transparency; any b keeps the line passive)
 missing = "hold"          # a late or lost wave: "hold" (within the energy reserve) or "zero"
-drift_gain = 0.0          # wave-integral feedback, 1/s (bounded, passive; off: see rt-core docs)
-max_drift_correction = 1.0
 max_force = 10.0          # N, the largest displayed force
 angular_damping = [0.02, 0.02, 0.02]  # the wrist has no wave force: N·m·s/rad
 gravity_compensation = true
@@ -262,8 +302,11 @@ gravity_compensation = true
 pub const WAVE_SLAVE_KEYS: &str = r#"
 impedance = 20.0          # wave impedance b, N·s/m
 missing = "hold"          # "hold" (within the energy reserve) or "zero"
-drift_gain = 0.0          # wave-integral feedback, 1/s
-max_drift_correction = 1.0
+drift_gain = 1.0          # 1/s: the slave closes the gap to the master's position (which
+                          # travels with its wave) at this rate; a correction that pushes on
+                          # the contact is paid from the energy the matching damper dissipated,
+                          # so the port stays passive (0: none)
+max_drift_speed = 0.005   # m/s, the correction's largest speed
 matching = true           # terminate the line with b: no wave reflected in free motion
 kp = [6400.0, 6400.0, 6400.0, 6400.0, 6400.0, 6400.0]  # computed-torque gains to the wave pose
 kd = [160.0, 160.0, 160.0, 160.0, 160.0, 160.0]
@@ -280,10 +323,9 @@ impl WaveMasterToml {
     pub fn wave(&self, kind: &str) -> Result<WaveConfig, WireError> {
         let c = WaveConfig {
             impedance: self.impedance,
-            drift_gain: self.drift_gain,
-            max_drift_correction: self.max_drift_correction,
             missing: missing(kind, &self.missing)?,
             matching: true,
+            ..WaveConfig::default()
         };
         c.validate().map_err(|e| bad(kind, e))?;
         Ok(c)
@@ -318,7 +360,7 @@ impl WaveSlaveToml {
         let c = WaveConfig {
             impedance: self.impedance,
             drift_gain: self.drift_gain,
-            max_drift_correction: self.max_drift_correction,
+            max_drift_speed: self.max_drift_speed,
             missing: missing(kind, &self.missing)?,
             matching: self.matching,
         };
