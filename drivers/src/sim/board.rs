@@ -149,8 +149,17 @@ impl<M: RobotModel, I: Interaction> SimBoard<M, I> {
         }
     }
 
-    /// Integrates the plant to `now` with the held commands.
+    /// Integrates the plant to `now` with the held commands, then takes the state the tool's
+    /// surroundings impose, if they do (a recorded hand).
     fn advance(&mut self, now: Timestamp) {
+        self.integrate(now);
+        if let Some(state) = self.interaction.imposed_state(now) {
+            self.plant.impose(&state);
+        }
+    }
+
+    /// Integrates the plant to `now` with the held commands.
+    fn integrate(&mut self, now: Timestamp) {
         let n = self.axis_count();
         let needs_servo = self.enabled
             && self.held[..n]

@@ -12,6 +12,8 @@
 //! - [`tap`]: the lock-free hand-off of the plant's interaction wrench to the sensor and the
 //!   telemetry.
 //! - [`scripts`]: the operator's built-in scripts (the demo's), by name.
+//! - [`recorded_hand`]: the operator's hand played back from a recording (the master's recorded
+//!   motion imposed on its plant).
 //! - [`ToolContact`]: what touches a robot's tool, whatever the robot: nothing, the environment,
 //!   or the operator's hand.
 //!
@@ -23,6 +25,7 @@ pub mod environment;
 pub mod force_sensor;
 pub mod operator;
 pub mod plant;
+pub mod recorded_hand;
 pub mod scripts;
 pub mod tap;
 
@@ -33,6 +36,7 @@ use penelope_hal::{Frame, Pose, Timestamp, Twist, Wrench};
 
 use environment::Environment;
 use operator::VirtualOperator;
+use recorded_hand::{ImposedState, RecordedHand};
 
 /// Something that pushes on a robot's tool: the environment the slave touches, or the hand that
 /// holds the master.
@@ -44,6 +48,13 @@ pub trait Interaction: Send {
     /// The wrench applied *to* the robot at its tool origin, in the robot's base frame (N, N·m),
     /// given the tool's pose and twist in the base frame at time `now`.
     fn wrench_on_tool(&mut self, now: Timestamp, tool: &Pose, twist: &Twist) -> Wrench;
+
+    /// The state the tool's surroundings force the plant into at `now`, read by the board after
+    /// it has integrated up to `now`: `None` (the default) for anything that only pushes; a
+    /// recorded hand ([`RecordedHand`]) moves the handle as recorded.
+    fn imposed_state(&mut self, _now: Timestamp) -> Option<ImposedState> {
+        None
+    }
 }
 
 /// No interaction: free motion.
@@ -73,6 +84,9 @@ pub enum ToolContact {
         /// Whether the clutch is held, for whoever sends the master's pose.
         clutch: Arc<AtomicBool>,
     },
+    /// The operator's hand played back from a recording: the handle moves, and the clutch is
+    /// held, as recorded.
+    Recorded(RecordedHand),
 }
 
 impl Interaction for ToolContact {
@@ -86,6 +100,14 @@ impl Interaction for ToolContact {
                 clutch.store(operator.clutch(now), Ordering::Relaxed);
                 operator.wrench_on_tool(now, tool, twist)
             }
+            ToolContact::Recorded(hand) => hand.wrench_on_tool(now, tool, twist),
+        }
+    }
+
+    fn imposed_state(&mut self, now: Timestamp) -> Option<ImposedState> {
+        match self {
+            ToolContact::Recorded(hand) => hand.imposed_state(now),
+            _ => None,
         }
     }
 }

@@ -98,6 +98,19 @@ impl<M: RobotModel> RigidBodyPlant<M> {
         }
     }
 
+    /// Sets the joint positions and velocities, the interaction wrench and the energies to
+    /// `state` (a recorded hand moving the handle): the motor torques and the time stay.
+    ///
+    /// # Real-time
+    /// No allocation.
+    pub fn impose(&mut self, state: &super::recorded_hand::ImposedState) {
+        self.snapshot.joints.position = state.position;
+        self.snapshot.joints.velocity = state.velocity;
+        self.snapshot.interaction = state.wrench;
+        self.snapshot.kinetic_energy = state.kinetic_energy;
+        self.snapshot.interaction_work = state.interaction_work;
+    }
+
     /// Advances the plant to `now` with motor torques `tau` (N·m, clipped at the motor limits)
     /// held constant, the interaction evaluated at every sub-step. Does nothing if `now` is not
     /// later than the plant's time.

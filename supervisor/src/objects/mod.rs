@@ -9,6 +9,8 @@
 //!   communication task (trajectory to reference cell), the sensor feed and the telemetry pump.
 //! - [`teleop`]: the teleoperation channel, its ends, the operator's hand and the halves of
 //!   the bilateral laws.
+//! - [`replay`]: `sensor/replay` and `sensor/operator-replay`, a recording played back in place
+//!   of a force sensor or of the operator's hand.
 //! - [`delay_line`]: the seeded delay (jitter, loss) a channel on one node injects between its
 //!   ends when it has `faults`, as the data plane's fault layer does between nodes.
 //! - `registry` (private): the objects, relations, lifecycles and methods.
@@ -42,6 +44,7 @@ pub mod kinds;
 pub mod kinematics;
 mod loops;
 mod registry;
+pub mod replay;
 pub mod runtime;
 pub mod teleop;
 pub mod teleop_end;

@@ -89,7 +89,8 @@ fn tick_schema() -> String {
 "tool_pose":{{"type":"object","properties":{{"rotation":{{"type":"array","items":{{"type":"number"}},"description":"unit quaternion x, y, z, w"}},"translation":{VEC3}}}}},
 "base_wrench":{wrench},"tool_wrench":{wrench},
 "kinetic_energy":{{"type":"number"}},"interaction_work":{{"type":"number"}}
-}}}}
+}}}},
+"clutch":{{"type":["boolean","null"],"description":"whether the operator's hand held the clutch (null: no hand holds this robot)"}}
 }},"required":["sample","truth"]}}"#
     )
 }
@@ -333,6 +334,27 @@ impl McapLog {
         })
     }
 
+    /// Writes a metadata record `name` (for example `run`: what `penelope replay --rerun` needs
+    /// to run a recorded demo again).
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`].
+    pub fn metadata(
+        &mut self,
+        name: &str,
+        entries: BTreeMap<String, String>,
+    ) -> Result<(), RecordingError> {
+        self.writer
+            .write_metadata(&mcap::records::Metadata {
+                name: name.into(),
+                metadata: entries,
+            })
+            .map_err(|source| RecordingError::Mcap {
+                path: self.path.clone(),
+                source,
+            })
+    }
+
     /// Writes to `/recorder` that controller `index`'s stream has lost `count` ticks so far,
     /// if that is more than it last wrote (so a file whose node died still says what it lost):
     /// true when it wrote.
@@ -512,12 +534,20 @@ pub fn summarize(path: &Path) -> Result<McapSummary, RecordingError> {
 
 /// Writes run `output` to `path`: both controllers' ticks (what the pump's recorder streams
 /// gave the run, cut to the run's duration as its CSV files are), their safety events, and
-/// what the streams lost. (`penelope demo`'s `run.mcap`.)
+/// what the streams lost; with `recipe`, a `run` metadata record saying how to run it again
+/// ([`RunRecipe`](super::rerun::RunRecipe)). (`penelope demo`'s `run.mcap`.)
 ///
 /// # Errors
 /// [`RecordingError`] when the file cannot be written.
-pub fn write_run(path: &Path, output: &super::RunOutput) -> Result<McapTotals, RecordingError> {
+pub fn write_run(
+    path: &Path,
+    output: &super::RunOutput,
+    recipe: Option<&super::rerun::RunRecipe>,
+) -> Result<McapTotals, RecordingError> {
     let mut log = McapLog::create(path, &output.info.system)?;
+    if let Some(r) = recipe {
+        log.metadata(super::rerun::RECIPE, r.to_metadata())?;
+    }
     let (master, slave) = &output.info.controllers;
     let m = log.add_controller(master)?;
     let s = log.add_controller(slave)?;

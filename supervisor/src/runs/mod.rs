@@ -16,6 +16,7 @@ pub mod delay;
 pub mod mcap_log;
 pub mod recording;
 pub mod report;
+pub mod rerun;
 
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
@@ -465,15 +466,21 @@ fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task, RunError> 
         .map(parse::<HandConfig>)
         .collect::<Result<Vec<_>, _>>()?
         .into_iter()
-        .find(|h| h.robot == teleop.master)
-        .ok_or_else(|| task(format!("no sensor/operator-hand holds `{}`", teleop.master)))?;
-    let script = scripts::by_name(&hand.script)
-        .ok_or_else(|| task(format!("unknown operator script `{}`", hand.script)))?;
+        .find(|h| h.robot == teleop.master);
+    let script = match hand {
+        Some(hand) => scripts::by_name(&hand.script)
+            .ok_or_else(|| task(format!("unknown operator script `{}`", hand.script)))?,
+        // A replayed hand: its recording is its script.
+        None => rerun::replayed_hand_script(&file, &teleop.master, options.duration)?,
+    };
     let sensor_mount = match &slave_ctl.sensor {
         Some(s) => match file.objects.iter().find(|o| &o.name == s) {
             Some(o) if o.kind == "sensor/virtual" => {
                 let c: SensorConfig = parse(o)?;
                 Pose::translation(c.mount_xyz[0], c.mount_xyz[1], c.mount_xyz[2])
+            }
+            Some(o) if o.kind == "sensor/replay" => {
+                parse::<crate::objects::replay::ReplaySensorConfig>(o)?.mount()
             }
             _ => Pose::identity(),
         },

@@ -404,6 +404,7 @@ mod tests {
                         interaction_work: -x * 1e-9,
                         ..TapSample::default()
                     }),
+                    clutch: (i % 3 == 0).then_some(i % 2 == 0),
                 }
             })
             .collect()

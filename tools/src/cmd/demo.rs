@@ -9,6 +9,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::runs::report::{Report, report};
+use penelope_supervisor::runs::rerun::RunRecipe;
 use penelope_supervisor::runs::{
     DEMO_SYSTEM, Law, MasterKinematics, RunOptions, RunOutput, run, with_master_kinematics,
 };
@@ -156,7 +157,12 @@ pub fn run_demo(args: Args) -> anyhow::Result<ExitCode> {
 
     let report = report(&output);
     std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
-    let written = write_outputs(&out_dir, &output, &report)?;
+    // What `penelope replay --rerun` needs to run it again.
+    let duration = options
+        .duration
+        .unwrap_or_else(|| output.info.script.duration());
+    let recipe = RunRecipe::new(&text, &options, args.kinematics.as_deref(), duration);
+    let written = write_outputs(&out_dir, &output, &report, &recipe)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         for f in &written {
@@ -175,7 +181,12 @@ fn default_out_dir() -> PathBuf {
     PathBuf::from("out").join(format!("demo-{secs}"))
 }
 
-fn write_outputs(dir: &Path, output: &RunOutput, report: &Report) -> anyhow::Result<Vec<PathBuf>> {
+fn write_outputs(
+    dir: &Path,
+    output: &RunOutput,
+    report: &Report,
+    recipe: &RunRecipe,
+) -> anyhow::Result<Vec<PathBuf>> {
     let mut written = Vec::new();
     for (name, rows) in [
         ("telemetry-master.csv", &output.master),
@@ -187,7 +198,7 @@ fn write_outputs(dir: &Path, output: &RunOutput, report: &Report) -> anyhow::Res
         written.push(path);
     }
     let path = dir.join("run.mcap");
-    penelope_supervisor::runs::mcap_log::write_run(&path, output)
+    penelope_supervisor::runs::mcap_log::write_run(&path, output, Some(recipe))
         .with_context(|| format!("writing {}", path.display()))?;
     written.push(path);
     let path = dir.join("report.json");

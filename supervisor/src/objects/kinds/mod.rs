@@ -35,7 +35,7 @@ use super::teleop_wave::{WAVE_MASTER_KEYS, WAVE_SLAVE_KEYS};
 use crate::proto::{Class, KindInfo, WireError};
 
 /// Every kind this creator makes, in listing order.
-pub const KINDS: [&str; 26] = [
+pub const KINDS: [&str; 28] = [
     "robot/puma560",
     "robot/puma200",
     "robot/frhc",
@@ -45,6 +45,8 @@ pub const KINDS: [&str; 26] = [
     "board/galil",
     "sensor/virtual",
     "sensor/operator-hand",
+    "sensor/replay",
+    "sensor/operator-replay",
     "controller/joint-pid",
     "controller/cartesian-impedance",
     "controller/joint-position",
@@ -80,6 +82,10 @@ pub enum Kind {
     VirtualSensor,
     /// `sensor/operator-hand`.
     OperatorHand,
+    /// `sensor/replay`: a recorded wrench stream ([`replay`](crate::objects::replay)).
+    ReplaySensor,
+    /// `sensor/operator-replay`: the operator's hand played back from a recording.
+    OperatorReplay,
     /// `controller/joint-pid`.
     JointPid,
     /// `controller/cartesian-impedance`.
@@ -129,6 +135,8 @@ impl Kind {
             "board/galil" => Kind::GalilBoard,
             "sensor/virtual" => Kind::VirtualSensor,
             "sensor/operator-hand" => Kind::OperatorHand,
+            "sensor/replay" => Kind::ReplaySensor,
+            "sensor/operator-replay" => Kind::OperatorReplay,
             "controller/joint-pid" => Kind::JointPid,
             "controller/cartesian-impedance" => Kind::CartesianImpedance,
             "controller/joint-position" => Kind::JointPosition,
@@ -162,6 +170,8 @@ impl Kind {
             Kind::GalilBoard => "board/galil",
             Kind::VirtualSensor => "sensor/virtual",
             Kind::OperatorHand => "sensor/operator-hand",
+            Kind::ReplaySensor => "sensor/replay",
+            Kind::OperatorReplay => "sensor/operator-replay",
             Kind::JointPid => "controller/joint-pid",
             Kind::CartesianImpedance => "controller/cartesian-impedance",
             Kind::JointPosition => "controller/joint-position",
@@ -187,7 +197,10 @@ impl Kind {
         match self {
             Kind::Robot(_) => Class::Robot,
             Kind::SimBoard | Kind::FpgaBoard | Kind::GalilBoard => Class::Board,
-            Kind::VirtualSensor | Kind::OperatorHand => Class::Sensor,
+            Kind::VirtualSensor
+            | Kind::OperatorHand
+            | Kind::ReplaySensor
+            | Kind::OperatorReplay => Class::Sensor,
             Kind::JointPid
             | Kind::CartesianImpedance
             | Kind::JointPosition
@@ -244,6 +257,16 @@ impl Kind {
                 "the operator's hand on a simulated master: a scripted impedance that pushes the \
                  handle and holds the clutch",
                 HAND_KEYS.to_string(),
+            ),
+            Kind::ReplaySensor => (
+                "6-axis force sensor playing back a recorded wrench stream (an MCAP recording's \
+                 controller channel, read at configure)",
+                super::replay::REPLAY_SENSOR_KEYS.to_string(),
+            ),
+            Kind::OperatorReplay => (
+                "the operator's hand played back from a recording: the master's handle moves, \
+                 and the clutch is held, as recorded",
+                super::replay::OPERATOR_REPLAY_KEYS.to_string(),
             ),
             Kind::ForceDisplay => (
                 "teleoperation master, position-forward / force-back: displays the mapped slave \
@@ -730,7 +753,7 @@ mod tests {
         let kinds = all_kinds();
         // Every listed name parses (a name that does not would be dropped from the list).
         assert_eq!(kinds.len(), KINDS.len());
-        assert_eq!(kinds.len(), 26);
+        assert_eq!(kinds.len(), 28);
         for k in &kinds {
             let parsed = Kind::parse(&k.kind).unwrap();
             assert_eq!(parsed.as_str(), k.kind);

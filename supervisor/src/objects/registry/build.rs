@@ -89,6 +89,12 @@ impl Registry {
                 "no remote link to other nodes on this creator (set_remote)",
             ));
         }
+        // A recorded wrench stream (`sensor/replay`), played in the loop.
+        let replayed = match &sensor_name {
+            Some(s) if !s.starts_with('/') => self.replay_sensor(s)?,
+            _ => None,
+        };
+        let replayed_mount = replayed.as_ref().map(penelope_hal::ForceSensor::mount);
         // A sensor on another node: its stream's reader, made before anything is taken.
         let stream_source = match &sensor_name {
             Some(path) if path.starts_with('/') => {
@@ -186,7 +192,7 @@ impl Registry {
 
         // A law that adds the sensed wrench turns the sensor's reading into the tool's.
         let mut controller = controller;
-        controller.set_sensor_mount(plant_sensor.map(|c| c.mount));
+        controller.set_sensor_mount(plant_sensor.map(|c| c.mount).or(replayed_mount));
 
         // Safety by role (a master: display caps, zero force on a stale reference, amplifiers
         // off on a fault; a slave holds its pose), and axis bindings.
@@ -289,7 +295,8 @@ impl Registry {
         let (mut cmd_w, cmd_r) = ring();
         let (goto_w, goto_r) = ring();
         let (gains_w, gains_r) = ring();
-        let sink = NodeSink::new(tel_w, comm_w, probe_w, truth);
+        let sink =
+            NodeSink::new(tel_w, comm_w, probe_w, truth).with_clutch(self.clutch_of(&robot_name));
         let ports = ControlPorts {
             reference: ref_r,
             telemetry: sink,
@@ -303,6 +310,8 @@ impl Registry {
         let (lp, wrench_w) = if let (Some(cfg), Some(contact)) = (plant_sensor, contact) {
             let sensor = VirtualForceSensor::new(cfg, contact);
             (NodeLoop::Plant(Box::new(lp.with_sensor(sensor))), None)
+        } else if let Some(sensor) = replayed {
+            (NodeLoop::Replayed(Box::new(lp.with_sensor(sensor))), None)
         } else if sensor_name.is_some() {
             let (w, r) = latest();
             (
@@ -333,12 +342,10 @@ impl Registry {
             )?,
             LoopSource::Teleop(side, mapping, link_timeout, port_law) => {
                 // The master's clutch is its operator's hand's button, if a hand holds it.
-                let clutch = self.objects.values().find_map(|o| match &o.body {
-                    Body::Hand(h) if side == Side::Master && h.config.robot == robot_name => {
-                        Some(h.clutch.clone())
-                    }
+                let clutch = match side {
+                    Side::Master => self.clutch_of(&robot_name),
                     _ => None,
-                });
+                };
                 let Some(Body::Teleop(t)) = self.objects.get_mut(&traj_name).map(|o| &mut o.body)
                 else {
                     return Err(WireError::Internal("teleop body".into()));
@@ -354,7 +361,7 @@ impl Registry {
                     TeleopComm::new(end, mapping, kinematics.clone())?
                         .with_port_law(port_law, &mapping)?
                         .with_clutch(clutch)
-                        .with_sensor_mount(plant_sensor.map(|c| c.mount))
+                        .with_sensor_mount(plant_sensor.map(|c| c.mount).or(replayed_mount))
                         .with_hand_wrench(side == Side::Master && sensor_name.is_some())
                         .with_link_timeout(link_timeout),
                     ref_w,

@@ -425,6 +425,14 @@ impl Registry {
                     ),
                 });
             }
+            Body::ReplaySensor(_) | Body::OperatorReplay(_) => {
+                return Err(WireError::Unsupported {
+                    kind: o.kind.as_str().into(),
+                    method: format!(
+                        "{m:?} (a replay plays its recording to the loop that uses it; the                          readings are in that loop's telemetry)"
+                    ),
+                });
+            }
             _ => return Err(WireError::Internal("sensor body".into())),
         };
         if m == SensorMethod::Stream {

@@ -66,6 +66,7 @@ mod fpga;
 mod galil;
 mod groups;
 mod methods;
+mod replay;
 mod sensors;
 mod teleop;
 mod trajectories;
@@ -98,6 +99,8 @@ pub(crate) enum Body {
     Trajectory(TrajectoryObj),
     Hand(Box<HandObj>),
     Teleop(Box<TeleopObj>),
+    ReplaySensor(Box<crate::objects::replay::ReplaySensorObj>),
+    OperatorReplay(Box<crate::objects::replay::OperatorReplayObj>),
 }
 
 /// A `trajectory/teleop`: its settings, and its cells once configured.
@@ -271,6 +274,13 @@ impl Object {
                 relations.extend(crate::objects::fpga_board::describe());
             }
             Body::Hand(h) => relations.push(("robot".to_string(), h.config.robot.clone())),
+            Body::OperatorReplay(h) => {
+                relations.push(("robot".to_string(), h.config.robot.clone()));
+                relations.push(("recording".to_string(), h.config.file.clone()));
+            }
+            Body::ReplaySensor(s) => {
+                relations.push(("recording".to_string(), s.config.file.clone()))
+            }
             Body::Sensor(s) => relations.extend(publisher_relations(s)),
             Body::Teleop(t) => {
                 relations.push(("master".to_string(), t.config.master.clone()));
@@ -384,6 +394,7 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
             let timing = cfg.check(k)?;
             controller_body(ControllerConfig::Groups(cfg), timing, config)
         }
+        Kind::ReplaySensor | Kind::OperatorReplay => replay::replay_body(kind, config)?,
         Kind::OperatorHand => {
             let cfg: HandConfig = kinds::parse(k, config)?;
             let script = cfg.check(k)?;
@@ -592,6 +603,9 @@ impl Registry {
                 Body::Teleop(t) => t.link = None,
                 // Its thread stops and is joined; readers fall silent and go stale.
                 Body::Sensor(s) => s.publisher = None,
+                b @ (Body::ReplaySensor(_) | Body::OperatorReplay(_)) => {
+                    Registry::release_replay(b)
+                }
                 Body::Galil(g) => {
                     // The driver's release: amplifiers off, watchdog halted.
                     if let Some(b) = g.board.take() {
@@ -616,6 +630,7 @@ impl Registry {
             }
             Kind::Teleop => self.configure_teleop(name),
             Kind::VirtualSensor => self.configure_sensor(name),
+            Kind::ReplaySensor | Kind::OperatorReplay => self.configure_replay(name),
             _ if kind.class() == Class::Controller => self.configure_controller(name),
             _ => Ok(()),
         }
@@ -712,22 +727,7 @@ impl Registry {
             };
             // The operator's hand holds a master's handle; anything else meets the board's
             // environment (free space without shapes).
-            let hand = self.objects.values().find_map(|o| match &o.body {
-                Body::Hand(h) if h.config.robot == name => Some(h),
-                _ => None,
-            });
-            let contact = match hand {
-                Some(h) => ToolContact::Hand {
-                    operator: VirtualOperator::new(
-                        h.script.clone(),
-                        h.config.impedance(),
-                        model.forward(&q0),
-                        Timestamp::ZERO,
-                    ),
-                    clutch: h.clutch.clone(),
-                },
-                None => ToolContact::Environment(env),
-            };
+            let contact = self.tool_contact(name, model.forward(&q0), env)?;
             let body = SimBoard::new(model, plant, board_cfg, contact, q0, Timestamp::ZERO);
             if let Body::Robot(r) = &mut self.get_mut(name)?.body {
                 r.body = Some(Box::new(body));

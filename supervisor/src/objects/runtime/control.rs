@@ -168,6 +168,10 @@ pub struct TickRecord {
     pub sample: TelemetrySample,
     /// The plant's ground truth (`None` on real boards).
     pub truth: Option<TapSample>,
+    /// Whether the operator's hand held the clutch at this tick (`None` for a robot no hand
+    /// holds): what a replayed hand presses again.
+    #[serde(default)]
+    pub clutch: Option<bool>,
 }
 
 /// The control loop's telemetry port: every sample (with the plant's truth, if a plant is
@@ -178,6 +182,7 @@ pub struct NodeSink {
     comm: ArcLatestWriter<TelemetrySample>,
     probe: ArcLatestWriter<TelemetrySample>,
     truth: Option<TapReader>,
+    clutch: Option<Arc<AtomicBool>>,
 }
 
 impl NodeSink {
@@ -193,21 +198,31 @@ impl NodeSink {
             comm,
             probe,
             truth,
+            clutch: None,
         }
+    }
+
+    /// Records the clutch button `clutch` of the operator's hand holding the robot with every
+    /// tick.
+    pub fn with_clutch(mut self, clutch: Option<Arc<AtomicBool>>) -> Self {
+        self.clutch = clutch;
+        self
     }
 }
 
 impl TelemetrySink for NodeSink {
     /// # Real-time
-    /// Three wait-free cell operations and one ring push.
+    /// Three wait-free cell operations, an atomic load and one ring push.
     fn push(&mut self, sample: &TelemetrySample) -> bool {
         self.comm.write(*sample);
         self.probe.write(*sample);
         let truth = self.truth.as_mut().and_then(TapReader::latest);
+        let clutch = self.clutch.as_ref().map(|c| c.load(Ordering::Relaxed));
         self.ring
             .push(TickRecord {
                 sample: *sample,
                 truth,
+                clutch,
             })
             .is_ok()
     }
@@ -268,6 +283,8 @@ pub enum NodeLoop {
     Sensed(Box<Loop<CellSensor>>),
     /// A wrist sensor reading the robot's own simulated plant, in the loop.
     Plant(Box<Loop<VirtualForceSensor>>),
+    /// A `sensor/replay`: a recorded wrench stream, in the loop.
+    Replayed(Box<Loop<crate::objects::replay::ReplaySensor>>),
 }
 
 /// `$body` with `$l` bound to the loop, whatever its sensor.
@@ -277,6 +294,7 @@ macro_rules! each_loop {
             NodeLoop::Plain($l) => $body,
             NodeLoop::Sensed($l) => $body,
             NodeLoop::Plant($l) => $body,
+            NodeLoop::Replayed($l) => $body,
         }
     };
 }

@@ -5,6 +5,7 @@ use std::process::ExitCode;
 pub mod fpga;
 pub mod jitter;
 pub mod layout;
+pub mod record;
 pub mod rpc;
 
 /// Which benchmark to run.
@@ -19,6 +20,9 @@ pub enum BenchCommand {
     /// The task in the one-, two- and four-host layouts (network namespaces; needs root):
     /// tracking, force, end-to-end latency beside a raw UDP echo, loop timing.
     Layout(layout::Args),
+    /// Recording throughput: ticks and megabytes per second a node records with no drop,
+    /// beside the rate its loops produce.
+    Record(record::Args),
 }
 
 /// Runs the chosen benchmark.
@@ -28,6 +32,7 @@ pub fn run(command: BenchCommand) -> anyhow::Result<ExitCode> {
         BenchCommand::Fpga(args) => fpga::run(args),
         BenchCommand::Rpc(args) => rpc::run(args),
         BenchCommand::Layout(args) => layout::run(args),
+        BenchCommand::Record(args) => record::run(args),
     }
 }
 

@@ -1,0 +1,125 @@
+//! The replay kinds in the registry (`sensor/replay`, `sensor/operator-replay`): made from their
+//! configuration, loaded at `configure`, dropped at `cleanup`; and the hand that holds a
+//! master, scripted or replayed.
+
+use std::sync::atomic::AtomicBool;
+
+use penelope_drivers::sim::environment::Environment;
+use penelope_hal::Pose;
+
+use super::*;
+use crate::objects::replay::{
+    OperatorReplayConfig, OperatorReplayObj, ReplaySensor, ReplaySensorConfig, ReplaySensorObj,
+};
+
+/// The body of a new replay object of `kind` (configuration checked; nothing read yet).
+pub(super) fn replay_body(kind: Kind, config: &str) -> Result<Body, WireError> {
+    let k = kind.as_str();
+    Ok(match kind {
+        Kind::ReplaySensor => {
+            let cfg: ReplaySensorConfig = kinds::parse(k, config)?;
+            cfg.check(k)?;
+            Body::ReplaySensor(Box::new(ReplaySensorObj {
+                config: cfg,
+                readings: None,
+            }))
+        }
+        _ => {
+            let cfg: OperatorReplayConfig = kinds::parse(k, config)?;
+            cfg.check(k)?;
+            Body::OperatorReplay(Box::new(OperatorReplayObj {
+                config: cfg,
+                motion: None,
+                clutch: Arc::default(),
+            }))
+        }
+    })
+}
+
+impl Registry {
+    /// Configures a replay object: reads its recording (typed errors: missing file, missing
+    /// channel, no ticks, a NaN, no truth for a hand).
+    pub(super) fn configure_replay(&mut self, name: &str) -> Result<(), WireError> {
+        let o = self.get_mut(name)?;
+        let kind = o.kind.as_str();
+        match &mut o.body {
+            Body::ReplaySensor(s) => s.load().map_err(|e| e.into_wire(kind)),
+            Body::OperatorReplay(h) => h.load().map_err(|e| e.into_wire(kind)),
+            _ => Err(WireError::Internal("replay body".into())),
+        }
+    }
+
+    /// Drops a replay object's loaded recording (`cleanup`).
+    pub(super) fn release_replay(body: &mut Body) {
+        match body {
+            Body::ReplaySensor(s) => s.readings = None,
+            Body::OperatorReplay(h) => h.motion = None,
+            _ => {}
+        }
+    }
+
+    /// What touches the tool of simulated robot `robot`: the operator's hand (scripted, or
+    /// replayed from a recording) if one holds it, else the board's environment. The scripted
+    /// hand's script is anchored at `anchor`, the tool's start pose.
+    ///
+    /// # Errors
+    /// [`WireError::NotReady`] for a replayed hand that is not configured (its recording not
+    /// read).
+    pub(super) fn tool_contact(
+        &self,
+        robot: &str,
+        anchor: Pose,
+        env: Environment,
+    ) -> Result<ToolContact, WireError> {
+        for (name, o) in &self.objects {
+            match &o.body {
+                Body::Hand(h) if h.config.robot == robot => {
+                    return Ok(ToolContact::Hand {
+                        operator: VirtualOperator::new(
+                            h.script.clone(),
+                            h.config.impedance(),
+                            anchor,
+                            Timestamp::ZERO,
+                        ),
+                        clutch: h.clutch.clone(),
+                    });
+                }
+                Body::OperatorReplay(h) if h.config.robot == robot => {
+                    let hand = h.hand().ok_or_else(|| {
+                        not_ready(format!(
+                            "hand `{name}` (holding `{robot}`) is not configured: its recording \
+                             is read at configure"
+                        ))
+                    })?;
+                    return Ok(ToolContact::Recorded(hand));
+                }
+                _ => {}
+            }
+        }
+        Ok(ToolContact::Environment(env))
+    }
+
+    /// The clutch button of the hand holding `robot`, scripted or replayed, if one does.
+    pub(super) fn clutch_of(&self, robot: &str) -> Option<Arc<AtomicBool>> {
+        self.objects.values().find_map(|o| match &o.body {
+            Body::Hand(h) if h.config.robot == robot => Some(h.clutch.clone()),
+            Body::OperatorReplay(h) if h.config.robot == robot => Some(h.clutch.clone()),
+            _ => None,
+        })
+    }
+
+    /// The loop's side of `sensor/replay` `name`, if `name` is one (configured).
+    ///
+    /// # Errors
+    /// [`WireError::NotReady`] when it is not configured.
+    pub(super) fn replay_sensor(&self, name: &str) -> Result<Option<ReplaySensor>, WireError> {
+        let Some(Body::ReplaySensor(s)) = self.objects.get(name).map(|o| &o.body) else {
+            return Ok(None);
+        };
+        let readings = s
+            .readings
+            .clone()
+            .ok_or_else(|| not_ready(format!("sensor `{name}` is not configured")))?;
+        Ok(Some(ReplaySensor::new(readings, s.config.mount())))
+    }
+}
