@@ -42,6 +42,7 @@ pub mod delay_line;
 pub mod fpga_board;
 pub mod kinds;
 pub mod kinematics;
+pub mod lifecycle_feed;
 mod loops;
 mod registry;
 pub mod replay;
@@ -157,6 +158,8 @@ pub struct Creator {
     sim: Option<Mutex<SimWorld>>,
     /// The recording `ctl record start` began (its file and writer thread).
     recording: Mutex<Option<(String, crate::runs::recording::Recorder)>>,
+    /// The transitions, for recorders.
+    lifecycle: lifecycle_feed::LifecycleFeed,
 }
 
 impl std::fmt::Debug for Creator {
@@ -208,7 +211,37 @@ impl Creator {
             link_pump: Mutex::new(None),
             fifo: OnceLock::new(),
             recording: Mutex::new(None),
+            lifecycle: lifecycle_feed::LifecycleFeed::default(),
         }
+    }
+
+    /// A reader of this creator's lifecycle transitions from now on (create, destroy and every
+    /// transition that succeeded), holding up to `capacity` events not yet taken.
+    pub fn lifecycle_events(
+        &self,
+        capacity: usize,
+    ) -> std::sync::mpsc::Receiver<lifecycle_feed::LifecycleEvent> {
+        self.lifecycle.subscribe(capacity)
+    }
+
+    /// The node's clock, ns: the simulated clock's on a simulated node.
+    fn now_ns(&self) -> u64 {
+        match &self.sim {
+            Some(world) => world.lock().map_or(0, |w| w.now().as_nanos()),
+            None => penelope_rt_core::clock::MonotonicClock::read().as_nanos(),
+        }
+    }
+
+    /// Tells the lifecycle readers that `object` (of `kind`) went through `transition` and is
+    /// now in `state`.
+    fn note_lifecycle(&self, object: &str, kind: &str, transition: &str, state: &str) {
+        self.lifecycle.publish(&lifecycle_feed::LifecycleEvent {
+            time_ns: self.now_ns(),
+            object: object.into(),
+            kind: kind.into(),
+            transition: transition.into(),
+            state: state.into(),
+        });
     }
 
     fn lock(&self) -> Result<MutexGuard<'_, Registry>, WireError> {
@@ -315,9 +348,14 @@ impl Creator {
         }
         let controllers: Vec<String> = streams.iter().map(|(n, _)| n.clone()).collect();
         let linked: Vec<String> = links.iter().map(|(n, _)| n.clone()).collect();
-        let recorder =
-            crate::runs::recording::Recorder::start(file, &self.config.node, streams, links)
-                .map_err(|e| WireError::BadArgument(e.to_string()))?;
+        let recorder = crate::runs::recording::Recorder::start(
+            file,
+            &self.config.node,
+            streams,
+            links,
+            Some(self.lifecycle_events(crate::runs::recording::LIFECYCLE_CAPACITY)),
+        )
+        .map_err(|e| WireError::BadArgument(e.to_string()))?;
         *recording = Some((path.to_string(), recorder));
         Ok(Reply::Recording {
             path: path.to_string(),
@@ -401,6 +439,8 @@ impl Creator {
         let o = registry::make(k, name, config)?;
         let info = o.info();
         reg.objects.insert(name.to_string(), o);
+        drop(reg);
+        self.note_lifecycle(name, &info.kind, "create", info.state.as_str());
         Ok(info)
     }
 
@@ -430,14 +470,17 @@ impl Creator {
             }
         }
         let mut reg = self.lock()?;
-        if let Some(mut o) = reg.objects.remove(name)
-            && let Body::Galil(g) = &mut o.body
-            && let Some(mut b) = g.board.take()
-        {
-            use penelope_hal::Board;
-            let _ = b.set_enabled(false);
-        }
+        let removed = reg.objects.remove(name);
         drop(reg);
+        if let Some(mut o) = removed {
+            if let Body::Galil(g) = &mut o.body
+                && let Some(mut b) = g.board.take()
+            {
+                use penelope_hal::Board;
+                let _ = b.set_enabled(false);
+            }
+            self.note_lifecycle(name, o.kind.as_str(), "destroy", "destroyed");
+        }
         self.subscriptions.links().end_stale(name, None);
         Ok(())
     }
@@ -475,8 +518,11 @@ impl Creator {
             let current = self.link_stats_source(name)?;
             self.subscriptions.links().end_stale(name, current.as_ref());
         }
-        self.info(name)
-            .ok_or_else(|| WireError::UnknownName(name.into()))
+        let info = self
+            .info(name)
+            .ok_or_else(|| WireError::UnknownName(name.into()))?;
+        self.note_lifecycle(name, &info.kind, t.as_str(), info.state.as_str());
+        Ok(info)
     }
 
     fn subscribe(

@@ -99,6 +99,11 @@ const SAFETY_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12
 
 const LINK_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.LinkStats","description":"One end's view of a data-plane link (LinkRecord in docs/wire-format.md); times in ns.","type":"object","properties":{"time_ns":{"type":"integer"},"down":{"type":"boolean"},"losses":{"type":"integer"},"restorations":{"type":"integer"},"samples_taken":{"type":"integer"},"samples_dropped":{"type":"integer"},"samples_missed":{"type":"integer"},"refused":{"type":"integer"},"clock_offset_ns":{"type":["integer","null"]},"round_trip_ns":{"type":["integer","null"]},"one_way_delay_ns":{"type":["integer","null"]},"jitter_ns":{"type":["integer","null"]},"last_heard_ns":{"type":["integer","null"]},"heartbeat_loss":{"type":"number"},"trips":{"type":"integer"},"trip_p50_ns":{"type":["integer","null"]},"trip_p99_ns":{"type":["integer","null"]},"trip_max_ns":{"type":["integer","null"]}},"required":["time_ns","down"]}"#;
 
+const LIFECYCLE_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.Lifecycle","description":"A lifecycle transition of an object of the node (create, destroy, configure, activate, deactivate, cleanup, shutdown), with its state afterwards; time in ns on the node's clock.","type":"object","properties":{"time_ns":{"type":"integer"},"object":{"type":"string"},"kind":{"type":"string"},"transition":{"type":"string"},"state":{"type":"string"}},"required":["time_ns","object","kind","transition","state"]}"#;
+
+/// The topic of the node's lifecycle transitions.
+pub const LIFECYCLE_TOPIC: &str = "/lifecycle";
+
 const RECORDER_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.RecorderDropped","description":"Ticks of a controller the recorder lost because it fell behind (the loops never wait for it).","type":"object","properties":{"controller":{"type":"string"},"dropped":{"type":"integer"},"written":{"type":"integer"}},"required":["controller","dropped","written"]}"#;
 
 /// A recorded controller's channel.
@@ -130,6 +135,8 @@ pub struct McapLog {
     recorder: u16,
     controllers: Vec<ControllerChannel>,
     links: BTreeMap<String, u16>,
+    /// The `/lifecycle` channel, added with its first transition.
+    lifecycle: Option<u16>,
     sequence: BTreeMap<u16, u32>,
     last_time: u64,
     totals: McapTotals,
@@ -198,6 +205,7 @@ impl McapLog {
             recorder,
             controllers: Vec::new(),
             links: BTreeMap::new(),
+            lifecycle: None,
             sequence: BTreeMap::new(),
             last_time: 0,
             totals: McapTotals::default(),
@@ -320,6 +328,40 @@ impl McapLog {
             }
         };
         self.write(id, record.time_ns, record)
+    }
+
+    /// Writes a lifecycle transition (the `/lifecycle` channel is added the first time).
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`].
+    pub fn lifecycle(
+        &mut self,
+        event: &crate::objects::lifecycle_feed::LifecycleEvent,
+    ) -> Result<(), RecordingError> {
+        let id = match self.lifecycle {
+            Some(id) => id,
+            None => {
+                let mcap_err = |source| RecordingError::Mcap {
+                    path: self.path.clone(),
+                    source,
+                };
+                let schema = self
+                    .writer
+                    .add_schema(
+                        "penelope.Lifecycle",
+                        "jsonschema",
+                        LIFECYCLE_SCHEMA.as_bytes(),
+                    )
+                    .map_err(mcap_err)?;
+                let id = self
+                    .writer
+                    .add_channel(schema, LIFECYCLE_TOPIC, "json", &BTreeMap::new())
+                    .map_err(mcap_err)?;
+                self.lifecycle = Some(id);
+                id
+            }
+        };
+        self.write(id, event.time_ns, event)
     }
 
     /// Ends the chunk being written and writes it out, so that a reader sees every message

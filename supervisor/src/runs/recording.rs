@@ -11,6 +11,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::Receiver;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -19,6 +20,7 @@ use penelope_hal::Transition;
 use super::mcap_log::{CONTROLLER_TOPIC, LINK_TOPIC, McapLog, RECORDER_TOPIC};
 use super::{RECORD_CAPACITY, RunError, RunOptions, RunOutput, find_task};
 use crate::node::Node;
+use crate::objects::lifecycle_feed::LifecycleEvent;
 use crate::objects::runtime::{TickRecord, TickStream};
 use crate::objects::teleop_end::LinkStatsSource;
 use crate::proto::{Call, LinkRecord, Method};
@@ -146,6 +148,10 @@ pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
     Ok(recording)
 }
 
+/// Lifecycle events a recorder's reader holds before it loses some (transitions are rare: a
+/// system file of a hundred objects makes a few hundred).
+pub const LIFECYCLE_CAPACITY: usize = 4096;
+
 /// Writes a node's recorded controllers to a file from a thread of its own (normal priority:
 /// the loops hand their ticks to the telemetry pump, which hands them to the recorder through
 /// bounded streams; neither waits for it, a full stream loses ticks and counts them).
@@ -156,7 +162,10 @@ pub struct Recorder {
 
 impl Recorder {
     /// Starts writing `streams` (controller name, ticks) of node `node` to `path`, with the
-    /// statistics of `links` (channel name, where its link's counters are).
+    /// statistics of `links` (channel name, where its link's counters are) and the node's
+    /// `lifecycle` transitions (a reader from [`Creator::lifecycle_events`], if any).
+    ///
+    /// [`Creator::lifecycle_events`]: crate::objects::Creator::lifecycle_events
     ///
     /// # Errors
     /// [`RecordingError::Io`] when the file cannot be created.
@@ -165,6 +174,7 @@ impl Recorder {
         node: &str,
         streams: Vec<(String, TickStream)>,
         links: Vec<(String, LinkStatsSource)>,
+        lifecycle: Option<Receiver<LifecycleEvent>>,
     ) -> Result<Recorder, RecordingError> {
         let mut log = McapLog::create(path, node)?;
         for (name, _) in &streams {
@@ -184,6 +194,9 @@ impl Recorder {
                         while let Ok(record) = stream.ticks.try_recv() {
                             log.tick(i, &record)?;
                         }
+                    }
+                    for event in lifecycle.iter().flat_map(Receiver::try_iter) {
+                        log.lifecycle(&event)?;
                     }
                     if stopping || links_at.is_none_or(|t| t.elapsed() >= LINK_EVERY) {
                         links_at = Some(Instant::now());
@@ -266,6 +279,9 @@ pub fn apply_recorded(
         }
         o.active = false;
     }
+    // The file's objects are created and configured before the recorder starts: their
+    // transitions wait in this reader.
+    let lifecycle = node.creator().lifecycle_events(LIFECYCLE_CAPACITY);
     let created = deferred.apply(node)?;
     let node_error = |what: String| move |error| RunError::Node { what, error };
     let mut streams = Vec::new();
@@ -285,7 +301,7 @@ pub fn apply_recorded(
             links.push((o.name.clone(), source));
         }
     }
-    let recorder = Recorder::start(path, node.name(), streams, links)
+    let recorder = Recorder::start(path, node.name(), streams, links, Some(lifecycle))
         .map_err(|e| RunError::Task(e.to_string()))?;
     for name in &to_activate {
         node.call(Call::Object {
@@ -522,7 +538,7 @@ mod tests {
             Err(RecordingError::Io { .. })
         ));
         assert!(matches!(
-            Recorder::start(nowhere, "lab", Vec::new(), Vec::new()),
+            Recorder::start(nowhere, "lab", Vec::new(), Vec::new(), None),
             Err(RecordingError::Io { .. })
         ));
         let foreign = scratch("foreign.mcap");

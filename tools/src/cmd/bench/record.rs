@@ -170,7 +170,7 @@ fn through_recorder(
     let dropped: Vec<_> = streams.iter().map(|(_, s)| s.dropped.clone()).collect();
     let path = dir.join(format!("recorder-{k}.mcap"));
     let _ = std::fs::remove_file(&path);
-    let recorder = Recorder::start(&path, "bench", streams, Vec::new())?;
+    let recorder = Recorder::start(&path, "bench", streams, Vec::new(), None)?;
     let stop = Arc::new(AtomicBool::new(false));
     // The pump: every 10 ms, each controller's ten new ticks (on absolute deadlines, so a
     // late batch does not lower the rate).
