@@ -223,14 +223,21 @@ impl Creator {
     pub fn list(&self) -> Vec<ObjectInfo> {
         self.reap_failed();
         self.lock()
-            .map(|r| r.objects.values().map(|o| o.info()).collect())
+            .map(|r| r.objects.values().map(|o| o.info(&r.bridged)).collect())
             .unwrap_or_default()
     }
 
     /// One object.
     pub fn info(&self, name: &str) -> Option<ObjectInfo> {
         self.reap_failed();
-        self.lock().ok()?.objects.get(name).map(|o| o.info())
+        let r = self.lock().ok()?;
+        r.objects.get(name).map(|o| o.info(&r.bridged))
+    }
+
+    /// The channels whose master is an operator station behind the Zenoh bridge (shared: the
+    /// bridge reads and feeds them).
+    pub fn bridged_channels(&self) -> crate::zenoh_bridge::BridgedChannels {
+        self.lock().map(|r| r.bridged.clone()).unwrap_or_default()
     }
 
     /// Where the counters of channel `name`'s link to another node can be read (`None` for a
@@ -396,7 +403,7 @@ impl Creator {
             });
         }
         let o = registry::make(k, name, config)?;
-        let info = o.info();
+        let info = o.info(&reg.bridged);
         reg.objects.insert(name.to_string(), o);
         Ok(info)
     }
@@ -434,6 +441,7 @@ impl Creator {
             use penelope_hal::Board;
             let _ = b.set_enabled(false);
         }
+        reg.bridged.remove(name);
         drop(reg);
         self.subscriptions.links().end_stale(name, None);
         Ok(())

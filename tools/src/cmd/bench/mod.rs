@@ -6,6 +6,8 @@ pub mod fpga;
 pub mod jitter;
 pub mod layout;
 pub mod rpc;
+#[cfg(feature = "zenoh")]
+pub mod zenoh;
 
 /// Which benchmark to run.
 #[derive(clap::Subcommand, Debug)]
@@ -19,6 +21,10 @@ pub enum BenchCommand {
     /// The task in the one-, two- and four-host layouts (network namespaces; needs root):
     /// tracking, force, end-to-end latency beside a raw UDP echo, loop timing.
     Layout(layout::Args),
+    /// The Zenoh bridge's one-way latency beside the data plane's, on loopback (a build with
+    /// `--features zenoh`).
+    #[cfg(feature = "zenoh")]
+    Zenoh(zenoh::Args),
 }
 
 /// Runs the chosen benchmark.
@@ -28,6 +34,8 @@ pub fn run(command: BenchCommand) -> anyhow::Result<ExitCode> {
         BenchCommand::Fpga(args) => fpga::run(args),
         BenchCommand::Rpc(args) => rpc::run(args),
         BenchCommand::Layout(args) => layout::run(args),
+        #[cfg(feature = "zenoh")]
+        BenchCommand::Zenoh(args) => zenoh::run(args),
     }
 }
 
