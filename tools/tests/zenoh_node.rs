@@ -187,7 +187,13 @@ fn bench_zenoh_reports_both_transports() {
         "{text}{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert!(text.contains("data plane (UDP"), "{text}");
+    assert!(
+        text.contains("data plane (UDP, postcard), kernel stamp"),
+        "{text}"
+    );
     assert!(text.contains("zenoh bridge"), "{text}");
-    assert!(text.contains("zenoh / data plane: p50 x"), "{text}");
+    assert!(
+        text.contains("zenoh / data plane (reader): p50 x"),
+        "{text}"
+    );
 }

@@ -5,13 +5,16 @@
 //! doubles), every communication period, from a sender thread to the cell a slave's
 //! communication thread reads.
 //! - **data plane**: our UDP stream (postcard frame with header, newest wins), from `send` to
-//!   the receiving endpoint's decode; the receiver polls its socket without pause.
+//!   the receiving endpoint's decode and cell write (the receiver polls its socket without
+//!   pause, yielding the CPU between polls), and to the kernel's receive stamp (the transport
+//!   alone: what a communication thread that polls once per tick is measured from).
 //! - **zenoh**: a station's Zenoh peer publishes the 58-byte pose (`docs/zenoh.md`) to the
 //!   bridge's peer over loopback TCP; measured from `put` to the end of the bridge's own
 //!   subscriber path (`BridgedChannels::offer`: decode, check, write the cell).
 //!
 //! Neither figure includes the wait for the slave's next communication tick (up to one
-//! period, the same for both). Times are read from one monotonic clock in one process.
+//! period, the same for both). Times are read in one process: the data plane's on the
+//! real-time clock (the kernel stamps on it), the bridge's on the monotonic one.
 
 use std::net::{SocketAddr, TcpListener};
 use std::process::ExitCode;
@@ -37,6 +40,10 @@ pub struct Args {
     /// Poses per second (the slave's communication rate; 500: T_com = 2 ms).
     #[arg(long, default_value_t = 500)]
     pub rate: u32,
+    /// The station publishes with Zenoh's `express` QoS (each pose sent at once, never
+    /// batched with others).
+    #[arg(long)]
+    pub express: bool,
 }
 
 /// The key of the benchmark's poses.
@@ -78,9 +85,21 @@ fn pace(deadline: Instant) {
     }
 }
 
-fn data_plane(args: &Args, origin: Instant) -> anyhow::Result<Trips> {
+/// Now on the real-time clock, ns (the clock of the kernel's receive stamps).
+fn realtime_ns() -> i64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| i64::try_from(d.as_nanos()).unwrap_or(i64::MAX))
+}
+
+/// The data plane's trips: to the reader that polls without pause, and to the kernel's receive
+/// stamp (the transport alone, without the reader's wake-up).
+fn data_plane(args: &Args) -> anyhow::Result<(Trips, Trips)> {
     let loopback = SocketAddr::from(([127, 0, 0, 1], 0));
     let mut receiver = Endpoint::bind(loopback, None).context("binding the receiver")?;
+    receiver
+        .enable_receive_timestamps()
+        .context("kernel receive stamps")?;
     let mut sender = Endpoint::bind(loopback, None).context("binding the sender")?;
     let to = receiver.local_addr()?;
     let done = Arc::new(AtomicBool::new(false));
@@ -88,18 +107,21 @@ fn data_plane(args: &Args, origin: Instant) -> anyhow::Result<Trips> {
     let samples = args.samples;
     let reader = std::thread::spawn(move || {
         let (mut cell, _reader) = penelope_rt_core::cell::latest::<(bool, [f64; 7])>();
-        let mut trips = Vec::with_capacity(samples);
+        let (mut read, mut stamped) = (Vec::with_capacity(samples), Vec::with_capacity(samples));
         while !flag.load(Ordering::Relaxed) {
-            match receiver.receive::<(bool, [f64; 7])>() {
-                Some((_, header, payload)) => {
-                    cell.write(payload);
-                    let now = origin.elapsed().as_nanos() as i64;
-                    trips.push(u64::try_from(now - header.sent_ns).unwrap_or(0));
+            match receiver.receive_stamped::<(bool, [f64; 7])>() {
+                Some(r) => {
+                    cell.write(r.payload);
+                    let sent = r.header.sent_ns;
+                    read.push(u64::try_from(realtime_ns() - sent).unwrap_or(0));
+                    if let Some(k) = r.kernel_realtime_ns {
+                        stamped.push(u64::try_from(k - sent).unwrap_or(0));
+                    }
                 }
                 None => std::thread::yield_now(),
             }
         }
-        trips
+        (read, stamped)
     });
     let mut stream = StreamSender::new(StreamId(1));
     let period = Duration::from_secs(1) / args.rate;
@@ -110,17 +132,26 @@ fn data_plane(args: &Args, origin: Instant) -> anyhow::Result<Trips> {
         let mut numbers = [0.0; 7];
         numbers[..3].copy_from_slice(&p.position);
         numbers[3..].copy_from_slice(&p.orientation);
-        let header = stream.next(origin.elapsed().as_nanos() as i64);
+        let header = stream.next(realtime_ns());
         let _ = sender.send(&header, &(p.clutch, numbers), to);
     }
     // Lets the last datagrams land (loopback: microseconds).
     std::thread::sleep(Duration::from_millis(50));
     done.store(true, Ordering::Relaxed);
-    let ns = reader
+    let (read, stamped) = reader
         .join()
         .map_err(|_| anyhow::anyhow!("receiver panicked"))?;
-    let lost = args.samples.saturating_sub(ns.len());
-    Ok(Trips { ns, lost })
+    let lost = |n: usize| args.samples.saturating_sub(n);
+    Ok((
+        Trips {
+            lost: lost(read.len()),
+            ns: read,
+        },
+        Trips {
+            lost: lost(stamped.len()),
+            ns: stamped,
+        },
+    ))
 }
 
 fn peer(listen: Option<u16>, connect: Option<u16>) -> anyhow::Result<zenoh::Session> {
@@ -183,6 +214,7 @@ fn zenoh_bridge(args: &Args) -> anyhow::Result<Trips> {
     let publisher = station
         .declare_publisher(KEY)
         .congestion_control(zenoh::qos::CongestionControl::Block)
+        .express(args.express)
         .wait()
         .map_err(|e| anyhow::anyhow!("declaring the publisher: {e}"))?;
     // Ready when a probe is taken: the two peers see each other's declarations.
@@ -229,22 +261,24 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         ));
     }
     println!(
-        "one-way latency on loopback, {} poses at {} Hz each (same process, one clock)",
-        args.samples, args.rate
+        "one-way latency on loopback, {} poses at {} Hz each (same process, one clock){}",
+        args.samples,
+        args.rate,
+        if args.express { "; zenoh express" } else { "" }
     );
-    let origin = Instant::now();
-    let plane = data_plane(&args, origin)?;
+    let (plane, plane_kernel) = data_plane(&args)?;
     let bridge = zenoh_bridge(&args)?;
     println!(
-        "{:<34} {:>8} {:>6} {:>10} {:>10} {:>10}",
+        "{:<42} {:>8} {:>6} {:>10} {:>10} {:>10}",
         "transport", "samples", "lost", "p50 µs", "p99 µs", "max µs"
     );
     for (name, t) in [
-        ("data plane (UDP, postcard)", &plane),
+        ("data plane (UDP, postcard), kernel stamp", &plane_kernel),
+        ("data plane (UDP, postcard), reader", &plane),
         ("zenoh bridge (TCP peer, 58 B pose)", &bridge),
     ] {
         println!(
-            "{name:<34} {:>8} {:>6} {:>10.1} {:>10.1} {:>10.1}",
+            "{name:<42} {:>8} {:>6} {:>10.1} {:>10.1} {:>10.1}",
             t.ns.len(),
             t.lost,
             t.quantile(0.5),
@@ -253,9 +287,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
     }
     println!(
-        "zenoh / data plane: p50 x{:.2}, p99 x{:.2}",
+        "zenoh / data plane (reader): p50 x{:.2}, p99 x{:.2}",
         bridge.quantile(0.5) / plane.quantile(0.5),
         bridge.quantile(0.99) / plane.quantile(0.99)
+    );
+    println!(
+        "zenoh / data plane (kernel stamp): p50 x{:.2}, p99 x{:.2}",
+        bridge.quantile(0.5) / plane_kernel.quantile(0.5),
+        bridge.quantile(0.99) / plane_kernel.quantile(0.99)
     );
     Ok(ExitCode::SUCCESS)
 }
