@@ -367,3 +367,63 @@ fn the_queryable_answers_the_object_tree() {
     assert!(stats(&node).queries >= 2);
     node.shutdown();
 }
+
+/// A free loopback UDP port (the data plane's).
+fn free_udp_port() -> u16 {
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+#[test]
+fn a_channels_link_statistics_reach_a_zenoh_subscriber() {
+    let port = free_port();
+    let peer = test_peer(port);
+    let (tx, links) = mpsc::channel::<serde_json::Value>();
+    let _links = peer
+        .declare_subscriber("penelope/slave/link/link")
+        .callback(move |s| {
+            let _ = tx.send(serde_json::from_slice(&s.payload().to_bytes()).unwrap());
+        })
+        .wait()
+        .unwrap();
+    // The demo on two nodes, its channel on the data plane; the slave's node runs the bridge.
+    let system = include_str!("../../config/demo-two-nodes.toml")
+        .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", free_udp_port()))
+        .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", free_udp_port()));
+    let file = SystemFile::parse(&system).unwrap();
+    let start = |name: &str, zenoh: bool| {
+        let mut config = NodeConfig::new(name, NamingChoice::None);
+        config.creator.rt.priority = None;
+        config.creator.clock = ClockMode::Simulated;
+        config.zenoh = zenoh.then(|| ZenohSettings {
+            connect: Some(format!("tcp/127.0.0.1:{port}")),
+            config: None,
+        });
+        let node = Node::start(config).unwrap();
+        file.apply(&node).unwrap();
+        node
+    };
+    let (master, slave) = (start("master", false), start("slave", true));
+    // Until a record with samples taken comes: the link carried the master's samples.
+    let give_up = Instant::now() + Duration::from_secs(20);
+    let record = loop {
+        for _ in 0..50 {
+            master.creator().advance(Duration::from_millis(1)).unwrap();
+            slave.creator().advance(Duration::from_millis(1)).unwrap();
+        }
+        if let Ok(r) = links.try_recv()
+            && r["samples_taken"].as_u64().unwrap_or(0) > 0
+        {
+            break r;
+        }
+        assert!(Instant::now() < give_up, "no link record with samples");
+    };
+    assert_eq!(record["down"], false);
+    assert!(stats(&slave).link_records > 0);
+    println!("zenoh link record: {record}");
+    master.shutdown();
+    slave.shutdown();
+}

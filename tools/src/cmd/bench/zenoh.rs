@@ -261,7 +261,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         ));
     }
     println!(
-        "one-way latency on loopback, {} poses at {} Hz each (same process, one clock){}",
+        "one-way latency on loopback, {} poses at {} Hz each, in one process{}",
         args.samples,
         args.rate,
         if args.express { "; zenoh express" } else { "" }
