@@ -152,8 +152,8 @@ pub enum NodeError {
     /// The naming service refused the registration (name taken by a live node, limits).
     #[error("the naming service refused to register the node: {0}")]
     Registration(WireError),
-    /// The Zenoh bridge could not start.
-    #[error("Zenoh bridge: {0}")]
+    /// The Zenoh bridge could not start (its error names Zenoh; said once, not twice).
+    #[error(transparent)]
     Zenoh(#[from] ZenohError),
 }
 
