@@ -15,6 +15,8 @@
 //! - [`client`]: the naming-aware client and the proxies of remote objects.
 //! - [`dataplane`]: the data plane between nodes: authenticated UDP streams of samples, and
 //!   each link's clock estimate.
+//! - [`zenoh_bridge`]: a node's telemetry, events and links on Zenoh, its object tree as a
+//!   queryable, and operator poses from Zenoh into a teleoperation channel (feature `zenoh`).
 #![warn(missing_docs)]
 
 pub mod client;
@@ -27,3 +29,4 @@ pub mod proto;
 pub mod runs;
 pub mod service;
 pub mod system;
+pub mod zenoh_bridge;

@@ -17,6 +17,8 @@
 //! lock_memory = false                   # mlockall before the first tick
 //! data_plane = "127.0.0.1:7410"         # where a channel to a robot on another node binds
 //! record = "lab.mcap"                   # `penelope node` records from the first tick (MCAP)
+//! zenoh = "tcp/127.0.0.1:7447"          # a Zenoh bridge to this router or peer (or a table
+//!                                       # { connect = ENDPOINT, config = "zenoh.json5" })
 //!
 //! [boards.puma-io]                      # <class>.<name>: boards, robots, sensors,
 //! kind = "sim"                          #   trajectories, controllers; `kind` without the class
@@ -92,6 +94,9 @@ pub struct NodePolicy {
     /// their safety events and its channels' links, from the first tick, to this MCAP file
     /// (relative to the node's working directory; `--record` overrides it).
     pub record: Option<std::path::PathBuf>,
+    /// `penelope node` runs a Zenoh bridge ([`crate::zenoh_bridge`]) with these settings
+    /// (`--zenoh` and `--zenoh-config` override them).
+    pub zenoh: Option<crate::zenoh_bridge::ZenohSettings>,
 }
 
 impl NodePolicy {

@@ -47,6 +47,7 @@ use crate::objects::{Creator, CreatorConfig};
 use crate::proto::object_path;
 use crate::proto::{Call, NamingCall, ObjectRef, Reply, WireError, check_name};
 use crate::service::{Remote, Service, Session};
+use crate::zenoh_bridge::{BridgeStats, ZenohBridge, ZenohError, ZenohSettings};
 
 mod naming_link;
 mod service;
@@ -95,6 +96,8 @@ pub struct NodeConfig {
     pub call_timeout: Duration,
     /// How long a resolved path is reused before it is resolved again.
     pub resolve_ttl: Duration,
+    /// The Zenoh bridge's settings (`None`: no bridge).
+    pub zenoh: Option<ZenohSettings>,
 }
 
 impl NodeConfig {
@@ -113,6 +116,7 @@ impl NodeConfig {
             naming_limits: NamingLimits::default(),
             call_timeout: Duration::from_secs(2),
             resolve_ttl: Duration::from_secs(1),
+            zenoh: None,
             name,
         }
     }
@@ -148,6 +152,9 @@ pub enum NodeError {
     /// The naming service refused the registration (name taken by a live node, limits).
     #[error("the naming service refused to register the node: {0}")]
     Registration(WireError),
+    /// The Zenoh bridge could not start (its error names Zenoh; said once, not twice).
+    #[error(transparent)]
+    Zenoh(#[from] ZenohError),
 }
 
 /// A running node.
@@ -157,6 +164,7 @@ pub struct Node {
     server: Option<Server>,
     renewer: Option<(Sender<()>, JoinHandle<()>)>,
     reaper: Option<Reaper>,
+    zenoh: Option<ZenohBridge>,
     address: SocketAddr,
 }
 
@@ -249,6 +257,15 @@ impl Node {
                 Some(crate::dataplane::frame::DatagramKey::from_secret(secret));
         }
         let creator = Arc::new(Creator::new(creator_config));
+        // First of what the node runs: a bridge that cannot start leaves nothing to undo.
+        let zenoh = match &config.zenoh {
+            Some(settings) => Some(ZenohBridge::start(
+                &name,
+                Arc::downgrade(&creator),
+                settings,
+            )?),
+            None => None,
+        };
         let shared = Arc::new(Shared {
             name: name.clone(),
             lease: config.lease,
@@ -348,6 +365,7 @@ impl Node {
             server: Some(server),
             renewer,
             reaper,
+            zenoh,
             address,
         })
     }
@@ -387,6 +405,11 @@ impl Node {
     /// The naming service this node hosts, if it does.
     pub fn hosted_naming(&self) -> Option<&Arc<NamingService>> {
         self.shared.hosted.as_ref()
+    }
+
+    /// What the Zenoh bridge did so far (`None`: the node runs none).
+    pub fn zenoh_stats(&self) -> Option<BridgeStats> {
+        self.zenoh.as_ref().map(ZenohBridge::stats)
     }
 
     /// The server's counters.
@@ -435,6 +458,10 @@ impl Node {
         }
         if let Some(server) = self.server.take() {
             server.shutdown();
+        }
+        // Before the loops stop: no operator pose arrives while they go to their safe state.
+        if let Some(bridge) = self.zenoh.take() {
+            bridge.stop();
         }
         self.creator.shutdown();
         if unregister && self.shared.uses_naming() && self.shared.registered() {

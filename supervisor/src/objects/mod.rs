@@ -259,14 +259,21 @@ impl Creator {
     pub fn list(&self) -> Vec<ObjectInfo> {
         self.reap_failed();
         self.lock()
-            .map(|r| r.objects.values().map(|o| o.info()).collect())
+            .map(|r| r.objects.values().map(|o| o.info(&r.bridged)).collect())
             .unwrap_or_default()
     }
 
     /// One object.
     pub fn info(&self, name: &str) -> Option<ObjectInfo> {
         self.reap_failed();
-        self.lock().ok()?.objects.get(name).map(|o| o.info())
+        let r = self.lock().ok()?;
+        r.objects.get(name).map(|o| o.info(&r.bridged))
+    }
+
+    /// The channels whose master is an operator station behind the Zenoh bridge (shared: the
+    /// bridge reads and feeds them).
+    pub fn bridged_channels(&self) -> crate::zenoh_bridge::BridgedChannels {
+        self.lock().map(|r| r.bridged.clone()).unwrap_or_default()
     }
 
     /// Where the counters of channel `name`'s link to another node can be read (`None` for a
@@ -437,7 +444,7 @@ impl Creator {
             });
         }
         let o = registry::make(k, name, config)?;
-        let info = o.info();
+        let info = o.info(&reg.bridged);
         reg.objects.insert(name.to_string(), o);
         drop(reg);
         self.note_lifecycle(name, &info.kind, "create", info.state.as_str());
@@ -471,6 +478,7 @@ impl Creator {
         }
         let mut reg = self.lock()?;
         let removed = reg.objects.remove(name);
+        reg.bridged.remove(name);
         drop(reg);
         if let Some(mut o) = removed {
             if let Body::Galil(g) = &mut o.body

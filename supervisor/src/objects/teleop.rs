@@ -67,6 +67,10 @@ pub struct TeleopConfig {
     /// How long this node's end may hear nothing from the other node before the link counts
     /// as lost and its robot goes neutral, ms (0: two communication periods).
     pub link_timeout_ms: u64,
+    /// When the master is an operator station on Zenoh: the key expression its poses come
+    /// from (`docs/zenoh.md`; the node needs a Zenoh bridge, `--zenoh`). The slave is a robot
+    /// on this node, the master a name for the station.
+    pub zenoh_reference: Option<String>,
 }
 
 impl Default for TeleopConfig {
@@ -83,6 +87,7 @@ impl Default for TeleopConfig {
             faults: None,
             fault_seed: 1,
             link_timeout_ms: 0,
+            zenoh_reference: None,
         }
     }
 }
@@ -116,6 +121,9 @@ rotation_rpy_deg = [0.0, 0.0, 0.0]  # master base frame -> slave base frame
 # link_timeout_ms = 0               # silence before the link counts as lost and the robot goes
 #                                   # neutral (slave holds, master no force); 0: two T_com.
 #                                   # Above the link's jitter: each loss re-anchors the motion
+# When the master is an operator station that speaks Zenoh (docs/zenoh.md; the node runs a
+# Zenoh bridge, `penelope node --zenoh ENDPOINT`), the slave takes its poses from a key:
+# zenoh_reference = "station/hand/pose" # master = the station's name, slave = a robot here
 "#;
 
 impl TeleopConfig {
@@ -147,6 +155,17 @@ impl TeleopConfig {
             return Err(bad("`rotation_rpy_deg` must be finite".into()));
         }
         let plane = self.data_plane(kind)?;
+        if let Some(key) = &self.zenoh_reference {
+            crate::zenoh_bridge::check_key(key)
+                .map_err(|why| bad(format!("`zenoh_reference` = {key:?}: {why}")))?;
+            if plane.is_some() || self.faults.is_some() {
+                return Err(bad(
+                    "`zenoh_reference` takes the master's poses from Zenoh: leave out `listen`, \
+                     `peer` and `faults`"
+                        .into(),
+                ));
+            }
+        }
         if self.link_timeout_ms > 10_000 {
             return Err(bad(format!(
                 "`link_timeout_ms` = {} is outside 0..=10000",

@@ -107,6 +107,25 @@ enum Transport {
     },
     /// The other end on another node.
     DataPlane(Box<RemoteLink>),
+    /// The other end outside Penelope, behind a bridge (an operator station on Zenoh): the
+    /// bridge's non-real-time thread writes what it took into `receive` and reads what this
+    /// end sends from `send`. What arrives is stamped with the tick that takes it: the bridge
+    /// has no clock common with the sender.
+    Bridged {
+        send: ArcLatestWriter<TeleopSample>,
+        receive: ArcLatestReader<TeleopSample>,
+    },
+}
+
+/// The bridge's side of a channel end whose other end is outside Penelope
+/// ([`TeleopLink::bridged`]): what the bridge hands the loop, and what the loop sends back.
+/// Held by a non-real-time thread only.
+pub struct BridgedEnd {
+    /// Where the bridge writes each sample it took (its `sent` is overwritten by the tick
+    /// that takes it).
+    pub to_loop: ArcLatestWriter<TeleopSample>,
+    /// The newest sample this node's end sent (its robot's pose and wrench).
+    pub from_loop: ArcLatestReader<TeleopSample>,
 }
 
 /// The data-plane link of an end whose other end is on another node.
@@ -312,6 +331,7 @@ impl TeleopEnd {
                 delay: Some(line),
                 ..
             } => line.send(sample, send),
+            Transport::Bridged { send, .. } => send.write(sample),
             Transport::DataPlane(link) => {
                 let tick = nanos(sample.sent);
                 let header = link.sender.next(link.stamps.now(tick));
@@ -345,6 +365,10 @@ impl TeleopEnd {
         match &mut self.transport {
             Transport::Cells { receive, .. } => match receive.read() {
                 Fresh::New(s) => Some(s),
+                _ => None,
+            },
+            Transport::Bridged { receive, .. } => match receive.read() {
+                Fresh::New(s) => Some(TeleopSample { sent: now, ..s }),
                 _ => None,
             },
             Transport::DataPlane(link) => {
@@ -466,7 +490,7 @@ impl TeleopEnd {
     /// The data-plane link's counters (`None` for an end on cells).
     pub fn link_stats(&self) -> Option<LinkStats> {
         match &self.transport {
-            Transport::Cells { .. } => None,
+            Transport::Cells { .. } | Transport::Bridged { .. } => None,
             Transport::DataPlane(link) => Some(LinkStats {
                 down: link.down,
                 losses: link.losses,
@@ -598,6 +622,26 @@ impl TeleopLink {
             side, endpoint, peer, time, faults, writer,
         )?);
         Ok(link)
+    }
+
+    /// Only `side`'s end on this node, its other end outside Penelope behind a bridge: the
+    /// returned [`BridgedEnd`] is the bridge's (it writes what it takes, the loop reads it at
+    /// its next communication tick, as from the data plane).
+    pub fn bridged(side: Side) -> (Self, BridgedEnd) {
+        let (to_loop, receive) = latest::<TeleopSample>();
+        let (send, from_loop) = latest::<TeleopSample>();
+        let mut link = TeleopLink {
+            master: None,
+            slave: None,
+            local: (side == Side::Master, side == Side::Slave),
+            stats: None,
+        };
+        link.put_back(TeleopEnd {
+            side,
+            transport: Transport::Bridged { send, receive },
+            sent: 0,
+        });
+        (link, BridgedEnd { to_loop, from_loop })
     }
 
     /// The newest counters of the link to another node (`None` for a channel on this node,

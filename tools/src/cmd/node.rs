@@ -80,6 +80,17 @@ pub struct Args {
     /// this node.
     #[arg(long, value_name = "FILE", requires = "config")]
     pub record: Option<PathBuf>,
+    /// Run a Zenoh bridge connected to the router or peer at ENDPOINT (`tcp/127.0.0.1:7447`):
+    /// telemetry, safety events and link statistics on `penelope/NAME/OBJECT/STREAM`, the
+    /// object tree on `penelope/NAME/objects`, operator poses into channels with
+    /// `zenoh_reference` (docs/zenoh.md). Overrides the system file's `zenoh`. Needs a build
+    /// with `--features zenoh`.
+    #[arg(long, value_name = "ENDPOINT")]
+    pub zenoh: Option<String>,
+    /// Zenoh's own configuration file (JSON5), passed through to the bridge's session
+    /// (multicast scouting stays off unless it mentions `multicast`).
+    #[arg(long, value_name = "FILE")]
+    pub zenoh_config: Option<PathBuf>,
     /// Lease in the naming service, ms (renewed every third of it).
     #[arg(long, value_name = "MS", default_value_t = 3000)]
     pub lease_ms: u64,
@@ -131,6 +142,22 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.sim_clock {
         config.creator.clock = penelope_supervisor::objects::clock::ClockMode::Simulated;
     }
+    // The system file's Zenoh settings for this node, then what the command line says.
+    let mut zenoh = file
+        .as_ref()
+        .and_then(|f| f.nodes.get(&args.name))
+        .and_then(|p| p.zenoh.clone());
+    if args.zenoh.is_some() || args.zenoh_config.is_some() {
+        let z = zenoh.get_or_insert_with(Default::default);
+        if args.zenoh.is_some() {
+            z.connect = args.zenoh.clone();
+        }
+        if args.zenoh_config.is_some() {
+            z.config = args.zenoh_config.clone();
+        }
+    }
+    let config_zenoh = zenoh.clone();
+    config.zenoh = zenoh;
 
     let signals = block_stop_signals()?;
     let node = Node::start(config).map_err(|e| match e {
@@ -150,6 +177,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         node.advertised(),
         node.context()
     );
+    if let Some(z) = &config_zenoh {
+        println!(
+            "zenoh bridge: connecting to {}, publishing penelope/{}/**",
+            z.connect
+                .as_deref()
+                .unwrap_or("what its configuration file says"),
+            node.name()
+        );
+    }
     let mut recorder = None;
     if let Some(file) = file {
         // `--record`, else the file's `record` for this node.

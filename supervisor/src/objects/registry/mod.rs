@@ -253,7 +253,9 @@ impl Object {
         }
     }
 
-    pub fn info(&self) -> ObjectInfo {
+    /// What `list` and `describe` show; `bridged`: the node's channels fed from Zenoh (their
+    /// counters are shown with them).
+    pub fn info(&self, bridged: &crate::zenoh_bridge::BridgedChannels) -> ObjectInfo {
         let mut relations = Vec::new();
         match &self.body {
             Body::Robot(r) => {
@@ -285,7 +287,7 @@ impl Object {
             Body::Teleop(t) => {
                 relations.push(("master".to_string(), t.config.master.clone()));
                 relations.push(("slave".to_string(), t.config.slave.clone()));
-                relations.extend(link_relations(t));
+                relations.extend(link_relations(&self.name, t, bridged));
             }
             Body::Controller(c) => {
                 for (k, v) in [
@@ -496,6 +498,8 @@ pub(crate) struct Registry {
     /// How the creator's loops are clocked (a channel to another node stamps real times on
     /// real time, tick times on a simulated clock).
     pub clock: crate::objects::clock::ClockMode,
+    /// The channels whose master is an operator station behind the Zenoh bridge.
+    pub bridged: crate::zenoh_bridge::BridgedChannels,
 }
 
 /// What activating a controller needs from the creator.

@@ -9,7 +9,25 @@ use crate::objects::clock::ClockMode;
 
 /// `describe`'s lines about a channel's link to another node (none for a channel on this
 /// node, or before its first communication tick).
-pub(super) fn link_relations(t: &TeleopObj) -> Vec<(String, String)> {
+pub(super) fn link_relations(
+    name: &str,
+    t: &TeleopObj,
+    bridged: &crate::zenoh_bridge::BridgedChannels,
+) -> Vec<(String, String)> {
+    if t.config.zenoh_reference.is_some()
+        && let Some(c) = bridged.counts(name)
+    {
+        let last = c
+            .last_refusal
+            .map_or(String::new(), |why| format!(" (the last: {why})"));
+        return vec![(
+            "zenoh".to_string(),
+            format!(
+                "master poses from `{}`: {} taken, {} refused{last}",
+                c.key, c.taken, c.refused
+            ),
+        )];
+    }
     let Some(r) = t.link.as_ref().and_then(TeleopLink::stats) else {
         return Vec::new();
     };
@@ -86,6 +104,22 @@ impl Registry {
                 message: format!("{e:?}"),
             }
         })?;
+        if let Some(key) = t.config.zenoh_reference.clone() {
+            // The master is an operator station behind the bridge: only the slave is here.
+            self.expect_class(&slave, Class::Robot)?;
+            if self.expect_class(&master, Class::Robot).is_ok() {
+                return Err(bad_arg(format!(
+                    "`{name}` takes its master's poses from Zenoh, but `{master}` is a robot on \
+                     this node (name the operator station instead)"
+                )));
+            }
+            let (link, end) = TeleopLink::bridged(Side::Slave);
+            self.bridged.insert(name, &key, end);
+            if let Body::Teleop(t) = &mut self.get_mut(name)?.body {
+                t.link = Some(link);
+            }
+            return Ok(());
+        }
         let link = match data_plane {
             None => {
                 self.expect_class(&master, Class::Robot)?;

@@ -7,6 +7,8 @@ pub mod jitter;
 pub mod layout;
 pub mod record;
 pub mod rpc;
+#[cfg(feature = "zenoh")]
+pub mod zenoh;
 
 /// Which benchmark to run.
 #[derive(clap::Subcommand, Debug)]
@@ -23,6 +25,10 @@ pub enum BenchCommand {
     /// Recording throughput: ticks and megabytes per second a node records with no drop,
     /// beside the rate its loops produce.
     Record(record::Args),
+    /// The Zenoh bridge's one-way latency beside the data plane's, on loopback (a build with
+    /// `--features zenoh`).
+    #[cfg(feature = "zenoh")]
+    Zenoh(zenoh::Args),
 }
 
 /// Runs the chosen benchmark.
@@ -33,6 +39,8 @@ pub fn run(command: BenchCommand) -> anyhow::Result<ExitCode> {
         BenchCommand::Rpc(args) => rpc::run(args),
         BenchCommand::Layout(args) => layout::run(args),
         BenchCommand::Record(args) => record::run(args),
+        #[cfg(feature = "zenoh")]
+        BenchCommand::Zenoh(args) => zenoh::run(args),
     }
 }
 

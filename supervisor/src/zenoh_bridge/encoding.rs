@@ -1,0 +1,305 @@
+//! What crosses the Zenoh bridge, byte for byte (`docs/zenoh.md` is its description, checked
+//! against this module by `supervisor/tests/zenoh_doc.rs`): the key expressions, the JSON
+//! messages a node publishes and the binary operator pose it takes.
+//!
+//! Outward, a node publishes the same JSON messages its MCAP recordings hold (`runs::mcap_log`):
+//! one encoding of a tick, a safety event and a link's statistics for files and for the wire,
+//! readable by any Zenoh tool without generated code. Inward, the operator pose is a fixed
+//! 58-byte little-endian record: cheap to produce from any language (`struct.pack`), and a
+//! length and a tag that make a malformed payload easy to refuse before anything is parsed.
+//!
+//! Nothing here needs the `zenoh` crate: the encoding is tested in every build.
+
+use nalgebra::{Quaternion, Translation3, UnitQuaternion, Vector3};
+use penelope_hal::{CartesianReference, Pose, Reference, Timestamp, Twist};
+use penelope_rt_core::safety::{FaultCause, SafetyState};
+use penelope_rt_core::teleop::TeleopSample;
+use serde_json::json;
+
+use crate::objects::runtime::TickRecord;
+
+/// The first chunk of every key expression the bridge uses.
+pub const KEY_ROOT: &str = "penelope";
+/// The stream of a controller's ticks: `penelope/<node>/<controller>/telemetry`.
+pub const TELEMETRY: &str = "telemetry";
+/// The stream of a controller's safety events: `penelope/<node>/<controller>/events`.
+pub const EVENTS: &str = "events";
+/// The stream of a channel's link statistics: `penelope/<node>/<channel>/link`.
+pub const LINK: &str = "link";
+/// The stream of what a bridged channel's end on this node sends back to the operator station
+/// (its robot's pose and sensed wrench): `penelope/<node>/<channel>/feedback`.
+pub const FEEDBACK: &str = "feedback";
+/// The queryable of a node's object tree: `penelope/<node>/objects` (every object) and
+/// `penelope/<node>/objects/<name>` (one).
+pub const OBJECTS: &str = "objects";
+
+/// The key expression `penelope/<node>/<object>/<stream>`.
+pub fn stream_key(node: &str, object: &str, stream: &str) -> String {
+    format!("{KEY_ROOT}/{node}/{object}/{stream}")
+}
+
+/// The key expression of a node's object tree, `penelope/<node>/objects`.
+pub fn objects_key(node: &str) -> String {
+    format!("{KEY_ROOT}/{node}/{OBJECTS}")
+}
+
+/// The length of an encoded [`OperatorPose`], bytes.
+pub const OPERATOR_POSE_LEN: usize = 58;
+/// The tag (first byte) of an [`OperatorPose`], version 1.
+pub const OPERATOR_POSE_TAG: u8 = 0x01;
+/// How far from 1 the norm of an operator pose's quaternion may be (it is normalized after).
+pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
+/// The largest distance of an operator pose's position from its frame's origin, m: anything
+/// farther is no hand-held master's pose.
+pub const MAX_POSITION_M: f64 = 100.0;
+
+/// An operator station's master tool pose, as a `trajectory/teleop` channel's bridged end
+/// takes it: the master side's sample (its base frame), mapped to the slave by the channel as
+/// any master's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OperatorPose {
+    /// The clutch (indexing) button: held = `true` (the slave holds; motion re-anchors on
+    /// release).
+    pub clutch: bool,
+    /// The tool position, m.
+    pub position: [f64; 3],
+    /// The tool orientation, a unit quaternion `[w, x, y, z]`.
+    pub orientation: [f64; 4],
+}
+
+/// Why an operator pose payload was refused (counted per channel; never reaches a loop).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PoseError {
+    /// Not [`OPERATOR_POSE_LEN`] bytes.
+    #[error("{0} bytes, not {OPERATOR_POSE_LEN}")]
+    Length(usize),
+    /// The first byte is not [`OPERATOR_POSE_TAG`].
+    #[error("tag {0:#04x}, not {OPERATOR_POSE_TAG:#04x}")]
+    Tag(u8),
+    /// The clutch byte is neither 0 nor 1.
+    #[error("clutch byte {0:#04x}, neither 0 nor 1")]
+    Clutch(u8),
+    /// A number is NaN or infinite.
+    #[error("a number is not finite")]
+    NotFinite,
+    /// The position is farther than [`MAX_POSITION_M`] from the origin.
+    #[error("the position is farther than {MAX_POSITION_M} m from the origin")]
+    OutOfReach,
+    /// The quaternion's norm is off 1 by more than [`QUATERNION_NORM_TOLERANCE`].
+    #[error("the orientation is not a unit quaternion")]
+    NotUnit,
+}
+
+impl OperatorPose {
+    /// The 58 bytes: tag `0x01`, clutch (0 or 1), position x, y, z and orientation w, x, y, z
+    /// as IEEE 754 doubles, little-endian.
+    pub fn encode(&self) -> [u8; OPERATOR_POSE_LEN] {
+        let mut out = [0u8; OPERATOR_POSE_LEN];
+        out[0] = OPERATOR_POSE_TAG;
+        out[1] = u8::from(self.clutch);
+        let numbers = self.position.iter().chain(self.orientation.iter());
+        for (i, v) in numbers.enumerate() {
+            out[2 + 8 * i..10 + 8 * i].copy_from_slice(&v.to_le_bytes());
+        }
+        out
+    }
+
+    /// Reads and checks a payload.
+    ///
+    /// # Errors
+    /// [`PoseError`]: the wrong length or tag, a clutch byte other than 0 or 1, a number not
+    /// finite, a position out of reach, a quaternion not of unit norm.
+    pub fn decode(bytes: &[u8]) -> Result<OperatorPose, PoseError> {
+        if bytes.len() != OPERATOR_POSE_LEN {
+            return Err(PoseError::Length(bytes.len()));
+        }
+        if bytes[0] != OPERATOR_POSE_TAG {
+            return Err(PoseError::Tag(bytes[0]));
+        }
+        let clutch = match bytes[1] {
+            0 => false,
+            1 => true,
+            other => return Err(PoseError::Clutch(other)),
+        };
+        let mut n = [0f64; 7];
+        for (i, v) in n.iter_mut().enumerate() {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(&bytes[2 + 8 * i..10 + 8 * i]);
+            *v = f64::from_le_bytes(b);
+        }
+        if n.iter().any(|v| !v.is_finite()) {
+            return Err(PoseError::NotFinite);
+        }
+        let position = [n[0], n[1], n[2]];
+        if Vector3::from(position).norm() > MAX_POSITION_M {
+            return Err(PoseError::OutOfReach);
+        }
+        let orientation = [n[3], n[4], n[5], n[6]];
+        let norm = orientation.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
+            return Err(PoseError::NotUnit);
+        }
+        Ok(OperatorPose {
+            clutch,
+            position,
+            orientation,
+        })
+    }
+
+    /// The pose (orientation normalized).
+    pub fn pose(&self) -> Pose {
+        let [w, x, y, z] = self.orientation;
+        Pose::from_parts(
+            Translation3::from(Vector3::from(self.position)),
+            UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z)),
+        )
+    }
+
+    /// The channel sample it makes: sequence `sequence` (the bridge numbers what it took), a
+    /// master's Cartesian reference with the clutch. Its send time is the tick's that takes it.
+    pub fn sample(&self, sequence: u64) -> TeleopSample {
+        TeleopSample {
+            clutch: self.clutch,
+            ..TeleopSample::new(
+                sequence,
+                Timestamp::ZERO,
+                Reference::Cartesian(CartesianReference {
+                    pose: self.pose(),
+                    twist: Twist::default(),
+                }),
+            )
+        }
+    }
+}
+
+/// A tick's JSON message on `…/telemetry`: the serde form of [`TickRecord`] (what a
+/// recording's `/controllers/<name>` channel holds).
+///
+/// # Errors
+/// A JSON error (none for finite and non-finite numbers alike: serde_json writes `null`).
+pub fn tick_message(record: &TickRecord) -> Result<Vec<u8>, serde_json::Error> {
+    serde_json::to_vec(record)
+}
+
+/// A safety event's JSON message on `…/events` (a recording's `/safety` message): tick
+/// `record` of `controller`, after a tick whose state and fault were `previous` (`None`: the
+/// first tick seen). `None` when nothing changed and no event was raised.
+pub fn event_message(
+    controller: &str,
+    record: &TickRecord,
+    previous: Option<(SafetyState, Option<FaultCause>)>,
+) -> Option<Vec<u8>> {
+    let s = &record.sample;
+    let changed = previous != Some((s.state, s.fault));
+    if !changed && s.events.is_empty() {
+        return None;
+    }
+    let events: Vec<&str> = s.events.iter().map(|e| e.as_str()).collect();
+    serde_json::to_vec(&json!({
+        "time_ns": s.time.as_nanos(),
+        "controller": controller,
+        "seq": s.seq,
+        "state": s.state.as_str(),
+        "previous_state": previous.map(|(p, _)| p.as_str()),
+        "fault": s.fault.map(|f| f.to_string()),
+        "events": events,
+    }))
+    .ok()
+}
+
+/// What a bridged channel's end sent, as its JSON message on `…/feedback`: the sample's
+/// sequence, time (ns, the node's clock), its robot's tool pose (position m, orientation
+/// `[w, x, y, z]`) and sensed wrench (N, N·m, the robot's base frame) where the sample has them.
+pub fn feedback_message(sample: &TeleopSample) -> Vec<u8> {
+    let (pose, wrench) = match &sample.reference {
+        Reference::Cartesian(c) => (Some(c.pose), None),
+        Reference::Hybrid(h) => (Some(h.motion.pose), Some(h.wrench)),
+        Reference::Wrench(w) => (None, Some(*w)),
+        _ => (None, None),
+    };
+    let position = pose.map(|p| [p.translation.x, p.translation.y, p.translation.z]);
+    let orientation = pose.map(|p| {
+        let q = p.rotation.quaternion();
+        [q.w, q.i, q.j, q.k]
+    });
+    serde_json::to_vec(&json!({
+        "sequence": sample.sequence,
+        "time_ns": sample.sent.as_nanos(),
+        "position": position,
+        "orientation": orientation,
+        "force": wrench.map(|w| [w.force.x, w.force.y, w.force.z]),
+        "torque": wrench.map(|w| [w.torque.x, w.torque.y, w.torque.z]),
+    }))
+    .unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pose() -> OperatorPose {
+        OperatorPose {
+            clutch: false,
+            position: [0.5, -0.25, 1.0],
+            orientation: [1.0, 0.0, 0.0, 0.0],
+        }
+    }
+
+    #[test]
+    fn a_pose_reads_back_as_written() {
+        let p = pose();
+        assert_eq!(OperatorPose::decode(&p.encode()), Ok(p));
+        let held = OperatorPose { clutch: true, ..p };
+        assert_eq!(OperatorPose::decode(&held.encode()), Ok(held));
+    }
+
+    #[test]
+    fn malformed_poses_are_refused_with_their_reason() {
+        let good = pose().encode();
+        assert_eq!(
+            OperatorPose::decode(&good[..57]),
+            Err(PoseError::Length(57))
+        );
+        assert_eq!(OperatorPose::decode(&[]), Err(PoseError::Length(0)));
+        let mut b = good;
+        b[0] = 2;
+        assert_eq!(OperatorPose::decode(&b), Err(PoseError::Tag(2)));
+        let mut b = good;
+        b[1] = 7;
+        assert_eq!(OperatorPose::decode(&b), Err(PoseError::Clutch(7)));
+        let nan = OperatorPose {
+            position: [f64::NAN, 0.0, 0.0],
+            ..pose()
+        };
+        assert_eq!(
+            OperatorPose::decode(&nan.encode()),
+            Err(PoseError::NotFinite)
+        );
+        let far = OperatorPose {
+            position: [1e3, 0.0, 0.0],
+            ..pose()
+        };
+        assert_eq!(
+            OperatorPose::decode(&far.encode()),
+            Err(PoseError::OutOfReach)
+        );
+        let skew = OperatorPose {
+            orientation: [1.0, 1.0, 0.0, 0.0],
+            ..pose()
+        };
+        assert_eq!(
+            OperatorPose::decode(&skew.encode()),
+            Err(PoseError::NotUnit)
+        );
+    }
+
+    #[test]
+    fn keys_follow_node_object_stream() {
+        assert_eq!(
+            stream_key("slave", "follow", TELEMETRY),
+            "penelope/slave/follow/telemetry"
+        );
+        assert_eq!(objects_key("slave"), "penelope/slave/objects");
+    }
+}

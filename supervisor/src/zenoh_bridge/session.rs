@@ -1,0 +1,420 @@
+//! The bridge's Zenoh session and its thread (feature `zenoh`): Zenoh's sync API (`Wait`) from
+//! one thread of normal priority, and Zenoh's own runtime threads for the callbacks of the
+//! reference subscribers and the object-tree queryable. None of it touches a loop but through
+//! the cells of [`BridgedChannels`] and the bounded tick streams of the telemetry pump.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{self, RecvTimeoutError, Sender};
+use std::sync::{Arc, Weak};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use penelope_rt_core::safety::{FaultCause, SafetyState};
+use zenoh::Wait;
+use zenoh::bytes::Encoding;
+use zenoh::pubsub::{Publisher, Subscriber};
+use zenoh::qos::CongestionControl;
+use zenoh::query::{Query, Queryable};
+
+use super::channels::BridgedChannels;
+use super::encoding::{self, EVENTS, FEEDBACK, LINK, TELEMETRY, objects_key, stream_key};
+use super::{BridgeStats, ZenohError, ZenohSettings};
+use crate::objects::Creator;
+use crate::objects::runtime::TickStream;
+use crate::objects::teleop_end::LinkStatsSource;
+use crate::proto::Class;
+
+/// How often the bridge drains the tick streams and publishes.
+const DRAIN_EVERY: Duration = Duration::from_millis(5);
+/// How often it looks for new controllers, channels and reference keys, and publishes links'
+/// statistics.
+const DISCOVER_EVERY: Duration = Duration::from_millis(100);
+/// Ticks a controller's stream holds for the bridge (four seconds at 1 kHz): beyond, the
+/// bridge fell behind and ticks are dropped (counted).
+const TICK_STREAM_CAPACITY: usize = 4096;
+
+/// The bridge's counters, shared with the callbacks.
+#[derive(Default)]
+struct Counters {
+    controllers: AtomicU64,
+    reference_keys: AtomicU64,
+    ticks: AtomicU64,
+    events: AtomicU64,
+    link_records: AtomicU64,
+    feedback: AtomicU64,
+    poses_taken: AtomicU64,
+    poses_refused: AtomicU64,
+    queries: AtomicU64,
+}
+
+/// A node's running Zenoh bridge. Stopped (its thread joined, its session closed) by
+/// [`stop`](Self::stop) or when dropped.
+pub struct ZenohBridge {
+    session: zenoh::Session,
+    counters: Arc<Counters>,
+    /// Ticks lost by the bridge's streams (summed by its thread).
+    dropped: Arc<AtomicU64>,
+    stop: Option<(Sender<()>, JoinHandle<()>)>,
+    _queryable: Queryable<()>,
+}
+
+impl std::fmt::Debug for ZenohBridge {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ZenohBridge")
+            .field("zid", &self.session.zid())
+            .finish_non_exhaustive()
+    }
+}
+
+/// The session's configuration: `settings`' file passed through, the endpoint to connect to,
+/// and — unless the file says otherwise — no multicast scouting and no listening.
+fn config(settings: &ZenohSettings) -> Result<zenoh::Config, ZenohError> {
+    let cfg = |e: zenoh::Error| ZenohError::Config(e.to_string());
+    let (mut config, text) = match &settings.config {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| ZenohError::Config(format!("{}: {e}", path.display())))?;
+            let config = zenoh::Config::from_json5(&text)
+                .map_err(|e| ZenohError::Config(format!("{}: {e}", path.display())))?;
+            (config, text)
+        }
+        None => (zenoh::Config::default(), String::new()),
+    };
+    if !text.contains("multicast") {
+        config
+            .insert_json5("scouting/multicast/enabled", "false")
+            .map_err(cfg)?;
+    }
+    if !text.contains("listen") {
+        config.insert_json5("listen/endpoints", "[]").map_err(cfg)?;
+    }
+    if let Some(endpoint) = &settings.connect {
+        let list =
+            serde_json::to_string(&[endpoint]).map_err(|e| ZenohError::Config(e.to_string()))?;
+        config
+            .insert_json5("connect/endpoints", &list)
+            .map_err(|e| ZenohError::Config(format!("endpoint {endpoint:?}: {e}")))?;
+    }
+    Ok(config)
+}
+
+impl ZenohBridge {
+    /// Opens a Zenoh session as `settings` say and starts bridging node `node`'s `creator`:
+    /// the object tree's queryable at once, then its controllers, channels and reference keys
+    /// as they appear.
+    ///
+    /// # Errors
+    /// [`ZenohError`]: a configuration file that does not read or parse, a refused endpoint,
+    /// a session that does not open.
+    pub fn start(
+        node: &str,
+        creator: Weak<Creator>,
+        settings: &ZenohSettings,
+    ) -> Result<ZenohBridge, ZenohError> {
+        let session = zenoh::open(config(settings)?)
+            .wait()
+            .map_err(|e| ZenohError::Session(e.to_string()))?;
+        let counters = Arc::new(Counters::default());
+        let queryable = declare_objects(&session, node, creator.clone(), counters.clone())?;
+        let dropped = Arc::new(AtomicU64::new(0));
+        let (stop, stopped) = mpsc::channel::<()>();
+        let mut worker = Worker {
+            node: node.to_string(),
+            session: session.clone(),
+            creator,
+            counters: counters.clone(),
+            dropped: dropped.clone(),
+            controllers: BTreeMap::new(),
+            links: BTreeMap::new(),
+            feedback: BTreeMap::new(),
+            subscribers: BTreeMap::new(),
+            channels: None,
+        };
+        let thread = std::thread::Builder::new()
+            .name(format!("zenoh-{node}"))
+            .spawn(move || worker.run(&stopped))
+            .map_err(|e| ZenohError::Session(format!("cannot spawn the bridge thread: {e}")))?;
+        Ok(ZenohBridge {
+            session,
+            counters,
+            dropped,
+            stop: Some((stop, thread)),
+            _queryable: queryable,
+        })
+    }
+
+    /// What it did so far.
+    pub fn stats(&self) -> BridgeStats {
+        let c = &self.counters;
+        let n = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        BridgeStats {
+            controllers: n(&c.controllers),
+            reference_keys: n(&c.reference_keys),
+            ticks: n(&c.ticks),
+            ticks_dropped: n(&self.dropped),
+            events: n(&c.events),
+            link_records: n(&c.link_records),
+            feedback: n(&c.feedback),
+            poses_taken: n(&c.poses_taken),
+            poses_refused: n(&c.poses_refused),
+            queries: n(&c.queries),
+        }
+    }
+
+    /// Stops the thread (it publishes what its streams hold first) and closes the session.
+    pub fn stop(mut self) {
+        self.halt();
+    }
+
+    fn halt(&mut self) {
+        if let Some((stop, thread)) = self.stop.take() {
+            let _ = stop.send(());
+            let _ = thread.join();
+            if let Err(e) = self.session.close().wait() {
+                log::warn!("zenoh: closing the session: {e}");
+            }
+        }
+    }
+}
+
+impl Drop for ZenohBridge {
+    fn drop(&mut self) {
+        self.halt();
+    }
+}
+
+/// Declares the queryable of `node`'s object tree: `penelope/<node>/objects` answers every
+/// object, `penelope/<node>/objects/<name>` one, as JSON (`proto::ObjectInfo`'s serde form).
+fn declare_objects(
+    session: &zenoh::Session,
+    node: &str,
+    creator: Weak<Creator>,
+    counters: Arc<Counters>,
+) -> Result<Queryable<()>, ZenohError> {
+    let tree = objects_key(node);
+    let prefix = format!("{tree}/");
+    let everything = format!("{tree}/**");
+    session
+        .declare_queryable(everything.clone())
+        .callback(move |query: Query| {
+            let Some(creator) = creator.upgrade() else {
+                return;
+            };
+            let asked = query.key_expr().as_str();
+            // One object when the query names one plainly; the whole tree otherwise.
+            let one = asked
+                .strip_prefix(&prefix)
+                .filter(|name| crate::proto::check_name(name).is_ok());
+            let (key, body) = match one {
+                Some(name) => match creator.info(name) {
+                    Some(info) => (asked.to_string(), serde_json::to_vec(&info)),
+                    None => return,
+                },
+                None => (tree.clone(), serde_json::to_vec(&creator.list())),
+            };
+            let Ok(body) = body else { return };
+            match query
+                .reply(key, body)
+                .encoding(Encoding::APPLICATION_JSON)
+                .wait()
+            {
+                Ok(()) => {
+                    counters.queries.fetch_add(1, Ordering::Relaxed);
+                }
+                Err(e) => log::debug!("zenoh: a reply to {asked} failed: {e}"),
+            }
+        })
+        .wait()
+        .map_err(|e| ZenohError::Session(format!("queryable {everything}: {e}")))
+}
+
+/// A controller the bridge publishes.
+struct ControllerStreams {
+    ticks: TickStream,
+    telemetry: Publisher<'static>,
+    events: Publisher<'static>,
+    /// The state and fault of the last tick published.
+    last: Option<(SafetyState, Option<FaultCause>)>,
+}
+
+/// The bridge's thread: what it publishes and where.
+struct Worker {
+    node: String,
+    session: zenoh::Session,
+    creator: Weak<Creator>,
+    counters: Arc<Counters>,
+    dropped: Arc<AtomicU64>,
+    controllers: BTreeMap<String, ControllerStreams>,
+    links: BTreeMap<String, (LinkStatsSource, Publisher<'static>)>,
+    feedback: BTreeMap<String, Publisher<'static>>,
+    /// A subscriber per reference key (several channels may share one).
+    subscribers: BTreeMap<String, Subscriber<()>>,
+    channels: Option<BridgedChannels>,
+}
+
+impl Worker {
+    fn publisher(&self, object: &str, stream: &str) -> Option<Publisher<'static>> {
+        let key = stream_key(&self.node, object, stream);
+        // Blocking when the transport is congested slows this thread only: the loops' ticks
+        // then wait in its bounded streams (and past their capacity are dropped, counted).
+        self.session
+            .declare_publisher(key.clone())
+            .encoding(Encoding::APPLICATION_JSON)
+            .congestion_control(CongestionControl::Block)
+            .wait()
+            .map_err(|e| log::warn!("zenoh: cannot declare {key}: {e}"))
+            .ok()
+    }
+
+    fn run(&mut self, stop: &mpsc::Receiver<()>) {
+        let mut discovered: Option<Instant> = None;
+        loop {
+            let stopping = match stop.recv_timeout(DRAIN_EVERY) {
+                Err(RecvTimeoutError::Timeout) => false,
+                Ok(()) | Err(RecvTimeoutError::Disconnected) => true,
+            };
+            let Some(creator) = self.creator.upgrade() else {
+                return;
+            };
+            if discovered.is_none_or(|t| t.elapsed() >= DISCOVER_EVERY) {
+                discovered = Some(Instant::now());
+                self.discover(&creator);
+                self.publish_links();
+            }
+            drop(creator);
+            self.publish_ticks();
+            self.publish_feedback();
+            if stopping {
+                return;
+            }
+        }
+    }
+
+    /// Starts publishing new controllers and linked channels, and subscribes to new reference
+    /// keys.
+    fn discover(&mut self, creator: &Creator) {
+        for info in creator.list() {
+            if info.class == Class::Controller && !self.controllers.contains_key(&info.name) {
+                let Ok(ticks) = creator.record_ticks(&info.name, TICK_STREAM_CAPACITY) else {
+                    continue;
+                };
+                let (Some(telemetry), Some(events)) = (
+                    self.publisher(&info.name, TELEMETRY),
+                    self.publisher(&info.name, EVENTS),
+                ) else {
+                    continue;
+                };
+                self.controllers.insert(
+                    info.name,
+                    ControllerStreams {
+                        ticks,
+                        telemetry,
+                        events,
+                        last: None,
+                    },
+                );
+                self.counters
+                    .controllers
+                    .store(self.controllers.len() as u64, Ordering::Relaxed);
+            } else if info.kind == "trajectory/teleop" {
+                let source = creator.link_stats_source(&info.name).ok().flatten();
+                let stale = match (self.links.get(&info.name), &source) {
+                    (Some((old, _)), Some(new)) => !old.same_link(new),
+                    (None, Some(_)) => true,
+                    _ => false,
+                };
+                if stale
+                    && let Some(source) = source
+                    && let Some(publisher) = self.publisher(&info.name, LINK)
+                {
+                    self.links.insert(info.name, (source, publisher));
+                }
+            }
+        }
+        let channels = self
+            .channels
+            .get_or_insert_with(|| creator.bridged_channels())
+            .clone();
+        for (channel, key) in channels.keys() {
+            if !self.feedback.contains_key(&channel)
+                && let Some(publisher) = self.publisher(&channel, FEEDBACK)
+            {
+                self.feedback.insert(channel, publisher);
+            }
+            if self.subscribers.contains_key(&key) {
+                continue;
+            }
+            let (feed, counters, on) = (channels.clone(), self.counters.clone(), key.clone());
+            let declared = self
+                .session
+                .declare_subscriber(key.clone())
+                .callback(move |sample| {
+                    let counter = match feed.offer(&on, &sample.payload().to_bytes()) {
+                        Ok(()) => &counters.poses_taken,
+                        Err(_) => &counters.poses_refused,
+                    };
+                    counter.fetch_add(1, Ordering::Relaxed);
+                })
+                .wait();
+            match declared {
+                Ok(subscriber) => {
+                    self.subscribers.insert(key, subscriber);
+                    self.counters
+                        .reference_keys
+                        .store(self.subscribers.len() as u64, Ordering::Relaxed);
+                }
+                Err(e) => log::warn!("zenoh: cannot subscribe to {key}: {e}"),
+            }
+        }
+    }
+
+    fn publish_ticks(&mut self) {
+        let mut dropped = 0;
+        for (name, c) in &mut self.controllers {
+            while let Ok(record) = c.ticks.ticks.try_recv() {
+                if let Some(event) = encoding::event_message(name, &record, c.last)
+                    && c.events.put(event).wait().is_ok()
+                {
+                    self.counters.events.fetch_add(1, Ordering::Relaxed);
+                }
+                c.last = Some((record.sample.state, record.sample.fault));
+                if let Ok(body) = encoding::tick_message(&record)
+                    && c.telemetry.put(body).wait().is_ok()
+                {
+                    self.counters.ticks.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+            dropped += c.ticks.dropped.load(Ordering::Relaxed);
+        }
+        self.dropped.store(dropped, Ordering::Relaxed);
+    }
+
+    fn publish_links(&mut self) {
+        let now = penelope_rt_core::clock::MonotonicClock::read().as_nanos();
+        for (source, publisher) in self.links.values() {
+            if let Some(stats) = source.latest()
+                && let Ok(body) = serde_json::to_vec(&stats.record(now))
+                && publisher.put(body).wait().is_ok()
+            {
+                self.counters.link_records.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+
+    fn publish_feedback(&mut self) {
+        let Some(channels) = &self.channels else {
+            return;
+        };
+        for (channel, sample) in channels.feedback() {
+            if let Some(publisher) = self.feedback.get(&channel)
+                && publisher
+                    .put(encoding::feedback_message(&sample))
+                    .wait()
+                    .is_ok()
+            {
+                self.counters.feedback.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+}
