@@ -184,13 +184,20 @@ pub(crate) fn wrench_in_base(w: &Wrench, pose: &Pose) -> Option<Vector6<f64>> {
 ///   `None` without a mount.
 pub fn contact_in_base(w: &Wrench, pose: &Pose, mount: Option<&Pose>) -> Option<Vector6<f64>> {
     match (w.frame, mount) {
-        (Frame::Sensor, Some(mount)) => {
-            let at_tool = w.expressed_in(&mount.inverse(), Frame::Tool);
-            let f = pose.rotation * at_tool.force;
-            let m = pose.rotation * at_tool.torque;
-            Some(-Vector6::new(f.x, f.y, f.z, m.x, m.y, m.z))
-        }
+        (Frame::Sensor, Some(mount)) => Some(-sensor_to_base(w, mount, pose).to_vector()),
         _ => wrench_in_base(w, pose),
+    }
+}
+
+/// A wrist-sensor reading (sensor frame, mounted at `mount` in the tool frame) as a wrench in
+/// the robot's base frame about the tool origin, for a tool at `tool` (the sensor's sign kept:
+/// the robot pushing on the world).
+pub fn sensor_to_base(reading: &Wrench, mount: &Pose, tool: &Pose) -> Wrench {
+    let in_tool = reading.expressed_in(&mount.inverse(), Frame::Tool);
+    Wrench {
+        force: tool.rotation * in_tool.force,
+        torque: tool.rotation * in_tool.torque,
+        frame: Frame::Base,
     }
 }
 

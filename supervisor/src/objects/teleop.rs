@@ -633,16 +633,7 @@ fn neutral(side: Side, held: &Pose, now: &Pose) -> Reference {
     }
 }
 
-/// A wrist-sensor reading (sensor frame, mounted at `mount` in the tool frame) as a wrench in
-/// the robot's base frame about the tool origin, for a tool at `tool`.
-pub fn sensor_to_base(reading: &Wrench, mount: &Pose, tool: &Pose) -> Wrench {
-    let in_tool = reading.expressed_in(&mount.inverse(), Frame::Tool);
-    Wrench {
-        force: tool.rotation * in_tool.force,
-        torque: tool.rotation * in_tool.torque,
-        frame: Frame::Base,
-    }
-}
+pub use penelope_rt_core::teleop::sensor_to_base;
 
 /// `sensor/operator-hand` configuration: a scripted operator's hand holding a simulated master.
 #[derive(Clone, Debug, PartialEq, Deserialize)]

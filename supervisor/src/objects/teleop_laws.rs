@@ -262,12 +262,7 @@ impl FourChannelSlaveToml {
     /// # Errors
     /// [`WireError::BadConfig`] for another word.
     pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
-        two_port(
-            kind,
-            &self.passivity,
-            PassivityForm::Admittance,
-            "admittance",
-        )
+        slave_port_law(kind, &self.passivity)
     }
 }
 
@@ -299,12 +294,7 @@ impl SlaveTrackingToml {
     /// # Errors
     /// [`WireError::BadConfig`] for another word.
     pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
-        two_port(
-            kind,
-            &self.passivity,
-            PassivityForm::Admittance,
-            "admittance",
-        )
+        slave_port_law(kind, &self.passivity)
     }
 }
 
@@ -314,6 +304,11 @@ impl SlaveTrackingToml {
 /// 10 mJ leaves the zero-delay task as the plain law runs it and changes nothing from 50 ms up
 /// (`penelope experiment delay`, BENCHMARKS.md).
 pub const TWO_PORT_INITIAL_ENERGY: f64 = 0.01;
+
+/// A slave half's two-port observer for `passivity` = `word` (`off` or `admittance`).
+fn slave_port_law(kind: &str, word: &str) -> Result<PortLaw, WireError> {
+    two_port(kind, word, PassivityForm::Admittance, "admittance")
+}
 
 /// The two-port observer for `word`: `off`, or `on` (the one form the port's causality allows).
 fn two_port(kind: &str, word: &str, form: PassivityForm, on: &str) -> Result<PortLaw, WireError> {
