@@ -91,8 +91,9 @@ fn a_recording_under_a_flood_of_slow_readers_loses_nothing_uncounted_and_no_loop
     let (naming, _node, _out) = sim_node();
     ok(&ctl(naming, &["advance", "lab", "10ms"]));
 
-    // The slow readers: each is ready once it has printed its first record; from then on
-    // nobody reads its pipe.
+    // The slow readers, subscribed one at a time (the node bounds handshakes per address, and
+    // a burst of sixteen from loopback would evict some): each is ready once it says on stderr
+    // that the node acknowledged its subscription. From then on nobody reads its stdout.
     let mut watchers = Vec::new();
     for i in 0..WATCHERS {
         let controller = if i % 2 == 0 { "display" } else { "follow" };
@@ -103,26 +104,30 @@ fn a_recording_under_a_flood_of_slow_readers_loses_nothing_uncounted_and_no_loop
                 .args(["--decimation", "1", "--json"])
                 .stdin(Stdio::null())
                 .stdout(Stdio::piped())
-                .stderr(Stdio::null())
+                .stderr(Stdio::piped())
                 .spawn()
                 .unwrap(),
         );
+        // Kept open, so that nothing it says later meets a closed pipe.
+        let mut stderr = std::io::BufReader::new(w.0.stderr.take().unwrap());
+        let mut said = String::new();
+        stderr.read_line(&mut said).unwrap();
+        assert!(said.starts_with("watching "), "watcher {i}: {said:?}");
         let stdout = w.0.stdout.take().unwrap();
-        watchers.push((w, stdout));
+        watchers.push((w, stdout, stderr));
     }
-    // Samples flow only while the clock moves: move it until every watcher has printed.
-    for (_, stdout) in &mut watchers {
-        let mut reader = std::io::BufReader::new(&mut *stdout);
+    // Samples flow only while the clock moves: once it has, every watcher prints (its first
+    // line blocks only until the pump has delivered that advance's records).
+    ok(&ctl(naming, &["advance", "lab", "10ms"]));
+    for (i, (_, stdout, _)) in watchers.iter_mut().enumerate() {
         let mut line = String::new();
-        for _ in 0..100 {
-            ok(&ctl(naming, &["advance", "lab", "10ms"]));
-            // A watcher prints as soon as it has a record; reading one line blocks at most
-            // until the next advance's records reach it.
-            if reader.read_line(&mut line).unwrap() > 0 {
-                break;
-            }
-        }
-        assert!(line.contains("seq"), "a watcher printed a record: {line:?}");
+        std::io::BufReader::new(&mut *stdout)
+            .read_line(&mut line)
+            .unwrap();
+        assert!(
+            line.contains("seq"),
+            "watcher {i} printed a record: {line:?}"
+        );
     }
 
     let path = file.to_str().unwrap();

@@ -102,17 +102,17 @@ fn follow<R: Watched>(
     stall: Duration,
     json: bool,
 ) -> anyhow::Result<()> {
-    if !json {
-        eprintln!(
-            "watching {} ({what}){}",
-            stream.path(),
-            if until.count.is_none() && until.limit.is_none() {
-                "; Ctrl-C to stop"
-            } else {
-                ""
-            }
-        );
-    }
+    // Said once the node has acknowledged the subscription, also with `--json` (whose records
+    // go to stdout): a script can wait for this line before it makes the node produce records.
+    eprintln!(
+        "watching {} ({what}){}",
+        stream.path(),
+        if until.count.is_none() && until.limit.is_none() {
+            "; Ctrl-C to stop"
+        } else {
+            ""
+        }
+    );
     let start = Instant::now();
     let mut last = Instant::now();
     let mut t0 = None;
