@@ -66,7 +66,8 @@ fn the_two_and_four_host_layouts_complete_the_task_as_the_single_process_demo_do
         let num = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
         eprintln!(
             "{name}: tracking {:.3} mm (demo {:.3}), display {:.2}% (demo {:.2}), sensed {:.2} N \
-             (demo {:.2}), motion->command p50 {} µs, contact->force p50 {} µs, link {}",
+             (demo {:.2}), motion->command p50 {} µs, contact->force p50 {} µs, link {}, \
+             streams {}",
             num("tracking_rms_mm"),
             demo.tracking.rms_mm,
             num("display_error_pct"),
@@ -76,6 +77,7 @@ fn the_two_and_four_host_layouts_complete_the_task_as_the_single_process_demo_do
             r["motion_to_command"]["p50_us"],
             r["contact_to_force"]["p50_us"],
             r["link"],
+            r["streams"],
         );
         assert!((num("duration_s") - 20.0).abs() < 0.01, "{name}: {r}");
         // Tracking: the same sub-millimetre class as the demo (real clock, several processes).
@@ -116,6 +118,18 @@ fn the_two_and_four_host_layouts_complete_the_task_as_the_single_process_demo_do
             .as_f64()
             .expect("an offset estimate");
         assert!(offset.abs() < 100.0, "{name}: clock offset {offset} µs");
+        // The data plane as both hosts recorded it (`/streams/...`): every sample one host
+        // took is one the other recorded as sent, to the last bit, and the recorders lost none.
+        for way in ["master_to_slave", "slave_to_master"] {
+            let s = &r["streams"][way];
+            let n = |k: &str| s[k].as_u64().unwrap_or(u64::MAX);
+            assert!(
+                n("taken") > 5000 && n("taken") <= n("sent"),
+                "{name} {way}: {s}"
+            );
+            assert_eq!(n("matched"), n("taken"), "{name} {way}: {s}");
+            assert_eq!(n("recorder_dropped"), 0, "{name} {way}: {s}");
+        }
         for key in ["motion_to_command", "contact_to_force", "udp_echo_one_way"] {
             assert!(
                 r[key]["samples"].as_u64().unwrap_or(0) > 1000,

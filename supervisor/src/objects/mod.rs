@@ -43,6 +43,7 @@ pub mod fpga_board;
 pub mod kinds;
 pub mod kinematics;
 pub mod lifecycle_feed;
+pub mod link_source;
 mod loops;
 mod registry;
 pub mod replay;
@@ -276,15 +277,12 @@ impl Creator {
         self.lock().map(|r| r.bridged.clone()).unwrap_or_default()
     }
 
-    /// Where the counters of channel `name`'s link to another node can be read (`None` for a
-    /// channel with both ends on this node, or not configured yet).
+    /// Where the counters and datagrams of channel `name`'s link to another node can be read
+    /// (`None` for a channel with both ends on this node, or not configured yet).
     ///
     /// # Errors
     /// [`WireError::UnknownName`] for no such object.
-    pub fn link_stats_source(
-        &self,
-        name: &str,
-    ) -> Result<Option<teleop_end::LinkStatsSource>, WireError> {
+    pub fn link_source(&self, name: &str) -> Result<Option<link_source::LinkSource>, WireError> {
         let registry = self.lock()?;
         Ok(match &registry.get(name)?.body {
             registry::Body::Teleop(t) => t.link.as_ref().and_then(|l| l.stats_source()),
@@ -339,7 +337,7 @@ impl Creator {
             if info.class == Class::Controller {
                 streams.push((name.clone(), self.record_ticks(name, RECORDER_CAPACITY)?));
             } else if info.kind == "trajectory/teleop" {
-                match self.link_stats_source(name)? {
+                match self.link_source(name)? {
                     Some(source) => links.push((name.clone(), source)),
                     None if objects.is_empty() => {}
                     None => {
@@ -523,7 +521,7 @@ impl Creator {
         }
         if class == Class::Trajectory {
             // A channel cleaned up or configured anew has lost the link its watchers read.
-            let current = self.link_stats_source(name)?;
+            let current = self.link_source(name)?;
             self.subscriptions.links().end_stale(name, current.as_ref());
         }
         let info = self
@@ -587,7 +585,7 @@ impl Creator {
         &self,
         session: &Session,
         channel: &str,
-        source: teleop_end::LinkStatsSource,
+        source: link_source::LinkSource,
         decimation: u32,
     ) -> Result<Reply, WireError> {
         if self.sim.is_none() {

@@ -3,11 +3,9 @@
 //! stream per direction, newest wins) when the other robot is on another node. Either way the
 //! communication thread that holds the end does the I/O; the control thread never does.
 
-use std::net::SocketAddr;
-use std::sync::{Arc, Mutex};
-
 use penelope_hal::{Reference, Timestamp};
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, latest};
+use std::net::SocketAddr;
 
 /// Where an end linked to another node publishes its [`LinkStats`] (read by the channel
 /// object for `describe`).
@@ -25,6 +23,7 @@ use crate::dataplane::frame::StreamId;
 use crate::dataplane::histogram::LatencyHistogram;
 use crate::dataplane::stream::{StreamReceiver, StreamSender, StreamStats, Verdict};
 use crate::objects::delay_line::DelayLine;
+use crate::objects::link_source::{DatagramTap, LinkSource, StreamDatagram, StreamName};
 
 /// The stream of the master's samples to the slave.
 pub const MASTER_TO_SLAVE: StreamId = StreamId(1);
@@ -160,6 +159,8 @@ struct RemoteLink {
     restorations: u64,
     /// Where the counters go for the channel object to show.
     stats: StatsWriter,
+    /// Where every sample sent and taken goes, for a recorder (full: dropped and counted).
+    tap: DatagramTap,
 }
 
 /// What an end's data-plane link counted.
@@ -265,6 +266,7 @@ impl TeleopEnd {
         time: LinkTime,
         faults: Option<(&FaultConfig, u64)>,
         stats: StatsWriter,
+        tap: DatagramTap,
     ) -> Result<Self, FaultConfigError> {
         let (out, inbound) = side.streams();
         let offset = faults.map_or(0, |(config, _)| config.clock_offset_ns());
@@ -299,6 +301,7 @@ impl TeleopEnd {
                 losses: 0,
                 restorations: 0,
                 stats,
+                tap,
             })),
             sent: 0,
         })
@@ -342,6 +345,21 @@ impl TeleopEnd {
                     energy: sample.port.energy,
                 };
                 link.emit(tick, header, payload);
+                if let Some(stream) = StreamName::of(header.stream) {
+                    // A full ring (no recorder draining it) refuses and counts.
+                    let _ = link.tap.push(StreamDatagram {
+                        stream,
+                        time_ns: sample.sent.as_nanos(),
+                        sequence: header.sequence,
+                        sent_ns: header.sent_ns,
+                        arrived_ns: None,
+                        one_way_ns: None,
+                        clutch: sample.clutch,
+                        reference: sample.reference,
+                        wave: sample.port.wave,
+                        energy: sample.port.energy,
+                    });
+                }
                 if header.sequence % HEARTBEAT_EVERY == 1 {
                     // t1: read as it leaves.
                     let t1 = link.stamps.now(tick);
@@ -410,11 +428,21 @@ impl TeleopEnd {
                             link.one_way.record(arrived - sent_here);
                             // The sender's time on this node's clock, once heartbeats know
                             // the offset (before that, taken as is: one host, one clock).
-                            let sent = link.stamps.to_node(
-                                link.clock
-                                    .from_common(header.sent_ns)
-                                    .unwrap_or(header.sent_ns),
-                            );
+                            let sent = link.stamps.to_node(sent_here);
+                            if let Some(stream) = StreamName::of(header.stream) {
+                                let _ = link.tap.push(StreamDatagram {
+                                    stream,
+                                    time_ns: now.as_nanos(),
+                                    sequence: header.sequence,
+                                    sent_ns: header.sent_ns,
+                                    arrived_ns: Some(link.stamps.to_node(arrived)),
+                                    one_way_ns: Some(arrived - sent_here),
+                                    clutch,
+                                    reference,
+                                    wave,
+                                    energy,
+                                });
+                            }
                             newest = Some(TeleopSample {
                                 sequence: link.taken,
                                 sent: Timestamp::from_nanos(u64::try_from(sent).unwrap_or(0)),
@@ -519,23 +547,6 @@ fn nanos(t: Timestamp) -> i64 {
     i64::try_from(t.as_nanos()).unwrap_or(i64::MAX)
 }
 
-/// A shared reader of a link's newest [`LinkStats`] (outside the real-time threads: it locks).
-#[derive(Clone)]
-pub struct LinkStatsSource(Arc<Mutex<ArcLatestReader<LinkStats>>>);
-
-impl LinkStatsSource {
-    /// The newest counters (`None` before the link's first communication tick).
-    pub fn latest(&self) -> Option<LinkStats> {
-        self.0.lock().ok()?.latest()
-    }
-
-    /// Whether both read the same link (a channel configured anew has a new link, and so a
-    /// new source).
-    pub fn same_link(&self, other: &LinkStatsSource) -> bool {
-        Arc::ptr_eq(&self.0, &other.0)
-    }
-}
-
 /// The ends of a configured channel on this node; each is lent to the loop that runs it. A
 /// channel whose other robot is on another node has only this node's end.
 pub struct TeleopLink {
@@ -546,7 +557,7 @@ pub struct TeleopLink {
     /// Which ends are on this node (the others are on another node).
     local: (bool, bool),
     /// The counters of this node's end's link to another node, if it has one.
-    stats: Option<LinkStatsSource>,
+    stats: Option<LinkSource>,
 }
 
 impl TeleopLink {
@@ -612,14 +623,15 @@ impl TeleopLink {
         faults: Option<(&FaultConfig, u64)>,
     ) -> Result<Self, FaultConfigError> {
         let (writer, reader) = latest();
+        let (tap, datagrams) = penelope_rt_core::ring::ring();
         let mut link = TeleopLink {
             master: None,
             slave: None,
             local: (side == Side::Master, side == Side::Slave),
-            stats: Some(LinkStatsSource(Arc::new(Mutex::new(reader)))),
+            stats: Some(LinkSource::new(reader, datagrams)),
         };
         link.put_back(TeleopEnd::remote(
-            side, endpoint, peer, time, faults, writer,
+            side, endpoint, peer, time, faults, writer, tap,
         )?);
         Ok(link)
     }
@@ -652,7 +664,7 @@ impl TeleopLink {
 
     /// Where the newest counters of the link to another node can be read from elsewhere (a
     /// recorder, a telemetry pump): `None` for a channel on this node.
-    pub fn stats_source(&self) -> Option<LinkStatsSource> {
+    pub fn stats_source(&self) -> Option<LinkSource> {
         self.stats.clone()
     }
 

@@ -5,13 +5,21 @@ use crate::dataplane::frame::DatagramKey;
 use penelope_hal::{JointReference, JointVector};
 
 fn end(side: Side, key: &DatagramKey) -> (TeleopEnd, SocketAddr) {
+    let (end, addr, _) = tapped_end(side, key);
+    (end, addr)
+}
+
+/// `side`'s end on the tick's clock, with where its counters and datagrams are read.
+fn tapped_end(side: Side, key: &DatagramKey) -> (TeleopEnd, SocketAddr, LinkSource) {
     let endpoint = Endpoint::bind("127.0.0.1:0".parse().unwrap(), Some(key.clone())).unwrap();
     let addr = endpoint.local_addr().unwrap();
     // The peer is set below, once both are bound.
-    let (stats, _) = latest();
+    let (stats, stats_reader) = latest();
+    let (tap, datagrams) = penelope_rt_core::ring::ring();
     (
-        TeleopEnd::remote(side, endpoint, addr, LinkTime::Tick, None, stats).unwrap(),
+        TeleopEnd::remote(side, endpoint, addr, LinkTime::Tick, None, stats, tap).unwrap(),
         addr,
+        LinkSource::new(stats_reader, datagrams),
     )
 }
 
@@ -20,6 +28,7 @@ fn real_end(side: Side, key: &DatagramKey, offset_us: f64) -> (TeleopEnd, Socket
     let endpoint = Endpoint::bind("127.0.0.1:0".parse().unwrap(), Some(key.clone())).unwrap();
     let addr = endpoint.local_addr().unwrap();
     let (stats, _) = latest();
+    let (tap, _) = penelope_rt_core::ring::ring();
     let faults = FaultConfig {
         clock_offset_us: offset_us,
         ..FaultConfig::default()
@@ -31,6 +40,7 @@ fn real_end(side: Side, key: &DatagramKey, offset_us: f64) -> (TeleopEnd, Socket
         LinkTime::Real,
         Some((&faults, 1)),
         stats,
+        tap,
     );
     (end.unwrap(), addr)
 }
@@ -209,4 +219,66 @@ fn the_passivity_payload_and_the_clutch_cross_the_data_plane() {
         back.expect("the slave's sample").port,
         PortPayload::default()
     );
+}
+
+#[test]
+fn every_sample_sent_and_taken_reaches_the_tap_and_a_full_tap_counts_what_it_refused() {
+    let key = DatagramKey::from_secret(b"lab");
+    let (mut master, m_addr, master_tap) = tapped_end(Side::Master, &key);
+    let (mut slave, s_addr, slave_tap) = tapped_end(Side::Slave, &key);
+    set_peer(&mut master, s_addr);
+    set_peer(&mut slave, m_addr);
+    let ticks = 50u64;
+    for k in 1..=ticks {
+        let t = Timestamp::from_nanos(k * 2_000_000);
+        master.publish(sample(t, k as f64));
+        for _ in 0..10_000 {
+            if slave.take_newest(t).is_some() {
+                break;
+            }
+            std::thread::yield_now();
+        }
+    }
+    let mut sent = Vec::new();
+    master_tap.drain_datagrams(|d| sent.push(d));
+    let mut taken = Vec::new();
+    slave_tap.drain_datagrams(|d| taken.push(d));
+    assert_eq!(
+        sent.len() as u64,
+        ticks,
+        "one per sample sent (heartbeats are not samples)"
+    );
+    assert_eq!(taken.len() as u64, ticks);
+    for (k, (s, t)) in sent.iter().zip(&taken).enumerate() {
+        let k = k as u64 + 1;
+        assert_eq!(s.stream, StreamName::MasterToSlave);
+        assert_eq!((s.arrived_ns, s.one_way_ns), (None, None));
+        assert_eq!(s.time_ns, k * 2_000_000);
+        assert_eq!(
+            s.reference,
+            sample(Timestamp::from_nanos(0), k as f64).reference
+        );
+        // What was taken is what was sent, with its arrival (the tick's time here).
+        assert_eq!(
+            (t.sequence, t.sent_ns, t.reference),
+            (s.sequence, s.sent_ns, s.reference)
+        );
+        assert_eq!(t.arrived_ns, Some((k * 2_000_000) as i64));
+        assert_eq!(t.one_way_ns, Some(0));
+    }
+    assert_eq!(master_tap.datagrams_dropped(), 0);
+    // Nobody drains: the ring fills, then refuses and counts; a recorder starting skips what
+    // is there and counts its own losses from the refusals so far.
+    let extra = 10u64;
+    for k in 0..(crate::objects::link_source::DATAGRAM_RING_LEN as u64 + extra) {
+        master.publish(sample(
+            Timestamp::from_nanos((ticks + 1 + k) * 2_000_000),
+            0.0,
+        ));
+    }
+    assert_eq!(master_tap.datagrams_dropped(), extra);
+    assert_eq!(master_tap.skip_datagrams(), extra);
+    let mut left = 0;
+    master_tap.drain_datagrams(|_| left += 1);
+    assert_eq!(left, 0);
 }

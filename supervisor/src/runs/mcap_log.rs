@@ -21,8 +21,13 @@
 //!   fault changed, or that raised events (watchdog, limits, link lost, ...);
 //! - `/links/<channel>` (schema `penelope.LinkStats`): channel `<channel>`'s link to another
 //!   node, now and then;
-//! - `/recorder` (schema `penelope.RecorderDropped`): at the end, the ticks the recorder lost
-//!   per controller (it also goes into the file's `recorder` metadata record).
+//! - `/streams/<channel>/<stream>` (schema `penelope.StreamSample`): every sample of channel
+//!   `<channel>`'s data-plane streams (`master-to-slave`, `slave-to-master`) that this node's
+//!   end sent or took, with its sequence number, send time, arrival and one-way trip;
+//! - `/lifecycle` (schema `penelope.Lifecycle`): the node's objects' lifecycle transitions;
+//! - `/recorder` (schema `penelope.RecorderDropped`): the ticks (per controller) and stream
+//!   samples (per channel) the recorder lost, as they grow and at the end (they also go into
+//!   the file's `recorder` metadata record).
 //!
 //! Log and publish times are the ticks' times: nanoseconds on the node's clock (the simulated
 //! clock in a simulated run; the monotonic clock otherwise, which the data plane's heartbeats
@@ -104,7 +109,12 @@ const LIFECYCLE_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020
 /// The topic of the node's lifecycle transitions.
 pub const LIFECYCLE_TOPIC: &str = "/lifecycle";
 
-const RECORDER_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.RecorderDropped","description":"Ticks of a controller the recorder lost because it fell behind (the loops never wait for it).","type":"object","properties":{"controller":{"type":"string"},"dropped":{"type":"integer"},"written":{"type":"integer"}},"required":["controller","dropped","written"]}"#;
+/// The topic prefix of channels' data-plane streams: `/streams/<channel>/<stream>`.
+pub const STREAM_TOPIC: &str = "/streams/";
+
+const STREAM_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.StreamSample","description":"A sample of a channel's data-plane stream as this node's end sent it (arrived_ns and one_way_ns null) or took it (accepted: newest wins; duplicates, late and stale samples are only counted, in /links/<channel>). Times in ns: time_ns and arrived_ns on this node's clock; sent_ns as in the datagram's header, on the link's common clock (the receiver's, as the sender's heartbeats estimate it). Units SI.","type":"object","properties":{"stream":{"enum":["master-to-slave","slave-to-master"]},"time_ns":{"type":"integer"},"sequence":{"type":"integer","description":"the sender's sequence number"},"sent_ns":{"type":"integer"},"arrived_ns":{"type":["integer","null"]},"one_way_ns":{"type":["integer","null"]},"clutch":{"type":"boolean"},"reference":{"type":"object","description":"the sample (hal::Reference, externally tagged: {\"Cartesian\": ..} for a pose, {\"Hybrid\": ..} for a pose with a wrench)"},"wave":{"type":["object","null"],"description":"a wave-variable law's wave and its running totals"},"energy":{"type":["object","null"],"description":"a two-port law's energy counters, J"}},"required":["stream","time_ns","sequence","sent_ns","clutch","reference"]}"#;
+
+const RECORDER_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.RecorderDropped","description":"Ticks of a controller, or samples of a channel's data-plane streams, the recorder lost because it fell behind (the loops never wait for it): one of controller and channel is given.","type":"object","properties":{"controller":{"type":"string"},"channel":{"type":"string"},"dropped":{"type":"integer"},"written":{"type":"integer"}},"required":["dropped","written"]}"#;
 
 /// A recorded controller's channel.
 struct ControllerChannel {
@@ -135,6 +145,11 @@ pub struct McapLog {
     recorder: u16,
     controllers: Vec<ControllerChannel>,
     links: BTreeMap<String, u16>,
+    /// The `/streams/<channel>/<stream>` channels, by topic, and their schema (added with the
+    /// first); samples written and loss last reported, by channel.
+    streams: BTreeMap<String, u16>,
+    stream_schema: Option<u16>,
+    stream_counts: BTreeMap<String, (u64, u64)>,
     /// The `/lifecycle` channel, added with its first transition.
     lifecycle: Option<u16>,
     sequence: BTreeMap<u16, u32>,
@@ -205,6 +220,9 @@ impl McapLog {
             recorder,
             controllers: Vec::new(),
             links: BTreeMap::new(),
+            streams: BTreeMap::new(),
+            stream_schema: None,
+            stream_counts: BTreeMap::new(),
             lifecycle: None,
             sequence: BTreeMap::new(),
             last_time: 0,
@@ -330,6 +348,73 @@ impl McapLog {
         self.write(id, record.time_ns, record)
     }
 
+    /// Writes a sample of channel `channel`'s data-plane streams, at its time (its stream's
+    /// channel is added the first time).
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`].
+    pub fn datagram(
+        &mut self,
+        channel: &str,
+        sample: &crate::objects::link_source::StreamDatagram,
+    ) -> Result<(), RecordingError> {
+        let topic = format!("{STREAM_TOPIC}{channel}/{}", sample.stream.as_str());
+        let id = match self.streams.get(&topic) {
+            Some(id) => *id,
+            None => {
+                let mcap_err = |source| RecordingError::Mcap {
+                    path: self.path.clone(),
+                    source,
+                };
+                let schema = match self.stream_schema {
+                    Some(id) => id,
+                    None => {
+                        let id = self
+                            .writer
+                            .add_schema(
+                                "penelope.StreamSample",
+                                "jsonschema",
+                                STREAM_SCHEMA.as_bytes(),
+                            )
+                            .map_err(mcap_err)?;
+                        self.stream_schema = Some(id);
+                        id
+                    }
+                };
+                let meta = BTreeMap::from([
+                    ("channel".to_string(), channel.to_string()),
+                    ("stream".to_string(), sample.stream.as_str().to_string()),
+                ]);
+                let id = self
+                    .writer
+                    .add_channel(schema, &topic, "json", &meta)
+                    .map_err(mcap_err)?;
+                self.streams.insert(topic, id);
+                id
+            }
+        };
+        self.write(id, sample.time_ns, sample)?;
+        self.stream_counts.entry(channel.to_string()).or_default().0 += 1;
+        Ok(())
+    }
+
+    /// Writes to `/recorder` that channel `channel`'s stream samples lost so far number
+    /// `count`, if that is more than it last wrote: true when it wrote.
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`].
+    pub fn datagrams_dropped(&mut self, channel: &str, count: u64) -> Result<bool, RecordingError> {
+        let (written, reported) = self.stream_counts.get(channel).copied().unwrap_or_default();
+        if count <= reported {
+            return Ok(false);
+        }
+        let message = json!({ "channel": channel, "dropped": count, "written": written });
+        self.write(self.recorder, self.last_time, &message)?;
+        self.stream_counts
+            .insert(channel.to_string(), (written, count));
+        Ok(true)
+    }
+
     /// Writes a lifecycle transition (the `/lifecycle` channel is added the first time).
     ///
     /// # Errors
@@ -431,6 +516,10 @@ impl McapLog {
             meta.insert(format!("dropped.{}", c.name), lost.to_string());
             meta.insert(format!("written.{}", c.name), c.written.to_string());
             self.write(self.recorder, time, &message)?;
+        }
+        for (channel, (written, lost)) in &self.stream_counts {
+            meta.insert(format!("dropped.streams.{channel}"), lost.to_string());
+            meta.insert(format!("written.streams.{channel}"), written.to_string());
         }
         let err = |source| RecordingError::Mcap {
             path: self.path.clone(),

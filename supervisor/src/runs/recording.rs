@@ -17,12 +17,12 @@ use std::time::{Duration, Instant};
 
 use penelope_hal::Transition;
 
-use super::mcap_log::{CONTROLLER_TOPIC, LINK_TOPIC, McapLog, RECORDER_TOPIC};
+use super::mcap_log::{CONTROLLER_TOPIC, LINK_TOPIC, McapLog, RECORDER_TOPIC, STREAM_TOPIC};
 use super::{RECORD_CAPACITY, RunError, RunOptions, RunOutput, find_task};
 use crate::node::Node;
 use crate::objects::lifecycle_feed::LifecycleEvent;
+use crate::objects::link_source::{LinkSource, StreamDatagram};
 use crate::objects::runtime::{TickRecord, TickStream};
-use crate::objects::teleop_end::LinkStatsSource;
 use crate::proto::{Call, LinkRecord, Method};
 use crate::system::SystemFile;
 use penelope_rt_core::clock::MonotonicClock;
@@ -74,6 +74,11 @@ pub struct Recording {
     pub dropped: BTreeMap<String, u64>,
     /// The records of each channel's link to another node, in order, by channel.
     pub links: BTreeMap<String, Vec<LinkRecord>>,
+    /// The samples of each channel's data-plane streams this node sent and took, in the
+    /// order written (each stream in its own order), by channel.
+    pub datagrams: BTreeMap<String, Vec<StreamDatagram>>,
+    /// Stream samples lost by the recorder, by channel.
+    pub datagrams_dropped: BTreeMap<String, u64>,
 }
 
 /// Reads the recording at `path`: every message up to a cut-off last record (a file being
@@ -131,6 +136,14 @@ pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
                 .entry(name.to_string())
                 .or_default()
                 .push(tick);
+        } else if let Some(rest) = topic.strip_prefix(STREAM_TOPIC) {
+            let sample: StreamDatagram = serde_json::from_slice(&m.data).map_err(json)?;
+            let channel = rest.rsplit_once('/').map_or(rest, |(c, _)| c);
+            recording
+                .datagrams
+                .entry(channel.to_string())
+                .or_default()
+                .push(sample);
         } else if let Some(channel) = topic.strip_prefix(LINK_TOPIC) {
             let link: LinkRecord = serde_json::from_slice(&m.data).map_err(json)?;
             recording
@@ -142,6 +155,9 @@ pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
             let v: serde_json::Value = serde_json::from_slice(&m.data).map_err(json)?;
             if let (Some(name), Some(count)) = (v["controller"].as_str(), v["dropped"].as_u64()) {
                 recording.dropped.insert(name.to_string(), count);
+            }
+            if let (Some(name), Some(count)) = (v["channel"].as_str(), v["dropped"].as_u64()) {
+                recording.datagrams_dropped.insert(name.to_string(), count);
             }
         }
     }
@@ -162,8 +178,9 @@ pub struct Recorder {
 
 impl Recorder {
     /// Starts writing `streams` (controller name, ticks) of node `node` to `path`, with the
-    /// statistics of `links` (channel name, where its link's counters are) and the node's
-    /// `lifecycle` transitions (a reader from [`Creator::lifecycle_events`], if any).
+    /// statistics and stream samples of `links` (channel name, where its link's counters and
+    /// datagrams are; samples from now on) and the node's `lifecycle` transitions (a reader
+    /// from [`Creator::lifecycle_events`], if any).
     ///
     /// [`Creator::lifecycle_events`]: crate::objects::Creator::lifecycle_events
     ///
@@ -173,7 +190,7 @@ impl Recorder {
         path: &Path,
         node: &str,
         streams: Vec<(String, TickStream)>,
-        links: Vec<(String, LinkStatsSource)>,
+        links: Vec<(String, LinkSource)>,
         lifecycle: Option<Receiver<LifecycleEvent>>,
     ) -> Result<Recorder, RecordingError> {
         let mut log = McapLog::create(path, node)?;
@@ -181,12 +198,22 @@ impl Recorder {
             log.add_controller(name)?;
         }
         log.flush()?;
+        // What the links' rings held before (or lost while nobody read them) is not this
+        // recording's: from here on every sample is written or counted.
+        let links: Vec<(String, LinkSource, u64)> = links
+            .into_iter()
+            .map(|(name, source)| {
+                let before = source.skip_datagrams();
+                (name, source, before)
+            })
+            .collect();
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
         let thread = std::thread::Builder::new()
             .name("recorder".into())
             .spawn(move || {
                 let mut links_at: Option<Instant> = None;
+                let mut drained = Vec::new();
                 let mut flushed = Instant::now();
                 loop {
                     let stopping = flag.load(Ordering::Relaxed);
@@ -198,13 +225,21 @@ impl Recorder {
                     for event in lifecycle.iter().flat_map(Receiver::try_iter) {
                         log.lifecycle(&event)?;
                     }
+                    for (channel, source, _) in &links {
+                        source.drain_datagrams(|d| drained.push(d));
+                        for d in drained.drain(..) {
+                            log.datagram(channel, &d)?;
+                        }
+                    }
                     if stopping || links_at.is_none_or(|t| t.elapsed() >= LINK_EVERY) {
                         links_at = Some(Instant::now());
                         let now = MonotonicClock::read().as_nanos();
-                        for (channel, source) in &links {
+                        for (channel, source, before) in &links {
                             if let Some(stats) = source.latest() {
                                 log.link(channel, &stats.record(now))?;
                             }
+                            let lost = source.datagrams_dropped().wrapping_sub(*before);
+                            log.datagrams_dropped(channel, lost)?;
                         }
                         // What the streams lost so far, when it grew.
                         for (i, (_, stream)) in streams.iter().enumerate() {
@@ -296,7 +331,7 @@ pub fn apply_recorded(
     let mut links = Vec::new();
     for o in deferred.objects_on(node.name()) {
         if o.kind == "trajectory/teleop"
-            && let Ok(Some(source)) = node.creator().link_stats_source(&o.name)
+            && let Ok(Some(source)) = node.creator().link_source(&o.name)
         {
             links.push((o.name.clone(), source));
         }
@@ -464,6 +499,15 @@ mod tests {
         }
         log.link("link", &link(5)).unwrap();
         log.link("link", &link(9)).unwrap();
+        let datagrams = stream_samples();
+        for d in &datagrams {
+            log.datagram("link", d).unwrap();
+        }
+        assert!(log.datagrams_dropped("link", 3).unwrap());
+        assert!(
+            !log.datagrams_dropped("link", 3).unwrap(),
+            "written when it grows"
+        );
         let totals = log.finish(&[0, 4]).unwrap();
         assert_eq!(totals.ticks, 65);
         let r = read_recording(&path).unwrap();
@@ -473,7 +517,60 @@ mod tests {
         assert_eq!(r.links["link"], vec![link(5), link(9)]);
         assert_eq!(r.dropped["display"], 0);
         assert_eq!(r.dropped["follow"], 4);
+        assert_eq!(
+            r.datagrams["link"], datagrams,
+            "every bit of every stream sample"
+        );
+        assert_eq!(r.datagrams_dropped["link"], 3);
+        let topics: Vec<String> = super::super::mcap_log::summarize(&path)
+            .unwrap()
+            .channels
+            .into_iter()
+            .map(|c| c.topic)
+            .filter(|t| t.starts_with("/streams/"))
+            .collect();
+        assert_eq!(
+            topics,
+            [
+                "/streams/link/master-to-slave",
+                "/streams/link/slave-to-master"
+            ]
+        );
         let _ = std::fs::remove_file(path);
+    }
+
+    /// A sample sent each way and one taken, with every optional part.
+    fn stream_samples() -> Vec<StreamDatagram> {
+        use crate::objects::link_source::StreamName;
+        use penelope_hal::{CartesianReference, Reference};
+        use penelope_rt_core::teleop::{PortEnergy, WaveSample};
+        let pose = |x: f64| {
+            Reference::Cartesian(CartesianReference {
+                pose: penelope_hal::Pose::translation(x, 0.1 + 0.2, -1.0 / 3.0),
+                ..CartesianReference::default()
+            })
+        };
+        let d = |stream, k: u64, arrived: Option<i64>| StreamDatagram {
+            stream,
+            time_ns: k * 2_000_000,
+            sequence: k,
+            sent_ns: (k * 2_000_000) as i64 - 7,
+            arrived_ns: arrived,
+            one_way_ns: arrived.map(|a| a - (k * 2_000_000) as i64),
+            clutch: k.is_multiple_of(2),
+            reference: pose(k as f64 * 1e-3 + 1e-17),
+            wave: (k == 2).then(|| WaveSample {
+                wave: nalgebra::Vector3::new(0.5, -1.25, 3.0),
+                integral: nalgebra::Vector3::new(1e-3, 2e-3, -3e-3),
+                energy: nalgebra::Vector3::new(0.125, 0.0, 7.5),
+            }),
+            energy: (k == 3).then_some(PortEnergy { input: 0.375 }),
+        };
+        vec![
+            d(StreamName::MasterToSlave, 1, None),
+            d(StreamName::SlaveToMaster, 2, Some(4_000_123)),
+            d(StreamName::MasterToSlave, 3, None),
+        ]
     }
 
     #[test]

@@ -21,8 +21,8 @@ use super::channels::BridgedChannels;
 use super::encoding::{self, EVENTS, FEEDBACK, LINK, TELEMETRY, objects_key, stream_key};
 use super::{BridgeStats, ZenohError, ZenohSettings};
 use crate::objects::Creator;
+use crate::objects::link_source::LinkSource;
 use crate::objects::runtime::TickStream;
-use crate::objects::teleop_end::LinkStatsSource;
 use crate::proto::Class;
 
 /// How often the bridge drains the tick streams and publishes.
@@ -246,7 +246,7 @@ struct Worker {
     counters: Arc<Counters>,
     dropped: Arc<AtomicU64>,
     controllers: BTreeMap<String, ControllerStreams>,
-    links: BTreeMap<String, (LinkStatsSource, Publisher<'static>)>,
+    links: BTreeMap<String, (LinkSource, Publisher<'static>)>,
     feedback: BTreeMap<String, Publisher<'static>>,
     /// A subscriber per reference key (several channels may share one).
     subscribers: BTreeMap<String, Subscriber<()>>,
@@ -318,7 +318,7 @@ impl Worker {
                     .controllers
                     .store(self.controllers.len() as u64, Ordering::Relaxed);
             } else if info.kind == "trajectory/teleop" {
-                let source = creator.link_stats_source(&info.name).ok().flatten();
+                let source = creator.link_source(&info.name).ok().flatten();
                 let stale = match (self.links.get(&info.name), &source) {
                     (Some((old, _)), Some(new)) => !old.same_link(new),
                     (None, Some(_)) => true,

@@ -1,7 +1,7 @@
 //! Link telemetry: the statistics of a channel's data-plane link, pushed to its subscribers
 //! every [`LINK_PERIOD`] (times their decimation) as [`ServerMsg::Link`].
 //!
-//! The statistics are read through the channel's [`LinkStatsSource`] (the communication thread
+//! The statistics are read through the channel's [`LinkSource`] (the communication thread
 //! writes them into a wait-free cell each tick; the source locks, so it is read here, never in
 //! a real-time thread). On the real clock a [`LinkPump`] thread publishes; on a simulated clock
 //! the creator publishes after each advance, at the simulated time, so records follow the
@@ -11,7 +11,7 @@ use std::sync::mpsc::{RecvTimeoutError, SyncSender};
 use std::thread::JoinHandle;
 
 use super::*;
-use crate::objects::teleop_end::LinkStatsSource;
+use crate::objects::link_source::LinkSource;
 use crate::proto::LinkBatch;
 
 /// How often a link subscription of decimation 1 gets a record.
@@ -22,7 +22,7 @@ struct LinkSubscription {
     id: u64,
     session: u64,
     channel: String,
-    source: LinkStatsSource,
+    source: LinkSource,
     /// Between two records, ns: [`LINK_PERIOD`] times the decimation.
     every_ns: u64,
     /// When the next record is due, ns on the creator's clock (`None`: at the next round).
@@ -63,7 +63,7 @@ impl LinkSubscriptions {
         id: u64,
         session: u64,
         channel: &str,
-        source: LinkStatsSource,
+        source: LinkSource,
         decimation: u32,
         outbox: Outbox,
     ) -> Result<(), WireError> {
@@ -111,7 +111,7 @@ impl LinkSubscriptions {
 
     /// Ends the subscriptions to `channel` unless they read its link `current` (the channel
     /// was destroyed, cleaned up or configured anew: their link is gone).
-    pub fn end_stale(&self, channel: &str, current: Option<&LinkStatsSource>) {
+    pub fn end_stale(&self, channel: &str, current: Option<&LinkSource>) {
         if let Ok(mut list) = self.list.lock() {
             list.retain(|s| {
                 s.channel != channel || current.is_some_and(|c| c.same_link(&s.source))

@@ -2,7 +2,7 @@
 //! `link_telemetry`).
 
 use super::*;
-use crate::objects::teleop_end::LinkStatsSource;
+use crate::objects::link_source::LinkSource;
 
 /// The newest state of a running loop, as the pump keeps it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -141,7 +141,7 @@ impl Subscriptions {
         &self,
         session: u64,
         channel: &str,
-        source: LinkStatsSource,
+        source: LinkSource,
         decimation: u32,
         outbox: Outbox,
         limit: u32,

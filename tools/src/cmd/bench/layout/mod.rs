@@ -24,8 +24,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use penelope_supervisor::objects::clock::ClockMode;
+use penelope_supervisor::objects::link_source::{StreamDatagram, StreamName};
 use penelope_supervisor::proto::LinkRecord;
-use penelope_supervisor::runs::recording::{from_recordings, read_recording};
+use penelope_supervisor::runs::recording::{Recording, from_recordings, read_recording};
 use penelope_supervisor::runs::report::{LoopTiming, report};
 use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, RunOutput};
 use penelope_supervisor::system::SystemFile;
@@ -138,6 +139,75 @@ pub struct LayoutRecord {
     /// The channel's data-plane link, as its two ends recorded it at the end (`None` on one
     /// node, where the channel is a pair of cells).
     pub link: Option<LinkSummary>,
+    /// The data plane's streams as the two nodes recorded them, matched sample by sample.
+    pub streams: StreamsCheck,
+}
+
+/// One direction of the data plane as recorded on both hosts: what the sender's recording
+/// says it sent, what the receiver's says it took, and whether each sample taken is one that
+/// was sent, bit for bit.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct StreamCheck {
+    /// Samples the sender's recording holds as sent.
+    pub sent: u64,
+    /// Samples the receiver's recording holds as taken.
+    pub taken: u64,
+    /// Taken samples equal, sequence number, clutch and sample to the last bit, to one sent.
+    pub matched: u64,
+    /// Stream samples the two recorders lost, both directions (written to `/recorder`).
+    pub recorder_dropped: u64,
+}
+
+/// Both directions of [`StreamCheck`].
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct StreamsCheck {
+    /// The master's samples to the slave.
+    pub master_to_slave: StreamCheck,
+    /// The slave's samples to the master.
+    pub slave_to_master: StreamCheck,
+}
+
+/// Matches what the `master` node's and the `slave` node's recordings say their ends sent and
+/// took.
+fn check_streams(read: &[Recording], master: &str, slave: &str) -> StreamsCheck {
+    fn of<'a>(read: &'a [Recording], node: &'a str) -> impl Iterator<Item = &'a Recording> {
+        read.iter().filter(move |r| r.node == node)
+    }
+    let one_way = |from: &str, to: &str, stream: StreamName| {
+        let sent: std::collections::HashMap<u64, &StreamDatagram> = of(read, from)
+            .flat_map(|r| r.datagrams.values().flatten())
+            .filter(|d| d.stream == stream && d.arrived_ns.is_none())
+            .map(|d| (d.sequence, d))
+            .collect();
+        let mut check = StreamCheck {
+            sent: sent.len() as u64,
+            recorder_dropped: of(read, from)
+                .chain(of(read, to))
+                .flat_map(|r| r.datagrams_dropped.values())
+                .sum(),
+            ..StreamCheck::default()
+        };
+        for d in of(read, to)
+            .flat_map(|r| r.datagrams.values().flatten())
+            .filter(|d| d.stream == stream && d.arrived_ns.is_some())
+        {
+            check.taken += 1;
+            if sent.get(&d.sequence).is_some_and(|s| {
+                s.clutch == d.clutch
+                    && s.sent_ns == d.sent_ns
+                    && s.reference == d.reference
+                    && s.wave == d.wave
+                    && s.energy == d.energy
+            }) {
+                check.matched += 1;
+            }
+        }
+        check
+    };
+    StreamsCheck {
+        master_to_slave: one_way(master, slave, StreamName::MasterToSlave),
+        slave_to_master: one_way(slave, master, StreamName::SlaveToMaster),
+    }
 }
 
 /// One direction's one-way trips on the data plane: from the sender's clock read before the
@@ -508,6 +578,7 @@ pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result
         safety_events: rep.safety_events.clone(),
         loops: rep.timing.clone(),
         link,
+        streams: check_streams(&read, task_nodes.0, task_nodes.1),
     })
 }
 
