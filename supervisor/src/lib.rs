@@ -20,6 +20,7 @@
 #![warn(missing_docs)]
 
 pub mod client;
+pub mod common_clock;
 pub mod dataplane;
 pub mod naming;
 pub mod net;

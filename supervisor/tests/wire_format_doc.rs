@@ -246,6 +246,23 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
             }),
         }),
     );
+    m.insert(
+        "request-time",
+        framed(&ClientMsg::Request {
+            id: 5,
+            call: Call::Time,
+        }),
+    );
+    m.insert(
+        "response-time",
+        framed(&ServerMsg::Response {
+            id: 5,
+            result: Ok(Reply::Time {
+                received_ns: 1_000_000,
+                sent_ns: 1_000_064,
+            }),
+        }),
+    );
     m.insert("client-bye", framed(&ClientMsg::Bye));
     m
 }

@@ -39,9 +39,11 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use crate::client::Client;
+use crate::common_clock::CommonClock;
 use crate::naming::{NamingLimits, NamingService, Reaper};
 use crate::net::conn::{ClientConfig, RpcError};
 use crate::net::server::{NetError, Server, ServerConfig, ServerStats};
+use crate::objects::clock::ClockMode;
 use crate::objects::{Creator, CreatorConfig};
 #[cfg(doc)]
 use crate::proto::object_path;
@@ -201,6 +203,9 @@ struct Shared {
     /// Resolved paths and when they were resolved.
     resolved: Mutex<HashMap<String, (ObjectRef, Instant)>>,
     resolve_ttl: Duration,
+    /// The system's common clock (the naming service's host's), estimated by the registration
+    /// thread.
+    common_clock: CommonClock,
 }
 
 /// Whether a refusal by the naming service at start is final (waiting cannot change it): wrong
@@ -256,6 +261,15 @@ impl Node {
             creator_config.datagram_key =
                 Some(crate::dataplane::frame::DatagramKey::from_secret(secret));
         }
+        // The common clock: the naming service's host's, when it is another process on the
+        // real clock.
+        let common_clock = match remote_naming {
+            Some(address) if creator_config.clock == ClockMode::RealTime => {
+                CommonClock::of_naming(address)
+            }
+            _ => CommonClock::own(),
+        };
+        creator_config.common_clock = common_clock.clone();
         let creator = Arc::new(Creator::new(creator_config));
         // First of what the node runs: a bridge that cannot start leaves nothing to undo.
         let zenoh = match &config.zenoh {
@@ -279,6 +293,7 @@ impl Node {
             ops: Mutex::new(()),
             resolved: Mutex::new(HashMap::new()),
             resolve_ttl: config.resolve_ttl,
+            common_clock,
         });
         creator.set_remote(shared.clone());
 

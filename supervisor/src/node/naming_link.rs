@@ -8,6 +8,7 @@ use std::sync::mpsc::{self, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
 use super::{REGISTER_RETRY_FIRST, REGISTER_RETRY_MAX, Shared, local_session, lock};
+use crate::common_clock::EXCHANGES_AT_REGISTRATION;
 use crate::net::conn::RpcError;
 use crate::proto::{
     Call, Class, Method, NamingCall, ObjectInfo, ObjectRef, Reply, WireError, object_path,
@@ -133,6 +134,9 @@ impl Shared {
         match &result {
             Ok(()) => {
                 self.registered.store(true, Ordering::Release);
+                for _ in 0..EXCHANGES_AT_REGISTRATION {
+                    self.exchange_time();
+                }
                 if self.silence_reported.swap(false, Ordering::AcqRel) {
                     log::warn!(
                         "node {}: registered in the naming service at {}",
@@ -176,7 +180,7 @@ impl Shared {
         match self.naming_rpc(NamingCall::Renew {
             node: self.name.clone(),
         }) {
-            Ok(_) => {}
+            Ok(_) => self.exchange_time(),
             Err(RpcError::Remote(WireError::UnknownName(_))) => {
                 log::warn!(
                     "node {}: the naming service forgot this node (lease lapsed or restart); \
@@ -191,6 +195,28 @@ impl Shared {
                 log::warn!("node {}: lease renewal refused: {e}", self.name);
             }
             Err(transport) => self.lost_naming(&transport),
+        }
+    }
+
+    /// One exchange of times with the naming service's host, for the common clock (nothing
+    /// when this node's clock is the common one). A failure is logged and left to the next.
+    fn exchange_time(&self) {
+        let (Some(address), Some(client)) = (self.remote_naming, self.client.get()) else {
+            return;
+        };
+        let result = self
+            .common_clock
+            .exchange(|| match client.call_at(address, Call::Time)? {
+                Reply::Time {
+                    received_ns,
+                    sent_ns,
+                } => Ok((received_ns, sent_ns)),
+                other => Err(WireError::Internal(format!(
+                    "the naming service answered a time call with {other:?}"
+                ))),
+            });
+        if let Err(e) = result {
+            log::debug!("node {}: no time exchange with {address}: {e}", self.name);
         }
     }
 

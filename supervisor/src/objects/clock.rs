@@ -10,12 +10,33 @@
 
 use std::collections::BTreeMap;
 use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use penelope_hal::Timestamp;
 use penelope_rt_core::exec::{Flow, Tick};
 
 use super::runtime::{Pump, Running, SensorFeed, StoppedLoop};
+
+/// A node's clock as a thread of the node outside its loops reads it (a recorder): the real
+/// clock, or the simulated one (behind the lock its steps take).
+#[derive(Clone)]
+pub enum NodeTime {
+    /// `CLOCK_MONOTONIC`.
+    Real,
+    /// The simulated clock of this world.
+    Simulated(Arc<Mutex<SimWorld>>),
+}
+
+impl NodeTime {
+    /// The time now, ns.
+    pub fn now_ns(&self) -> u64 {
+        match self {
+            NodeTime::Real => penelope_rt_core::clock::MonotonicClock::read().as_nanos(),
+            NodeTime::Simulated(world) => world.lock().map_or(0, |w| w.now().as_nanos()),
+        }
+    }
+}
 
 /// How a creator's loops are clocked.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

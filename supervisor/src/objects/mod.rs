@@ -109,6 +109,9 @@ pub struct CreatorConfig {
     /// The key that authenticates data-plane datagrams (from the system secret; set by the
     /// node), or `None` in a system without a secret.
     pub datagram_key: Option<crate::dataplane::frame::DatagramKey>,
+    /// The system's common clock as this node estimates it (set by the node; a creator alone
+    /// is its own), for its recordings' log times.
+    pub common_clock: crate::common_clock::CommonClock,
 }
 
 impl std::fmt::Debug for CreatorConfig {
@@ -121,6 +124,7 @@ impl std::fmt::Debug for CreatorConfig {
             .field("remote", &self.remote.is_some())
             .field("clock", &self.clock)
             .field("datagram_key", &self.datagram_key.is_some())
+            .field("common_clock", self.common_clock.source())
             .finish()
     }
 }
@@ -136,6 +140,7 @@ impl CreatorConfig {
             remote: None,
             clock: ClockMode::RealTime,
             datagram_key: None,
+            common_clock: crate::common_clock::CommonClock::own(),
         }
     }
 }
@@ -156,7 +161,7 @@ pub struct Creator {
     link_pump: Mutex<Option<LinkPump>>,
     fifo: OnceLock<bool>,
     /// The loops and the clock, on a simulated clock.
-    sim: Option<Mutex<SimWorld>>,
+    sim: Option<Arc<Mutex<SimWorld>>>,
     /// The recording `ctl record start` began (its file and writer thread).
     recording: Mutex<Option<(String, crate::runs::recording::Recorder)>>,
     /// The transitions, for recorders.
@@ -200,7 +205,8 @@ impl Creator {
     /// A creator with no objects.
     pub fn new(config: CreatorConfig) -> Self {
         Creator {
-            sim: (config.clock == ClockMode::Simulated).then(|| Mutex::new(SimWorld::default())),
+            sim: (config.clock == ClockMode::Simulated)
+                .then(|| Arc::new(Mutex::new(SimWorld::default()))),
             remote: Mutex::new(config.remote.clone()),
             registry: Mutex::new(Registry {
                 datagram_key: config.datagram_key.clone(),
@@ -227,9 +233,14 @@ impl Creator {
 
     /// The node's clock, ns: the simulated clock's on a simulated node.
     fn now_ns(&self) -> u64 {
+        self.node_time().now_ns()
+    }
+
+    /// The node's clock, for a thread of its own to read.
+    pub fn node_time(&self) -> clock::NodeTime {
         match &self.sim {
-            Some(world) => world.lock().map_or(0, |w| w.now().as_nanos()),
-            None => penelope_rt_core::clock::MonotonicClock::read().as_nanos(),
+            Some(world) => clock::NodeTime::Simulated(world.clone()),
+            None => clock::NodeTime::Real,
         }
     }
 
@@ -359,6 +370,8 @@ impl Creator {
             streams,
             links,
             Some(self.lifecycle_events(crate::runs::recording::LIFECYCLE_CAPACITY)),
+            &self.config.common_clock,
+            self.node_time(),
         )
         .map_err(|e| WireError::BadArgument(e.to_string()))?;
         *recording = Some((path.to_string(), recorder));
@@ -399,6 +412,11 @@ impl Creator {
         if let Ok(mut r) = self.remote.lock() {
             *r = Some(remote);
         }
+    }
+
+    /// The system's common clock as this node estimates it.
+    pub fn common_clock(&self) -> &crate::common_clock::CommonClock {
+        &self.config.common_clock
     }
 
     /// Telemetry subscriptions open now.
@@ -668,6 +686,7 @@ impl Service for Creator {
             Call::Creator(CreatorCall::RecordStop) => self.record_stop(),
             Call::Object { object, method } => self.object_call(&object, method),
             Call::Naming(_) => Err(WireError::NoNamingService),
+            Call::Time => Ok(crate::common_clock::time_reply()),
             Call::Subscribe { object, decimation } => self.subscribe(session, &object, decimation),
             Call::Unsubscribe { subscription } => {
                 if self.subscriptions.remove(session.id, subscription) {

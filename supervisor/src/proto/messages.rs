@@ -168,4 +168,7 @@ pub enum Call {
         /// The id from [`Reply::Subscribed`].
         subscription: u64,
     },
+    /// The serving host's clock, for the four-timestamp estimate of its offset (a node asks
+    /// its naming service: the system's common clock): [`Reply::Time`]. Appended last.
+    Time,
 }

@@ -78,6 +78,13 @@ pub enum Reply {
         /// Control ticks written.
         ticks: u64,
     },
+    /// The answer to [`Call::Time`](super::Call::Time) (appended last).
+    Time {
+        /// When the call was taken, ns on the serving host's monotonic clock.
+        received_ns: i64,
+        /// When it was answered, ns on the same clock.
+        sent_ns: i64,
+    },
 }
 
 /// A node's identity.

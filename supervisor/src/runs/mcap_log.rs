@@ -25,13 +25,19 @@
 //!   `<channel>`'s data-plane streams (`master-to-slave`, `slave-to-master`) that this node's
 //!   end sent or took, with its sequence number, send time, arrival and one-way trip;
 //! - `/lifecycle` (schema `penelope.Lifecycle`): the node's objects' lifecycle transitions;
+//! - `/clock` (schema `penelope.CommonClock`): the node's estimate of the common clock less
+//!   its own, now and then;
 //! - `/recorder` (schema `penelope.RecorderDropped`): the ticks (per controller) and stream
 //!   samples (per channel) the recorder lost, as they grow and at the end (they also go into
 //!   the file's `recorder` metadata record).
 //!
-//! Log and publish times are the ticks' times: nanoseconds on the node's clock (the simulated
-//! clock in a simulated run; the monotonic clock otherwise, which the data plane's heartbeats
-//! relate to other nodes' clocks: see `/links/<channel>`'s `clock_offset_ns`).
+//! Log and publish times are on the system's common clock (see [`crate::common_clock`]: the
+//! naming service host's monotonic clock), so that the recordings of several hosts share one
+//! time line: each message's own time on the node's clock (a tick's `sample.time`, a record's
+//! `time_ns`: the simulated clock in a simulated run, the monotonic clock otherwise) plus the
+//! node's estimate of the offset when it was written, which `/clock` records. A node that
+//! hosts the naming service, or runs on a simulated clock, is its own common clock: its log
+//! times are its node times. (`penelope demo`'s `run.mcap`: node times.)
 //!
 //! [`McapLog`] is the writer (not thread-safe, not real-time: it allocates and writes files;
 //! it is fed by the telemetry pump's recorder streams, never by a loop). [`summarize`] reads a
@@ -109,6 +115,11 @@ const LIFECYCLE_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020
 /// The topic of the node's lifecycle transitions.
 pub const LIFECYCLE_TOPIC: &str = "/lifecycle";
 
+/// The topic of the recording node's estimate of the common clock.
+pub const CLOCK_TOPIC: &str = "/clock";
+
+const CLOCK_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.CommonClock","description":"The recording node's estimate of the system's common clock (the naming service host's monotonic clock) less its own: every message's log time is its node time plus offset_ns as estimated when it was written. source own: the node's clock is the common one (offset 0).","type":"object","properties":{"time_ns":{"type":"integer","description":"node clock"},"source":{"enum":["own","naming"]},"address":{"type":"string"},"offset_ns":{"type":["integer","null"]},"round_trip_ns":{"type":["integer","null"]},"jitter_ns":{"type":["integer","null"]},"exchanges":{"type":"integer"}},"required":["time_ns","source","offset_ns"]}"#;
+
 /// The topic prefix of channels' data-plane streams: `/streams/<channel>/<stream>`.
 pub const STREAM_TOPIC: &str = "/streams/";
 
@@ -152,6 +163,10 @@ pub struct McapLog {
     stream_counts: BTreeMap<String, (u64, u64)>,
     /// The `/lifecycle` channel, added with its first transition.
     lifecycle: Option<u16>,
+    /// The `/clock` channel, added with the first estimate, and the offset added to every
+    /// message's node time for its log time.
+    clock: Option<u16>,
+    clock_offset_ns: i64,
     sequence: BTreeMap<u16, u32>,
     last_time: u64,
     totals: McapTotals,
@@ -224,6 +239,8 @@ impl McapLog {
             stream_schema: None,
             stream_counts: BTreeMap::new(),
             lifecycle: None,
+            clock: None,
+            clock_offset_ns: 0,
             sequence: BTreeMap::new(),
             last_time: 0,
             totals: McapTotals::default(),
@@ -266,6 +283,7 @@ impl McapLog {
         })?;
         let seq = self.sequence.entry(channel).or_insert(0);
         *seq = seq.wrapping_add(1);
+        let time = time.saturating_add_signed(self.clock_offset_ns);
         let header = mcap::records::MessageHeader {
             channel_id: channel,
             sequence: *seq,
@@ -413,6 +431,55 @@ impl McapLog {
         self.stream_counts
             .insert(channel.to_string(), (written, count));
         Ok(true)
+    }
+
+    /// Writes the node's estimate of the common clock at node time `time_ns` to `/clock`
+    /// (added the first time), and from now on stamps log times with its offset (kept as it
+    /// was while there is none).
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`].
+    pub fn clock(
+        &mut self,
+        time_ns: u64,
+        source: &crate::common_clock::ClockSource,
+        estimate: &crate::common_clock::ClockEstimate,
+    ) -> Result<(), RecordingError> {
+        let id = match self.clock {
+            Some(id) => id,
+            None => {
+                let mcap_err = |source| RecordingError::Mcap {
+                    path: self.path.clone(),
+                    source,
+                };
+                let schema = self
+                    .writer
+                    .add_schema(
+                        "penelope.CommonClock",
+                        "jsonschema",
+                        CLOCK_SCHEMA.as_bytes(),
+                    )
+                    .map_err(mcap_err)?;
+                let id = self
+                    .writer
+                    .add_channel(schema, CLOCK_TOPIC, "json", &BTreeMap::new())
+                    .map_err(mcap_err)?;
+                self.clock = Some(id);
+                id
+            }
+        };
+        if let Some(offset) = estimate.offset_ns {
+            self.clock_offset_ns = offset;
+        }
+        let mut message = serde_json::to_value(estimate).unwrap_or_default();
+        if let (Some(m), serde_json::Value::Object(s)) = (
+            message.as_object_mut(),
+            serde_json::to_value(source).unwrap_or_default(),
+        ) {
+            m.extend(s);
+            m.insert("time_ns".into(), time_ns.into());
+        }
+        self.write(id, time_ns, &message)
     }
 
     /// Writes a lifecycle transition (the `/lifecycle` channel is added the first time).

@@ -19,13 +19,14 @@ use penelope_hal::Transition;
 
 use super::mcap_log::{CONTROLLER_TOPIC, LINK_TOPIC, McapLog, RECORDER_TOPIC, STREAM_TOPIC};
 use super::{RECORD_CAPACITY, RunError, RunOptions, RunOutput, find_task};
+use crate::common_clock::CommonClock;
 use crate::node::Node;
+use crate::objects::clock::NodeTime;
 use crate::objects::lifecycle_feed::LifecycleEvent;
 use crate::objects::link_source::{LinkSource, StreamDatagram};
 use crate::objects::runtime::{TickRecord, TickStream};
 use crate::proto::{Call, LinkRecord, Method};
 use crate::system::SystemFile;
-use penelope_rt_core::clock::MonotonicClock;
 
 /// How often the recorder writes what its streams hold.
 const DRAIN_EVERY: Duration = Duration::from_millis(50);
@@ -180,7 +181,9 @@ impl Recorder {
     /// Starts writing `streams` (controller name, ticks) of node `node` to `path`, with the
     /// statistics and stream samples of `links` (channel name, where its link's counters and
     /// datagrams are; samples from now on) and the node's `lifecycle` transitions (a reader
-    /// from [`Creator::lifecycle_events`], if any).
+    /// from [`Creator::lifecycle_events`], if any), log times on `clock` (the node's estimate
+    /// of the common clock: written to `/clock` every 100 ms); `node_time` is the node's
+    /// clock, which the link records and `/clock` are stamped with.
     ///
     /// [`Creator::lifecycle_events`]: crate::objects::Creator::lifecycle_events
     ///
@@ -192,8 +195,12 @@ impl Recorder {
         streams: Vec<(String, TickStream)>,
         links: Vec<(String, LinkSource)>,
         lifecycle: Option<Receiver<LifecycleEvent>>,
+        clock: &CommonClock,
+        node_time: NodeTime,
     ) -> Result<Recorder, RecordingError> {
         let mut log = McapLog::create(path, node)?;
+        let clock = clock.clone();
+        log.clock(node_time.now_ns(), clock.source(), &clock.estimate())?;
         for (name, _) in &streams {
             log.add_controller(name)?;
         }
@@ -233,7 +240,8 @@ impl Recorder {
                     }
                     if stopping || links_at.is_none_or(|t| t.elapsed() >= LINK_EVERY) {
                         links_at = Some(Instant::now());
-                        let now = MonotonicClock::read().as_nanos();
+                        let now = node_time.now_ns();
+                        log.clock(now, clock.source(), &clock.estimate())?;
                         for (channel, source, before) in &links {
                             if let Some(stats) = source.latest() {
                                 log.link(channel, &stats.record(now))?;
@@ -336,8 +344,16 @@ pub fn apply_recorded(
             links.push((o.name.clone(), source));
         }
     }
-    let recorder = Recorder::start(path, node.name(), streams, links, Some(lifecycle))
-        .map_err(|e| RunError::Task(e.to_string()))?;
+    let recorder = Recorder::start(
+        path,
+        node.name(),
+        streams,
+        links,
+        Some(lifecycle),
+        node.creator().common_clock(),
+        node.creator().node_time(),
+    )
+    .map_err(|e| RunError::Task(e.to_string()))?;
     for name in &to_activate {
         node.call(Call::Object {
             object: name.clone(),
@@ -635,7 +651,15 @@ mod tests {
             Err(RecordingError::Io { .. })
         ));
         assert!(matches!(
-            Recorder::start(nowhere, "lab", Vec::new(), Vec::new(), None),
+            Recorder::start(
+                nowhere,
+                "lab",
+                Vec::new(),
+                Vec::new(),
+                None,
+                &crate::common_clock::CommonClock::own(),
+                NodeTime::Real,
+            ),
             Err(RecordingError::Io { .. })
         ));
         let foreign = scratch("foreign.mcap");

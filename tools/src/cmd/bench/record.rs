@@ -28,6 +28,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
+use penelope_supervisor::common_clock::CommonClock;
+use penelope_supervisor::objects::clock::NodeTime;
 use penelope_supervisor::objects::runtime::{Subscriptions, TickRecord};
 use penelope_supervisor::runs::mcap_log::McapLog;
 use penelope_supervisor::runs::recording::Recorder;
@@ -170,7 +172,15 @@ fn through_recorder(
     let dropped: Vec<_> = streams.iter().map(|(_, s)| s.dropped.clone()).collect();
     let path = dir.join(format!("recorder-{k}.mcap"));
     let _ = std::fs::remove_file(&path);
-    let recorder = Recorder::start(&path, "bench", streams, Vec::new(), None)?;
+    let recorder = Recorder::start(
+        &path,
+        "bench",
+        streams,
+        Vec::new(),
+        None,
+        &CommonClock::own(),
+        NodeTime::Real,
+    )?;
     let stop = Arc::new(AtomicBool::new(false));
     // The pump: every 10 ms, each controller's ten new ticks (on absolute deadlines, so a
     // late batch does not lower the rate).

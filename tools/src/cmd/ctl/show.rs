@@ -255,5 +255,11 @@ pub fn reply(reply: &Reply, hint: Hint) -> String {
             path, controllers, ..
         } => format!("recording {} to {path}", controllers.join(", ")),
         Reply::Recorded { path, ticks } => format!("recorded {ticks} control ticks to {path}"),
+        Reply::Time {
+            received_ns,
+            sent_ns,
+        } => format!(
+            "time: taken at {received_ns} ns, answered at {sent_ns} ns (the host's monotonic clock)"
+        ),
     }
 }
