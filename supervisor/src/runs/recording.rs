@@ -15,9 +15,11 @@ use std::sync::mpsc::Receiver;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use penelope_hal::Transition;
+use penelope_hal::{Timestamp, Transition};
 
-use super::mcap_log::{CONTROLLER_TOPIC, LINK_TOPIC, McapLog, RECORDER_TOPIC, STREAM_TOPIC};
+use super::mcap_log::{
+    CLOCK_TOPIC, CONTROLLER_TOPIC, LINK_TOPIC, McapLog, RECORDER_TOPIC, STREAM_TOPIC,
+};
 use super::{RECORD_CAPACITY, RunError, RunOptions, RunOutput, find_task};
 use crate::common_clock::CommonClock;
 use crate::node::Node;
@@ -80,6 +82,9 @@ pub struct Recording {
     pub datagrams: BTreeMap<String, Vec<StreamDatagram>>,
     /// Stream samples lost by the recorder, by channel.
     pub datagrams_dropped: BTreeMap<String, u64>,
+    /// The common clock less the node's, ns, as the node last estimated it (`/clock`; `None`
+    /// in a recording without one, such as the demo's: its node's clock is the common one).
+    pub clock_offset_ns: Option<i64>,
 }
 
 /// Reads the recording at `path`: every message up to a cut-off last record (a file being
@@ -152,6 +157,9 @@ pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
                 .entry(channel.to_string())
                 .or_default()
                 .push(link);
+        } else if topic == CLOCK_TOPIC {
+            let v: serde_json::Value = serde_json::from_slice(&m.data).map_err(json)?;
+            recording.clock_offset_ns = v["offset_ns"].as_i64().or(recording.clock_offset_ns);
         } else if topic == RECORDER_TOPIC {
             let v: serde_json::Value = serde_json::from_slice(&m.data).map_err(json)?;
             if let (Some(name), Some(count)) = (v["controller"].as_str(), v["dropped"].as_u64()) {
@@ -365,9 +373,11 @@ pub fn apply_recorded(
 }
 
 /// The report's input from recordings of a task run by separate processes: the master's and
-/// the slave's ticks from the recordings that hold them, from the master's first tick (the
-/// task's start: its hand begins there) for the task's duration (`options.duration`, else the
-/// operator's script); `None` when a recording does not reach that far yet.
+/// the slave's ticks from the recordings that hold them, their times moved onto the common
+/// clock (each recording's last `/clock` offset: hosts' clocks count from their own boots),
+/// from the master's first tick (the task's start: its hand begins there) for the task's
+/// duration (`options.duration`, else the operator's script); `None` when a recording does
+/// not reach that far yet.
 ///
 /// # Errors
 /// [`RunError::Task`] when the file has no task or no recording holds its controllers.
@@ -382,7 +392,21 @@ pub fn from_recordings(
         recordings
             .iter()
             .filter(|r| node.is_empty() || r.node == node)
-            .find_map(|r| r.controllers.get(controller))
+            .find_map(|r| {
+                let shift = r.clock_offset_ns.unwrap_or(0);
+                r.controllers.get(controller).map(|ticks| {
+                    ticks
+                        .iter()
+                        .map(|t| {
+                            let mut t = *t;
+                            t.sample.time = Timestamp::from_nanos(
+                                t.sample.time.as_nanos().saturating_add_signed(shift),
+                            );
+                            t
+                        })
+                        .collect::<Vec<TickRecord>>()
+                })
+            })
             .ok_or_else(|| {
                 RunError::Task(format!(
                     "no recording holds controller `{controller}` of node `{node}`"
@@ -402,6 +426,7 @@ pub fn from_recordings(
         dropped_of(&task.node_of.0, &info.controllers.0),
         dropped_of(&task.node_of.1, &info.controllers.1),
     );
+    let (master, slave) = (&master[..], &slave[..]);
     let Some(first) = master.first() else {
         return Ok(None);
     };
@@ -587,6 +612,54 @@ mod tests {
             d(StreamName::SlaveToMaster, 2, Some(4_000_123)),
             d(StreamName::MasterToSlave, 3, None),
         ]
+    }
+
+    #[test]
+    fn recordings_of_hosts_whose_clocks_disagree_are_aligned_on_the_common_clock() {
+        // The master's host booted 5,000 s before the naming host's, the slave's 9,000 s:
+        // the same instants read 5,000 s and 9,000 s later on their clocks.
+        let file = SystemFile::parse(include_str!("../../../config/demo-two-nodes.toml")).unwrap();
+        let options = RunOptions {
+            duration: Some(std::time::Duration::from_secs(1)),
+            ..RunOptions::default()
+        };
+        let on_host = |node: &str, controller: &str, boot_s: u64| {
+            let ticks = (0..1500u64)
+                .map(|k| {
+                    let mut t = ticks(1)[0];
+                    t.sample.seq = k + 1;
+                    t.sample.time = Timestamp::from_nanos((boot_s * 1000 + k) * 1_000_000);
+                    t
+                })
+                .collect();
+            Recording {
+                node: node.into(),
+                controllers: BTreeMap::from([(controller.to_string(), ticks)]),
+                clock_offset_ns: Some(-((boot_s * 1_000_000_000) as i64)),
+                ..Recording::default()
+            }
+        };
+        let read = [
+            on_host("master", "display", 5000),
+            on_host("slave", "follow", 9000),
+        ];
+        let out = from_recordings(&file, &options, &read)
+            .unwrap()
+            .expect("both reach 1 s");
+        assert_eq!((out.master.len(), out.slave.len()), (1000, 1000));
+        for (m, s) in out.master.iter().zip(&out.slave) {
+            assert_eq!(m.sample.time, s.sample.time, "one time line");
+        }
+        assert_eq!(out.master[0].sample.time, Timestamp::ZERO);
+        // Without the offsets, the slave's ticks lie 4,000 s after the task: none of them.
+        let unaligned = read.map(|r| Recording {
+            clock_offset_ns: None,
+            ..r
+        });
+        let out = from_recordings(&file, &options, &unaligned)
+            .unwrap()
+            .unwrap();
+        assert!(out.slave.is_empty());
     }
 
     #[test]
