@@ -31,6 +31,10 @@ impl LoopShared {
     }
 }
 
+/// The most records in one telemetry batch: a record is a few hundred bytes (at most about a
+/// kilobyte with a long fault text), so a batch stays well inside the default 256 KiB frame.
+pub const MAX_BATCH_RECORDS: usize = 128;
+
 /// One telemetry subscription.
 #[derive(Debug)]
 struct Subscription {
@@ -234,22 +238,23 @@ impl Subscriptions {
                 .filter(|x| x.sample.seq % s.decimation == 0)
                 .map(|x| record(&x.sample, joints))
                 .collect();
-            if records.is_empty() {
-                return true;
-            }
-            let batch = TelemetryBatch {
-                subscription: s.id,
-                dropped: s.dropped,
-                samples: records,
-            };
-            if s.outbox.try_push(ServerMsg::Telemetry(batch)) {
-                true
-            } else if s.outbox.is_closed() {
-                false
-            } else {
+            // A pump that was held up drains up to a ring's worth at once: in batches that fit
+            // a frame, or the writer would refuse the whole of it.
+            for samples in records.chunks(MAX_BATCH_RECORDS) {
+                let batch = TelemetryBatch {
+                    subscription: s.id,
+                    dropped: s.dropped,
+                    samples: samples.to_vec(),
+                };
+                if s.outbox.try_push(ServerMsg::Telemetry(batch)) {
+                    continue;
+                }
+                if s.outbox.is_closed() {
+                    return false;
+                }
                 s.dropped += 1;
-                true
             }
+            true
         });
     }
 }
@@ -350,5 +355,36 @@ pub fn run_pump(pump: &mut Pump, period: Duration, stop: &AtomicBool) {
         if last_round {
             break;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_backlog_goes_out_in_batches_that_fit_a_frame_none_lost() {
+        let subs = Subscriptions::default();
+        let (outbox, rx) = Outbox::bounded(256);
+        let id = subs.add(1, "follow", 1, outbox, 8).unwrap();
+        // A held-up pump's drain: a ring's worth of ticks at once.
+        let ticks: Vec<TickRecord> = (1..=4096u64)
+            .map(|seq| {
+                let mut t = TickRecord::default();
+                t.sample.seq = seq;
+                t.sample.fault = Some(penelope_rt_core::safety::FaultCause::ReferenceTimeout);
+                t
+            })
+            .collect();
+        subs.publish("follow", &ticks, 6);
+        let mut seqs = Vec::new();
+        while let Ok(ServerMsg::Telemetry(b)) = rx.rx.try_recv() {
+            assert_eq!((b.subscription, b.dropped), (id, 0));
+            assert!(b.samples.len() <= MAX_BATCH_RECORDS);
+            let frame = postcard::to_allocvec(&ServerMsg::Telemetry(b.clone())).unwrap();
+            assert!(frame.len() <= crate::proto::DEFAULT_MAX_FRAME, "{}", frame.len());
+            seqs.extend(b.samples.iter().map(|r| r.seq));
+        }
+        assert_eq!(seqs, (1..=4096).collect::<Vec<_>>());
     }
 }
