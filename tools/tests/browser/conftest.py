@@ -108,12 +108,12 @@ class System:
     """A node `lab` hosting the naming service, and `penelope web` in front of it."""
 
     def __init__(self, binary: str, prefix: List[str], listen: str, naming: str,
-                 secret: Optional[Path]) -> None:
+                 secret: Optional[Path], priority: int = 0) -> None:
         self.binary = binary
         self.naming = naming
         extra = ["--secret-file", str(secret)] if secret else []
         self.node = Process(prefix + [binary, "node", "--name", "lab", "--host-naming", "--listen",
-                                      naming, "--priority", "0", *extra], NODE_READY)
+                                      naming, "--priority", str(priority), *extra], NODE_READY)
         try:
             self.web = Process(prefix + [binary, "web", "--naming", naming, "--listen", listen,
                                          "--systems", str(REPO / "config"), *extra], WEB_READY)

@@ -63,6 +63,14 @@ def tree_entry(driver, path: str):
     return found[0] if found else None
 
 
+def press(driver, element) -> None:
+    """Clears the message bar, then clicks: the next message is this click's."""
+    driver.execute_script(
+        "const m = document.getElementById('message'); m.textContent = ''; m.className = '';"
+        " m.dataset.kind = '';")
+    element.click()
+
+
 def expect_message(driver, prefix: str) -> str:
     def ok(d):
         m = d.find_element(By.ID, "message")
@@ -79,7 +87,7 @@ def create(driver, kind: str, name: str, config: str = "", **fields: str) -> Non
     driver.find_element(By.ID, "create-config").send_keys(config)
     for key, value in fields.items():
         driver.find_element(By.CSS_SELECTOR, f'#create-fields input[data-key="{key}"]').send_keys(value)
-    driver.find_element(By.ID, "create-submit").click()
+    press(driver, driver.find_element(By.ID, "create-submit"))
     expect_message(driver, "created /lab/")
 
 
@@ -94,13 +102,13 @@ def call(driver, path: str, method: str, args: str = "") -> None:
     box = driver.find_element(By.ID, "method-args")
     box.clear()
     box.send_keys(args)
-    driver.find_element(By.ID, "method-call").click()
+    press(driver, driver.find_element(By.ID, "method-call"))
     expect_message(driver, f"{path} {method}:")
 
 
 def transition(driver, path: str, word: str) -> None:
     select(driver, path)
-    driver.find_element(By.CSS_SELECTOR, f'button[data-transition="{word}"]').click()
+    press(driver, driver.find_element(By.CSS_SELECTOR, f'button[data-transition="{word}"]'))
     expect_message(driver, f"{path} {word}:")
 
 
@@ -199,7 +207,7 @@ def test_an_estop_from_the_page_reaches_the_loop(system, browser, tmp_path: Path
         browser.find_element(By.ID, "watch").click()
         wait(browser, lambda d: samples(d) >= 20, "samples before the e-stop")
         assert browser.find_element(By.ID, "live").get_attribute("data-state") == "running"
-        browser.find_element(By.ID, "estop").click()
+        press(browser, browser.find_element(By.ID, "estop"))
         expect_message(browser, "/lab/controllers/pid estop:")
 
         # The loop says so in its telemetry (bounded: at most the records asked for).
@@ -217,7 +225,7 @@ def test_an_estop_from_the_page_reaches_the_loop(system, browser, tmp_path: Path
         wait(browser, lambda d: d.find_element(By.ID, "live").get_attribute("data-state") == "estop",
              "the plotted state estop")
         # Re-arm from the page: the loop runs again.
-        browser.find_element(By.ID, "rearm").click()
+        press(browser, browser.find_element(By.ID, "rearm"))
         expect_message(browser, "/lab/controllers/pid rearm:")
         wait(browser, lambda d: d.find_elements(By.CSS_SELECTOR, '#events li[data-to="running"]'),
              "the re-arm in the safety events")
@@ -310,3 +318,63 @@ def test_a_cross_site_form_post_is_refused(system, browser) -> None:
         ".then(r => done(r.status));")
     assert ok == 200
     assert "fine" in system.ctl("ls").stdout
+
+
+def test_the_demo_system_file_runs_from_the_page_and_its_recording_downloads(system, browser) -> None:
+    open_page(browser, system)
+    Select(browser.find_element(By.ID, "system-file")).select_by_value("demo.toml")
+    press(browser, browser.find_element(By.ID, "system-load"))
+    loaded = expect_message(browser, "lab: created and started")
+    assert "created and started 12 objects" in loaded, loaded
+    for path in ("/lab/controllers/follow", "/lab/controllers/display"):
+        wait(browser, lambda d, p=path: state_of(d, p) == "active", f"{path} active")
+    wait(browser, lambda d: state_of(d, "/lab/controllers/wave") == "inactive", "the idle law inactive")
+
+    # A file with a mistake names it on the page and leaves nothing behind.
+    Select(browser.find_element(By.ID, "system-file")).select_by_value("")
+    browser.find_element(By.ID, "system-text").send_keys('[robots.arm]\nkind = "puma560"\nspeed = 3\n')
+    press(browser, browser.find_element(By.ID, "system-load"))
+    wait(browser, lambda d: d.find_element(By.ID, "message").get_attribute("data-kind") == "bad-input",
+         "the system file's error")
+    assert "speed" in browser.find_element(By.ID, "message").text
+    assert tree_entry(browser, "/lab/robots/arm") is None
+
+    # Record the running demo, stop, download from the page.
+    press(browser, browser.find_element(By.ID, "record-start"))
+    expect_message(browser, "lab: recording")
+    select(browser, "/lab/controllers/follow")
+    browser.find_element(By.ID, "watch").click()
+    wait(browser, lambda d: samples(d) >= 50, "the demo's samples")
+    press(browser, browser.find_element(By.ID, "record-stop"))
+    stopped = expect_message(browser, "lab: recorded")
+    assert int(stopped.split()[2]) > 0, stopped
+    link = wait(browser, lambda d: d.find_element(By.ID, "record-download").get_attribute("href"),
+                "the download link")
+    head = browser.execute_async_script(
+        "const done = arguments[1];"
+        "fetch(arguments[0]).then(r => r.arrayBuffer()).then(b =>"
+        " done([b.byteLength, Array.from(new Uint8Array(b.slice(0, 5)))]));", link)
+    assert head[0] > 1000 and bytes(head[1]) == b"\x89MCAP", head
+    # Only recordings stopped from the page are served: not any file of the host.
+    refused = browser.execute_async_script(
+        "const done = arguments[0];"
+        "fetch('/api/recording?path=/etc/passwd').then(r => done(r.status));")
+    assert refused == 400
+
+
+def test_a_cross_site_websocket_is_refused(system) -> None:
+    """The live socket is a GET: the origin check covers it too (cross-site WebSocket
+    hijacking would otherwise read telemetry from any page the operator visits)."""
+    import http.client
+    import urllib.parse
+
+    host = urllib.parse.urlparse(system.url).netloc
+    upgrade = {"Connection": "Upgrade", "Upgrade": "websocket", "Sec-WebSocket-Version": "13",
+               "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="}
+    statuses = {}
+    for origin in (f"http://{host}", "http://evil.example"):
+        c = http.client.HTTPConnection(host, timeout=10)
+        c.request("GET", "/api/live?path=/lab/creator", headers={**upgrade, "Origin": origin})
+        statuses[origin] = c.getresponse().status
+        c.close()
+    assert statuses == {f"http://{host}": 101, "http://evil.example": 403}, statuses
