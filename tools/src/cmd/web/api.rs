@@ -51,6 +51,15 @@ impl ApiError {
         }
     }
 
+    /// Too much open at once.
+    pub(crate) fn busy(message: impl Into<String>) -> ApiError {
+        ApiError {
+            status: StatusCode::SERVICE_UNAVAILABLE,
+            kind: "busy".into(),
+            message: message.into(),
+        }
+    }
+
     /// Refused whoever asks (a request from another site).
     pub(crate) fn forbidden(message: impl Into<String>) -> ApiError {
         ApiError {
@@ -415,8 +424,6 @@ pub(crate) async fn call(
     })
     .await
 }
-
-pub(crate) use super::system::{load_system, record, recording, systems};
 
 #[cfg(test)]
 mod tests {

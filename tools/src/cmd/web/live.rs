@@ -15,6 +15,7 @@
 //! - `{"type":"error","error":{"kind":..,"message":..}}`, then the socket closes.
 
 use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use axum::extract::ws::{Message, Utf8Bytes, WebSocket, WebSocketUpgrade};
@@ -36,6 +37,9 @@ const STATUS_PERIOD: Duration = Duration::from_millis(500);
 const QUEUE: usize = 32;
 /// The default decimation: one tick in 10 (100 samples/s of a 1 kHz loop).
 const DEFAULT_DECIMATION: u32 = 10;
+/// Live sockets one server keeps open at once: each holds a thread and a subscription (a
+/// connection to the node, whose own bounds are the last word).
+pub(crate) const MAX_SOCKETS: usize = 64;
 
 /// `GET /api/live?path=&decimation=`.
 #[derive(Deserialize)]
@@ -55,7 +59,32 @@ pub(crate) async fn socket(
         return ApiError::bad_input(format!("decimation must be 1..=100000, got {decimation}"))
             .into_response();
     }
-    upgrade.on_upgrade(move |ws| follow(state, q.path, decimation, ws))
+    // Counted from here to the socket's end: a slot is taken before the upgrade is answered.
+    let open = state.live_sockets.fetch_add(1, Ordering::AcqRel);
+    if open >= MAX_SOCKETS {
+        state.live_sockets.fetch_sub(1, Ordering::AcqRel);
+        return ApiError::busy(format!(
+            "{MAX_SOCKETS} live plots are open on this server: close one first"
+        ))
+        .into_response();
+    }
+    let slot = SocketSlot(state.clone());
+    upgrade
+        .on_failed_upgrade(|_| ())
+        .on_upgrade(move |ws| async move {
+            follow(slot.0.clone(), q.path, decimation, ws).await;
+            drop(slot);
+        })
+}
+
+/// A live socket's place in [`WebState::live_sockets`], given back when dropped (also when
+/// the upgrade never completes and the future is dropped unrun).
+struct SocketSlot(Arc<WebState>);
+
+impl Drop for SocketSlot {
+    fn drop(&mut self) {
+        self.0.live_sockets.fetch_sub(1, Ordering::AcqRel);
+    }
 }
 
 /// Pumps one subscription into one socket until either ends.

@@ -15,8 +15,9 @@
 //!   needs the shared secret once at `/login`, then a login cookie; state-changing requests
 //!   and WebSockets from another site are refused.
 //! - [`api`]: the JSON endpoints behind the page: the naming tree with states, kinds with their
-//!   configuration keys, create, destroy, lifecycle, method calls, e-stop and re-arm, system
-//!   files (the demo's among them), recordings.
+//!   configuration keys, create, destroy, lifecycle, method calls, e-stop and re-arm.
+//! - [`system`]: experiments as wholes: system files (the demo's among them) applied through
+//!   the client, recordings started, stopped and downloaded.
 //! - [`live`]: one WebSocket per plot: telemetry records thinned for a browser, and safety
 //!   events (changes of the loop's safety state) as they happen.
 //! - [`assets`]: the page, its script and style and the vendored uPlot, compiled into the
@@ -77,6 +78,8 @@ pub(crate) struct WebState {
     pub systems: Option<PathBuf>,
     /// The recordings stopped from the page: the only files it lets a browser download.
     pub recordings: Mutex<Vec<PathBuf>>,
+    /// Live sockets open now (at most [`live::MAX_SOCKETS`]).
+    pub live_sockets: std::sync::atomic::AtomicUsize,
 }
 
 /// Runs `penelope web` until interrupted.
@@ -123,6 +126,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         ),
         systems: args.systems,
         recordings: Mutex::new(Vec::new()),
+        live_sockets: std::sync::atomic::AtomicUsize::new(0),
     });
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -142,10 +146,10 @@ fn router(state: Arc<WebState>) -> Router {
         .route("/api/create", post(api::create))
         .route("/api/destroy", post(api::destroy))
         .route("/api/call", post(api::call))
-        .route("/api/systems", get(api::systems))
-        .route("/api/system", post(api::load_system))
-        .route("/api/record", post(api::record))
-        .route("/api/recording", get(api::recording))
+        .route("/api/systems", get(system::systems))
+        .route("/api/system", post(system::load_system))
+        .route("/api/record", post(system::record))
+        .route("/api/recording", get(system::recording))
         .route("/api/live", get(live::socket))
         .route("/logout", post(session::logout))
         .route_layer(axum::middleware::from_fn_with_state(

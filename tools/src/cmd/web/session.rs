@@ -119,12 +119,13 @@ impl Sessions {
         }
     }
 
-    /// Counts a failed login; false while too many failed in the window.
+    /// Whether a login may be tried now: false while too many failed in the current window.
     fn may_try(&self) -> bool {
         let f = self.failures.lock().unwrap_or_else(PoisonError::into_inner);
         f.0.elapsed() >= FAILURE_WINDOW || f.1 < MAX_FAILURES
     }
 
+    /// Counts a failed login.
     fn failed(&self) {
         let mut f = self.failures.lock().unwrap_or_else(PoisonError::into_inner);
         if f.0.elapsed() >= FAILURE_WINDOW {
