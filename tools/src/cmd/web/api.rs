@@ -253,29 +253,65 @@ pub(crate) fn config_keys(list: &str) -> Vec<ConfigKey> {
         if line.starts_with('[') {
             continue;
         }
-        let Some((key, rest)) = line.split_once('=') else {
-            continue;
+        let (body, note) = match line.split_once(" #") {
+            Some((b, n)) => (b.trim(), n.trim()),
+            None => (line, ""),
         };
-        let key = key.trim();
-        if key.is_empty()
-            || !key
-                .bytes()
-                .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.'))
-        {
-            continue;
+        // A line may offer alternatives (`goal = [...], pose = "start" or position = [...]`):
+        // one field each, sharing the note.
+        let before = keys.len();
+        for choice in alternatives(body) {
+            let Some((key, default)) = choice.split_once('=') else {
+                continue;
+            };
+            let key = key.trim();
+            if !is_key(key) {
+                continue;
+            }
+            keys.push(ConfigKey {
+                key: key.to_string(),
+                default: default.trim().to_string(),
+                note: note.to_string(),
+            });
         }
-        let (default, note) = match rest.split_once(" #") {
-            Some((d, n)) => (d.trim(), n.trim()),
-            None => (rest.trim(), ""),
-        };
-        keys.push(ConfigKey {
-            key: key.to_string(),
-            default: default.to_string(),
-            note: note.to_string(),
-        });
-        continues = true;
+        continues = keys.len() > before;
     }
     keys
+}
+
+/// Whether `key` is a configuration key's name.
+fn is_key(key: &str) -> bool {
+    !key.is_empty()
+        && key
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.'))
+}
+
+/// `body` split where `, KEY =` or ` or KEY =` starts another alternative; a trailing
+/// parenthesis such as `(+ rpy_deg)` is left out.
+fn alternatives(body: &str) -> Vec<&str> {
+    let mut pieces = Vec::new();
+    let mut start = 0;
+    let mut i = 0;
+    while i < body.len() {
+        let rest = &body[i..];
+        let sep = [", ", " or "].into_iter().find(|s| rest.starts_with(s));
+        if let Some(sep) = sep {
+            let after = &rest[sep.len()..];
+            if after.split_once(" = ").is_some_and(|(k, _)| is_key(k)) {
+                pieces.push(body[start..i].trim());
+                start = i + sep.len();
+                i = start;
+                continue;
+            }
+        }
+        i += rest.chars().next().map_or(1, char::len_utf8);
+    }
+    pieces.push(body[start..].trim());
+    pieces
+        .into_iter()
+        .map(|p| p.split(" (+").next().unwrap_or(p).trim())
+        .collect()
 }
 
 /// `GET /api/kinds`: per node, the kinds it can create with their keys (units, defaults).
@@ -439,7 +475,8 @@ mod tests {
              kp = [...]   # N·m/rad, one value or one per joint\n\
              [[shapes]]\n\
              bad key = 1\n\
-             device = \"/dev/ttyS0\"",
+             device = \"/dev/ttyS0\"\n\
+             goal = [...], pose = \"start\" or position = [0.1, 0.2] (+ rpy_deg)   # as step",
         );
         assert_eq!(
             keys,
@@ -458,6 +495,21 @@ mod tests {
                     key: "device".into(),
                     default: "\"/dev/ttyS0\"".into(),
                     note: String::new()
+                },
+                ConfigKey {
+                    key: "goal".into(),
+                    default: "[...]".into(),
+                    note: "as step".into()
+                },
+                ConfigKey {
+                    key: "pose".into(),
+                    default: "\"start\"".into(),
+                    note: "as step".into()
+                },
+                ConfigKey {
+                    key: "position".into(),
+                    default: "[0.1, 0.2]".into(),
+                    note: "as step".into()
                 },
             ]
         );

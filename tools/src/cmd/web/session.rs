@@ -182,7 +182,10 @@ fn from_own_page(headers: &HeaderMap) -> bool {
     }
     match (text(header::ORIGIN), text(header::HOST)) {
         (None, _) => true,
-        (Some(origin), Some(host)) => origin == format!("http://{host}"),
+        // https too: behind a TLS proxy that keeps the Host header, the page's origin is https.
+        (Some(origin), Some(host)) => {
+            origin == format!("http://{host}") || origin == format!("https://{host}")
+        }
         (Some(_), None) => false,
     }
 }
