@@ -352,25 +352,36 @@ impl SystemFile {
     /// [`SystemFileError::Invalid`] when the file names its nodes and `node` is not one of them;
     /// [`SystemFileError::Step`] for the first refused step.
     pub fn apply(&self, node: &Node) -> Result<Vec<ObjectInfo>, SystemFileError> {
+        self.apply_through(node.name(), |call| node.call(call))
+    }
+
+    /// [`SystemFile::apply`] to node `node` through `call`, which sends one call to that node's
+    /// creator: a client applies a file to a node it reaches over the network (`penelope web`
+    /// loads system files this way), step for step as the node would itself.
+    ///
+    /// # Errors
+    /// As [`SystemFile::apply`].
+    pub fn apply_through(
+        &self,
+        node: &str,
+        call: impl Fn(Call) -> Result<Reply, WireError>,
+    ) -> Result<Vec<ObjectInfo>, SystemFileError> {
         // A file that names its nodes is applied only to one of them (never silently to none).
         let names = self.node_names();
-        if !names.is_empty() && !names.iter().any(|n| n == node.name()) {
+        if !names.is_empty() && !names.iter().any(|n| n == node) {
             return Err(SystemFileError::Invalid {
                 line: 1,
                 key: "node".into(),
-                message: format!(
-                    "the file places objects on {names:?}, not on `{}`",
-                    node.name()
-                ),
+                message: format!("the file places objects on {names:?}, not on `{node}`"),
             });
         }
-        let objects: Vec<&ObjectSpec> = self.objects_on(node.name()).collect();
+        let objects: Vec<&ObjectSpec> = self.objects_on(node).collect();
         let mut created: Vec<ObjectInfo> = Vec::new();
-        let result = apply_steps(node, &objects, &mut created);
+        let result = apply_steps(&call, &objects, &mut created);
         if let Err(e) = result {
             // Controllers first, so that nothing they use is still held.
             for info in created.iter().rev() {
-                let _ = node.call(Call::Creator(CreatorCall::Destroy {
+                let _ = call(Call::Creator(CreatorCall::Destroy {
                     name: info.name.clone(),
                     force: true,
                 }));
@@ -382,12 +393,12 @@ impl SystemFile {
 }
 
 fn apply_steps(
-    node: &Node,
+    call: &impl Fn(Call) -> Result<Reply, WireError>,
     objects: &[&ObjectSpec],
     created: &mut Vec<ObjectInfo>,
 ) -> Result<(), SystemFileError> {
-    let step = |o: &ObjectSpec, step: &str, call: Call| {
-        node.call(call).map_err(|error| SystemFileError::Step {
+    let step = |o: &ObjectSpec, step: &str, c: Call| {
+        call(c).map_err(|error| SystemFileError::Step {
             line: o.line,
             key: format!("{}.{}", class_key(&o.kind), o.name),
             step: step.to_string(),

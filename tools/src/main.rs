@@ -42,6 +42,9 @@ enum Command {
     Replay(cmd::replay::Args),
     /// Talk to the nodes: list, create, configure, activate, call methods, watch telemetry.
     Ctl(cmd::ctl::Args),
+    /// The web interface: the naming tree, object forms, lifecycle, live plots, e-stop, in a
+    /// browser (loopback by default; elsewhere a login with the shared secret).
+    Web(cmd::web::Args),
 }
 
 fn main() -> ExitCode {
@@ -58,6 +61,7 @@ fn main() -> ExitCode {
         Command::Node(args) => cmd::node::run(args),
         Command::Naming(args) => cmd::naming::run(args),
         Command::Ctl(args) => cmd::ctl::run(args),
+        Command::Web(args) => cmd::web::run(args),
         Command::Replay(args) => cmd::replay::run(args),
     };
     match result {

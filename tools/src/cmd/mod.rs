@@ -13,6 +13,7 @@ pub mod kin;
 pub mod naming;
 pub mod node;
 pub mod replay;
+pub mod web;
 
 /// Bad input from the user (unknown robot, wrong joint count, NaN): exit code 2.
 #[derive(Debug)]

@@ -23,8 +23,8 @@
 //! protocol defines it; for `watch`, one JSON telemetry or link record per line). Bad input exits with
 //! code 2 (nothing is sent), an error from a node with code 1 and the node's message.
 
-mod method;
-mod show;
+pub(crate) mod method;
+pub(crate) mod show;
 mod watch;
 
 use std::collections::HashMap;
@@ -623,7 +623,7 @@ fn path_of(r: &ObjectRef) -> String {
 
 /// The lifecycle state of every object in `tree`, by `(node, name)`, from one creator `List`
 /// per node (nodes that do not answer are left out).
-fn object_states(
+pub(crate) fn object_states(
     client: &Client,
     tree: &[(String, usize, NameEntry)],
 ) -> HashMap<(String, String), String> {
@@ -654,7 +654,7 @@ fn object_states(
 
 /// The configuration text of `create`: the key=value settings, then --config or
 /// --config-file, checked to be TOML.
-fn config_text(
+pub(crate) fn config_text(
     config: Option<String>,
     file: Option<&std::path::Path>,
     settings: &[String],

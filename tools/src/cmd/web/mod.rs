@@ -1,0 +1,191 @@
+//! `penelope web`: the paper's planned web interface (its `webInterface` class), as a browser
+//! page served by this process.
+//!
+//! ```text
+//! penelope web [--naming ADDR] [--listen 127.0.0.1:8080] [--secret-file FILE]
+//! ```
+//!
+//! It is one more client of the system: every request becomes calls of the client library
+//! ([`penelope_supervisor::client`], as `penelope ctl` makes them), run on tokio's blocking pool
+//! because the library blocks; live telemetry is a subscription like `ctl watch`'s, decimated
+//! by the node, so the real-time rings never see the browser.
+//!
+//! # Layers
+//! - [`session`]: who may ask: loopback needs nothing, any other address (or a `--secret-file`)
+//!   needs the shared secret once at `/login`, then a login cookie; state-changing requests
+//!   and WebSockets from another site are refused.
+//! - [`api`]: the JSON endpoints behind the page: the naming tree with states, kinds with their
+//!   configuration keys, create, destroy, lifecycle, method calls, e-stop and re-arm.
+//! - [`system`]: experiments as wholes: system files (the demo's among them) applied through
+//!   the client, recordings started, stopped and downloaded.
+//! - [`live`]: one WebSocket per plot: telemetry records thinned for a browser, and safety
+//!   events (changes of the loop's safety state) as they happen.
+//! - [`assets`]: the page, its script and style and the vendored uPlot, compiled into the
+//!   binary (nothing is fetched from the network when the page runs).
+
+mod api;
+mod assets;
+mod live;
+mod session;
+mod system;
+
+use std::net::{SocketAddr, ToSocketAddrs};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use axum::Router;
+use axum::routing::{get, post};
+use penelope_supervisor::client::Client;
+use penelope_supervisor::net::conn::ClientConfig;
+
+use crate::cmd::usage;
+
+/// Options of `penelope web`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The naming service, HOST:PORT.
+    #[arg(long, value_name = "ADDR", default_value = "127.0.0.1:7300")]
+    pub naming: String,
+    /// Where the page is served, HOST:PORT. Any address but loopback needs --secret-file.
+    #[arg(long, value_name = "ADDR", default_value = "127.0.0.1:8080")]
+    pub listen: String,
+    /// A file holding the shared secret of the system (owner-readable only), as given to
+    /// `penelope node`: the server talks to the nodes with it, and a browser must type it once
+    /// at the login page (then holds a login cookie).
+    #[arg(long, value_name = "FILE")]
+    pub secret_file: Option<PathBuf>,
+    /// Hours a login lasts.
+    #[arg(long, value_name = "H", default_value_t = 12.0)]
+    pub login_hours: f64,
+    /// Seconds to wait for a node's answer.
+    #[arg(long, value_name = "S", default_value_t = 5.0)]
+    pub timeout: f64,
+    /// A directory of system files (`*.toml`) the page offers to load besides the text box
+    /// (default: none; `config/` of the repository holds the demo's).
+    #[arg(long, value_name = "DIR")]
+    pub systems: Option<PathBuf>,
+}
+
+/// What every request handler shares.
+pub(crate) struct WebState {
+    /// The system, through the client library.
+    pub client: Client,
+    /// The logins.
+    pub sessions: session::Sessions,
+    /// Where system files offered by name live.
+    pub systems: Option<PathBuf>,
+    /// The recordings stopped from the page: the only files it lets a browser download.
+    pub recordings: Mutex<Vec<PathBuf>>,
+    /// Live sockets open now (at most [`live::MAX_SOCKETS`]).
+    pub live_sockets: std::sync::atomic::AtomicUsize,
+}
+
+/// Runs `penelope web` until interrupted.
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let resolve = |what: &str, text: &str| -> anyhow::Result<SocketAddr> {
+        text.to_socket_addrs()
+            .ok()
+            .and_then(|mut a| a.next())
+            .ok_or_else(|| usage(format!("--{what}: `{text}` is not HOST:PORT")))
+    };
+    let naming = resolve("naming", &args.naming)?;
+    let listen = resolve("listen", &args.listen)?;
+    if !(args.timeout.is_finite() && args.timeout > 0.0) {
+        return Err(usage(format!(
+            "--timeout must be > 0 s, got {}",
+            args.timeout
+        )));
+    }
+    if !(args.login_hours.is_finite() && args.login_hours > 0.0 && args.login_hours <= 24.0 * 30.0)
+    {
+        return Err(usage(format!(
+            "--login-hours must be in (0, 720], got {}",
+            args.login_hours
+        )));
+    }
+    let secret = crate::cmd::naming::read_secret(args.secret_file.as_deref())?;
+    // As every server of the system: loopback alone may go without the secret.
+    if !listen.ip().is_loopback() && secret.is_none() {
+        return Err(usage(format!(
+            "--listen {listen} is not a loopback address: give --secret-file (browsers must \
+             prove the shared secret at the login page)"
+        )));
+    }
+    let mut config = ClientConfig::new("penelope-web");
+    config.timeout = Duration::from_secs_f64(args.timeout);
+    config.secret = secret.clone();
+    // Lazy: the page comes up (and says the naming service is unreachable) before the system.
+    let client = Client::lazy(naming, config);
+    let state = Arc::new(WebState {
+        client,
+        sessions: session::Sessions::new(
+            secret,
+            Duration::from_secs_f64(args.login_hours * 3600.0),
+        ),
+        systems: args.systems,
+        recordings: Mutex::new(Vec::new()),
+        live_sockets: std::sync::atomic::AtomicUsize::new(0),
+    });
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
+    runtime.block_on(serve(state, listen, naming))
+}
+
+/// The routes: `/login` open to all, everything else behind [`session::guard`].
+fn router(state: Arc<WebState>) -> Router {
+    let guarded = Router::new()
+        .route("/", get(assets::index))
+        .route("/assets/{file}", get(assets::file))
+        .route("/api/tree", get(api::tree))
+        .route("/api/kinds", get(api::kinds))
+        .route("/api/object", get(api::describe))
+        .route("/api/create", post(api::create))
+        .route("/api/destroy", post(api::destroy))
+        .route("/api/call", post(api::call))
+        .route("/api/systems", get(system::systems))
+        .route("/api/system", post(system::load_system))
+        .route("/api/record", post(system::record))
+        .route("/api/recording", get(system::recording))
+        .route("/api/live", get(live::socket))
+        .route("/logout", post(session::logout))
+        .route_layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            session::guard,
+        ));
+    Router::new()
+        .route("/login", get(session::login_page).post(session::login))
+        .merge(guarded)
+        // Every request, the login's too: no state change from another site.
+        .layer(axum::middleware::from_fn(session::same_origin))
+        .with_state(state)
+}
+
+async fn serve(
+    state: Arc<WebState>,
+    listen: SocketAddr,
+    naming: SocketAddr,
+) -> anyhow::Result<ExitCode> {
+    let listener = tokio::net::TcpListener::bind(listen)
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot listen on {listen}: {e}"))?;
+    let bound = listener.local_addr()?;
+    // The readiness line tests and scripts wait for: said once the socket accepts.
+    println!(
+        "penelope web: serving http://{bound}/ (naming service {naming}{}); Ctrl-C stops it",
+        if state.sessions.needs_login() {
+            ", login with the shared secret"
+        } else {
+            ""
+        }
+    );
+    axum::serve(listener, router(state))
+        .with_graceful_shutdown(async {
+            let _ = tokio::signal::ctrl_c().await;
+        })
+        .await?;
+    Ok(ExitCode::SUCCESS)
+}

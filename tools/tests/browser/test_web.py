@@ -1,0 +1,380 @@
+"""`penelope web` in a real headless Chromium: the page lists a node's objects, creates and
+activates a robot and a controller and plots their joints live, an e-stop from the page
+reaches the loop, a page served beyond loopback asks for the secret, and a cross-site form
+post is refused."""
+
+from __future__ import annotations
+
+import http.server
+import json
+import queue
+import subprocess
+import threading
+from pathlib import Path
+
+import pytest
+from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import Select, WebDriverWait
+
+from conftest import REPO, System
+
+WAIT_S = 30
+# Slower than the 1 kHz default so a tick fits beside the browser on two shared cores.
+PERIOD_US = 2000
+SUBSTEP_US = 200
+SCREENSHOT = REPO / "docs" / "web.png"
+
+SETUP = f"""\
+create lab board/sim sim0 axes=6 substep_us={SUBSTEP_US}
+create lab robot/puma560 slave
+call /lab/robots/slave map-joints sim0 0:0 1:1 2:2 3:3 4:4 5:5
+configure lab/sim0
+configure lab/slave
+create lab trajectory/step hold pose=start
+create lab controller/joint-pid pid period_us={PERIOD_US}
+call lab/pid set-robot slave
+call lab/pid set-trajectory hold
+configure lab/hold
+configure lab/pid
+activate lab/pid
+"""
+
+
+def wait(driver, condition, what: str, timeout: float = WAIT_S):
+    """Waits (bounded) until `condition(driver)` is truthy; fails naming `what` and the page's
+    message bar."""
+    try:
+        return WebDriverWait(driver, timeout, poll_frequency=0.1).until(condition)
+    except Exception as e:  # TimeoutException: say what the page said
+        message = driver.find_element(By.ID, "message").text if driver.find_elements(By.ID, "message") else ""
+        pytest.fail(f"waited {timeout} s for {what}; the page says {message!r} ({type(e).__name__})")
+
+
+def open_page(driver, system: System) -> None:
+    driver.get(system.url)
+    wait(driver, lambda d: d.find_element(By.TAG_NAME, "body").get_attribute("data-tree-loaded"),
+         "the tree to load")
+    wait(driver, lambda d: d.find_element(By.TAG_NAME, "body").get_attribute("data-kinds-loaded"),
+         "the kinds to load")
+
+
+def tree_entry(driver, path: str):
+    found = driver.find_elements(By.CSS_SELECTOR, f'#tree li[data-path="{path}"]')
+    return found[0] if found else None
+
+
+def press(driver, element) -> None:
+    """Clears the message bar, then clicks: the next message is this click's."""
+    driver.execute_script(
+        "const m = document.getElementById('message'); m.textContent = ''; m.className = '';"
+        " m.dataset.kind = '';")
+    element.click()
+
+
+def expect_message(driver, prefix: str) -> str:
+    def ok(d):
+        m = d.find_element(By.ID, "message")
+        if m.get_attribute("class") == "error":
+            pytest.fail(f"the page reports an error instead of {prefix!r}: {m.text}")
+        return m.text if m.text.startswith(prefix) else None
+
+    return wait(driver, ok, f"the message {prefix!r}")
+
+
+def create(driver, kind: str, name: str, config: str = "", **fields: str) -> None:
+    Select(driver.find_element(By.ID, "create-kind")).select_by_value(kind)
+    driver.find_element(By.ID, "create-name").send_keys(name)
+    driver.find_element(By.ID, "create-config").send_keys(config)
+    for key, value in fields.items():
+        driver.find_element(By.CSS_SELECTOR, f'#create-fields input[data-key="{key}"]').send_keys(value)
+    press(driver, driver.find_element(By.ID, "create-submit"))
+    expect_message(driver, "created /lab/")
+
+
+def select(driver, path: str) -> None:
+    wait(driver, lambda d: tree_entry(d, path), f"{path} in the tree").click()
+    wait(driver, lambda d: d.find_element(By.ID, "selected-path").text == path, f"{path} selected")
+
+
+def call(driver, path: str, method: str, args: str = "") -> None:
+    select(driver, path)
+    Select(driver.find_element(By.ID, "method-name")).select_by_value(method)
+    box = driver.find_element(By.ID, "method-args")
+    box.clear()
+    box.send_keys(args)
+    press(driver, driver.find_element(By.ID, "method-call"))
+    expect_message(driver, f"{path} {method}:")
+
+
+def transition(driver, path: str, word: str) -> None:
+    select(driver, path)
+    press(driver, driver.find_element(By.CSS_SELECTOR, f'button[data-transition="{word}"]'))
+    expect_message(driver, f"{path} {word}:")
+
+
+def state_of(driver, path: str) -> str:
+    e = tree_entry(driver, path)
+    return e.get_attribute("data-state") if e else ""
+
+
+def samples(driver) -> int:
+    return int(driver.find_element(By.ID, "live").get_attribute("data-samples"))
+
+
+def test_the_page_lists_a_running_nodes_objects(system, browser) -> None:
+    system.ctl("create", "lab", "board/sim", "sim0", "axes=6")
+    system.ctl("create", "lab", "robot/puma560", "slave")
+    open_page(browser, system)
+    slave = wait(browser, lambda d: tree_entry(d, "/lab/robots/slave"), "the robot in the tree")
+    assert "robot/puma560" in slave.text
+    assert slave.get_attribute("data-state") == "unconfigured"
+    assert tree_entry(browser, "/lab/boards/sim0") is not None
+    assert tree_entry(browser, "/lab/robots/nobody") is None
+    # The tree is live: a state changed elsewhere shows without a reload.
+    system.ctl("configure", "lab/sim0")
+    wait(browser, lambda d: state_of(d, "/lab/boards/sim0") == "inactive", "sim0 inactive")
+    # Bad input on the page gets a typed error, not a crash.
+    call_error = browser.execute_async_script(
+        "const done = arguments[0];"
+        "fetch('/api/call', {method: 'POST', headers: {'Content-Type': 'application/json'},"
+        " body: JSON.stringify({path: '/lab/robots/slave', method: 'fk', args: '0 nan'})})"
+        ".then(r => r.json().then(v => done([r.status, v])));")
+    assert call_error[0] == 400 and call_error[1]["error"]["kind"] == "bad-input", call_error
+
+
+def test_creating_and_activating_a_robot_and_controller_plots_its_joints(system, browser) -> None:
+    open_page(browser, system)
+    create(browser, "board/sim", "sim0", axes="6", substep_us=str(SUBSTEP_US))
+    create(browser, "robot/puma560", "slave")
+    call(browser, "/lab/robots/slave", "map-joints", "sim0 0:0 1:1 2:2 3:3 4:4 5:5")
+    transition(browser, "/lab/boards/sim0", "configure")
+    transition(browser, "/lab/robots/slave", "configure")
+    # To the `work` pose, trapezoidal in velocity (a step there trips the velocity limit).
+    create(browser, "trajectory/trapezoidal", "hold", config='pose = "work"', max_velocity="0.5")
+    create(browser, "controller/joint-pid", "pid", period_us=str(PERIOD_US))
+    call(browser, "/lab/controllers/pid", "set-robot", "slave")
+    call(browser, "/lab/controllers/pid", "set-trajectory", "hold")
+    transition(browser, "/lab/trajectories/hold", "configure")
+    transition(browser, "/lab/controllers/pid", "configure")
+    transition(browser, "/lab/controllers/pid", "activate")
+    wait(browser, lambda d: state_of(d, "/lab/controllers/pid") == "active", "pid active in the tree")
+
+    select(browser, "/lab/controllers/pid")
+    browser.find_element(By.ID, "watch").click()
+    wait(browser, lambda d: samples(d) >= 50, "the first 50 samples")
+    first = samples(browser)
+    wait(browser, lambda d: samples(d) >= first + 100, "the plot to keep updating")
+    # uPlot drew the joint-position plot (its canvas is there and sized).
+    canvas = browser.find_element(By.CSS_SELECTOR, "#plot-q canvas")
+    assert canvas.size["width"] > 200 and canvas.size["height"] > 50
+    # The move to `work` shows in the plot: the plotted series is not flat.
+    spread = browser.execute_script(
+        "const d = state.plots.q.data; const s = d[2];"
+        "return Math.max(...s) - Math.min(...s);")
+    assert spread > 0.05, f"joint 2 moved by {spread} rad only"
+    assert browser.find_element(By.ID, "live").get_attribute("data-state") == "running"
+    # The README's picture: the page from its top, the robot selected, its joints moving.
+    browser.execute_script("window.scrollTo(0, 0)")
+    SCREENSHOT.parent.mkdir(parents=True, exist_ok=True)
+    assert browser.save_screenshot(str(SCREENSHOT)), "the screenshot was not written"
+
+
+def test_an_estop_from_the_page_reaches_the_loop(system, browser, tmp_path: Path) -> None:
+    script = tmp_path / "setup.ctl"
+    script.write_text(SETUP)
+    system.ctl("run", str(script))
+    # The loop's own telemetry, read through the client library by `ctl watch`.
+    watcher = subprocess.Popen(
+        [system.binary, "ctl", "--naming", system.naming, "--json", "watch", "lab/pid",
+         "--decimation", "10", "--count", "3000"],
+        stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    records: "queue.Queue[dict | None]" = queue.Queue()
+
+    def pump() -> None:
+        assert watcher.stdout is not None
+        for line in watcher.stdout:
+            records.put(json.loads(line))
+        records.put(None)
+
+    try:
+        assert watcher.stderr is not None
+        said = watcher.stderr.readline()
+        assert said.startswith("watching"), said
+        threading.Thread(target=pump, daemon=True).start()
+
+        open_page(browser, system)
+        select(browser, "/lab/controllers/pid")
+        browser.find_element(By.ID, "watch").click()
+        wait(browser, lambda d: samples(d) >= 20, "samples before the e-stop")
+        assert browser.find_element(By.ID, "live").get_attribute("data-state") == "running"
+        press(browser, browser.find_element(By.ID, "estop"))
+        expect_message(browser, "/lab/controllers/pid estop:")
+
+        # The loop says so in its telemetry (bounded: at most the records asked for).
+        seen = []
+        while True:
+            r = records.get(timeout=WAIT_S)
+            assert r is not None, f"the watch ended before an estop; states seen: {set(seen)}"
+            seen.append(r["state"])
+            if r["state"] == "estop":
+                break
+        # And the page shows the safety event and the state.
+        event = wait(browser, lambda d: d.find_elements(By.CSS_SELECTOR, '#events li[data-to="estop"]'),
+                     "the e-stop in the safety events")
+        assert "running → estop" in event[0].text
+        wait(browser, lambda d: d.find_element(By.ID, "live").get_attribute("data-state") == "estop",
+             "the plotted state estop")
+        # Re-arm from the page: the loop runs again.
+        press(browser, browser.find_element(By.ID, "rearm"))
+        expect_message(browser, "/lab/controllers/pid rearm:")
+        wait(browser, lambda d: d.find_elements(By.CSS_SELECTOR, '#events li[data-to="running"]'),
+             "the re-arm in the safety events")
+    finally:
+        watcher.kill()
+        watcher.wait()
+
+
+def test_a_page_beyond_loopback_asks_for_the_secret(penelope_bin, namespace, secret_file, browser) -> None:
+    listen = f"{namespace.ns_ip}:8080"
+    # Without a secret the server refuses to serve beyond loopback at all.
+    r = subprocess.run(namespace.prefix() + [penelope_bin, "web", "--listen", listen],
+                       capture_output=True, text=True, timeout=30)
+    assert r.returncode == 2 and "--secret-file" in r.stderr, (r.returncode, r.stderr)
+
+    system = System(penelope_bin, namespace.prefix(), listen, "127.0.0.1:7300", secret_file)
+    try:
+        assert system.url == f"http://{listen}/"
+        browser.get(system.url)
+        # Nothing but the login page: the page itself redirects there ...
+        wait(browser, lambda d: d.current_url.endswith("/login"), "the login page")
+        assert browser.find_elements(By.ID, "secret")
+        assert not browser.find_elements(By.ID, "tree")
+        # ... and the API answers 401.
+        browser.get(system.url + "api/tree")
+        assert "unauthenticated" in browser.page_source
+        assert "/lab/creator" not in browser.page_source
+        browser.get(system.url + "assets/app.js")
+        assert "refreshTree" not in browser.page_source
+        # A wrong secret is refused, the right one opens the page.
+        browser.get(system.url + "login")
+        browser.find_element(By.ID, "secret").send_keys("not the secret")
+        browser.find_element(By.ID, "login-submit").click()
+        wait(browser, lambda d: "not the system's shared secret" in d.find_element(By.ID, "login-error").text,
+             "the refusal")
+        assert not browser.get_cookies()
+        browser.find_element(By.ID, "secret").send_keys(secret_file.read_text().strip())
+        browser.find_element(By.ID, "login-submit").click()
+        wait(browser, lambda d: d.find_elements(By.TAG_NAME, "body")
+             and d.find_element(By.TAG_NAME, "body").get_attribute("data-tree-loaded"), "the tree after login")
+        assert tree_entry(browser, "/lab/creator") is not None
+        (cookie,) = browser.get_cookies()
+        assert cookie["name"] == "penelope_login"
+        assert cookie["httpOnly"] is True
+        assert cookie["sameSite"] == "Strict"
+        assert "expiry" in cookie, cookie
+    finally:
+        system.stop()
+
+
+class _Attacker(http.server.BaseHTTPRequestHandler):
+    """Serves one page that posts a form to the victim as soon as it loads."""
+
+    page = b""
+
+    def do_GET(self) -> None:  # noqa: N802 (the standard library's name)
+        self.send_response(200)
+        self.send_header("Content-Type", "text/html")
+        self.end_headers()
+        self.wfile.write(self.page)
+
+    def log_message(self, *args) -> None:
+        pass
+
+
+def test_a_cross_site_form_post_is_refused(system, browser) -> None:
+    target = system.url + "api/create"
+    # A form cannot send application/json; text/plain smuggles a JSON body (the classic way).
+    _Attacker.page = f"""<!doctype html><html><body>
+<form id="f" method="post" action="{target}" enctype="text/plain">
+<input type="hidden" name='{{"node":"lab","kind":"board/sim","name":"evil","x":"' value='"}}'>
+</form><script>document.getElementById("f").submit();</script></body></html>""".encode()
+    attacker = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _Attacker)
+    threading.Thread(target=attacker.serve_forever, daemon=True).start()
+    try:
+        # Another site: `localhost` is not `127.0.0.1`, and the port differs too.
+        browser.get(f"http://localhost:{attacker.server_address[1]}/")
+        wait(browser, lambda d: d.current_url.startswith(target), "the form post")
+        wait(browser, lambda d: "forbidden" in d.page_source, "the refusal")
+    finally:
+        attacker.shutdown()
+    out = system.ctl("ls").stdout
+    assert "evil" not in out, out
+    # The same request from the page's own origin is served: the refusal was the origin's.
+    open_page(browser, system)
+    ok = browser.execute_async_script(
+        "const done = arguments[0];"
+        "fetch('/api/create', {method: 'POST', headers: {'Content-Type': 'application/json'},"
+        " body: JSON.stringify({node: 'lab', kind: 'board/sim', name: 'fine'})})"
+        ".then(r => done(r.status));")
+    assert ok == 200
+    assert "fine" in system.ctl("ls").stdout
+
+
+def test_the_demo_system_file_runs_from_the_page_and_its_recording_downloads(system, browser) -> None:
+    open_page(browser, system)
+    Select(browser.find_element(By.ID, "system-file")).select_by_value("demo.toml")
+    press(browser, browser.find_element(By.ID, "system-load"))
+    loaded = expect_message(browser, "lab: created and started")
+    assert "created and started 12 objects" in loaded, loaded
+    for path in ("/lab/controllers/follow", "/lab/controllers/display"):
+        wait(browser, lambda d, p=path: state_of(d, p) == "active", f"{path} active")
+    wait(browser, lambda d: state_of(d, "/lab/controllers/wave") == "inactive", "the idle law inactive")
+
+    # A file with a mistake names it on the page and leaves nothing behind.
+    Select(browser.find_element(By.ID, "system-file")).select_by_value("")
+    browser.find_element(By.ID, "system-text").send_keys('[robots.arm]\nkind = "puma560"\nspeed = 3\n')
+    press(browser, browser.find_element(By.ID, "system-load"))
+    wait(browser, lambda d: d.find_element(By.ID, "message").get_attribute("data-kind") == "bad-input",
+         "the system file's error")
+    assert "speed" in browser.find_element(By.ID, "message").text
+    assert tree_entry(browser, "/lab/robots/arm") is None
+
+    # Record the running demo, stop, download from the page.
+    press(browser, browser.find_element(By.ID, "record-start"))
+    expect_message(browser, "lab: recording")
+    select(browser, "/lab/controllers/follow")
+    browser.find_element(By.ID, "watch").click()
+    wait(browser, lambda d: samples(d) >= 50, "the demo's samples")
+    press(browser, browser.find_element(By.ID, "record-stop"))
+    stopped = expect_message(browser, "lab: recorded")
+    assert int(stopped.split()[2]) > 0, stopped
+    link = wait(browser, lambda d: d.find_element(By.ID, "record-download").get_attribute("href"),
+                "the download link")
+    head = browser.execute_async_script(
+        "const done = arguments[1];"
+        "fetch(arguments[0]).then(r => r.arrayBuffer()).then(b =>"
+        " done([b.byteLength, Array.from(new Uint8Array(b.slice(0, 5)))]));", link)
+    assert head[0] > 1000 and bytes(head[1]) == b"\x89MCAP", head
+    # Only recordings stopped from the page are served: not any file of the host.
+    refused = browser.execute_async_script(
+        "const done = arguments[0];"
+        "fetch('/api/recording?path=/etc/passwd').then(r => done(r.status));")
+    assert refused == 400
+
+
+def test_a_cross_site_websocket_is_refused(system) -> None:
+    """The live socket is a GET: the origin check covers it too (cross-site WebSocket
+    hijacking would otherwise read telemetry from any page the operator visits)."""
+    import http.client
+    import urllib.parse
+
+    host = urllib.parse.urlparse(system.url).netloc
+    upgrade = {"Connection": "Upgrade", "Upgrade": "websocket", "Sec-WebSocket-Version": "13",
+               "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="}
+    statuses = {}
+    for origin in (f"http://{host}", "http://evil.example"):
+        c = http.client.HTTPConnection(host, timeout=10)
+        c.request("GET", "/api/live?path=/lab/creator", headers={**upgrade, "Origin": origin})
+        statuses[origin] = c.getresponse().status
+        c.close()
+    assert statuses == {f"http://{host}": 101, "http://evil.example": 403}, statuses
