@@ -382,7 +382,11 @@ mod tests {
             assert_eq!((b.subscription, b.dropped), (id, 0));
             assert!(b.samples.len() <= MAX_BATCH_RECORDS);
             let frame = postcard::to_allocvec(&ServerMsg::Telemetry(b.clone())).unwrap();
-            assert!(frame.len() <= crate::proto::DEFAULT_MAX_FRAME, "{}", frame.len());
+            assert!(
+                frame.len() <= crate::proto::DEFAULT_MAX_FRAME,
+                "{}",
+                frame.len()
+            );
             seqs.extend(b.samples.iter().map(|r| r.seq));
         }
         assert_eq!(seqs, (1..=4096).collect::<Vec<_>>());

@@ -6,6 +6,7 @@ pub mod fpga;
 pub mod jitter;
 pub mod layout;
 pub mod record;
+pub mod record_flood;
 pub mod rpc;
 #[cfg(feature = "zenoh")]
 pub mod zenoh;

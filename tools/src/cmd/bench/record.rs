@@ -65,6 +65,10 @@ pub struct Args {
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Also run the demo's loops on the real clock and measure them idle, recording, and
+    /// recording while N clients subscribe to every tick and never read (`--duration` each).
+    #[arg(long, value_name = "N")]
+    pub flood: Option<usize>,
 }
 
 /// Runs `penelope bench record`.
@@ -137,6 +141,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         best = Some(r);
         k *= 2;
     }
+    // 3. The loops on the real clock beside a recording and a flood of slow readers.
+    let flood = match args.flood {
+        Some(n) => Some(super::record_flood::measure(&dir, n, args.duration)?),
+        None => None,
+    };
     if temporary {
         let _ = std::fs::remove_dir_all(&dir);
     }
@@ -146,11 +155,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "writer_ceiling": ceiling,
         "recorder_sweep": sweep,
         "recorder_no_drop": best,
+        "flood": flood,
     });
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         print_report(&report);
+        if let Some(f) = &flood {
+            super::record_flood::print(f);
+        }
     }
     Ok(ExitCode::SUCCESS)
 }
