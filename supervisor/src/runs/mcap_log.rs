@@ -352,13 +352,7 @@ impl McapLog {
             None => {
                 let meta = BTreeMap::from([("channel".to_string(), channel.to_string())]);
                 let topic = format!("{LINK_TOPIC}{channel}");
-                let id = self
-                    .writer
-                    .add_channel(self.link_schema, &topic, "json", &meta)
-                    .map_err(|source| RecordingError::Mcap {
-                        path: self.path.clone(),
-                        source,
-                    })?;
+                let id = self.add_channel(self.link_schema, &topic, &meta)?;
                 self.links.insert(channel.to_string(), id);
                 id
             }
@@ -380,33 +374,16 @@ impl McapLog {
         let id = match self.streams.get(&topic) {
             Some(id) => *id,
             None => {
-                let mcap_err = |source| RecordingError::Mcap {
-                    path: self.path.clone(),
-                    source,
-                };
                 let schema = match self.stream_schema {
                     Some(id) => id,
-                    None => {
-                        let id = self
-                            .writer
-                            .add_schema(
-                                "penelope.StreamSample",
-                                "jsonschema",
-                                STREAM_SCHEMA.as_bytes(),
-                            )
-                            .map_err(mcap_err)?;
-                        self.stream_schema = Some(id);
-                        id
-                    }
+                    None => self.add_schema("penelope.StreamSample", STREAM_SCHEMA)?,
                 };
+                self.stream_schema = Some(schema);
                 let meta = BTreeMap::from([
                     ("channel".to_string(), channel.to_string()),
                     ("stream".to_string(), sample.stream.as_str().to_string()),
                 ]);
-                let id = self
-                    .writer
-                    .add_channel(schema, &topic, "json", &meta)
-                    .map_err(mcap_err)?;
+                let id = self.add_channel(schema, &topic, &meta)?;
                 self.streams.insert(topic, id);
                 id
             }
@@ -445,29 +422,9 @@ impl McapLog {
         source: &crate::common_clock::ClockSource,
         estimate: &crate::common_clock::ClockEstimate,
     ) -> Result<(), RecordingError> {
-        let id = match self.clock {
-            Some(id) => id,
-            None => {
-                let mcap_err = |source| RecordingError::Mcap {
-                    path: self.path.clone(),
-                    source,
-                };
-                let schema = self
-                    .writer
-                    .add_schema(
-                        "penelope.CommonClock",
-                        "jsonschema",
-                        CLOCK_SCHEMA.as_bytes(),
-                    )
-                    .map_err(mcap_err)?;
-                let id = self
-                    .writer
-                    .add_channel(schema, CLOCK_TOPIC, "json", &BTreeMap::new())
-                    .map_err(mcap_err)?;
-                self.clock = Some(id);
-                id
-            }
-        };
+        let schema = ("penelope.CommonClock", CLOCK_SCHEMA);
+        let id = self.single_channel(self.clock, schema, CLOCK_TOPIC)?;
+        self.clock = Some(id);
         if let Some(offset) = estimate.offset_ns {
             self.clock_offset_ns = offset;
         }
@@ -482,6 +439,46 @@ impl McapLog {
         self.write(id, time_ns, &message)
     }
 
+    /// Adds schema `name`, JSON Schema `text`.
+    fn add_schema(&mut self, name: &str, text: &str) -> Result<u16, RecordingError> {
+        self.writer
+            .add_schema(name, "jsonschema", text.as_bytes())
+            .map_err(|source| RecordingError::Mcap {
+                path: self.path.clone(),
+                source,
+            })
+    }
+
+    /// Adds a channel of JSON messages on `topic` with `schema` and `meta`.
+    fn add_channel(
+        &mut self,
+        schema: u16,
+        topic: &str,
+        meta: &BTreeMap<String, String>,
+    ) -> Result<u16, RecordingError> {
+        self.writer
+            .add_channel(schema, topic, "json", meta)
+            .map_err(|source| RecordingError::Mcap {
+                path: self.path.clone(),
+                source,
+            })
+    }
+
+    /// The channel `existing` if it was added, else a new one on `topic` with its own
+    /// `schema` (name, JSON Schema): for the topics added with their first message.
+    fn single_channel(
+        &mut self,
+        existing: Option<u16>,
+        schema: (&str, &str),
+        topic: &str,
+    ) -> Result<u16, RecordingError> {
+        if let Some(id) = existing {
+            return Ok(id);
+        }
+        let schema = self.add_schema(schema.0, schema.1)?;
+        self.add_channel(schema, topic, &BTreeMap::new())
+    }
+
     /// Writes a lifecycle transition (the `/lifecycle` channel is added the first time).
     ///
     /// # Errors
@@ -490,29 +487,9 @@ impl McapLog {
         &mut self,
         event: &crate::objects::lifecycle_feed::LifecycleEvent,
     ) -> Result<(), RecordingError> {
-        let id = match self.lifecycle {
-            Some(id) => id,
-            None => {
-                let mcap_err = |source| RecordingError::Mcap {
-                    path: self.path.clone(),
-                    source,
-                };
-                let schema = self
-                    .writer
-                    .add_schema(
-                        "penelope.Lifecycle",
-                        "jsonschema",
-                        LIFECYCLE_SCHEMA.as_bytes(),
-                    )
-                    .map_err(mcap_err)?;
-                let id = self
-                    .writer
-                    .add_channel(schema, LIFECYCLE_TOPIC, "json", &BTreeMap::new())
-                    .map_err(mcap_err)?;
-                self.lifecycle = Some(id);
-                id
-            }
-        };
+        let schema = ("penelope.Lifecycle", LIFECYCLE_SCHEMA);
+        let id = self.single_channel(self.lifecycle, schema, LIFECYCLE_TOPIC)?;
+        self.lifecycle = Some(id);
         self.write(id, event.time_ns, event)
     }
 
