@@ -95,6 +95,38 @@ impl<P: FnMut() -> Option<(Pose, Vector3<f64>)> + Send + 'static> ContactSource
     }
 }
 
+/// The tool pose and linear velocity (base frame) of a robot whose joints are the axes of an
+/// emulated Galil DMC, read from its encoders as a node reads them: joint `j` is axis `j`,
+/// `q = zero + counts / counts per radian` (encoder zero at `zero`, the robot's `start` pose in
+/// the demos). For [`ProbedContact`], so that the sensor on an emulated arm meets the same
+/// environment the operator is shown.
+pub fn galil_tool_pose(
+    observer: crate::galil::emulator::DmcObserver,
+    model: crate::model::DhRobotModel,
+    zero: penelope_hal::JointVector,
+) -> impl FnMut() -> Option<(Pose, Vector3<f64>)> + Send + 'static {
+    use penelope_hal::{JacobianFrame, JointVector, Kinematics};
+    move || {
+        let n = model.joint_count();
+        let (mut q, mut qd) = (zero, JointVector::zeros());
+        let complete = observer.inspect(|dmc| {
+            for j in 0..n {
+                let Some(a) = dmc.axis(j) else { return false };
+                let cpr = model.counts_per_radian(j);
+                q[j] = zero[j] + a.position / cpr;
+                qd[j] = a.velocity / cpr;
+            }
+            true
+        });
+        if !complete {
+            return None;
+        }
+        let pose = model.forward(&q);
+        let v = model.jacobian(&q, JacobianFrame::Base) * qd;
+        Some((pose, Vector3::new(v[0], v[1], v[2])))
+    }
+}
+
 /// Settings of a [`NetFtEmulator`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EmulatorConfig {

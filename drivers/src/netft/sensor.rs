@@ -32,6 +32,12 @@ use super::wire::{Calibration, Command, RECORD_LEN, Record, Request, Status, rec
 /// The most readers (control loops, one at a time, and tools) one sensor feeds.
 pub const MAX_READERS: usize = 4;
 
+/// The receive buffer asked for, bytes (a loopback datagram costs about 1 KiB of it).
+const RECEIVE_BUFFER: usize = 2 << 20;
+
+/// Cells the I/O thread feeds: the owner's monitor and [`MAX_READERS`] readers.
+const CELLS: usize = MAX_READERS + 1;
+
 /// Settings of a [`NetFt`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NetFtConfig {
@@ -225,6 +231,9 @@ pub struct NetFt {
     stop: Arc<AtomicBool>,
     bias: Arc<AtomicBool>,
     readers: Sender<ArcLatestWriter<NetFtSample>>,
+    /// The owner's own reader (slot 0 of the I/O thread's cells, never replaced), for tools and
+    /// `describe`: behind a lock, since it is read from non-real-time threads only.
+    monitor: std::sync::Mutex<NetFtReader>,
     thread: Option<JoinHandle<()>>,
 }
 
@@ -247,6 +256,13 @@ impl NetFt {
             (std::net::Ipv6Addr::UNSPECIFIED, 0).into()
         };
         let socket = UdpSocket::bind(bind)?;
+        // Room for a quarter second at 7 kHz, so that a descheduled I/O thread (a busy host)
+        // loses nothing; the kernel may cap it (net.core.rmem_max), which only costs headroom.
+        let _ = nix::sys::socket::setsockopt(
+            &socket,
+            nix::sys::socket::sockopt::RcvBuf,
+            &RECEIVE_BUFFER,
+        );
         socket.connect(config.address)?;
         // Short enough to notice a stop or a bias request promptly, long enough not to spin.
         socket.set_read_timeout(Some(
@@ -257,6 +273,9 @@ impl NetFt {
         let stop = Arc::new(AtomicBool::new(false));
         let bias = Arc::new(AtomicBool::new(config.bias_on_start));
         let (readers, new_readers) = channel();
+        let (monitor_writer, monitor) = latest();
+        let mut writers = heapless::Vec::new();
+        let _ = writers.push(monitor_writer);
         let io = IoThread {
             config,
             socket,
@@ -264,7 +283,7 @@ impl NetFt {
             stop: stop.clone(),
             bias: bias.clone(),
             new_readers,
-            writers: heapless::Vec::new(),
+            writers,
             last_sequence: None,
             loss_until: None,
         };
@@ -278,12 +297,40 @@ impl NetFt {
             stop,
             bias,
             readers,
+            monitor: std::sync::Mutex::new(NetFtReader {
+                cell: monitor,
+                timeout: config.timeout,
+                mount: config.mount,
+                tare: [0.0; 6],
+                last: None,
+            }),
             thread: Some(thread),
         })
     }
 
+    /// The newest sample as published, unchecked (for tools and `describe`; a control loop
+    /// holds its own [`reader`](Self::reader)).
+    pub fn latest(&self) -> Option<NetFtSample> {
+        self.monitor
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .sample()
+    }
+
+    /// The newest wrench, checked as a loop would check it at `now` (for tools).
+    ///
+    /// # Errors
+    /// As [`NetFtReader::read`].
+    pub fn read(&self, now: Timestamp) -> Result<Wrench, NetFtError> {
+        self.monitor
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .read(now)
+    }
+
     /// A new reader of this sensor (call outside the control thread: it allocates a cell). The
-    /// I/O thread feeds at most [`MAX_READERS`] readers; a newer one replaces the oldest.
+    /// I/O thread feeds at most [`MAX_READERS`] readers besides the owner's own; a newer one
+    /// replaces the oldest.
     pub fn reader(&self) -> NetFtReader {
         let (writer, reader) = latest();
         // A closed channel means the thread ended: the reader then times out, as it should.
@@ -373,7 +420,7 @@ struct IoThread {
     stop: Arc<AtomicBool>,
     bias: Arc<AtomicBool>,
     new_readers: Receiver<ArcLatestWriter<NetFtSample>>,
-    writers: heapless::Vec<ArcLatestWriter<NetFtSample>, MAX_READERS>,
+    writers: heapless::Vec<ArcLatestWriter<NetFtSample>, CELLS>,
     last_sequence: Option<u32>,
     loss_until: Option<(Timestamp, u32)>,
 }
@@ -428,7 +475,8 @@ impl IoThread {
             match self.new_readers.try_recv() {
                 Ok(w) => {
                     if self.writers.is_full() {
-                        self.writers.remove(0);
+                        // Slot 0 is the owner's monitor: the oldest loop's reader goes.
+                        self.writers.remove(1);
                     }
                     let _ = self.writers.push(w);
                 }

@@ -16,7 +16,8 @@ mod trajectory;
 use keys::*;
 
 pub use devices::{
-    GalilConfig, RobotConfig, SensorConfig, ShapeConfig, SimBoardConfig, environment,
+    GalilConfig, NetFtSensorConfig, RobotConfig, SensorConfig, ShapeConfig, SimBoardConfig,
+    environment,
 };
 
 pub use trajectory::{
@@ -35,7 +36,7 @@ use super::teleop_wave::{WAVE_MASTER_KEYS, WAVE_SLAVE_KEYS};
 use crate::proto::{Class, KindInfo, WireError};
 
 /// Every kind this creator makes, in listing order.
-pub const KINDS: [&str; 28] = [
+pub const KINDS: [&str; 29] = [
     "robot/puma560",
     "robot/puma200",
     "robot/frhc",
@@ -44,6 +45,7 @@ pub const KINDS: [&str; 28] = [
     "board/fpga",
     "board/galil",
     "sensor/virtual",
+    "sensor/netft",
     "sensor/operator-hand",
     "sensor/replay",
     "sensor/operator-replay",
@@ -80,6 +82,8 @@ pub enum Kind {
     GalilBoard,
     /// `sensor/virtual`.
     VirtualSensor,
+    /// `sensor/netft`: an ATI Net F/T over UDP.
+    NetFtSensor,
     /// `sensor/operator-hand`.
     OperatorHand,
     /// `sensor/replay`: a recorded wrench stream ([`replay`](crate::objects::replay)).
@@ -134,6 +138,7 @@ impl Kind {
             "board/fpga" => Kind::FpgaBoard,
             "board/galil" => Kind::GalilBoard,
             "sensor/virtual" => Kind::VirtualSensor,
+            "sensor/netft" => Kind::NetFtSensor,
             "sensor/operator-hand" => Kind::OperatorHand,
             "sensor/replay" => Kind::ReplaySensor,
             "sensor/operator-replay" => Kind::OperatorReplay,
@@ -169,6 +174,7 @@ impl Kind {
             Kind::FpgaBoard => "board/fpga",
             Kind::GalilBoard => "board/galil",
             Kind::VirtualSensor => "sensor/virtual",
+            Kind::NetFtSensor => "sensor/netft",
             Kind::OperatorHand => "sensor/operator-hand",
             Kind::ReplaySensor => "sensor/replay",
             Kind::OperatorReplay => "sensor/operator-replay",
@@ -198,6 +204,7 @@ impl Kind {
             Kind::Robot(_) => Class::Robot,
             Kind::SimBoard | Kind::FpgaBoard | Kind::GalilBoard => Class::Board,
             Kind::VirtualSensor
+            | Kind::NetFtSensor
             | Kind::OperatorHand
             | Kind::ReplaySensor
             | Kind::OperatorReplay => Class::Sensor,
@@ -252,6 +259,11 @@ impl Kind {
                 "6-axis force sensor: a robot's plant contact at the wrist (bias, noise, low-pass), or an \
                  environment probed at a pose",
                 SENSOR_KEYS.to_string() + SHAPE_KEYS,
+            ),
+            Kind::NetFtSensor => (
+                "6-axis force/torque sensor: an ATI Net F/T streaming RDT over UDP (or \
+                 `penelope netft-sim`), read in the loop; faults give the loop no wrench",
+                NETFT_KEYS.to_string(),
             ),
             Kind::OperatorHand => (
                 "the operator's hand on a simulated master: a scripted impedance that pushes the \
@@ -753,7 +765,7 @@ mod tests {
         let kinds = all_kinds();
         // Every listed name parses (a name that does not would be dropped from the list).
         assert_eq!(kinds.len(), KINDS.len());
-        assert_eq!(kinds.len(), 28);
+        assert_eq!(kinds.len(), 29);
         for k in &kinds {
             let parsed = Kind::parse(&k.kind).unwrap();
             assert_eq!(parsed.as_str(), k.kind);
