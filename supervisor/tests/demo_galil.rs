@@ -62,7 +62,7 @@ fn jog_to(path: &Path, counts: &[i64; 6]) {
 }
 
 #[test]
-fn the_shipped_galil_demo_differs_from_the_demo_in_the_pumas_board_and_what_needs_a_plant() {
+fn the_shipped_galil_demo_differs_from_the_demo_in_the_pumas_board_and_its_wrist_sensor() {
     assert_eq!(DEMO_GALIL.matches(DEVICE_LINE).count(), 1);
     let galil = SystemFile::parse(DEMO_GALIL).expect("config/demo-galil.toml parses");
     let demo = SystemFile::parse(DEMO_SYSTEM).unwrap();
@@ -78,11 +78,14 @@ fn the_shipped_galil_demo_differs_from_the_demo_in_the_pumas_board_and_what_need
         kind(&galil, "follow").as_deref(),
         Some("controller/slave-position")
     );
-    assert_eq!(
-        kind(&galil, "wrist"),
-        None,
-        "no plant for a virtual wrist sensor to read"
-    );
+    // No plant for a wrist sensor to read: the virtual sensor probes the wall itself, at the
+    // measured tool pose, and the slave half is bound to it.
+    let wrist = galil.objects.iter().find(|o| o.name == "wrist").unwrap();
+    assert_eq!(wrist.kind, "sensor/virtual");
+    assert!(!wrist.config.contains("robot"), "{}", wrist.config);
+    assert!(wrist.config.contains("plane"), "{}", wrist.config);
+    let follow = galil.objects.iter().find(|o| o.name == "follow").unwrap();
+    assert_eq!(follow.sensor.as_deref(), Some("wrist"));
 }
 
 #[test]
@@ -133,7 +136,8 @@ fn the_slave_puma_runs_on_the_emulated_galil_and_reads_its_encoders() {
         );
     }
 
-    // The slave ran with no simulated plant behind it: no ground truth, no wrist sensor.
+    // The slave ran with no simulated plant behind it: no ground truth; the run ended before
+    // the contact phase, so nothing was sensed in steady contact.
     let running = out
         .slave
         .iter()
@@ -156,5 +160,44 @@ fn the_slave_puma_runs_on_the_emulated_galil_and_reads_its_encoders() {
         "tracking max {} mm (RMS {} mm)",
         r.tracking.max_mm,
         r.tracking.rms_mm
+    );
+}
+
+/// The whole demo script (steady contact ends at 14.5 s).
+const WHOLE_SCRIPT: Duration = Duration::from_millis(15_500);
+
+#[test]
+fn the_galil_demo_reflects_its_wall_to_the_operator() {
+    let emulator = PtyEmulator::spawn(PtyOptions::default()).expect("a pseudo-terminal");
+    let text = DEMO_GALIL.replace(
+        DEVICE_LINE,
+        &format!("device = \"{}\"", emulator.path().display()),
+    );
+    let file = SystemFile::parse(&text).unwrap();
+    let options = RunOptions {
+        duration: Some(WHOLE_SCRIPT),
+        clock: ClockMode::RealTime,
+        ..RunOptions::default()
+    };
+    let out = run(&file, &options, &mut |_| {}).expect("the galil demo runs");
+    let r = report(&out);
+    eprintln!(
+        "{}",
+        serde_json::to_string_pretty(&r.contact).unwrap_or_default()
+    );
+    assert!(r.faults.is_empty(), "faults: {:?}", r.faults);
+    let c = &r.contact;
+    assert!(c.samples > 500, "steady-contact ticks: {}", c.samples);
+    assert!(
+        c.sensed_force_n > 1.0,
+        "the wall must push back on the slave, sensed {} N",
+        c.sensed_force_n
+    );
+    assert!(
+        c.display_error_pct < 5.0,
+        "the motors display {} N, {}% off the expected {} N",
+        c.displayed_force_n,
+        c.display_error_pct,
+        c.expected_display_n
     );
 }
