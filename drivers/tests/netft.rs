@@ -331,3 +331,28 @@ fn injected_faults_become_typed_errors_and_clear() {
     assert!(after.missed > before.missed + 50, "{after:?}");
     assert!(after.gaps > before.gaps);
 }
+
+mod decoder_props {
+    use penelope_drivers::netft::{Record, Request, WireError};
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Any datagram decodes to a record or a typed error, never a panic; a record of the
+        /// right size always decodes and re-encodes to the same bytes.
+        #[test]
+        fn any_datagram_is_a_record_or_a_typed_error(bytes in proptest::collection::vec(any::<u8>(), 0..80)) {
+            match Record::decode(&bytes) {
+                Ok(r) => prop_assert_eq!(r.encode().as_slice(), bytes.as_slice()),
+                Err(WireError::Length { got, expected }) => {
+                    prop_assert_eq!(got, bytes.len());
+                    prop_assert_ne!(got, expected);
+                }
+                Err(e) => prop_assert!(false, "unexpected {e:?}"),
+            }
+            match Request::decode(&bytes) {
+                Ok(r) => prop_assert_eq!(r.encode().as_slice(), bytes.as_slice()),
+                Err(_) => {}
+            }
+        }
+    }
+}
