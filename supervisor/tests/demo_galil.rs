@@ -28,6 +28,10 @@ const DEMO_GALIL: &str = include_str!("../../config/demo-galil.toml");
 /// The device line of `config/demo-galil.toml`, replaced by the emulator's device in tests.
 const DEVICE_LINE: &str = "device = \"/tmp/penelope-galil\"";
 
+/// One real-time run at a time: two at once on a two-core host starve each other's serial
+/// line (the board watchdog then trips), which is not what these tests are about.
+static ONE_RUN_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// Offset the test moves each joint from the start pose before the run, rad.
 const JOG_RAD: f64 = 0.02;
 
@@ -90,6 +94,9 @@ fn the_shipped_galil_demo_differs_from_the_demo_in_the_pumas_board_and_its_wrist
 
 #[test]
 fn the_slave_puma_runs_on_the_emulated_galil_and_reads_its_encoders() {
+    let _one = ONE_RUN_AT_A_TIME
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     let emulator = PtyEmulator::spawn(PtyOptions::default()).expect("a pseudo-terminal");
     let model = puma200();
     let start = model.named_pose(NamedPose::Start);
@@ -171,6 +178,9 @@ const WHOLE_SCRIPT: Duration = Duration::from_millis(14_800);
 
 #[test]
 fn the_galil_demo_reflects_its_wall_to_the_operator() {
+    let _one = ONE_RUN_AT_A_TIME
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     let emulator = PtyEmulator::spawn(PtyOptions::default()).expect("a pseudo-terminal");
     let text = DEMO_GALIL.replace(
         DEVICE_LINE,
