@@ -342,7 +342,7 @@ mod decoder_props {
         #[test]
         fn any_datagram_is_a_record_or_a_typed_error(bytes in proptest::collection::vec(any::<u8>(), 0..80)) {
             match Record::decode(&bytes) {
-                Ok(r) => prop_assert_eq!(r.encode().as_slice(), bytes.as_slice()),
+                Ok(r) => prop_assert_eq!(r.encode().to_vec(), bytes.clone()),
                 Err(WireError::Length { got, expected }) => {
                     prop_assert_eq!(got, bytes.len());
                     prop_assert_ne!(got, expected);
@@ -350,7 +350,7 @@ mod decoder_props {
                 Err(e) => prop_assert!(false, "unexpected {e:?}"),
             }
             match Request::decode(&bytes) {
-                Ok(r) => prop_assert_eq!(r.encode().as_slice(), bytes.as_slice()),
+                Ok(r) => prop_assert_eq!(r.encode().to_vec(), bytes.clone()),
                 Err(_) => {}
             }
         }
