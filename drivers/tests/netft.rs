@@ -349,9 +349,8 @@ mod decoder_props {
                 }
                 Err(e) => prop_assert!(false, "unexpected {e:?}"),
             }
-            match Request::decode(&bytes) {
-                Ok(r) => prop_assert_eq!(r.encode().to_vec(), bytes.clone()),
-                Err(_) => {}
+            if let Ok(r) = Request::decode(&bytes) {
+                prop_assert_eq!(r.encode().to_vec(), bytes.clone());
             }
         }
     }

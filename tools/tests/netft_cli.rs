@@ -75,7 +75,10 @@ fn netft_reads_biases_and_monitors_the_emulator() {
     assert!(o.status.success(), "{o:?}");
     assert!(String::from_utf8_lossy(&o.stdout).contains("bias sent"));
 
-    let o = netft(&sim.addr, &["monitor", "--count", "2", "--interval-ms", "100"]);
+    let o = netft(
+        &sim.addr,
+        &["monitor", "--count", "2", "--interval-ms", "100"],
+    );
     assert!(o.status.success(), "{o:?}");
     let out = String::from_utf8_lossy(&o.stdout);
     assert_eq!(out.lines().count(), 2, "{out}");

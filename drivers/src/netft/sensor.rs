@@ -446,16 +446,14 @@ impl IoThread {
             if self.bias.swap(false, Ordering::Relaxed) {
                 self.send(Command::SetSoftwareBias);
             }
-            match self.socket.recv(&mut buf) {
-                Ok(n) => {
-                    bump(&self.counters.datagrams);
-                    if self.on_datagram(&buf[..n]) {
-                        last_record = Instant::now();
-                        timed_out = false;
-                    }
+            // An error is a read timeout, or the box's port unreachable (ICMP on a connected
+            // socket): both show as silence, handled below.
+            if let Ok(n) = self.socket.recv(&mut buf) {
+                bump(&self.counters.datagrams);
+                if self.on_datagram(&buf[..n]) {
+                    last_record = Instant::now();
+                    timed_out = false;
                 }
-                // A timeout, or the box's port unreachable (ICMP on a connected socket).
-                Err(_) => {}
             }
             if last_record.elapsed() > self.config.timeout {
                 if !timed_out {
