@@ -63,9 +63,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             println!(
                 "{:>9.0} {:>7} {:>10} {:>7} {:>14.4} {:>19.1}   {:>6.1} / {:>6.1} / {:>7.1}",
                 rate,
-                r["sent"],
-                r["received"],
-                r["missed"],
+                r["sent"].as_u64().unwrap_or(0),
+                r["received"].as_u64().unwrap_or(0),
+                r["missed"].as_u64().unwrap_or(0),
                 r["received_over_sent"].as_f64().unwrap_or(f64::NAN),
                 r["received_rate_hz"].as_f64().unwrap_or(f64::NAN),
                 r["latency_us"]["p50"].as_f64().unwrap_or(f64::NAN),
