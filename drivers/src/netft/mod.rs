@@ -37,6 +37,9 @@
 //!   the other way round is described by its `mount` rotation.
 //! - **Bias.** The box's software bias (command `0x42`) is sent from the I/O thread, never from
 //!   the control thread; `ForceSensor::tare` on the reader is a host-side tare.
+//! - **One client.** The box streams to the host that last asked it to; a second client
+//!   (`penelope netft monitor` while a loop reads the box) takes the stream away, and the first
+//!   one's timeout then asks for it back. The emulator does the same.
 //! - **Transport.** UDP, so nothing is retransmitted: a record lost is lost, the next one
 //!   replaces it. The I/O thread re-sends the start request after a silence of one timeout (a
 //!   rebooted box, or a first request lost).
