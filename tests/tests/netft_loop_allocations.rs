@@ -115,7 +115,7 @@ fn control_ticks_reading_a_net_ft_allocate_nothing() {
         std::thread::sleep(Duration::from_micros(200));
     }
 
-    let mut tick = |d: &mut penelope_supervisor::objects::DetachedLoop| -> bool {
+    let tick = |d: &mut penelope_supervisor::objects::DetachedLoop| -> bool {
         let now = MonotonicClock::read();
         d.comm.tick(now);
         d.control.tick(now);
