@@ -7,8 +7,10 @@
 //! - [`sim`]: the simulated lab: rigid-body plants, a simulated board, environments, a virtual
 //!   operator and a virtual force sensor.
 //! - [`galil`]: the Galil DMC protocol over any byte stream, its `Board`, and an emulator.
+//! - [`netft`]: the ATI Net F/T six-axis force/torque sensor over UDP (RDT), and an emulator.
 #![warn(missing_docs)]
 
 pub mod galil;
 pub mod model;
+pub mod netft;
 pub mod sim;

@@ -34,6 +34,10 @@ enum Command {
     Galil(cmd::galil::Args),
     /// Emulate a Galil DMC-40x0 on a pseudo-terminal.
     GalilSim(cmd::galil_sim::Args),
+    /// Talk to an ATI Net F/T force/torque sensor over UDP: bias, read, monitor.
+    Netft(cmd::netft::Args),
+    /// Emulate an ATI Net F/T on a UDP port (optionally with a Galil DMC whose arm it sits on).
+    NetftSim(cmd::netft_sim::Args),
     /// Run a node: its creator, its objects and their real-time loops, served over TCP.
     Node(cmd::node::Args),
     /// Run the naming service alone.
@@ -58,6 +62,8 @@ fn main() -> ExitCode {
         Command::Doctor(args) => cmd::doctor::run(args),
         Command::Galil(args) => cmd::galil::run(args),
         Command::GalilSim(args) => cmd::galil_sim::run(args),
+        Command::Netft(args) => cmd::netft::run(args),
+        Command::NetftSim(args) => cmd::netft_sim::run(args),
         Command::Node(args) => cmd::node::run(args),
         Command::Naming(args) => cmd::naming::run(args),
         Command::Ctl(args) => cmd::ctl::run(args),

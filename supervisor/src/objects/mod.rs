@@ -429,17 +429,18 @@ impl Creator {
     /// # Errors
     /// [`WireError::BadName`], [`WireError::UnknownKind`], [`WireError::NameTaken`],
     /// [`WireError::LimitReached`], [`WireError::BadConfig`]; [`WireError::Unsupported`] for
-    /// a real board (`board/galil`) on a creator clocked by the simulated clock.
+    /// a real device (`board/galil`, `sensor/netft`) on a creator clocked by the simulated clock.
     pub fn create(&self, kind: &str, name: &str, config: &str) -> Result<ObjectInfo, WireError> {
         check_name(name)?;
         let k = kinds::Kind::parse(kind)
             .ok_or_else(|| WireError::UnknownKind(kind.chars().take(80).collect()))?;
-        // A real board moves with real time: a simulated clock cannot step it.
-        if matches!(k, kinds::Kind::GalilBoard) && self.sim.is_some() {
+        // A real board or sensor moves with real time: a simulated clock cannot step it.
+        if matches!(k, kinds::Kind::GalilBoard | kinds::Kind::NetFtSensor) && self.sim.is_some() {
             return Err(WireError::Unsupported {
                 kind: kind.into(),
-                method: "a node on the simulated clock (a real board cannot be stepped by it: \
-                         use board/sim or board/fpga, or start the node without --sim-clock)"
+                method: "a node on the simulated clock (a real device cannot be stepped by it: \
+                         use board/sim, board/fpga or sensor/virtual, or start the node without \
+                         --sim-clock)"
                     .into(),
             });
         }

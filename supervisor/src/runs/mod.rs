@@ -482,6 +482,7 @@ fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task, RunError> 
             Some(o) if o.kind == "sensor/replay" => {
                 parse::<crate::objects::replay::ReplaySensorConfig>(o)?.mount()
             }
+            Some(o) if o.kind == "sensor/netft" => parse::<kinds::NetFtSensorConfig>(o)?.mount(),
             _ => Pose::identity(),
         },
         None => Pose::identity(),

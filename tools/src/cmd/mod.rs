@@ -11,6 +11,8 @@ pub mod galil;
 pub mod galil_sim;
 pub mod kin;
 pub mod naming;
+pub mod netft;
+pub mod netft_sim;
 pub mod node;
 pub mod replay;
 pub mod web;

@@ -46,7 +46,7 @@ mod pty;
 mod threads;
 
 pub use arm::ArmConfig;
-pub use pty::{PtyEmulator, PtyOptions};
+pub use pty::{DmcObserver, PtyEmulator, PtyOptions};
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::Arc;

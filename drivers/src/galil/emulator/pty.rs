@@ -85,6 +85,15 @@ impl PtyEmulator {
         f(&dmc)
     }
 
+    /// A handle that reads the emulated controller from another thread (another emulated
+    /// device whose state depends on the axes, such as a force sensor on the arm), for as long
+    /// as the handle lives.
+    pub fn observer(&self) -> DmcObserver {
+        DmcObserver {
+            dmc: Arc::clone(&self.dmc),
+        }
+    }
+
     /// The device path to open (`/dev/pts/N`).
     pub fn path(&self) -> &Path {
         &self.path
@@ -280,5 +289,20 @@ fn write_out(
                 Err(_) => return,
             }
         }
+    }
+}
+
+/// A reading handle on a [`PtyEmulator`]'s controller ([`PtyEmulator::observer`]).
+#[derive(Clone, Debug)]
+pub struct DmcObserver {
+    dmc: Arc<Mutex<Dmc>>,
+}
+
+impl DmcObserver {
+    /// Reads the emulated controller as it is now (locks it briefly: not for a real-time
+    /// thread).
+    pub fn inspect<T>(&self, f: impl FnOnce(&Dmc) -> T) -> T {
+        let dmc = self.dmc.lock().unwrap_or_else(PoisonError::into_inner);
+        f(&dmc)
     }
 }

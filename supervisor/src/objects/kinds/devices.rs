@@ -473,3 +473,93 @@ impl SensorConfig {
         }
     }
 }
+
+/// `sensor/netft` configuration: an ATI Net F/T box streaming RDT over UDP.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NetFtSensorConfig {
+    /// The box's RDT address, `ip:port` (port 49152 on a real box).
+    pub address: String,
+    /// Counts per newton (the box's `cfgcpf`).
+    pub counts_per_force: f64,
+    /// Counts per newton-metre (the box's `cfgcpt`).
+    pub counts_per_torque: f64,
+    /// The sensor frame's origin in the tool frame, m.
+    pub mount_xyz: [f64; 3],
+    /// The sensor frame's orientation in the tool frame: roll, pitch, yaw, degrees.
+    pub mount_rpy_deg: [f64; 3],
+    /// A reading older than this is refused, ms.
+    pub timeout_ms: u64,
+    /// More records lost in one gap than this is a fault.
+    pub max_gap: u32,
+    /// Ask the box for a software bias when it is configured.
+    pub bias_on_start: bool,
+}
+
+impl Default for NetFtSensorConfig {
+    fn default() -> Self {
+        NetFtSensorConfig {
+            address: String::new(),
+            counts_per_force: 1_000_000.0,
+            counts_per_torque: 1_000_000.0,
+            mount_xyz: [0.0; 3],
+            mount_rpy_deg: [0.0; 3],
+            timeout_ms: 20,
+            max_gap: 4,
+            bias_on_start: false,
+        }
+    }
+}
+
+impl NetFtSensorConfig {
+    /// Checks ranges and the address, and gives the driver's settings.
+    ///
+    /// # Errors
+    /// [`WireError::BadConfig`] naming the key.
+    pub fn check(&self, kind: &str) -> Result<penelope_drivers::netft::NetFtConfig, WireError> {
+        let address: std::net::SocketAddr = self.address.parse().map_err(|e| {
+            bad(
+                kind,
+                format!(
+                    "`address` = {:?}: {e} (ip:port of the box, e.g. 192.168.1.1:49152)",
+                    self.address
+                ),
+            )
+        })?;
+        check_range(kind, "counts_per_force", self.counts_per_force, 1e-3, 1e12)?;
+        check_range(
+            kind,
+            "counts_per_torque",
+            self.counts_per_torque,
+            1e-3,
+            1e12,
+        )?;
+        for x in &self.mount_xyz {
+            check_range(kind, "mount_xyz", *x, -2.0, 2.0)?;
+        }
+        for x in &self.mount_rpy_deg {
+            check_range(kind, "mount_rpy_deg", *x, -360.0, 360.0)?;
+        }
+        check_int(kind, "timeout_ms", self.timeout_ms, 1, 10_000)?;
+        check_int(kind, "max_gap", self.max_gap.into(), 0, 1_000_000)?;
+        let mut c = penelope_drivers::netft::NetFtConfig::new(address);
+        c.calibration = penelope_drivers::netft::Calibration {
+            counts_per_force: self.counts_per_force,
+            counts_per_torque: self.counts_per_torque,
+        };
+        c.mount = self.mount();
+        c.timeout = std::time::Duration::from_millis(self.timeout_ms);
+        c.max_gap = self.max_gap;
+        c.bias_on_start = self.bias_on_start;
+        Ok(c)
+    }
+
+    /// The sensor frame's pose in the tool frame.
+    pub fn mount(&self) -> Pose {
+        let [r, p, y] = self.mount_rpy_deg.map(f64::to_radians);
+        Pose::from_parts(
+            nalgebra::Translation3::new(self.mount_xyz[0], self.mount_xyz[1], self.mount_xyz[2]),
+            nalgebra::UnitQuaternion::from_euler_angles(r, p, y),
+        )
+    }
+}

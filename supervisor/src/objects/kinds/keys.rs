@@ -75,6 +75,19 @@ publish_period_ms = 1        # measure and send every this many ms, 1..=1000
 # about the probe point), minus the bias. Empty space by default:
 "#;
 
+pub(super) const NETFT_KEYS: &str = r#"
+address = "192.168.1.1:49152"  # the box's RDT address, ip:port (required); `penelope netft-sim` prints its own
+counts_per_force = 1000000.0   # counts per N, the box's cfgcpf (its /netftapi2.xml), > 0
+counts_per_torque = 1000000.0  # counts per N·m, the box's cfgcpt, > 0
+mount_xyz = [0.0, 0.0, 0.0]    # sensor frame origin in the tool frame, m
+mount_rpy_deg = [0.0, 0.0, 0.0]  # sensor frame orientation in the tool frame (roll, pitch, yaw), degrees
+timeout_ms = 20                # a reading older than this is refused (the loop uses no wrench), 1..=10000 ms
+max_gap = 4                    # more records lost in one gap than this is a fault (held for timeout_ms)
+bias_on_start = false          # ask the box for a software bias when configured (`ctl call NAME bias` any time)
+# Status bit 31 (error), saturation (bits 30, 27), a silence past the timeout or a loss burst: the
+# loop notes a sensor error and uses no wrench, so a master displays zero force.
+"#;
+
 pub(super) const LOOP_KEYS: &str = r#"
 period_us = 1000          # control period T_ctrl, 250..=20000 µs
 comm_period_us = 2000     # communication period T_com (reference), 250..=100000 µs

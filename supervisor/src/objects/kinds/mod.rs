@@ -11,12 +11,16 @@ use serde::de::DeserializeOwned;
 
 mod devices;
 mod keys;
+mod per_joint;
 mod trajectory;
 
 use keys::*;
 
+pub use per_joint::PerJoint;
+
 pub use devices::{
-    GalilConfig, RobotConfig, SensorConfig, ShapeConfig, SimBoardConfig, environment,
+    GalilConfig, NetFtSensorConfig, RobotConfig, SensorConfig, ShapeConfig, SimBoardConfig,
+    environment,
 };
 
 pub use trajectory::{
@@ -35,7 +39,7 @@ use super::teleop_wave::{WAVE_MASTER_KEYS, WAVE_SLAVE_KEYS};
 use crate::proto::{Class, KindInfo, WireError};
 
 /// Every kind this creator makes, in listing order.
-pub const KINDS: [&str; 28] = [
+pub const KINDS: [&str; 29] = [
     "robot/puma560",
     "robot/puma200",
     "robot/frhc",
@@ -44,6 +48,7 @@ pub const KINDS: [&str; 28] = [
     "board/fpga",
     "board/galil",
     "sensor/virtual",
+    "sensor/netft",
     "sensor/operator-hand",
     "sensor/replay",
     "sensor/operator-replay",
@@ -80,6 +85,8 @@ pub enum Kind {
     GalilBoard,
     /// `sensor/virtual`.
     VirtualSensor,
+    /// `sensor/netft`: an ATI Net F/T over UDP.
+    NetFtSensor,
     /// `sensor/operator-hand`.
     OperatorHand,
     /// `sensor/replay`: a recorded wrench stream ([`replay`](crate::objects::replay)).
@@ -134,6 +141,7 @@ impl Kind {
             "board/fpga" => Kind::FpgaBoard,
             "board/galil" => Kind::GalilBoard,
             "sensor/virtual" => Kind::VirtualSensor,
+            "sensor/netft" => Kind::NetFtSensor,
             "sensor/operator-hand" => Kind::OperatorHand,
             "sensor/replay" => Kind::ReplaySensor,
             "sensor/operator-replay" => Kind::OperatorReplay,
@@ -169,6 +177,7 @@ impl Kind {
             Kind::FpgaBoard => "board/fpga",
             Kind::GalilBoard => "board/galil",
             Kind::VirtualSensor => "sensor/virtual",
+            Kind::NetFtSensor => "sensor/netft",
             Kind::OperatorHand => "sensor/operator-hand",
             Kind::ReplaySensor => "sensor/replay",
             Kind::OperatorReplay => "sensor/operator-replay",
@@ -198,6 +207,7 @@ impl Kind {
             Kind::Robot(_) => Class::Robot,
             Kind::SimBoard | Kind::FpgaBoard | Kind::GalilBoard => Class::Board,
             Kind::VirtualSensor
+            | Kind::NetFtSensor
             | Kind::OperatorHand
             | Kind::ReplaySensor
             | Kind::OperatorReplay => Class::Sensor,
@@ -252,6 +262,11 @@ impl Kind {
                 "6-axis force sensor: a robot's plant contact at the wrist (bias, noise, low-pass), or an \
                  environment probed at a pose",
                 SENSOR_KEYS.to_string() + SHAPE_KEYS,
+            ),
+            Kind::NetFtSensor => (
+                "6-axis force/torque sensor: an ATI Net F/T streaming RDT over UDP (or \
+                 `penelope netft-sim`), read in the loop; faults give the loop no wrench",
+                NETFT_KEYS.to_string(),
             ),
             Kind::OperatorHand => (
                 "the operator's hand on a simulated master: a scripted impedance that pushes the \
@@ -394,69 +409,6 @@ pub(crate) fn check_int(kind: &str, key: &str, v: u64, lo: u64, hi: u64) -> Resu
         Ok(())
     } else {
         Err(bad(kind, format!("`{key}` = {v} is outside {lo}..={hi}")))
-    }
-}
-
-/// One value for every joint, or one per joint.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
-#[serde(untagged)]
-pub enum PerJoint {
-    /// The same value on every joint.
-    One(f64),
-    /// One value per joint.
-    Each(Vec<f64>),
-}
-
-impl PerJoint {
-    /// The values for `n` joints, each checked in `lo..=hi`.
-    ///
-    /// # Errors
-    /// [`WireError::BadConfig`] for a wrong count or a value out of range.
-    pub fn resolve(
-        &self,
-        kind: &str,
-        key: &str,
-        n: usize,
-        lo: f64,
-        hi: f64,
-    ) -> Result<JointVector, WireError> {
-        let mut v = JointVector::zeros();
-        match self {
-            PerJoint::One(x) => {
-                check_range(kind, key, *x, lo, hi)?;
-                for j in 0..n.min(MAX_JOINTS) {
-                    v[j] = *x;
-                }
-            }
-            PerJoint::Each(xs) => {
-                if xs.len() != n {
-                    return Err(bad(
-                        kind,
-                        format!("`{key}` has {} values, the robot has {n} joints", xs.len()),
-                    ));
-                }
-                for (j, x) in xs.iter().enumerate() {
-                    check_range(kind, key, *x, lo, hi)?;
-                    v[j] = *x;
-                }
-            }
-        }
-        Ok(v)
-    }
-
-    /// Checks what can be checked without knowing the joint count.
-    fn check(&self, kind: &str, key: &str, lo: f64, hi: f64) -> Result<(), WireError> {
-        let values: &[f64] = match self {
-            PerJoint::One(x) => std::slice::from_ref(x),
-            PerJoint::Each(xs) => xs,
-        };
-        if values.is_empty() || values.len() > MAX_JOINTS.max(MAX_AXES) {
-            return Err(bad(kind, format!("`{key}` needs 1 to {MAX_AXES} values")));
-        }
-        for x in values {
-            check_range(kind, key, *x, lo, hi)?;
-        }
-        Ok(())
     }
 }
 
@@ -753,7 +705,7 @@ mod tests {
         let kinds = all_kinds();
         // Every listed name parses (a name that does not would be dropped from the list).
         assert_eq!(kinds.len(), KINDS.len());
-        assert_eq!(kinds.len(), 28);
+        assert_eq!(kinds.len(), 29);
         for k in &kinds {
             let parsed = Kind::parse(&k.kind).unwrap();
             assert_eq!(parsed.as_str(), k.kind);

@@ -94,7 +94,15 @@ impl Registry {
             Some(s) if !s.starts_with('/') => self.replay_sensor(s)?,
             _ => None,
         };
-        let replayed_mount = replayed.as_ref().map(penelope_hal::ForceSensor::mount);
+        // A Net F/T: a reader of its stream, read in the loop.
+        let netft = match &sensor_name {
+            Some(s) if !s.starts_with('/') => self.netft_reader(s)?,
+            _ => None,
+        };
+        let sensed_mount = replayed
+            .as_ref()
+            .map(penelope_hal::ForceSensor::mount)
+            .or(netft.as_ref().map(penelope_hal::ForceSensor::mount));
         // A sensor on another node: its stream's reader, made before anything is taken.
         let stream_source = match &sensor_name {
             Some(path) if path.starts_with('/') => {
@@ -192,7 +200,7 @@ impl Registry {
 
         // A law that adds the sensed wrench turns the sensor's reading into the tool's.
         let mut controller = controller;
-        controller.set_sensor_mount(plant_sensor.map(|c| c.mount).or(replayed_mount));
+        controller.set_sensor_mount(plant_sensor.map(|c| c.mount).or(sensed_mount));
 
         // Safety by role (a master: display caps, zero force on a stale reference, amplifiers
         // off on a fault; a slave holds its pose), and axis bindings.
@@ -312,6 +320,8 @@ impl Registry {
             (NodeLoop::Plant(Box::new(lp.with_sensor(sensor))), None)
         } else if let Some(sensor) = replayed {
             (NodeLoop::Replayed(Box::new(lp.with_sensor(sensor))), None)
+        } else if let Some(sensor) = netft {
+            (NodeLoop::NetFt(Box::new(lp.with_sensor(sensor))), None)
         } else if sensor_name.is_some() {
             let (w, r) = latest();
             (
@@ -361,7 +371,7 @@ impl Registry {
                     TeleopComm::new(end, mapping, kinematics.clone())?
                         .with_port_law(port_law, &mapping)?
                         .with_clutch(clutch)
-                        .with_sensor_mount(plant_sensor.map(|c| c.mount).or(replayed_mount))
+                        .with_sensor_mount(plant_sensor.map(|c| c.mount).or(sensed_mount))
                         .with_hand_wrench(side == Side::Master && sensor_name.is_some())
                         .with_link_timeout(link_timeout),
                     ref_w,

@@ -425,6 +425,7 @@ impl Registry {
                     ),
                 });
             }
+            Body::NetFt(s) => return Registry::netft_method(s, o.kind.as_str(), m),
             Body::ReplaySensor(_) | Body::OperatorReplay(_) => {
                 return Err(WireError::Unsupported {
                     kind: o.kind.as_str().into(),

@@ -66,6 +66,7 @@ mod fpga;
 mod galil;
 mod groups;
 mod methods;
+mod netft;
 mod replay;
 mod sensors;
 mod teleop;
@@ -74,6 +75,7 @@ mod trajectories;
 pub(crate) use build::Built;
 use build::{default_joint_gains, pid_gains};
 use galil::open_galil;
+use netft::{netft_body, netft_relations};
 use sensors::publisher_relations;
 use teleop::link_relations;
 use trajectories::{build_standalone, build_trajectory, spec_is_tool, spec_joints};
@@ -100,6 +102,7 @@ pub(crate) enum Body {
     Hand(Box<HandObj>),
     Teleop(Box<TeleopObj>),
     ReplaySensor(Box<crate::objects::replay::ReplaySensorObj>),
+    NetFt(Box<netft::NetFtObj>),
     OperatorReplay(Box<crate::objects::replay::OperatorReplayObj>),
 }
 
@@ -284,6 +287,7 @@ impl Object {
                 relations.push(("recording".to_string(), s.config.file.clone()))
             }
             Body::Sensor(s) => relations.extend(publisher_relations(s)),
+            Body::NetFt(s) => relations.extend(netft_relations(s)),
             Body::Teleop(t) => {
                 relations.push(("master".to_string(), t.config.master.clone()));
                 relations.push(("slave".to_string(), t.config.slave.clone()));
@@ -397,6 +401,7 @@ pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireE
             controller_body(ControllerConfig::Groups(cfg), timing, config)
         }
         Kind::ReplaySensor | Kind::OperatorReplay => replay::replay_body(kind, config)?,
+        Kind::NetFtSensor => netft_body(config)?,
         Kind::OperatorHand => {
             let cfg: HandConfig = kinds::parse(k, config)?;
             let script = cfg.check(k)?;
@@ -607,6 +612,8 @@ impl Registry {
                 Body::Teleop(t) => t.link = None,
                 // Its thread stops and is joined; readers fall silent and go stale.
                 Body::Sensor(s) => s.publisher = None,
+                // A stop request to the box, and the I/O thread joined.
+                Body::NetFt(s) => s.sensor = None,
                 b @ (Body::ReplaySensor(_) | Body::OperatorReplay(_)) => {
                     Registry::release_replay(b)
                 }
@@ -634,6 +641,7 @@ impl Registry {
             }
             Kind::Teleop => self.configure_teleop(name),
             Kind::VirtualSensor => self.configure_sensor(name),
+            Kind::NetFtSensor => self.configure_netft(name),
             Kind::ReplaySensor | Kind::OperatorReplay => self.configure_replay(name),
             _ if kind.class() == Class::Controller => self.configure_controller(name),
             _ => Ok(()),

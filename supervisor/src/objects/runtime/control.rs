@@ -285,6 +285,8 @@ pub enum NodeLoop {
     Plant(Box<Loop<VirtualForceSensor>>),
     /// A `sensor/replay`: a recorded wrench stream, in the loop.
     Replayed(Box<Loop<crate::objects::replay::ReplaySensor>>),
+    /// A `sensor/netft`: the Net F/T driver's cell, read in the loop.
+    NetFt(Box<Loop<penelope_drivers::netft::NetFtReader>>),
 }
 
 /// `$body` with `$l` bound to the loop, whatever its sensor.
@@ -295,6 +297,7 @@ macro_rules! each_loop {
             NodeLoop::Sensed($l) => $body,
             NodeLoop::Plant($l) => $body,
             NodeLoop::Replayed($l) => $body,
+            NodeLoop::NetFt($l) => $body,
         }
     };
 }

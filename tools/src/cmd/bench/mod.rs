@@ -5,6 +5,7 @@ use std::process::ExitCode;
 pub mod fpga;
 pub mod jitter;
 pub mod layout;
+pub mod netft;
 pub mod record;
 pub mod record_flood;
 pub mod rpc;
@@ -23,6 +24,9 @@ pub enum BenchCommand {
     /// The task in the one-, two- and four-host layouts (network namespaces; needs root):
     /// tracking, force, end-to-end latency beside a raw UDP echo, loop timing.
     Layout(layout::Args),
+    /// Net F/T driver against its emulator on loopback: records received beside sent, loss,
+    /// and the sample-to-driver latency, at each rate.
+    Netft(netft::Args),
     /// Recording throughput: ticks and megabytes per second a node records with no drop,
     /// beside the rate its loops produce.
     Record(record::Args),
@@ -39,6 +43,7 @@ pub fn run(command: BenchCommand) -> anyhow::Result<ExitCode> {
         BenchCommand::Fpga(args) => fpga::run(args),
         BenchCommand::Rpc(args) => rpc::run(args),
         BenchCommand::Layout(args) => layout::run(args),
+        BenchCommand::Netft(args) => netft::run(args),
         BenchCommand::Record(args) => record::run(args),
         #[cfg(feature = "zenoh")]
         BenchCommand::Zenoh(args) => zenoh::run(args),

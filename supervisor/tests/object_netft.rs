@@ -1,0 +1,129 @@
+//! `sensor/netft` as an object of the creator, against the Net F/T emulator on loopback:
+//! configure opens the stream and waits for its first record, `describe` shows the driver's
+//! counters, `read` and `bias` reach the box, probes are refused, cleanup stops the stream; a
+//! bad configuration, an absent box and the simulated clock are typed refusals.
+
+use std::time::Duration;
+
+use penelope_drivers::netft::emulator::{EmulatorConfig, NetFtEmulator};
+use penelope_hal::Transition;
+use penelope_supervisor::objects::clock::ClockMode;
+use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_supervisor::proto::{Method, PoseMsg, Reply, SensorMethod, WireError};
+
+mod common;
+
+use common::*;
+
+#[test]
+fn a_net_ft_object_streams_reads_biases_and_stops() {
+    let emu = NetFtEmulator::spawn(
+        EmulatorConfig {
+            noise: [0.0, 0.0],
+            ..EmulatorConfig::default()
+        },
+        |_t: Duration| [1.0, -2.0, 3.0, 0.1, 0.0, -0.1],
+    )
+    .unwrap();
+    let c = creator();
+    let (s, _rx) = session(1);
+    let config = format!(
+        "address = \"{}\"\ncounts_per_force = 1000000.0\ncounts_per_torque = 1000000.0\ntimeout_ms = 1000",
+        emu.local_addr()
+    );
+    create(&c, &s, "sensor/netft", "ft", &config);
+    // Not configured: nothing to read.
+    assert!(matches!(
+        call(&c, &s, ("ft", Method::Sensor(SensorMethod::Read))),
+        Err(WireError::NotReady(_))
+    ));
+    lifecycle(&c, &s, "ft", Transition::Configure).expect("the emulator answers");
+    assert!(emu.counters().streaming);
+
+    // The load plus the transducer's offset, calibrated (offset and load as configured).
+    let Ok(Reply::Wrench(w)) = call(&c, &s, ("ft", Method::Sensor(SensorMethod::Read))) else {
+        panic!("read");
+    };
+    let off = EmulatorConfig::default().offset;
+    for (i, (got, want)) in w.force.iter().zip([1.0, -2.0, 3.0]).enumerate() {
+        assert!((got - (want + off[i])).abs() < 1e-5, "F{i}: {got}");
+    }
+    // The box's software bias zeroes it.
+    call(&c, &s, ("ft", Method::Sensor(SensorMethod::Bias))).unwrap();
+    wait_for("the emulator's bias", Duration::from_secs(5), || {
+        emu.counters().biases == 1
+    });
+    wait_for("a biased reading", Duration::from_secs(5), || {
+        matches!(
+            call(&c, &s, ("ft", Method::Sensor(SensorMethod::Read))),
+            Ok(Reply::Wrench(w)) if w.force.iter().all(|f| f.abs() < 1e-5)
+        )
+    });
+
+    // describe shows where and how the stream goes.
+    let Ok(Reply::Object(info)) = call(&c, &s, ("ft", Method::Describe)) else {
+        panic!("describe");
+    };
+    let line = |k: &str| {
+        info.relations
+            .iter()
+            .find(|(key, _)| key == k)
+            .map(|(_, v)| v.clone())
+            .unwrap_or_default()
+    };
+    assert_eq!(line("address"), emu.local_addr().to_string());
+    assert!(line("stream").contains("0 missed"), "{}", line("stream"));
+
+    // A probe is a virtual sensor's business.
+    let probe = SensorMethod::Measure {
+        pose: PoseMsg::from(&penelope_hal::Pose::identity()),
+        velocity: [0.0; 3],
+    };
+    assert!(matches!(
+        call(&c, &s, ("ft", Method::Sensor(probe))),
+        Err(WireError::Unsupported { .. })
+    ));
+
+    // Cleanup stops the stream (a stop request to the box).
+    lifecycle(&c, &s, "ft", Transition::Cleanup).unwrap();
+    wait_for("the stream to stop", Duration::from_secs(5), || {
+        !emu.counters().streaming
+    });
+}
+
+#[test]
+fn bad_configurations_an_absent_box_and_the_simulated_clock_are_typed_refusals() {
+    let c = creator();
+    let (s, _rx) = session(1);
+    for bad in [
+        "",
+        "address = \"not an address\"",
+        "address = \"127.0.0.1:49152\"\ncounts_per_force = 0.0",
+        "address = \"127.0.0.1:49152\"\ncounts_per_torque = nan",
+        "address = \"127.0.0.1:49152\"\ntimeout_ms = 0",
+        "address = \"127.0.0.1:49152\"\ncolour = \"red\"",
+    ] {
+        let e = c.create("sensor/netft", "ft", bad).unwrap_err();
+        assert!(matches!(e, WireError::BadConfig { .. }), "{bad:?}: {e:?}");
+    }
+    // Nobody answers on this port: configure says so, and the object stays unconfigured.
+    let silent = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let config = format!("address = \"{}\"", silent.local_addr().unwrap());
+    create(&c, &s, "sensor/netft", "ft", &config);
+    let e = lifecycle(&c, &s, "ft", Transition::Configure).unwrap_err();
+    assert!(
+        matches!(&e, WireError::Device(m) if m.contains("no RDT record")),
+        "{e:?}"
+    );
+
+    let mut config = CreatorConfig::new("lab");
+    config.clock = ClockMode::Simulated;
+    let sim = Creator::new(config);
+    let e = sim
+        .create("sensor/netft", "ft", "address = \"127.0.0.1:49152\"")
+        .unwrap_err();
+    assert!(
+        matches!(&e, WireError::Unsupported { method, .. } if method.contains("simulated clock")),
+        "{e:?}"
+    );
+}
