@@ -3,9 +3,10 @@
 //! stream per direction, newest wins) when the other robot is on another node. Either way the
 //! communication thread that holds the end does the I/O; the control thread never does.
 
+use std::net::SocketAddr;
+
 use penelope_hal::{Reference, Timestamp};
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, latest};
-use std::net::SocketAddr;
 
 /// Where an end linked to another node publishes its [`LinkStats`] (read by the channel
 /// object for `describe`).
