@@ -299,8 +299,9 @@ fn malformed_poses_are_refused_counted_and_never_reach_the_loop() {
     });
     // Resent (newest wins in the loop's cell) while the loop runs on: the slave holds.
     for _ in 0..20 {
-        publisher.put(pose(start)).wait().unwrap();
+        // Counted before the put: the bridge may take it before the put returns.
         let taken_now = stats(&node).poses_taken;
+        publisher.put(pose(start)).wait().unwrap();
         wait_until("the bridge takes the resent pose", || {
             stats(&node).poses_taken > taken_now
         });
