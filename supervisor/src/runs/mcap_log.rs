@@ -48,7 +48,7 @@ use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
-use penelope_rt_core::safety::{FaultCause, SafetyState};
+use penelope_rt_core::safety::{FaultCause, SafetyEvent, SafetyState};
 use serde::Serialize;
 use serde_json::json;
 
@@ -73,11 +73,17 @@ const VEC3: &str = r#"{"type":"array","items":{"type":"number"},"minItems":3,"ma
 const JOINTS: &str = r#"{"type":"array","items":{"type":"number"},"description":"one per joint (unused joints zero)"}"#;
 const DURATION: &str = r#"{"type":"object","properties":{"secs":{"type":"integer"},"nanos":{"type":"integer"}},"required":["secs","nanos"]}"#;
 
-fn tick_schema() -> String {
+pub(crate) fn tick_schema() -> String {
     let wrench = format!(
         r#"{{"type":"object","properties":{{"force":{VEC3},"torque":{VEC3},"frame":{{"type":"string"}}}},"required":["force","torque"]}}"#
     );
     let optional_number = r#"{"type":["number","null"]}"#;
+    // The bit of each event, so that a reader of `sample.events` needs no copy of rt-core.
+    let bits = SafetyEvent::ALL
+        .iter()
+        .map(|e| format!("{} {}", *e as u8, e.as_str()))
+        .collect::<Vec<_>>()
+        .join(", ");
     format!(
         r#"{{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.Tick","description":"One control tick (TickRecord): what the loop reported (sample: rt-core's TelemetrySample) and, behind a simulated board, the plant's truth. Units: SI (rad, rad/s, N·m, m, N, J); times in ns on the node's clock.","type":"object","properties":{{
 "sample":{{"type":"object","properties":{{
@@ -89,7 +95,7 @@ fn tick_schema() -> String {
 "wrench":{wrench},"commanded_wrench":{wrench},"tool_position":{VEC3},
 "controller":{{"type":"integer","description":"index of the active controller"}},
 "state":{{"type":"string","description":"safety state after the tick"}},
-"events":{{"type":"integer","description":"safety events of the tick, one bit each (named in /safety)"}},
+"events":{{"type":"integer","description":"safety events of the tick, one bit each, bit number and event: {bits} (also named in /safety)"}},
 "fault":{{"description":"the latched fault's cause, null when none"}},
 "wake_latency":{DURATION},"exec_time":{DURATION},
 "port_energy":{optional_number},"channel_energy":{optional_number}

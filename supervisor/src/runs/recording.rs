@@ -580,6 +580,23 @@ mod tests {
         let _ = std::fs::remove_file(path);
     }
 
+    #[test]
+    fn the_tick_schema_names_every_event_bit() {
+        let schema: serde_json::Value =
+            serde_json::from_str(&super::super::mcap_log::tick_schema()).unwrap();
+        let events = schema["properties"]["sample"]["properties"]["events"]["description"]
+            .as_str()
+            .unwrap()
+            .to_string();
+        for e in penelope_rt_core::safety::SafetyEvent::ALL {
+            assert!(
+                events.contains(&format!("{} {}", e as u8, e.as_str())),
+                "{events}"
+            );
+        }
+        assert!(events.contains("14 sensor-error"), "{events}");
+    }
+
     /// A sample sent each way and one taken, with every optional part.
     fn stream_samples() -> Vec<StreamDatagram> {
         use crate::objects::link_source::StreamName;
