@@ -13,6 +13,7 @@ import threading
 from pathlib import Path
 
 import pytest
+from selenium.common.exceptions import NoSuchElementException, StaleElementReferenceException
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select, WebDriverWait
 
@@ -44,7 +45,11 @@ def wait(driver, condition, what: str, timeout: float = WAIT_S):
     """Waits (bounded) until `condition(driver)` is truthy; fails naming `what` and the page's
     message bar."""
     try:
-        return WebDriverWait(driver, timeout, poll_frequency=0.1).until(condition)
+        # A form post or a redraw replaces elements between two polls: a stale or missing
+        # element is "not yet", as a timeout is what ends the wait.
+        return WebDriverWait(driver, timeout, poll_frequency=0.1,
+                             ignored_exceptions=(NoSuchElementException,
+                                                 StaleElementReferenceException)).until(condition)
     except Exception as e:  # TimeoutException: say what the page said
         message = driver.find_element(By.ID, "message").text if driver.find_elements(By.ID, "message") else ""
         pytest.fail(f"waited {timeout} s for {what}; the page says {message!r} ({type(e).__name__})")
@@ -63,12 +68,19 @@ def tree_entry(driver, path: str):
     return found[0] if found else None
 
 
-def press(driver, element) -> None:
-    """Clears the message bar, then clicks: the next message is this click's."""
+def press(driver, by: str, value: str) -> None:
+    """Clears the message bar, then clicks the element `by`/`value`: the next message is this
+    click's. Found and clicked in one poll (a panel redrawn between the two would leave a
+    stale element; the wait then finds it again)."""
     driver.execute_script(
         "const m = document.getElementById('message'); m.textContent = ''; m.className = '';"
         " m.dataset.kind = '';")
-    element.click()
+
+    def click(d) -> bool:
+        d.find_element(by, value).click()
+        return True
+
+    wait(driver, click, f"{value} to click")
 
 
 def expect_message(driver, prefix: str) -> str:
@@ -87,12 +99,21 @@ def create(driver, kind: str, name: str, config: str = "", **fields: str) -> Non
     driver.find_element(By.ID, "create-config").send_keys(config)
     for key, value in fields.items():
         driver.find_element(By.CSS_SELECTOR, f'#create-fields input[data-key="{key}"]').send_keys(value)
-    press(driver, driver.find_element(By.ID, "create-submit"))
+    press(driver, By.ID, "create-submit")
     expect_message(driver, "created /lab/")
 
 
 def select(driver, path: str) -> None:
-    wait(driver, lambda d: tree_entry(d, path), f"{path} in the tree").click()
+    # Found and clicked in one poll: the live tree is redrawn now and then, and an entry found
+    # in one poll may be stale in the next (the wait then tries again).
+    def click(d) -> bool:
+        entry = tree_entry(d, path)
+        if entry is None:
+            return False
+        entry.click()
+        return True
+
+    wait(driver, click, f"{path} in the tree")
     wait(driver, lambda d: d.find_element(By.ID, "selected-path").text == path, f"{path} selected")
 
 
@@ -102,13 +123,13 @@ def call(driver, path: str, method: str, args: str = "") -> None:
     box = driver.find_element(By.ID, "method-args")
     box.clear()
     box.send_keys(args)
-    press(driver, driver.find_element(By.ID, "method-call"))
+    press(driver, By.ID, "method-call")
     expect_message(driver, f"{path} {method}:")
 
 
 def transition(driver, path: str, word: str) -> None:
     select(driver, path)
-    press(driver, driver.find_element(By.CSS_SELECTOR, f'button[data-transition="{word}"]'))
+    press(driver, By.CSS_SELECTOR, f'button[data-transition="{word}"]')
     expect_message(driver, f"{path} {word}:")
 
 
@@ -207,7 +228,7 @@ def test_an_estop_from_the_page_reaches_the_loop(system, browser, tmp_path: Path
         browser.find_element(By.ID, "watch").click()
         wait(browser, lambda d: samples(d) >= 20, "samples before the e-stop")
         assert browser.find_element(By.ID, "live").get_attribute("data-state") == "running"
-        press(browser, browser.find_element(By.ID, "estop"))
+        press(browser, By.ID, "estop")
         expect_message(browser, "/lab/controllers/pid estop:")
 
         # The loop says so in its telemetry (bounded: at most the records asked for).
@@ -225,7 +246,7 @@ def test_an_estop_from_the_page_reaches_the_loop(system, browser, tmp_path: Path
         wait(browser, lambda d: d.find_element(By.ID, "live").get_attribute("data-state") == "estop",
              "the plotted state estop")
         # Re-arm from the page: the loop runs again.
-        press(browser, browser.find_element(By.ID, "rearm"))
+        press(browser, By.ID, "rearm")
         expect_message(browser, "/lab/controllers/pid rearm:")
         wait(browser, lambda d: d.find_elements(By.CSS_SELECTOR, '#events li[data-to="running"]'),
              "the re-arm in the safety events")
@@ -323,7 +344,7 @@ def test_a_cross_site_form_post_is_refused(system, browser) -> None:
 def test_the_demo_system_file_runs_from_the_page_and_its_recording_downloads(system, browser) -> None:
     open_page(browser, system)
     Select(browser.find_element(By.ID, "system-file")).select_by_value("demo.toml")
-    press(browser, browser.find_element(By.ID, "system-load"))
+    press(browser, By.ID, "system-load")
     loaded = expect_message(browser, "lab: created and started")
     assert "created and started 12 objects" in loaded, loaded
     for path in ("/lab/controllers/follow", "/lab/controllers/display"):
@@ -333,19 +354,19 @@ def test_the_demo_system_file_runs_from_the_page_and_its_recording_downloads(sys
     # A file with a mistake names it on the page and leaves nothing behind.
     Select(browser.find_element(By.ID, "system-file")).select_by_value("")
     browser.find_element(By.ID, "system-text").send_keys('[robots.arm]\nkind = "puma560"\nspeed = 3\n')
-    press(browser, browser.find_element(By.ID, "system-load"))
+    press(browser, By.ID, "system-load")
     wait(browser, lambda d: d.find_element(By.ID, "message").get_attribute("data-kind") == "bad-input",
          "the system file's error")
     assert "speed" in browser.find_element(By.ID, "message").text
     assert tree_entry(browser, "/lab/robots/arm") is None
 
     # Record the running demo, stop, download from the page.
-    press(browser, browser.find_element(By.ID, "record-start"))
+    press(browser, By.ID, "record-start")
     expect_message(browser, "lab: recording")
     select(browser, "/lab/controllers/follow")
     browser.find_element(By.ID, "watch").click()
     wait(browser, lambda d: samples(d) >= 50, "the demo's samples")
-    press(browser, browser.find_element(By.ID, "record-stop"))
+    press(browser, By.ID, "record-stop")
     stopped = expect_message(browser, "lab: recorded")
     assert int(stopped.split()[2]) > 0, stopped
     link = wait(browser, lambda d: d.find_element(By.ID, "record-download").get_attribute("href"),
