@@ -122,18 +122,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .map(|b| format!(", paced at {b} baud"))
             .unwrap_or_default()
     );
-    let start = std::time::Instant::now();
-    loop {
-        std::thread::sleep(Duration::from_millis(100));
-        if let Some(d) = args.duration
-            && start.elapsed().as_secs_f64() >= d
-        {
-            break;
-        }
-        if !emu.is_running() {
-            anyhow::bail!("the emulator thread stopped");
-        }
-    }
+    super::serve_until(args.duration, || emu.is_running())?;
     if let Some(link) = &args.link {
         let _ = std::fs::remove_file(link);
     }

@@ -43,3 +43,21 @@ pub fn report_error(err: &anyhow::Error) -> ExitCode {
         ExitCode::from(1)
     }
 }
+
+/// Lets an emulator serve until `duration` seconds have passed (none: until interrupted),
+/// checking every 100 ms that it still runs (`running`).
+///
+/// # Errors
+/// When the emulator's thread stopped on its own.
+pub fn serve_until(duration: Option<f64>, running: impl Fn() -> bool) -> anyhow::Result<()> {
+    let start = std::time::Instant::now();
+    loop {
+        std::thread::sleep(std::time::Duration::from_millis(100));
+        if duration.is_some_and(|d| start.elapsed().as_secs_f64() >= d) {
+            return Ok(());
+        }
+        if !running() {
+            anyhow::bail!("the emulator thread stopped");
+        }
+    }
+}

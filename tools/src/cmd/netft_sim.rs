@@ -8,7 +8,6 @@
 //! monitor`.
 
 use std::process::ExitCode;
-use std::time::Duration;
 
 use nalgebra::{Unit, Vector3};
 use penelope_drivers::galil::emulator::{DmcConfig, PtyEmulator, PtyOptions};
@@ -203,18 +202,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         emu.local_addr(),
         args.rate
     );
-    let start = std::time::Instant::now();
-    loop {
-        std::thread::sleep(Duration::from_millis(100));
-        if let Some(d) = args.duration
-            && start.elapsed().as_secs_f64() >= d
-        {
-            break;
-        }
-        if !emu.is_running() {
-            anyhow::bail!("the emulator thread stopped");
-        }
-    }
+    super::serve_until(args.duration, || emu.is_running())?;
     let c = emu.counters();
     eprintln!(
         "netft-sim: {} records sent, {} requests, {} bad requests, {} biases",
