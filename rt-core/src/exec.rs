@@ -40,6 +40,7 @@ use crate::cell::{ArcLatestReader, ArcLatestWriter, latest};
 use crate::clock::{MonotonicClock, timestamp_to_timespec};
 pub use crate::sim::Flow;
 use crate::stats::{DurationStats, LatencyHistogram};
+use crate::wake::{MAX_EARLY_WAKES, WakeOn, Woken};
 
 /// How a periodic thread runs.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -132,6 +133,10 @@ pub struct Tick {
     pub overruns: u64,
     /// Execution time of the previous tick (zero for the first).
     pub previous_exec: Duration,
+    /// An early tick: a [`WakeOn`] source woke the thread before its deadline
+    /// ([`spawn_woken`]); `deadline` and `woke` are then the instant it woke, and the period's
+    /// schedule and statistics are left alone.
+    pub early: bool,
 }
 
 impl Tick {
@@ -291,6 +296,36 @@ pub fn spawn<F>(config: PeriodicConfig, body: F) -> Result<PeriodicThread, ExecE
 where
     F: FnMut(Tick) -> Flow + Send + 'static,
 {
+    spawn_thread(config, None, body)
+}
+
+/// [`spawn`], woken also before a deadline by `wake` (a doorbell another thread rings, a socket
+/// with data): the body is then called with [`Tick::early`] set, at most
+/// [`MAX_EARLY_WAKES`] times a period; the periodic ticks keep
+/// their schedule.
+///
+/// # Errors
+/// As [`spawn`].
+pub fn spawn_woken<F>(
+    config: PeriodicConfig,
+    wake: WakeOn,
+    body: F,
+) -> Result<PeriodicThread, ExecError>
+where
+    F: FnMut(Tick) -> Flow + Send + 'static,
+{
+    spawn_thread(config, Some(wake), body)
+}
+
+/// [`spawn`] and [`spawn_woken`].
+fn spawn_thread<F>(
+    config: PeriodicConfig,
+    wake: Option<WakeOn>,
+    body: F,
+) -> Result<PeriodicThread, ExecError>
+where
+    F: FnMut(Tick) -> Flow + Send + 'static,
+{
     config.validate()?;
     let stop = Arc::new(AtomicBool::new(false));
     let (writer, live) = latest::<LiveStats>();
@@ -298,7 +333,7 @@ where
     let handle = std::thread::Builder::new()
         .name(config.name.clone())
         .stack_size(config.stack_size)
-        .spawn(move || run_loop(&config, &thread_stop, Some(writer), body))
+        .spawn(move || run_loop(&config, &thread_stop, Some(writer), wake.as_ref(), body))
         .map_err(ExecError::Spawn)?;
     Ok(PeriodicThread { stop, handle, live })
 }
@@ -317,13 +352,14 @@ where
     F: FnMut(Tick) -> Flow,
 {
     config.validate()?;
-    Ok(run_loop(config, stop, None, body))
+    Ok(run_loop(config, stop, None, None, body))
 }
 
 fn run_loop<F>(
     config: &PeriodicConfig,
     stop: &AtomicBool,
     mut live: Option<ArcLatestWriter<LiveStats>>,
+    wake: Option<&WakeOn>,
     mut body: F,
 ) -> RunReport
 where
@@ -340,7 +376,30 @@ where
     let mut index = 0u64;
     let mut previous_exec = Duration::ZERO;
     let mut latency_sum: u128 = 0;
+    let mut early_wakes = 0u32;
     while !stop.load(Ordering::Relaxed) {
+        if let Some(wake) = wake
+            && early_wakes < MAX_EARLY_WAKES
+            && wake.wait_until(deadline) == Woken::Early
+        {
+            // Outside the schedule: no latency, overrun or execution figures for it.
+            early_wakes += 1;
+            let now = MonotonicClock::read();
+            let flow = body(Tick {
+                index,
+                deadline: now,
+                woke: now,
+                period,
+                overruns: stats.overruns,
+                previous_exec,
+                early: true,
+            });
+            if flow == Flow::Stop {
+                break;
+            }
+            continue;
+        }
+        early_wakes = 0;
         sleep_until(deadline);
         let woke = MonotonicClock::read();
         let late = woke.saturating_since(deadline);
@@ -352,6 +411,7 @@ where
             period,
             overruns: stats.overruns,
             previous_exec,
+            early: false,
         });
         let end = MonotonicClock::read();
         previous_exec = end.saturating_since(woke);
@@ -646,5 +706,76 @@ mod tests {
                 .validate(),
             Err(ExecError::Config(_))
         ));
+    }
+
+    #[test]
+    fn a_ring_wakes_the_thread_early_and_the_schedule_stays() {
+        use crate::wake::Doorbell;
+        let config = PeriodicConfig {
+            lock_memory: false,
+            hold_dma_latency: false,
+            ..PeriodicConfig::new("test-woken", Duration::from_millis(200)).normal_priority()
+        };
+        let bell = Arc::new(Doorbell::new().unwrap());
+        let (tx, rx) = std::sync::mpsc::channel();
+        let started = MonotonicClock::read();
+        let t = spawn_woken(config, WakeOn::doorbell(bell.clone()), move |tick| {
+            let _ = tx.send(tick);
+            Flow::Continue
+        })
+        .unwrap();
+        bell.ring();
+        let first = rx.recv().unwrap();
+        // Rung before the first deadline (200 ms after the start): an early tick, at once.
+        assert!(first.early, "{first:?}");
+        assert_eq!(first.index, 0);
+        assert!(first.woke.saturating_since(started) < Duration::from_millis(200));
+        // Then the periodic ticks, on their absolute schedule.
+        let second = rx.recv().unwrap();
+        let third = rx.recv().unwrap();
+        assert!(!second.early && !third.early);
+        assert_eq!(
+            third.deadline.as_nanos() - second.deadline.as_nanos(),
+            200_000_000
+        );
+        let report = t.stop_and_join().unwrap();
+        assert!(report.ticks >= 2);
+    }
+
+    #[test]
+    fn a_socket_left_unread_wakes_the_thread_at_most_max_early_wakes_a_period() {
+        use crate::wake::{Doorbell, MAX_EARLY_WAKES};
+        use std::os::fd::AsFd;
+        let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        std::net::UdpSocket::bind("127.0.0.1:0")
+            .unwrap()
+            .send_to(b"x", socket.local_addr().unwrap())
+            .unwrap();
+        let wake = WakeOn::doorbell(Arc::new(Doorbell::new().unwrap()))
+            .and_readable(socket.as_fd())
+            .unwrap();
+        let config = PeriodicConfig {
+            lock_memory: false,
+            hold_dma_latency: false,
+            ..PeriodicConfig::new("test-unread", Duration::from_millis(20)).normal_priority()
+        };
+        let mut ticks = Vec::with_capacity(64);
+        let (tx, rx) = std::sync::mpsc::channel();
+        let t = spawn_woken(config, wake, move |tick| {
+            ticks.push(tick.early);
+            // The datagram is never read: the socket stays readable.
+            if ticks.iter().filter(|e| !**e).count() == 3 {
+                let _ = tx.send(std::mem::take(&mut ticks));
+                return Flow::Stop;
+            }
+            Flow::Continue
+        })
+        .unwrap();
+        let ticks = rx.recv().unwrap();
+        t.join().unwrap();
+        // Each period: MAX_EARLY_WAKES early ticks, then the periodic one.
+        let mut period = vec![true; MAX_EARLY_WAKES as usize];
+        period.push(false);
+        assert_eq!(ticks, period.repeat(3));
     }
 }

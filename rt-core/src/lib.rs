@@ -41,3 +41,5 @@ pub mod trajectory;
 
 #[cfg(all(feature = "std", not(loom)))]
 pub mod exec;
+#[cfg(all(feature = "std", not(loom)))]
+pub mod wake;

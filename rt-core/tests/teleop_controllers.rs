@@ -286,6 +286,61 @@ fn force_display_dead_band_and_damping() {
 }
 
 #[test]
+fn force_display_shows_zero_at_once_when_the_slave_sends_no_wrench() {
+    let frhc = DhArm::frhc();
+    let q = DhArm::frhc_home();
+    let state = JointState::at_rest(q);
+    let mut fd = ForceDisplay::new(ForceDisplayConfig::default()).unwrap();
+    fd.activate(at(0), &state, &frhc);
+    let motion = CartesianReference {
+        pose: frhc.forward(&q),
+        twist: Twist::default(),
+    };
+    let pushing = Wrench {
+        force: Vector3::new(0.0, 0.0, 4.0),
+        torque: Vector3::zeros(),
+        frame: Frame::Base,
+    };
+    let hybrid = |wrench, force_axes| {
+        Reference::Hybrid(HybridReference {
+            motion,
+            wrench,
+            force_axes,
+        })
+    };
+    let contact = hybrid(pushing, [true; 6]);
+    for k in 0..300 {
+        fd.update(&input(k, &state, &contact, &frhc)).unwrap();
+    }
+    assert!(
+        (fd.last_wrench().force.z - 4.0 + 0.2).abs() < 0.01,
+        "{:?}",
+        fd.last_wrench()
+    );
+    // A zero wrench fades through the 30 Hz filter: most of the force is still shown.
+    let mut fading = fd;
+    fading
+        .update(&input(
+            300,
+            &state,
+            &hybrid(Wrench::zero(Frame::Base), [true; 6]),
+            &frhc,
+        ))
+        .unwrap();
+    assert!(fading.last_wrench().force.z > 2.5);
+    // No wrench at all (no force axis: the slave's sensor failed): zero at the next tick, and
+    // gravity alone on the motors.
+    let none = hybrid(pushing, [false; 6]);
+    let tau = effort(fd.update(&input(300, &state, &none, &frhc)).unwrap());
+    assert_eq!(fd.last_wrench().force.norm(), 0.0);
+    assert!((tau - frhc.gravity(&q)).norm() < 1e-12);
+    // When the wrench comes back, it fades in from zero (no jump to what was shown before).
+    fd.update(&input(301, &state, &contact, &frhc)).unwrap();
+    let back = fd.last_wrench().force.z;
+    assert!(back > 0.0 && back < 1.0, "{back}");
+}
+
+#[test]
 fn position_error_master_springs_toward_the_slave_and_is_capped() {
     let frhc = DhArm::frhc();
     let q = DhArm::frhc_home();

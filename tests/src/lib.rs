@@ -62,6 +62,11 @@ pub fn step_teleop_pair(
             at_comm(now);
             master.comm.tick(now);
             slave.comm.tick(now);
+        } else {
+            // Between communication ticks, the early wake a doorbell or a socket gives the
+            // threads (an urgent sample sent or handed on; otherwise nothing to do).
+            master.comm.early(now);
+            slave.comm.early(now);
         }
         master.control.tick(now);
         slave.control.tick(now);

@@ -10,6 +10,8 @@
 //! The counting allocator counts the allocations of this test's thread (where the loops are
 //! stepped); this binary holds this one test only.
 
+use std::time::Duration;
+
 use penelope_hal::{Frame, Timestamp, Transition, Wrench};
 use penelope_rt_core::cell::Stamped;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
@@ -127,8 +129,17 @@ fn ticks_allocate_nothing(frhc_board: &str, faults: &str, laws: (&str, &str, &st
     let mut master = c.detach_loop("display").expect("the master's loop builds");
     let mut slave = c.detach_loop("follow").expect("the slave's loop builds");
     let mut wrench = slave.wrench.take().expect("a sensor is bound");
-    // What the sensor feed does each period, without its thread.
+    // What the sensor feed does each period, without its thread; under slave tracking silent
+    // for 200 ms once, so that the slave's loop notes a sensor error, rings its communication
+    // thread, and the urgent sample crosses to the master's early wake (a four-channel slave
+    // needs its sensor: without it, it faults, as it should).
+    let from = Timestamp::from_nanos(50_000_000_000);
+    let silent = from..from + Duration::from_millis(200);
+    let fail_once = laws.2 == "controller/slave-tracking";
     let mut feed = |now: Timestamp| {
+        if fail_once && silent.contains(&now) {
+            return;
+        }
         wrench.write(Stamped {
             stamp: now,
             value: Wrench::zero(Frame::Base),

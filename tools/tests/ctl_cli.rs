@@ -425,8 +425,10 @@ fn ctl_watches_a_channels_link_between_two_nodes() {
 
     let deadline = Instant::now() + Duration::from_secs(30);
     loop {
-        let o = ctl(naming, &["ls"]);
-        if o.status.success() && text(&o).0.contains(" link ") {
+        // The master's own channel and creator (the slave's may register first).
+        let o = ctl(naming, &["ls", "/master"]);
+        let listed = text(&o).0;
+        if o.status.success() && listed.contains(" link ") && listed.contains(" creator") {
             break;
         }
         assert!(

@@ -70,6 +70,10 @@ pub struct TeleopSample {
     /// The channel itself ignores it: the communication thread hands it to the law's
     /// transform.
     pub port: PortPayload,
+    /// Sent on a safety event of the sender's loop that the previous sample did not carry (a
+    /// force sensor's fault, say): the receiving communication thread hands it to its loop at
+    /// once instead of at its next period. The channel itself ignores it.
+    pub urgent: bool,
 }
 
 /// The passivity payload of a [`TeleopSample`]: small, `Copy`, no_std.
@@ -92,6 +96,7 @@ impl TeleopSample {
             clutch: false,
             reference,
             port: PortPayload::default(),
+            urgent: false,
         }
     }
 }

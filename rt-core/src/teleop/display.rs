@@ -145,13 +145,19 @@ impl ForceDisplay {
 }
 
 /// The force channel of a master: `wanted` (base frame) through the low-pass whose state is
-/// `filtered`, then the dead bands of `config`. Shared with the four-channel master.
+/// `filtered`, then the dead bands of `config`. Shared with the four-channel master. No wrench
+/// (`None`: the slave's sensor failed) is zero at once, not a fade through the filter: what
+/// the filter holds came from the failed sensor.
 pub(crate) fn force_channel(
     filtered: &mut Vector6<f64>,
-    wanted: &Vector6<f64>,
+    wanted: Option<&Vector6<f64>>,
     config: &ForceDisplayConfig,
     dt: f64,
 ) -> Vector6<f64> {
+    let Some(wanted) = wanted else {
+        *filtered = Vector6::zeros();
+        return Vector6::zeros();
+    };
     *filtered += (wanted - *filtered) * lowpass_gain(config.filter_cutoff_hz, dt);
     stack(
         &deadband(top(filtered), config.force_deadband),
@@ -159,20 +165,26 @@ pub(crate) fn force_channel(
     )
 }
 
-/// The reference's wrench (a `Wrench`, or a `Hybrid`'s) as a base-frame `[f; m]`.
+/// The reference's wrench (a `Wrench`, or a `Hybrid`'s) as a base-frame `[f; m]`; `None` for
+/// a `Hybrid` without any force axis, which carries no wrench (a slave whose sensor failed
+/// sends that).
 ///
 /// # Errors
 /// [`ControllerError::UnsupportedReference`] for a reference without a wrench, or one in the
 /// sensor frame.
-pub(crate) fn reference_wrench(input: &ControlInput<'_>) -> Result<Vector6<f64>, ControllerError> {
+pub(crate) fn reference_wrench(
+    input: &ControlInput<'_>,
+) -> Result<Option<Vector6<f64>>, ControllerError> {
     let wanted = match input.reference {
         Reference::Wrench(w) => w,
+        Reference::Hybrid(h) if !h.force_axes.contains(&true) => return Ok(None),
         Reference::Hybrid(h) => &h.wrench,
         _ => return Err(ControllerError::UnsupportedReference),
     };
     match wanted.frame {
-        Frame::Base | Frame::Master => Ok(wanted.to_vector()),
+        Frame::Base | Frame::Master => Ok(Some(wanted.to_vector())),
         _ => wrench_in_base(wanted, &input.model.forward(&input.state.position))
+            .map(Some)
             .ok_or(ControllerError::UnsupportedReference),
     }
 }
@@ -229,7 +241,7 @@ impl Controller for ForceDisplay {
         let jac = model.jacobian(q, JacobianFrame::Base);
         let wanted = reference_wrench(input)?;
         let dt = input.period.as_secs_f64();
-        let shown = force_channel(&mut self.filtered, &wanted, &self.config, dt);
+        let shown = force_channel(&mut self.filtered, wanted.as_ref(), &self.config, dt);
         let v = jac * input.state.velocity;
         let f = shown - Vector6::from(self.config.damping).component_mul(&v);
         let (f, k) = cap_wrench(&f, self.config.max_force, self.config.max_torque);

@@ -201,7 +201,7 @@ impl Controller for FourChannelMaster {
         let mut f = Vector6::zeros();
         if c.c2 != 0.0 {
             let wanted = reference_wrench(input)?;
-            f += force_channel(&mut self.filtered, &wanted, &c.display, dt) * c.c2;
+            f += force_channel(&mut self.filtered, wanted.as_ref(), &c.display, dt) * c.c2;
         }
         if c.c4 != 0.0 {
             let motion = match input.reference {

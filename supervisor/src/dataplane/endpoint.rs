@@ -163,6 +163,13 @@ impl std::fmt::Debug for Endpoint {
     }
 }
 
+impl std::os::fd::AsFd for Endpoint {
+    /// The socket's descriptor (a communication thread waits on it for an urgent sample).
+    fn as_fd(&self) -> std::os::fd::BorrowedFd<'_> {
+        self.socket.as_fd()
+    }
+}
+
 impl Endpoint {
     /// Binds `addr` (port 0: any free port), non-blocking; datagrams are tagged and checked
     /// with `key` when given.

@@ -28,8 +28,8 @@ type HmacSha256 = hmac::Hmac<Sha256>;
 /// Version of the data-plane header and payloads (in every header); a datagram of another
 /// version is refused ([`FrameError::Version`]), so two builds whose payloads differ never
 /// misread each other. 2: a channel's sample carries the passivity payload (wave, energy
-/// counters).
-pub const DATAPLANE_VERSION: u8 = 2;
+/// counters). 3: and whether it is urgent (sent on a new safety event of the sender's loop).
+pub const DATAPLANE_VERSION: u8 = 3;
 /// The largest datagram sent or accepted: small enough to cross any path without fragmenting.
 pub const MAX_DATAGRAM: usize = 1200;
 /// Bytes of the authentication tag (HMAC-SHA256 truncated, as RFC 2104 allows).

@@ -101,6 +101,7 @@ impl SteppedLoop {
             period: self.periods[phase],
             overruns: 0,
             previous_exec: Duration::ZERO,
+            early: false,
         }
     }
 

@@ -115,6 +115,12 @@ impl Creator {
             }),
             _ => None,
         };
+        // A teleoperation end's thread also wakes on its doorbell and socket (urgent samples);
+        // without them (no descriptor left) it still ticks, as every other loop's does.
+        let comm_wake = comm.wake_on().unwrap_or_else(|e| {
+            log::warn!("controller `{name}`: urgent samples wait for the period ({e})");
+            None
+        });
         let control_body =
             runtime::control_body(control, control_stop.clone(), back_tx, fault.clone());
         let comm_body = runtime::comm_body(comm, fault.clone(), comm_stop.clone(), comm_back_tx);
@@ -156,9 +162,8 @@ impl Creator {
             "simulated clock".to_string()
         } else {
             let bodies: (TickBody, TickBody) = (Box::new(control_body), Box::new(comm_body));
-            if let Err(why) =
-                start_threads(name, &mut running, bodies, (pump, feed), &timing, rt, fifo)
-            {
+            let aux = (pump, feed, comm_wake);
+            if let Err(why) = start_threads(name, &mut running, bodies, aux, &timing, rt, fifo) {
                 // Stop what did start, give the board back, and say why.
                 let stopped = running.stop(StopMode::Deactivate);
                 reg.take_back(stopped, name, false);
@@ -474,7 +479,11 @@ fn start_threads(
     name: &str,
     running: &mut Running,
     (control, comm): (TickBody, TickBody),
-    (mut pump, feed): (runtime::Pump, Option<runtime::SensorFeed>),
+    (mut pump, feed, comm_wake): (
+        runtime::Pump,
+        Option<runtime::SensorFeed>,
+        Option<penelope_rt_core::wake::WakeOn>,
+    ),
     timing: &super::kinds::LoopTiming,
     rt: &RtPolicy,
     fifo: bool,
@@ -503,10 +512,11 @@ fn start_threads(
         exec::spawn(control_cfg, control)
             .map_err(|e| format!("cannot start the control thread: {e}"))?,
     );
-    running.comm = Some(
-        exec::spawn(comm_cfg, comm)
-            .map_err(|e| format!("cannot start the communication thread: {e}"))?,
-    );
+    let comm = match comm_wake {
+        Some(wake) => exec::spawn_woken(comm_cfg, wake, comm),
+        None => exec::spawn(comm_cfg, comm),
+    };
+    running.comm = Some(comm.map_err(|e| format!("cannot start the communication thread: {e}"))?);
     let (stop, period) = (running.aux_stop.clone(), timing.telemetry_period);
     running.pump = Some(
         std::thread::Builder::new()

@@ -24,7 +24,7 @@ use penelope_hal::{
     Wrench,
 };
 use penelope_rt_core::cell::Stamped;
-use penelope_rt_core::safety::SafetyEvent;
+use penelope_rt_core::safety::{EventSet, SafetyEvent};
 use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_rt_core::teleop::{
     ChannelConfig, ChannelDirection, MappingConfig, PortPayload, TeleopChannel, TeleopSample,
@@ -268,6 +268,12 @@ pub struct TeleopComm {
     two_port: Option<TwoPortEnd>,
     /// A master's end sends the operator's wrench beside its pose ([`Self::with_hand_wrench`]).
     hand_wrench: bool,
+    /// The loop's safety events when this end last sent: a sample whose loop shows one more
+    /// is urgent ([`TeleopSample::urgent`]).
+    events_sent: EventSet,
+    /// A sample of the other side read on an early wake but not urgent: handed to the
+    /// channel at the next tick, as if read then.
+    pending: Option<TeleopSample>,
 }
 
 impl TeleopComm {
@@ -307,6 +313,8 @@ impl TeleopComm {
             wave: None,
             two_port: None,
             hand_wrench: false,
+            events_sent: EventSet::EMPTY,
+            pending: None,
         })
     }
 
@@ -379,6 +387,15 @@ impl TeleopComm {
         );
     }
 
+    /// What wakes the communication thread of this end before its period
+    /// ([`TeleopEnd::wake_on`]).
+    ///
+    /// # Errors
+    /// The OS's, when the socket's descriptor cannot be duplicated.
+    pub fn wake_on(&self) -> std::io::Result<Option<penelope_rt_core::wake::WakeOn>> {
+        self.end.wake_on()
+    }
+
     /// The end, given back when the loop stops.
     pub fn into_end(mut self) -> TeleopEnd {
         self.end.set_sent(self.sequence);
@@ -424,7 +441,7 @@ impl TeleopComm {
         pose: &Pose,
         out: &mut ReferenceOut,
     ) {
-        if let Some(received) = self.end.take_newest(now) {
+        if let Some(received) = self.take_received(now) {
             if let (Some(w), Some(wave)) = (received.port.wave, self.wave.as_mut()) {
                 wave.receive(received.sequence, &w);
                 if let Reference::Cartesian(m) = &received.reference {
@@ -438,6 +455,7 @@ impl TeleopComm {
             .as_ref()
             .is_some_and(|c| c.load(Ordering::Relaxed));
         let contact = self.contact(sample, pose);
+        let urgent = self.note_events(sample.events);
         let Some(wave) = self.wave.as_mut() else {
             return;
         };
@@ -470,6 +488,7 @@ impl TeleopComm {
                 wave: Some(sent),
                 energy: None,
             },
+            urgent,
             ..TeleopSample::new(self.sequence, now, own)
         });
         out.set_channel_energy(wave.channel_energy());
@@ -480,6 +499,117 @@ impl TeleopComm {
             });
         }
         self.end.publish_stats();
+    }
+
+    /// Sends this robot's sample (a master its pose and clutch, a slave its pose and contact
+    /// wrench), urgent when its loop shows a safety event the last one sent did not; returns
+    /// the contact wrench (zero on a master).
+    ///
+    /// # Real-time
+    /// Kinematics and the end's bounded send; no allocation.
+    fn send_own(&mut self, now: Timestamp, sample: &TelemetrySample, pose: &Pose) -> Wrench {
+        self.sequence += 1;
+        let contact = match self.end.side {
+            Side::Master => Wrench::default(),
+            Side::Slave => self.contact(sample, pose),
+        };
+        let (clutch, reference) = match self.end.side {
+            Side::Master => {
+                let clutch = self
+                    .clutch
+                    .as_ref()
+                    .is_some_and(|c| c.load(Ordering::Relaxed));
+                self.channel.track_master(now, pose, clutch);
+                let motion = CartesianReference {
+                    pose: *pose,
+                    twist: Twist::default(),
+                };
+                let reference = if self.hand_wrench {
+                    Reference::Hybrid(HybridReference {
+                        motion,
+                        wrench: self.contact(sample, pose),
+                        // Information for the slave's C3, not a force-control request: every
+                        // axis stays motion-controlled for a hybrid-aware slave.
+                        force_axes: [false; 6],
+                    })
+                } else {
+                    Reference::Cartesian(motion)
+                };
+                (clutch, reference)
+            }
+            Side::Slave => (
+                false,
+                Reference::Hybrid(HybridReference {
+                    motion: CartesianReference {
+                        pose: *pose,
+                        twist: Twist::default(),
+                    },
+                    wrench: contact,
+                    // A failed sensor's sample carries no wrench (no force axis): the master
+                    // displays zero at once rather than fading out what the sensor last said.
+                    force_axes: [!sample.events.contains(SafetyEvent::SensorError); 6],
+                }),
+            ),
+        };
+        let urgent = self.note_events(sample.events);
+        self.end.publish(TeleopSample {
+            clutch,
+            port: PortPayload {
+                wave: None,
+                energy: self.two_port.as_ref().map(TwoPortEnd::counters),
+            },
+            urgent,
+            ..TeleopSample::new(self.sequence, now, reference)
+        });
+        contact
+    }
+
+    /// Notes the loop's safety events at a send; `true` when one is new since the last send.
+    fn note_events(&mut self, events: EventSet) -> bool {
+        let new = events.0 & !self.events_sent.0 != 0;
+        self.events_sent = events;
+        new
+    }
+
+    /// The other side's newest sample: what arrives now, else what an early wake left.
+    fn take_received(&mut self, now: Timestamp) -> Option<TeleopSample> {
+        let arrived = self.end.take_newest(now);
+        let pending = self.pending.take();
+        arrived.or(pending)
+    }
+
+    /// An early wake at `now` (a doorbell or the socket, between ticks): this robot's sample
+    /// goes out at once if its loop shows a new safety event, and an urgent sample of the other
+    /// side is handed to the loop at once, as a tick would (its reference written, a two-port
+    /// observer integrating up to now). What else arrived waits for the tick. A wave-variable
+    /// end does neither: its transform runs once per period.
+    ///
+    /// # Real-time
+    /// As [`tick`](Self::tick).
+    pub fn early(
+        &mut self,
+        now: Timestamp,
+        state: Option<TelemetrySample>,
+        out: &mut ReferenceOut,
+    ) {
+        let (Some(sample), true, None) = (state, self.started, self.wave.as_ref()) else {
+            return;
+        };
+        let pose = self.model.forward(&sample.q);
+        if sample.events.0 & !self.events_sent.0 != 0 {
+            self.send_own(now, &sample, &pose);
+        }
+        let Some(received) = self.take_received(now) else {
+            return;
+        };
+        self.pending = Some(received);
+        if received.urgent {
+            let contact = match self.end.side {
+                Side::Master => Wrench::default(),
+                Side::Slave => self.contact(&sample, &pose),
+            };
+            self.hand_on(now, &sample, &pose, &contact, out);
+        }
     }
 
     /// One communication tick at `now`, with the loop's newest sample `state`: send, receive,
@@ -500,72 +630,37 @@ impl TeleopComm {
             self.start_channel(now, &pose);
             self.started = true;
         }
-        self.sequence += 1;
-        let contact = match self.end.side {
-            Side::Master => Wrench::default(),
-            Side::Slave => self.contact(&sample, &pose),
-        };
-        let (clutch, reference) = match self.end.side {
-            Side::Master => {
-                let clutch = self
-                    .clutch
-                    .as_ref()
-                    .is_some_and(|c| c.load(Ordering::Relaxed));
-                self.channel.track_master(now, &pose, clutch);
-                let motion = CartesianReference {
-                    pose,
-                    twist: Twist::default(),
-                };
-                let reference = if self.hand_wrench {
-                    Reference::Hybrid(HybridReference {
-                        motion,
-                        wrench: self.contact(&sample, &pose),
-                        // Information for the slave's C3, not a force-control request: every
-                        // axis stays motion-controlled for a hybrid-aware slave.
-                        force_axes: [false; 6],
-                    })
-                } else {
-                    Reference::Cartesian(motion)
-                };
-                (clutch, reference)
-            }
-            Side::Slave => (
-                false,
-                Reference::Hybrid(HybridReference {
-                    motion: CartesianReference {
-                        pose,
-                        twist: Twist::default(),
-                    },
-                    wrench: contact,
-                    force_axes: [true; 6],
-                }),
-            ),
-        };
-        self.end.publish(TeleopSample {
-            clutch,
-            port: PortPayload {
-                wave: None,
-                energy: self.two_port.as_ref().map(TwoPortEnd::counters),
-            },
-            ..TeleopSample::new(self.sequence, now, reference)
-        });
-        let received = self.end.take_newest(now);
+        let contact = self.send_own(now, &sample, &pose);
+        self.hand_on(now, &sample, &pose, &contact, out);
+    }
+
+    /// Takes what the other side sent (or what an early wake left) into the channel, goes
+    /// neutral when the link is lost, and writes the channel's reference for the loop.
+    fn hand_on(
+        &mut self,
+        now: Timestamp,
+        sample: &TelemetrySample,
+        pose: &Pose,
+        contact: &Wrench,
+        out: &mut ReferenceOut,
+    ) {
+        let received = self.take_received(now);
         let mut restored = false;
-        if let Some(sample) = received {
+        if let Some(received) = received {
             if self.lost_at.take().is_some() {
                 // Heard again: resume from where this robot is, re-anchored as after the
                 // clutch, so nothing jumps.
                 restored = self.end.note_link(false);
                 self.channel.reset();
-                self.start_channel(now, &pose);
+                self.start_channel(now, pose);
                 if let Some(t) = self.two_port.as_mut() {
                     t.restart_motion();
                 }
             }
             if let Some(t) = self.two_port.as_mut() {
-                t.receive(sample.port.energy.as_ref());
+                t.receive(received.port.energy.as_ref());
             }
-            if self.channel.receive(sample).is_ok() {
+            if self.channel.receive(received).is_ok() {
                 // (A stale or malformed sample is counted by the channel and dropped.)
                 self.received_at = Some(now);
             }
@@ -573,13 +668,13 @@ impl TeleopComm {
         if let (Some(timeout), Some(at)) = (self.link_timeout, self.received_at)
             && now.saturating_since(at) >= timeout
         {
-            let held = *self.lost_at.get_or_insert(pose);
+            let held = *self.lost_at.get_or_insert(*pose);
             let lost = self.end.note_link(true);
             self.end.publish_stats();
             // Neutral and fresh: the slave holds where it was, the master displays no force.
             out.write(Stamped {
                 stamp: now,
-                value: neutral(self.end.side, &held, &pose),
+                value: neutral(self.end.side, &held, pose),
             });
             // A safety event of the loop, raised after the reference it goes with.
             if lost {
@@ -595,7 +690,7 @@ impl TeleopComm {
         {
             let r = match self.two_port.as_mut() {
                 Some(t) => {
-                    let r = t.tick(now, r, &self.model, &sample, &contact);
+                    let r = t.tick(now, r, &self.model, sample, contact);
                     if let Some(e) = t.energy() {
                         out.set_channel_energy(e);
                     }

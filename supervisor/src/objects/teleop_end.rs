@@ -4,9 +4,12 @@
 //! communication thread that holds the end does the I/O; the control thread never does.
 
 use std::net::SocketAddr;
+use std::os::fd::AsFd;
+use std::sync::Arc;
 
 use penelope_hal::{Reference, Timestamp};
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, latest};
+use penelope_rt_core::wake::{Doorbell, WakeOn};
 
 /// Where an end linked to another node publishes its [`LinkStats`] (read by the channel
 /// object for `describe`).
@@ -74,6 +77,9 @@ enum LinkDatagram {
         wave: Option<WaveSample>,
         /// The passivity payload's two-port energy counters.
         energy: Option<PortEnergy>,
+        /// Sent on a new safety event of the sender's loop: the receiver hands it on at once
+        /// ([`TeleopSample::urgent`]).
+        urgent: bool,
     },
     /// A heartbeat, sent at the header's send time (the sender's clock).
     Heartbeat,
@@ -95,6 +101,21 @@ pub struct TeleopEnd {
     /// The sequence number of the last sample sent: kept with the end, so that a loop
     /// re-activated on it goes on numbering and the other side (newest wins) takes its samples.
     sent: u64,
+    /// Wakes the communication thread that holds this end before its period: rung by its own
+    /// loop on a new safety event, and, on cells, by the other end's thread when it sent an
+    /// urgent sample (`None` if the OS had no descriptor for it: the thread then only ticks).
+    doorbell: Option<Arc<Doorbell>>,
+}
+
+/// A doorbell for an end; `None`, said in the log, when the OS refuses one.
+fn new_doorbell() -> Option<Arc<Doorbell>> {
+    match Doorbell::new() {
+        Ok(d) => Some(Arc::new(d)),
+        Err(e) => {
+            log::warn!("teleop channel: no doorbell ({e}); urgent samples wait for the period");
+            None
+        }
+    }
 }
 
 enum Transport {
@@ -104,6 +125,9 @@ enum Transport {
         send: ArcLatestWriter<TeleopSample>,
         receive: ArcLatestReader<TeleopSample>,
         delay: Option<Box<DelayLine>>,
+        /// The other end's doorbell, rung with an urgent sample (not through a delay line:
+        /// a delayed sample arrives when the line lets it, at the other end's tick).
+        peer: Option<Arc<Doorbell>>,
     },
     /// The other end on another node.
     DataPlane(Box<RemoteLink>),
@@ -305,6 +329,7 @@ impl TeleopEnd {
                 tap,
             })),
             sent: 0,
+            doorbell: new_doorbell(),
         })
     }
 
@@ -328,8 +353,18 @@ impl TeleopEnd {
     pub fn publish(&mut self, sample: TeleopSample) {
         match &mut self.transport {
             Transport::Cells {
-                send, delay: None, ..
-            } => send.write(sample),
+                send,
+                delay: None,
+                peer,
+                ..
+            } => {
+                send.write(sample);
+                if sample.urgent
+                    && let Some(peer) = peer
+                {
+                    peer.ring();
+                }
+            }
             Transport::Cells {
                 send,
                 delay: Some(line),
@@ -344,6 +379,7 @@ impl TeleopEnd {
                     reference: sample.reference,
                     wave: sample.port.wave,
                     energy: sample.port.energy,
+                    urgent: sample.urgent,
                 };
                 link.emit(tick, header, payload);
                 if let Some(stream) = StreamName::of(header.stream) {
@@ -417,6 +453,7 @@ impl TeleopEnd {
                             reference,
                             wave,
                             energy,
+                            urgent,
                         } => {
                             if link.receiver.offer(&header) != Verdict::Accepted {
                                 continue;
@@ -450,6 +487,7 @@ impl TeleopEnd {
                                 clutch,
                                 reference,
                                 port: PortPayload { wave, energy },
+                                urgent,
                             });
                         }
                         LinkDatagram::Heartbeat if header.stream == HEARTBEATS => {
@@ -479,6 +517,29 @@ impl TeleopEnd {
                 }
                 newest
             }
+        }
+    }
+
+    /// The doorbell that wakes the communication thread holding this end (its loop rings it
+    /// on a new safety event).
+    pub fn doorbell(&self) -> Option<Arc<Doorbell>> {
+        self.doorbell.clone()
+    }
+
+    /// What wakes the communication thread holding this end before its period: the doorbell,
+    /// and for an end on the data plane its socket (an urgent sample is read as it arrives).
+    /// `None` without a doorbell (the thread then only ticks).
+    ///
+    /// # Errors
+    /// The OS's, when the socket's descriptor cannot be duplicated for the wait.
+    pub fn wake_on(&self) -> std::io::Result<Option<WakeOn>> {
+        let Some(bell) = self.doorbell.clone() else {
+            return Ok(None);
+        };
+        let wake = WakeOn::doorbell(bell);
+        match &self.transport {
+            Transport::DataPlane(link) => wake.and_readable(link.endpoint.as_fd()).map(Some),
+            _ => Ok(Some(wake)),
         }
     }
 
@@ -585,6 +646,7 @@ impl TeleopLink {
     fn joined(to_slave: Option<Box<DelayLine>>, to_master: Option<Box<DelayLine>>) -> Self {
         let (m2s_w, m2s_r) = latest::<TeleopSample>();
         let (s2m_w, s2m_r) = latest::<TeleopSample>();
+        let (master_bell, slave_bell) = (new_doorbell(), new_doorbell());
         TeleopLink {
             master: Some(TeleopEnd {
                 side: Side::Master,
@@ -592,8 +654,10 @@ impl TeleopLink {
                     send: m2s_w,
                     receive: s2m_r,
                     delay: to_slave,
+                    peer: slave_bell.clone(),
                 },
                 sent: 0,
+                doorbell: master_bell.clone(),
             }),
             slave: Some(TeleopEnd {
                 side: Side::Slave,
@@ -601,8 +665,10 @@ impl TeleopLink {
                     send: s2m_w,
                     receive: m2s_r,
                     delay: to_master,
+                    peer: master_bell,
                 },
                 sent: 0,
+                doorbell: slave_bell,
             }),
             local: (true, true),
             stats: None,
@@ -653,6 +719,7 @@ impl TeleopLink {
             side,
             transport: Transport::Bridged { send, receive },
             sent: 0,
+            doorbell: new_doorbell(),
         });
         (link, BridgedEnd { to_loop, from_loop })
     }
@@ -675,6 +742,15 @@ impl TeleopLink {
             Side::Master => self.local.0,
             Side::Slave => self.local.1,
         }
+    }
+
+    /// The doorbell of `side`'s end, while it is here (its loop's control thread rings it).
+    pub fn doorbell(&self, side: Side) -> Option<Arc<Doorbell>> {
+        match side {
+            Side::Master => self.master.as_ref(),
+            Side::Slave => self.slave.as_ref(),
+        }
+        .and_then(TeleopEnd::doorbell)
     }
 
     /// Takes `side`'s end.

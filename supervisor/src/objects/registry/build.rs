@@ -303,8 +303,17 @@ impl Registry {
         let (mut cmd_w, cmd_r) = ring();
         let (goto_w, goto_r) = ring();
         let (gains_w, gains_r) = ring();
-        let sink =
-            NodeSink::new(tel_w, comm_w, probe_w, truth).with_clutch(self.clutch_of(&robot_name));
+        // A teleoperation end's thread wakes on its loop's new safety events.
+        let doorbell = match &source {
+            LoopSource::Teleop(side, ..) => match self.objects.get(&traj_name).map(|o| &o.body) {
+                Some(Body::Teleop(t)) => t.link.as_ref().and_then(|l| l.doorbell(*side)),
+                _ => None,
+            },
+            _ => None,
+        };
+        let sink = NodeSink::new(tel_w, comm_w, probe_w, truth)
+            .with_clutch(self.clutch_of(&robot_name))
+            .with_doorbell(doorbell);
         let ports = ControlPorts {
             reference: ref_r,
             telemetry: sink,

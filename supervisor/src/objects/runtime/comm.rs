@@ -409,6 +409,31 @@ impl CommTask {
         self.published += 1;
     }
 
+    /// An early wake at `now`, between ticks (a teleoperation end's doorbell or socket): the
+    /// end sends an urgent sample of its own and hands on one of the other side's
+    /// ([`TeleopComm::early`]). Other sources have nothing to do between ticks.
+    ///
+    /// # Real-time
+    /// As [`tick`](Self::tick).
+    pub fn early(&mut self, now: Timestamp) {
+        if let ReferenceSource::Teleop(t) = &mut self.source {
+            let state = self.state.latest();
+            t.early(now, state, &mut self.writer);
+        }
+    }
+
+    /// What wakes this task's thread before its period: a teleoperation end's doorbell and
+    /// socket; `None` for a trajectory (it only ticks).
+    ///
+    /// # Errors
+    /// The OS's, when the socket's descriptor cannot be duplicated.
+    pub fn wake_on(&self) -> std::io::Result<Option<penelope_rt_core::wake::WakeOn>> {
+        match &self.source {
+            ReferenceSource::Teleop(t) => t.wake_on(),
+            _ => Ok(None),
+        }
+    }
+
     /// References published so far.
     pub fn published(&self) -> u64 {
         self.published

@@ -183,6 +183,10 @@ pub struct NodeSink {
     probe: ArcLatestWriter<TelemetrySample>,
     truth: Option<TapReader>,
     clutch: Option<Arc<AtomicBool>>,
+    /// Wakes the communication thread on a new safety event (a teleoperation end's).
+    doorbell: Option<Arc<Doorbell>>,
+    /// The previous sample's safety events.
+    events: EventSet,
 }
 
 impl NodeSink {
@@ -199,7 +203,16 @@ impl NodeSink {
             probe,
             truth,
             clutch: None,
+            doorbell: None,
+            events: EventSet::EMPTY,
         }
+    }
+
+    /// Rings `doorbell` when a sample carries a safety event the previous one did not: the
+    /// communication thread then sends it at once (a teleoperation end's urgent sample).
+    pub fn with_doorbell(mut self, doorbell: Option<Arc<Doorbell>>) -> Self {
+        self.doorbell = doorbell;
+        self
     }
 
     /// Records the clutch button `clutch` of the operator's hand holding the robot with every
@@ -212,10 +225,17 @@ impl NodeSink {
 
 impl TelemetrySink for NodeSink {
     /// # Real-time
-    /// Three wait-free cell operations, an atomic load and one ring push.
+    /// Three wait-free cell operations, an atomic load, one ring push, and on a new safety
+    /// event one non-blocking `write` (the doorbell).
     fn push(&mut self, sample: &TelemetrySample) -> bool {
         self.comm.write(*sample);
         self.probe.write(*sample);
+        if sample.events.0 & !self.events.0 != 0
+            && let Some(bell) = &self.doorbell
+        {
+            bell.ring();
+        }
+        self.events = sample.events;
         let truth = self.truth.as_mut().and_then(TapReader::latest);
         let clutch = self.clutch.as_ref().map(|c| c.load(Ordering::Relaxed));
         self.ring

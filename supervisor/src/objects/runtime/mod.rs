@@ -43,6 +43,7 @@ use penelope_rt_core::control::{ControlLoop, NoSensor, TickOutcome};
 use penelope_rt_core::controller::{JointGroups, JointPid, JointPidGains, JointPositionServo};
 use penelope_rt_core::exec::{Flow, PeriodicThread};
 use penelope_rt_core::ring::{ArcConsumer, ArcProducer};
+use penelope_rt_core::safety::EventSet;
 use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
 use penelope_rt_core::teleop::{
     CartesianImpedance, ForceDisplay, ForceDisplayConfig, FourChannelConfig, FourChannelMaster,
@@ -52,6 +53,7 @@ use penelope_rt_core::teleop::{
 use penelope_rt_core::trajectory::{
     CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
 };
+use penelope_rt_core::wake::Doorbell;
 
 use super::kinematics::RobotKinematics;
 use super::teleop::TeleopComm;

@@ -298,7 +298,11 @@ pub fn comm_body(
         }
         match guarded(|| {
             fault.injected(LoopThread::Communication);
-            c.tick(tick.deadline)
+            if tick.early {
+                c.early(tick.deadline);
+            } else {
+                c.tick(tick.deadline);
+            }
         }) {
             Ok(()) => Flow::Continue,
             Err(why) => {
