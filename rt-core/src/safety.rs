@@ -394,6 +394,11 @@ impl EventSet {
         EventSet(self.0 | other.0)
     }
 
+    /// True when the set holds an event `before` did not (a new safety event since then).
+    pub fn gained_since(self, before: EventSet) -> bool {
+        self.0 & !before.0 != 0
+    }
+
     /// The events in the set, in bit order.
     pub fn iter(self) -> impl Iterator<Item = SafetyEvent> {
         SafetyEvent::ALL

@@ -79,9 +79,9 @@ impl Doorbell {
         let _ = self.fd.write(1);
     }
 
-    /// Takes the rings so far; `true` if there was one.
-    fn drain(&self) -> bool {
-        self.fd.read().is_ok_and(|n| n > 0)
+    /// Takes the rings so far (the bell is quiet again).
+    fn drain(&self) {
+        let _ = self.fd.read();
     }
 
     /// Sleeps until `deadline` (`CLOCK_MONOTONIC`), or until the bell rings or `readable`
@@ -118,12 +118,6 @@ impl Doorbell {
                 }
             }
         }
-    }
-}
-
-impl AsFd for Doorbell {
-    fn as_fd(&self) -> BorrowedFd<'_> {
-        self.fd.as_fd()
     }
 }
 

@@ -96,3 +96,14 @@ pub fn assert_pair_ran(
         assert!(d.comm.published() > published, "{name}");
     }
 }
+
+/// Calls `method` on `object` of creator `c`, panicking with the object's name on an error
+/// (set-up steps of the allocation tests).
+pub fn call_object(
+    c: &penelope_supervisor::objects::Creator,
+    object: &str,
+    method: penelope_supervisor::proto::Method,
+) {
+    c.call_object(object, method)
+        .unwrap_or_else(|e| panic!("{object}: {e}"));
+}

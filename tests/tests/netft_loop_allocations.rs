@@ -18,22 +18,10 @@ use penelope_supervisor::proto::{
     Call, ControllerMethod, CreatorCall, JointAxis, Method, RobotMethod,
 };
 use penelope_supervisor::service::{Outbox, Session};
-use penelope_tests::{CountingAllocator, allocations};
+use penelope_tests::{CountingAllocator, allocations, call_object};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
-
-fn object(c: &Creator, s: &Session, name: &str, method: Method) {
-    use penelope_supervisor::service::Service;
-    c.call(
-        s,
-        Call::Object {
-            object: name.into(),
-            method,
-        },
-    )
-    .unwrap_or_else(|e| panic!("{name}: {e}"));
-}
 
 #[test]
 fn control_ticks_reading_a_net_ft_allocate_nothing() {
@@ -71,9 +59,8 @@ fn control_ticks_reading_a_net_ft_allocate_nothing() {
         )
         .unwrap();
     }
-    object(
+    call_object(
         &c,
-        &s,
         "arm",
         Method::Robot(RobotMethod::MapJoints {
             board: "sim".into(),
@@ -81,7 +68,7 @@ fn control_ticks_reading_a_net_ft_allocate_nothing() {
         }),
     );
     for name in ["sim", "arm", "hold", "ft"] {
-        object(&c, &s, name, Method::Transition(Transition::Configure));
+        call_object(&c, name, Method::Transition(Transition::Configure));
     }
     for m in [
         ControllerMethod::SetRobot {
@@ -94,9 +81,9 @@ fn control_ticks_reading_a_net_ft_allocate_nothing() {
             sensor: "ft".into(),
         },
     ] {
-        object(&c, &s, "pid", Method::Controller(m));
+        call_object(&c, "pid", Method::Controller(m));
     }
-    object(&c, &s, "pid", Method::Transition(Transition::Configure));
+    call_object(&c, "pid", Method::Transition(Transition::Configure));
 
     let mut d = c.detach_loop("pid").expect("the loop builds");
     assert!(d.wrench.is_none(), "a Net F/T is read in the loop, not fed");

@@ -14,21 +14,10 @@ use penelope_supervisor::proto::{
     Call, ControllerMethod, CreatorCall, JointAxis, Method, RobotMethod,
 };
 use penelope_supervisor::service::{Outbox, Service, Session};
-use penelope_tests::{CountingAllocator, allocations};
+use penelope_tests::{CountingAllocator, allocations, call_object};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
-
-fn object(c: &Creator, s: &Session, name: &str, method: Method) {
-    c.call(
-        s,
-        Call::Object {
-            object: name.into(),
-            method,
-        },
-    )
-    .unwrap_or_else(|e| panic!("{name}: {e}"));
-}
 
 #[test]
 fn fifty_thousand_node_loop_ticks_allocate_nothing() {
@@ -67,9 +56,8 @@ fn fifty_thousand_node_loop_ticks_allocate_nothing() {
         )
         .unwrap();
     }
-    object(
+    call_object(
         &c,
-        &s,
         "arm",
         Method::Robot(RobotMethod::MapJoints {
             board: "sim".into(),
@@ -77,27 +65,24 @@ fn fifty_thousand_node_loop_ticks_allocate_nothing() {
         }),
     );
     for name in ["sim", "arm", "move"] {
-        object(&c, &s, name, Method::Transition(Transition::Configure));
+        call_object(&c, name, Method::Transition(Transition::Configure));
     }
-    object(
+    call_object(
         &c,
-        &s,
         "pid",
         Method::Controller(ControllerMethod::SetRobot {
             robot: "arm".into(),
         }),
     );
-    object(
+    call_object(
         &c,
-        &s,
         "pid",
         Method::Controller(ControllerMethod::SetTrajectory {
             trajectory: "move".into(),
         }),
     );
-    object(
+    call_object(
         &c,
-        &s,
         "pid",
         Method::Controller(ControllerMethod::SetSensor {
             sensor: "arm-ft".into(),
@@ -112,8 +97,8 @@ fn fifty_thousand_node_loop_ticks_allocate_nothing() {
         }),
     )
     .unwrap();
-    object(&c, &s, "arm-ft", Method::Transition(Transition::Configure));
-    object(&c, &s, "pid", Method::Transition(Transition::Configure));
+    call_object(&c, "arm-ft", Method::Transition(Transition::Configure));
+    call_object(&c, "pid", Method::Transition(Transition::Configure));
 
     let mut detached = c.detach_loop("pid").expect("the loop builds");
     let mut wrench = detached.wrench.take().expect("a sensor is bound");

@@ -16,15 +16,10 @@ use penelope_hal::{Frame, Timestamp, Transition, Wrench};
 use penelope_rt_core::cell::Stamped;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
 use penelope_supervisor::proto::{ControllerMethod, JointAxis, Method, RobotMethod};
-use penelope_tests::{CountingAllocator, assert_pair_ran, step_teleop_pair};
+use penelope_tests::{CountingAllocator, assert_pair_ran, call_object, step_teleop_pair};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
-
-fn call(c: &Creator, object: &str, method: Method) {
-    c.call_object(object, method)
-        .unwrap_or_else(|e| panic!("{object}: {e}"));
-}
 
 #[test]
 fn a_hundred_thousand_teleoperation_ticks_allocate_nothing() {
@@ -85,7 +80,7 @@ fn ticks_allocate_nothing(frhc_board: &str, faults: &str, laws: (&str, &str, &st
             .unwrap_or_else(|e| panic!("{name}: {e}"));
     }
     for (robot, board) in [("frhc", "frhc-io"), ("puma", "puma-io")] {
-        call(
+        call_object(
             &c,
             robot,
             Method::Robot(RobotMethod::MapJoints {
@@ -111,13 +106,13 @@ fn ticks_allocate_nothing(frhc_board: &str, faults: &str, laws: (&str, &str, &st
             });
         }
         for m in methods {
-            call(&c, controller, Method::Controller(m));
+            call_object(&c, controller, Method::Controller(m));
         }
     }
     for name in [
         "frhc-io", "puma-io", "wrist", "hand", "frhc", "puma", "link", "display", "follow",
     ] {
-        call(&c, name, Method::Transition(Transition::Configure));
+        call_object(&c, name, Method::Transition(Transition::Configure));
     }
     let on_fpga = c
         .info("frhc")

@@ -45,6 +45,7 @@ pub mod kinematics;
 pub mod lifecycle_feed;
 pub mod link_source;
 mod loops;
+pub mod operator_hand;
 mod registry;
 pub mod replay;
 pub mod runtime;

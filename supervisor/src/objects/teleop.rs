@@ -1,6 +1,7 @@
 //! Teleoperation as objects: the channel between a master and a slave (`trajectory/teleop`,
-//! the paper's Trajectory object that links the two sides), the communication-thread end each
-//! side runs, and the operator's hand that holds a simulated master (`sensor/operator-hand`).
+//! the paper's Trajectory object that links the two sides), and the communication-thread end
+//! each side runs. (The operator's hand that holds a simulated master, `sensor/operator-hand`,
+//! is in [`operator_hand`](super::operator_hand).)
 //!
 //! ```text
 //!  master comm: pose + clutch ──master_to_slave cell──> slave comm: TeleopChannel (MasterToSlave)
@@ -17,8 +18,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use nalgebra::UnitQuaternion;
-use penelope_drivers::sim::operator::{HandImpedance, OperatorScript};
-use penelope_drivers::sim::scripts;
 use penelope_hal::{
     CartesianReference, Frame, HybridReference, Kinematics, Pose, Reference, Timestamp, Twist,
     Wrench,
@@ -566,7 +565,7 @@ impl TeleopComm {
 
     /// Notes the loop's safety events at a send; `true` when one is new since the last send.
     fn note_events(&mut self, events: EventSet) -> bool {
-        let new = events.0 & !self.events_sent.0 != 0;
+        let new = events.gained_since(self.events_sent);
         self.events_sent = events;
         new
     }
@@ -596,7 +595,7 @@ impl TeleopComm {
             return;
         };
         let pose = self.model.forward(&sample.q);
-        if sample.events.0 & !self.events_sent.0 != 0 {
+        if sample.events.gained_since(self.events_sent) {
             self.send_own(now, &sample, &pose);
         }
         let Some(received) = self.take_received(now) else {
@@ -730,87 +729,7 @@ fn neutral(side: Side, held: &Pose, now: &Pose) -> Reference {
 
 pub use penelope_rt_core::teleop::sensor_to_base;
 
-/// `sensor/operator-hand` configuration: a scripted operator's hand holding a simulated master.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct HandConfig {
-    /// The master robot whose handle it holds (a name on this node; the robot must be on a
-    /// simulated board, and configured after the hand is created).
-    pub robot: String,
-    /// The script it plays (`demo`).
-    pub script: String,
-    /// The hand's translational stiffness, N/m.
-    pub stiffness_n_per_m: f64,
-    /// The hand's translational damping, N·s/m.
-    pub damping_ns_per_m: f64,
-}
-
-impl Default for HandConfig {
-    fn default() -> Self {
-        HandConfig {
-            robot: String::new(),
-            script: "demo".into(),
-            stiffness_n_per_m: 400.0,
-            damping_ns_per_m: 12.0,
-        }
-    }
-}
-
-/// What `ctl kinds` lists for `sensor/operator-hand`.
-pub const HAND_KEYS: &str = r#"
-robot = "frhc"                # the master whose handle it holds (create the hand, then
-                              # configure the robot: its simulated body gets the hand)
-script = "demo"               # what the hand does: reach, sweeps, clutch, push, tap, release
-stiffness_n_per_m = 400.0     # the hand's grip: an impedance towards the scripted point
-damping_ns_per_m = 12.0
-"#;
-
-impl HandConfig {
-    /// Checks the keys and finds the script.
-    ///
-    /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn check(&self, kind: &str) -> Result<OperatorScript, WireError> {
-        let bad = |message: String| WireError::BadConfig {
-            kind: kind.into(),
-            message,
-        };
-        if self.robot.is_empty() {
-            return Err(bad("needs `robot` (the master it holds)".into()));
-        }
-        for (key, v) in [
-            ("stiffness_n_per_m", self.stiffness_n_per_m),
-            ("damping_ns_per_m", self.damping_ns_per_m),
-        ] {
-            if !(v.is_finite() && (0.0..=1e5).contains(&v)) {
-                return Err(bad(format!("`{key}` = {v} is outside 0..=100000")));
-            }
-        }
-        scripts::by_name(&self.script)
-            .ok_or_else(|| bad(format!("unknown script `{}` (demo)", self.script)))
-    }
-
-    /// The hand's impedance.
-    pub fn impedance(&self) -> HandImpedance {
-        HandImpedance {
-            stiffness: self.stiffness_n_per_m,
-            damping: self.damping_ns_per_m,
-            ..HandImpedance::default()
-        }
-    }
-}
-
-/// A `sensor/operator-hand` object: its settings, script, and the clutch button its simulated
-/// master's communication thread reads.
-pub struct HandObj {
-    /// The settings.
-    pub config: HandConfig,
-    /// The script.
-    pub script: OperatorScript,
-    /// Whether the clutch is held (written by the plant's contact model, read by the master's
-    /// communication thread).
-    pub clutch: Arc<AtomicBool>,
-}
+pub use super::operator_hand::{HAND_KEYS, HandConfig, HandObj};
 
 pub use super::teleop_laws::{
     FORCE_DISPLAY_KEYS, FOUR_CHANNEL_KEYS, FOUR_CHANNEL_SLAVE_KEYS, ForceDisplayToml,

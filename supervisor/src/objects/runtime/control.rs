@@ -230,7 +230,7 @@ impl TelemetrySink for NodeSink {
     fn push(&mut self, sample: &TelemetrySample) -> bool {
         self.comm.write(*sample);
         self.probe.write(*sample);
-        if sample.events.0 & !self.events.0 != 0
+        if sample.events.gained_since(self.events)
             && let Some(bell) = &self.doorbell
         {
             bell.ring();
