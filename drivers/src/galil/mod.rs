@@ -45,8 +45,8 @@ pub mod number;
 pub mod record;
 
 pub use board::{
-    BoardFault, DEFAULT_WATCHDOG, GalilBoard, GalilBoardConfig, GalilBoardError, TargetMode,
-    axis_bindings,
+    BoardFault, DEFAULT_COMMAND_TIMEOUT, DEFAULT_WATCHDOG, GalilBoard, GalilBoardConfig,
+    GalilBoardError, TargetMode, axis_bindings,
 };
 pub use client::{AxisValues, BoardInfo, Client, ClientConfig, Identity, LinkStats, Reply};
 pub use command::{Axes, Command, Operand, ReplyKind, Setting, Tell, UnsolicitedMode};

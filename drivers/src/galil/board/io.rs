@@ -8,7 +8,7 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use penelope_hal::board::{AxisCommand, AxisState, MAX_AXES};
-use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter};
+use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh};
 
 use super::super::client::{BoardInfo, Client, Reply};
 use super::super::command::{Axes, Command, MAX_GALIL_AXES, Setting, Tell, encode_line};
@@ -153,9 +153,28 @@ impl Io {
         let mut window_start = Instant::now();
         let mut window_cycles = 0u64;
         let mut disabled_in_fault = false;
+        // When the I/O thread last saw a new command frame: the control tick's proof of life.
+        let mut last_fresh = Instant::now();
         while !shared.stop.load(Ordering::SeqCst) {
             let started = Instant::now();
-            let frame = commands.latest();
+            let frame = match commands.read() {
+                Fresh::New(f) => {
+                    last_fresh = started;
+                    Some(f)
+                }
+                Fresh::Old(f) => Some(f),
+                Fresh::NoData => None,
+            };
+            if fault.is_none() && self.command_is_stale(frame, started, last_fresh) {
+                let f = BoardFault::CommandStale;
+                log::warn!(
+                    "galil board: no command from the control loop for {} ms with torque on; \
+                     amplifiers off",
+                    started.saturating_duration_since(last_fresh).as_millis()
+                );
+                self.fail_safe(f);
+                fault = Some(f);
+            }
             if let Some(f) = fault {
                 // Publish the fault, honour an explicit disable, wait for a re-arm.
                 state.write(StateFrame {
@@ -170,8 +189,9 @@ impl Io {
                     }
                 }
                 // A fault the line survived (a rejection, an axis switched off) leaves the host
-                // alive: keep the watchdog fed so a held position stays held.
-                if !f.is_link_fault() {
+                // alive: keep the watchdog fed so a held position stays held. A hung control
+                // loop does not: the board's watchdog is left to switch everything off too.
+                if !f.is_link_fault() && f != BoardFault::CommandStale {
                     self.heartbeat();
                 }
                 let r = shared.rearm.load(Ordering::SeqCst);
@@ -179,6 +199,7 @@ impl Io {
                     rearm_seen = r;
                     if self.reconnect().is_ok() {
                         fault = None;
+                        last_fresh = Instant::now();
                         disabled_in_fault = false;
                         shared.fault.store(0, Ordering::Relaxed);
                     }
@@ -218,6 +239,25 @@ impl Io {
         self.release(fault);
     }
 
+    /// True when the control thread's commands stopped coming while it drives an axis by
+    /// effort: the newest frame is enabled, has an effort axis, and was first seen more than
+    /// `command_timeout` ago.
+    fn command_is_stale(
+        &self,
+        frame: Option<CommandFrame>,
+        now: Instant,
+        last_fresh: Instant,
+    ) -> bool {
+        let (Some(timeout), Some(frame)) = (self.config.command_timeout, frame) else {
+            return false;
+        };
+        let torque = frame.enabled
+            && frame.commands[..self.n()]
+                .iter()
+                .any(|c| matches!(c, AxisCommand::Effort(_)));
+        torque && now.saturating_duration_since(last_fresh) > timeout
+    }
+
     /// A motor the board switched off is the watchdog's doing when its trip flag says so.
     fn classify(&mut self, f: BoardFault) -> BoardFault {
         if !matches!(f, BoardFault::MotorOff(_)) || self.config.watchdog.is_none() {
@@ -239,7 +279,8 @@ impl Io {
     }
 
     /// Makes a fault end safe while the line still answers: axes in effort mode get `OF 0` then
-    /// `MO` (no torque may stay on), axes in position mode `ST` (the board's servo holds).
+    /// `MO` (no torque may stay on), axes in position mode `ST` (the board's servo holds); after
+    /// [`BoardFault::CommandStale`] every driven axis gets `OF 0` and `MO`.
     /// Nothing is sent on a closed line; the board's watchdog turns the motors off then.
     fn fail_safe(&mut self, f: BoardFault) {
         if matches!(f, BoardFault::Closed | BoardFault::Io) {
@@ -253,6 +294,8 @@ impl Io {
         let mut position = Axes::NONE;
         for i in 0..n {
             match self.modes[i] {
+                // A hung control loop: nothing the host sent may stay on, held targets included.
+                _ if f == BoardFault::CommandStale => effort.0 |= 1 << i,
                 Mode::Effort => effort.0 |= 1 << i,
                 Mode::Position => position.0 |= 1 << i,
                 _ => {}

@@ -42,6 +42,17 @@
 //! [`GalilBoardConfig::watchdog`] (30 ms by default) the program turns the motors off. A motor
 //! the watchdog switched off faults the board as [`BoardFault::Watchdog`].
 //!
+//! # A hung host
+//! The heartbeat proves the I/O thread alive, not the control loop that feeds it: a control
+//! thread that hangs (rather than dies) would leave its last torque on with the heartbeat fed.
+//! So every command frame the control thread writes is fresh evidence of its tick, and while any
+//! axis is in effort mode a frame older than [`GalilBoardConfig::command_timeout`] (on the I/O
+//! thread's clock) is a fault, [`BoardFault::CommandStale`], handled here outside the control
+//! thread: `OF 0` and `MO` on every driven axis, and the heartbeat is no longer fed, so the
+//! board's watchdog switches everything off too should the line drop those commands. Axes only
+//! in position mode need no fresh command: the board's own servo holds the last target (how a
+//! slave is left when its loop stops on purpose).
+//!
 //! Dropping the board ([`GalilBoard::release`]) turns the amplifiers off (`OF 0`, `MO`) and
 //! halts the watchdog, when the line answers. This is the one way to release a Galil board.
 
@@ -70,6 +81,10 @@ pub mod watchdog;
 
 use io::Io;
 pub use watchdog::DEFAULT_WATCHDOG;
+
+/// The default [`GalilBoardConfig::command_timeout`]: 50 control periods at 1 kHz, a few
+/// exchanges of the serial line, under twice the board's own watchdog time.
+pub const DEFAULT_COMMAND_TIMEOUT: Duration = Duration::from_millis(50);
 
 /// The largest output a DMC-40x0 drives, volts.
 pub const MAX_VOLTS: f64 = 9.9982;
@@ -118,6 +133,11 @@ pub struct GalilBoardConfig {
     /// long (see [`watchdog`]); `None` downloads no program (the board then keeps its last
     /// command when the host dies).
     pub watchdog: Option<Duration>,
+    /// While any axis is driven by effort, a command frame from the control thread older than
+    /// this (no new `write_axes` or `set_enabled`) faults the board
+    /// ([`BoardFault::CommandStale`]): amplifiers off, heartbeat no longer fed. `None` turns
+    /// the check off (a host that writes one command and waits, as some bench tests do).
+    pub command_timeout: Option<Duration>,
 }
 
 impl GalilBoardConfig {
@@ -142,6 +162,7 @@ impl GalilBoardConfig {
             status_every: 5,
             min_cycle: Duration::ZERO,
             watchdog: Some(DEFAULT_WATCHDOG),
+            command_timeout: Some(DEFAULT_COMMAND_TIMEOUT),
         }
     }
 }
@@ -178,6 +199,9 @@ pub enum BoardFault {
     TooFewAxes,
     /// The board's watchdog turned the motors off: no heartbeat reached it in time.
     Watchdog,
+    /// The control thread's commands stopped coming while an axis was driven by effort (a hung
+    /// control loop): the I/O thread turned the amplifiers off.
+    CommandStale,
 }
 
 impl BoardFault {
@@ -202,6 +226,7 @@ impl BoardFault {
             BoardFault::MotorOff(_) => 6,
             BoardFault::TooFewAxes => 7,
             BoardFault::Watchdog => 8,
+            BoardFault::CommandStale => 9,
         }
     }
 
@@ -247,9 +272,8 @@ impl std::error::Error for GalilBoardError {}
 impl HalError for GalilBoardError {
     fn kind(&self) -> ErrorKind {
         match self {
-            GalilBoardError::Fault(BoardFault::Timeout) | GalilBoardError::Stale => {
-                ErrorKind::Timeout
-            }
+            GalilBoardError::Fault(BoardFault::Timeout | BoardFault::CommandStale)
+            | GalilBoardError::Stale => ErrorKind::Timeout,
             GalilBoardError::Fault(
                 BoardFault::Rejected(_) | BoardFault::MotorOff(_) | BoardFault::Watchdog,
             ) => ErrorKind::Device,
