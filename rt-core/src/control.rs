@@ -339,14 +339,14 @@ where
                     Ok(c) => Some(c),
                     Err(cause) => {
                         self.safety.fault(cause);
-                        self.safe_command(self.safety.action())
+                        self.checked_safe_command()
                     }
                 },
                 None => None,
             };
             Some(limited)
         } else if matches!(self.safety.state(), SafetyState::Fault | SafetyState::EStop) {
-            Some(self.safe_command(self.safety.action()))
+            Some(self.checked_safe_command())
         } else {
             None // read failed within tolerance: leave the board's last command in place
         };
@@ -549,6 +549,21 @@ where
             Err(e) => {
                 self.safety.fault(FaultCause::Controller(e));
                 self.safe_command(self.safety.action())
+            }
+        }
+    }
+
+    /// The command of the current safe state, through the same finiteness check and limits as
+    /// any other. A hold that cannot be formed (a PD hold on a NaN state) is amplifiers off:
+    /// zero torque, and the board told so, rather than a command the board would refuse (it
+    /// would keep the previous one).
+    fn checked_safe_command(&mut self) -> Option<JointCommand> {
+        let command = self.safe_command(self.safety.action())?;
+        match self.safety.limit_command(command) {
+            Ok(c) => Some(c),
+            Err(_) => {
+                let _ = self.board.set_enabled(false);
+                None
             }
         }
     }

@@ -3,6 +3,8 @@
 //!
 //! - a control thread that hangs (does not die) in torque mode on the emulated Galil DMC: the
 //!   board's I/O thread sees no fresh command and turns the amplifiers off;
+//! - a board that measures a NaN velocity under a torque-driven PD hold: the hold cannot be
+//!   formed, so zero torque with the amplifiers off, in the same tick;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -16,14 +18,14 @@ use penelope_drivers::galil::{
     DEFAULT_COMMAND_TIMEOUT, GalilBoard, GalilBoardConfig, GalilBoardError,
 };
 use penelope_hal::{
-    AxisState, Board, ControlInput, Controller, ControllerError, JointCommand, JointReference,
-    JointState, JointVector, Reference, RobotModel, Timestamp,
+    AxisCommand, AxisState, Board, ControlInput, Controller, ControllerError, ErrorKind,
+    JointCommand, JointReference, JointState, JointVector, Reference, RobotModel, Timestamp,
 };
 use penelope_rt_core::cell::{Stamped, latest};
 use penelope_rt_core::control::{
     ControlCommand, ControlConfig, ControlLoop, ControlPorts, NoCommands,
 };
-use penelope_rt_core::safety::{SafetyConfig, SafetyState};
+use penelope_rt_core::safety::{FaultCause, HoldMode, SafetyConfig, SafetyState};
 use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
 use penelope_testbed::DecoupledChain;
 
@@ -76,7 +78,8 @@ fn a_hung_control_thread_in_torque_mode_leaves_the_galil_motors_off_within_the_c
 
     let model = DecoupledChain::six_joint();
     let safety = SafetyConfig::slave(GALIL_AXES, model.limits);
-    let config = ControlConfig::new(Duration::from_millis(1), safety).with_counts_per_radian(1000.0);
+    let config =
+        ControlConfig::new(Duration::from_millis(1), safety).with_counts_per_radian(1000.0);
     let (mut reference, reference_port) = latest::<Stamped<Reference>>();
     let ports = ControlPorts {
         reference: reference_port,
@@ -157,4 +160,111 @@ fn a_hung_control_thread_in_torque_mode_leaves_the_galil_motors_off_within_the_c
         ctl.board_mut().read_axes(now, &mut out),
         Err(GalilBoardError::Fault(BoardFault::CommandStale))
     );
+}
+
+/// A board that reports what it is told and measures what the test says, refusing NaN efforts
+/// as real boards do.
+#[derive(Debug, Default)]
+struct RecordingBoard {
+    measured: [AxisState; 6],
+    commands: [AxisCommand; 6],
+    enabled: bool,
+    refused: u32,
+}
+
+#[derive(Debug)]
+struct Refused;
+
+impl penelope_hal::Error for Refused {
+    fn kind(&self) -> ErrorKind {
+        ErrorKind::NonFinite
+    }
+}
+
+impl Board for RecordingBoard {
+    type Error = Refused;
+    fn axis_count(&self) -> usize {
+        6
+    }
+    fn read_axes(&mut self, _now: Timestamp, out: &mut [AxisState]) -> Result<(), Refused> {
+        out[..6].copy_from_slice(&self.measured);
+        Ok(())
+    }
+    fn write_axes(&mut self, _now: Timestamp, commands: &[AxisCommand]) -> Result<(), Refused> {
+        if commands
+            .iter()
+            .any(|c| matches!(c, AxisCommand::Effort(t) if !t.is_finite()))
+        {
+            self.refused += 1;
+            return Err(Refused);
+        }
+        self.commands.copy_from_slice(&commands[..6]);
+        Ok(())
+    }
+    fn set_enabled(&mut self, enabled: bool) -> Result<(), Refused> {
+        self.enabled = enabled;
+        Ok(())
+    }
+}
+
+#[test]
+fn a_nan_velocity_under_a_torque_hold_ends_with_zero_torque_and_the_amplifiers_off() {
+    let model = DecoupledChain::six_joint();
+    let mut safety = SafetyConfig::slave(6, model.limits);
+    safety.hold = HoldMode::Pd {
+        kp: JointVector::repeat(200.0),
+        kd: JointVector::repeat(5.0),
+    };
+    let config =
+        ControlConfig::new(Duration::from_millis(1), safety).with_counts_per_radian(1000.0);
+    let (mut reference, reference_port) = latest::<Stamped<Reference>>();
+    let ports = ControlPorts {
+        reference: reference_port,
+        telemetry: Discard,
+        commands: NoCommands,
+    };
+    let board = RecordingBoard::default();
+    let mut ctl = ControlLoop::new(config, board, model, [ConstantTorque(1.5)], ports).unwrap();
+    let ms = |k: u64| Timestamp::from_nanos(k * 1_000_000);
+    ctl.tick(ms(1));
+    ctl.apply(ms(1), ControlCommand::Activate);
+    for k in 2..20 {
+        reference.write(Stamped {
+            stamp: ms(k),
+            value: Reference::Joint(JointReference::default()),
+        });
+        assert_eq!(ctl.tick(ms(k)).state, SafetyState::Running);
+    }
+    let board = ctl.board();
+    assert!(board.enabled);
+    assert!(
+        board
+            .commands
+            .iter()
+            .all(|c| *c == AxisCommand::Effort(1.5))
+    );
+
+    // The board measures a NaN velocity on joint 2: the loop faults and its PD hold, formed
+    // from that state, would be NaN too.
+    ctl.board_mut().measured[2].velocity = f64::NAN;
+    let out = ctl.tick(ms(20));
+    assert_eq!(out.state, SafetyState::Fault);
+    assert_eq!(ctl.safety().fault_cause(), Some(FaultCause::NonFiniteState));
+    // In that same tick: no torque left on, amplifiers off, nothing refused.
+    let board = ctl.board();
+    println!(
+        "NaN velocity: commands {:?}, amplifiers on: {}, refused writes: {}",
+        board.commands, board.enabled, board.refused
+    );
+    assert!(board.commands.iter().all(|c| *c == AxisCommand::Off));
+    assert!(!board.enabled);
+    assert_eq!(board.refused, 0);
+    // And so it stays while the fault is latched.
+    for k in 21..40 {
+        ctl.tick(ms(k));
+    }
+    let board = ctl.board();
+    assert!(board.commands.iter().all(|c| *c == AxisCommand::Off));
+    assert!(!board.enabled);
+    assert_eq!(board.refused, 0);
 }
