@@ -57,7 +57,7 @@ use crate::cell::{Fresh, LatestCell, LatestReader, Stamped};
 use crate::controller::ControllerSet;
 use crate::ring::{Consumer, Ring};
 use crate::safety::{
-    Action, EventSet, FaultAction, FaultCause, HoldMode, Safety, SafetyEvent, SafetyState,
+    Action, EventSet, FaultAction, FaultCause, HoldMode, Role, Safety, SafetyEvent, SafetyState,
 };
 use crate::telemetry::{ReferenceKind, TelemetrySample, TelemetrySink};
 
@@ -169,7 +169,7 @@ impl Sensor for NoSensor {
 mod config;
 
 use config::position_counts;
-pub use config::{AxisBinding, ControlConfig, ControlConfigError};
+pub use config::{AxisBinding, ControlConfig, ControlConfigError, DEFAULT_RESUME_TOLERANCE};
 
 /// What one tick did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -318,6 +318,16 @@ where
             }
         }
 
+        // After a re-arm the interrupted motion's references are not followed: the robot holds
+        // until a fresh reference starts where it is (a restarted trajectory, a new command).
+        if measured
+            && self.safety.awaiting_new_motion()
+            && let Some(s) = self.latest
+            && self.starts_here(&s.value)
+        {
+            self.safety.motion_reanchored();
+        }
+
         let mut commanded_wrench = Wrench::zero(Frame::Base);
         let command = if measured {
             let action = self
@@ -451,6 +461,30 @@ where
         }
     }
 
+    /// The loop's last act when its thread is stopped on purpose (deactivation, destroy,
+    /// shutdown), before anything is joined: the commands already sent to it are applied (a
+    /// `Deactivate`), then a slave the loop is still driving is held where it was last measured
+    /// by its board's own servo ([`hold_with_board_servo`](Self::hold_with_board_servo)), and
+    /// anything else gets zero torque with its amplifiers off. No torque of the law outlives the
+    /// loop's last tick by more than a period.
+    ///
+    /// # Real-time
+    /// Constant time, no allocation: at most [`MAX_COMMANDS_PER_TICK`] commands, one board write
+    /// and one `set_enabled` call.
+    pub fn stop_safely(&mut self, now: Timestamp) {
+        for _ in 0..MAX_COMMANDS_PER_TICK {
+            match self.ports.commands.next_command() {
+                Some(c) => self.apply(now, c),
+                None => break,
+            }
+        }
+        if self.config.safety.role == Role::Slave && self.hold_with_board_servo(now) {
+            return;
+        }
+        self.write(now, None);
+        let _ = self.board.set_enabled(false);
+    }
+
     /// Leaves the robot held where it was last measured by the board's own position servo
     /// (the loop is about to stop: a slave's controller deactivated). Returns `false`, writing
     /// nothing, when the loop was not driving the robot (inactive, e-stopped, or faulted with
@@ -550,6 +584,26 @@ where
                 self.safety.fault(FaultCause::Controller(e));
                 self.safe_command(self.safety.action())
             }
+        }
+    }
+
+    /// True when `reference` starts within [`ControlConfig::resume_tolerance`] of the measured
+    /// state (a wrench alone moves nothing: always true).
+    fn starts_here(&self, reference: &Reference) -> bool {
+        let tol = self.config.resume_tolerance;
+        let q = &self.state.position;
+        let near_pose = |pose: &penelope_hal::Pose| {
+            let here = self.model.forward(q);
+            (pose.translation.vector - here.translation.vector).norm() <= tol
+                && pose.rotation.angle_to(&here.rotation) <= tol
+        };
+        match reference {
+            Reference::Joint(j) => {
+                (0..self.config.safety.joint_count).all(|i| (j.position[i] - q[i]).abs() <= tol)
+            }
+            Reference::Cartesian(c) => near_pose(&c.pose),
+            Reference::Hybrid(h) => near_pose(&h.motion.pose),
+            Reference::Wrench(_) => true,
         }
     }
 

@@ -13,6 +13,10 @@
 //!         (e-stop from any state; both latch until an explicit `rearm`, then `activate`)
 //! ```
 //!
+//! A reset never starts motion (IEC 60204-1): after a re-arm the machine holds where it is
+//! activated, fresh references or not, until the loop reports a reference that starts where the
+//! robot is ([`Safety::motion_reanchored`]): the producer restarted from the measured state.
+//!
 //! What each state commands ([`Action`]):
 //!
 //! | state | slave | master |
@@ -465,6 +469,8 @@ pub struct Safety {
     last_good: JointVector,
     hold_at: JointVector,
     events: EventSet,
+    /// Set by a re-arm: hold, whatever the references, until one starts where the robot is.
+    awaiting_new_motion: bool,
 }
 
 impl Safety {
@@ -482,6 +488,7 @@ impl Safety {
             last_good: JointVector::zeros(),
             hold_at: JointVector::zeros(),
             events: EventSet::EMPTY,
+            awaiting_new_motion: false,
         })
     }
 
@@ -584,11 +591,25 @@ impl Safety {
             SafetyState::Fault | SafetyState::EStop => {
                 self.state = SafetyState::Inactive;
                 self.cause = None;
+                self.awaiting_new_motion = true;
                 self.events.insert(SafetyEvent::Rearmed);
                 Ok(())
             }
             _ => Err(NothingLatched),
         }
+    }
+
+    /// True after a re-arm until [`motion_reanchored`](Safety::motion_reanchored): the robot
+    /// holds (slave) or displays zero force (master) even with fresh references, since the
+    /// motion they belong to was interrupted.
+    pub fn awaiting_new_motion(&self) -> bool {
+        self.awaiting_new_motion
+    }
+
+    /// The loop found a fresh reference that starts where the robot is (its producer restarted
+    /// from the measured state, or a new motion began there): references are followed again.
+    pub fn motion_reanchored(&mut self) {
+        self.awaiting_new_motion = false;
     }
 
     /// Checks the measured state and the reference's age, moves the machine, and says what the
@@ -654,7 +675,7 @@ impl Safety {
     fn check_freshness(&mut self, now: Timestamp, measured: &JointState, stamp: Option<Timestamp>) {
         let fresh = stamp.is_some_and(|s| now.saturating_since(s) <= self.config.watchdog);
         if fresh {
-            if self.state == SafetyState::Holding {
+            if self.state == SafetyState::Holding && !self.awaiting_new_motion {
                 self.state = SafetyState::Running;
                 self.events.insert(SafetyEvent::ReferenceRecovered);
             }

@@ -121,6 +121,11 @@ impl<M: RobotModel, I: Interaction> SimBoard<M, I> {
         self.enabled
     }
 
+    /// The commands the board holds (the last written), one per axis.
+    pub fn held_commands(&self) -> &[AxisCommand] {
+        &self.held[..self.axis_count()]
+    }
+
     /// The plant (ground truth).
     pub fn plant(&self) -> &RigidBodyPlant<M> {
         &self.plant

@@ -50,7 +50,14 @@ pub struct ControlConfig {
     pub tool_position: bool,
     /// Consecutive failed board reads tolerated (the tick is skipped) before faulting.
     pub board_read_tolerance: u32,
+    /// After a re-arm, how close a fresh reference must start to the measured state before it is
+    /// followed (the robot holds until then): rad for joint positions and orientations, m for
+    /// tool positions.
+    pub resume_tolerance: f64,
 }
+
+/// The default [`ControlConfig::resume_tolerance`]: 2 mrad (2 mm for tool positions).
+pub const DEFAULT_RESUME_TOLERANCE: f64 = 2e-3;
 
 impl ControlConfig {
     /// Joint `j` on axis `j` at 1 count per radian, tool position on, 2 failed reads tolerated.
@@ -65,6 +72,7 @@ impl ControlConfig {
             axes,
             tool_position: true,
             board_read_tolerance: 2,
+            resume_tolerance: DEFAULT_RESUME_TOLERANCE,
         }
     }
 

@@ -160,6 +160,23 @@ impl TrajectoryFeed {
         }
     }
 
+    /// Abandons the motion for a hold at `measured` (a motion interrupted by an e-stop or a
+    /// fault is not resumed by the reset: only a new command moves the robot again).
+    fn hold_at(&mut self, now: Timestamp, measured: JointVector) {
+        if let Ok(mut hold) = NodeTrajectory::go_to(measured, Duration::from_millis(1)) {
+            let here = Reference::Joint(JointReference {
+                position: measured,
+                ..JointReference::default()
+            });
+            hold.start(now, &here);
+            self.trajectory = hold;
+            self.tool_goals = false;
+            self.started = true;
+            self.last = None;
+            self.last_at = None;
+        }
+    }
+
     /// Replaces the trajectory by a joint-space GoTo motion from the current reference.
     fn go_to(
         &mut self,
@@ -234,6 +251,8 @@ pub struct CommTask {
     cartesian: bool,
     measured: Option<JointVector>,
     published: u64,
+    /// The loop's last sample showed a latched fault or e-stop.
+    was_latched: bool,
 }
 
 impl CommTask {
@@ -267,6 +286,7 @@ impl CommTask {
             cartesian,
             measured: None,
             published: 0,
+            was_latched: false,
         }
     }
 
@@ -340,18 +360,34 @@ impl CommTask {
             self.published += 1;
             return;
         }
-        if let Some(s) = self.state.latest() {
+        let sample = self.state.latest();
+        if let Some(s) = sample {
             self.measured = Some(s.q);
         }
         // The loop has not measured yet: start from the measured state, not zeros.
         let Some(measured) = self.measured else {
             return;
         };
+        // A motion interrupted by a latched fault or e-stop is abandoned for a hold where the
+        // robot is, while latched and once more on the first tick after the re-arm (from the
+        // pose the loop re-activated at): the reset does not start motion, a new command does.
+        let latched = sample.is_some_and(|s| {
+            matches!(
+                s.state,
+                penelope_rt_core::safety::SafetyState::Fault
+                    | penelope_rt_core::safety::SafetyState::EStop
+            )
+        });
+        let reanchor = latched || self.was_latched;
+        self.was_latched = latched;
         let goto = self.goto.pop();
         let model = &self.model;
         let out = match &mut self.source {
             ReferenceSource::Teleop(_) => return,
             ReferenceSource::Trajectory(feed) => {
+                if reanchor {
+                    feed.hold_at(now, measured);
+                }
                 feed.start_once(now, measured, model);
                 if let Some(cmd) = goto
                     && let Ok(motion) = NodeTrajectory::go_to(cmd.goal, cmd.duration)
@@ -381,6 +417,9 @@ impl CommTask {
                     ..JointReference::default()
                 };
                 for (joints, feed) in feeds.iter_mut() {
+                    if reanchor {
+                        feed.hold_at(now, measured);
+                    }
                     feed.start_once(now, measured, model);
                     // A GoTo moves the whole robot: every group to its joints of the goal.
                     if let Some(cmd) = goto

@@ -384,6 +384,16 @@ impl ControlTask {
         each_loop!(&mut self.lp, l => l.fail_safe(now))
     }
 
+    /// The control thread's last act when it is stopped on purpose
+    /// ([`ControlLoop::stop_safely`]): a slave still driven is held by its board's servo,
+    /// anything else gets zero torque with its amplifiers off, before any thread is joined.
+    ///
+    /// # Real-time
+    /// Constant time, no allocation.
+    pub fn stop_safely(&mut self, now: Timestamp) {
+        each_loop!(&mut self.lp, l => l.stop_safely(now))
+    }
+
     /// Leaves the robot held at its last measured pose by the board's own servo (a Galil's, or
     /// a simulated board's), for a loop being stopped; `false` when there was nothing to hold.
     ///

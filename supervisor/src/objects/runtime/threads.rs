@@ -226,7 +226,8 @@ pub fn guarded<T>(f: impl FnOnce() -> T) -> Result<T, String> {
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).map_err(|p| panic_text(p.as_ref()))
 }
 
-/// The body of a control thread: ticks `task` until `stop`, then hands it back through `back`.
+/// The body of a control thread: ticks `task` until `stop`, then makes the robot safe
+/// ([`ControlTask::stop_safely`]) and hands the task back through `back`.
 ///
 /// A tick that panics, or a failure of the loop's other threads reported through `fault`,
 /// brings the robot to its safe state ([`ControlLoop::fail_safe`]: e-stop latched, amplifiers
@@ -244,6 +245,11 @@ pub fn control_body(
             return Flow::Stop;
         };
         if stop.load(Ordering::Acquire) {
+            // The thread's last act is the safe command; the joins of the other threads (up
+            // to seconds) come after it, never with the law's torque still on.
+            if let Err(why) = guarded(|| t.stop_safely(tick.deadline)) {
+                fault.record(format!("stopping the loop panicked: {why}"));
+            }
             if let Some(t) = task.take() {
                 let _ = back.try_send(t);
             }
