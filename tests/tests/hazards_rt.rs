@@ -5,6 +5,12 @@
 //!   board's I/O thread sees no fresh command and turns the amplifiers off;
 //! - a board that measures a NaN velocity under a torque-driven PD hold: the hold cannot be
 //!   formed, so zero torque with the amplifiers off, in the same tick;
+//! - an e-stop in the middle of a move, re-armed after the move's end: the reset does not start
+//!   motion: the arm holds where it is until a new command (on a simulated clock);
+//! - a torque-driven slave deactivated mid-motion: the control thread's last act, one period
+//!   after its last tick, hands the arm to the board's servo (before any thread is joined);
+//! - the wave-variable law's link cut between two nodes: each end declares the link lost
+//!   within two communication periods, the slave holds, the master displays no force.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -17,17 +23,31 @@ use penelope_drivers::galil::emulator::{Dmc, PtyEmulator, PtyOptions};
 use penelope_drivers::galil::{
     DEFAULT_COMMAND_TIMEOUT, GalilBoard, GalilBoardConfig, GalilBoardError,
 };
+use penelope_hal::Transition;
 use penelope_hal::{
     AxisCommand, AxisState, Board, ControlInput, Controller, ControllerError, ErrorKind,
     JointCommand, JointReference, JointState, JointVector, Reference, RobotModel, Timestamp,
 };
 use penelope_rt_core::cell::{Stamped, latest};
+use penelope_rt_core::comm::CommLoop;
 use penelope_rt_core::control::{
     ControlCommand, ControlConfig, ControlLoop, ControlPorts, NoCommands,
 };
+use penelope_rt_core::controller::JointPid;
+use penelope_rt_core::exec::{Flow, Tick};
+use penelope_rt_core::safety::SafetyEvent;
 use penelope_rt_core::safety::{FaultCause, HoldMode, SafetyConfig, SafetyState};
 use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
-use penelope_testbed::DecoupledChain;
+use penelope_rt_core::trajectory::Trapezoidal;
+use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
+use penelope_supervisor::objects::clock::ClockMode;
+use penelope_supervisor::objects::runtime::{self, LoopBoard, LoopFault};
+use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_supervisor::proto::{
+    Call, ControllerMethod, JointAxis, Method, Reply, RobotMethod, TelemetryRecord,
+};
+use penelope_supervisor::system::SystemFile;
+use penelope_testbed::{ChainBoard, DecoupledChain, critically_damped_gains};
 
 /// A law that asks for the same torque on every joint, whatever the state.
 struct ConstantTorque(f64);
@@ -267,4 +287,358 @@ fn a_nan_velocity_under_a_torque_hold_ends_with_zero_torque_and_the_amplifiers_o
     assert!(board.commands.iter().all(|c| *c == AxisCommand::Off));
     assert!(!board.enabled);
     assert_eq!(board.refused, 0);
+}
+
+fn ms(t: u64) -> Timestamp {
+    Timestamp::from_nanos(t * 1_000_000)
+}
+
+#[test]
+fn a_rearm_after_an_estop_mid_move_does_not_start_motion() {
+    // No gravity: with its amplifiers off during the e-stop the arm coasts to rest, as a braked
+    // arm would stand, so what moves it after the reset is the loop alone.
+    let model = DecoupledChain {
+        mass: JointVector::zeros(),
+        ..DecoupledChain::six_joint()
+    };
+    const CPR: f64 = 10_000.0;
+    let board = ChainBoard::new(model.clone(), CPR);
+    let config = ControlConfig::new(
+        Duration::from_millis(1),
+        SafetyConfig::slave(6, model.limits),
+    )
+    .with_counts_per_radian(CPR);
+    let (reference, reference_port) = latest::<Stamped<Reference>>();
+    let ports = ControlPorts {
+        reference: reference_port,
+        telemetry: Discard,
+        commands: NoCommands,
+    };
+    let pid = JointPid::new(critically_damped_gains(&model, 20.0));
+    let mut ctl = ControlLoop::new(config, board, model, [pid], ports).unwrap();
+    // A 1 rad move of joint 0 at 1 rad/s and 2 rad/s²: 1.5 s.
+    let mut goal = JointVector::zeros();
+    goal[0] = 1.0;
+    let trajectory =
+        Trapezoidal::joint(goal, JointVector::repeat(1.0), JointVector::repeat(2.0)).unwrap();
+    let mut comm = CommLoop::new(trajectory, reference);
+    let here = |q: JointVector| {
+        Reference::Joint(JointReference {
+            position: q,
+            ..JointReference::default()
+        })
+    };
+    comm.start(ms(0), &here(JointVector::zeros()));
+    ctl.tick(ms(0));
+    ctl.apply(ms(0), ControlCommand::Activate);
+    // The communication task every 4 ms, the loop every 1 ms, on a simulated clock.
+    let mut t = 0;
+    macro_rules! run_until {
+        ($end:expr, $each:expr) => {
+            let end = $end;
+            while t < end {
+                t += 1;
+                if t % 4 == 0 {
+                    comm.tick(ms(t));
+                }
+                ctl.tick(ms(t));
+                $each;
+            }
+        };
+    }
+    // E-stop at a quarter of the move.
+    run_until!(3_000, {
+        if ctl.board().true_position()[0] >= 0.25 {
+            break;
+        }
+    });
+    assert_eq!(ctl.safety().state(), SafetyState::Running);
+    let stopped_at = ctl.board().true_position()[0];
+    ctl.apply(ms(t), ControlCommand::EStop);
+    // Well past the move's end, then reset as the creator does: re-arm, activate.
+    run_until!(t + 3_000, ());
+    let at_rearm = ctl.board().true_position();
+    ctl.apply(ms(t), ControlCommand::Rearm);
+    ctl.apply(ms(t), ControlCommand::Activate);
+    let mut moved: f64 = 0.0;
+    run_until!(t + 1_000, {
+        moved = moved.max((ctl.board().true_position() - at_rearm).amax());
+    });
+    println!(
+        "re-armed after an e-stop at {stopped_at:.3} rad of a 1 rad move (arm at {:.3} rad): \
+         it moved {:.3} mrad in the next second ({})",
+        at_rearm[0],
+        moved * 1e3,
+        ctl.safety().state()
+    );
+    assert!(moved < 5e-3, "the reset started motion: {moved} rad");
+    assert_eq!(ctl.safety().state(), SafetyState::Holding);
+    assert!(ctl.safety().awaiting_new_motion());
+
+    // An explicit new command (the trajectory restarted from the measured state) moves it.
+    let q = ctl.joint_state().position;
+    comm.start(ms(t), &here(q));
+    run_until!(t + 2_000, ());
+    assert_eq!(ctl.safety().state(), SafetyState::Running);
+    let to_goal = (ctl.board().true_position()[0] - 1.0).abs();
+    assert!(
+        to_goal < 0.02,
+        "the new command reached the goal: {to_goal} rad away"
+    );
+}
+
+/// A PUMA 560 on a simulated board held at its start pose by a joint PID (torques), on the
+/// simulated clock, configured but not active.
+fn puma_with_a_pid() -> Creator {
+    let mut config = CreatorConfig::new("hazards");
+    config.rt.priority = None;
+    config.clock = ClockMode::Simulated;
+    let c = Creator::new(config);
+    for (kind, name, cfg) in [
+        ("robot/puma560", "arm", ""),
+        ("board/sim", "sim", ""),
+        ("trajectory/step", "hold", "pose = \"start\""),
+        ("controller/joint-pid", "pid", ""),
+    ] {
+        c.create(kind, name, cfg).unwrap();
+    }
+    let call = |name: &str, method: Method| {
+        c.call_object(name, method)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+    };
+    call(
+        "arm",
+        Method::Robot(RobotMethod::MapJoints {
+            board: "sim".into(),
+            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
+        }),
+    );
+    for name in ["sim", "arm", "hold"] {
+        call(name, Method::Transition(Transition::Configure));
+    }
+    call(
+        "pid",
+        Method::Controller(ControllerMethod::SetRobot {
+            robot: "arm".into(),
+        }),
+    );
+    call(
+        "pid",
+        Method::Controller(ControllerMethod::SetTrajectory {
+            trajectory: "hold".into(),
+        }),
+    );
+    call("pid", Method::Transition(Transition::Configure));
+    c
+}
+
+#[test]
+fn deactivating_a_torque_driven_slave_ends_its_torque_one_period_after_its_last_tick() {
+    let c = puma_with_a_pid();
+    // The loop's own per-tick bodies, stepped here as the control and communication threads
+    // would run them (a 1 ms control period, a 4 ms communication period).
+    let detached = c.detach_loop("pid").unwrap();
+    let mut comm = detached.comm;
+    let mut telemetry = detached.telemetry;
+    let stop = Arc::new(AtomicBool::new(false));
+    let (back, handed_back) = mpsc::sync_channel(1);
+    let mut control = runtime::control_body(
+        detached.control,
+        stop.clone(),
+        back,
+        Arc::new(LoopFault::default()),
+    );
+    let period = Duration::from_millis(1);
+    let tick = |k: u64| Tick {
+        index: k,
+        deadline: ms(k),
+        woke: ms(k),
+        period,
+        overruns: 0,
+        previous_exec: Duration::ZERO,
+        early: false,
+    };
+    let mut k = 0;
+    while k < 300 {
+        if k % 4 == 0 {
+            comm.tick(ms(k));
+        }
+        assert_eq!(control(tick(k)), Flow::Continue);
+        k += 1;
+    }
+    // Mid-run, the law's torques on.
+    let mut last = None;
+    while let Some(r) = telemetry.pop() {
+        last = Some(r);
+    }
+    let last = last.expect("the loop reported");
+    assert_eq!(last.sample.state, SafetyState::Running);
+    assert!(last.sample.effort.amax() > 0.1, "{:?}", last.sample.effort);
+    let last_tick = last.truth.expect("the plant's truth").time;
+
+    // Stopped as a slave's deactivation stops it: the next control tick is its last act.
+    stop.store(true, Ordering::Release);
+    assert_eq!(control(tick(k)), Flow::Stop);
+    let task = handed_back.try_recv().expect("the task is handed back");
+    let LoopBoard::Sim(board, _) = task.into_loop().into_board() else {
+        panic!("a simulated board");
+    };
+    let safe_at = board.plant().snapshot().time;
+    let delay = safe_at.saturating_since(last_tick);
+    println!(
+        "deactivated mid-motion: the board's servo holds {:.3} ms after the loop's last tick \
+         (period {} ms); commands {:?}",
+        delay.as_secs_f64() * 1e3,
+        period.as_millis(),
+        board.held_commands()
+    );
+    assert!(
+        board
+            .held_commands()
+            .iter()
+            .all(|c| matches!(c, penelope_hal::AxisCommand::Position(_))),
+        "{:?}",
+        board.held_commands()
+    );
+    assert!(delay <= period, "{delay:?}");
+}
+
+fn free_port() -> u16 {
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// The demo's two-node system (`config/demo-two-nodes.toml`) with the wave law's halves active
+/// instead of the default ones, and `channel` added to the channel's keys.
+fn two_wave_nodes(channel: &str) -> (Node, Node) {
+    let text = include_str!("../../config/demo-two-nodes.toml")
+        .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", free_port()))
+        .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", free_port()))
+        .replace(
+            "[trajectories.link]\n",
+            &format!("[trajectories.link]\n{channel}\n"),
+        )
+        .replace(
+            "[controllers.display]\n",
+            "[controllers.display]\nactive = false\n",
+        )
+        .replace(
+            "[controllers.follow]\n",
+            "[controllers.follow]\nactive = false\n",
+        );
+    // The two wave halves: their `active = false` lines become `true`.
+    let mut lines: Vec<String> = Vec::new();
+    let mut in_wave = false;
+    for line in text.lines() {
+        if line.starts_with('[') {
+            in_wave = line == "[controllers.wave]" || line == "[controllers.wave-follow]";
+        }
+        if in_wave && line.trim_start().starts_with("active = false") {
+            lines.push("active = true".into());
+        } else {
+            lines.push(line.into());
+        }
+    }
+    let file = SystemFile::parse(&lines.join("\n")).expect("a valid system file");
+    let secret = b"hazards test secret".as_slice();
+    let node = |name: &str| {
+        let mut config = NodeConfig::new(name, NamingChoice::None);
+        config.creator.rt.priority = None;
+        config.creator.clock = ClockMode::Simulated;
+        config.secret = Some(secret.to_vec());
+        Node::start(config).unwrap()
+    };
+    let (a, b) = (node("master"), node("slave"));
+    file.apply(&a).expect("the master's half");
+    file.apply(&b).expect("the slave's half");
+    (a, b)
+}
+
+fn newest(node: &Node, controller: &str) -> TelemetryRecord {
+    match node.call(Call::Object {
+        object: controller.into(),
+        method: Method::Controller(ControllerMethod::Status),
+    }) {
+        Ok(Reply::Status(s)) => {
+            let last = s.last.expect("ticked");
+            assert!(last.fault.is_none(), "{controller}: {:?}", last.fault);
+            last
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn a_wave_link_cut_is_declared_lost_within_two_periods_the_slave_holds_the_master_displays_nothing()
+{
+    // Both directions silent from 13.0 to 13.5 s (communication every 2 ms).
+    let (a, b) = two_wave_nodes("faults = { outages = [{ from_s = 13.0, to_s = 13.5 }] }");
+    let ticks_a = a.creator().record_ticks("wave", 1 << 15).unwrap();
+    let ticks_b = b.creator().record_ticks("wave-follow", 1 << 15).unwrap();
+    let step = |n: u32| {
+        for _ in 0..n {
+            a.creator().advance(Duration::from_millis(1)).unwrap();
+            b.creator().advance(Duration::from_millis(1)).unwrap();
+        }
+    };
+    step(13_000);
+    step(100);
+    let held = newest(&b, "wave-follow").tool_position;
+    let mut drift: f64 = 0.0;
+    for _ in 0..380 {
+        step(1);
+        let p = newest(&b, "wave-follow").tool_position;
+        let d =
+            ((p[0] - held[0]).powi(2) + (p[1] - held[1]).powi(2) + (p[2] - held[2]).powi(2)).sqrt();
+        drift = drift.max(d);
+    }
+    step(1_000);
+    let comm_period = 2;
+    for (name, stream) in [("master", &ticks_a), ("slave", &ticks_b)] {
+        let mut ticks = Vec::new();
+        stream.drain_into(&mut ticks);
+        let at = |event: SafetyEvent| -> Vec<u64> {
+            ticks
+                .iter()
+                .filter(|t| t.sample.events.contains(event))
+                .map(|t| t.sample.time.as_nanos() / 1_000_000)
+                .collect()
+        };
+        let (lost, back) = (at(SafetyEvent::LinkLost), at(SafetyEvent::LinkRestored));
+        println!("wave {name}: link-lost at {lost:?} ms, link-restored at {back:?} ms");
+        assert_eq!(lost.len(), 1, "{name}: {lost:?}");
+        // The last samples before the cut left at 12.998 s and are heard at most one period
+        // later: lost two periods after that, plus one control tick.
+        let bound = 12_998 + 3 * comm_period + 1;
+        assert!(lost[0] <= bound, "{name}: lost at {} ms", lost[0]);
+        assert_eq!(back.len(), 1, "{name}: {back:?}");
+        if name == "master" {
+            // Late in the cut the master displays no force at all.
+            let late: Vec<_> = ticks
+                .iter()
+                .filter(|t| {
+                    let ms = t.sample.time.as_nanos() / 1_000_000;
+                    (13_100..13_480).contains(&ms)
+                })
+                .collect();
+            assert!(!late.is_empty());
+            let largest = late
+                .iter()
+                .map(|t| t.sample.commanded_wrench.force.norm())
+                .fold(0.0, f64::max);
+            println!("wave master: largest displayed force late in the cut {largest} N");
+            assert_eq!(largest, 0.0);
+        }
+    }
+    println!("wave slave: drifted {:.4} mm while held", drift * 1000.0);
+    assert!(
+        drift < 5e-4,
+        "the slave moved {} mm while held",
+        drift * 1000.0
+    );
+    a.shutdown();
+    b.shutdown();
 }

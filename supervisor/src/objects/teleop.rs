@@ -440,7 +440,16 @@ impl TeleopComm {
         pose: &Pose,
         out: &mut ReferenceOut,
     ) {
+        let mut restored = false;
         if let Some(received) = self.take_received(now) {
+            if self.lost_at.take().is_some() {
+                // Heard again: the line starts afresh from where this robot is (the slave's
+                // pose, the master's position), as at the law's start, so nothing jumps.
+                restored = self.end.note_link(false);
+                if let Some(wave) = self.wave.as_mut() {
+                    wave.restart();
+                }
+            }
             if let (Some(w), Some(wave)) = (received.port.wave, self.wave.as_mut()) {
                 wave.receive(received.sequence, &w);
                 if let Reference::Cartesian(m) = &received.reference {
@@ -491,11 +500,35 @@ impl TeleopComm {
             ..TeleopSample::new(self.sequence, now, own)
         });
         out.set_channel_energy(wave.channel_energy());
-        if reference.is_finite() {
+        // Lost as the other laws' links are (silent for the link timeout): neutral and fresh,
+        // the slave holding where it was, the master displaying no force; raised once.
+        if let (Some(timeout), Some(at)) = (self.link_timeout, self.received_at)
+            && now.saturating_since(at) >= timeout
+        {
+            let held = *self.lost_at.get_or_insert(*pose);
+            let lost = self.end.note_link(true);
             out.write(Stamped {
                 stamp: now,
+                value: neutral(self.end.side, &held, pose),
+            });
+            if lost {
+                out.raise(SafetyEvent::LinkLost);
+            }
+            self.end.publish_stats();
+            return;
+        }
+        // Stamped with the arrival of the newest wave, so the loop's watchdog sees a silent
+        // other side (a reference is only made of what was heard).
+        if let Some(stamp) = self.received_at
+            && reference.is_finite()
+        {
+            out.write(Stamped {
+                stamp,
                 value: reference,
             });
+            if restored {
+                out.raise(SafetyEvent::LinkRestored);
+            }
         }
         self.end.publish_stats();
     }

@@ -124,6 +124,22 @@ impl WaveEnd {
         }
     }
 
+    /// Starts the line afresh (after a link loss): the transform's waves, reserves and
+    /// observers, the slave's origin and the master's position origin are forgotten, so the
+    /// next tick starts from where each robot is, as at the law's start.
+    pub fn restart(&mut self) {
+        match &mut self.law {
+            WaveLaw::Master(m) => m.reset(),
+            WaveLaw::Slave(s) => s.reset(),
+        }
+        self.origin = None;
+        self.master_origin = None;
+        self.master_displacement = None;
+        self.clutched_at = None;
+        self.clutch_offset = Vector3::zeros();
+        self.last_tick = None;
+    }
+
     /// Takes the master's tool position that came with its newest wave (the slave's end).
     pub fn hear_master(&mut self, position: &Vector3<f64>) {
         if position.iter().all(|x| x.is_finite()) {
