@@ -52,7 +52,15 @@ fn slave_holds_then_faults_on_a_stale_reference_and_needs_rearm() {
     assert_eq!(s.rearm(), Err(NothingLatched));
     assert_eq!(s.state(), SafetyState::Inactive);
     s.activate(ms(601), &moved).unwrap();
-    assert_eq!(s.supervise(ms(602), &moved, Some(ms(602))), Action::Run);
+    // A reset does not start motion: fresh references are not followed until the loop finds
+    // one that starts where the robot is.
+    assert!(s.awaiting_new_motion());
+    assert_eq!(
+        s.supervise(ms(602), &moved, Some(ms(602))),
+        Action::Hold(moved.position)
+    );
+    s.motion_reanchored();
+    assert_eq!(s.supervise(ms(603), &moved, Some(ms(603))), Action::Run);
 }
 
 #[test]
