@@ -319,7 +319,8 @@ where
         }
 
         // After a re-arm the interrupted motion's references are not followed: the robot holds
-        // until a fresh reference starts where it is (a restarted trajectory, a new command).
+        // until a fresh reference starts where it is held (a restarted trajectory, a new
+        // command).
         if measured
             && self.safety.awaiting_new_motion()
             && let Some(s) = self.latest
@@ -587,11 +588,11 @@ where
         }
     }
 
-    /// True when `reference` starts within [`ControlConfig::resume_tolerance`] of the measured
-    /// state (a wrench alone moves nothing: always true).
+    /// True when `reference` is within [`ControlConfig::resume_tolerance`] of where the robot
+    /// is held (a wrench alone moves nothing: always true).
     fn starts_here(&self, reference: &Reference) -> bool {
         let tol = self.config.resume_tolerance;
-        let q = &self.state.position;
+        let q = &self.safety.hold_position();
         let near_pose = |pose: &penelope_hal::Pose| {
             let here = self.model.forward(q);
             (pose.translation.vector - here.translation.vector).norm() <= tol

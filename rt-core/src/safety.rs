@@ -606,6 +606,12 @@ impl Safety {
         self.awaiting_new_motion
     }
 
+    /// Where the robot is held (in [`SafetyState::Holding`], or faulted with
+    /// [`FaultAction::Hold`]), rad.
+    pub fn hold_position(&self) -> JointVector {
+        self.hold_at
+    }
+
     /// The loop found a fresh reference that starts where the robot is (its producer restarted
     /// from the measured state, or a new motion began there): references are followed again.
     pub fn motion_reanchored(&mut self) {

@@ -286,9 +286,9 @@ fn estop_latches_until_rearmed_and_switching_is_by_index() {
     );
     assert!(at(521).events.contains(SafetyEvent::CommandRejected));
     assert_eq!(at(541).state, SafetyState::Inactive);
-    // The reset does not start motion: the interrupted motion's references (the scenario's
-    // trajectory went on) are not followed; the robot holds where it was activated.
-    assert_eq!(at(600).state, SafetyState::Holding);
+    // Re-activated, the scenario restarts its trajectory from the measured state: it starts
+    // where the robot is held, so the loop follows it again.
+    assert_eq!(at(600).state, SafetyState::Running);
     assert!(s.iter().all(|x| x.fault.is_none()));
 }
 

@@ -175,9 +175,12 @@ fn control_and_comm_loops_allocate_nothing_over_100k_simulated_cycles() {
         let t_ms = now.as_nanos() / 1_000_000;
         let command = match t_ms {
             0 => Some(ControlCommand::Activate),
-            51_500 | 70_030 => Some(ControlCommand::Rearm),
-            51_505 | 70_035 => Some(ControlCommand::Activate),
-            70_000 => Some(ControlCommand::EStop),
+            // The e-stop after the gap at 70 s, so the trajectory restarted at the activation
+            // is published from its start, where the robot is held (one restarted inside the
+            // gap would first be seen 60 ms along, and a reset starts no motion: not followed).
+            51_500 | 70_230 => Some(ControlCommand::Rearm),
+            51_505 | 70_235 => Some(ControlCommand::Activate),
+            70_200 => Some(ControlCommand::EStop),
             t if t % 1_000 == 500 => {
                 Some(ControlCommand::SwitchController(((t / 1_000) % 2) as u8))
             }

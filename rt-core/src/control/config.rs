@@ -50,8 +50,8 @@ pub struct ControlConfig {
     pub tool_position: bool,
     /// Consecutive failed board reads tolerated (the tick is skipped) before faulting.
     pub board_read_tolerance: u32,
-    /// After a re-arm, how close a fresh reference must start to the measured state before it is
-    /// followed (the robot holds until then): rad for joint positions and orientations, m for
+    /// After a re-arm, how close a fresh reference must be to where the robot is held before
+    /// it is followed (the robot holds until then): rad for joint positions and orientations, m for
     /// tool positions.
     pub resume_tolerance: f64,
 }

@@ -251,8 +251,9 @@ pub struct CommTask {
     cartesian: bool,
     measured: Option<JointVector>,
     published: u64,
-    /// The loop's last sample showed a latched fault or e-stop.
-    was_latched: bool,
+    /// Since the loop latched a fault or e-stop, and until it runs again (or a GoTo comes):
+    /// the motion was interrupted, the trajectory is a hold where the robot is.
+    reanchoring: bool,
 }
 
 impl CommTask {
@@ -286,7 +287,7 @@ impl CommTask {
             cartesian,
             measured: None,
             published: 0,
-            was_latched: false,
+            reanchoring: false,
         }
     }
 
@@ -368,19 +369,20 @@ impl CommTask {
         let Some(measured) = self.measured else {
             return;
         };
-        // A motion interrupted by a latched fault or e-stop is abandoned for a hold where the
-        // robot is, while latched and once more on the first tick after the re-arm (from the
-        // pose the loop re-activated at): the reset does not start motion, a new command does.
-        let latched = sample.is_some_and(|s| {
-            matches!(
-                s.state,
-                penelope_rt_core::safety::SafetyState::Fault
-                    | penelope_rt_core::safety::SafetyState::EStop
-            )
-        });
-        let reanchor = latched || self.was_latched;
-        self.was_latched = latched;
         let goto = self.goto.pop();
+        // A motion interrupted by a latched fault or e-stop is abandoned for a hold where the
+        // robot is, re-taken every tick while latched and after the re-arm until the loop
+        // follows it (the loop holds until a reference starts where it holds the robot): the
+        // reset does not start motion, a new command (a GoTo) does.
+        use penelope_rt_core::safety::SafetyState;
+        let state = sample.map(|s| s.state);
+        if matches!(state, Some(SafetyState::Fault | SafetyState::EStop)) {
+            self.reanchoring = true;
+        }
+        if state == Some(SafetyState::Running) || goto.is_some() {
+            self.reanchoring = false;
+        }
+        let reanchor = self.reanchoring;
         let model = &self.model;
         let out = match &mut self.source {
             ReferenceSource::Teleop(_) => return,
