@@ -518,12 +518,11 @@ impl TeleopComm {
             return;
         }
         // Stamped with the arrival of the newest wave, so the loop's watchdog sees a silent
-        // other side (a reference is only made of what was heard).
-        if let Some(stamp) = self.received_at
-            && reference.is_finite()
-        {
+        // other side; before the first one the transform runs on its missing-wave policy (the
+        // line starts at rest), fresh.
+        if reference.is_finite() {
             out.write(Stamped {
-                stamp,
+                stamp: self.received_at.unwrap_or(now),
                 value: reference,
             });
             if restored {
