@@ -334,7 +334,7 @@ fn a_rearm_after_an_estop_mid_move_does_not_start_motion() {
     // The communication task every 4 ms, the loop every 1 ms, on a simulated clock.
     let mut t = 0;
     macro_rules! run_until {
-        ($end:expr, $each:expr) => {
+        ($end:expr, $each:block) => {
             let end = $end;
             while t < end {
                 t += 1;
@@ -342,7 +342,7 @@ fn a_rearm_after_an_estop_mid_move_does_not_start_motion() {
                     comm.tick(ms(t));
                 }
                 ctl.tick(ms(t));
-                $each;
+                $each
             }
         };
     }
@@ -356,7 +356,7 @@ fn a_rearm_after_an_estop_mid_move_does_not_start_motion() {
     let stopped_at = ctl.board().true_position()[0];
     ctl.apply(ms(t), ControlCommand::EStop);
     // Well past the move's end, then reset as the creator does: re-arm, activate.
-    run_until!(t + 3_000, ());
+    run_until!(t + 3_000, {});
     let at_rearm = ctl.board().true_position();
     ctl.apply(ms(t), ControlCommand::Rearm);
     ctl.apply(ms(t), ControlCommand::Activate);
@@ -378,7 +378,7 @@ fn a_rearm_after_an_estop_mid_move_does_not_start_motion() {
     // An explicit new command (the trajectory restarted from the measured state) moves it.
     let q = ctl.joint_state().position;
     comm.start(ms(t), &here(q));
-    run_until!(t + 2_000, ());
+    run_until!(t + 2_000, {});
     assert_eq!(ctl.safety().state(), SafetyState::Running);
     let to_goal = (ctl.board().true_position()[0] - 1.0).abs();
     assert!(
