@@ -125,7 +125,7 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
     loop {
         let o = ctl(naming, &["ls"]);
         let listed = text(&o).0;
-        if o.status.success() && NODES.iter().all(|n| listed.contains(&format!("/{n}/"))) {
+        if o.status.success() && NODES.iter().all(|n| listed.contains(&format!("node {n} at"))) {
             break;
         }
         assert!(
@@ -181,8 +181,9 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
         assert_eq!(r["stopped"], serde_json::json!(["pid"]), "{node}: {r}");
         assert_eq!(r["pending"], serde_json::json!([]), "{node}: {r}");
     }
+    // Their telemetry says so too (the node's pump publishes samples a little later).
     for node in NODES {
-        assert_eq!(loop_state(naming, node), "estop", "{node}");
+        wait_state(naming, node, &["estop"]);
     }
 
     // One node: only its loops.
@@ -200,7 +201,7 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
         out.contains("west: e-stop latched by 1 loop(s) (pid)"),
         "{out}"
     );
-    assert_eq!(loop_state(naming, "west"), "estop");
+    wait_state(naming, "west", &["estop"]);
     for node in ["east", "north"] {
         assert_ne!(loop_state(naming, node), "estop", "{node} was stopped too");
     }
