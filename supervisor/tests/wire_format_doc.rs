@@ -15,8 +15,7 @@ use penelope_supervisor::net::frame;
 use penelope_supervisor::proto::{
     Call, ClientHello, ClientMsg, CreatorCall, DEFAULT_MAX_FRAME, LinkBatch, LinkRecord, MAGIC,
     Method, PROTOCOL_VERSION, PoseMsg, Reply, RobotMethod, Role, Security, ServerHello, ServerMsg,
-    StopReport,
-    TelemetryBatch, TelemetryRecord, WireError, WrenchMsg,
+    StopReport, TelemetryBatch, TelemetryRecord, WireError, WrenchMsg,
 };
 use serde::Serialize;
 

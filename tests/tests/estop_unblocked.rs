@@ -80,7 +80,11 @@ impl Lab {
         let client = Client::connect(naming.local_addr(), ClientConfig::node(NODE)).unwrap();
         let bind = |class: Class, name: &str, kind: &str| {
             let path = object_path(NODE, class, name);
-            let name = if class == Class::Creator { "creator" } else { name };
+            let name = if class == Class::Creator {
+                "creator"
+            } else {
+                name
+            };
             client
                 .naming()
                 .bind(
@@ -168,7 +172,10 @@ impl Lab {
                 // A non-blocking writer opens only once the create has the FIFO open.
                 let deadline = Instant::now() + Duration::from_secs(20);
                 while writer.is_none() && !create.is_finished() {
-                    assert!(Instant::now() < deadline, "the create never opened the FIFO");
+                    assert!(
+                        Instant::now() < deadline,
+                        "the create never opened the FIFO"
+                    );
                     writer = std::fs::OpenOptions::new()
                         .write(true)
                         .custom_flags(0o4000) // O_NONBLOCK
@@ -218,7 +225,10 @@ impl Lab {
             // refused), or the hook lets go.
             drop(writer);
             if let Some(create) = fifo_create {
-                assert!(create.join().unwrap().is_err(), "an empty URDF was accepted");
+                assert!(
+                    create.join().unwrap().is_err(),
+                    "an empty URDF was accepted"
+                );
             }
             let _ = release_tx.send(());
             if let Some(hold) = hold {
@@ -265,7 +275,11 @@ fn an_estop_is_served_and_latched_while_a_create_holds_the_registry() {
     assert!(!amplifiers_on(&lab.creator));
 
     // Re-armed; then one controller's e-stop, likewise while the registry is held.
-    ok(&lab.creator, "pid", Method::Controller(ControllerMethod::Rearm));
+    ok(
+        &lab.creator,
+        "pid",
+        Method::Controller(ControllerMethod::Rearm),
+    );
     wait_until("the loop runs again", || {
         matches!(loop_state(&lab.creator).0.as_str(), "running" | "holding")
     });

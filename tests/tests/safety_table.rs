@@ -74,7 +74,11 @@ fn rows(doc: &str) -> Vec<(String, String)> {
                 .collect::<Vec<_>>()
         })
         // The header and its separator.
-        .filter(|cells| cells.first().is_some_and(|c| c != "hazard" && !c.starts_with("---")))
+        .filter(|cells| {
+            cells
+                .first()
+                .is_some_and(|c| c != "hazard" && !c.starts_with("---"))
+        })
         .map(|cells| {
             (
                 cells.first().cloned().unwrap_or_default(),

@@ -75,7 +75,10 @@ fn script(name: &str, body: &str) -> PathBuf {
 
 /// The safety state of `node`'s PID loop, from its newest sample.
 fn loop_state(naming: SocketAddr, node: &str) -> String {
-    let o = ctl(naming, &["--json", "call", &format!("{node}/pid"), "status"]);
+    let o = ctl(
+        naming,
+        &["--json", "call", &format!("{node}/pid"), "status"],
+    );
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
     let reply: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
@@ -125,7 +128,11 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
     loop {
         let o = ctl(naming, &["ls"]);
         let listed = text(&o).0;
-        if o.status.success() && NODES.iter().all(|n| listed.contains(&format!("node {n} at"))) {
+        if o.status.success()
+            && NODES
+                .iter()
+                .all(|n| listed.contains(&format!("node {n} at")))
+        {
             break;
         }
         assert!(
@@ -210,7 +217,10 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
     let o = ctl(naming, &["estop", "/north/controllers/pid"]);
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
-    assert!(out.contains("/north/controllers/pid: e-stop latched"), "{out}");
+    assert!(
+        out.contains("/north/controllers/pid: e-stop latched"),
+        "{out}"
+    );
     wait_state(naming, "north", &["estop"]);
     assert_ne!(loop_state(naming, "east"), "estop");
 

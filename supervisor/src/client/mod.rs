@@ -64,6 +64,10 @@ pub use proxy::{
 };
 pub use telemetry::{LinkStream, Streamed, Subscription, TelemetryStream};
 
+/// One node's answer to [`Client::estop_all`]: its name, and its report or why it was not
+/// reached.
+pub type NodeStop = (String, Result<StopReport, RpcError>);
+
 /// The deepest context [`NamingProxy::tree`] walks into.
 pub const MAX_TREE_DEPTH: usize = 16;
 
@@ -293,7 +297,7 @@ impl Client {
     ///
     /// # Errors
     /// Transport errors reaching the naming service (the list of nodes).
-    pub fn estop_all(&self) -> Result<Vec<(String, Result<StopReport, RpcError>)>, RpcError> {
+    pub fn estop_all(&self) -> Result<Vec<NodeStop>, RpcError> {
         let mut nodes = Vec::new();
         let mut unreachable = Vec::new();
         for entry in self.naming().list("/")? {
@@ -305,24 +309,23 @@ impl Client {
                 }
             }
         }
-        let mut answers: Vec<(String, Result<StopReport, RpcError>)> =
-            std::thread::scope(|s| {
-                let asked: Vec<_> = nodes
-                    .iter()
-                    .map(|n| (n.name().to_string(), s.spawn(move || n.estop())))
-                    .collect();
-                asked
-                    .into_iter()
-                    .map(|(name, t)| {
-                        let answer = t.join().unwrap_or_else(|_| {
-                            Err(RpcError::Remote(WireError::Internal(
-                                "the e-stop thread panicked".into(),
-                            )))
-                        });
-                        (name, answer)
-                    })
-                    .collect()
-            });
+        let mut answers: Vec<NodeStop> = std::thread::scope(|s| {
+            let asked: Vec<_> = nodes
+                .iter()
+                .map(|n| (n.name().to_string(), s.spawn(move || n.estop())))
+                .collect();
+            asked
+                .into_iter()
+                .map(|(name, t)| {
+                    let answer = t.join().unwrap_or_else(|_| {
+                        Err(RpcError::Remote(WireError::Internal(
+                            "the e-stop thread panicked".into(),
+                        )))
+                    });
+                    (name, answer)
+                })
+                .collect()
+        });
         answers.extend(unreachable);
         Ok(answers)
     }

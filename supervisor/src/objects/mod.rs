@@ -698,14 +698,11 @@ impl Service for Creator {
         // Stops first: before reaping (which takes the registry lock) and without that lock.
         match &call {
             Call::Creator(CreatorCall::EStop) => return Ok(Reply::Stopped(self.estop_all())),
+            // A controller whose loop is not running falls through: the registry says why.
             Call::Object {
                 object,
                 method: Method::Controller(ControllerMethod::EStop),
-            } => {
-                if self.estop_loop(object).is_some() {
-                    return Ok(Reply::Unit);
-                }
-            }
+            } if self.estop_loop(object).is_some() => return Ok(Reply::Unit),
             _ => {}
         }
         self.reap_failed();

@@ -137,7 +137,7 @@ mod tests {
                 }
                 false
             });
-            let report = board.stop_all("n", Duration::from_secs(5));
+            let report = board.stop_all("n", Duration::from_secs(1));
             assert!(ticker.join().unwrap());
             report
         });

@@ -75,7 +75,8 @@ impl ControllerProxy {
     /// # Errors
     /// [`WireError::NotReady`] when no loop runs; transport errors.
     pub fn estop(&self) -> Result<(), RpcError> {
-        self.handle.unit_alone(Method::Controller(ControllerMethod::EStop))
+        self.handle
+            .unit_alone(Method::Controller(ControllerMethod::EStop))
     }
 
     /// Re-arms the controller: a running loop clears its latched fault or e-stop (and its

@@ -493,7 +493,11 @@ impl Ctl {
                     (address, r.name.clone(), path_of(&r))
                 } else {
                     let (node, name) = path.split_once('/').unwrap_or((path, ""));
-                    (client.node(node)?.address(), name.to_string(), path.to_string())
+                    (
+                        client.node(node)?.address(),
+                        name.to_string(),
+                        path.to_string(),
+                    )
                 };
                 let call = Call::Object {
                     object: name,
