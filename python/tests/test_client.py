@@ -156,23 +156,33 @@ def running_pid(c: penelope.Client) -> penelope.Controller:
     return pid
 
 
+def wait_state(pid: penelope.Controller, *states: str) -> None:
+    """Waits (at most 10 s, a bound against a hang) until the loop's newest published sample
+    shows one of ``states`` (the node publishes samples a little after the ticks)."""
+    deadline = time.monotonic() + 10.0
+    while True:
+        last = pid.status()["last"]
+        if last is not None and last["state"] in states:
+            return
+        if time.monotonic() > deadline:
+            pytest.fail(f"the loop never showed {states}: {pid.status()}")
+        time.sleep(0.01)
+
+
 def test_estop_of_a_node_and_of_everything_latches_the_running_loop(node) -> None:
     c = penelope.connect(node.naming)
     pid = running_pid(c)
+    wait_state(pid, "running", "holding")
     # The node's red button: the loop latched its e-stop before the answer came back.
     report = c.estop_node("lab")
     assert report == {"node": "lab", "stopped": ["pid"], "pending": []}, report
-    assert pid.status()["last"]["state"] == "estop"
+    wait_state(pid, "estop")
     # Re-armed, it runs again; then the whole system's button stops it again.
     pid.rearm()
-    deadline = time.monotonic() + 10.0
-    while pid.status()["last"]["state"] not in ("running", "holding"):
-        if time.monotonic() > deadline:
-            pytest.fail(f"the loop did not run again after the re-arm: {pid.status()}")
-        time.sleep(0.01)
+    wait_state(pid, "running", "holding")
     everything = c.estop_all()
     assert everything == [{"node": "lab", "stopped": ["pid"], "pending": []}], everything
-    assert pid.status()["last"]["state"] == "estop"
+    wait_state(pid, "estop")
     with pytest.raises(penelope.UnknownName):
         c.estop_node("no-such-node")
     c.deactivate(pid)
