@@ -355,3 +355,74 @@ mod decoder_props {
         }
     }
 }
+
+#[test]
+fn a_rebooted_box_is_taken_back_and_reordering_is_still_refused() {
+    let mut bx = ScriptedBox::new();
+    let mut cfg = config(bx.addr());
+    // A long timeout: records sent back to back are never apart by that much.
+    cfg.timeout = Duration::from_millis(200);
+    let ft = NetFt::open(cfg).unwrap();
+    let mut reader = ft.reader();
+    assert_eq!(bx.expect_bytes(), [0x12, 0x34, 0x00, 0x02, 0, 0, 0, 0]);
+    for seq in 5000..5003 {
+        bx.record(seq, 0, [0; 6]);
+    }
+    // Far behind but without a silence: a reordered (or forged) record, refused.
+    bx.record(10, 0, [0; 6]);
+    wait_until("three records and one refused", || {
+        let c = ft.counters();
+        c.records == 3 && c.out_of_order == 1
+    });
+    assert_eq!(ft.counters().restarts, 0);
+
+    // The box reboots: silent for longer than the timeout, then a sequence from 0.
+    wait_until("the silence to be counted", || ft.counters().timeouts >= 1);
+    bx.record(0, 0, [1_000_000, 0, 0, 0, 0, 0]);
+    bx.record(1, 0, [1_000_000, 0, 0, 0, 0, 0]);
+    wait_until("the new sequence taken", || ft.counters().records == 5);
+    let c = ft.counters();
+    assert_eq!((c.restarts, c.out_of_order, c.missed), (1, 1, 0), "{c:?}");
+    let w = first_reading(&mut reader).expect("the sensor reads again");
+    assert_eq!(w.force.as_slice(), &[1.0, 0.0, 0.0]);
+    // Just behind the new sequence: reordering again, refused.
+    bx.record(0, 0, [0; 6]);
+    wait_until("the duplicate refused", || ft.counters().out_of_order == 2);
+}
+
+#[test]
+fn the_emulator_restarted_under_a_streaming_driver_is_read_again_within_a_second() {
+    let load = |_t: Duration| [0.0, 0.0, 5.0, 0.0, 0.0, 0.0];
+    let emu = NetFtEmulator::spawn(EmulatorConfig::default(), load).unwrap();
+    let address = emu.local_addr();
+    let ft = NetFt::open(NetFtConfig::new(address)).unwrap();
+    let mut reader = ft.reader();
+    // Long enough that its sequence is far ahead of a new one's.
+    assert!(ft.wait_for_records(500, PATIENCE), "{:?}", ft.counters());
+    assert!(first_reading(&mut reader).is_ok());
+
+    // The box reboots: the emulator stops and another starts on the same port, from 0.
+    emu.stop();
+    let emu = NetFtEmulator::spawn(
+        EmulatorConfig {
+            bind: address,
+            ..EmulatorConfig::default()
+        },
+        load,
+    )
+    .unwrap();
+    let restarted = Instant::now();
+    wait_until("the restarted box's records", || {
+        ft.counters().restarts == 1 && reader.read(MonotonicClock::read()).is_ok()
+    });
+    let back = restarted.elapsed();
+    let c = ft.counters();
+    eprintln!(
+        "sensor back {back:?} after the emulator restarted; refused as out of order: {}",
+        c.out_of_order
+    );
+    assert!(back < Duration::from_secs(1), "{back:?}");
+    // Nothing of the new sequence was refused: it was taken at its first record.
+    assert!(c.out_of_order <= 1, "{c:?}");
+    emu.stop();
+}

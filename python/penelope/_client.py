@@ -105,6 +105,19 @@ class Client:
         """The names of the registered nodes."""
         return self._native.nodes()
 
+    def estop_node(self, node: str) -> Dict[str, Any]:
+        """Latches the e-stop of every loop running on ``node``, on a connection of its own
+        (never behind another call, served by the node before any other work): a dict with
+        ``node``, ``stopped`` (the controllers whose loops latched it before the answer) and
+        ``pending`` (asked, not yet ticked)."""
+        return self._native.estop_node(node)
+
+    def estop_all(self) -> List[Dict[str, Any]]:
+        """The red button: latches the e-stop of every loop on every node of the naming tree,
+        the nodes asked in parallel. One dict per node as :meth:`estop_node` returns; a node that
+        could not be reached has an ``error`` message (raise or retry: it is not stopped)."""
+        return self._native.estop_all()
+
     def kinds(self, node: Optional[str] = None) -> List[Dict[str, str]]:
         """The kinds ``node`` can create (every node's when ``None``), as dicts: ``kind``,
         ``class``, ``summary`` and ``config`` (its keys, with units and defaults)."""

@@ -53,6 +53,18 @@ fn read_secret(file: &Path) -> PyResult<Vec<u8>> {
     Ok(bytes)
 }
 
+/// A node's e-stop report as a dict: `node`, `stopped`, `pending`.
+fn stop_report<'py>(
+    py: Python<'py>,
+    report: &penelope_supervisor::proto::StopReport,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("node", &report.node)?;
+    d.set_item("stopped", &report.stopped)?;
+    d.set_item("pending", &report.pending)?;
+    Ok(d)
+}
+
 impl Client {
     /// The node hosting the object `spec` names, and the object's name there.
     fn node_of(&self, spec: &str) -> Result<(NodeProxy, String), RpcError> {
@@ -131,6 +143,36 @@ impl Client {
     fn nodes(&self, py: Python<'_>) -> PyResult<Vec<String>> {
         let nodes = py.detach(|| self.inner.nodes()).map_err(Error)?;
         Ok(nodes.iter().map(|n| n.name().to_string()).collect())
+    }
+
+    /// Latches the e-stop of every loop of `node`, on a connection of its own (never behind
+    /// another call): a dict with `node`, `stopped` (loops that latched it before the answer)
+    /// and `pending` (asked, not yet ticked).
+    fn estop_node<'py>(&self, py: Python<'py>, node: &str) -> PyResult<Bound<'py, PyDict>> {
+        let report = py
+            .detach(|| self.inner.node(node)?.estop())
+            .map_err(Error)?;
+        stop_report(py, &report)
+    }
+
+    /// Latches the e-stop of every loop on every node, the nodes asked in parallel: one dict
+    /// per node as [`Client::estop_node`]'s, plus `error` (the message) for a node not reached.
+    fn estop_all<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        let answers = py.detach(|| self.inner.estop_all()).map_err(Error)?;
+        answers
+            .iter()
+            .map(|(node, answer)| match answer {
+                Ok(report) => stop_report(py, report),
+                Err(e) => {
+                    let d = PyDict::new(py);
+                    d.set_item("node", node)?;
+                    d.set_item("stopped", Vec::<String>::new())?;
+                    d.set_item("pending", Vec::<String>::new())?;
+                    d.set_item("error", e.to_string())?;
+                    Ok(d)
+                }
+            })
+            .collect()
     }
 
     /// The kinds `node` can create (every node's, each kind once, when `None`).

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import re
 import subprocess
+import time
 from pathlib import Path
 from typing import List
 
@@ -139,6 +140,52 @@ def test_watch_yields_telemetry_samples(node) -> None:
     c.deactivate(pid)
     c.destroy("lab/pid")
     c.destroy(robot, force=True)
+
+
+def running_pid(c: penelope.Client) -> penelope.Controller:
+    """A joint PID holding the PUMA 560 at its start pose, active."""
+    puma(c)
+    hold = c.create("lab", "trajectory/step", "hold", pose="start")
+    pid = c.create("lab", "controller/joint-pid", "pid", period_us=PERIOD_US)
+    assert isinstance(pid, penelope.Controller)
+    pid.set_robot("slave")
+    pid.set_trajectory("hold")
+    hold.configure()
+    pid.configure()
+    assert pid.activate()["state"] == "active"
+    return pid
+
+
+def wait_state(pid: penelope.Controller, *states: str) -> None:
+    """Waits (at most 10 s, a bound against a hang) until the loop's newest published sample
+    shows one of ``states`` (the node publishes samples a little after the ticks)."""
+    deadline = time.monotonic() + 10.0
+    while True:
+        last = pid.status()["last"]
+        if last is not None and last["state"] in states:
+            return
+        if time.monotonic() > deadline:
+            pytest.fail(f"the loop never showed {states}: {pid.status()}")
+        time.sleep(0.01)
+
+
+def test_estop_of_a_node_and_of_everything_latches_the_running_loop(node) -> None:
+    c = penelope.connect(node.naming)
+    pid = running_pid(c)
+    wait_state(pid, "running", "holding")
+    # The node's red button: the loop latched its e-stop before the answer came back.
+    report = c.estop_node("lab")
+    assert report == {"node": "lab", "stopped": ["pid"], "pending": []}, report
+    wait_state(pid, "estop")
+    # Re-armed, it runs again; then the whole system's button stops it again.
+    pid.rearm()
+    wait_state(pid, "running", "holding")
+    everything = c.estop_all()
+    assert everything == [{"node": "lab", "stopped": ["pid"], "pending": []}], everything
+    wait_state(pid, "estop")
+    with pytest.raises(penelope.UnknownName):
+        c.estop_node("no-such-node")
+    c.deactivate(pid)
 
 
 def test_errors_carry_the_wire_error_kind(node) -> None:

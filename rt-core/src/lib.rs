@@ -11,6 +11,8 @@
 //!   [`DurationStats`](stats::DurationStats).
 //! - [`clock`] and [`sim`]: time sources, and a runner that steps periodic loops in timestamp order
 //!   on a simulated clock, deterministically.
+//! - [`stop`]: [`StopLatch`](stop::StopLatch), an e-stop request any thread raises without a
+//!   lock or a queue, latched by the control loop on its next tick.
 //! - [`safety`]: the always-on safety state machine (watchdog, limits, e-stop latch).
 //! - [`controller`]: control laws ([`JointPid`](controller::JointPid)) and
 //!   [`ControllerSet`](controller::ControllerSet).
@@ -35,6 +37,7 @@ pub mod ring;
 pub mod safety;
 pub mod sim;
 pub mod stats;
+pub mod stop;
 pub mod telemetry;
 pub mod teleop;
 pub mod trajectory;

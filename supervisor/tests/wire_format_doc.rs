@@ -15,7 +15,7 @@ use penelope_supervisor::net::frame;
 use penelope_supervisor::proto::{
     Call, ClientHello, ClientMsg, CreatorCall, DEFAULT_MAX_FRAME, LinkBatch, LinkRecord, MAGIC,
     Method, PROTOCOL_VERSION, PoseMsg, Reply, RobotMethod, Role, Security, ServerHello, ServerMsg,
-    TelemetryBatch, TelemetryRecord, WireError, WrenchMsg,
+    StopReport, TelemetryBatch, TelemetryRecord, WireError, WrenchMsg,
 };
 use serde::Serialize;
 
@@ -261,6 +261,24 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
                 received_ns: 1_000_000,
                 sent_ns: 1_000_064,
             }),
+        }),
+    );
+    m.insert(
+        "request-estop",
+        framed(&ClientMsg::Request {
+            id: 6,
+            call: Call::Creator(CreatorCall::EStop),
+        }),
+    );
+    m.insert(
+        "response-stopped",
+        framed(&ServerMsg::Response {
+            id: 6,
+            result: Ok(Reply::Stopped(StopReport {
+                node: "lab".into(),
+                stopped: vec!["pid".into()],
+                pending: vec![],
+            })),
         }),
     );
     m.insert("client-bye", framed(&ClientMsg::Bye));

@@ -107,4 +107,12 @@ fn bad_input_exits_2_and_an_absent_box_exits_1() {
         String::from_utf8_lossy(&o.stderr).contains("no RDT record"),
         "{o:?}"
     );
+    // An IP address alone means the box's own port, 49152 (nothing listens there on loopback
+    // here: the read times out, the address is not refused).
+    let o = netft("127.0.0.1", &["--timeout-ms", "2", "read"]);
+    assert_eq!(o.status.code(), Some(1), "{o:?}");
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("no RDT record from 127.0.0.1:49152"),
+        "{o:?}"
+    );
 }

@@ -49,7 +49,7 @@ pub mod sensor;
 pub mod wire;
 
 pub use sensor::{
-    MAX_READERS, NetFt, NetFtConfig, NetFtCounters, NetFtError, NetFtReader, NetFtSample,
-    SampleFault,
+    AddressError, MAX_READERS, NetFt, NetFtConfig, NetFtCounters, NetFtError, NetFtReader,
+    NetFtSample, SampleFault, parse_address,
 };
 pub use wire::{Calibration, Command, RDT_PORT, Record, Request, Status, WireError};

@@ -29,6 +29,11 @@ use penelope_rt_core::clock::MonotonicClock;
 
 use super::wire::{Calibration, Command, RECORD_LEN, Record, Request, Status, records_missed};
 
+/// A record this many or fewer behind the last one is taken as reordered (refused); further
+/// behind, after a silence of at least the timeout, as the first of a restarted box's new
+/// sequence (a reboot restarts the RDT sequence at 0; a network reorders by a few records).
+pub const REORDER_WINDOW: u32 = 64;
+
 /// The most readers (control loops, one at a time, and tools) one sensor feeds.
 pub const MAX_READERS: usize = 4;
 
@@ -37,6 +42,54 @@ const RECEIVE_BUFFER: usize = 2 << 20;
 
 /// Cells the I/O thread feeds: the owner's monitor and [`MAX_READERS`] readers.
 const CELLS: usize = MAX_READERS + 1;
+
+/// A box's RDT address as a person writes it: `ip:port`, `[v6]:port`, or an IP address
+/// alone, which means the box's own port [`RDT_PORT`](super::wire::RDT_PORT) (49152). No
+/// host names: resolving one could block the caller.
+///
+/// ```
+/// use penelope_drivers::netft::sensor::parse_address;
+/// assert_eq!(parse_address("192.168.1.1").unwrap().to_string(), "192.168.1.1:49152");
+/// assert_eq!(parse_address("127.0.0.1:7000").unwrap().port(), 7000);
+/// assert_eq!(parse_address("fe80::1").unwrap().to_string(), "[fe80::1]:49152");
+/// assert!(parse_address("box.lab:49152").is_err());
+/// ```
+///
+/// # Errors
+/// [`AddressError`] saying what was expected.
+pub fn parse_address(text: &str) -> Result<SocketAddr, AddressError> {
+    let text = text.trim();
+    if let Ok(address) = text.parse::<SocketAddr>() {
+        return Ok(address);
+    }
+    let bare = text
+        .strip_prefix('[')
+        .and_then(|t| t.strip_suffix(']'))
+        .unwrap_or(text);
+    match bare.parse::<std::net::IpAddr>() {
+        Ok(ip) => Ok(SocketAddr::new(ip, super::wire::RDT_PORT)),
+        Err(_) => Err(AddressError(text.chars().take(80).collect())),
+    }
+}
+
+/// An RDT address that is neither `ip:port` nor an IP address.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct AddressError(String);
+
+impl core::fmt::Display for AddressError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(
+            f,
+            "{:?} is not a box's address: give ip:port, or an IP address alone for port {} \
+             (e.g. 192.168.1.1 or 192.168.1.1:{})",
+            self.0,
+            super::wire::RDT_PORT,
+            super::wire::RDT_PORT
+        )
+    }
+}
+
+impl std::error::Error for AddressError {}
 
 /// Settings of a [`NetFt`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -160,6 +213,7 @@ struct Counters {
     records: AtomicU64,
     malformed: AtomicU64,
     out_of_order: AtomicU64,
+    restarts: AtomicU64,
     missed: AtomicU64,
     gaps: AtomicU64,
     loss_faults: AtomicU64,
@@ -181,6 +235,9 @@ pub struct NetFtCounters {
     pub malformed: u64,
     /// Records older than or equal to the last one (duplicated or reordered), refused.
     pub out_of_order: u64,
+    /// Sequences restarted (the box rebooted: a large backward jump after a silence), each
+    /// taken as the new sequence at once.
+    pub restarts: u64,
     /// Records missed, by RDT sequence number.
     pub missed: u64,
     /// Gaps in the sequence (bursts of one or more missed records).
@@ -207,6 +264,7 @@ impl Counters {
             records: g(&self.records),
             malformed: g(&self.malformed),
             out_of_order: g(&self.out_of_order),
+            restarts: g(&self.restarts),
             missed: g(&self.missed),
             gaps: g(&self.gaps),
             loss_faults: g(&self.loss_faults),
@@ -285,6 +343,7 @@ impl NetFt {
             new_readers,
             writers,
             last_sequence: None,
+            last_good: None,
             loss_until: None,
         };
         let thread = std::thread::Builder::new()
@@ -422,6 +481,8 @@ struct IoThread {
     new_readers: Receiver<ArcLatestWriter<NetFtSample>>,
     writers: heapless::Vec<ArcLatestWriter<NetFtSample>, CELLS>,
     last_sequence: Option<u32>,
+    /// When the last good record arrived (to tell a restarted box from reordering).
+    last_good: Option<Timestamp>,
     loss_until: Option<(Timestamp, u32)>,
 }
 
@@ -492,11 +553,25 @@ impl IoThread {
         let stamp = MonotonicClock::read();
         if let Some(last) = self.last_sequence {
             let step = record.rdt_sequence.wrapping_sub(last);
-            if step == 0 || step > u32::MAX / 2 {
+            let behind = last.wrapping_sub(record.rdt_sequence);
+            let silence = self
+                .last_good
+                .map_or(Duration::MAX, |t| stamp.saturating_since(t));
+            let restarted = (step == 0 || step > u32::MAX / 2)
+                && behind > REORDER_WINDOW
+                && silence >= self.config.timeout;
+            if restarted {
+                // The box rebooted: its new sequence starts here (no loss counted).
+                bump(&self.counters.restarts);
+            } else if step == 0 || step > u32::MAX / 2 {
                 bump(&self.counters.out_of_order);
                 return false;
             }
-            let missed = records_missed(last, record.rdt_sequence);
+            let missed = if restarted {
+                0
+            } else {
+                records_missed(last, record.rdt_sequence)
+            };
             if missed > 0 {
                 self.counters
                     .missed
@@ -509,6 +584,7 @@ impl IoThread {
             }
         }
         self.last_sequence = Some(record.rdt_sequence);
+        self.last_good = Some(stamp);
         bump(&self.counters.records);
         let status = record.status;
         let fault = if status.is_saturated() {

@@ -55,7 +55,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use crate::net::conn::{ClientConfig, Connection, RpcError};
 use crate::proto::{
     Call, Class, CreatorCall, KindInfo, Method, NameEntry, NamingCall, NodeInfo, ObjectInfo,
-    ObjectRef, Reply, WireError,
+    ObjectRef, Reply, StopReport, WireError,
 };
 
 pub use proxy::{
@@ -63,6 +63,10 @@ pub use proxy::{
     TrajectoryProxy, TypedProxy,
 };
 pub use telemetry::{LinkStream, Streamed, Subscription, TelemetryStream};
+
+/// One node's answer to [`Client::estop_all`]: its name, and its report or why it was not
+/// reached.
+pub type NodeStop = (String, Result<StopReport, RpcError>);
 
 /// The deepest context [`NamingProxy::tree`] walks into.
 pub const MAX_TREE_DEPTH: usize = 16;
@@ -274,6 +278,56 @@ impl Client {
             *conn = None;
         }
         result
+    }
+
+    /// Sends one `call` on a connection of its own, opened for it and closed after: an e-stop
+    /// must not wait behind another call of this client on the cached connection (calls to one
+    /// node are serialized there, and one may be slow).
+    ///
+    /// # Errors
+    /// The node's error ([`RpcError::Remote`]) or a transport error.
+    pub fn call_alone(&self, address: SocketAddr, call: Call) -> Result<Reply, RpcError> {
+        Connection::connect(address, &self.inner.config)?.call(call)
+    }
+
+    /// Latches the e-stop of every loop on every node in the naming tree, the nodes asked at
+    /// once (one connection and one round trip each, in parallel), like a console's red button.
+    /// Returns each node's answer or its error, by node name; a node that cannot be reached
+    /// is in the list with its error, never skipped silently.
+    ///
+    /// # Errors
+    /// Transport errors reaching the naming service (the list of nodes).
+    pub fn estop_all(&self) -> Result<Vec<NodeStop>, RpcError> {
+        let mut nodes = Vec::new();
+        let mut unreachable = Vec::new();
+        for entry in self.naming().list("/")? {
+            if let NameEntry::Context { name } = entry {
+                match self.node(&name) {
+                    Ok(node) => nodes.push(node),
+                    Err(RpcError::Remote(WireError::UnknownName(_))) => {}
+                    Err(e) => unreachable.push((name, Err(e))),
+                }
+            }
+        }
+        let mut answers: Vec<NodeStop> = std::thread::scope(|s| {
+            let asked: Vec<_> = nodes
+                .iter()
+                .map(|n| (n.name().to_string(), s.spawn(move || n.estop())))
+                .collect();
+            asked
+                .into_iter()
+                .map(|(name, t)| {
+                    let answer = t.join().unwrap_or_else(|_| {
+                        Err(RpcError::Remote(WireError::Internal(
+                            "the e-stop thread panicked".into(),
+                        )))
+                    });
+                    (name, answer)
+                })
+                .collect()
+        });
+        answers.extend(unreachable);
+        Ok(answers)
     }
 
     /// Opens a telemetry subscription to the object at `path` (a controller, or a robot driven by
@@ -694,6 +748,22 @@ impl NodeProxy {
         match self.creator(CreatorCall::RecordStop)? {
             Reply::Recorded { path, ticks } => Ok((path, ticks)),
             other => Err(unexpected("a finished recording", &other)),
+        }
+    }
+
+    /// Latches the e-stop of every loop running on this node, on a connection of its own
+    /// ([`Client::call_alone`]): the node answers without waiting for any other call. Returns
+    /// which loops latched it before the answer and which had yet to tick.
+    ///
+    /// # Errors
+    /// Transport errors.
+    pub fn estop(&self) -> Result<StopReport, RpcError> {
+        match self
+            .client
+            .call_alone(self.address, Call::Creator(CreatorCall::EStop))?
+        {
+            Reply::Stopped(report) => Ok(report),
+            other => Err(unexpected("an e-stop report", &other)),
         }
     }
 

@@ -91,6 +91,19 @@ impl ObjectHandle {
         }
     }
 
+    /// Calls `method` on a connection of its own ([`Client::call_alone`]), expecting
+    /// [`Reply::Unit`]: for stops, which must not wait behind this client's other calls.
+    pub(crate) fn unit_alone(&self, method: Method) -> Result<(), RpcError> {
+        let call = crate::proto::Call::Object {
+            object: self.reference.name.clone(),
+            method,
+        };
+        match self.client.call_alone(self.address, call)? {
+            Reply::Unit => Ok(()),
+            other => Err(unexpected("nothing", &other)),
+        }
+    }
+
     /// Refuses a handle of another class than `expected`.
     fn expect(self, expected: Class) -> Result<ObjectHandle, RpcError> {
         if self.reference.class == expected {

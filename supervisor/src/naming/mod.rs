@@ -65,5 +65,5 @@ mod tests;
 mod tree;
 
 pub use authorize::authorize;
-pub use service::{NamingService, Reaper};
+pub use service::{NamingService, Reaper, STALE_PROBE_TIMEOUT};
 pub use tree::{MAX_ADDRESS_LEN, MAX_KIND_LEN, NamingLimits, NamingTree, NodeLease};

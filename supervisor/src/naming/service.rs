@@ -10,6 +10,20 @@ use super::{NamingLimits, NamingTree, authorize};
 use crate::proto::{Call, NamingCall, NodeInfo, Reply, WireError};
 use crate::service::{Service, Session};
 
+/// How long the naming service waits for a node's previous address to accept a connection
+/// before taking its registration as stale (a live node's kernel accepts at once, even when the
+/// node is busy).
+pub const STALE_PROBE_TIMEOUT: Duration = Duration::from_millis(300);
+
+/// Whether something accepts a TCP connection at `address` within [`STALE_PROBE_TIMEOUT`]. An
+/// address that is not `ip:port` cannot be probed without a name look-up: taken as alive.
+fn answers(address: &str) -> bool {
+    match address.parse::<std::net::SocketAddr>() {
+        Ok(a) => std::net::TcpStream::connect_timeout(&a, STALE_PROBE_TIMEOUT).is_ok(),
+        Err(_) => true,
+    }
+}
+
 /// The naming service: a [`NamingTree`] behind a mutex, on a monotonic clock.
 ///
 /// Leases are checked lazily before every call ([`NamingService::handle`]) and, when
@@ -61,13 +75,47 @@ impl NamingService {
     ///
     /// # Errors
     /// The call's typed error (see [`NamingTree`]).
+    ///
+    /// A node registering while its name is held by a live lease at another address takes the
+    /// name back when nothing answers at that address any more (the holder is its own previous
+    /// run, killed before it could unregister): the address is probed with one TCP connection
+    /// ([`STALE_PROBE_TIMEOUT`]), outside the tree's lock, and the stale entry is replaced. A
+    /// holder that accepts the connection is alive, and the name stays taken.
     pub fn handle(&self, call: NamingCall) -> Result<Reply, WireError> {
         let now = self.now();
-        let mut tree = self.lock();
-        for node in tree.expire(now) {
-            log::info!("naming: lease of node `{node}` lapsed; its entries are removed");
+        let holder = {
+            let mut tree = self.lock();
+            for node in tree.expire(now) {
+                log::info!("naming: lease of node `{node}` lapsed; its entries are removed");
+            }
+            let taken_from = match &call {
+                NamingCall::Register { node, address, .. } => tree
+                    .node(node)
+                    .filter(|l| &l.address != address && l.deadline > now)
+                    .map(|l| l.address.clone()),
+                _ => None,
+            };
+            match taken_from {
+                None => return tree.apply(call, now),
+                Some(holder) => holder,
+            }
+        };
+        let NamingCall::Register { node, address, .. } = &call else {
+            return Err(WireError::Internal("naming: register expected".into()));
+        };
+        if answers(&holder) {
+            return self.lock().apply(call, self.now());
         }
-        tree.apply(call, now)
+        let mut tree = self.lock();
+        // Still the same stale holder (nobody re-registered meanwhile): its entries go.
+        if tree.node(node).is_some_and(|l| l.address == holder) {
+            let _ = tree.unregister(node);
+            log::warn!(
+                "naming: node `{node}` registers from {address} while its previous registration \
+                 at {holder} no longer answers: the stale entry is replaced"
+            );
+        }
+        tree.apply(call, self.now())
     }
 
     /// Serves one naming call of a connection's `session`, after [`authorize`] allowed it.

@@ -426,3 +426,55 @@ fn all_paths(depth: usize) -> Vec<Vec<u8>> {
     }
     out
 }
+
+#[test]
+fn a_node_takes_its_name_back_from_a_registration_nobody_answers_at() {
+    let s = NamingService::new("naming", NamingLimits::default());
+    let register = |address: &str| NamingCall::Register {
+        node: "a".into(),
+        address: address.into(),
+        lease_ms: 60_000,
+    };
+    // The first run, alive: its address accepts connections.
+    let first = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let first_address = first.local_addr().unwrap().to_string();
+    s.handle(register(&first_address)).unwrap();
+    s.handle(NamingCall::Bind {
+        path: "/a/robots/slave".into(),
+        reference: r("a", "slave"),
+        rebind: false,
+    })
+    .unwrap();
+    let second = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let second_address = second.local_addr().unwrap().to_string();
+    // A live holder keeps its name: a second node of that name is refused.
+    assert!(matches!(
+        s.handle(register(&second_address)),
+        Err(WireError::NameTaken(_))
+    ));
+    // The first run dies (nothing listens there any more): the restarted node, at another
+    // address, takes the name back at once, with a fresh context, long before the lease ends.
+    drop(first);
+    let started = Instant::now();
+    s.handle(register(&second_address)).unwrap();
+    assert!(started.elapsed() < Duration::from_secs(5));
+    let tree = s.snapshot();
+    assert_eq!(tree.node("a").unwrap().address, second_address);
+    assert_eq!(tree.list("/a").unwrap(), vec![]);
+    // A holder whose address cannot be probed without a look-up keeps its name.
+    let t = NamingService::new("naming", NamingLimits::default());
+    t.handle(NamingCall::Register {
+        node: "b".into(),
+        address: "box.lab:7300".into(),
+        lease_ms: 60_000,
+    })
+    .unwrap();
+    assert!(matches!(
+        t.handle(NamingCall::Register {
+            node: "b".into(),
+            address: second_address.clone(),
+            lease_ms: 60_000,
+        }),
+        Err(WireError::NameTaken(_))
+    ));
+}

@@ -85,6 +85,7 @@ impl Creator {
             comm,
             telemetry,
             commands,
+            stop,
             goto,
             gains,
             probe,
@@ -132,6 +133,7 @@ impl Creator {
             comm_stop,
             comm_back: comm_back_rx,
             commands,
+            stop: stop.clone(),
             goto,
             gains,
             pump: None,
@@ -178,6 +180,7 @@ impl Creator {
             c.scheduling = Some(scheduling);
             c.fault = None;
         }
+        self.stops.insert(name, stop);
         Ok(())
     }
 
@@ -206,6 +209,7 @@ impl Creator {
                         return None;
                     };
                     let robot = c.robot.clone().unwrap_or_default();
+                    self.stops.remove(&name);
                     Some((name, robot, c.running.take()?))
                 })
                 .collect()
@@ -329,6 +333,7 @@ impl Creator {
                 _ => StopMode::Deactivate,
             };
             let o = reg.get_mut(name)?;
+            self.stops.remove(name);
             match &mut o.body {
                 Body::Controller(c) => (c.running.take(), mode),
                 _ => return Err(WireError::Internal("not a controller".into())),

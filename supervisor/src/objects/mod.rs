@@ -49,6 +49,7 @@ pub mod operator_hand;
 mod registry;
 pub mod replay;
 pub mod runtime;
+pub mod stop_board;
 pub mod teleop;
 pub mod teleop_end;
 pub mod teleop_laws;
@@ -167,6 +168,8 @@ pub struct Creator {
     recording: Mutex<Option<(String, crate::runs::recording::Recorder)>>,
     /// The transitions, for recorders.
     lifecycle: lifecycle_feed::LifecycleFeed,
+    /// The stop latches of the running loops, reached by an e-stop without the registry lock.
+    stops: stop_board::StopBoard,
 }
 
 impl std::fmt::Debug for Creator {
@@ -220,7 +223,43 @@ impl Creator {
             fifo: OnceLock::new(),
             recording: Mutex::new(None),
             lifecycle: lifecycle_feed::LifecycleFeed::default(),
+            stops: stop_board::StopBoard::default(),
         }
+    }
+
+    /// Latches the e-stop of every loop running on this node, without the registry lock or
+    /// any command queue (a slow call holding them never delays it), and waits briefly
+    /// ([`stop_board::STOP_ACK_WAIT`], real clock only) for the loops to act.
+    pub fn estop_all(&self) -> crate::proto::StopReport {
+        self.stops.stop_all(&self.config.node, self.stop_wait())
+    }
+
+    /// Latches the e-stop of controller `name`'s running loop as [`Creator::estop_all`] does;
+    /// `None` when no loop of that name runs (the caller then asks the registry, which knows
+    /// why). `Some(acted)`: whether the loop latched it before the wait ended.
+    pub fn estop_loop(&self, name: &str) -> Option<bool> {
+        self.stops.stop(name, self.stop_wait())
+    }
+
+    /// How long an e-stop waits for its loops: none on a simulated clock (they latch on the
+    /// next step).
+    fn stop_wait(&self) -> std::time::Duration {
+        match self.sim {
+            Some(_) => std::time::Duration::ZERO,
+            None => stop_board::STOP_ACK_WAIT,
+        }
+    }
+
+    /// Holds the object registry's lock until `release` returns, as a slow call would (a
+    /// `create` reading a file that never ends): for tests showing that an e-stop does not
+    /// wait for it. `release` runs with the lock held.
+    ///
+    /// # Errors
+    /// [`WireError::Internal`] when the registry is poisoned.
+    #[cfg(feature = "fault-injection")]
+    pub fn hold_registry_lock<T>(&self, release: impl FnOnce() -> T) -> Result<T, WireError> {
+        let _registry = self.lock()?;
+        Ok(release())
     }
 
     /// A reader of this creator's lifecycle transitions from now on (create, destroy and every
@@ -656,8 +695,19 @@ impl Drop for Creator {
 
 impl Service for Creator {
     fn call(&self, session: &Session, call: Call) -> Result<Reply, WireError> {
+        // Stops first: before reaping (which takes the registry lock) and without that lock.
+        match &call {
+            Call::Creator(CreatorCall::EStop) => return Ok(Reply::Stopped(self.estop_all())),
+            // A controller whose loop is not running falls through: the registry says why.
+            Call::Object {
+                object,
+                method: Method::Controller(ControllerMethod::EStop),
+            } if self.estop_loop(object).is_some() => return Ok(Reply::Unit),
+            _ => {}
+        }
         self.reap_failed();
         match call {
+            Call::Creator(CreatorCall::EStop) => Ok(Reply::Stopped(self.estop_all())),
             Call::Ping { payload } => Ok(Reply::Pong(payload)),
             Call::NodeInfo => Ok(Reply::Node(NodeInfo {
                 node: self.config.node.clone(),

@@ -58,4 +58,9 @@ pub enum CreatorCall {
     /// Ends the recording and closes its file: [`Reply::Recorded`]. [`WireError::NotReady`]
     /// when there is none.
     RecordStop,
+    /// Latches the e-stop of every loop running on this node: [`Reply::Stopped`]. Served
+    /// before any other work of the node and without its object lock, so a slow call (a
+    /// `create` reading a file) never holds it back; allowed to every authenticated peer.
+    /// (Appended last.)
+    EStop,
 }

@@ -62,8 +62,8 @@ pub use object::{
     BoardMethod, ControllerMethod, JointAxis, Method, RobotMethod, SensorMethod, TrajectoryMethod,
 };
 pub use replies::{
-    ControlStatus, KindInfo, LinkBatch, LinkRecord, NodeInfo, ObjectInfo, Reply, TelemetryBatch,
-    TelemetryRecord,
+    ControlStatus, KindInfo, LinkBatch, LinkRecord, NodeInfo, ObjectInfo, Reply, StopReport,
+    TelemetryBatch, TelemetryRecord,
 };
 
 /// The first four bytes of every hello: `PNLP`.

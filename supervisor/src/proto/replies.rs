@@ -85,6 +85,22 @@ pub enum Reply {
         /// When it was answered, ns on the same clock.
         sent_ns: i64,
     },
+    /// The answer to a node's e-stop ([`CreatorCall::EStop`](super::CreatorCall::EStop);
+    /// appended last).
+    Stopped(StopReport),
+}
+
+/// What a node's e-stop reached.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct StopReport {
+    /// The node's name.
+    pub node: String,
+    /// The controllers whose loops latched their e-stop before the answer.
+    pub stopped: Vec<String>,
+    /// The controllers asked to stop whose loops had not yet ticked when the answer left (a
+    /// loop on a simulated clock latches on its next step; one whose thread stalls is caught by
+    /// its watchdog).
+    pub pending: Vec<String>,
 }
 
 /// A node's identity.

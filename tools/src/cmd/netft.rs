@@ -12,7 +12,7 @@ use penelope_rt_core::clock::MonotonicClock;
 /// Options.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The box's RDT address, ip:port (a real box listens on port 49152).
+    /// The box's RDT address: ip:port, or an IP address alone for the box's port 49152.
     #[arg(long)]
     pub addr: String,
     /// Counts per newton (the box's cfgcpf).
@@ -54,10 +54,8 @@ pub enum Action {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let address: SocketAddr = args
-        .addr
-        .parse()
-        .map_err(|e| crate::cmd::usage(format!("--addr {:?}: {e} (ip:port)", args.addr)))?;
+    let address: SocketAddr = penelope_drivers::netft::parse_address(&args.addr)
+        .map_err(|e| crate::cmd::usage(format!("--addr: {e}")))?;
     let calibration = Calibration {
         counts_per_force: args.counts_per_force,
         counts_per_torque: args.counts_per_torque,

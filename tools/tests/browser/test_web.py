@@ -229,7 +229,8 @@ def test_an_estop_from_the_page_reaches_the_loop(system, browser, tmp_path: Path
         wait(browser, lambda d: samples(d) >= 20, "samples before the e-stop")
         assert browser.find_element(By.ID, "live").get_attribute("data-state") == "running"
         press(browser, By.ID, "estop")
-        expect_message(browser, "/lab/controllers/pid estop:")
+        # The red button stops everything: every loop of every node.
+        expect_message(browser, "E-STOP: lab: 1 stopped (pid)")
 
         # The loop says so in its telemetry (bounded: at most the records asked for).
         seen = []

@@ -69,12 +69,14 @@ impl ControllerProxy {
         })
     }
 
-    /// Latches the emergency stop of the running loop.
+    /// Latches the emergency stop of the running loop, on a connection of its own (never
+    /// behind another call of this client).
     ///
     /// # Errors
     /// [`WireError::NotReady`] when no loop runs; transport errors.
     pub fn estop(&self) -> Result<(), RpcError> {
-        self.controller(ControllerMethod::EStop)
+        self.handle
+            .unit_alone(Method::Controller(ControllerMethod::EStop))
     }
 
     /// Re-arms the controller: a running loop clears its latched fault or e-stop (and its

@@ -517,15 +517,8 @@ impl NetFtSensorConfig {
     /// # Errors
     /// [`WireError::BadConfig`] naming the key.
     pub fn check(&self, kind: &str) -> Result<penelope_drivers::netft::NetFtConfig, WireError> {
-        let address: std::net::SocketAddr = self.address.parse().map_err(|e| {
-            bad(
-                kind,
-                format!(
-                    "`address` = {:?}: {e} (ip:port of the box, e.g. 192.168.1.1:49152)",
-                    self.address
-                ),
-            )
-        })?;
+        let address = penelope_drivers::netft::parse_address(&self.address)
+            .map_err(|e| bad(kind, format!("`address`: {e}")))?;
         check_range(kind, "counts_per_force", self.counts_per_force, 1e-3, 1e12)?;
         check_range(
             kind,

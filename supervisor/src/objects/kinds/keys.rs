@@ -76,7 +76,7 @@ publish_period_ms = 1        # measure and send every this many ms, 1..=1000
 "#;
 
 pub(super) const NETFT_KEYS: &str = r#"
-address = "192.168.1.1:49152"  # the box's RDT address, ip:port (required); `penelope netft-sim` prints its own
+address = "192.168.1.1:49152"  # the box's RDT address, ip:port or an IP alone for port 49152 (required); `penelope netft-sim` prints its own
 counts_per_force = 1000000.0   # counts per N, the box's cfgcpf (its /netftapi2.xml), > 0
 counts_per_torque = 1000000.0  # counts per N·m, the box's cfgcpt, > 0
 mount_xyz = [0.0, 0.0, 0.0]    # sensor frame origin in the tool frame, m

@@ -301,6 +301,7 @@ impl Registry {
         let (comm_w, comm_r) = latest();
         let (probe_w, probe_r) = latest();
         let (mut cmd_w, cmd_r) = ring();
+        let stop = std::sync::Arc::new(penelope_rt_core::stop::StopLatch::new());
         let (goto_w, goto_r) = ring();
         let (gains_w, gains_r) = ring();
         // A teleoperation end's thread wakes on its loop's new safety events.
@@ -317,7 +318,7 @@ impl Registry {
         let ports = ControlPorts {
             reference: ref_r,
             telemetry: sink,
-            commands: cmd_r,
+            commands: penelope_rt_core::stop::StopAwareCommands::new(cmd_r, stop.clone()),
         };
         let cartesian = controller.is_cartesian();
         let lp = match ControlLoop::new(config, board, kinematics.clone(), [controller], ports) {
@@ -414,6 +415,7 @@ impl Registry {
             comm,
             telemetry: tel_r,
             commands: cmd_w,
+            stop,
             goto: goto_w,
             gains: gains_w,
             probe: probe_r,
@@ -656,6 +658,8 @@ pub(crate) struct Built {
         ControlCommand,
         { crate::objects::runtime::COMMAND_CAPACITY },
     >,
+    /// The loop's stop latch: an e-stop that needs no room in `commands`.
+    pub stop: std::sync::Arc<penelope_rt_core::stop::StopLatch>,
     pub goto: penelope_rt_core::ring::ArcProducer<
         GoToCommand,
         { crate::objects::runtime::GOTO_CAPACITY },

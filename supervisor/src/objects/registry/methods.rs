@@ -634,9 +634,8 @@ impl Registry {
                     .running
                     .as_mut()
                     .ok_or_else(|| not_ready(format!("controller `{name}` is not running")))?;
-                run.commands
-                    .push(ControlCommand::EStop)
-                    .map_err(|_| not_ready("command queue full; retry"))?;
+                // The latch, not the command ring: a stop is never refused for want of room.
+                run.stop.request();
                 Ok(Reply::Unit)
             }
             // Re-arming may start threads: the creator's job (`Creator::rearm`).

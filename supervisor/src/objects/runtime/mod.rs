@@ -82,7 +82,11 @@ pub type SimBody = SimBoard<DhRobotModel, ToolContact>;
 
 type RefWriter = ReferenceOut;
 type RefReader = ReferencePort;
-type Commands = ArcConsumer<penelope_rt_core::control::ControlCommand, COMMAND_CAPACITY>;
+/// The command ring behind the loop's stop latch (an e-stop needs no room in the ring).
+type Commands = penelope_rt_core::stop::StopAwareCommands<
+    ArcConsumer<penelope_rt_core::control::ControlCommand, COMMAND_CAPACITY>,
+    Arc<penelope_rt_core::stop::StopLatch>,
+>;
 
 mod board;
 mod comm;

@@ -18,6 +18,8 @@ pub struct Running {
     pub comm_back: Receiver<CommTask>,
     /// Commands to the loop.
     pub commands: ArcProducer<penelope_rt_core::control::ControlCommand, COMMAND_CAPACITY>,
+    /// The loop's stop latch (also on the creator's [`StopBoard`](crate::objects::stop_board::StopBoard)).
+    pub stop: Arc<penelope_rt_core::stop::StopLatch>,
     /// GoTo requests to the communication task.
     pub goto: ArcProducer<GoToCommand, GOTO_CAPACITY>,
     /// New gains to the loop.

@@ -15,6 +15,7 @@
 //! | `destroy PATH [--force]` | removes it; refused while an active object depends on it unless `--force` |
 //! | `configure PATH`, `activate PATH`, `deactivate PATH`, `cleanup PATH` | lifecycle transitions (ROS 2 words) |
 //! | `describe PATH` | kind, state and relations of an object |
+//! | `estop PATH \| NODE \| --all` | latches the e-stop of a controller, of every loop of a node, or of every loop of every node (asked in parallel, each on a connection of its own, served before any other work of the node) |
 //! | `call PATH METHOD [ARGS...]` | any method of the object: see [`method::METHODS`] (`joint-positions`, `fk [Q]`, `jacobian`, `ik X Y Z`, `gravity`, `inertia`, `named-pose work`, `go-to work 2.0`, `read`, `bias`, `set-robot NAME`, `set-gains TOML`, `status`, `estop`, `rearm`, `reference 0.5`, `map-joints BOARD J:A ...`) |
 //! | `watch PATH [--decimation N] [--count N \| --seconds S]` | live telemetry lines: time, sequence, joints, tool position, force, safety state; for a `trajectory/teleop` channel linked to another node, its link every 100 ms: clock offset, one-way delay, jitter, trip p50/p99, samples taken/missed, refused, heartbeats lost, up/down, last heard |
 //! | `run SCRIPT` | runs a file of these verbs, one per line (`#` comments, shell quoting), stopping at the first error with its line number; `-` reads standard input |
@@ -168,10 +169,16 @@ pub enum Verb {
         /// The object: naming path or NODE/NAME.
         path: String,
     },
-    /// Latch the emergency stop of a running controller (amplifiers off until re-armed).
+    /// Latch the emergency stop (amplifiers off until re-armed) of a running controller
+    /// (PATH), of every loop of a node (NODE), or of every loop of the system (--all). Served
+    /// ahead of any other work of the node, on a connection of its own.
     Estop {
-        /// The controller: naming path or NODE/NAME.
-        path: String,
+        /// The controller (naming path or NODE/NAME), or a node's name.
+        #[arg(required_unless_present = "all", conflicts_with = "all")]
+        path: Option<String>,
+        /// Every loop on every node in the naming tree, the nodes asked in parallel.
+        #[arg(long)]
+        all: bool,
     },
     /// Re-arm, once the cause is gone: a controller after a fault, an e-stop or a failed thread
     /// (its loop restarts from the measured state, no jump), or a board that latched a fault of
@@ -396,7 +403,7 @@ impl Ctl {
             Verb::Deactivate { path } => self.method(&path, "deactivate", &[], json),
             Verb::Cleanup { path } => self.method(&path, "cleanup", &[], json),
             Verb::Describe { path } => self.method(&path, "describe", &[], json),
-            Verb::Estop { path } => self.method(&path, "estop", &[], json),
+            Verb::Estop { path, all } => self.estop(path.as_deref(), all, json),
             Verb::Rearm { path } => self.method(&path, "rearm", &[], json),
             Verb::Call { path, method, args } => {
                 // `--json` after the method's arguments is ours, not the method's.
@@ -465,6 +472,85 @@ impl Ctl {
             _ => say!("{}", show::reply(&reply, hint)),
         }
         Ok(())
+    }
+
+    /// `estop PATH`, `estop NODE` or `estop --all`: never through a creator's `list` (which
+    /// waits for the node's object lock), always on fresh connections.
+    fn estop(&mut self, target: Option<&str>, all: bool, json: bool) -> anyhow::Result<()> {
+        let client = self.client()?;
+        let reports = match (target, all) {
+            (_, true) => client.estop_all()?,
+            (Some(node), false) if !node.contains('/') => {
+                let report = client.node(node)?.estop();
+                vec![(node.to_string(), report)]
+            }
+            (Some(path), false) => {
+                let (address, name, shown) = if path.starts_with('/') {
+                    let r = client.resolve(path)?;
+                    let address = r.address.parse().with_context(|| {
+                        format!("`{path}` names an unusable address {}", r.address)
+                    })?;
+                    (address, r.name.clone(), path_of(&r))
+                } else {
+                    let (node, name) = path.split_once('/').unwrap_or((path, ""));
+                    (
+                        client.node(node)?.address(),
+                        name.to_string(),
+                        path.to_string(),
+                    )
+                };
+                let call = Call::Object {
+                    object: name,
+                    method: Method::Controller(ControllerMethod::EStop),
+                };
+                client.call_alone(address, call)?;
+                if json {
+                    say!("{}", json!({ "estopped": shown }));
+                } else {
+                    say!("{shown}: e-stop latched");
+                }
+                return Ok(());
+            }
+            (None, false) => return Err(usage("estop needs a PATH, a NODE or --all")),
+        };
+        let mut failed = Vec::new();
+        for (node, report) in &reports {
+            match report {
+                Ok(r) => {
+                    if json {
+                        say!("{}", serde_json::to_string(r)?);
+                    } else {
+                        say!(
+                            "{node}: e-stop latched by {} loop(s){}{}",
+                            r.stopped.len(),
+                            if r.stopped.is_empty() {
+                                String::new()
+                            } else {
+                                format!(" ({})", r.stopped.join(", "))
+                            },
+                            if r.pending.is_empty() {
+                                String::new()
+                            } else {
+                                format!("; asked, not yet ticked: {}", r.pending.join(", "))
+                            }
+                        );
+                    }
+                }
+                Err(e) => {
+                    if json {
+                        say!("{}", json!({ "node": node, "error": e.to_string() }));
+                    } else {
+                        say!("{node}: NOT REACHED: {e}");
+                    }
+                    failed.push(node.clone());
+                }
+            }
+        }
+        if failed.is_empty() {
+            Ok(())
+        } else {
+            anyhow::bail!("e-stop did not reach node(s) {}", failed.join(", "))
+        }
     }
 
     fn ls(&mut self, context: &str, json: bool) -> anyhow::Result<()> {

@@ -261,5 +261,12 @@ pub fn reply(reply: &Reply, hint: Hint) -> String {
         } => format!(
             "time: taken at {received_ns} ns, answered at {sent_ns} ns (the host's monotonic clock)"
         ),
+        Reply::Stopped(r) => format!(
+            "{}: e-stop latched by {} loop(s) [{}]; asked, not yet ticked: [{}]",
+            r.node,
+            r.stopped.len(),
+            r.stopped.join(", "),
+            r.pending.join(", ")
+        ),
     }
 }

@@ -422,6 +422,37 @@ pub(crate) async fn destroy(
     .await
 }
 
+/// `POST /api/estop`: the page's red button. Latches the e-stop of every loop on every node,
+/// each node asked at once on a connection of its own (never behind the page's other calls);
+/// answers which loops latched it, per node, and which nodes could not be reached (an error
+/// status when any).
+pub(crate) async fn estop_all(State(state): State<Arc<WebState>>) -> ApiResult {
+    blocking(&state, |client| {
+        let answers = client.estop_all()?;
+        let mut nodes = Vec::new();
+        let mut unreached = Vec::new();
+        for (node, answer) in answers {
+            match answer {
+                Ok(report) => nodes.push(json!(report)),
+                Err(e) => unreached.push(format!("{node}: {e}")),
+            }
+        }
+        if !unreached.is_empty() {
+            return Err(ApiError {
+                status: StatusCode::BAD_GATEWAY,
+                kind: "estop-incomplete".into(),
+                message: format!(
+                    "E-STOP did not reach every node: {} (stopped: {})",
+                    unreached.join("; "),
+                    serde_json::to_string(&nodes).unwrap_or_default()
+                ),
+            });
+        }
+        Ok(Json(json!({ "nodes": nodes })))
+    })
+    .await
+}
+
 /// `POST /api/call`.
 #[derive(Deserialize)]
 pub(crate) struct CallRequest {

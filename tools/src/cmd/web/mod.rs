@@ -146,6 +146,7 @@ fn router(state: Arc<WebState>) -> Router {
         .route("/api/create", post(api::create))
         .route("/api/destroy", post(api::destroy))
         .route("/api/call", post(api::call))
+        .route("/api/estop", post(api::estop_all))
         .route("/api/systems", get(system::systems))
         .route("/api/system", post(system::load_system))
         .route("/api/record", post(system::record))

@@ -175,6 +175,16 @@ async function callMethod(path, method, args) {
   return r;
 }
 
+/** The red button: every loop of every node latches its e-stop. */
+async function estopAll() {
+  const r = await api("POST", "/api/estop", {});
+  const parts = r.nodes.map((n) =>
+    `${n.node}: ${n.stopped.length} stopped${n.stopped.length ? ` (${n.stopped.join(", ")})` : ""}` +
+    `${n.pending.length ? `, not yet ticked: ${n.pending.join(", ")}` : ""}`);
+  say(`E-STOP: ${parts.join("; ") || "no node"}`);
+  return r;
+}
+
 // ---- creating objects --------------------------------------------------------------------
 
 async function loadKinds() {
@@ -278,7 +288,6 @@ function watch(path) {
   const ws = new WebSocket(`${scheme}://${window.location.host}/api/live?path=${encodeURIComponent(path)}`);
   state.live = ws;
   $("live-label").textContent = `watching ${path}`;
-  $("estop").disabled = false;
   $("rearm").disabled = false;
   ws.onmessage = (m) => onLive(JSON.parse(m.data));
   ws.onclose = () => {
@@ -341,7 +350,7 @@ function init() {
     say(`destroyed ${r.destroyed}`);
   }));
   $("watch").addEventListener("click", () => watch(state.selected));
-  $("estop").addEventListener("click", () => guarded(() => callMethod($("live").dataset.path, "estop")));
+  $("estop").addEventListener("click", () => guarded(estopAll));
   $("rearm").addEventListener("click", () => guarded(() => callMethod($("live").dataset.path, "rearm")));
   refreshTree();
   guarded(loadKinds);

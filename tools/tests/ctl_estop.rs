@@ -1,0 +1,230 @@
+//! `penelope ctl estop` in its three scopes against real processes on loopback: a
+//! `penelope naming` and three `penelope node`s, each holding a PUMA 560 with a running joint
+//! PID. `estop --all` latches every loop of every node (each node answers once its loop has
+//! latched the stop); `estop NODE` one node's loops; `estop PATH` one controller.
+
+use std::net::{SocketAddr, TcpListener};
+use std::path::PathBuf;
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+const BIN: &str = env!("CARGO_BIN_EXE_penelope");
+
+/// Control period and plant sub-step, µs: slower in unoptimised builds so a tick fits.
+const PERIOD_US: u32 = if cfg!(debug_assertions) {
+    10_000
+} else {
+    2_000
+};
+const SUBSTEP_US: u32 = if cfg!(debug_assertions) { 1_000 } else { 200 };
+
+const NODES: [&str; 3] = ["east", "west", "north"];
+
+/// The child processes, killed when the test ends, passed or failed.
+struct Children(Vec<Child>);
+
+impl Drop for Children {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+fn free_port() -> SocketAddr {
+    let l = TcpListener::bind("127.0.0.1:0").unwrap();
+    l.local_addr().unwrap()
+}
+
+fn spawn(args: &[&str]) -> Child {
+    Command::new(BIN)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap()
+}
+
+fn ctl(naming: SocketAddr, args: &[&str]) -> Output {
+    Command::new(BIN)
+        .arg("ctl")
+        .arg("--naming")
+        .arg(naming.to_string())
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .unwrap()
+}
+
+fn text(o: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+fn script(name: &str, body: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("penelope-estop-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, body).unwrap();
+    path
+}
+
+/// The safety state of `node`'s PID loop, from its newest sample.
+fn loop_state(naming: SocketAddr, node: &str) -> String {
+    let o = ctl(
+        naming,
+        &["--json", "call", &format!("{node}/pid"), "status"],
+    );
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    let reply: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    reply["Status"]["last"]["state"]
+        .as_str()
+        .unwrap_or("")
+        .to_string()
+}
+
+/// Waits until `node`'s loop shows `state`, at most 30 s (a bound against a hang).
+fn wait_state(naming: SocketAddr, node: &str, states: &[&str]) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let s = loop_state(naming, node);
+        if states.contains(&s.as_str()) {
+            return;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "{node}/pid never showed {states:?} (last {s:?})"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+#[test]
+fn ctl_estop_all_stops_every_controller_on_three_nodes() {
+    let naming = free_port();
+    let mut children = vec![spawn(&["naming", "--listen", &naming.to_string()])];
+    for node in NODES {
+        children.push(spawn(&[
+            "node",
+            "--name",
+            node,
+            "--listen",
+            &free_port().to_string(),
+            "--naming",
+            &naming.to_string(),
+            "--priority",
+            "0",
+        ]));
+    }
+    let _children = Children(children);
+
+    // Every node registered.
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let o = ctl(naming, &["ls"]);
+        let listed = text(&o).0;
+        if o.status.success()
+            && NODES
+                .iter()
+                .all(|n| listed.contains(&format!("node {n} at")))
+        {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the nodes never registered: {listed}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+
+    // A PUMA 560 held at its start pose by a running PID, on every node.
+    for node in NODES {
+        let setup = script(
+            &format!("{node}.ctl"),
+            &format!(
+                "create {node} board/sim sim0 axes=6 substep_us={SUBSTEP_US}\n\
+                 create {node} robot/puma560 slave\n\
+                 call {node}/slave map-joints sim0 0:0 1:1 2:2 3:3 4:4 5:5\n\
+                 configure {node}/sim0\n\
+                 configure {node}/slave\n\
+                 create {node} trajectory/step hold pose=start\n\
+                 create {node} controller/joint-pid pid --config 'period_us = {PERIOD_US}'\n\
+                 call {node}/pid set-robot slave\n\
+                 call {node}/pid set-trajectory hold\n\
+                 configure {node}/hold\n\
+                 configure {node}/pid\n\
+                 activate {node}/pid\n"
+            ),
+        );
+        let o = ctl(naming, &["run", setup.to_str().unwrap()]);
+        assert!(o.status.success(), "{node}: {:?}", text(&o));
+    }
+    for node in NODES {
+        wait_state(naming, node, &["running", "holding"]);
+    }
+
+    // The whole system's red button: every node answers that its loop latched the stop.
+    let started = Instant::now();
+    let o = ctl(naming, &["--json", "estop", "--all"]);
+    let took = started.elapsed();
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "stdout:\n{out}\nstderr:\n{err}");
+    println!("ctl estop --all over three nodes: {took:?} (process start included)");
+    let reports: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect();
+    assert_eq!(reports.len(), NODES.len(), "{out}");
+    for node in NODES {
+        let r = reports
+            .iter()
+            .find(|r| r["node"] == node)
+            .unwrap_or_else(|| panic!("no answer from {node}: {out}"));
+        assert_eq!(r["stopped"], serde_json::json!(["pid"]), "{node}: {r}");
+        assert_eq!(r["pending"], serde_json::json!([]), "{node}: {r}");
+    }
+    // Their telemetry says so too (the node's pump publishes samples a little later).
+    for node in NODES {
+        wait_state(naming, node, &["estop"]);
+    }
+
+    // One node: only its loops.
+    for node in NODES {
+        let o = ctl(naming, &["rearm", &format!("{node}/pid")]);
+        assert!(o.status.success(), "{node}: {:?}", text(&o));
+    }
+    for node in NODES {
+        wait_state(naming, node, &["running", "holding"]);
+    }
+    let o = ctl(naming, &["estop", "west"]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        out.contains("west: e-stop latched by 1 loop(s) (pid)"),
+        "{out}"
+    );
+    wait_state(naming, "west", &["estop"]);
+    for node in ["east", "north"] {
+        assert_ne!(loop_state(naming, node), "estop", "{node} was stopped too");
+    }
+
+    // One controller, by naming path.
+    let o = ctl(naming, &["estop", "/north/controllers/pid"]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        out.contains("/north/controllers/pid: e-stop latched"),
+        "{out}"
+    );
+    wait_state(naming, "north", &["estop"]);
+    assert_ne!(loop_state(naming, "east"), "estop");
+
+    // Bad input: nothing to stop named.
+    let o = ctl(naming, &["estop"]);
+    assert_eq!(o.status.code(), Some(2), "{:?}", text(&o));
+}
