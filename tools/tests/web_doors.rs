@@ -391,7 +391,7 @@ fn stalled_connections_do_not_stop_the_page_being_served() {
     assert!(closed_at_once >= 300 - 64, "{closed_at_once}");
     let deadline = Instant::now() + Duration::from_secs(60);
     let all_closed_in = loop {
-        if stalled.iter_mut().all(|s| closed(s)) {
+        if stalled.iter_mut().all(closed) {
             break started.elapsed();
         }
         assert!(
