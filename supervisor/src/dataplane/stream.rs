@@ -61,7 +61,7 @@ impl StreamSender {
 
 /// Random low bits of a session number: two senders (of two readers of one sensor) started
 /// in the same microsecond still differ.
-const SESSION_RANDOM_BITS: u32 = 10;
+pub const SESSION_RANDOM_BITS: u32 = 10;
 
 /// A new session number: the wall clock in µs since 1970 (room until the year 2540), shifted
 /// past [`SESSION_RANDOM_BITS`] random bits, and larger than any this process drew before.
