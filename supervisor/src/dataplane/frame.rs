@@ -91,8 +91,9 @@ impl std::fmt::Debug for DatagramKey {
 
 impl DatagramKey {
     /// The system's datagram key of members holding `secret`: `HKDF-SHA256(salt, secret,
-    /// info = "system")`. Streams without named ends (sensor streams) use it as it is; a
-    /// channel's directions use keys derived from it ([`directed`](Self::directed)).
+    /// info = "system")`. The node keeps it; its channels and published sensors use keys of
+    /// their directions derived from it ([`directed`](Self::directed)); an
+    /// [`Endpoint::bind`](super::endpoint::Endpoint::bind) without names uses it as it is.
     pub fn from_secret(secret: &[u8]) -> Self {
         let prk = hkdf_extract(KEY_SALT, secret);
         DatagramKey(hkdf_expand(&prk, &framed(&[b"system"])))
@@ -119,6 +120,12 @@ impl DatagramKey {
             send: self.for_direction(channel, here, there),
             receive: self.for_direction(channel, there, here),
         }
+    }
+
+    /// The tag of `bytes` under this key (tests compare keys by it).
+    #[cfg(test)]
+    pub(crate) fn tag_of(&self, bytes: &[u8]) -> [u8; TAG_LEN] {
+        self.tag(bytes)
     }
 
     fn tag(&self, bytes: &[u8]) -> [u8; TAG_LEN] {
@@ -157,8 +164,9 @@ fn hkdf_expand(prk: &[u8; 32], info: &[u8]) -> [u8; 32] {
 }
 
 /// `parts`, each preceded by its length (u32, little-endian): an `info` no two lists share.
-/// The system key tags sensor datagrams and is the PRK of the channel keys too: a datagram's
-/// first byte is 1 or 2, an `info`'s a length (6 or 9), so no tag is ever a derived key.
+/// The system key may tag datagrams (an endpoint bound without names) and is the PRK of the
+/// direction keys too: a datagram's first byte is 1 or 2, an `info`'s a length (6 or 9), so no
+/// tag is ever a derived key.
 fn framed(parts: &[&[u8]]) -> Vec<u8> {
     let mut info = Vec::new();
     for part in parts {
