@@ -19,7 +19,9 @@ use nalgebra::Vector3;
 use penelope_hal::{Pose, Transition};
 use penelope_supervisor::dataplane::endpoint::Endpoint;
 use penelope_supervisor::dataplane::frame::{DATAPLANE_VERSION, DatagramKey, Header, StreamId};
-use penelope_supervisor::dataplane::sensor_stream::{Probe, SensorSubscriber, WrenchSample};
+use penelope_supervisor::dataplane::sensor_stream::{
+    Probe, SensorSubscriber, WrenchSample, sensor_reader_keys,
+};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
 use penelope_supervisor::net::server::{Server, ServerConfig};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
@@ -125,8 +127,9 @@ fn publisher_counts(node: &Node, sensor: &str) -> [u64; 5] {
 /// Reads the sensor at `address` for `count` new samples (at most 20 s), probing at `probe`
 /// each poll when given, as a controller's feed does.
 fn read_samples(address: SocketAddr, probe: Option<Probe>, count: usize) -> Vec<WrenchSample> {
-    let key = DatagramKey::from_secret(SECRET);
-    let mut reader = SensorSubscriber::connect(address, Some(key)).unwrap();
+    // The keys of this sensor's directions, as a reader's node derives them from its path.
+    let keys = sensor_reader_keys(&DatagramKey::from_secret(SECRET), "/wrist/sensors/ft");
+    let mut reader = SensorSubscriber::connect_directed(address, Some(keys)).unwrap();
     let t0 = Instant::now();
     let mut samples = Vec::new();
     while samples.len() < count && t0.elapsed() < Duration::from_secs(20) {
@@ -248,20 +251,34 @@ fn a_forged_datagram_to_the_publisher_is_refused_and_counted_and_it_keeps_servin
         sent_ns: 0,
     };
     forger.send(&header, &(0u8, None::<u8>), address).unwrap();
+    // A member of this system, but a reader of another sensor: its subscription does not
+    // verify under this sensor's key.
+    let mut other_sensor = Endpoint::bind_directed(
+        "127.0.0.1:0".parse().unwrap(),
+        Some(sensor_reader_keys(
+            &DatagramKey::from_secret(SECRET),
+            "/wrist/sensors/other",
+        )),
+    )
+    .unwrap();
+    other_sensor
+        .send(&header, &(0u8, None::<u8>), address)
+        .unwrap();
     UdpSocket::bind("127.0.0.1:0")
         .unwrap()
         .send_to(b"\x07 not a datagram", address)
         .unwrap();
     wait_until("the refusals counted", || {
-        publisher_counts(wrist, "ft")[3] >= 2
+        publisher_counts(wrist, "ft")[3] >= 3
     });
     let [subscribers, _, _, refused, bad_tags] = publisher_counts(wrist, "ft");
-    assert_eq!((subscribers, refused, bad_tags), (0, 2, 1));
+    assert_eq!((subscribers, refused, bad_tags), (0, 3, 2));
 
     // A member still reads it, and the forger got nothing.
     let samples = read_samples(address, None, 100);
     assert_eq!(samples.len(), 100);
     assert!(forger.receive::<u8>().is_none());
+    assert!(other_sensor.receive::<u8>().is_none());
     println!("forged: {refused} refused ({bad_tags} bad tag); then 100 samples read");
     lab.stop();
 }

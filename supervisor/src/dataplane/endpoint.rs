@@ -8,7 +8,7 @@ use std::net::{SocketAddr, UdpSocket};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
-use super::frame::{DatagramKey, FrameError, Header, MAX_DATAGRAM, decode, encode};
+use super::frame::{DatagramKey, DirectedKeys, FrameError, Header, MAX_DATAGRAM, decode, encode};
 
 /// At most this many queued datagrams are read by one [`Endpoint::receive`] call.
 pub const RECEIVE_BURST: usize = 64;
@@ -60,10 +60,11 @@ pub enum SendError {
     Io(#[from] io::Error),
 }
 
-/// A bound data-plane socket and the key its system's datagrams carry (none without a secret).
+/// A bound data-plane socket and the keys its datagrams carry (none without a secret): one
+/// for what it sends, one for what it takes (the same for a system-wide stream).
 pub struct Endpoint {
     socket: UdpSocket,
-    key: Option<DatagramKey>,
+    keys: Option<DirectedKeys>,
     buf: Box<[u8; MAX_DATAGRAM]>,
     stats: EndpointStats,
     /// Room for a receive timestamp's control message, once
@@ -157,7 +158,7 @@ impl std::fmt::Debug for Endpoint {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Endpoint")
             .field("local", &self.socket.local_addr().ok())
-            .field("authenticated", &self.key.is_some())
+            .field("authenticated", &self.keys.is_some())
             .field("stats", &self.stats)
             .finish()
     }
@@ -177,11 +178,25 @@ impl Endpoint {
     /// # Errors
     /// The operating system's, from binding.
     pub fn bind(addr: SocketAddr, key: Option<DatagramKey>) -> io::Result<Self> {
+        let keys = key.map(|k| DirectedKeys {
+            send: k.clone(),
+            receive: k,
+        });
+        Endpoint::bind_directed(addr, keys)
+    }
+
+    /// Binds `addr` as [`bind`](Self::bind) does, for one end of a channel: what it sends is
+    /// tagged with `keys.send`, what it takes must verify under `keys.receive`
+    /// ([`DatagramKey::directed`]).
+    ///
+    /// # Errors
+    /// The operating system's, from binding.
+    pub fn bind_directed(addr: SocketAddr, keys: Option<DirectedKeys>) -> io::Result<Self> {
         let socket = UdpSocket::bind(addr)?;
         socket.set_nonblocking(true)?;
         Ok(Endpoint {
             socket,
-            key,
+            keys,
             buf: Box::new([0; MAX_DATAGRAM]),
             stats: EndpointStats::default(),
             control: None,
@@ -221,7 +236,8 @@ impl Endpoint {
         payload: &P,
         to: SocketAddr,
     ) -> Result<(), SendError> {
-        let n = encode(header, payload, self.key.as_ref(), &mut self.buf[..])?;
+        let key = self.keys.as_ref().map(|k| &k.send);
+        let n = encode(header, payload, key, &mut self.buf[..])?;
         match self.socket.send_to(&self.buf[..n], to) {
             Ok(_) => {
                 self.stats.sent += 1;
@@ -257,7 +273,8 @@ impl Endpoint {
             // Would block: nothing waiting. Other errors (an ICMP refusal reported on this
             // socket) say nothing about the next datagram: stop for this call.
             let (n, from, kernel_realtime_ns) = self.receive_raw().ok()?;
-            match decode::<P>(&self.buf[..n], self.key.as_ref()) {
+            let key = self.keys.as_ref().map(|k| &k.receive);
+            match decode::<P>(&self.buf[..n], key) {
                 Ok((header, payload)) => {
                     self.stats.received += 1;
                     return Some(Received {

@@ -10,6 +10,11 @@
 //!  +--------+----------------------------------+---------------------+
 //! ```
 //!
+//! Keys ([`DatagramKey`]): HKDF-SHA256 (RFC 5869) of the system secret, then one key per
+//! channel and direction, bound to the names of both ends ([`DatagramKey::directed`]): a
+//! genuine datagram of another channel, or of the other direction of the same channel, does not
+//! verify. The byte layout, derivations and session rule are in docs/wire-format.md.
+//!
 //! Why HMAC and not the TCP plane's Noise sessions: a datagram must open on its own (any may be
 //! lost or arrive out of order), and what the data plane needs is authenticity, not secrecy
 //! (joint angles and wrenches; DESIGN.md section 4). Replays are refused by the stream's newest-wins
@@ -29,7 +34,8 @@ type HmacSha256 = hmac::Hmac<Sha256>;
 /// version is refused ([`FrameError::Version`]), so two builds whose payloads differ never
 /// misread each other. 2: a channel's sample carries the passivity payload (wave, energy
 /// counters). 3: and whether it is urgent (sent on a new safety event of the sender's loop).
-pub const DATAPLANE_VERSION: u8 = 3;
+/// 4: keys per channel and direction (HKDF), sessions ordered across reboots (wall clock).
+pub const DATAPLANE_VERSION: u8 = 4;
 /// The largest datagram sent or accepted: small enough to cross any path without fragmenting.
 pub const MAX_DATAGRAM: usize = 1200;
 /// Bytes of the authentication tag (HMAC-SHA256 truncated, as RFC 2104 allows).
@@ -38,8 +44,9 @@ pub const TAG_LEN: usize = 16;
 const PLAIN: u8 = 1;
 /// First byte of a datagram with a tag.
 const TAGGED: u8 = 2;
-/// Domain separation of the datagram key from the other keys derived from the secret.
-const KEY_CONTEXT: &[u8] = b"penelope-datagram-v1";
+/// HKDF's salt for the data plane's keys: separates them from the other keys derived from the
+/// secret (the TCP plane's PSK).
+const KEY_SALT: &[u8] = b"penelope-datagram-v4";
 
 /// Which stream a datagram belongs to (a channel direction, a sensor), unique in the system.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -61,9 +68,20 @@ pub struct Header {
     pub sent_ns: i64,
 }
 
-/// The key that authenticates datagrams, derived from the system secret.
+/// A key that authenticates datagrams: the system's ([`from_secret`](Self::from_secret)), or
+/// one direction of one channel ([`for_direction`](Self::for_direction)).
 #[derive(Clone)]
 pub struct DatagramKey([u8; 32]);
+
+/// The keys of one end of a channel: what it sends is tagged with `send`, what it takes must
+/// verify under `receive` (the other end's `send`).
+#[derive(Clone, Debug)]
+pub struct DirectedKeys {
+    /// This end to the other.
+    pub send: DatagramKey,
+    /// The other end to this one.
+    pub receive: DatagramKey,
+}
 
 impl std::fmt::Debug for DatagramKey {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -72,11 +90,42 @@ impl std::fmt::Debug for DatagramKey {
 }
 
 impl DatagramKey {
-    /// The datagram key of a system whose members hold `secret`.
+    /// The system's datagram key of members holding `secret`: `HKDF-SHA256(salt, secret,
+    /// info = "system")`. The node keeps it; its channels and published sensors use keys of
+    /// their directions derived from it ([`directed`](Self::directed)); an
+    /// [`Endpoint::bind`](super::endpoint::Endpoint::bind) without names uses it as it is.
     pub fn from_secret(secret: &[u8]) -> Self {
-        let mut m = keyed(secret);
-        m.update(KEY_CONTEXT);
-        DatagramKey(m.finalize().into_bytes().into())
+        let prk = hkdf_extract(KEY_SALT, secret);
+        DatagramKey(hkdf_expand(&prk, &framed(&[b"system"])))
+    }
+
+    /// The key of datagrams of a `channel` kind (`"teleop"`) from the end named `from` to the
+    /// end named `to`: `HKDF-Expand(this key, info = channel, from, to)`, each part
+    /// length-prefixed, so that no two (channel, from, to) share a key.
+    pub fn for_direction(&self, channel: &str, from: &str, to: &str) -> DatagramKey {
+        DatagramKey(hkdf_expand(
+            &self.0,
+            &framed(&[
+                b"direction",
+                channel.as_bytes(),
+                from.as_bytes(),
+                to.as_bytes(),
+            ]),
+        ))
+    }
+
+    /// The keys of the end named `here` of a `channel` to the end named `there`.
+    pub fn directed(&self, channel: &str, here: &str, there: &str) -> DirectedKeys {
+        DirectedKeys {
+            send: self.for_direction(channel, here, there),
+            receive: self.for_direction(channel, there, here),
+        }
+    }
+
+    /// The tag of `bytes` under this key (tests compare keys by it).
+    #[cfg(test)]
+    pub(crate) fn tag_of(&self, bytes: &[u8]) -> [u8; TAG_LEN] {
+        self.tag(bytes)
     }
 
     fn tag(&self, bytes: &[u8]) -> [u8; TAG_LEN] {
@@ -94,6 +143,37 @@ impl DatagramKey {
         // Constant time: a forger learns nothing from how long the refusal took.
         m.verify_truncated_left(tag).is_ok()
     }
+}
+
+/// HKDF-Extract (RFC 5869 section 2.2): `HMAC-SHA256(salt, ikm)`.
+fn hkdf_extract(salt: &[u8], ikm: &[u8]) -> [u8; 32] {
+    let mut m = keyed(salt);
+    m.update(ikm);
+    m.finalize().into_bytes().into()
+}
+
+/// HKDF-Expand (RFC 5869 section 2.3) to one block, 32 bytes: `T(1) = HMAC-SHA256(prk, info ||
+/// 0x01)`. One block is the whole of HKDF here, so it is written with the HMAC the plane
+/// already uses (the `hkdf` crate of this `hmac` is not in the tree); the RFC's test vector
+/// checks it.
+fn hkdf_expand(prk: &[u8; 32], info: &[u8]) -> [u8; 32] {
+    let mut m = keyed(prk);
+    m.update(info);
+    m.update(&[1]);
+    m.finalize().into_bytes().into()
+}
+
+/// `parts`, each preceded by its length (u32, little-endian): an `info` no two lists share.
+/// The system key may tag datagrams (an endpoint bound without names) and is the PRK of the
+/// direction keys too: a datagram's first byte is 1 or 2, an `info`'s a length (6 or 9), so no
+/// tag is ever a derived key.
+fn framed(parts: &[&[u8]]) -> Vec<u8> {
+    let mut info = Vec::new();
+    for part in parts {
+        info.extend((part.len() as u32).to_le_bytes());
+        info.extend(*part);
+    }
+    info
 }
 
 fn keyed(key: &[u8]) -> HmacSha256 {
@@ -279,6 +359,60 @@ mod tests {
         assert_eq!(
             decode::<u8>(&[0; MAX_DATAGRAM + 1], None),
             Err(FrameError::TooLarge)
+        );
+    }
+
+    #[test]
+    fn hkdf_matches_rfc_5869_test_case_1() {
+        let ikm = [0x0b; 22];
+        let salt: Vec<u8> = (0x00..=0x0c).collect();
+        let info: Vec<u8> = (0xf0..=0xf9).collect();
+        let prk = hkdf_extract(&salt, &ikm);
+        let hex = |b: &[u8]| b.iter().map(|x| format!("{x:02x}")).collect::<String>();
+        assert_eq!(
+            hex(&prk),
+            "077709362c2e32df0ddc3f0dc47bba6390b6c73bb50f9c3122ec844ad7c2b3e5"
+        );
+        // The first 32 bytes of the RFC's 42-byte OKM are T(1).
+        assert_eq!(
+            hex(&hkdf_expand(&prk, &info)),
+            "3cb25f25faacd57a90434f64d0362f2a2d2d0a90cf1a5a4c5db02d56ecc4c5bf"
+        );
+    }
+
+    #[test]
+    fn each_channel_and_direction_has_its_own_key() {
+        let system = DatagramKey::from_secret(b"lab secret");
+        let a = system.directed("teleop", "frhc", "puma");
+        let b = system.directed("teleop", "puma", "frhc");
+        // The two ends of a channel agree, crosswise.
+        assert_eq!(a.send.0, b.receive.0);
+        assert_eq!(a.receive.0, b.send.0);
+        // Every other key differs: the other direction, another channel, the system's, another
+        // system's, and names that only concatenate alike.
+        let keys = [
+            a.send.0,
+            a.receive.0,
+            system.for_direction("teleop", "frhc", "puma2").0,
+            system.for_direction("teleop", "frh", "cpuma").0,
+            system.for_direction("sensor", "frhc", "puma").0,
+            system.0,
+            DatagramKey::from_secret(b"another lab")
+                .for_direction("teleop", "frhc", "puma")
+                .0,
+        ];
+        for (i, k) in keys.iter().enumerate() {
+            for other in &keys[i + 1..] {
+                assert_ne!(k, other, "key {i}");
+            }
+        }
+        // A datagram of one direction does not open under the other's key.
+        let mut buf = [0u8; MAX_DATAGRAM];
+        let n = encode(&header(1), &[1.0f64; 6], Some(&a.send), &mut buf).unwrap();
+        assert!(decode::<[f64; 6]>(&buf[..n], Some(&b.receive)).is_ok());
+        assert_eq!(
+            decode::<[f64; 6]>(&buf[..n], Some(&a.receive)),
+            Err(FrameError::BadTag)
         );
     }
 

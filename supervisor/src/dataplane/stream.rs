@@ -2,10 +2,19 @@
 //! (teleoperation wants the latest sample, not every sample) and counts what it refused.
 //!
 //! Newest wins on `(session, sequence)`: in one session a larger sequence number is newer; a new
-//! session (a restarted sender) is taken only when its send time is later than the newest
-//! sample's, so a recorded datagram of an old session cannot be replayed. With authenticated
-//! datagrams nobody but a member can make a larger sequence number, so this rule is also the
-//! replay protection.
+//! session (a restarted sender) is taken only when its number is larger than the newest
+//! sample's session. Sessions are numbered by the wall clock when the sender starts
+//! ([`next_session`]), so they grow across restarts and reboots alike: a recorded datagram of
+//! an earlier session (even of an earlier boot of a host that had been up longer, whose send
+//! times on a boot-time clock are later) is refused, and cannot take the stream from the
+//! sender that runs now. With authenticated datagrams nobody but a member can make a larger
+//! session or sequence number, so this rule is also the replay protection.
+//!
+//! Why the wall clock and not a persisted counter: a node keeps no state on disk between runs,
+//! and the nodes of a lab keep their wall clocks synchronized (NTP/PTP: the common clock's
+//! estimates rely on it too). The cost: a sender restarted after its wall clock was stepped
+//! back by more than the time it was down is refused as stale by receivers that saw the earlier
+//! session, until they restart: the link counts as lost, and a lost link ends in its safe state.
 
 use super::frame::{DATAPLANE_VERSION, Header, StreamId};
 
@@ -18,12 +27,12 @@ pub struct StreamSender {
 }
 
 impl StreamSender {
-    /// A sender on `stream` with a fresh random session.
+    /// A sender on `stream` in a new session, larger than every earlier one ([`next_session`]).
     pub fn new(stream: StreamId) -> Self {
-        StreamSender::with_session(stream, random_session())
+        StreamSender::with_session(stream, next_session())
     }
 
-    /// A sender on `stream` in `session` (tests; a restart must draw a new session).
+    /// A sender on `stream` in `session` (tests; a restart must take a larger session).
     pub fn with_session(stream: StreamId, session: u64) -> Self {
         StreamSender {
             stream,
@@ -50,16 +59,31 @@ impl StreamSender {
     }
 }
 
-/// A session number nobody else is likely to draw: the process's random hasher keys (drawn
-/// from the OS at start) over the time. Not a secret: it only tells restarts apart.
-fn random_session() -> u64 {
+/// Random low bits of a session number: two senders (of two readers of one sensor) started
+/// in the same microsecond still differ.
+pub const SESSION_RANDOM_BITS: u32 = 10;
+
+/// A new session number: the wall clock in µs since 1970 (room until the year 2540), shifted
+/// past [`SESSION_RANDOM_BITS`] random bits, and larger than any this process drew before.
+/// Not a secret: it orders restarts.
+pub fn next_session() -> u64 {
     use std::hash::{BuildHasher, Hasher};
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static LAST: AtomicU64 = AtomicU64::new(0);
+    let micros = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |t| t.as_micros() as u64);
+    // The process's random hasher keys are drawn from the OS.
     let mut h = std::collections::hash_map::RandomState::new().build_hasher();
-    if let Ok(t) = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH) {
-        h.write_u128(t.as_nanos());
-    }
     h.write_u32(std::process::id());
-    h.finish()
+    let random = h.finish() & ((1 << SESSION_RANDOM_BITS) - 1);
+    let drawn = (micros << SESSION_RANDOM_BITS) | random;
+    let before = LAST
+        .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |last| {
+            Some(drawn.max(last.saturating_add(1)))
+        })
+        .unwrap_or_default();
+    drawn.max(before.saturating_add(1))
 }
 
 /// What the receiver did with a datagram.
@@ -71,8 +95,8 @@ pub enum Verdict {
     Duplicate,
     /// Older than the newest in the same session (late or reordered).
     Late,
-    /// Another session whose send time is not later than the newest sample's (an old session
-    /// replayed, or a sender whose clock went back).
+    /// A session not larger than the newest sample's (an earlier session replayed, or a
+    /// sender restarted after its wall clock went back).
     StaleSession,
     /// Another stream's datagram.
     OtherStream,
@@ -134,7 +158,7 @@ impl StreamReceiver {
                     Verdict::Late
                 }
             }
-            Some(n) if header.sent_ns > n.sent_ns => {
+            Some(n) if header.session > n.session => {
                 self.stats.new_sessions += 1;
                 Verdict::Accepted
             }
@@ -204,7 +228,7 @@ mod tests {
         for h in &recorded {
             rx.offer(h);
         }
-        // The sender restarts: sequence numbers begin again, in a new session, later in time.
+        // The sender restarts: sequence numbers begin again, in a larger session.
         let mut restarted = StreamSender::with_session(S, 11);
         let first = restarted.next(200_000);
         assert_eq!(rx.offer(&first), Verdict::Accepted);
@@ -218,9 +242,41 @@ mod tests {
     }
 
     #[test]
-    fn senders_draw_different_sessions() {
+    fn senders_draw_growing_sessions_from_the_wall_clock() {
+        let before = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_micros() as u64;
         let a = StreamSender::new(S).next(0).session;
         let b = StreamSender::new(S).next(0).session;
-        assert_ne!(a, b);
+        assert!(b > a, "{a} {b}");
+        assert!(a >> SESSION_RANDOM_BITS >= before, "{a} from {before} µs");
+    }
+
+    #[test]
+    fn a_replay_from_an_earlier_boot_with_later_send_times_does_not_take_the_stream() {
+        // An earlier boot of the master's host, up for days: its send times (a boot-time clock)
+        // are far later than those of the boot that runs now, but its session is earlier.
+        let mut earlier_boot = StreamSender::with_session(S, 1_000);
+        let day_ns = 86_400_000_000_000;
+        let recorded: Vec<Header> = (0..10).map(|i| earlier_boot.next(3 * day_ns + i)).collect();
+        let mut now = StreamSender::new(S);
+        let mut rx = StreamReceiver::new(S);
+        assert_eq!(rx.offer(&now.next(5_000)), Verdict::Accepted);
+        for h in &recorded {
+            assert_eq!(rx.offer(h), Verdict::StaleSession);
+        }
+        // The master that runs now keeps the stream.
+        for t in 1..=5 {
+            assert_eq!(rx.offer(&now.next(5_000 + t)), Verdict::Accepted);
+        }
+        assert_eq!(rx.stats().stale_session, 10);
+        assert_eq!(rx.stats().new_sessions, 0);
+        // Even replayed to a receiver that just started (it takes the first it hears), the
+        // master's next datagram takes the stream back.
+        let mut fresh = StreamReceiver::new(S);
+        assert_eq!(fresh.offer(&recorded[9]), Verdict::Accepted);
+        assert_eq!(fresh.offer(&now.next(5_100)), Verdict::Accepted);
+        assert_eq!(fresh.offer(&recorded[9]), Verdict::StaleSession);
     }
 }

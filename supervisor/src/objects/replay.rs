@@ -649,4 +649,46 @@ mod tests {
         ));
         std::fs::remove_dir_all(&dir).unwrap();
     }
+
+    #[test]
+    fn a_crafted_recording_is_a_typed_error_of_the_replayed_sensor() {
+        let path = std::env::temp_dir().join(format!(
+            "penelope-replay-crafted-{}.mcap",
+            std::process::id()
+        ));
+        std::fs::write(
+            &path,
+            crate::runs::recording::crafted_mcap_with_a_huge_record(),
+        )
+        .unwrap();
+        let k = "sensor/replay";
+        let config = format!("file = {:?}", path.to_str().unwrap());
+        let c: ReplaySensorConfig = crate::objects::kinds::parse(k, &config).unwrap();
+        c.check(k).unwrap();
+        let mut sensor = ReplaySensorObj {
+            config: c,
+            readings: None,
+        };
+        // `configure` reads the recording: refused with a typed error, the object unloaded.
+        let e = sensor.load().unwrap_err();
+        assert!(
+            matches!(
+                &e,
+                ReplayError::Unreadable(RecordingError::Mcap {
+                    source: mcap::McapError::RecordTooLarge { .. },
+                    ..
+                })
+            ),
+            "{e}"
+        );
+        assert!(sensor.readings.is_none());
+        match e.into_wire(k) {
+            WireError::BadConfig { kind, message } => {
+                assert_eq!(kind, k);
+                assert!(message.contains("exceeds limit"), "{message}");
+            }
+            other => panic!("{other:?}"),
+        }
+        let _ = std::fs::remove_file(path);
+    }
 }

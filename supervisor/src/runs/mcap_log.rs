@@ -639,6 +639,7 @@ pub fn summarize(path: &Path) -> Result<McapSummary, RecordingError> {
         path: path.to_path_buf(),
         source,
     };
+    super::recording::check_record_lengths(&bytes).map_err(err)?;
     let mut profile = String::new();
     let mut metadata = BTreeMap::new();
     let mut channels: BTreeMap<u16, ChannelSummary> = BTreeMap::new();

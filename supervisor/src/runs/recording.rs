@@ -87,6 +87,90 @@ pub struct Recording {
     pub clock_offset_ns: Option<i64>,
 }
 
+/// The longest record a recording may hold, at least: a record may also be as long as the file
+/// (a record in a compressed chunk can be longer than the file that holds it; this recorder's
+/// are a few kB).
+const RECORD_LIMIT_FLOOR: usize = 16 << 20;
+
+/// Checks the length of every record of the MCAP file `bytes`, the records inside chunks too,
+/// before [`mcap::MessageStream`] reads it: that reader bounds no length, and a crafted record
+/// inside a compressed chunk made it allocate what the length field says (an abort, not an
+/// error: "memory allocation of 4702111234474983754 bytes failed"). It runs the same reader
+/// with the same options as `MessageStream` (no CRC checks, end magic optional) plus the
+/// crate's own `record_length_limit` ([`RECORD_LIMIT_FLOOR`] or the file's size, the larger),
+/// so it sees the same records, and stops where that reader would stop (a file cut off).
+///
+/// # Errors
+/// [`mcap::McapError::RecordTooLarge`] or [`mcap::McapError::ChunkTooLarge`] for a length
+/// beyond the limit.
+pub(crate) fn check_record_lengths(bytes: &[u8]) -> Result<(), mcap::McapError> {
+    use mcap::McapError;
+    use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
+    let mut reader = LinearReader::new_with_options(
+        LinearReaderOptions::default()
+            .with_skip_end_magic(true)
+            .with_record_length_limit(bytes.len().max(RECORD_LIMIT_FLOOR)),
+    );
+    let mut rest = bytes;
+    while let Some(event) = reader.next_event() {
+        match event {
+            Ok(LinearReadEvent::ReadRequest(need)) => {
+                if rest.is_empty() {
+                    return Ok(()); // cut off: the reader after this one stops here too
+                }
+                let n = need.min(rest.len());
+                reader.insert(n).copy_from_slice(&rest[..n]);
+                reader.notify_read(n);
+                rest = &rest[n..];
+            }
+            Ok(LinearReadEvent::Record { .. }) => {}
+            Err(e @ (McapError::RecordTooLarge { .. } | McapError::ChunkTooLarge(_))) => {
+                return Err(e);
+            }
+            // Any other error stops the reader after this one at the same record, and it says so.
+            Err(_) => return Ok(()),
+        }
+    }
+    Ok(())
+}
+
+/// An MCAP file of 111 bytes with the right profile whose zstd chunk (one raw block) holds a
+/// record header claiming 0x4141_4141_4141_4141 bytes: before [`check_record_lengths`], reading
+/// it aborted the process.
+#[cfg(test)]
+pub(crate) fn crafted_mcap_with_a_huge_record() -> Vec<u8> {
+    fn record(file: &mut Vec<u8>, opcode: u8, body: &[u8]) {
+        file.push(opcode);
+        file.extend((body.len() as u64).to_le_bytes());
+        file.extend(body);
+    }
+    fn string(out: &mut Vec<u8>, s: &[u8]) {
+        out.extend((s.len() as u32).to_le_bytes());
+        out.extend(s);
+    }
+    let mut file = mcap::MAGIC.to_vec();
+    let mut header = Vec::new();
+    string(&mut header, super::mcap_log::PROFILE.as_bytes());
+    string(&mut header, b"crafted");
+    record(&mut file, 0x01, &header);
+    let mut inner = vec![0x05]; // a message record...
+    inner.extend(0x4141_4141_4141_4141u64.to_le_bytes()); // ...of 4.7e18 bytes
+    // A zstd frame: magic, single segment with a 1-byte content size, one last raw block.
+    let mut zstd = vec![0x28, 0xb5, 0x2f, 0xfd, 0x20, inner.len() as u8];
+    zstd.extend(&((inner.len() as u32) << 3 | 1).to_le_bytes()[..3]);
+    zstd.extend(&inner);
+    let mut chunk = Vec::new();
+    chunk.extend(0u64.to_le_bytes()); // first message time
+    chunk.extend(0u64.to_le_bytes()); // last message time
+    chunk.extend((inner.len() as u64).to_le_bytes()); // uncompressed size
+    chunk.extend(0u32.to_le_bytes()); // no CRC
+    string(&mut chunk, b"zstd");
+    chunk.extend((zstd.len() as u64).to_le_bytes());
+    chunk.extend(&zstd);
+    record(&mut file, 0x06, &chunk);
+    file
+}
+
 /// Reads the recording at `path`: every message up to a cut-off last record (a file being
 /// written, or left by a node that died, has no summary yet).
 ///
@@ -104,6 +188,10 @@ pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
     if !bytes.starts_with(mcap::MAGIC) {
         return Err(bad("not an MCAP file".into()));
     }
+    check_record_lengths(&bytes).map_err(|source| RecordingError::Mcap {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let options = mcap::read::Options::IgnoreEndMagic;
     let mut recording = Recording::default();
     // The node, from the metadata record written first.
@@ -759,5 +847,97 @@ mod tests {
             Err(RecordingError::Format { .. })
         ));
         let _ = std::fs::remove_file(foreign);
+    }
+
+    #[test]
+    fn a_crafted_record_length_is_an_error_not_an_abort() {
+        let path = scratch("crafted.mcap");
+        std::fs::write(&path, crafted_mcap_with_a_huge_record()).unwrap();
+        for e in [
+            read_recording(&path).unwrap_err(),
+            super::super::mcap_log::summarize(&path).unwrap_err(),
+        ] {
+            assert!(
+                matches!(
+                    &e,
+                    RecordingError::Mcap {
+                        source: mcap::McapError::RecordTooLarge {
+                            len: 0x4141_4141_4141_4141,
+                            ..
+                        },
+                        ..
+                    }
+                ),
+                "{e}"
+            );
+        }
+        let _ = std::fs::remove_file(path);
+    }
+
+    /// A real recording, compressed and flushed in several chunks (written once).
+    fn a_recording() -> Vec<u8> {
+        static BYTES: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+        BYTES.get_or_init(write_a_recording).clone()
+    }
+
+    fn write_a_recording() -> Vec<u8> {
+        let path = scratch("prop-base.mcap");
+        let mut log = McapLog::create(&path, "lab").unwrap();
+        log.add_controller("display").unwrap();
+        for (i, t) in ticks(30).iter().enumerate() {
+            log.tick(0, t).unwrap();
+            if i % 10 == 9 {
+                log.flush().unwrap();
+            }
+        }
+        log.link("link", &link(5)).unwrap();
+        log.finish(&[0]).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let _ = std::fs::remove_file(path);
+        bytes
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(256))]
+        /// Mutated recordings (bytes overwritten, u64 fields set huge, cut off) are read or
+        /// refused with a typed error: never a panic or an abort.
+        #[test]
+        fn mutated_recordings_never_panic_or_abort(
+            edits in proptest::collection::vec((0usize..4096, 0u8..=255, 0u8..4), 1..6),
+            cut in 0usize..4096,
+            which in 0usize..2,
+        ) {
+            let mut bytes = if which == 0 {
+                a_recording()
+            } else {
+                crafted_mcap_with_a_huge_record()
+            };
+            for (at, byte, how) in edits {
+                let at = at % bytes.len();
+                match how {
+                    0 => bytes[at] = byte,
+                    // A length field (little-endian u64) set large at a random place.
+                    1 => {
+                        let end = (at + 8).min(bytes.len());
+                        for b in &mut bytes[at..end] {
+                            *b = 0x41;
+                        }
+                    }
+                    2 => {
+                        let end = (at + 8).min(bytes.len());
+                        bytes[at..end].fill(0xff);
+                    }
+                    _ => bytes[at] ^= 1 << (byte % 8),
+                }
+            }
+            if cut % 3 == 0 {
+                bytes.truncate(cut.max(8) % (bytes.len() + 1));
+            }
+            let path = scratch(&format!("prop-{}-{}.mcap", std::process::id(), cut));
+            std::fs::write(&path, &bytes).unwrap();
+            let _ = read_recording(&path);
+            let _ = super::super::mcap_log::summarize(&path);
+            let _ = std::fs::remove_file(path);
+        }
     }
 }

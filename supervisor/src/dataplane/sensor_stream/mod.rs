@@ -32,7 +32,7 @@ use nalgebra::Vector3;
 use penelope_hal::Pose;
 use serde::{Deserialize, Serialize};
 
-use super::frame::StreamId;
+use super::frame::{DatagramKey, DirectedKeys, StreamId};
 use crate::proto::{PoseMsg, WrenchMsg};
 
 pub mod publisher;
@@ -46,6 +46,25 @@ pub use table::{Admission, Refusal, SubscriberTable};
 /// The stream of a sensor's samples, publisher to readers. A sensor's stream is told apart
 /// from another sensor's by the publisher's address (one endpoint per sensor), not by this id.
 pub const SENSOR_SAMPLES: StreamId = StreamId(16);
+
+/// The keys of the publisher of the sensor named `sensor` (its name on its node, the last part
+/// of its naming path): samples go out under `sensor -> readers`, subscriptions come in under
+/// `readers -> sensor` ([`DatagramKey::for_direction`], channel `"sensor"`), so another sensor's
+/// or a teleoperation channel's datagrams do not verify.
+pub fn sensor_publisher_keys(system: &DatagramKey, sensor: &str) -> DirectedKeys {
+    system.directed("sensor", sensor, "readers")
+}
+
+/// The keys of a reader of the sensor at naming `path` (or named `path`): the publisher's,
+/// crosswise ([`sensor_publisher_keys`]).
+pub fn sensor_reader_keys(system: &DatagramKey, path: &str) -> DirectedKeys {
+    let sensor = path
+        .trim_end_matches('/')
+        .rsplit('/')
+        .next()
+        .unwrap_or(path);
+    system.directed("sensor", "readers", sensor)
+}
 /// The stream of a reader's subscriptions (and probes), reader to publisher.
 pub const SENSOR_SUBSCRIPTIONS: StreamId = StreamId(17);
 /// A reader without a probe renews its subscription this often.
@@ -114,4 +133,34 @@ enum SensorDatagram {
 /// Signed nanoseconds of a timestamp (the data plane's clock values).
 fn nanos(t: penelope_hal::Timestamp) -> i64 {
     i64::try_from(t.as_nanos()).unwrap_or(i64::MAX)
+}
+
+#[cfg(test)]
+mod key_tests {
+    use super::*;
+
+    #[test]
+    fn a_reader_holds_its_sensors_keys_crosswise_and_no_other_stream_shares_them() {
+        let system = DatagramKey::from_secret(b"lab");
+        let publisher = sensor_publisher_keys(&system, "wrist");
+        for path in ["/lab-b/sensors/wrist", "wrist", "/lab-b/sensors/wrist/"] {
+            let reader = sensor_reader_keys(&system, path);
+            assert_eq!(
+                format!(
+                    "{:?}",
+                    (publisher.send.tag_of(b"x"), reader.send.tag_of(b"x"))
+                ),
+                format!(
+                    "{:?}",
+                    (reader.receive.tag_of(b"x"), publisher.receive.tag_of(b"x"))
+                ),
+                "{path}"
+            );
+        }
+        let other = sensor_reader_keys(&system, "/lab-b/sensors/ankle");
+        assert_ne!(other.receive.tag_of(b"x"), publisher.send.tag_of(b"x"));
+        let teleop = system.directed("teleop", "wrist", "readers");
+        assert_ne!(teleop.send.tag_of(b"x"), publisher.send.tag_of(b"x"));
+        assert_ne!(system.tag_of(b"x"), publisher.send.tag_of(b"x"));
+    }
 }

@@ -9,7 +9,7 @@ use penelope_hal::{Frame, Wrench};
 
 use super::{Probe, ProbeMsg, RENEW_EVERY, SENSOR_SAMPLES, SENSOR_SUBSCRIPTIONS, SensorDatagram};
 use crate::dataplane::endpoint::{Endpoint, EndpointStats, RECEIVE_BURST};
-use crate::dataplane::frame::{DatagramKey, Header};
+use crate::dataplane::frame::{DatagramKey, DirectedKeys, Header};
 use crate::dataplane::stream::{StreamReceiver, StreamSender, StreamStats, Verdict};
 
 /// One sample of a sensor stream as a reader takes it.
@@ -68,13 +68,26 @@ impl SensorSubscriber {
     /// # Errors
     /// The operating system's, from binding.
     pub fn connect(publisher: SocketAddr, key: Option<DatagramKey>) -> io::Result<Self> {
+        let keys = key.map(|k| DirectedKeys {
+            send: k.clone(),
+            receive: k,
+        });
+        SensorSubscriber::connect_directed(publisher, keys)
+    }
+
+    /// As [`connect`](Self::connect), with the keys of this sensor's directions
+    /// ([`sensor_reader_keys`](super::sensor_reader_keys)).
+    ///
+    /// # Errors
+    /// The operating system's, from binding.
+    pub fn connect_directed(publisher: SocketAddr, keys: Option<DirectedKeys>) -> io::Result<Self> {
         let ip: IpAddr = match (publisher.ip().is_loopback(), publisher.is_ipv4()) {
             (true, true) => Ipv4Addr::LOCALHOST.into(),
             (true, false) => Ipv6Addr::LOCALHOST.into(),
             (false, true) => Ipv4Addr::UNSPECIFIED.into(),
             (false, false) => Ipv6Addr::UNSPECIFIED.into(),
         };
-        let endpoint = Endpoint::bind(SocketAddr::new(ip, 0), key)?;
+        let endpoint = Endpoint::bind_directed(SocketAddr::new(ip, 0), keys)?;
         Ok(SensorSubscriber {
             endpoint,
             publisher,

@@ -291,9 +291,11 @@ mod tests {
             table.subscribe(addr(2), &senders[2].next(2), None, 2),
             Ok(Admission::Joined)
         );
-        // Unsubscribing someone who is not there, or with an old datagram, does nothing.
+        // Unsubscribing someone who is not there, or with an old datagram (of its own session,
+        // or of an earlier session), does nothing.
         assert!(!table.unsubscribe(addr(9), &senders[0].next(3)));
-        assert!(!table.unsubscribe(addr(1), &third));
+        assert!(!table.unsubscribe(addr(2), &third));
+        assert!(!table.unsubscribe(addr(1), &senders[0].next(4)));
         assert_eq!(table.len(), 2);
     }
 

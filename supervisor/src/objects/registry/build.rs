@@ -730,7 +730,11 @@ impl Registry {
                  secret (--secret-file) so that its datagrams are authenticated"
             )));
         }
-        let subscriber = SensorSubscriber::connect(address, self.datagram_key.clone())
+        let keys = self
+            .datagram_key
+            .as_ref()
+            .map(|k| crate::dataplane::sensor_stream::sensor_reader_keys(k, path));
+        let subscriber = SensorSubscriber::connect_directed(address, keys)
             .map_err(|e| WireError::Device(format!("data plane: reader of `{path}`: {e}")))?;
         Ok(crate::objects::runtime::SensorSource::Stream(Box::new(
             subscriber,

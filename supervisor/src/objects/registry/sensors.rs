@@ -48,7 +48,9 @@ impl Registry {
                  (--secret-file) so that its datagrams are authenticated"
             )));
         }
-        let endpoint = Endpoint::bind(address, key)
+        // Keys of this sensor's two directions (name-bound): not another stream's.
+        let keys = key.map(|k| crate::dataplane::sensor_stream::sensor_publisher_keys(&k, name));
+        let endpoint = Endpoint::bind_directed(address, keys)
             .map_err(|e| WireError::Device(format!("data plane: cannot bind {address}: {e}")))?;
         let state = s.state.clone();
         let measure = Box::new(

@@ -158,7 +158,17 @@ impl Registry {
                          secret (--secret-file) so that its datagrams are authenticated"
                     )));
                 }
-                let endpoint = Endpoint::bind(listen, self.datagram_key.clone()).map_err(|e| {
+                // One key per direction of this channel, bound to both robots' names (the
+                // same on both nodes): another channel's datagrams do not verify here.
+                let (here, there) = match side {
+                    Side::Master => (&master, &slave),
+                    Side::Slave => (&slave, &master),
+                };
+                let keys = self
+                    .datagram_key
+                    .as_ref()
+                    .map(|k| k.directed("teleop", here, there));
+                let endpoint = Endpoint::bind_directed(listen, keys).map_err(|e| {
                     WireError::Device(format!("data plane: cannot bind {listen}: {e}"))
                 })?;
                 // Real times and kernel receive stamps on real time; the tick's on a

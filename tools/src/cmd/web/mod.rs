@@ -3,6 +3,7 @@
 //!
 //! ```text
 //! penelope web [--naming ADDR] [--listen 127.0.0.1:8080] [--secret-file FILE]
+//!               [--allow-host NAME[:PORT]]...
 //! ```
 //!
 //! It is one more client of the system: every request becomes calls of the client library
@@ -11,6 +12,8 @@
 //! by the node, so the real-time rings never see the browser.
 //!
 //! # Layers
+//! - [`doors`]: before any handler: a `Host` that names this server (no DNS rebinding),
+//!   connection caps (in all and per client) and a deadline for a request's head.
 //! - [`session`]: who may ask: loopback needs nothing, any other address (or a `--secret-file`)
 //!   needs the shared secret once at `/login`, then a login cookie; state-changing requests
 //!   and WebSockets from another site are refused.
@@ -25,6 +28,7 @@
 
 mod api;
 mod assets;
+mod doors;
 mod live;
 mod session;
 mod system;
@@ -66,6 +70,11 @@ pub struct Args {
     /// (default: none; `config/` of the repository holds the demo's).
     #[arg(long, value_name = "DIR")]
     pub systems: Option<PathBuf>,
+    /// Names besides its listen address and `localhost` under which the page is served (a
+    /// request whose `Host` names none of them is refused: DNS rebinding), `NAME` for any port
+    /// or `NAME:PORT`, as a browser reaches this server (for example through a proxy).
+    #[arg(long = "allow-host", value_name = "NAME")]
+    pub allow_hosts: Vec<String>,
 }
 
 /// What every request handler shares.
@@ -132,11 +141,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .worker_threads(2)
         .enable_all()
         .build()?;
-    runtime.block_on(serve(state, listen, naming))
+    runtime.block_on(serve(state, listen, naming, &args.allow_hosts))
 }
 
-/// The routes: `/login` open to all, everything else behind [`session::guard`].
-fn router(state: Arc<WebState>) -> Router {
+/// The routes: `/login` open to all, everything else behind [`session::guard`]; all of them
+/// only under a name of this server ([`doors::named_host`]).
+fn router(state: Arc<WebState>, hosts: Arc<doors::Hosts>) -> Router {
     let guarded = Router::new()
         .route("/", get(assets::index))
         .route("/assets/{file}", get(assets::file))
@@ -162,6 +172,12 @@ fn router(state: Arc<WebState>) -> Router {
         .merge(guarded)
         // Every request, the login's too: no state change from another site.
         .layer(axum::middleware::from_fn(session::same_origin))
+        // Outermost: the same-origin check compares `Origin` with `Host`, which a rebound
+        // page meets unless `Host` must name this server.
+        .layer(axum::middleware::from_fn_with_state(
+            hosts,
+            doors::named_host,
+        ))
         .with_state(state)
 }
 
@@ -169,11 +185,13 @@ async fn serve(
     state: Arc<WebState>,
     listen: SocketAddr,
     naming: SocketAddr,
+    allow_hosts: &[String],
 ) -> anyhow::Result<ExitCode> {
     let listener = tokio::net::TcpListener::bind(listen)
         .await
         .map_err(|e| anyhow::anyhow!("cannot listen on {listen}: {e}"))?;
     let bound = listener.local_addr()?;
+    let hosts = Arc::new(doors::Hosts::new(bound, allow_hosts)?);
     // The readiness line tests and scripts wait for: said once the socket accepts.
     println!(
         "penelope web: serving http://{bound}/ (naming service {naming}{}); Ctrl-C stops it",
@@ -183,10 +201,9 @@ async fn serve(
             ""
         }
     );
-    axum::serve(listener, router(state))
-        .with_graceful_shutdown(async {
-            let _ = tokio::signal::ctrl_c().await;
-        })
-        .await?;
+    tokio::select! {
+        () = doors::serve(listener, router(state, hosts)) => {}
+        _ = tokio::signal::ctrl_c() => {}
+    }
     Ok(ExitCode::SUCCESS)
 }

@@ -12,10 +12,11 @@
 
 use std::collections::HashMap;
 use std::io::Read as _;
+use std::net::{IpAddr, SocketAddr};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
-use axum::extract::{Request, State};
+use axum::extract::{ConnectInfo, Request, State};
 use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, header};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Redirect, Response};
@@ -24,13 +25,18 @@ use hmac::Mac as _;
 use super::WebState;
 use super::api::ApiError;
 use super::assets;
+use super::doors::client_of;
 
 /// The login cookie's name.
 pub(crate) const COOKIE: &str = "penelope_login";
 /// Logins kept at once; the oldest goes first beyond it.
 const MAX_LOGINS: usize = 256;
-/// Failed logins allowed per [`FAILURE_WINDOW`] before every attempt is refused until it ends.
+/// Failed logins allowed to one client (an IPv4 address, an IPv6 /64) per [`FAILURE_WINDOW`]
+/// before its attempts are refused until the window ends; other clients are not affected, so a
+/// guesser cannot lock the right secret out.
 const MAX_FAILURES: u32 = 10;
+/// Clients whose failed logins are remembered at once; beyond it the oldest window is forgotten.
+const MAX_THROTTLED_CLIENTS: usize = 4096;
 /// See [`MAX_FAILURES`].
 const FAILURE_WINDOW: Duration = Duration::from_secs(60);
 
@@ -46,8 +52,8 @@ pub(crate) struct Sessions {
     lifetime: Duration,
     /// Token -> when it expires.
     logins: Mutex<HashMap<String, Instant>>,
-    /// Failed logins in the current window: (window start, count).
-    failures: Mutex<(Instant, u32)>,
+    /// Failed logins per client in its current window: (window start, count).
+    failures: Mutex<HashMap<IpAddr, (Instant, u32)>>,
 }
 
 impl Sessions {
@@ -58,7 +64,7 @@ impl Sessions {
             key: random_bytes(),
             lifetime,
             logins: Mutex::new(HashMap::new()),
-            failures: Mutex::new((Instant::now(), 0)),
+            failures: Mutex::new(HashMap::new()),
         }
     }
 
@@ -119,19 +125,33 @@ impl Sessions {
         }
     }
 
-    /// Whether a login may be tried now: false while too many failed in the current window.
-    fn may_try(&self) -> bool {
+    /// Whether `peer` may try a login now: false while too many of its client's failed in the
+    /// current window.
+    fn may_try(&self, peer: IpAddr) -> bool {
         let f = self.failures.lock().unwrap_or_else(PoisonError::into_inner);
-        f.0.elapsed() >= FAILURE_WINDOW || f.1 < MAX_FAILURES
+        f.get(&client_of(peer))
+            .is_none_or(|(start, n)| start.elapsed() >= FAILURE_WINDOW || *n < MAX_FAILURES)
     }
 
-    /// Counts a failed login.
-    fn failed(&self) {
+    /// Counts a failed login of `peer`.
+    fn failed(&self, peer: IpAddr) {
         let mut f = self.failures.lock().unwrap_or_else(PoisonError::into_inner);
-        if f.0.elapsed() >= FAILURE_WINDOW {
-            *f = (Instant::now(), 0);
+        if f.len() >= MAX_THROTTLED_CLIENTS {
+            f.retain(|_, (start, _)| start.elapsed() < FAILURE_WINDOW);
         }
-        f.1 += 1;
+        if f.len() >= MAX_THROTTLED_CLIENTS
+            && let Some(oldest) = f
+                .iter()
+                .min_by_key(|(_, (start, _))| *start)
+                .map(|(c, _)| *c)
+        {
+            f.remove(&oldest);
+        }
+        let window = f.entry(client_of(peer)).or_insert((Instant::now(), 0));
+        if window.0.elapsed() >= FAILURE_WINDOW {
+            *window = (Instant::now(), 0);
+        }
+        window.1 += 1;
     }
 }
 
@@ -223,15 +243,16 @@ pub(crate) async fn login_page(State(state): State<Arc<WebState>>) -> Response {
 /// `POST /login`: the secret once, a cookie back.
 pub(crate) async fn login(
     State(state): State<Arc<WebState>>,
+    ConnectInfo(peer): ConnectInfo<SocketAddr>,
     form: Result<axum::Form<LoginForm>, axum::extract::rejection::FormRejection>,
 ) -> Response {
     let sessions = &state.sessions;
     if !sessions.needs_login() {
         return Redirect::to("/").into_response();
     }
-    if !sessions.may_try() {
+    if !sessions.may_try(peer.ip()) {
         return assets::login_response(
-            "Too many failed logins: wait a minute before the next.",
+            "Too many failed logins from this address: wait a minute before the next.",
             StatusCode::TOO_MANY_REQUESTS,
         );
     }
@@ -239,7 +260,7 @@ pub(crate) async fn login(
     // The secret file's trailing newline is not part of the secret; a pasted one is not either.
     let given = given.trim_end_matches(['\r', '\n']);
     if !sessions.is_secret(given.as_bytes()) {
-        sessions.failed();
+        sessions.failed(peer.ip());
         return assets::login_response(
             "That is not the system's shared secret.",
             StatusCode::UNAUTHORIZED,
@@ -326,12 +347,22 @@ mod tests {
     }
 
     #[test]
-    fn failed_logins_are_bounded() {
+    fn failed_logins_are_bounded_per_client() {
         let s = Sessions::new(Some(b"x".to_vec()), Duration::from_secs(60));
+        let guesser: IpAddr = "2001:db8::1".parse().unwrap();
         for _ in 0..MAX_FAILURES {
-            assert!(s.may_try());
-            s.failed();
+            assert!(s.may_try(guesser));
+            s.failed(guesser);
         }
-        assert!(!s.may_try());
+        // The guesser's whole /64 waits; other clients do not.
+        assert!(!s.may_try(guesser));
+        assert!(!s.may_try("2001:db8::2".parse().unwrap()));
+        assert!(s.may_try("2001:db9::1".parse().unwrap()));
+        assert!(s.may_try("127.0.0.1".parse().unwrap()));
+        // Many clients failing once each are remembered within a bound.
+        for i in 0..(MAX_THROTTLED_CLIENTS as u32 + 10) {
+            s.failed(IpAddr::from(i.to_be_bytes()));
+        }
+        assert!(s.failures.lock().unwrap().len() <= MAX_THROTTLED_CLIENTS);
     }
 }
