@@ -218,7 +218,7 @@ fn a_system_behind_a_shared_secret() {
     let secret = b"correct horse battery staple".to_vec();
     let naming = Arc::new(NamingService::new("naming", NamingLimits::default()));
     let mut naming_config = ServerConfig::new("naming");
-    naming_config.secret = Some(secret.clone());
+    naming_config.secret = Some(secret.as_slice().into());
     let naming_server = Server::bind(loopback(), naming_config, naming.clone()).unwrap();
     let naming_addr = naming_server.local_addr();
 
@@ -241,7 +241,7 @@ fn a_system_behind_a_shared_secret() {
 
     let start = |name: &str| {
         let mut config = NodeConfig::new(name, NamingChoice::Remote(naming_addr));
-        config.secret = Some(secret.clone());
+        config.secret = Some(secret.as_slice().into());
         config.lease = LEASE;
         Node::start(config).unwrap()
     };
@@ -254,13 +254,13 @@ fn a_system_behind_a_shared_secret() {
         Err(RpcError::Remote(WireError::AuthFailed))
     ));
     let mut wrong = ClientConfig::new("guess");
-    wrong.secret = Some(b"password".to_vec());
+    wrong.secret = Some(b"password".into());
     assert!(matches!(
         Client::connect(naming_addr, wrong),
         Err(RpcError::Remote(WireError::AuthFailed))
     ));
     let mut right = ClientConfig::new("operator");
-    right.secret = Some(secret.clone());
+    right.secret = Some(secret.as_slice().into());
     let client = Client::connect(naming_addr, right).unwrap();
     assert_eq!(entries(&client, "/"), ["A/", "B/"]);
 

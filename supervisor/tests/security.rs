@@ -23,7 +23,7 @@ use penelope_supervisor::proto::{
 use penelope_supervisor::service::{Service, Session};
 
 const SECRET: &[u8] = b"correct horse battery staple";
-const ADMIN: &[u8] = b"the operator's own";
+const ADMIN: &[u8] = b"the operator's own, longer admin secret";
 const MAX: usize = DEFAULT_MAX_FRAME;
 
 /// Echo, counting what it serves.
@@ -48,13 +48,13 @@ fn local() -> SocketAddr {
 
 fn secured(service: Arc<dyn Service>) -> Server {
     let mut c = ServerConfig::new("lab-a");
-    c.secret = Some(SECRET.to_vec());
+    c.secret = Some(SECRET.into());
     c.handshake_timeout = Duration::from_secs(2);
     Server::bind(local(), c, service).unwrap()
 }
 
 fn with_secret(mut c: ClientConfig) -> ClientConfig {
-    c.secret = Some(SECRET.to_vec());
+    c.secret = Some(SECRET.into());
     c.timeout = Duration::from_secs(3);
     c
 }
@@ -126,7 +126,7 @@ fn a_node_that_never_proves_the_secret_gets_no_request() {
     // once (waiting cannot fix it), having sent nothing.
     let (addr, seen) = fake_node(Security::Plain);
     let mut config = NodeConfig::new("lab-a", NamingChoice::Remote(addr));
-    config.secret = Some(SECRET.to_vec());
+    config.secret = Some(SECRET.into());
     match Node::start(config) {
         Err(NodeError::NamingRefused {
             cause: RpcError::Unauthenticated(_),
@@ -148,7 +148,7 @@ fn a_client_without_the_secret_is_refused_and_serves_nothing() {
         Err(RpcError::Remote(WireError::AuthFailed))
     ));
     let mut wrong = ClientConfig::new("guest");
-    wrong.secret = Some(b"password".to_vec());
+    wrong.secret = Some(b"password".into());
     assert!(matches!(
         Connection::connect(addr, &wrong),
         Err(RpcError::Remote(WireError::AuthFailed))
@@ -401,8 +401,8 @@ fn the_client_refuses_a_tampered_frame_of_the_node() {
 fn naming_server(admin_secret: Option<&[u8]>) -> (Server, Arc<NamingService>) {
     let service = Arc::new(NamingService::new("naming", NamingLimits::default()));
     let mut c = ServerConfig::new("naming");
-    c.secret = Some(SECRET.to_vec());
-    c.admin_secret = admin_secret.map(<[u8]>::to_vec);
+    c.secret = Some(SECRET.into());
+    c.admin_secret = admin_secret.map(Into::into);
     let server = Server::bind(local(), c, service.clone()).unwrap();
     (server, service)
 }
@@ -531,10 +531,10 @@ fn a_node_writes_only_its_own_context_and_only_an_admin_writes_anywhere() {
         Err(RpcError::Remote(WireError::AuthFailed))
     ));
     let mut wrong = with_secret(ClientConfig::admin("ops"));
-    wrong.admin_secret = Some(b"guess".to_vec());
+    wrong.admin_secret = Some(b"guess".into());
     assert!(Connection::connect(addr, &wrong).is_err());
     let mut cfg = with_secret(ClientConfig::admin("ops"));
-    cfg.admin_secret = Some(ADMIN.to_vec());
+    cfg.admin_secret = Some(ADMIN.into());
     let mut admin = Connection::connect(addr, &cfg).unwrap();
     naming(&mut admin, bind("/shared/ft", "lab-b", false)).unwrap();
     naming(
@@ -558,7 +558,7 @@ fn a_node_writes_only_its_own_context_and_only_an_admin_writes_anywhere() {
     // At a node without an admin secret, an admin claim is served as a reader.
     let (server, _) = naming_server(None);
     let mut cfg = with_secret(ClientConfig::admin("ops"));
-    cfg.admin_secret = Some(ADMIN.to_vec());
+    cfg.admin_secret = Some(ADMIN.into());
     let mut ops = Connection::connect(server.local_addr(), &cfg).unwrap();
     assert!(forbidden(naming(&mut ops, register("lab-c"))));
     drop(ops);
@@ -571,7 +571,7 @@ fn two_hundred_silent_connections_do_not_keep_the_operator_out() {
     // operator would wait for it.
     let service = Arc::new(NamingService::new("naming", NamingLimits::default()));
     let mut c = ServerConfig::new("naming");
-    c.secret = Some(SECRET.to_vec());
+    c.secret = Some(SECRET.into());
     c.handshake_timeout = Duration::from_secs(30);
     let server = Server::bind(local(), c, service).unwrap();
     let addr = server.local_addr();
