@@ -182,7 +182,8 @@ fn a_client_without_the_secret_is_refused_and_serves_nothing() {
         c.call(Call::Ping { payload: vec![2] }).unwrap(),
         Reply::Pong(vec![2])
     );
-    assert_eq!(service.calls.load(Ordering::SeqCst), 1);
+    // Its ping, and the one that proved the secret before `connect` returned.
+    assert_eq!(service.calls.load(Ordering::SeqCst), 2);
     drop(c);
     server.shutdown();
 }
@@ -323,7 +324,7 @@ fn a_tampered_replayed_or_reordered_frame_closes_the_connection() {
 }
 
 /// A relay between one client and `node` that flips the last bit of the node's frame number
-/// `flip` (0: its hello, 1: its handshake answer, 2: the first sealed frame).
+/// `flip` (0: its hello, 1: its handshake answer, 2: the first sealed frame, ...).
 fn tampering_relay(node: SocketAddr, flip: usize) -> SocketAddr {
     let l = TcpListener::bind(local()).unwrap();
     let addr = l.local_addr().unwrap();
@@ -386,8 +387,9 @@ fn the_client_refuses_a_tampered_frame_of_the_node() {
     ));
     assert_eq!(service.calls.load(Ordering::SeqCst), 0);
 
-    // A changed response: the call fails and the connection is unusable.
-    let relay = tampering_relay(server.local_addr(), 2);
+    // A changed response (frame 3: frame 2 answered the ping that proved the secret): the call
+    // fails and the connection is unusable.
+    let relay = tampering_relay(server.local_addr(), 3);
     let mut c = Connection::connect(relay, &cfg).unwrap();
     assert!(matches!(
         c.call(Call::Ping { payload: vec![1] }),
