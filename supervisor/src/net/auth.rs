@@ -168,13 +168,17 @@ impl Secret {
     pub fn check_strength(&self, what: &str) -> Result<(), String> {
         let bits = self.estimated_bits();
         if bits >= MIN_SECRET_BITS {
-            Ok(())
-        } else {
-            Err(format!(
-                "{what} is too weak: at most {bits} bits, at least {MIN_SECRET_BITS} needed \
-                 (32 hex digits, 22 base64 characters or 16 random bytes); {MAKE_A_SECRET}"
-            ))
+            return Ok(());
         }
+        let why = if bits == 0 {
+            format!("{} bytes, too few of them distinct", self.0.len())
+        } else {
+            format!("at most {bits} bits")
+        };
+        Err(format!(
+            "{what} is too weak ({why}); at least {MIN_SECRET_BITS} bits are needed (32 hex \
+             digits, 22 base64 characters or 16 random bytes): {MAKE_A_SECRET}"
+        ))
     }
 }
 
