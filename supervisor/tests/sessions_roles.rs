@@ -296,16 +296,18 @@ fn failed_handshakes_are_slowed_per_address_while_another_address_connects_at_on
 fn a_short_secret_is_refused_at_start_with_how_to_make_one() {
     let mut config = NodeConfig::new("weak", NamingChoice::Host);
     config.secret = Some(b"ab".into());
-    let e = Node::start(config)
-        .err()
-        .expect("a 2-character secret was accepted");
+    let Err(e) = Node::start(config) else {
+        panic!("a 2-character secret was accepted")
+    };
     println!("{e}");
     assert!(e.to_string().contains("penelope secret new"), "{e}");
     // The naming service alone: the same.
     let naming = Arc::new(NamingService::new("naming", NamingLimits::default()));
     let mut c = ServerConfig::new("naming");
     c.secret = Some(b"password".into());
-    let e = Server::bind(local(), c, naming).err().expect("accepted");
+    let Err(e) = Server::bind(local(), c, naming) else {
+        panic!("a weak secret was accepted")
+    };
     assert!(e.to_string().contains("too weak"), "{e}");
     // And secrets never show in a configuration's debug output.
     let mut c = ServerConfig::new("n");
