@@ -440,6 +440,7 @@ def connect(
     *,
     name: str = "penelope-python",
     timeout: float = 5.0,
+    admin_secret_file: Optional[Union[str, "os.PathLike[str]"]] = None,
 ) -> Client:
     """Connects to the naming service at ``naming`` (``HOST:PORT``) at once, so that an
     unreachable or refusing service is reported here.
@@ -448,9 +449,15 @@ def connect(
     ``penelope node``); with it, every connection proves the secret and is encrypted, and a
     node that does not prove it is refused (:class:`Unauthenticated`). A node that requires the
     secret refuses a client without it (:class:`AuthFailed`). ``timeout`` (s) bounds the
-    connection and every call."""
+    connection and every call.
+
+    The client speaks as the most its files prove: an administrator (create and destroy
+    objects) with ``admin_secret_file`` or on a system without a secret (loopback only, where
+    roles are taken on trust); an operator (run objects, record, but not create or destroy)
+    with ``secret_file`` alone."""
     path = None if secret_file is None else os.fspath(secret_file)
-    return Client(_native.Client.connect(naming, path, name, timeout))
+    admin = None if admin_secret_file is None else os.fspath(admin_secret_file)
+    return Client(_native.Client.connect(naming, path, name, timeout, admin))
 
 
 def watch(

@@ -13,6 +13,7 @@ class Client:
         secret_file: Optional[str] = None,
         name: str = "penelope-python",
         timeout: float = 5.0,
+        admin_secret_file: Optional[str] = None,
     ) -> Client: ...
     @property
     def naming(self) -> str: ...

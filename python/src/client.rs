@@ -76,15 +76,19 @@ impl Client {
 #[pymethods]
 impl Client {
     /// Connects to the naming service at `naming` (`HOST:PORT`), with the shared secret in
-    /// `secret_file` if given; `timeout` (s) bounds the connection and each call.
+    /// `secret_file` if given; `timeout` (s) bounds the connection and each call. The client
+    /// speaks as the most its files prove: an admin with `admin_secret_file` (or on a system
+    /// without a secret, where roles are taken on trust), else an operator (it may run objects
+    /// but not create or destroy them).
     #[staticmethod]
-    #[pyo3(signature = (naming, secret_file=None, name="penelope-python", timeout=5.0))]
+    #[pyo3(signature = (naming, secret_file=None, name="penelope-python", timeout=5.0, admin_secret_file=None))]
     fn connect(
         py: Python<'_>,
         naming: &str,
         secret_file: Option<std::path::PathBuf>,
         name: &str,
         timeout: f64,
+        admin_secret_file: Option<std::path::PathBuf>,
     ) -> PyResult<Client> {
         let address = naming
             .to_socket_addrs()
@@ -98,7 +102,18 @@ impl Client {
         }
         let mut config = ClientConfig::new(name);
         config.timeout = Duration::from_secs_f64(timeout);
-        config.secret = secret_file.as_deref().map(read_secret).transpose()?;
+        config.secret = secret_file
+            .as_deref()
+            .map(read_secret)
+            .transpose()?
+            .map(Into::into);
+        config.admin_secret = admin_secret_file
+            .as_deref()
+            .map(read_secret)
+            .transpose()?
+            .map(Into::into);
+        config.role =
+            ClientConfig::strongest_role(config.secret.as_ref(), config.admin_secret.as_ref());
         let inner = py
             .detach(|| rust::Client::connect(address, config))
             .map_err(Error)?;

@@ -114,8 +114,18 @@ def secret_file(tmp_path: Path) -> Path:
 
 
 @pytest.fixture
-def secure_node(penelope_bin: str, secret_file: Path) -> Iterator[Node]:
-    """A node `lab` that requires the secret."""
-    n = Node(penelope_bin, "lab", ["--secret-file", str(secret_file)])
+def admin_secret_file(tmp_path: Path) -> Path:
+    """The administrators' secret (creating and destroying objects needs it)."""
+    f = tmp_path / "admin.secret"
+    f.write_text("7d1e4f0a9c2b5e8d3f6a1c4e7b0d2f5a\n")
+    f.chmod(0o600)
+    return f
+
+
+@pytest.fixture
+def secure_node(penelope_bin: str, secret_file: Path, admin_secret_file: Path) -> Iterator[Node]:
+    """A node `lab` that requires the secret, and the admin secret to create objects."""
+    n = Node(penelope_bin, "lab", ["--secret-file", str(secret_file),
+                                   "--admin-secret-file", str(admin_secret_file)])
     yield n
     n.stop()

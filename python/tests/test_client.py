@@ -217,9 +217,16 @@ def test_errors_carry_the_wire_error_kind(node) -> None:
 
 
 def test_the_secret_file_authenticates_and_its_absence_is_refused(secure_node, secret_file: Path,
+                                                                  admin_secret_file: Path,
                                                                   tmp_path: Path) -> None:
-    c = penelope.connect(secure_node.naming, secret_file=secret_file)
-    assert c.nodes() == ["lab"]
+    # The shared secret alone makes an operator: it may not create.
+    operator = penelope.connect(secure_node.naming, secret_file=secret_file)
+    assert operator.nodes() == ["lab"]
+    with pytest.raises(penelope.PenelopeError) as e:
+        operator.create("lab", "board/sim", "sim0")
+    assert e.value.kind == "Forbidden"
+    c = penelope.connect(secure_node.naming, secret_file=secret_file,
+                         admin_secret_file=admin_secret_file)
     robot = puma(c)
     assert robot.fk(CONFIGURATIONS[1]).shape == (4, 4)
     with pytest.raises(penelope.AuthFailed) as e:

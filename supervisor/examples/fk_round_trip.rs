@@ -30,7 +30,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         while secret.last().is_some_and(|b| *b == b'\n' || *b == b'\r') {
             secret.pop();
         }
-        config.secret = Some(secret);
+        config.secret = Some(secret.into());
     }
     let client = Client::connect(naming.parse()?, config)?;
     let robot = client.robot(robot)?;

@@ -57,14 +57,14 @@ pub struct Session {
 
 impl Session {
     /// A session for calls made inside the process (a node's calls to itself, tests): no
-    /// connection behind it (its outbox is closed), a node's own identity.
+    /// connection behind it (its outbox is closed), [`Identity::IN_PROCESS`].
     pub fn in_process(client: &str) -> Session {
         let (outbox, _receiver) = Outbox::bounded(1);
         Session {
             id: u64::MAX,
             peer: SocketAddr::from(([127, 0, 0, 1], 0)),
             client: client.to_string(),
-            identity: Identity::LOCAL_NODE,
+            identity: Identity::IN_PROCESS,
             outbox,
         }
     }
@@ -75,7 +75,7 @@ impl Session {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Identity {
     /// The role served: the claimed one, except that [`Role::Admin`] at a node without an admin
-    /// secret is served as [`Role::Reader`].
+    /// secret is served as [`Role::Operator`].
     pub role: Role,
     /// The handshake proved the secret (the system secret; for [`Role::Admin`] the admin secret
     /// too). `false` on a plain connection (no secret configured): the role is taken on trust.
@@ -83,9 +83,16 @@ pub struct Identity {
 }
 
 impl Identity {
-    /// A node's own calls to itself (never crossed a wire).
+    /// A node's own calls to itself (never crossed a wire), as the node it is.
     pub const LOCAL_NODE: Identity = Identity {
         role: Role::Node,
+        proven: true,
+    };
+
+    /// Calls made inside the process by its owner (a node applying its system file, tests):
+    /// everything is allowed, as to an administrator.
+    pub const IN_PROCESS: Identity = Identity {
+        role: Role::Admin,
         proven: true,
     };
 }

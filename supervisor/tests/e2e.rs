@@ -54,7 +54,7 @@ fn two_nodes_a_client_and_the_naming_tree() {
     let node_a = start_node("A", naming_addr);
     let node_b = start_node("B", naming_addr);
 
-    let client = Client::connect(naming_addr, ClientConfig::new("e2e")).unwrap();
+    let client = Client::connect(naming_addr, ClientConfig::admin("e2e")).unwrap();
     assert_eq!(entries(&client, "/"), ["A/", "B/"]);
     assert_eq!(entries(&client, "/A"), ["creator"]);
     let a = client.node("A").unwrap();
@@ -213,12 +213,14 @@ fn two_nodes_a_client_and_the_naming_tree() {
 /// The same system behind a shared secret: the naming service and both nodes require it, the
 /// nodes use it with each other (a remote sensor read from A on B), a client without it or with
 /// another one is refused, and a node may not listen off loopback without one.
+const ADMIN_SECRET: &[u8] = b"3c1f7a9e0b2d4c6e8f1a3b5c7d9e0f2a";
+
 #[test]
 fn a_system_behind_a_shared_secret() {
     let secret = b"correct horse battery staple".to_vec();
     let naming = Arc::new(NamingService::new("naming", NamingLimits::default()));
     let mut naming_config = ServerConfig::new("naming");
-    naming_config.secret = Some(secret.clone());
+    naming_config.secret = Some(secret.as_slice().into());
     let naming_server = Server::bind(loopback(), naming_config, naming.clone()).unwrap();
     let naming_addr = naming_server.local_addr();
 
@@ -241,7 +243,9 @@ fn a_system_behind_a_shared_secret() {
 
     let start = |name: &str| {
         let mut config = NodeConfig::new(name, NamingChoice::Remote(naming_addr));
-        config.secret = Some(secret.clone());
+        config.secret = Some(secret.as_slice().into());
+        // Creating objects over the wire takes the admin secret.
+        config.server.admin_secret = Some(ADMIN_SECRET.into());
         config.lease = LEASE;
         Node::start(config).unwrap()
     };
@@ -254,13 +258,14 @@ fn a_system_behind_a_shared_secret() {
         Err(RpcError::Remote(WireError::AuthFailed))
     ));
     let mut wrong = ClientConfig::new("guess");
-    wrong.secret = Some(b"password".to_vec());
+    wrong.secret = Some(b"password".into());
     assert!(matches!(
         Client::connect(naming_addr, wrong),
         Err(RpcError::Remote(WireError::AuthFailed))
     ));
-    let mut right = ClientConfig::new("operator");
-    right.secret = Some(secret.clone());
+    let mut right = ClientConfig::admin("operator");
+    right.secret = Some(secret.as_slice().into());
+    right.admin_secret = Some(ADMIN_SECRET.into());
     let client = Client::connect(naming_addr, right).unwrap();
     assert_eq!(entries(&client, "/"), ["A/", "B/"]);
 

@@ -39,7 +39,8 @@ fn node(name: &str, clock: ClockMode, naming: NamingChoice) -> Node {
 
 /// A client's connection to `node`.
 fn connect(node: &Node) -> Connection {
-    Connection::connect(node.address(), &ClientConfig::new("watcher")).unwrap()
+    // An admin: the test also destroys channels.
+    Connection::connect(node.address(), &ClientConfig::admin("watcher")).unwrap()
 }
 
 fn subscribe(conn: &mut Connection, object: &str) -> Result<u64, RpcError> {
@@ -195,7 +196,7 @@ fn a_link_stream_through_the_naming_service_on_real_clocks() {
     let file = SystemFile::parse(&two_nodes()).unwrap();
     file.apply(&a).unwrap();
     file.apply(&b).unwrap();
-    let client = Client::connect(naming.address(), ClientConfig::new("watcher")).unwrap();
+    let client = Client::connect(naming.address(), ClientConfig::admin("watcher")).unwrap();
     // Bound once the node registered its objects.
     let deadline = Instant::now() + Duration::from_secs(10);
     let mut stream = loop {

@@ -35,7 +35,7 @@ fn wait_for(what: &str, limit: Duration, mut done: impl FnMut() -> bool) {
 fn a_node_drives_a_puma200_through_the_emulated_galil() {
     let emulator = PtyEmulator::spawn(PtyOptions::default()).expect("a pseudo-terminal");
     let node = Node::start(NodeConfig::new("lab", NamingChoice::Host)).unwrap();
-    let client = Client::connect(node.address(), ClientConfig::new("test")).unwrap();
+    let client = Client::connect(node.address(), ClientConfig::admin("test")).unwrap();
     let lab = client.node("lab").unwrap();
 
     // A device that is not there is a typed error at configure, and the object stays usable.
@@ -205,7 +205,7 @@ fn a_gravity_compensated_joint_pid_on_the_node_converges_on_the_emulated_puma200
     })
     .expect("a pseudo-terminal");
     let node = Node::start(NodeConfig::new("lab", NamingChoice::Host)).unwrap();
-    let client = Client::connect(node.address(), ClientConfig::new("test")).unwrap();
+    let client = Client::connect(node.address(), ClientConfig::admin("test")).unwrap();
     let lab = client.node("lab").unwrap();
     let board: BoardProxy = lab
         .create_as(

@@ -112,7 +112,7 @@ fn a_node_under_attack_keeps_answering_and_its_loop_keeps_time() {
     let node = Node::start(config).unwrap();
     let addr = node.address();
 
-    let client = Client::connect(addr, ClientConfig::new("operator")).unwrap();
+    let client = Client::connect(addr, ClientConfig::admin("operator")).unwrap();
     let lab = client.node("lab").unwrap();
     lab.create("board/sim", "sim0", "").unwrap();
     let robot: RobotProxy = lab.create_as("robot/puma560", "arm", "").unwrap();

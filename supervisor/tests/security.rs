@@ -23,7 +23,7 @@ use penelope_supervisor::proto::{
 use penelope_supervisor::service::{Service, Session};
 
 const SECRET: &[u8] = b"correct horse battery staple";
-const ADMIN: &[u8] = b"the operator's own";
+const ADMIN: &[u8] = b"the operator's own, longer admin secret";
 const MAX: usize = DEFAULT_MAX_FRAME;
 
 /// Echo, counting what it serves.
@@ -48,13 +48,13 @@ fn local() -> SocketAddr {
 
 fn secured(service: Arc<dyn Service>) -> Server {
     let mut c = ServerConfig::new("lab-a");
-    c.secret = Some(SECRET.to_vec());
+    c.secret = Some(SECRET.into());
     c.handshake_timeout = Duration::from_secs(2);
     Server::bind(local(), c, service).unwrap()
 }
 
 fn with_secret(mut c: ClientConfig) -> ClientConfig {
-    c.secret = Some(SECRET.to_vec());
+    c.secret = Some(SECRET.into());
     c.timeout = Duration::from_secs(3);
     c
 }
@@ -126,7 +126,7 @@ fn a_node_that_never_proves_the_secret_gets_no_request() {
     // once (waiting cannot fix it), having sent nothing.
     let (addr, seen) = fake_node(Security::Plain);
     let mut config = NodeConfig::new("lab-a", NamingChoice::Remote(addr));
-    config.secret = Some(SECRET.to_vec());
+    config.secret = Some(SECRET.into());
     match Node::start(config) {
         Err(NodeError::NamingRefused {
             cause: RpcError::Unauthenticated(_),
@@ -148,7 +148,7 @@ fn a_client_without_the_secret_is_refused_and_serves_nothing() {
         Err(RpcError::Remote(WireError::AuthFailed))
     ));
     let mut wrong = ClientConfig::new("guest");
-    wrong.secret = Some(b"password".to_vec());
+    wrong.secret = Some(b"password".into());
     assert!(matches!(
         Connection::connect(addr, &wrong),
         Err(RpcError::Remote(WireError::AuthFailed))
@@ -182,7 +182,8 @@ fn a_client_without_the_secret_is_refused_and_serves_nothing() {
         c.call(Call::Ping { payload: vec![2] }).unwrap(),
         Reply::Pong(vec![2])
     );
-    assert_eq!(service.calls.load(Ordering::SeqCst), 1);
+    // Its ping, and the one that proved the secret before `connect` returned.
+    assert_eq!(service.calls.load(Ordering::SeqCst), 2);
     drop(c);
     server.shutdown();
 }
@@ -323,7 +324,7 @@ fn a_tampered_replayed_or_reordered_frame_closes_the_connection() {
 }
 
 /// A relay between one client and `node` that flips the last bit of the node's frame number
-/// `flip` (0: its hello, 1: its handshake answer, 2: the first sealed frame).
+/// `flip` (0: its hello, 1: its handshake answer, 2: the first sealed frame, ...).
 fn tampering_relay(node: SocketAddr, flip: usize) -> SocketAddr {
     let l = TcpListener::bind(local()).unwrap();
     let addr = l.local_addr().unwrap();
@@ -386,8 +387,9 @@ fn the_client_refuses_a_tampered_frame_of_the_node() {
     ));
     assert_eq!(service.calls.load(Ordering::SeqCst), 0);
 
-    // A changed response: the call fails and the connection is unusable.
-    let relay = tampering_relay(server.local_addr(), 2);
+    // A changed response (frame 3: frame 2 answered the ping that proved the secret): the call
+    // fails and the connection is unusable.
+    let relay = tampering_relay(server.local_addr(), 3);
     let mut c = Connection::connect(relay, &cfg).unwrap();
     assert!(matches!(
         c.call(Call::Ping { payload: vec![1] }),
@@ -401,8 +403,8 @@ fn the_client_refuses_a_tampered_frame_of_the_node() {
 fn naming_server(admin_secret: Option<&[u8]>) -> (Server, Arc<NamingService>) {
     let service = Arc::new(NamingService::new("naming", NamingLimits::default()));
     let mut c = ServerConfig::new("naming");
-    c.secret = Some(SECRET.to_vec());
-    c.admin_secret = admin_secret.map(<[u8]>::to_vec);
+    c.secret = Some(SECRET.into());
+    c.admin_secret = admin_secret.map(Into::into);
     let server = Server::bind(local(), c, service.clone()).unwrap();
     (server, service)
 }
@@ -531,10 +533,10 @@ fn a_node_writes_only_its_own_context_and_only_an_admin_writes_anywhere() {
         Err(RpcError::Remote(WireError::AuthFailed))
     ));
     let mut wrong = with_secret(ClientConfig::admin("ops"));
-    wrong.admin_secret = Some(b"guess".to_vec());
+    wrong.admin_secret = Some(b"guess".into());
     assert!(Connection::connect(addr, &wrong).is_err());
     let mut cfg = with_secret(ClientConfig::admin("ops"));
-    cfg.admin_secret = Some(ADMIN.to_vec());
+    cfg.admin_secret = Some(ADMIN.into());
     let mut admin = Connection::connect(addr, &cfg).unwrap();
     naming(&mut admin, bind("/shared/ft", "lab-b", false)).unwrap();
     naming(
@@ -558,7 +560,7 @@ fn a_node_writes_only_its_own_context_and_only_an_admin_writes_anywhere() {
     // At a node without an admin secret, an admin claim is served as a reader.
     let (server, _) = naming_server(None);
     let mut cfg = with_secret(ClientConfig::admin("ops"));
-    cfg.admin_secret = Some(ADMIN.to_vec());
+    cfg.admin_secret = Some(ADMIN.into());
     let mut ops = Connection::connect(server.local_addr(), &cfg).unwrap();
     assert!(forbidden(naming(&mut ops, register("lab-c"))));
     drop(ops);
@@ -571,7 +573,7 @@ fn two_hundred_silent_connections_do_not_keep_the_operator_out() {
     // operator would wait for it.
     let service = Arc::new(NamingService::new("naming", NamingLimits::default()));
     let mut c = ServerConfig::new("naming");
-    c.secret = Some(SECRET.to_vec());
+    c.secret = Some(SECRET.into());
     c.handshake_timeout = Duration::from_secs(30);
     let server = Server::bind(local(), c, service).unwrap();
     let addr = server.local_addr();

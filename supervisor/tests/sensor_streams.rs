@@ -45,13 +45,13 @@ impl Lab {
     fn start(names: &[&str]) -> Lab {
         let service = Arc::new(NamingService::new("naming", NamingLimits::default()));
         let mut config = ServerConfig::new("naming");
-        config.secret = Some(SECRET.to_vec());
+        config.secret = Some(SECRET.into());
         let naming = Server::bind("127.0.0.1:0".parse().unwrap(), config, service).unwrap();
         let nodes = names
             .iter()
             .map(|name| {
                 let mut config = NodeConfig::new(*name, NamingChoice::Remote(naming.local_addr()));
-                config.secret = Some(SECRET.to_vec());
+                config.secret = Some(SECRET.into());
                 config.creator.rt.priority = None;
                 Node::start(config).unwrap()
             })
@@ -463,7 +463,7 @@ fn a_sensor_on_another_node_is_refused_to_a_loop_on_a_simulated_clock() {
     // The arm's node on a simulated clock: the published sensor measures in real time, so a
     // stepped loop would read it stale tick after tick; its activation is refused instead.
     let mut config = NodeConfig::new("arm", NamingChoice::Remote(lab.naming.local_addr()));
-    config.secret = Some(SECRET.to_vec());
+    config.secret = Some(SECRET.into());
     config.creator.rt.priority = None;
     config.creator.clock = penelope_supervisor::objects::clock::ClockMode::Simulated;
     let arm = Node::start(config).unwrap();

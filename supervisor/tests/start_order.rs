@@ -59,7 +59,7 @@ fn a_node_started_before_its_naming_service_registers_when_it_starts_and_after_a
 
     // The naming service starts: the node registers, creator and object bound.
     let (naming, server) = naming_at(naming_addr);
-    let client = Client::connect(naming_addr, ClientConfig::new("test")).unwrap();
+    let client = Client::connect(naming_addr, ClientConfig::admin("test")).unwrap();
     wait_until("the node registers", || {
         node.is_registered() && resolves(&client, "/early/sensors/ft")
     });
@@ -70,7 +70,7 @@ fn a_node_started_before_its_naming_service_registers_when_it_starts_and_after_a
     server.shutdown();
     drop(naming);
     let (naming, server) = naming_at(naming_addr);
-    let client = Client::connect(naming_addr, ClientConfig::new("test")).unwrap();
+    let client = Client::connect(naming_addr, ClientConfig::admin("test")).unwrap();
     assert!(matches!(
         client.resolve("/early/creator"),
         Err(RpcError::Remote(WireError::UnknownName(_)))
@@ -92,7 +92,7 @@ fn a_node_started_before_its_naming_service_registers_when_it_starts_and_after_a
 fn a_node_whose_naming_service_never_answers_keeps_serving_and_stops_cleanly() {
     let naming_addr = unused_address();
     let node = Node::start(NodeConfig::new("alone", NamingChoice::Remote(naming_addr))).unwrap();
-    let client = Client::connect(node.address(), ClientConfig::new("direct")).unwrap();
+    let client = Client::connect(node.address(), ClientConfig::admin("direct")).unwrap();
     // Reached directly, the node answers although it is not registered anywhere.
     let info = client.node_at(node.address()).unwrap().info().unwrap();
     assert_eq!(info.node, "alone");

@@ -50,7 +50,7 @@ fn node(name: &str, secret: Option<&[u8]>) -> Node {
     let mut config = NodeConfig::new(name, NamingChoice::None);
     config.creator.rt.priority = None;
     config.creator.clock = ClockMode::Simulated;
-    config.secret = secret.map(<[u8]>::to_vec);
+    config.secret = secret.map(Into::into);
     Node::start(config).unwrap()
 }
 
@@ -96,7 +96,7 @@ fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
 /// together 1 ms at a time; returns the RMS and largest distance, mm, between the one-node and
 /// the two-node tool positions of the master and of the slave, sampled every 100 ms.
 fn against_one_node(faults: &str) -> (f64, f64, f64) {
-    let secret = b"two-node test secret".as_slice();
+    let secret = b"two-node test secret, long enough".as_slice();
     let one = node("lab", Some(secret));
     SystemFile::parse(DEMO_SYSTEM)
         .unwrap()
@@ -182,7 +182,7 @@ fn a_link_cut_in_contact_holds_the_slave_and_the_master_lets_go_then_resumes_wit
     // (12.5-14.5 s); communication every 2 ms, so the link counts as lost 4 ms after the last
     // sample heard.
     let cut = "faults = { outages = [{ from_s = 13.0, to_s = 13.5 }] }";
-    let secret = b"two-node test secret".as_slice();
+    let secret = b"two-node test secret, long enough".as_slice();
     let (a, b) = master_and_slave(cut, Some(secret));
     // Every control tick of both sides, for the safety events.
     let ticks_a = a.creator().record_ticks("display", 1 << 15).unwrap();

@@ -38,7 +38,7 @@ fn control_ticks_reading_a_net_ft_allocate_nothing() {
         id: 1,
         peer: "127.0.0.1:1".parse().unwrap(),
         client: "test".into(),
-        identity: penelope_supervisor::service::Identity::LOCAL_NODE,
+        identity: penelope_supervisor::service::Identity::IN_PROCESS,
         outbox,
     };
     let ft = format!("address = \"{}\"\ntimeout_ms = 50", emu.local_addr());

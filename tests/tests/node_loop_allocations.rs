@@ -29,7 +29,7 @@ fn fifty_thousand_node_loop_ticks_allocate_nothing() {
         id: 1,
         peer: "127.0.0.1:1".parse().unwrap(),
         client: "test".into(),
-        identity: penelope_supervisor::service::Identity::LOCAL_NODE,
+        identity: penelope_supervisor::service::Identity::IN_PROCESS,
         outbox,
     };
     for (kind, name, cfg) in [

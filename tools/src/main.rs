@@ -46,6 +46,9 @@ enum Command {
     Replay(cmd::replay::Args),
     /// Talk to the nodes: list, create, configure, activate, call methods, watch telemetry.
     Ctl(cmd::ctl::Args),
+    /// Shared secrets: `new FILE` writes a strong one (mode 600, never over an existing file).
+    #[command(subcommand)]
+    Secret(cmd::secret::SecretCommand),
     /// The web interface: the naming tree, object forms, lifecycle, live plots, e-stop, in a
     /// browser (loopback by default; elsewhere a login with the shared secret).
     Web(cmd::web::Args),
@@ -68,6 +71,7 @@ fn main() -> ExitCode {
         Command::Naming(args) => cmd::naming::run(args),
         Command::Ctl(args) => cmd::ctl::run(args),
         Command::Web(args) => cmd::web::run(args),
+        Command::Secret(c) => cmd::secret::run(c),
         Command::Replay(args) => cmd::replay::run(args),
     };
     match result {

@@ -110,6 +110,11 @@ fn a_browser_proves_the_secret_once_and_holds_a_strict_cookie() {
     std::fs::write(&secret, format!("{SECRET}\n")).unwrap();
     std::fs::set_permissions(&secret, std::fs::Permissions::from_mode(0o600)).unwrap();
     let secret = secret.to_str().unwrap();
+    // The page creates objects: the web server speaks as an admin, with the admin secret.
+    let admin = dir.join("admin");
+    std::fs::write(&admin, "4b9e2d7f1a0c3e5d8f2b6a9c1e4d7f0a\n").unwrap();
+    std::fs::set_permissions(&admin, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let admin = admin.to_str().unwrap();
     let naming = free_port().to_string();
     let (node, _) = start(
         &[
@@ -123,6 +128,8 @@ fn a_browser_proves_the_secret_once_and_holds_a_strict_cookie() {
             "0",
             "--secret-file",
             secret,
+            "--admin-secret-file",
+            admin,
         ],
         "Ctrl-C stops the node",
     );
@@ -136,6 +143,10 @@ fn a_browser_proves_the_secret_once_and_holds_a_strict_cookie() {
             "127.0.0.1:0",
             "--secret-file",
             secret,
+            "--role",
+            "admin",
+            "--admin-secret-file",
+            admin,
             "--login-hours",
             "2",
         ],

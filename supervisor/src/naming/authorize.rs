@@ -16,9 +16,10 @@ pub fn authorize(identity: Identity, client: &str, call: &NamingCall) -> Result<
         Role::Node => Err(WireError::Forbidden(format!(
             "node `{client}` may {what} only itself, not `{node}`"
         ))),
-        Role::Reader => Err(WireError::Forbidden(format!(
-            "`{client}` is a reader: it may not {what} a node (connect as that node or with the \
-             admin secret)"
+        Role::Reader | Role::Operator => Err(WireError::Forbidden(format!(
+            "`{client}` is a {}: it may not {what} a node (connect as that node or with the \
+             admin secret)",
+            role_name(identity.role)
         ))),
     };
     let own_path = |path: &str, what: &str| {
@@ -29,8 +30,9 @@ pub fn authorize(identity: Identity, client: &str, call: &NamingCall) -> Result<
             Role::Node => Err(WireError::Forbidden(format!(
                 "node `{client}` may {what} only under `/{client}/`, not `{path}`"
             ))),
-            Role::Reader => Err(WireError::Forbidden(format!(
-                "`{client}` is a reader: it may not {what} `{path}`"
+            Role::Reader | Role::Operator => Err(WireError::Forbidden(format!(
+                "`{client}` is a {}: it may not {what} `{path}`",
+                role_name(identity.role)
             ))),
         }
     };
@@ -43,5 +45,15 @@ pub fn authorize(identity: Identity, client: &str, call: &NamingCall) -> Result<
             own_path(path, if *rebind { "rebind" } else { "bind" })
         }
         NamingCall::Unbind { path } => own_path(path, "unbind"),
+    }
+}
+
+/// The role's name in messages.
+pub fn role_name(role: Role) -> &'static str {
+    match role {
+        Role::Reader => "reader",
+        Role::Operator => "operator",
+        Role::Node => "node",
+        Role::Admin => "admin",
     }
 }

@@ -82,6 +82,106 @@ fn keyed(key: &[u8]) -> HmacSha256 {
         .unwrap_or_else(|_| <HmacSha256 as KeyInit>::new(&Default::default()))
 }
 
+/// Bits a secret must hold at least (by [`Secret::estimated_bits`]).
+pub const MIN_SECRET_BITS: u32 = 128;
+
+/// What to tell someone whose secret is refused.
+pub const MAKE_A_SECRET: &str =
+    "make one with `penelope secret new FILE` (32 random bytes, hex-encoded, mode 600)";
+
+/// A shared secret (the system's or the administrators'): its bytes, which its `Debug` never
+/// shows, so a logged configuration or error cannot leak it.
+#[derive(Clone, PartialEq, Eq)]
+pub struct Secret(Vec<u8>);
+
+impl std::fmt::Debug for Secret {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Secret(<redacted>)")
+    }
+}
+
+impl From<Vec<u8>> for Secret {
+    fn from(bytes: Vec<u8>) -> Self {
+        Secret(bytes)
+    }
+}
+
+impl From<&[u8]> for Secret {
+    fn from(bytes: &[u8]) -> Self {
+        Secret(bytes.to_vec())
+    }
+}
+
+impl<const N: usize> From<&[u8; N]> for Secret {
+    fn from(bytes: &[u8; N]) -> Self {
+        Secret(bytes.to_vec())
+    }
+}
+
+impl From<&str> for Secret {
+    fn from(text: &str) -> Self {
+        Secret(text.as_bytes().to_vec())
+    }
+}
+
+impl Secret {
+    /// The secret's bytes.
+    pub fn bytes(&self) -> &[u8] {
+        &self.0
+    }
+
+    /// Whether it has no bytes.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// An upper bound on the secret's entropy, bits, from its length and the alphabet it is
+    /// written in: 4 bits a character for hex digits, 6 for base64 or other printable text, 8
+    /// for other bytes; 0 when it has fewer than 8 distinct bytes (`aaaa...`). It cannot tell
+    /// a random string from a chosen phrase of the same alphabet, so it refuses what is surely
+    /// too weak (short or repetitive secrets), not everything that is.
+    pub fn estimated_bits(&self) -> u32 {
+        let b = &self.0;
+        let mut seen = [false; 256];
+        for &c in b {
+            seen[c as usize] = true;
+        }
+        if seen.iter().filter(|s| **s).count() < 8 {
+            return 0;
+        }
+        let per_char = if b.iter().all(u8::is_ascii_hexdigit) {
+            4
+        } else if b.iter().all(|c| c.is_ascii_graphic() || *c == b' ') {
+            6
+        } else {
+            8
+        };
+        u32::try_from(b.len())
+            .unwrap_or(u32::MAX)
+            .saturating_mul(per_char)
+    }
+
+    /// `Ok` for a secret of at least [`MIN_SECRET_BITS`]; else why not and how to make one.
+    ///
+    /// # Errors
+    /// The message, naming `what` (such as "the shared secret").
+    pub fn check_strength(&self, what: &str) -> Result<(), String> {
+        let bits = self.estimated_bits();
+        if bits >= MIN_SECRET_BITS {
+            return Ok(());
+        }
+        let why = if bits == 0 {
+            format!("{} bytes, too few of them distinct", self.0.len())
+        } else {
+            format!("at most {bits} bits")
+        };
+        Err(format!(
+            "{what} is too weak ({why}); at least {MIN_SECRET_BITS} bits are needed (32 hex \
+             digits, 22 base64 characters or 16 random bytes): {MAKE_A_SECRET}"
+        ))
+    }
+}
+
 /// The pre-shared key of a member of the system (a node or a tool holding the secret).
 pub fn member_psk(secret: &[u8]) -> [u8; PSK_LEN] {
     let mut m = keyed(secret);
@@ -499,6 +599,31 @@ mod tests {
             answer(&b, &prologue(b"x", b"y"), &f).unwrap()
         };
         assert!(matches!(c.finish(&fake), Err(SealError::Handshake)));
+    }
+
+    #[test]
+    fn a_secret_never_shows_in_debug_and_short_ones_are_refused() {
+        let s = Secret::from("3f9a0c77e1d24b5e9c0f1a2b3c4d5e6f");
+        assert_eq!(format!("{s:?}"), "Secret(<redacted>)");
+        assert_eq!(format!("{:?}", Some(s.clone())), "Some(Secret(<redacted>))");
+        assert_eq!(s.estimated_bits(), 128);
+        assert!(s.check_strength("the secret").is_ok());
+        let short = Secret::from("ab");
+        let e = short.check_strength("the shared secret").unwrap_err();
+        assert!(e.contains("penelope secret new"), "{e}");
+        assert_eq!(
+            Secret::from("aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa").estimated_bits(),
+            0
+        );
+        assert!(
+            Secret::from("3f9a0c77e1d24b5e9c0f1a2b3c4d5e6")
+                .check_strength("s")
+                .is_err()
+        );
+        assert_eq!(
+            Secret::from(&[7u8, 200, 1, 2, 3, 4, 5, 6, 9, 10][..]).estimated_bits(),
+            80
+        );
     }
 
     #[test]

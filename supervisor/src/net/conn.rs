@@ -20,7 +20,7 @@ use std::io::{self, Write};
 use std::net::{Shutdown, SocketAddr, TcpStream};
 use std::time::{Duration, Instant};
 
-use crate::net::auth::{self, ClientHandshake, Opener, SealError, Sealer, open_message};
+use crate::net::auth::{self, ClientHandshake, Opener, SealError, Sealer, Secret, open_message};
 use crate::net::frame::{FrameDecoder, FrameError, encode_into};
 use crate::proto::{
     Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, LinkBatch, MAGIC, PROTOCOL_VERSION, Reply,
@@ -50,9 +50,9 @@ pub struct ClientConfig {
     pub role: Role,
     /// The shared secret. With it, the client authenticates the node before sending anything and
     /// refuses a node without the secret.
-    pub secret: Option<Vec<u8>>,
+    pub secret: Option<Secret>,
     /// The admin secret, for [`Role::Admin`] at a node that has one.
-    pub admin_secret: Option<Vec<u8>>,
+    pub admin_secret: Option<Secret>,
     /// Connect and per-call timeout.
     pub timeout: Duration,
     /// Largest frame accepted, bytes.
@@ -78,6 +78,25 @@ impl ClientConfig {
         ClientConfig {
             role: Role::Node,
             ..ClientConfig::new(node)
+        }
+    }
+
+    /// The defaults of [`new`](Self::new) for an operator ([`Role::Operator`]): it may run
+    /// objects (lifecycle, methods, recordings) but not create or destroy them.
+    pub fn operator(name: impl Into<String>) -> Self {
+        ClientConfig {
+            role: Role::Operator,
+            ..ClientConfig::new(name)
+        }
+    }
+
+    /// The most a tool holding `secret` and `admin_secret` can be: [`Role::Admin`] with the
+    /// admin secret, or without any secret (a plain, loopback-only system takes the claim on
+    /// trust); [`Role::Operator`] with the shared secret alone.
+    pub fn strongest_role(secret: Option<&Secret>, admin_secret: Option<&Secret>) -> Role {
+        match (secret, admin_secret) {
+            (None, _) | (Some(_), Some(_)) => Role::Admin,
+            (Some(_), None) => Role::Operator,
         }
     }
 
@@ -226,7 +245,11 @@ impl Connection {
             }));
         }
         conn.node = hello.node;
-        let secret = config.secret.as_deref().filter(|s| !s.is_empty());
+        let secret = config
+            .secret
+            .as_ref()
+            .filter(|s| !s.is_empty())
+            .map(Secret::bytes);
         match (hello.security, secret) {
             (Security::Plain, None) => {}
             (Security::Plain, Some(_)) => {
@@ -242,7 +265,11 @@ impl Connection {
                 return Err(RpcError::Remote(WireError::AuthFailed));
             }
             (Security::Noise { admin }, Some(secret)) => {
-                let admin_secret = config.admin_secret.as_deref().filter(|a| !a.is_empty());
+                let admin_secret = config
+                    .admin_secret
+                    .as_ref()
+                    .filter(|a| !a.is_empty())
+                    .map(Secret::bytes);
                 let psk = match (config.role, admin, admin_secret) {
                     (Role::Admin, true, Some(a)) => auth::admin_psk(secret, a),
                     (Role::Admin, true, None) => {
@@ -275,6 +302,20 @@ impl Connection {
                         return Err(RpcError::Unauthenticated(addr));
                     }
                     Err(e) => return Err(conn.protocol(e.to_string())),
+                }
+                // The node holds no session for us until a frame sealed with this session's
+                // keys proves the secret (the first handshake message could be a replay): a
+                // ping, whose answer says we are in (or why not).
+                match conn.call(Call::Ping {
+                    payload: Vec::new(),
+                }) {
+                    Ok(_) => {}
+                    Err(RpcError::Remote(e)) if !conn.is_usable() => {
+                        return Err(RpcError::Remote(e));
+                    }
+                    // An error reply of a service that does not serve pings: we are in.
+                    Err(RpcError::Remote(_)) => {}
+                    Err(e) => return Err(e),
                 }
             }
         }

@@ -19,14 +19,21 @@
 //!   address. What it cannot outlast is a flood from its own address of connections that say a
 //!   valid hello and then stall;
 //! - sessions: at most `max_sessions`, of which `admin_reserve` only for [`Role::Admin`]
-//!   sessions, so that members holding the system secret cannot lock the administrator out.
+//!   sessions, so that members holding the system secret cannot lock the administrator out. A
+//!   connection becomes a session only once it has proven the secret with a message an
+//!   eavesdropper cannot replay (see `server/handshake.rs`). When the sessions a newcomer may
+//!   take are all in use, and its address holds fewer than [`Admission::sessions_per_peer`], a
+//!   session of the address holding most beyond that quota is evicted for it (the one idle the
+//!   longest; never an administrator's) before anyone is refused: one address cannot keep
+//!   another out by holding every slot, idle or not, while an address under its quota keeps
+//!   what it holds.
 //!
 //! Threads follow: one per pending connection and two per session.
 
 use std::collections::VecDeque;
 use std::net::{IpAddr, Shutdown, TcpStream};
 use std::os::fd::AsFd;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -47,11 +54,22 @@ struct Pending {
     stream: TcpStream,
 }
 
+/// A session (a connection past its handshake), as admission tracks it.
+struct SessionSlot {
+    id: u64,
+    peer: IpAddr,
+    role: Role,
+    evicted: Arc<AtomicBool>,
+    /// Milliseconds (of the server's clock) of the last frame in either direction.
+    activity: Arc<AtomicU64>,
+    stream: TcpStream,
+}
+
 #[derive(Default)]
 struct State {
     /// Oldest first.
     pending: VecDeque<Pending>,
-    sessions: u32,
+    sessions: Vec<SessionSlot>,
 }
 
 /// Connection slots of one server (see the module's rules).
@@ -64,6 +82,9 @@ pub struct Admission {
     pub max_sessions: u32,
     /// Of `max_sessions`, the slots only [`Role::Admin`] sessions may take.
     pub admin_reserve: u32,
+    /// Sessions of one IP address that are safe from eviction when the pool is full (an
+    /// address may hold more while there is room).
+    pub sessions_per_peer: u32,
     state: Mutex<State>,
 }
 
@@ -72,7 +93,7 @@ impl std::fmt::Debug for Admission {
         let s = self.lock();
         f.debug_struct("Admission")
             .field("pending", &s.pending.len())
-            .field("sessions", &s.sessions)
+            .field("sessions", &s.sessions.len())
             .finish()
     }
 }
@@ -90,13 +111,21 @@ pub struct Admitted {
 
 impl Admission {
     /// Slots for `max_sessions` sessions (of which `admin_reserve` for administrators) and
-    /// `max_pending` pending connections (`max_pending_per_peer` per address).
-    pub fn new(max_sessions: u32, admin_reserve: u32, max_pending: u32, per_peer: u32) -> Self {
+    /// `max_pending` pending connections (`max_pending_per_peer` per address); no session is
+    /// evicted for another until its address holds more than `sessions_per_peer`.
+    pub fn new(
+        max_sessions: u32,
+        admin_reserve: u32,
+        max_pending: u32,
+        per_peer: u32,
+        sessions_per_peer: u32,
+    ) -> Self {
         Admission {
             max_pending: max_pending.max(1),
             max_pending_per_peer: per_peer.max(1),
             max_sessions,
             admin_reserve: admin_reserve.min(max_sessions),
+            sessions_per_peer: sessions_per_peer.max(1),
             state: Mutex::new(State::default()),
         }
     }
@@ -156,37 +185,115 @@ impl Admission {
         s.pending.retain(|p| p.id != id);
     }
 
-    /// The pending connection `id` finished its handshake as `role`: a session slot, or
+    /// The pending connection `id` proved who it is as `role`: a session slot (evicting a
+    /// session of an address over its quota if the pool is full, see the module's rules), or
     /// [`WireError::TooManyConnections`] (the connection is no longer pending either way).
+    /// `activity` is the session's clock of its last frame (the longest idle is evicted first).
     ///
     /// # Errors
-    /// [`WireError::TooManyConnections`] when the sessions this role may take are all in use.
-    pub fn open_session(&self, id: u64, role: Role) -> Result<(), WireError> {
+    /// [`WireError::TooManyConnections`] when the sessions this role may take are all in use
+    /// and none may be evicted for it; [`WireError::Unexpected`] if `id` was not pending (it was
+    /// evicted meanwhile).
+    pub fn open_session(
+        &self,
+        id: u64,
+        role: Role,
+        activity: Arc<AtomicU64>,
+    ) -> Result<(), WireError> {
         let mut s = self.lock();
-        s.pending.retain(|p| p.id != id);
+        let Some(at) = s.pending.iter().position(|p| p.id == id) else {
+            return Err(WireError::TooManyConnections {
+                limit: self.max_pending,
+            });
+        };
+        let Some(p) = s.pending.remove(at) else {
+            return Err(WireError::TooManyConnections {
+                limit: self.max_pending,
+            });
+        };
         let limit = if role == Role::Admin {
             self.max_sessions
         } else {
             self.max_sessions - self.admin_reserve
         };
-        if s.sessions >= limit {
-            return Err(WireError::TooManyConnections { limit });
+        let in_use = |s: &State| {
+            if role == Role::Admin {
+                s.sessions.len()
+            } else {
+                // Admin sessions use the reserve first.
+                let admins = s.sessions.iter().filter(|x| x.role == Role::Admin).count();
+                s.sessions.len() - admins.min(self.admin_reserve as usize)
+            }
+        };
+        if in_use(&s) >= limit as usize {
+            match self.session_victim(&s, p.peer) {
+                Some(v) => {
+                    let victim = s.sessions.swap_remove(v);
+                    victim.evicted.store(true, Ordering::Release);
+                    // Wake its reader (a read returns at once): it says why and closes.
+                    let _ = victim.stream.shutdown(Shutdown::Read);
+                    log::warn!(
+                        "session {} of {} ({} sessions) evicted for {}",
+                        victim.id,
+                        victim.peer,
+                        of_peer_sessions(&s, victim.peer) + 1,
+                        p.peer
+                    );
+                }
+                None => return Err(WireError::TooManyConnections { limit }),
+            }
         }
-        s.sessions += 1;
+        s.sessions.push(SessionSlot {
+            id,
+            peer: p.peer,
+            role,
+            evicted: p.evicted,
+            activity,
+            stream: p.stream,
+        });
         Ok(())
     }
 
-    /// A session ended.
-    pub fn close_session(&self) {
+    /// The session to evict for a newcomer from `peer`: none if `peer` already holds its quota;
+    /// else, of the address holding most sessions beyond the quota, its session idle the longest
+    /// (administrators' sessions are never evicted).
+    fn session_victim(&self, s: &State, peer: IpAddr) -> Option<usize> {
+        let quota = self.sessions_per_peer as usize;
+        if of_peer_sessions(s, peer) >= quota {
+            return None;
+        }
+        let busiest = s
+            .sessions
+            .iter()
+            .filter(|x| x.role != Role::Admin)
+            .map(|x| x.peer)
+            .max_by_key(|ip| of_peer_sessions(s, *ip))?;
+        if of_peer_sessions(s, busiest) <= quota {
+            return None;
+        }
+        s.sessions
+            .iter()
+            .enumerate()
+            .filter(|(_, x)| x.peer == busiest && x.role != Role::Admin)
+            .min_by_key(|(_, x)| x.activity.load(Ordering::Relaxed))
+            .map(|(at, _)| at)
+    }
+
+    /// The session `id` ended (a no-op for one already evicted).
+    pub fn close_session(&self, id: u64) {
         let mut s = self.lock();
-        s.sessions = s.sessions.saturating_sub(1);
+        s.sessions.retain(|x| x.id != id);
     }
 
     /// Pending connections and sessions now.
     pub fn counts(&self) -> (u32, u32) {
         let s = self.lock();
-        (s.pending.len() as u32, s.sessions)
+        (s.pending.len() as u32, s.sessions.len() as u32)
     }
+}
+
+fn of_peer_sessions(s: &State, peer: IpAddr) -> usize {
+    s.sessions.iter().filter(|x| x.peer == peer).count()
 }
 
 /// How long a connection that just arrived is spared, while silent ones older than this are
@@ -219,6 +326,68 @@ fn evict(s: &mut State, at: usize) {
         p.evicted.store(true, Ordering::Release);
         // Wake its thread (a read returns at once); it sends the error and closes.
         let _ = p.stream.shutdown(Shutdown::Read);
+    }
+}
+
+/// Failed handshakes per IP address: a token bucket per address (`burst` tokens, `per_s` back
+/// a second) that each failure empties by one; an address with no token left is refused before
+/// its secret is checked, so guessing a secret online runs at `per_s` guesses a second per
+/// address instead of as fast as the node can answer. Addresses whose bucket is full again are
+/// forgotten, so the table stays small.
+pub struct AuthThrottle {
+    burst: f64,
+    per_s: f64,
+    table: Mutex<std::collections::HashMap<IpAddr, (f64, Instant)>>,
+}
+
+impl std::fmt::Debug for AuthThrottle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AuthThrottle")
+            .field("burst", &self.burst)
+            .field("per_s", &self.per_s)
+            .finish()
+    }
+}
+
+/// Addresses tracked before the full buckets are swept out.
+const THROTTLE_SWEEP_AT: usize = 4096;
+
+impl AuthThrottle {
+    /// `burst` failures at once per address, then `per_s` a second.
+    pub fn new(burst: u32, per_s: f64) -> Self {
+        let per_s = if per_s.is_finite() && per_s > 0.0 {
+            per_s
+        } else {
+            1.0
+        };
+        AuthThrottle {
+            burst: f64::from(burst.max(1)),
+            per_s,
+            table: Mutex::new(std::collections::HashMap::new()),
+        }
+    }
+
+    fn tokens(&self, entry: (f64, Instant), now: Instant) -> f64 {
+        let dt = now.saturating_duration_since(entry.1).as_secs_f64();
+        (entry.0 + dt * self.per_s).min(self.burst)
+    }
+
+    /// Whether `peer` may try a handshake at `now` (it has a failure left to spend).
+    pub fn allows(&self, peer: IpAddr, now: Instant) -> bool {
+        let table = self.table.lock().unwrap_or_else(|p| p.into_inner());
+        table.get(&peer).is_none_or(|e| self.tokens(*e, now) >= 1.0)
+    }
+
+    /// `peer` failed a handshake at `now`.
+    pub fn failed(&self, peer: IpAddr, now: Instant) {
+        let mut table = self.table.lock().unwrap_or_else(|p| p.into_inner());
+        if table.len() >= THROTTLE_SWEEP_AT {
+            table.retain(|_, e| self.tokens(*e, now) < self.burst);
+        }
+        let tokens = table
+            .get(&peer)
+            .map_or(self.burst, |e| self.tokens(*e, now));
+        table.insert(peer, ((tokens - 1.0).max(0.0), now));
     }
 }
 
@@ -273,7 +442,7 @@ mod tests {
         let b: IpAddr = "10.0.0.2".parse().unwrap();
         let t0 = Instant::now();
         let at = |ms: u64| t0 + Duration::from_millis(ms);
-        let adm = Admission::new(4, 1, 3, 2);
+        let adm = Admission::new(4, 1, 3, 2, 2);
         let a1 = adm.admit_at(1, a, socket(&l), at(0));
         let a2 = adm.admit_at(2, a, socket(&l), at(10));
         assert_eq!(adm.counts(), (2, 0));
@@ -297,24 +466,70 @@ mod tests {
         assert!(!a2.evicted.load(Ordering::Acquire));
         assert_eq!(adm.counts(), (3, 0));
         // Sessions: three for anyone, the fourth only for an administrator.
+        let clock = || Arc::new(AtomicU64::new(0));
         for id in [2, 5, 6] {
-            adm.open_session(id, Role::Node).unwrap();
+            adm.open_session(id, Role::Node, clock()).unwrap();
         }
+        adm.admit_at(7, b, socket(&l), at(3000));
+        adm.admit_at(8, a, socket(&l), at(3000));
+        adm.admit_at(9, a, socket(&l), at(3000));
+        // `b` holds its quota of two: nothing is evicted for it.
         assert_eq!(
-            adm.open_session(7, Role::Reader),
+            adm.open_session(7, Role::Reader, clock()),
             Err(WireError::TooManyConnections { limit: 3 })
         );
-        adm.open_session(8, Role::Admin).unwrap();
-        assert!(adm.open_session(9, Role::Admin).is_err());
-        adm.close_session();
+        adm.open_session(8, Role::Admin, clock()).unwrap();
+        assert!(adm.open_session(9, Role::Admin, clock()).is_err());
+        adm.close_session(8);
         assert_eq!(adm.counts(), (0, 3));
+    }
+
+    #[test]
+    fn a_full_pool_evicts_the_longest_idle_session_of_an_address_over_its_quota() {
+        let l = TcpListener::bind("127.0.0.1:0").unwrap();
+        let c: IpAddr = "10.0.0.3".parse().unwrap();
+        let d: IpAddr = "10.0.0.4".parse().unwrap();
+        let adm = Admission::new(4, 1, 8, 8, 1);
+        let mut flags = Vec::new();
+        for (id, idle_since) in [(1, 30), (2, 10), (3, 20)] {
+            flags.push(adm.admit(id, c, socket(&l)).evicted);
+            adm.open_session(id, Role::Reader, Arc::new(AtomicU64::new(idle_since)))
+                .unwrap();
+        }
+        // `c` holds every slot but the reserve; `d` (under its quota) takes the idlest one.
+        adm.admit(4, d, socket(&l));
+        adm.open_session(4, Role::Reader, Arc::new(AtomicU64::new(0)))
+            .unwrap();
+        assert!(
+            flags[1].load(Ordering::Acquire),
+            "session 2 was idle longest"
+        );
+        assert!(!flags[0].load(Ordering::Acquire) && !flags[2].load(Ordering::Acquire));
+        // `d` now holds its quota, `c` is over it: neither gets another slot from the other.
+        adm.admit(5, d, socket(&l));
+        assert!(
+            adm.open_session(5, Role::Reader, Arc::new(AtomicU64::new(0)))
+                .is_err()
+        );
+        adm.admit(6, c, socket(&l));
+        assert!(
+            adm.open_session(6, Role::Reader, Arc::new(AtomicU64::new(0)))
+                .is_err()
+        );
+        // The administrator's reserve is still there, and the evicted session's close is a
+        // no-op.
+        adm.admit(7, c, socket(&l));
+        adm.open_session(7, Role::Admin, Arc::new(AtomicU64::new(0)))
+            .unwrap();
+        adm.close_session(2);
+        assert_eq!(adm.counts(), (0, 4));
     }
 
     #[test]
     fn a_connection_whose_hello_is_waiting_is_not_taken_for_a_silent_one() {
         let l = TcpListener::bind("127.0.0.1:0").unwrap();
         let ip: IpAddr = "10.0.0.1".parse().unwrap();
-        let adm = Admission::new(4, 0, 8, 2);
+        let adm = Admission::new(4, 0, 8, 2, 2);
         let talking = socket(&l);
         let (mut server_end, _) = l.accept().unwrap();
         std::io::Write::write_all(&mut server_end, b"hello").unwrap();
@@ -334,6 +549,25 @@ mod tests {
             "it has its hello waiting"
         );
         assert!(second.evicted.load(Ordering::Acquire));
+    }
+
+    #[test]
+    fn failed_handshakes_are_throttled_per_address() {
+        let t0 = Instant::now();
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        let a: IpAddr = "10.0.0.1".parse().unwrap();
+        let b: IpAddr = "10.0.0.2".parse().unwrap();
+        let th = AuthThrottle::new(3, 2.0);
+        for _ in 0..3 {
+            assert!(th.allows(a, at(0)));
+            th.failed(a, at(0));
+        }
+        assert!(!th.allows(a, at(0)));
+        assert!(th.allows(b, at(0)), "another address is not slowed");
+        assert!(!th.allows(a, at(400)));
+        assert!(th.allows(a, at(500)), "one more after half a second");
+        th.failed(a, at(500));
+        assert!(!th.allows(a, at(600)));
     }
 
     #[test]

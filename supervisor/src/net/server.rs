@@ -56,7 +56,7 @@ use std::time::{Duration, Instant};
 
 use crate::net::auth::{Opener, PSK_LEN, Sealer, open_message};
 use crate::net::frame::{FrameDecoder, FrameError, encode_into};
-use crate::net::limits::{Admission, TokenBucket};
+use crate::net::limits::{Admission, AuthThrottle, TokenBucket};
 use crate::proto::{ClientMsg, ServerMsg, WireError};
 use crate::service::{Outbox, OutboxReceiver, Service, Session};
 
@@ -112,6 +112,8 @@ fn add(c: &AtomicU64, n: u64) {
 struct Shared {
     config: ServerConfig,
     admission: Admission,
+    /// Failed handshakes per address.
+    throttle: AuthThrottle,
     /// The pre-shared keys of members and (if an admin secret is set) administrators.
     psk: Option<([u8; PSK_LEN], Option<[u8; PSK_LEN]>)>,
     service: Arc<dyn Service>,
@@ -188,13 +190,15 @@ struct Conn<'a> {
     decoder: FrameDecoder,
     /// After an authenticated handshake: opens every frame of the client.
     opener: Option<Opener>,
-    /// Set by admission when this connection is evicted from the pending pool.
+    /// Set by admission when this connection is evicted (pending, or as a session).
     evicted: Arc<AtomicBool>,
     /// Set once the client said a valid hello (admission then evicts silent ones first).
     greeted: Arc<AtomicBool>,
-    /// Set once the handshake took a session slot: the connection left the pending pool and
-    /// can no longer be evicted from it.
+    /// Set once the handshake took a session slot: the connection left the pending pool (a
+    /// full pool may still evict it as a session, see [`crate::net::limits`]).
     in_session: bool,
+    /// The first sealed message, which proved the secret (served first by the request loop).
+    first: Option<ClientMsg>,
     wire: Arc<Mutex<Wire>>,
     /// Responses not yet written.
     out: Vec<u8>,
@@ -384,9 +388,15 @@ impl Conn<'_> {
         }
     }
 
-    /// Admission evicted this connection from the pending pool (newer ones needed the room).
+    /// Admission evicted this connection from the pending pool (newer ones needed the room) or,
+    /// as a session, from the full session pool for an address under its quota.
     fn evict(&mut self) -> End {
-        let limit = self.shared.config.max_handshakes;
+        let config = &self.shared.config;
+        let limit = if self.in_session {
+            config.max_connections
+        } else {
+            config.max_handshakes
+        };
         self.fail(WireError::TooManyConnections { limit })
     }
 
@@ -415,7 +425,11 @@ impl Conn<'_> {
         let mut bucket = TokenBucket::new(config.max_requests_per_s);
         let mut strikes = 0u32;
         loop {
-            let msg = match self.next_msg(None) {
+            let next = match self.first.take() {
+                Some(m) => Ok(m),
+                None => self.next_msg(None),
+            };
+            let msg = match next {
                 Ok(m) => m,
                 Err(end) => return end,
             };
@@ -507,6 +521,7 @@ fn serve(
         evicted,
         greeted,
         in_session: false,
+        first: None,
         wire: wire.clone(),
         out: Vec::with_capacity(4096),
         out_frames: 0,
@@ -518,7 +533,7 @@ fn serve(
         Ok(c) => c,
         Err(_) => {
             if conn.in_session {
-                shared.admission.close_session();
+                shared.admission.close_session(id);
             } else {
                 shared.admission.abandon(id);
             }
@@ -570,7 +585,7 @@ fn serve(
     if catch_unwind(AssertUnwindSafe(|| service.closed(&session))).is_err() {
         log::error!("the service panicked closing session {id}");
     }
-    shared.admission.close_session();
+    shared.admission.close_session(id);
     let how = match end {
         End::Client => "closed by the client",
         End::Shutdown => "closed by the server's shutdown",

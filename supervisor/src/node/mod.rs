@@ -84,8 +84,9 @@ pub struct NodeConfig {
     /// Where the naming service is.
     pub naming: NamingChoice,
     /// The shared secret: required by this node's server (and by a hosted naming service), and
-    /// sent to the other nodes and the naming service.
-    pub secret: Option<Vec<u8>>,
+    /// sent to the other nodes and the naming service. At least
+    /// [`MIN_SECRET_BITS`](crate::net::auth::MIN_SECRET_BITS) (else the start fails).
+    pub secret: Option<crate::net::auth::Secret>,
     /// The lease in the naming service; renewed every third of it.
     pub lease: Duration,
     /// The creator's settings (`node` and `remote` are set by the node).
@@ -258,8 +259,9 @@ impl Node {
         creator_config.node = name.clone();
         // The data plane's datagrams are authenticated with a key from the same secret.
         if let Some(secret) = &config.secret {
-            creator_config.datagram_key =
-                Some(crate::dataplane::frame::DatagramKey::from_secret(secret));
+            creator_config.datagram_key = Some(crate::dataplane::frame::DatagramKey::from_secret(
+                secret.bytes(),
+            ));
         }
         // The common clock: the naming service's host's, when it is another process on the
         // real clock.

@@ -48,6 +48,7 @@ mod loops;
 pub mod operator_hand;
 mod registry;
 pub mod replay;
+pub mod roles;
 pub mod runtime;
 pub mod stop_board;
 pub mod teleop;
@@ -102,6 +103,9 @@ pub struct CreatorConfig {
     pub max_objects: u32,
     /// The most telemetry subscriptions, over all connections.
     pub max_subscriptions: u32,
+    /// The most telemetry subscriptions of the connections from one IP address (so that one
+    /// client cannot take the whole pool).
+    pub max_subscriptions_per_peer: u32,
     /// Real-time settings of the loops.
     pub rt: RtPolicy,
     /// How controllers reach sensors on other nodes (set later with [`Creator::set_remote`]).
@@ -122,6 +126,10 @@ impl std::fmt::Debug for CreatorConfig {
             .field("node", &self.node)
             .field("max_objects", &self.max_objects)
             .field("max_subscriptions", &self.max_subscriptions)
+            .field(
+                "max_subscriptions_per_peer",
+                &self.max_subscriptions_per_peer,
+            )
             .field("rt", &self.rt)
             .field("remote", &self.remote.is_some())
             .field("clock", &self.clock)
@@ -132,12 +140,14 @@ impl std::fmt::Debug for CreatorConfig {
 }
 
 impl CreatorConfig {
-    /// Node `node`: 256 objects, 64 subscriptions, [`RtPolicy::default`], no remote.
+    /// Node `node`: 256 objects, 64 subscriptions (16 per client address),
+    /// [`RtPolicy::default`], no remote.
     pub fn new(node: impl Into<String>) -> Self {
         CreatorConfig {
             node: node.into(),
             max_objects: 256,
             max_subscriptions: 64,
+            max_subscriptions_per_peer: 16,
             rt: RtPolicy::default(),
             remote: None,
             clock: ClockMode::RealTime,
@@ -627,6 +637,7 @@ impl Creator {
                 }
             }
         };
+        self.check_subscription_quota(session)?;
         let id = self.subscriptions.add(
             session.id,
             &controller,
@@ -635,6 +646,18 @@ impl Creator {
             self.config.max_subscriptions,
         )?;
         Ok(Reply::Subscribed { subscription: id })
+    }
+
+    /// The quota of subscriptions per client address (in-process sessions have none).
+    fn check_subscription_quota(&self, session: &Session) -> Result<(), WireError> {
+        if session.id == u64::MAX {
+            return Ok(());
+        }
+        self.subscriptions.check_peer_quota(
+            session.id,
+            session.peer.ip(),
+            self.config.max_subscriptions_per_peer,
+        )
     }
 
     /// Subscribes `session` to the link of channel `channel`, read from `source`: records
@@ -659,6 +682,7 @@ impl Creator {
                 *pump = Some(started);
             }
         }
+        self.check_subscription_quota(session)?;
         let id = self.subscriptions.add_link(
             session.id,
             channel,
@@ -695,6 +719,9 @@ impl Drop for Creator {
 
 impl Service for Creator {
     fn call(&self, session: &Session, call: Call) -> Result<Reply, WireError> {
+        // Every call, remote or in-process, is checked against the session's role (a stop is
+        // allowed to every role).
+        roles::authorize_call(session.identity, &call)?;
         // Stops first: before reaping (which takes the registry lock) and without that lock.
         match &call {
             Call::Creator(CreatorCall::EStop) => return Ok(Reply::Stopped(self.estop_all())),

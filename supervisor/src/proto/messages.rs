@@ -63,13 +63,21 @@ impl ClientHello {
 /// secret ([`Security::Plain`]) the claim is taken on trust.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Role {
-    /// A tool or a user: reads the naming tree, calls objects and creators.
+    /// A tool or a user that watches: reads the naming tree, lists and describes objects, reads
+    /// their state, subscribes to telemetry, and stops (an e-stop or a deactivation is allowed
+    /// to every authenticated peer: safety over secrecy). It may not operate, create or destroy.
     Reader,
     /// A node, named by the hello's `client`: also registers, renews and unregisters itself, and
-    /// binds, rebinds and unbinds inside its own context `/<client>/...`.
+    /// binds, rebinds and unbinds inside its own context `/<client>/...`; it operates objects
+    /// (as [`Role::Operator`]) but does not create or destroy them on another node.
     Node,
-    /// An administrator: may also unregister any node and write anywhere in the tree.
+    /// An administrator: may also unregister any node and write anywhere in the tree, and
+    /// create and destroy objects.
     Admin,
+    /// A tool or a user that operates: what a [`Role::Reader`] may, and lifecycle transitions,
+    /// object methods, recordings, gains and the simulated clock. (Appended last: every earlier
+    /// variant keeps its encoding.)
+    Operator,
 }
 
 /// How a node protects a connection, as its hello says.
@@ -82,7 +90,7 @@ pub enum Security {
     Noise {
         /// The node has an admin secret: a client claiming [`Role::Admin`] must prove it (its
         /// pre-shared key mixes both secrets). Without one, such a client is served as a
-        /// [`Role::Reader`].
+        /// [`Role::Operator`].
         admin: bool,
     },
 }

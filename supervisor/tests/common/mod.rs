@@ -20,7 +20,7 @@ pub fn session(id: u64) -> (Session, OutboxReceiver) {
             id,
             peer: "127.0.0.1:40000".parse().unwrap(),
             client: "test".into(),
-            identity: penelope_supervisor::service::Identity::LOCAL_NODE,
+            identity: penelope_supervisor::service::Identity::IN_PROCESS,
             outbox,
         },
         rx,

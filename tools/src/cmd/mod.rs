@@ -15,6 +15,7 @@ pub mod netft;
 pub mod netft_sim;
 pub mod node;
 pub mod replay;
+pub mod secret;
 pub mod web;
 
 /// Bad input from the user (unknown robot, wrong joint count, NaN): exit code 2.

@@ -18,6 +18,7 @@ use std::time::Duration;
 use anyhow::Context as _;
 use nix::sys::signal::{SigSet, Signal};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
+use penelope_supervisor::net::auth::Secret;
 use penelope_supervisor::net::server::{Server, ServerConfig};
 use penelope_supervisor::proto::DEFAULT_PORT;
 
@@ -77,10 +78,13 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 /// Like ssh with private keys, a file that anyone but its owner may read or write is refused,
 /// with the command that fixes it.
 ///
+/// A secret under 128 bits ([`Secret::check_strength`]) is refused, saying how to make one
+/// (`penelope secret new FILE`).
+///
 /// # Errors
-/// The file cannot be read, others may read or write it, or the secret is empty (usage errors,
-/// exit 2).
-pub(crate) fn read_secret(file: Option<&Path>) -> anyhow::Result<Option<Vec<u8>>> {
+/// The file cannot be read, others may read or write it, or the secret is empty or too weak
+/// (usage errors, exit 2).
+pub(crate) fn read_secret(file: Option<&Path>) -> anyhow::Result<Option<Secret>> {
     use std::os::unix::fs::PermissionsExt as _;
     let Some(file) = file else {
         return Ok(None);
@@ -106,7 +110,11 @@ pub(crate) fn read_secret(file: Option<&Path>) -> anyhow::Result<Option<Vec<u8>>
             file.display()
         )));
     }
-    Ok(Some(bytes))
+    let secret = Secret::from(bytes);
+    secret
+        .check_strength(&format!("the secret in {}", file.display()))
+        .map_err(crate::cmd::usage)?;
+    Ok(Some(secret))
 }
 
 /// A usage error (exit 2) for a non-loopback `listen` without a secret.
@@ -156,7 +164,8 @@ mod tests {
 
         use std::os::unix::fs::PermissionsExt as _;
         let dir = std::env::temp_dir().join(format!("penelope-secret-{}", std::process::id()));
-        std::fs::write(&dir, b"s3cret\n").unwrap();
+        const STRONG: &[u8] = b"0f3c9a7be21d4c58a9e6b2d07f1c3e95";
+        std::fs::write(&dir, [STRONG, b"\n"].concat()).unwrap();
         std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o644)).unwrap();
         let err = read_secret(Some(&dir)).unwrap_err().to_string();
         assert!(
@@ -164,7 +173,12 @@ mod tests {
             "{err}"
         );
         std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o600)).unwrap();
-        assert_eq!(read_secret(Some(&dir)).unwrap(), Some(b"s3cret".to_vec()));
+        assert_eq!(read_secret(Some(&dir)).unwrap(), Some(Secret::from(STRONG)));
+        // Too weak: refused, saying how to make one.
+        std::fs::write(&dir, b"s3cret\n").unwrap();
+        let err = read_secret(Some(&dir)).unwrap_err();
+        assert!(err.downcast_ref::<crate::cmd::UsageError>().is_some());
+        assert!(err.to_string().contains("penelope secret new"), "{err}");
         std::fs::write(&dir, b"\n").unwrap();
         assert!(read_secret(Some(&dir)).is_err());
         std::fs::remove_file(&dir).unwrap();

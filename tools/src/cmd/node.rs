@@ -55,8 +55,9 @@ pub struct Args {
     /// readable by its owner only).
     #[arg(long, value_name = "FILE")]
     pub secret_file: Option<PathBuf>,
-    /// File holding the admin secret (with --secret-file), for the naming service this node
-    /// hosts: only clients proving it may unregister other nodes or write outside their context.
+    /// File holding the admin secret (with --secret-file): creating and destroying this
+    /// node's objects over the network, and writing anywhere in the naming service it hosts,
+    /// need it.
     #[arg(long, value_name = "FILE", requires = "secret_file")]
     pub admin_secret_file: Option<PathBuf>,
     /// SCHED_FIFO priority of the control threads (1-99; 0: normal scheduling) [default: the

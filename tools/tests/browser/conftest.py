@@ -115,8 +115,11 @@ class System:
         self.node = Process(prefix + [binary, "node", "--name", "lab", "--host-naming", "--listen",
                                       naming, "--priority", str(priority), *extra], NODE_READY)
         try:
+            # An admin: the page creates and destroys objects (on a system with a secret but
+            # no admin secret the node serves it as an operator).
             self.web = Process(prefix + [binary, "web", "--naming", naming, "--listen", listen,
-                                         "--systems", str(REPO / "config"), *extra], WEB_READY)
+                                         "--systems", str(REPO / "config"), "--role", "admin",
+                                         *extra], WEB_READY)
         except BaseException:
             self.node.stop()
             raise

@@ -42,7 +42,7 @@ impl Service for Echo {
 
 fn server(secret: Option<&[u8]>) -> Server {
     let mut c = ServerConfig::new("unit");
-    c.secret = secret.map(<[u8]>::to_vec);
+    c.secret = secret.map(Into::into);
     Server::bind("127.0.0.1:0".parse().unwrap(), c, Arc::new(Echo)).unwrap()
 }
 
@@ -89,18 +89,18 @@ fn calls_pipelines_and_telemetry_over_a_real_server() {
 
 #[test]
 fn the_secret_is_required_and_checked() {
-    let s = server(Some(b"k"));
+    let s = server(Some(b"0123456789abcdef0123456789abcdef"));
     let mut cfg = ClientConfig::new("t");
     assert!(matches!(
         Connection::connect(s.local_addr(), &cfg),
         Err(RpcError::Remote(WireError::AuthFailed))
     ));
-    cfg.secret = Some(b"wrong".to_vec());
+    cfg.secret = Some(b"wrong".into());
     assert!(matches!(
         Connection::connect(s.local_addr(), &cfg),
         Err(RpcError::Remote(WireError::AuthFailed))
     ));
-    cfg.secret = Some(b"k".to_vec());
+    cfg.secret = Some(b"0123456789abcdef0123456789abcdef".into());
     let mut c = Connection::connect(s.local_addr(), &cfg).unwrap();
     assert_eq!(
         c.call(Call::Ping { payload: vec![] }).unwrap(),

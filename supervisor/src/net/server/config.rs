@@ -4,6 +4,7 @@
 use std::net::SocketAddr;
 use std::time::Duration;
 
+use crate::net::auth::Secret;
 use crate::proto::DEFAULT_MAX_FRAME;
 #[cfg(doc)]
 use crate::service::Service;
@@ -15,11 +16,12 @@ pub struct ServerConfig {
     pub node: String,
     /// The shared secret; required to bind anything but loopback. When set (even on loopback),
     /// every client must authenticate and every frame is sealed.
-    pub secret: Option<Vec<u8>>,
+    /// It must hold at least [`MIN_SECRET_BITS`](crate::net::auth::MIN_SECRET_BITS).
+    pub secret: Option<Secret>,
     /// The admin secret (used only with `secret`): a client claiming
     /// [`Role::Admin`](crate::proto::Role::Admin) must prove it. Without it, such clients are
-    /// served as readers.
-    pub admin_secret: Option<Vec<u8>>,
+    /// served as operators. It must be as strong as `secret`.
+    pub admin_secret: Option<Secret>,
     /// Largest frame accepted (and sent), bytes of body.
     pub max_frame: usize,
     /// Sessions (connections past their handshake) served at once.
@@ -32,6 +34,15 @@ pub struct ServerConfig {
     /// Connections in their handshake at once from one IP address; at the bound that address's
     /// oldest is evicted.
     pub max_handshakes_per_peer: u32,
+    /// Sessions of one IP address that a full pool never evicts for another address (one
+    /// address may hold more while there is room; see [`crate::net::limits`]).
+    pub max_sessions_per_peer: u32,
+    /// Failed handshakes one IP address may make at once before it is throttled.
+    pub auth_failure_burst: u32,
+    /// Failed handshakes per second one IP address may make after its burst: beyond it, its
+    /// handshakes are refused with [`WireError::RateLimited`](crate::proto::WireError) before
+    /// the secret is checked.
+    pub auth_failures_per_s: f64,
     /// Requests per second per connection (token bucket; bursts up to one second's worth).
     pub max_requests_per_s: u32,
     /// Time allowed for the hello (and authentication).
@@ -45,9 +56,10 @@ pub struct ServerConfig {
 }
 
 impl ServerConfig {
-    /// Defaults for `node`: 256 KiB frames, 64 sessions (4 of them for administrators), 32
-    /// handshakes at once (8 per address), 200 000 requests/s per connection, 5 s handshake,
-    /// 300 s idle, 5 s write timeout, 256 queued frames.
+    /// Defaults for `node`: 256 KiB frames, 64 sessions (4 of them for administrators, 16 per
+    /// address safe from eviction), 32 handshakes at once (8 per address), 8 failed handshakes
+    /// per address then 2 a second, 200 000 requests/s per connection, 5 s handshake, 300 s
+    /// idle, 5 s write timeout, 256 queued frames.
     pub fn new(node: impl Into<String>) -> Self {
         ServerConfig {
             node: node.into(),
@@ -58,6 +70,9 @@ impl ServerConfig {
             admin_reserve: 4,
             max_handshakes: 32,
             max_handshakes_per_peer: 8,
+            max_sessions_per_peer: 16,
+            auth_failure_burst: 8,
+            auth_failures_per_s: 2.0,
             max_requests_per_s: 200_000,
             handshake_timeout: Duration::from_secs(5),
             idle_timeout: Duration::from_secs(300),
@@ -79,6 +94,10 @@ pub enum NetError {
     /// takes roles on trust), so the configuration is refused rather than silently weaker.
     #[error("an admin secret needs the shared secret too (give both, or neither)")]
     AdminSecretWithoutSecret,
+    /// A secret too weak to hold off a guess (under
+    /// [`MIN_SECRET_BITS`](crate::net::auth::MIN_SECRET_BITS)); the message says how to make one.
+    #[error("{0}")]
+    WeakSecret(String),
     /// The socket failed.
     #[error("i/o: {0}")]
     Io(#[from] std::io::Error),

@@ -68,10 +68,16 @@ impl Conn<'_> {
                 }
             }
             Some((member, admin)) => {
+                if !self.shared.throttle.allows(self.peer.ip(), Instant::now()) {
+                    bump(&self.shared.counters.rate_limited);
+                    let limit = self.shared.config.auth_failures_per_s.ceil() as u32;
+                    return Err(self.fail(WireError::RateLimited { limit }));
+                }
                 self.queue(&ours);
+                // An admin claim nobody can prove here is served as an operator.
                 let (role, psk) = match (hello.role, admin) {
                     (Role::Admin, Some(admin)) => (Role::Admin, admin),
-                    (Role::Admin, None) => (Role::Reader, member),
+                    (Role::Admin, None) => (Role::Operator, member),
                     (role, _) => (role, member),
                 };
                 let server_body = postcard::to_stdvec(&ours).unwrap_or_default();
@@ -85,28 +91,41 @@ impl Conn<'_> {
         Ok((hello.client, identity))
     }
 
-    /// Takes a session slot for `role` and leaves the pending pool, before the handshake's last
-    /// message goes out: a client is then never told it is connected by a connection that the
-    /// pool may still evict (an eviction that came first is the client's answer instead).
+    /// Takes a session slot for `role` and leaves the pending pool, before the message that
+    /// tells the client it is in goes out (the server hello of a plain handshake, the answer to
+    /// the first sealed request): a client is then never told it is connected by a connection
+    /// that the pending pool may still evict (an eviction that came first is its answer instead).
     fn open_session(&mut self, role: Role) -> Result<(), End> {
         let admission = &self.shared.admission;
-        if let Err(e) = admission.open_session(self.id, role) {
+        if self.evicted.load(Ordering::Acquire) {
+            return Err(self.evict());
+        }
+        let activity = self.last_activity.clone();
+        if let Err(e) = admission.open_session(self.id, role, activity) {
             bump(&self.shared.counters.refused);
             return Err(self.fail(e));
         }
         self.in_session = true;
-        // Evicted while still pending (the flag is set under the admission lock, which
-        // `open_session` took after it): give the slot back and say so.
-        if self.evicted.load(Ordering::Acquire) {
-            admission.close_session();
-            self.in_session = false;
-            return Err(self.evict());
-        }
         Ok(())
     }
 
+    /// A handshake from this address failed: it counts against the address's throttle.
+    fn failed_authentication(&self) {
+        bump(&self.shared.counters.auth_failures);
+        self.shared.throttle.failed(self.peer.ip(), Instant::now());
+    }
+
     /// The Noise handshake (after the hellos, which are its prologue): checks the client's
-    /// message, takes a session slot for `role`, answers, and seals the connection from then on.
+    /// message and answers it; then waits for the client's first sealed frame, and only when it
+    /// opens takes a session slot for `role`.
+    ///
+    /// The first message (`-> psk, e`) proves nothing on its own: anyone who saw it on the wire
+    /// can replay it, and it verifies again (the answer uses a fresh ephemeral key, so the
+    /// replayer cannot use it, but the node cannot tell). The first sealed frame can only be
+    /// made with the session's keys, which need the client's ephemeral private key as well as
+    /// the secret: it is the proof that cannot be replayed, so a connection holds only a pending
+    /// slot (evictable, bounded per address) until it arrives. It is a request (the client
+    /// library sends a ping) or a bye; the request loop serves it first.
     fn authenticate(
         &mut self,
         psk: &[u8; PSK_LEN],
@@ -131,28 +150,52 @@ impl Conn<'_> {
             }
         };
         let prologue = auth::prologue(client_hello, server_hello);
-        match auth::answer(psk, &prologue, &first) {
+        let keys = match auth::answer(psk, &prologue, &first) {
             Ok((second, keys)) => {
-                self.open_session(role)?;
                 self.queue(&ServerMsg::Handshake { noise: second });
                 if !self.flush() {
                     return Err(self.dropped_writer());
                 }
-                let (sealer, opener) = keys.split();
-                lock(&self.wire).sealer = Some(sealer);
-                self.opener = Some(opener);
-                self.decoder
-                    .set_max(auth::sealed_len(self.shared.config.max_frame));
-                Ok(())
+                keys
             }
             Err(SealError::Handshake) => {
-                bump(&self.shared.counters.auth_failures);
-                Err(self.fail(WireError::AuthFailed))
+                self.failed_authentication();
+                return Err(self.fail(WireError::AuthFailed));
             }
             Err(e) => {
                 log::error!("noise handshake failed: {e}");
-                Err(self.fail(WireError::Internal("handshake failed".into())))
+                return Err(self.fail(WireError::Internal("handshake failed".into())));
+            }
+        };
+        let (sealer, opener) = keys.split();
+        lock(&self.wire).sealer = Some(sealer);
+        self.opener = Some(opener);
+        self.decoder
+            .set_max(auth::sealed_len(self.shared.config.max_frame));
+        // The proof: a frame sealed with this session's keys.
+        let proof = match self.next_msg(Some(deadline)) {
+            Ok(m) => m,
+            Err(end) => {
+                // Closed, stalled or sent what does not open: a replayed first message looks
+                // like this. An eviction or a shutdown is not the client's failure.
+                if !self.evicted.load(Ordering::Acquire) && !matches!(end, End::Shutdown) {
+                    self.failed_authentication();
+                }
+                return Err(end);
+            }
+        };
+        match proof {
+            ClientMsg::Request { .. } | ClientMsg::Bye => {}
+            other => {
+                bump(&self.shared.counters.malformed);
+                return Err(self.fail(WireError::Unexpected(format!(
+                    "{} after the handshake",
+                    msg_name(&other)
+                ))));
             }
         }
+        self.open_session(role)?;
+        self.first = Some(proof);
+        Ok(())
     }
 }

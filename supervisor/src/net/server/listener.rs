@@ -17,7 +17,7 @@ use super::{
 };
 use crate::net::auth;
 use crate::net::frame::encode_into;
-use crate::net::limits::Admission;
+use crate::net::limits::{Admission, AuthThrottle};
 use crate::proto::{ServerMsg, WireError};
 use crate::service::Service;
 
@@ -45,7 +45,8 @@ impl Server {
     /// # Errors
     /// [`NetError::SecretRequired`] for a non-loopback address (such as `0.0.0.0`) without a
     /// non-empty secret; [`NetError::AdminSecretWithoutSecret`] for an admin secret without a
-    /// secret; [`NetError::Io`] if the socket cannot be bound or the accept thread cannot start.
+    /// secret; [`NetError::WeakSecret`] for a secret under
+    /// [`MIN_SECRET_BITS`](crate::net::auth::MIN_SECRET_BITS); [`NetError::Io`] if the socket cannot be bound or the accept thread cannot start.
     pub fn bind(
         addr: SocketAddr,
         config: ServerConfig,
@@ -55,23 +56,38 @@ impl Server {
         if !addr.ip().is_loopback() && !has_secret {
             return Err(NetError::SecretRequired(addr));
         }
-        if !has_secret && config.admin_secret.as_ref().is_some_and(|a| !a.is_empty()) {
+        let has_admin_secret = config.admin_secret.as_ref().is_some_and(|a| !a.is_empty());
+        if !has_secret && has_admin_secret {
             return Err(NetError::AdminSecretWithoutSecret);
+        }
+        for (secret, what) in [
+            (&config.secret, "the shared secret"),
+            (&config.admin_secret, "the admin secret"),
+        ] {
+            if let Some(s) = secret.as_ref().filter(|s| !s.is_empty()) {
+                s.check_strength(what).map_err(NetError::WeakSecret)?;
+            }
         }
         let listener = TcpListener::bind(addr)?;
         let addr = listener.local_addr()?;
-        let psk = config.secret.as_deref().filter(|s| !s.is_empty()).map(|s| {
-            let admin = config.admin_secret.as_deref().filter(|a| !a.is_empty());
-            (auth::member_psk(s), admin.map(|a| auth::admin_psk(s, a)))
+        let psk = config.secret.as_ref().filter(|s| !s.is_empty()).map(|s| {
+            let admin = config.admin_secret.as_ref().filter(|a| !a.is_empty());
+            (
+                auth::member_psk(s.bytes()),
+                admin.map(|a| auth::admin_psk(s.bytes(), a.bytes())),
+            )
         });
         let admission = Admission::new(
             config.max_connections,
             config.admin_reserve,
             config.max_handshakes,
             config.max_handshakes_per_peer,
+            config.max_sessions_per_peer,
         );
+        let throttle = AuthThrottle::new(config.auth_failure_burst, config.auth_failures_per_s);
         let shared = Arc::new(Shared {
             admission,
+            throttle,
             psk,
             config,
             service,

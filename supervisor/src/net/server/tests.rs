@@ -25,17 +25,28 @@ fn a_non_loopback_bind_needs_a_secret() {
     let e = Server::bind(any, ServerConfig::new("n"), Arc::new(Echo)).unwrap_err();
     assert!(matches!(e, NetError::SecretRequired(_)), "{e}");
     let mut c = ServerConfig::new("n");
-    c.secret = Some(Vec::new());
+    c.secret = Some(Vec::new().into());
     assert!(matches!(
         Server::bind(any, c, Arc::new(Echo)),
         Err(NetError::SecretRequired(_))
     ));
     let mut c = ServerConfig::new("n");
-    c.admin_secret = Some(b"admin".to_vec());
+    c.admin_secret = Some(b"admin".into());
     assert!(matches!(
         Server::bind(local(), c, Arc::new(Echo)),
         Err(NetError::AdminSecretWithoutSecret)
     ));
+    // A short secret is refused, saying how to make one; so is a short admin secret.
+    let mut c = ServerConfig::new("n");
+    c.secret = Some(b"ab".into());
+    let e = Server::bind(local(), c, Arc::new(Echo)).unwrap_err();
+    assert!(matches!(e, NetError::WeakSecret(_)), "{e}");
+    assert!(e.to_string().contains("penelope secret new"), "{e}");
+    let mut c = ServerConfig::new("n");
+    c.secret = Some(b"0123456789abcdef0123456789abcdef".into());
+    c.admin_secret = Some(b"admin".into());
+    let e = Server::bind(local(), c, Arc::new(Echo)).unwrap_err();
+    assert!(e.to_string().contains("admin secret is too weak"), "{e}");
 }
 
 #[test]

@@ -52,6 +52,14 @@ impl LinkSubscriptions {
         self.list.lock().map(|l| l.len()).unwrap_or(0)
     }
 
+    /// How many belong to a session for which `of` holds.
+    pub fn count_of(&self, of: impl Fn(u64) -> bool) -> usize {
+        self.list
+            .lock()
+            .map(|l| l.iter().filter(|s| of(s.session)).count())
+            .unwrap_or(0)
+    }
+
     /// True when there are none.
     pub fn is_empty(&self) -> bool {
         self.len() == 0

@@ -54,6 +54,8 @@ pub struct Subscriptions {
     links: LinkSubscriptions,
     next: AtomicU64,
     recorders: Mutex<Vec<Recorder>>,
+    /// The address of each session that subscribed (for the quota per address).
+    peers: Mutex<std::collections::HashMap<u64, std::net::IpAddr>>,
 }
 
 /// An in-process consumer of every tick of one controller (not decimated), with the plant's
@@ -185,6 +187,52 @@ impl Subscriptions {
             list.retain(|s| s.session != session);
         }
         self.links.remove_session(session);
+        if let Ok(mut peers) = self.peers.lock() {
+            peers.remove(&session);
+        }
+    }
+
+    /// Whether `session`, from `peer`, may add a subscription: the sessions of one address
+    /// hold at most `quota` (so that one client cannot take the whole pool; the pool's own
+    /// limit is checked by the add).
+    ///
+    /// # Errors
+    /// [`WireError::LimitReached`] at the quota.
+    pub fn check_peer_quota(
+        &self,
+        session: u64,
+        peer: std::net::IpAddr,
+        quota: u32,
+    ) -> Result<(), WireError> {
+        let same: Vec<u64> = {
+            let mut peers = self
+                .peers
+                .lock()
+                .map_err(|_| WireError::Internal("subscriptions poisoned".into()))?;
+            peers.insert(session, peer);
+            peers
+                .iter()
+                .filter(|(_, p)| **p == peer)
+                .map(|(s, _)| *s)
+                .collect()
+        };
+        let held = self
+            .list
+            .lock()
+            .map(|l| {
+                l.iter()
+                    .filter(|s| !s.outbox.is_closed() && same.contains(&s.session))
+                    .count()
+            })
+            .unwrap_or(0)
+            + self.links.count_of(|s| same.contains(&s));
+        if held >= quota as usize {
+            return Err(WireError::LimitReached {
+                what: format!("subscriptions of one address ({peer})"),
+                limit: quota,
+            });
+        }
+        Ok(())
     }
 
     /// Records every tick of `controller` from now on into a stream holding up to `capacity`

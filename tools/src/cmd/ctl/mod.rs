@@ -280,9 +280,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     // Read exactly as `penelope node` and `penelope naming` read it.
     config.secret = crate::cmd::naming::read_secret(args.secret_file.as_deref())?;
     config.admin_secret = crate::cmd::naming::read_secret(args.admin_secret_file.as_deref())?;
-    if config.admin_secret.is_some() {
-        config.role = penelope_supervisor::proto::Role::Admin;
-    }
+    // The most these files prove: admin with the admin secret (or on a plain, loopback-only
+    // system, where claims are taken on trust), operator with the shared secret alone.
+    config.role =
+        ClientConfig::strongest_role(config.secret.as_ref(), config.admin_secret.as_ref());
     let mut ctl = Ctl {
         naming,
         config,

@@ -43,6 +43,7 @@ use axum::Router;
 use axum::routing::{get, post};
 use penelope_supervisor::client::Client;
 use penelope_supervisor::net::conn::ClientConfig;
+use penelope_supervisor::proto::Role;
 
 use crate::cmd::usage;
 
@@ -60,6 +61,15 @@ pub struct Args {
     /// at the login page (then holds a login cookie).
     #[arg(long, value_name = "FILE")]
     pub secret_file: Option<PathBuf>,
+    /// The role the server speaks to the nodes with, for every browser behind it: `reader`
+    /// (the default: list, watch and stop; an e-stop is always allowed), `operator` (also run
+    /// objects: lifecycle, methods, recordings, gains) or `admin` (also create and destroy;
+    /// needs --admin-secret-file at a system that has an admin secret).
+    #[arg(long, value_enum, default_value_t = WebRole::Reader)]
+    pub role: WebRole,
+    /// A file holding the admin secret (with --secret-file and --role admin).
+    #[arg(long, value_name = "FILE", requires = "secret_file")]
+    pub admin_secret_file: Option<PathBuf>,
     /// Hours a login lasts.
     #[arg(long, value_name = "H", default_value_t = 12.0)]
     pub login_hours: f64,
@@ -75,6 +85,17 @@ pub struct Args {
     /// or `NAME:PORT`, as a browser reaches this server (for example through a proxy).
     #[arg(long = "allow-host", value_name = "NAME")]
     pub allow_hosts: Vec<String>,
+}
+
+/// The role `penelope web` speaks to the nodes with.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WebRole {
+    /// List, describe, watch and stop.
+    Reader,
+    /// Also lifecycle, methods, recordings and gains.
+    Operator,
+    /// Also create and destroy objects.
+    Admin,
 }
 
 /// What every request handler shares.
@@ -122,9 +143,22 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
              prove the shared secret at the login page)"
         )));
     }
+    let admin_secret = crate::cmd::naming::read_secret(args.admin_secret_file.as_deref())?;
+    if admin_secret.is_some() && args.role != WebRole::Admin {
+        return Err(usage("--admin-secret-file is only for --role admin"));
+    }
     let mut config = ClientConfig::new("penelope-web");
+    config.role = match args.role {
+        WebRole::Reader => Role::Reader,
+        WebRole::Operator => Role::Operator,
+        WebRole::Admin => Role::Admin,
+    };
     config.timeout = Duration::from_secs_f64(args.timeout);
-    config.secret = secret.clone();
+    config.admin_secret = admin_secret;
+    let secret = secret.map(|s| {
+        config.secret = Some(s.clone());
+        s.bytes().to_vec()
+    });
     // Lazy: the page comes up (and says the naming service is unreachable) before the system.
     let client = Client::lazy(naming, config);
     let state = Arc::new(WebState {
