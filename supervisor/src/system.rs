@@ -17,6 +17,8 @@
 //! lock_memory = false                   # mlockall before the first tick
 //! data_plane = "127.0.0.1:7410"         # where a channel to a robot on another node binds
 //! record = "lab.mcap"                   # `penelope node` records from the first tick (MCAP)
+//! records = "/var/lib/penelope/rec"     # where `ctl record start NAME` creates its files
+//! robot_files = ["robots"]              # where a robot/urdf's `file` is read from
 //! zenoh = "tcp/127.0.0.1:7447"          # a Zenoh bridge to this router or peer (or a table
 //!                                       # { connect = ENDPOINT, config = "zenoh.json5" })
 //!
@@ -94,6 +96,13 @@ pub struct NodePolicy {
     /// their safety events and its channels' links, from the first tick, to this MCAP file
     /// (relative to the node's working directory; `--record` overrides it).
     pub record: Option<std::path::PathBuf>,
+    /// The directory `ctl record start` creates this node's recordings in (a client names a
+    /// plain file name; `--records` overrides it; default: `recordings` under the node's
+    /// state directory, `$XDG_STATE_HOME/penelope/<node>`).
+    pub records: Option<std::path::PathBuf>,
+    /// The directories a `robot/urdf`'s `file` is read from on this node (`--robot-files`
+    /// overrides them; default: the system file's directory).
+    pub robot_files: Option<Vec<std::path::PathBuf>>,
     /// `penelope node` runs a Zenoh bridge ([`crate::zenoh_bridge`]) with these settings
     /// (`--zenoh` and `--zenoh-config` override them).
     pub zenoh: Option<crate::zenoh_bridge::ZenohSettings>,

@@ -18,6 +18,7 @@ fn node(name: &str, clock: ClockMode, naming: NamingChoice) -> Node {
     let mut config = NodeConfig::new(name, naming);
     config.creator.rt.priority = None;
     config.creator.clock = clock;
+    config.creator.records = Some(std::env::temp_dir());
     Node::start(config).unwrap()
 }
 
@@ -33,7 +34,8 @@ fn scratch(name: &str) -> PathBuf {
 fn record(node: &Node, name: &str) -> (Vec<serde_json::Value>, Vec<(i64, i64)>) {
     let path = scratch(name);
     let creator = node.creator();
-    creator.record_start(path.to_str().unwrap(), &[]).unwrap();
+    let file = path.file_name().unwrap().to_str().unwrap();
+    creator.record_start(file, &[]).unwrap();
     creator
         .create("trajectory/step", "hold", "goal = [0.1, 0, 0, 0, 0, 0]")
         .unwrap();

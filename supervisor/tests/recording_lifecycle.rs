@@ -11,6 +11,7 @@ fn a_recording_holds_the_nodes_lifecycle_transitions_in_order() {
     let mut config = CreatorConfig::new("lab");
     config.clock = ClockMode::Simulated;
     config.rt.priority = None;
+    config.records = Some(std::env::temp_dir());
     let creator = Creator::new(config);
     let path = std::env::temp_dir().join(format!("lifecycle-{}.mcap", std::process::id()));
     let _ = std::fs::remove_file(&path);
@@ -18,7 +19,8 @@ fn a_recording_holds_the_nodes_lifecycle_transitions_in_order() {
     creator
         .create("trajectory/step", "before", "goal = [0, 0, 0, 0, 0, 0]")
         .unwrap();
-    creator.record_start(path.to_str().unwrap(), &[]).unwrap();
+    let name = path.file_name().unwrap().to_str().unwrap();
+    creator.record_start(name, &[]).unwrap();
     creator
         .create("trajectory/step", "hold", "goal = [0.1, 0, 0, 0, 0, 0]")
         .unwrap();

@@ -17,6 +17,10 @@ fn urdf(file: &str) -> String {
 fn creator() -> Creator {
     let mut config = CreatorConfig::new("urdf");
     config.rt.priority = None;
+    config.robot_files = vec![
+        format!("{}/../drivers/robots", env!("CARGO_MANIFEST_DIR")).into(),
+        std::env::temp_dir(),
+    ];
     Creator::new(config)
 }
 

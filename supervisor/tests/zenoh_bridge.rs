@@ -77,6 +77,7 @@ fn slave_node(port: u16) -> Node {
     config.zenoh = Some(ZenohSettings {
         connect: Some(format!("tcp/127.0.0.1:{port}")),
         config: None,
+        operators: Vec::new(),
     });
     let node = Node::start(config).expect("the node and its bridge start");
     SystemFile::parse(SLAVE_SYSTEM)
@@ -402,6 +403,7 @@ fn a_channels_link_statistics_reach_a_zenoh_subscriber() {
         config.zenoh = zenoh.then(|| ZenohSettings {
             connect: Some(format!("tcp/127.0.0.1:{port}")),
             config: None,
+            operators: Vec::new(),
         });
         let node = Node::start(config).unwrap();
         file.apply(&node).unwrap();

@@ -38,6 +38,7 @@ fn urdf_loop(
 ) -> DetachedLoop {
     let mut cc = CreatorConfig::new("urdf-alloc");
     cc.rt.priority = None;
+    cc.robot_files = vec![format!("{}/../drivers/robots", env!("CARGO_MANIFEST_DIR")).into()];
     let c = Creator::new(cc);
     c.create("robot/urdf", "arm", config).unwrap();
     c.create("board/sim", "sim", &format!("axes = {axes}"))

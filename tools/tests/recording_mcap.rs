@@ -353,16 +353,16 @@ fn ctl_record_starts_and_stops_a_recording_and_refuses_bad_input_with_the_reason
     let dir = scratch("ctl");
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("part.mcap");
-    let (listen, _node) = sim_node(DEMO.as_ref(), &[]);
-    let path = file.to_str().unwrap();
+    let (listen, _node) = sim_node(DEMO.as_ref(), &["--records", dir.to_str().unwrap()]);
+    // A client names a plain file name in the node's recordings directory.
+    let path = "part.mcap";
     let refused = |args: &[&str], why: &str| {
         let o = ctl(listen, args);
         let err = String::from_utf8_lossy(&o.stderr).into_owned();
         assert!(!o.status.success(), "{args:?} refused");
         assert!(err.contains(why), "{args:?}: {err}");
     };
-    let txt = dir.join("part.txt");
-    refused(&["record", "start", "lab", txt.to_str().unwrap()], "*.mcap");
+    refused(&["record", "start", "lab", "part.txt"], "*.mcap");
     refused(&["record", "start", "lab", path, "nosuch"], "nosuch");
     refused(
         &["record", "start", "lab", path, "hand"],
@@ -402,6 +402,64 @@ fn ctl_record_starts_and_stops_a_recording_and_refuses_bad_input_with_the_reason
     // Never overwritten; the node still serves.
     refused(&["record", "start", "lab", path], "exists");
     assert!(ctl(listen, &["ls"]).status.success());
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+/// A hostile client (issue 31): a recording it names is a plain file name, created new in
+/// the node's recordings directory without following a link; nothing outside the directory is
+/// created or changed, and an existing file is left as it was.
+#[test]
+fn a_client_cannot_make_a_node_record_outside_its_directory_or_through_a_link() {
+    let dir = scratch("confined");
+    let records = dir.join("records");
+    let outside = dir.join("outside");
+    std::fs::create_dir_all(&records).unwrap();
+    std::fs::create_dir_all(&outside).unwrap();
+    // A link named like a recording, to a file that does not exist yet, and one to a file
+    // that does; an existing recording.
+    let target = outside.join("created.mcap");
+    std::os::unix::fs::symlink(&target, records.join("x.mcap")).unwrap();
+    let precious = outside.join("precious.txt");
+    std::fs::write(&precious, b"keep me").unwrap();
+    std::os::unix::fs::symlink(&precious, records.join("y.mcap")).unwrap();
+    std::fs::write(records.join("old.mcap"), b"old").unwrap();
+    let (listen, _node) = sim_node(DEMO.as_ref(), &["--records", records.to_str().unwrap()]);
+    let refused = |name: &str, why: &str| {
+        let o = ctl(listen, &["record", "start", "lab", name]);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(!o.status.success(), "{name} refused");
+        assert!(err.contains(why), "{name}: {err}");
+    };
+    refused("x.mcap", "exists");
+    refused("y.mcap", "exists");
+    refused("old.mcap", "exists");
+    refused("../x.mcap", "not a plain file name");
+    refused("../outside/z.mcap", "not a plain file name");
+    let absolute = outside.join("abs.mcap");
+    refused(absolute.to_str().unwrap(), "not a plain file name");
+    assert!(!target.exists(), "nothing created through the link");
+    assert!(!absolute.exists() && !dir.join("x.mcap").exists());
+    assert_eq!(std::fs::read(&precious).unwrap(), b"keep me");
+    assert_eq!(std::fs::read(records.join("old.mcap")).unwrap(), b"old");
+    let mut outside_files: Vec<_> = std::fs::read_dir(&outside)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    outside_files.sort();
+    assert_eq!(outside_files, ["precious.txt"], "nothing new outside");
+    // A plain new name is recorded, in the directory, and the reply says where.
+    let o = ctl(listen, &["record", "start", "lab", "new.mcap", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let started: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let at = std::path::PathBuf::from(started["path"].as_str().unwrap());
+    assert_eq!(at.file_name().unwrap(), "new.mcap");
+    assert_eq!(
+        at.parent().unwrap().canonicalize().unwrap(),
+        records.canonicalize().unwrap()
+    );
+    let o = ctl(listen, &["record", "stop", "lab"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(records.join("new.mcap").is_file());
     let _ = std::fs::remove_dir_all(dir);
 }
 

@@ -719,23 +719,39 @@ impl NodeProxy {
         }
     }
 
-    /// Starts recording `objects` (none: every controller and linked channel) to the MCAP
-    /// file `path` on the node's host; returns the controllers and channels recorded.
+    /// Starts recording `objects` (none: every controller and linked channel) to the new MCAP
+    /// file `name` (a plain file name) in the node's recordings directory; returns the
+    /// controllers and channels recorded.
     ///
     /// # Errors
     /// What [`CreatorCall::RecordStart`] lists; transport errors.
     pub fn record_start(
         &self,
-        path: &str,
+        name: &str,
         objects: &[String],
     ) -> Result<(Vec<String>, Vec<String>), RpcError> {
+        self.record_start_at(name, objects)
+            .map(|(_, controllers, links)| (controllers, links))
+    }
+
+    /// As [`record_start`](Self::record_start), with the file's path on the node's host first.
+    ///
+    /// # Errors
+    /// What [`CreatorCall::RecordStart`] lists; transport errors.
+    pub fn record_start_at(
+        &self,
+        name: &str,
+        objects: &[String],
+    ) -> Result<(String, Vec<String>, Vec<String>), RpcError> {
         match self.creator(CreatorCall::RecordStart {
-            path: path.to_string(),
+            path: name.to_string(),
             objects: objects.to_vec(),
         })? {
             Reply::Recording {
-                controllers, links, ..
-            } => Ok((controllers, links)),
+                path,
+                controllers,
+                links,
+            } => Ok((path, controllers, links)),
             other => Err(unexpected("a recording", &other)),
         }
     }

@@ -39,6 +39,7 @@
 
 pub mod clock;
 pub mod delay_line;
+pub mod files;
 pub mod fpga_board;
 pub mod kinds;
 pub mod kinematics;
@@ -118,6 +119,14 @@ pub struct CreatorConfig {
     /// The system's common clock as this node estimates it (set by the node; a creator alone
     /// is its own), for its recordings' log times.
     pub common_clock: crate::common_clock::CommonClock,
+    /// The directory `ctl record start` creates recordings in (a client names a plain file
+    /// name in it), or `None`: recordings by a client refused. `penelope node` sets
+    /// `--records`, the system file's `records`, or [`files::default_records_dir`].
+    pub records: Option<std::path::PathBuf>,
+    /// The directories a `robot/urdf`'s `file` is read from (none: every robot file refused).
+    /// `penelope node` sets `--robot-files`, the system file's `robot_files`, or the system
+    /// file's own directory.
+    pub robot_files: Vec<std::path::PathBuf>,
 }
 
 impl std::fmt::Debug for CreatorConfig {
@@ -135,6 +144,8 @@ impl std::fmt::Debug for CreatorConfig {
             .field("clock", &self.clock)
             .field("datagram_key", &self.datagram_key.is_some())
             .field("common_clock", self.common_clock.source())
+            .field("records", &self.records)
+            .field("robot_files", &self.robot_files)
             .finish()
     }
 }
@@ -153,6 +164,8 @@ impl CreatorConfig {
             clock: ClockMode::RealTime,
             datagram_key: None,
             common_clock: crate::common_clock::CommonClock::own(),
+            records: None,
+            robot_files: Vec::new(),
         }
     }
 }
@@ -352,14 +365,16 @@ impl Creator {
     }
 
     /// Starts recording `objects` (none: every controller and linked channel) to the new
-    /// MCAP file `path`: see [`CreatorCall::RecordStart`]. The recorder is a thread of normal
-    /// priority fed by the telemetry pump through bounded streams; no loop waits for it.
+    /// MCAP file `name` in the node's recordings directory ([`CreatorConfig::records`]): see
+    /// [`CreatorCall::RecordStart`]. The recorder is a thread of normal priority fed by the
+    /// telemetry pump through bounded streams; no loop waits for it.
     ///
     /// # Errors
-    /// [`WireError::NotReady`] while recording; [`WireError::BadArgument`] for a path not
-    /// ending `.mcap`, an existing or uncreatable file, an object neither a controller nor a
-    /// channel; [`WireError::UnknownName`].
-    pub fn record_start(&self, path: &str, objects: &[String]) -> Result<Reply, WireError> {
+    /// [`WireError::NotReady`] while recording; [`WireError::BadArgument`] for a name not
+    /// ending `.mcap` or not a plain file name (`/`, `..`), an existing file or link of that
+    /// name (created exclusively, links not followed: [`files::create_in`]), no recordings
+    /// directory, an object neither a controller nor a channel; [`WireError::UnknownName`].
+    pub fn record_start(&self, name: &str, objects: &[String]) -> Result<Reply, WireError> {
         let mut recording = self
             .recording
             .lock()
@@ -369,17 +384,18 @@ impl Creator {
                 "already recording to {current}"
             )));
         }
-        if !path.ends_with(".mcap") {
+        if !name.ends_with(".mcap") {
             return Err(WireError::BadArgument(format!(
-                "a recording is an MCAP file named *.mcap, not `{path}`"
+                "a recording is an MCAP file named *.mcap, not `{}`",
+                name.chars().take(200).collect::<String>()
             )));
         }
-        let file = std::path::Path::new(path);
-        if file.exists() {
-            return Err(WireError::BadArgument(format!(
-                "{path} exists: a recording never overwrites a file"
-            )));
-        }
+        let dir = self.config.records.as_deref().ok_or_else(|| {
+            WireError::BadArgument(
+                files::FileRefused::NoDirectory("recordings", "--records DIR").to_string(),
+            )
+        })?;
+        files::plain_name(name).map_err(|e| WireError::BadArgument(e.to_string()))?;
         let names: Vec<String> = if objects.is_empty() {
             self.list()
                 .into_iter()
@@ -414,8 +430,13 @@ impl Creator {
         }
         let controllers: Vec<String> = streams.iter().map(|(n, _)| n.clone()).collect();
         let linked: Vec<String> = links.iter().map(|(n, _)| n.clone()).collect();
-        let recorder = crate::runs::recording::Recorder::start(
+        // Created last, once everything else is checked: a refused call leaves no file.
+        let (path, file) =
+            files::create_in(dir, name).map_err(|e| WireError::BadArgument(e.to_string()))?;
+        let path = path.display().to_string();
+        let recorder = crate::runs::recording::Recorder::start_in(
             file,
+            std::path::Path::new(&path),
             &self.config.node,
             streams,
             links,
@@ -423,7 +444,10 @@ impl Creator {
             &self.config.common_clock,
             self.node_time(),
         )
-        .map_err(|e| WireError::BadArgument(e.to_string()))?;
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&path);
+            WireError::BadArgument(e.to_string())
+        })?;
         *recording = Some((path.to_string(), recorder));
         Ok(Reply::Recording {
             path: path.to_string(),
@@ -500,6 +524,9 @@ impl Creator {
                 message: "configuration longer than 64 KiB".into(),
             });
         }
+        // Built before the registry's lock is taken: a robot's file is read here (bounded,
+        // regular files only), and no other call waits for it.
+        let o = registry::make(k, name, config, &self.config.robot_files)?;
         let mut reg = self.lock()?;
         if reg.objects.contains_key(name) {
             return Err(WireError::NameTaken(name.into()));
@@ -510,7 +537,6 @@ impl Creator {
                 limit: self.config.max_objects,
             });
         }
-        let o = registry::make(k, name, config)?;
         let info = o.info(&reg.bridged);
         reg.objects.insert(name.to_string(), o);
         drop(reg);

@@ -41,8 +41,11 @@ pub enum CreatorCall {
         /// How far, s.
         seconds: f64,
     },
-    /// Starts recording to the MCAP file `path` on the node's host (a new file, named
-    /// `*.mcap`; an existing file is never overwritten): every tick of the controllers among
+    /// Starts recording to the new MCAP file `path`, a plain file name `*.mcap` (no `/`, no
+    /// `..`) in the node's recordings directory (`penelope node --records DIR`), created
+    /// exclusively without following a link (an existing file or link of that name is
+    /// [`WireError::BadArgument`], left as it was); [`Reply::Recording`]'s `path` says where
+    /// it is on the node's host. Every tick of the controllers among
     /// `objects`, their safety events, and the link statistics of the `trajectory/teleop`
     /// channels among them; no `objects` records every controller and linked channel of the
     /// node. [`Reply::Recording`] with the path and what is recorded. One recording per node
@@ -50,7 +53,7 @@ pub enum CreatorCall {
     /// controller nor a channel is [`WireError::BadArgument`], a missing one
     /// [`WireError::UnknownName`]. (Appended last: every earlier variant keeps its encoding.)
     RecordStart {
-        /// The file, on the node's host.
+        /// The file's plain name in the node's recordings directory.
         path: String,
         /// The objects' names on the node (none: all of them).
         objects: Vec<String>,

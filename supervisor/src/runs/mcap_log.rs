@@ -189,6 +189,15 @@ impl McapLog {
             path: path.to_path_buf(),
             source,
         })?;
+        McapLog::create_in(file, path, node)
+    }
+
+    /// A log writing to `file`, already open (created exclusively by the caller: a client's
+    /// recording, [`crate::objects::files::create_in`]); `path` names it in errors.
+    ///
+    /// # Errors
+    /// [`RecordingError`] when the header cannot be written.
+    pub fn create_in(file: File, path: &Path, node: &str) -> Result<McapLog, RecordingError> {
         let mcap_err = |source| RecordingError::Mcap {
             path: path.to_path_buf(),
             source,

@@ -294,7 +294,39 @@ impl Recorder {
         clock: &CommonClock,
         node_time: NodeTime,
     ) -> Result<Recorder, RecordingError> {
-        let mut log = McapLog::create(path, node)?;
+        let log = McapLog::create(path, node)?;
+        Recorder::start_with(log, path, streams, links, lifecycle, clock, node_time)
+    }
+
+    /// As [`start`](Self::start), writing to `file`, already created (exclusively, links not
+    /// followed: a client's recording, [`crate::objects::files::create_in`]) at `path`.
+    ///
+    /// # Errors
+    /// [`RecordingError::Io`] when the file cannot be written.
+    #[allow(clippy::too_many_arguments)]
+    pub fn start_in(
+        file: std::fs::File,
+        path: &Path,
+        node: &str,
+        streams: Vec<(String, TickStream)>,
+        links: Vec<(String, LinkSource)>,
+        lifecycle: Option<Receiver<LifecycleEvent>>,
+        clock: &CommonClock,
+        node_time: NodeTime,
+    ) -> Result<Recorder, RecordingError> {
+        let log = McapLog::create_in(file, path, node)?;
+        Recorder::start_with(log, path, streams, links, lifecycle, clock, node_time)
+    }
+
+    fn start_with(
+        mut log: McapLog,
+        path: &Path,
+        streams: Vec<(String, TickStream)>,
+        links: Vec<(String, LinkSource)>,
+        lifecycle: Option<Receiver<LifecycleEvent>>,
+        clock: &CommonClock,
+        node_time: NodeTime,
+    ) -> Result<Recorder, RecordingError> {
         let clock = clock.clone();
         log.clock(node_time.now_ns(), clock.source(), &clock.estimate())?;
         for (name, _) in &streams {

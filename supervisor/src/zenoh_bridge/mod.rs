@@ -25,6 +25,14 @@
 //! multicast scouting is off. A Zenoh configuration file (`--zenoh-config FILE`) is passed
 //! through as it is, and decides what it mentions: scouting when it mentions `multicast`,
 //! listening when it mentions `listen`.
+//!
+//! # Authentication and access control
+//! An endpoint off loopback (to connect to or listen on), or multicast scouting, is refused
+//! unless the configuration file sets Zenoh's user-password authentication
+//! (`transport.auth.usrpwd`: `user` and `password`, and a `dictionary_file` when it listens):
+//! off loopback, whoever may publish on a channel's reference key drives its slave. With
+//! [`ZenohSettings::operators`], the session's access control lets every authenticated
+//! participant subscribe and query, and only those users put.
 
 pub mod channels;
 pub mod encoding;
@@ -46,6 +54,11 @@ pub struct ZenohSettings {
     pub connect: Option<String>,
     /// Zenoh's own configuration file (JSON5), passed through.
     pub config: Option<PathBuf>,
+    /// The Zenoh users (user-password authentication, `transport.auth.usrpwd` in the
+    /// configuration file) that may publish on this node: operator poses into its channels.
+    /// When set, the bridge's session enforces Zenoh access control: every participant may
+    /// subscribe and query, only these may put (docs/zenoh.md).
+    pub operators: Vec<String>,
 }
 
 impl<'de> serde::Deserialize<'de> for ZenohSettings {
@@ -55,12 +68,14 @@ impl<'de> serde::Deserialize<'de> for ZenohSettings {
         struct Table {
             connect: Option<String>,
             config: Option<PathBuf>,
+            #[serde(default)]
+            operators: Vec<String>,
         }
         #[derive(serde::Deserialize)]
         #[serde(
             untagged,
             expecting = "an endpoint (\"tcp/127.0.0.1:7447\") or a table \
-                                     { connect = ENDPOINT, config = FILE }"
+                                     { connect = ENDPOINT, config = FILE, operators = [USER] }"
         )]
         enum Either {
             Endpoint(String),
@@ -70,10 +85,12 @@ impl<'de> serde::Deserialize<'de> for ZenohSettings {
             Either::Endpoint(e) => ZenohSettings {
                 connect: Some(e),
                 config: None,
+                operators: Vec::new(),
             },
             Either::Table(t) => ZenohSettings {
                 connect: t.connect,
                 config: t.config,
+                operators: t.operators,
             },
         })
     }

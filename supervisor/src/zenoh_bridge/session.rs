@@ -96,7 +96,135 @@ fn config(settings: &ZenohSettings) -> Result<zenoh::Config, ZenohError> {
             .insert_json5("connect/endpoints", &list)
             .map_err(|e| ZenohError::Config(format!("endpoint {endpoint:?}: {e}")))?;
     }
+    let json = |key: &str| -> serde_json::Value {
+        config
+            .get_json(key)
+            .ok()
+            .and_then(|t| serde_json::from_str(&t).ok())
+            .unwrap_or(serde_json::Value::Null)
+    };
+    let set = |v: serde_json::Value| v.as_str().is_some_and(|s| !s.is_empty());
+    let user_password =
+        set(json("transport/auth/usrpwd/user")) && set(json("transport/auth/usrpwd/password"));
+    let dictionary = set(json("transport/auth/usrpwd/dictionary_file"));
+    let mut wide = Vec::new();
+    for (key, needs_dictionary) in [("connect/endpoints", false), ("listen/endpoints", true)] {
+        let mut endpoints = Vec::new();
+        strings(&json(key), &mut endpoints);
+        for e in endpoints.into_iter().filter(|e| !loopback_endpoint(e)) {
+            wide.push((e, needs_dictionary));
+        }
+    }
+    if json("scouting/multicast/enabled") == serde_json::Value::Bool(true) {
+        wide.push(("multicast scouting".into(), true));
+    }
+    for (what, needs_dictionary) in &wide {
+        if !user_password || (*needs_dictionary && !dictionary) {
+            return Err(ZenohError::Config(format!(
+                "{what} is off loopback: Zenoh there needs authentication (whoever publishes \
+                 on a channel's reference key drives its slave). Set transport.auth.usrpwd's \
+                 `user` and `password`{} in the Zenoh configuration file (docs/zenoh.md)",
+                if *needs_dictionary {
+                    " and its `dictionary_file` (the users this node accepts)"
+                } else {
+                    ""
+                }
+            )));
+        }
+    }
+    if !settings.operators.is_empty() {
+        if !user_password || !dictionary {
+            return Err(ZenohError::Config(
+                "`operators` are Zenoh users: the configuration file needs \
+                 transport.auth.usrpwd (`user`, `password`, `dictionary_file`)"
+                    .into(),
+            ));
+        }
+        if text.contains("access_control") {
+            return Err(ZenohError::Config(
+                "`operators` and the configuration file's own `access_control`: one of them".into(),
+            ));
+        }
+        config
+            .insert_json5("access_control", &access_control(&settings.operators))
+            .map_err(cfg)?;
+    }
     Ok(config)
+}
+
+/// Every string in `v` (an endpoint list, or a list per mode).
+fn strings(v: &serde_json::Value, out: &mut Vec<String>) {
+    match v {
+        serde_json::Value::String(s) => out.push(s.clone()),
+        serde_json::Value::Array(a) => a.iter().for_each(|v| strings(v, out)),
+        serde_json::Value::Object(m) => m.values().for_each(|v| strings(v, out)),
+        _ => {}
+    }
+}
+
+/// True for an endpoint only this host can reach: TCP or UDP to 127.0.0.0/8, `::1` or
+/// `localhost`, or a Unix socket.
+pub(super) fn loopback_endpoint(endpoint: &str) -> bool {
+    let endpoint = endpoint.split(['#', '?']).next().unwrap_or("");
+    let Some((proto, address)) = endpoint.split_once('/') else {
+        return false;
+    };
+    if proto.starts_with("unixsock") || proto == "unixpipe" {
+        return true;
+    }
+    let host = match address.rsplit_once(':') {
+        Some((host, _port)) => host.trim_start_matches('[').trim_end_matches(']'),
+        None => address,
+    };
+    host.eq_ignore_ascii_case("localhost")
+        || host
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(|ip| ip.is_loopback())
+}
+
+/// The access control of a bridge with `operators`: every participant may subscribe, query,
+/// reply and receive what the node publishes; only the operators' transports may put or
+/// delete (operator poses). Default deny, so a message kind not listed is refused.
+fn access_control(operators: &[String]) -> String {
+    serde_json::json!({
+        "enabled": true,
+        "default_permission": "deny",
+        "rules": [
+            {
+                "id": "penelope-anyone",
+                "permission": "allow",
+                "flows": ["ingress", "egress"],
+                "messages": [
+                    "declare_subscriber", "query", "declare_queryable", "reply",
+                    "liveliness_token", "declare_liveliness_subscriber", "liveliness_query"
+                ],
+                "key_exprs": ["**"]
+            },
+            {
+                "id": "penelope-published",
+                "permission": "allow",
+                "flows": ["egress"],
+                "messages": ["put", "delete"],
+                "key_exprs": ["**"]
+            },
+            {
+                "id": "penelope-operator-poses",
+                "permission": "allow",
+                "flows": ["ingress"],
+                "messages": ["put", "delete"],
+                "key_exprs": ["**"]
+            }
+        ],
+        "subjects": [
+            { "id": "penelope-anyone" },
+            { "id": "penelope-operators", "usernames": operators }
+        ],
+        "policies": [
+            { "rules": ["penelope-anyone", "penelope-published"], "subjects": ["penelope-anyone"] },
+            { "rules": ["penelope-operator-poses"], "subjects": ["penelope-operators"] }
+        ]
+    })
+    .to_string()
 }
 
 impl ZenohBridge {

@@ -81,6 +81,17 @@ pub struct Args {
     /// this node.
     #[arg(long, value_name = "FILE", requires = "config")]
     pub record: Option<PathBuf>,
+    /// The directory `penelope ctl record start NODE NAME` creates its recordings in: a client
+    /// names a plain file name there, created new, never through a link [default: the system
+    /// file's `records`, else `recordings` under $XDG_STATE_HOME/penelope/NAME or
+    /// ~/.local/state/penelope/NAME]. (`--record FILE` is the node owner's own path.)
+    #[arg(long, value_name = "DIR")]
+    pub records: Option<PathBuf>,
+    /// A directory a `robot/urdf`'s `file` may be read from (repeat for several) [default: the
+    /// system file's `robot_files`, else the system file's directory; without either, no robot
+    /// file is read].
+    #[arg(long, value_name = "DIR")]
+    pub robot_files: Vec<PathBuf>,
     /// Run a Zenoh bridge connected to the router or peer at ENDPOINT (`tcp/127.0.0.1:7447`):
     /// telemetry, safety events and link statistics on `penelope/NAME/OBJECT/STREAM`, the
     /// object tree on `penelope/NAME/objects`, operator poses into channels with
@@ -92,6 +103,12 @@ pub struct Args {
     /// (multicast scouting stays off unless it mentions `multicast`).
     #[arg(long, value_name = "FILE")]
     pub zenoh_config: Option<PathBuf>,
+    /// A Zenoh user (user-password authentication, set in --zenoh-config) that may publish
+    /// operator poses to this node; repeat for several. With it, the bridge's access control
+    /// lets every participant subscribe and query, and only these users put (docs/zenoh.md).
+    /// Overrides the system file's `operators`.
+    #[arg(long, value_name = "USER")]
+    pub zenoh_operator: Vec<String>,
     /// Lease in the naming service, ms (renewed every third of it).
     #[arg(long, value_name = "MS", default_value_t = 3000)]
     pub lease_ms: u64,
@@ -143,18 +160,48 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.sim_clock {
         config.creator.clock = penelope_supervisor::objects::clock::ClockMode::Simulated;
     }
+    // Where clients' files go and come from: the command line, the system file, defaults.
+    let policy = file.as_ref().and_then(|f| f.nodes.get(&args.name));
+    config.creator.records = Some(
+        args.records
+            .clone()
+            .or_else(|| policy.and_then(|p| p.records.clone()))
+            .unwrap_or_else(|| {
+                penelope_supervisor::objects::files::default_records_dir(&args.name)
+            }),
+    );
+    config.creator.robot_files = if !args.robot_files.is_empty() {
+        args.robot_files.clone()
+    } else if let Some(dirs) = policy.and_then(|p| p.robot_files.clone()) {
+        dirs
+    } else {
+        args.config
+            .as_deref()
+            .map(|c| {
+                let dir = c.parent().unwrap_or(std::path::Path::new(""));
+                vec![if dir.as_os_str().is_empty() {
+                    PathBuf::from(".")
+                } else {
+                    dir.to_path_buf()
+                }]
+            })
+            .unwrap_or_default()
+    };
     // The system file's Zenoh settings for this node, then what the command line says.
     let mut zenoh = file
         .as_ref()
         .and_then(|f| f.nodes.get(&args.name))
         .and_then(|p| p.zenoh.clone());
-    if args.zenoh.is_some() || args.zenoh_config.is_some() {
+    if args.zenoh.is_some() || args.zenoh_config.is_some() || !args.zenoh_operator.is_empty() {
         let z = zenoh.get_or_insert_with(Default::default);
         if args.zenoh.is_some() {
             z.connect = args.zenoh.clone();
         }
         if args.zenoh_config.is_some() {
             z.config = args.zenoh_config.clone();
+        }
+        if !args.zenoh_operator.is_empty() {
+            z.operators = args.zenoh_operator.clone();
         }
     }
     let config_zenoh = zenoh.clone();

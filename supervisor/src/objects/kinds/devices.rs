@@ -142,6 +142,36 @@ impl RobotConfig {
     /// message names the element), or `file`, `tip` or `base` given to a built-in robot;
     /// [`WireError::UnknownKind`] for an unknown model.
     pub fn model(&self, kind: &str, model: &str) -> Result<models::DhRobotModel, WireError> {
+        self.model_with(kind, model, |file| {
+            std::fs::read_to_string(file).map_err(|e| format!("{file}: {e}"))
+        })
+    }
+
+    /// As [`model`](Self::model), a URDF file read only from `dirs`, a regular file of at most
+    /// [`MAX_ROBOT_FILE`](crate::objects::files::MAX_ROBOT_FILE) bytes
+    /// ([`read_confined`](crate::objects::files::read_confined)): what a node does with the
+    /// `file` a client names.
+    ///
+    /// # Errors
+    /// As [`model`](Self::model); a file outside `dirs`, not regular or too large is
+    /// [`WireError::BadConfig`].
+    pub fn model_in(
+        &self,
+        kind: &str,
+        model: &str,
+        dirs: &[std::path::PathBuf],
+    ) -> Result<models::DhRobotModel, WireError> {
+        self.model_with(kind, model, |file| {
+            crate::objects::files::read_confined(dirs, file).map_err(|e| e.to_string())
+        })
+    }
+
+    fn model_with(
+        &self,
+        kind: &str,
+        model: &str,
+        read: impl FnOnce(&str) -> Result<String, String>,
+    ) -> Result<models::DhRobotModel, WireError> {
         if model != "urdf" {
             if self.file.is_some() || self.tip.is_some() || self.base.is_some() {
                 return Err(bad(
@@ -158,8 +188,10 @@ impl RobotConfig {
             base: self.base.clone(),
             tip: self.tip.clone(),
         };
+        let text = read(file).map_err(|e| bad(kind, e))?;
+        let robot = models::urdf::parse(&text).map_err(|e| bad(kind, e.to_string()))?;
         let mut spec =
-            models::urdf::spec_from_file(file, &chain).map_err(|e| bad(kind, e.to_string()))?;
+            models::urdf::spec_from_robot(&robot, &chain).map_err(|e| bad(kind, e.to_string()))?;
         let n = spec.joints.len();
         for (name, q) in &self.poses {
             if q.len() != n || !q.iter().all(|x| x.is_finite()) {

@@ -11,8 +11,9 @@ max_moment_nm = 0.5   # a master's largest displayed moment, N·m
 "#;
 
 pub(super) const URDF_KEYS: &str = r#"
-file = "arm.urdf"     # the URDF file (required): absolute, or relative to the node's working
-                      # directory; read when the robot is created
+file = "arm.urdf"     # the URDF file (required): in one of the node's robot-file directories
+                      # (`--robot-files`), by name or absolute path; a regular file, 4 MiB
+                      # at most; read when the robot is created
 tip = "tool0"         # the link whose frame is the tool frame (default: the single leaf link)
 base = "base_link"    # the link whose frame is the robot's base frame (default: the root link)
 poses = { start = [0.0, 0.8, -3.1, 0.0, 0.8, 0.0] }  # named poses (nest, start, work, ...), rad (m

@@ -336,14 +336,20 @@ impl Object {
 }
 
 /// Makes the object `name` of `kind` from its configuration text (checked here).
-pub(crate) fn make(kind: Kind, name: &str, config: &str) -> Result<Object, WireError> {
+/// A `robot/urdf`'s file is read only from `robot_files` ([`crate::objects::files`]).
+pub(crate) fn make(
+    kind: Kind,
+    name: &str,
+    config: &str,
+    robot_files: &[std::path::PathBuf],
+) -> Result<Object, WireError> {
     let k = kind.as_str();
     let body = match kind {
         Kind::Robot(model) => {
             let cfg: RobotConfig = kinds::parse(k, config)?;
             let start = cfg.start_pose(k)?;
             let role = cfg.role(k)?;
-            let model = cfg.model(k, model)?;
+            let model = cfg.model_in(k, model, robot_files)?;
             Body::Robot(Box::new(RobotObj {
                 kinematics: RobotKinematics::Float(model.clone()),
                 model,

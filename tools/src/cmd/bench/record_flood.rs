@@ -110,6 +110,7 @@ fn counters(node: &Node) -> anyhow::Result<(u64, u64, u64)> {
 pub fn measure(dir: &Path, clients: usize, duration: Duration) -> anyhow::Result<Vec<Stretch>> {
     let mut config = NodeConfig::new("lab", NamingChoice::Host);
     config.listen = SocketAddr::from(([127, 0, 0, 1], 0));
+    config.creator.records = Some(dir.to_path_buf());
     let node = Node::start(config).context("starting a node")?;
     let system = SystemFile::parse(DEMO_SYSTEM)?;
     system
@@ -119,9 +120,8 @@ pub fn measure(dir: &Path, clients: usize, duration: Duration) -> anyhow::Result
     let stretch = |load: &str, record: Option<&str>, flood: usize| -> anyhow::Result<Stretch> {
         let dropped_before = node.stats().dropped;
         if let Some(file) = record {
-            let path = dir.join(file);
             node.call(Call::Creator(CreatorCall::RecordStart {
-                path: path.to_string_lossy().into_owned(),
+                path: file.to_string(),
                 objects: Vec::new(),
             }))?;
         }

@@ -238,7 +238,8 @@ pub enum RecordVerb {
     Start {
         /// The node (its name in the naming tree).
         node: String,
-        /// The file, on the node's host: a new `*.mcap` (never overwritten).
+        /// The file: a plain name `*.mcap` (no `/`), created new in the node's recordings
+        /// directory (`penelope node --records DIR`); never overwritten, never through a link.
         path: String,
         /// The controllers and channels to record, by name on the node (default: all).
         objects: Vec<String>,
@@ -370,8 +371,10 @@ impl Ctl {
                 path,
                 objects,
             }) => {
-                let (controllers, links) =
-                    self.client()?.node(&node)?.record_start(&path, &objects)?;
+                let (path, controllers, links) = self
+                    .client()?
+                    .node(&node)?
+                    .record_start_at(&path, &objects)?;
                 if json {
                     say!(
                         "{}",

@@ -99,7 +99,7 @@ pub(crate) struct RecordRequest {
     node: String,
     /// `start` or `stop`.
     action: String,
-    /// For `start`: the new file, an absolute path on the node's host.
+    /// For `start`: the new file's plain name, in the node's recordings directory.
     #[serde(default)]
     path: String,
 }
@@ -115,15 +115,11 @@ pub(crate) async fn record(
         let node = client.node(&req.node)?;
         match req.action.as_str() {
             "start" => {
-                if !Path::new(&req.path).is_absolute() || !req.path.ends_with(".mcap") {
-                    return Err(ApiError::bad_input(format!(
-                        "`{}` is not an absolute path ending in .mcap",
-                        req.path
-                    )));
-                }
-                let (controllers, links) = node.record_start(&req.path, &[])?;
+                // The node checks the name (a plain `*.mcap` name in its recordings
+                // directory, created new, never through a link) and says where it is.
+                let (path, controllers, links) = node.record_start_at(&req.path, &[])?;
                 Ok(Json(
-                    json!({ "node": node.name(), "path": req.path, "controllers": controllers, "links": links }),
+                    json!({ "node": node.name(), "path": path, "controllers": controllers, "links": links }),
                 ))
             }
             "stop" => {

@@ -124,10 +124,12 @@ impl LoadRun {
 
     /// Median over slices of the rpc/tcp ratio of `pick`.
     fn slice_ratio(&self, slice: usize, pick: fn(&Summary) -> f64) -> f64 {
-        match (
-            self.samples_of(ProbeKind::Rpc),
-            self.samples_of(ProbeKind::Tcp),
-        ) {
+        self.slice_ratio_of(ProbeKind::Rpc, slice, pick)
+    }
+
+    /// Median over slices of the `kind`/tcp ratio of `pick`.
+    fn slice_ratio_of(&self, kind: ProbeKind, slice: usize, pick: fn(&Summary) -> f64) -> f64 {
+        match (self.samples_of(kind), self.samples_of(ProbeKind::Tcp)) {
             (Some(a), Some(b)) => slice_median_ratio(a, b, slice, pick),
             _ => f64::NAN,
         }
@@ -259,7 +261,7 @@ impl Args {
     }
 
     fn kinds(&self) -> Vec<ProbeKind> {
-        let mut k = vec![ProbeKind::Rpc, ProbeKind::Tcp];
+        let mut k = vec![ProbeKind::Rpc, ProbeKind::SealedRpc, ProbeKind::Tcp];
         if self.echo_handoff {
             k.push(ProbeKind::TcpHandoff);
         }
@@ -287,7 +289,8 @@ fn measure(args: &Args, kinds: &[ProbeKind], bar: &ProgressBar) -> anyhow::Resul
     let mut probes = Vec::new();
     for &k in kinds {
         probes.push(match k {
-            ProbeKind::Rpc => Probe::Rpc(Box::new(RpcProbe::start(&data)?)),
+            ProbeKind::Rpc => Probe::Rpc(Box::new(RpcProbe::start(&data, false)?)),
+            ProbeKind::SealedRpc => Probe::Rpc(Box::new(RpcProbe::start(&data, true)?)),
             ProbeKind::Tcp => Probe::Tcp(TcpProbe::start(&data, false)?),
             ProbeKind::TcpHandoff => Probe::Tcp(TcpProbe::start(&data, true)?),
             ProbeKind::Icmp => Probe::Icmp(IcmpProbe::start(&data)?),
@@ -376,6 +379,7 @@ fn document(args: &Args, runs: &[LoadRun]) -> serde_json::Value {
         "goals": { "rpc_over_tcp_max": GOAL_RATIO, "calls_per_s_min": GOAL_CALLS_PER_S },
         "loads": runs.iter().map(|r| {
             let rpc = r.summary(ProbeKind::Rpc);
+            let sealed = r.summary(ProbeKind::SealedRpc);
             let tcp = r.summary(ProbeKind::Tcp);
             let icmp = r.summary(ProbeKind::Icmp);
             let rat = |a: Option<Summary>, b: Option<Summary>, f: fn(&Summary) -> f64| match (a, b) {
@@ -396,6 +400,12 @@ fn document(args: &Args, runs: &[LoadRun]) -> serde_json::Value {
                 "ratios": {
                     "rpc_over_tcp": { "p50": rat(rpc, tcp, |s| s.p50), "p99": rat(rpc, tcp, |s| s.p99) },
                     "rpc_over_icmp": { "p50": rat(rpc, icmp, |s| s.p50), "p99": rat(rpc, icmp, |s| s.p99) },
+                    "sealed_over_tcp": { "p50": rat(sealed, tcp, |s| s.p50), "p99": rat(sealed, tcp, |s| s.p99) },
+                    "sealed_over_rpc": { "p50": rat(sealed, rpc, |s| s.p50), "p99": rat(sealed, rpc, |s| s.p99) },
+                    "sealed_over_tcp_median_of_slices": {
+                        "p50": super::finite_or_null(r.slice_ratio_of(ProbeKind::SealedRpc, args.slice, |s| s.p50)),
+                        "p99": super::finite_or_null(r.slice_ratio_of(ProbeKind::SealedRpc, args.slice, |s| s.p99)),
+                    },
                     "rpc_over_tcp_median_of_slices": {
                         "p50": super::finite_or_null(r.slice_ratio(args.slice, |s| s.p50)),
                         "p99": super::finite_or_null(r.slice_ratio(args.slice, |s| s.p99)),
@@ -456,13 +466,15 @@ fn render(args: &Args, runs: &[LoadRun]) -> String {
                 r.icmp_lost
             );
         }
-        let rpc = r.summary(ProbeKind::Rpc);
-        for (base, name) in [
-            (ProbeKind::Tcp, "tcp"),
-            (ProbeKind::TcpHandoff, "tcp+handoff"),
-            (ProbeKind::Icmp, "icmp"),
-        ] {
-            if let (Some(a), Some(b)) = (rpc, r.summary(base)) {
+        let pairs = [
+            (ProbeKind::Rpc, ProbeKind::Tcp, "rpc/tcp"),
+            (ProbeKind::Rpc, ProbeKind::TcpHandoff, "rpc/tcp+handoff"),
+            (ProbeKind::Rpc, ProbeKind::Icmp, "rpc/icmp"),
+            (ProbeKind::SealedRpc, ProbeKind::Tcp, "sealed/tcp"),
+            (ProbeKind::SealedRpc, ProbeKind::Rpc, "sealed/rpc"),
+        ];
+        for (probe, base, name) in pairs {
+            if let (Some(a), Some(b)) = (r.summary(probe), r.summary(base)) {
                 let (p50, p99) = (ratio(a.p50, b.p50), ratio(a.p99, b.p99));
                 let goal = if base == ProbeKind::Tcp {
                     format!(
@@ -476,7 +488,7 @@ fn render(args: &Args, runs: &[LoadRun]) -> String {
                 } else {
                     String::new()
                 };
-                let _ = writeln!(o, "  rpc/{name:<11} p50 {p50:>5.3}   p99 {p99:>5.3}{goal}");
+                let _ = writeln!(o, "  {name:<15} p50 {p50:>5.3}   p99 {p99:>5.3}{goal}");
             }
         }
         let (m50, m99) = (
@@ -490,6 +502,17 @@ fn render(args: &Args, runs: &[LoadRun]) -> String {
                 args.samples.div_ceil(args.slice)
             );
         }
+        let (s50, s99) = (
+            r.slice_ratio_of(ProbeKind::SealedRpc, args.slice, |s| s.p50),
+            r.slice_ratio_of(ProbeKind::SealedRpc, args.slice, |s| s.p99),
+        );
+        if s50.is_finite() && args.samples / args.slice >= 3 {
+            let _ = writeln!(
+                o,
+                "  sealed/tcp, median over the {} slice pairs: p50 {s50:.3}   p99 {s99:.3}",
+                args.samples.div_ceil(args.slice)
+            );
+        }
         for t in &r.throughput {
             let _ = writeln!(
                 o,
@@ -498,7 +521,7 @@ fn render(args: &Args, runs: &[LoadRun]) -> String {
                 t.sequential,
                 t.pipelined,
                 args.batch,
-                if t.kind == ProbeKind::Rpc {
+                if matches!(t.kind, ProbeKind::Rpc | ProbeKind::SealedRpc) {
                     format!(
                         "   goal >= {GOAL_CALLS_PER_S:.0}/s: {}",
                         if t.pipelined.max(t.sequential) >= GOAL_CALLS_PER_S {
@@ -534,7 +557,10 @@ mod tests {
             cli.args.load,
             vec![Load::Idle, Load::Cpu, Load::Net, Load::All]
         );
-        assert_eq!(cli.args.kinds(), vec![ProbeKind::Rpc, ProbeKind::Tcp]);
+        assert_eq!(
+            cli.args.kinds(),
+            vec![ProbeKind::Rpc, ProbeKind::SealedRpc, ProbeKind::Tcp]
+        );
         assert!(Cli::try_parse_from(["x", "--load", "disk"]).is_err());
         let cli = Cli::try_parse_from(["x"]).unwrap();
         assert_eq!(

@@ -27,6 +27,7 @@ fn color(kind: ProbeKind) -> RGBColor {
     match kind {
         // The paper drew CORBA red and ICMP black.
         ProbeKind::Rpc => RGBColor(220, 30, 30),
+        ProbeKind::SealedRpc => RGBColor(150, 60, 200),
         ProbeKind::Tcp => RGBColor(30, 90, 220),
         ProbeKind::TcpHandoff => RGBColor(40, 160, 60),
         ProbeKind::Icmp => RGBColor(0, 0, 0),

@@ -20,6 +20,9 @@ use socket2::{Domain, Protocol, SockAddr, Socket, Type};
 pub enum ProbeKind {
     /// `Call::Ping` through a node server and a client `Connection`.
     Rpc,
+    /// The same with the shared secret: a Noise handshake first, every frame sealed
+    /// (ChaCha20-Poly1305) both ways.
+    SealedRpc,
     /// The payload echoed by a plain TCP server thread.
     Tcp,
     /// The payload echoed by a TCP server that hands it to a writer thread (the node server's
@@ -34,6 +37,7 @@ impl ProbeKind {
     pub fn name(self) -> &'static str {
         match self {
             ProbeKind::Rpc => "rpc",
+            ProbeKind::SealedRpc => "sealed rpc",
             ProbeKind::Tcp => "tcp echo",
             ProbeKind::TcpHandoff => "tcp echo+handoff",
             ProbeKind::Icmp => "icmp echo",
@@ -55,6 +59,7 @@ impl Probe {
     /// Which probe this is.
     pub fn kind(&self) -> ProbeKind {
         match self {
+            Probe::Rpc(r) if r.sealed => ProbeKind::SealedRpc,
             Probe::Rpc(_) => ProbeKind::Rpc,
             Probe::Tcp(t) if t.handoff => ProbeKind::TcpHandoff,
             Probe::Tcp(_) => ProbeKind::Tcp,
@@ -95,28 +100,39 @@ pub struct RpcProbe {
     server: Option<Server>,
     conn: Connection,
     payload: Vec<u8>,
+    sealed: bool,
 }
 
+/// The shared secret of the sealed probe (32 random-looking bytes, as a deployment's).
+const BENCH_SECRET: &[u8] = b"penelope-bench-rpc-sealed-secret";
+
 impl RpcProbe {
-    /// Starts the server (its rate limit raised out of the way) and connects.
+    /// Starts the server (its rate limit raised out of the way) and connects; `sealed`: both
+    /// with a shared secret, so the connection handshakes and seals every frame.
     ///
     /// # Errors
     /// When the server does not start or the connection fails.
-    pub fn start(payload: &[u8]) -> anyhow::Result<Self> {
+    pub fn start(payload: &[u8], sealed: bool) -> anyhow::Result<Self> {
         let mut config = ServerConfig::new("bench");
         config.max_requests_per_s = 100_000_000;
+        let mut client = ClientConfig::new("bench-rpc");
+        if sealed {
+            config.secret = Some(BENCH_SECRET.to_vec());
+            client.secret = Some(BENCH_SECRET.to_vec());
+        }
         let server = Server::bind(
             SocketAddr::from((Ipv4Addr::LOCALHOST, 0)),
             config,
             Arc::new(PingService),
         )
         .context("starting the node server")?;
-        let conn = Connection::connect(server.local_addr(), &ClientConfig::new("bench-rpc"))
+        let conn = Connection::connect(server.local_addr(), &client)
             .context("connecting to the node server")?;
         let mut probe = RpcProbe {
             server: Some(server),
             conn,
             payload: payload.to_vec(),
+            sealed,
         };
         probe.round_trip().context("first remote call")?;
         Ok(probe)

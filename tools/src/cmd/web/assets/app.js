@@ -325,7 +325,7 @@ function onLive(msg) {
 // ---- wiring ------------------------------------------------------------------------------
 
 function init() {
-  $("record-path").value = `/tmp/penelope-run-${new Date().toISOString().replace(/[:.]/g, "-")}.mcap`;
+  $("record-path").value = `penelope-run-${new Date().toISOString().replace(/[:.]/g, "-")}.mcap`;
   $("create-node").addEventListener("change", drawKinds);
   $("create-kind").addEventListener("change", drawFields);
   $("create-form").addEventListener("submit", (ev) => guarded(() => create(ev)));

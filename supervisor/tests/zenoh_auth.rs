@@ -1,0 +1,356 @@
+//! Issue 31, Zenoh authenticated: a node's bridge that listens with Zenoh's user-password
+//! authentication and `operators` lets only the operator station move its slave. An anonymous
+//! participant is refused at the transport; an authenticated participant that is no operator
+//! connects, subscribes and queries, and its poses are dropped by Zenoh's access control; the
+//! station's poses move the slave. Off-loopback Zenoh without authentication is refused.
+//! Loopback only, scouting off; every wait is for something to happen, bounded.
+#![cfg(feature = "zenoh")]
+
+use std::net::TcpListener;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use penelope_supervisor::node::{NamingChoice, Node, NodeConfig, NodeError};
+use penelope_supervisor::objects::clock::ClockMode;
+use penelope_supervisor::proto::{Call, ControllerMethod, Method, Reply};
+use penelope_supervisor::system::SystemFile;
+use penelope_supervisor::zenoh_bridge::encoding::OperatorPose;
+use penelope_supervisor::zenoh_bridge::{BridgeStats, ZenohSettings};
+use zenoh::Wait;
+
+/// The slave's half of a task whose master is an operator station on Zenoh.
+const SLAVE_SYSTEM: &str = r#"
+[timing]
+period_us = 1000
+comm_period_us = 2000
+watchdog_ms = 50
+
+[boards.puma-io]
+kind = "sim"
+
+[robots.puma]
+kind = "puma200"
+joints = [{ board = "puma-io", axes = [0, 1, 2, 3, 4, 5] }]
+start = "start"
+
+[trajectories.link]
+kind = "teleop"
+master = "station"
+slave = "puma"
+zenoh_reference = "station/hand/pose"
+
+[controllers.follow]
+kind = "slave-tracking"
+robot = "puma"
+trajectory = "link"
+"#;
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("penelope-zauth-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A participant connecting to `port` on loopback, scouting off, as `user` (or anonymous).
+fn participant(port: u16, user: Option<(&str, &str)>) -> zenoh::Result<zenoh::Session> {
+    let mut c = zenoh::Config::default();
+    c.insert_json5("mode", r#""peer""#).unwrap();
+    c.insert_json5("listen/endpoints", "[]").unwrap();
+    c.insert_json5("connect/endpoints", &format!(r#"["tcp/127.0.0.1:{port}"]"#))
+        .unwrap();
+    c.insert_json5("scouting/multicast/enabled", "false")
+        .unwrap();
+    if let Some((user, password)) = user {
+        c.insert_json5("transport/auth/usrpwd/user", &format!("{user:?}"))
+            .unwrap();
+        c.insert_json5("transport/auth/usrpwd/password", &format!("{password:?}"))
+            .unwrap();
+    }
+    zenoh::open(c).wait()
+}
+
+fn stats(node: &Node) -> BridgeStats {
+    node.zenoh_stats().expect("the node runs a bridge")
+}
+
+fn wait_until(what: &str, mut done: impl FnMut() -> bool) {
+    let give_up = Instant::now() + Duration::from_secs(20);
+    while !done() {
+        assert!(Instant::now() < give_up, "never happened: {what}");
+        // A poll interval; the bound above ends a wait.
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+fn tool(node: &Node) -> [f64; 3] {
+    match node.call(Call::Object {
+        object: "follow".into(),
+        method: Method::Controller(ControllerMethod::Status),
+    }) {
+        Ok(Reply::Status(s)) => {
+            let last = s.last.expect("ticked");
+            assert!(last.fault.is_none(), "{:?}", last.fault);
+            let p = last.tool_position;
+            [p[0], p[1], p[2]]
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+fn pose(position: [f64; 3]) -> Vec<u8> {
+    OperatorPose {
+        clutch: false,
+        position,
+        orientation: [1.0, 0.0, 0.0, 0.0],
+    }
+    .encode()
+    .to_vec()
+}
+
+fn advance(node: &Node, ticks: u32) {
+    for _ in 0..ticks {
+        node.creator().advance(Duration::from_millis(1)).unwrap();
+    }
+}
+
+fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt()
+}
+
+/// Node `slave` whose bridge listens on `port` (loopback) with user-password authentication:
+/// it accepts `station` and `viewer`, and only `station` is an operator.
+fn authenticated_slave(port: u16, dir: &std::path::Path) -> Node {
+    let dictionary = dir.join("users.txt");
+    std::fs::write(&dictionary, "station:station-pw\nviewer:viewer-pw\n").unwrap();
+    let file = dir.join("zenoh.json5");
+    std::fs::write(
+        &file,
+        format!(
+            r#"{{
+  mode: "peer",
+  listen: {{ endpoints: ["tcp/127.0.0.1:{port}"] }},
+  scouting: {{ multicast: {{ enabled: false }} }},
+  transport: {{ auth: {{ usrpwd: {{ user: "slave", password: "slave-pw",
+                                     dictionary_file: {:?} }} }} }},
+}}"#,
+            dictionary.display().to_string()
+        ),
+    )
+    .unwrap();
+    let mut config = NodeConfig::new("slave", NamingChoice::None);
+    config.creator.rt.priority = None;
+    config.creator.clock = ClockMode::Simulated;
+    config.zenoh = Some(ZenohSettings {
+        connect: None,
+        config: Some(file),
+        operators: vec!["station".into()],
+    });
+    let node = Node::start(config).expect("the node and its bridge start");
+    SystemFile::parse(SLAVE_SYSTEM)
+        .unwrap()
+        .apply(&node)
+        .expect("the slave's system");
+    node
+}
+
+#[test]
+fn only_the_authenticated_operator_station_moves_the_slave_over_zenoh() {
+    let dir = scratch("operators");
+    let port = free_port();
+    let node = authenticated_slave(port, &dir);
+    let start = [0.4, 0.1, 0.3];
+
+    // The operator station, authenticated: its poses are taken.
+    let station = participant(port, Some(("station", "station-pw"))).unwrap();
+    let hand = station
+        .declare_publisher("station/hand/pose")
+        .wait()
+        .unwrap();
+    wait_until("the bridge takes the station's first pose", || {
+        hand.put(pose(start)).wait().unwrap();
+        stats(&node).poses_taken > 0
+    });
+    advance(&node, 20);
+    let rest = tool(&node);
+    let taken = stats(&node).poses_taken;
+
+    // An authenticated participant that is no operator: it connects and may query the node,
+    // but its poses (2 cm away from the station's) are dropped by the access control.
+    let viewer = participant(port, Some(("viewer", "viewer-pw"))).unwrap();
+    wait_until("the viewer is connected to the node", || {
+        viewer.info().peers_zid().wait().next().is_some()
+    });
+    let intruder = viewer
+        .declare_publisher("station/hand/pose")
+        .wait()
+        .unwrap();
+    for i in 0..50 {
+        let x = start[0] + 0.02 + f64::from(i) * 1e-4;
+        intruder.put(pose([x, start[1], start[2]])).wait().unwrap();
+    }
+    // A query over the same link, after the puts: answered, so the node has seen them.
+    let replies = viewer.get("penelope/slave/objects").wait().unwrap();
+    let reply = replies
+        .recv_timeout(Duration::from_secs(20))
+        .expect("the node answers the viewer's query")
+        .expect("a reply");
+    assert!(reply.result().is_ok(), "the viewer may query");
+    assert_eq!(stats(&node).poses_taken, taken, "a viewer's pose was taken");
+
+    // An anonymous participant: the node's transport refuses it (no credentials).
+    let anonymous = participant(port, None);
+    if let Ok(anonymous) = &anonymous {
+        let stranger = anonymous
+            .declare_publisher("station/hand/pose")
+            .wait()
+            .unwrap();
+        for _ in 0..50 {
+            stranger
+                .put(pose([start[0] - 0.02, start[1], start[2]]))
+                .wait()
+                .unwrap();
+        }
+        // Its attempt to connect is over once the station's own next pose is taken; it has
+        // no transport to the node.
+        let before = stats(&node).poses_taken;
+        wait_until("the station's pose after the stranger's", || {
+            hand.put(pose(start)).wait().unwrap();
+            stats(&node).poses_taken > before
+        });
+        assert_eq!(
+            anonymous.info().peers_zid().wait().count(),
+            0,
+            "an anonymous participant is connected"
+        );
+    }
+    let after = stats(&node);
+    println!(
+        "anonymous session: {}; poses taken {} -> {} (the station's only), refused {}",
+        match &anonymous {
+            Ok(_) => "opened, never connected".to_string(),
+            Err(e) => format!("refused: {e}"),
+        },
+        taken,
+        after.poses_taken,
+        after.poses_refused
+    );
+    assert_eq!(
+        after.poses_refused, 0,
+        "nothing malformed reached the bridge"
+    );
+    advance(&node, 20);
+    let held = tool(&node);
+    assert!(
+        distance(held, rest) < 1e-3,
+        "the slave moved {} m on poses of no operator",
+        distance(held, rest)
+    );
+    // The bridge took the station's poses and nothing else: every pose the viewer sent is 2
+    // cm away, and the slave stayed.
+    drop(intruder);
+
+    // The station moves the slave 1 cm, at 25 mm/s (a jump would trip the velocity limit).
+    for k in 1..=200u32 {
+        let taken = stats(&node).poses_taken;
+        let to = [start[0] + 0.01 * f64::from(k) / 200.0, start[1], start[2]];
+        hand.put(pose(to)).wait().unwrap();
+        wait_until("the station's pose is taken", || {
+            stats(&node).poses_taken > taken
+        });
+        advance(&node, 2);
+    }
+    advance(&node, 40);
+    let moved = tool(&node);
+    println!("the station moved the slave {:.4} m", distance(moved, rest));
+    assert!(
+        (distance(moved, rest) - 0.01).abs() < 2e-3,
+        "the slave moved {} m, not 1 cm",
+        distance(moved, rest)
+    );
+    drop(hand);
+    let _ = station.close().wait();
+    let _ = viewer.close().wait();
+    node.shutdown();
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn off_loopback_zenoh_without_authentication_is_refused_before_anything_is_sent() {
+    let dir = scratch("wide");
+    for (connect, config) in [
+        // A documentation address (RFC 5737): nothing is sent there, the start is refused.
+        (Some("tcp/192.0.2.1:7447"), None),
+        (
+            None,
+            Some(r#"{ listen: { endpoints: ["tcp/0.0.0.0:0"] } }"#),
+        ),
+        (
+            None,
+            Some(r#"{ scouting: { multicast: { enabled: true } } }"#),
+        ),
+        // Listening off loopback with a password but no dictionary of the users it accepts.
+        (
+            None,
+            Some(
+                r#"{ listen: { endpoints: ["tcp/0.0.0.0:0"] },
+                     transport: { auth: { usrpwd: { user: "a", password: "b" } } } }"#,
+            ),
+        ),
+    ] {
+        let file = config.map(|text| {
+            let f = dir.join("zenoh.json5");
+            std::fs::write(&f, text).unwrap();
+            f
+        });
+        let mut c = NodeConfig::new("wide", NamingChoice::None);
+        c.creator.rt.priority = None;
+        c.zenoh = Some(ZenohSettings {
+            connect: connect.map(str::to_string),
+            config: file,
+            operators: Vec::new(),
+        });
+        let t = Instant::now();
+        match Node::start(c) {
+            Err(NodeError::Zenoh(e)) => {
+                let message = e.to_string();
+                println!(
+                    "{connect:?} {config:?}: refused in {:?}: {message}",
+                    t.elapsed()
+                );
+                assert!(message.contains("off loopback"), "{message}");
+                assert!(message.contains("transport.auth.usrpwd"), "{message}");
+            }
+            Err(other) => panic!("{connect:?} {config:?}: {other}"),
+            Ok(node) => {
+                node.shutdown();
+                panic!("{connect:?} {config:?}: started without authentication");
+            }
+        }
+    }
+    // Operators without authentication: refused too.
+    let mut c = NodeConfig::new("ops", NamingChoice::None);
+    c.creator.rt.priority = None;
+    c.zenoh = Some(ZenohSettings {
+        connect: Some("tcp/127.0.0.1:9".into()),
+        config: None,
+        operators: vec!["station".into()],
+    });
+    match Node::start(c) {
+        Err(NodeError::Zenoh(e)) => assert!(e.to_string().contains("usrpwd"), "{e}"),
+        Err(other) => panic!("{other}"),
+        Ok(node) => {
+            node.shutdown();
+            panic!("operators without authentication started");
+        }
+    }
+    let _ = std::fs::remove_dir_all(dir);
+}
