@@ -543,12 +543,12 @@ fn two_wave_nodes(channel: &str) -> (Node, Node) {
         }
     }
     let file = SystemFile::parse(&lines.join("\n")).expect("a valid system file");
-    let secret = b"hazards test secret".as_slice();
+    let secret = b"the hazards test secret, strong enough".as_slice();
     let node = |name: &str| {
         let mut config = NodeConfig::new(name, NamingChoice::None);
         config.creator.rt.priority = None;
         config.creator.clock = ClockMode::Simulated;
-        config.secret = Some(secret.to_vec());
+        config.secret = Some(secret.to_vec().into());
         Node::start(config).unwrap()
     };
     let (a, b) = (node("master"), node("slave"));

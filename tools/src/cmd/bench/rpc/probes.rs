@@ -117,8 +117,8 @@ impl RpcProbe {
         config.max_requests_per_s = 100_000_000;
         let mut client = ClientConfig::new("bench-rpc");
         if sealed {
-            config.secret = Some(BENCH_SECRET.to_vec());
-            client.secret = Some(BENCH_SECRET.to_vec());
+            config.secret = Some(BENCH_SECRET.to_vec().into());
+            client.secret = Some(BENCH_SECRET.to_vec().into());
         }
         let server = Server::bind(
             SocketAddr::from((Ipv4Addr::LOCALHOST, 0)),
