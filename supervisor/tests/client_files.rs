@@ -56,7 +56,7 @@ fn robot_files_a_client_names_are_read_only_from_the_nodes_directories_regular_a
     drop(huge);
 
     let n = node("files", &dir);
-    let client = Client::connect(n.address(), ClientConfig::new("hostile")).unwrap();
+    let client = Client::connect(n.address(), ClientConfig::admin("hostile")).unwrap();
     let lab = client.node("files").unwrap();
 
     // What the directory holds is read: by name, or by its absolute path.
@@ -138,7 +138,7 @@ fn a_node_without_robot_file_directories_reads_no_robot_file() {
     let mut config = NodeConfig::new("nodir", NamingChoice::Host);
     config.creator.rt.priority = None;
     let n = Node::start(config).unwrap();
-    let client = Client::connect(n.address(), ClientConfig::new("hostile")).unwrap();
+    let client = Client::connect(n.address(), ClientConfig::admin("hostile")).unwrap();
     let lab = client.node("nodir").unwrap();
     let puma = concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -152,7 +152,7 @@ fn a_node_without_robot_file_directories_reads_no_robot_file() {
     n.shutdown();
     // Even a directory that holds devices gives no device: `/dev/zero` is no regular file.
     let n = node("devdir", std::path::Path::new("/dev"));
-    let client = Client::connect(n.address(), ClientConfig::new("hostile")).unwrap();
+    let client = Client::connect(n.address(), ClientConfig::admin("hostile")).unwrap();
     let lab = client.node("devdir").unwrap();
     let t = Instant::now();
     let message = refusal(

@@ -163,7 +163,8 @@ impl Lab {
             if let Some(fifo) = fifo {
                 // Another client's create, reading a FIFO: blocked in its read while the
                 // registry is locked, once a writer holds the FIFO open without writing.
-                let slow = self.client("slow");
+                // An admin: the create must reach the file (a reader's is refused at once).
+                let slow = Client::connect(self.naming, ClientConfig::admin("slow")).unwrap();
                 let create = s.spawn(move || {
                     let config = format!("file = \"{}\"", fifo.display());
                     slow.node(NODE)
