@@ -21,8 +21,8 @@ struct System {
     web: String,
     /// The naming service.
     naming: String,
-    /// The secret file, when the system has one.
-    secret: Option<String>,
+    /// The secret file and the admin secret file, when the system has a secret.
+    secret: Option<(String, String)>,
 }
 
 impl Drop for System {
@@ -76,6 +76,11 @@ fn system(name: &str, secret: bool) -> System {
     std::fs::write(&file, format!("{SECRET}\n")).unwrap();
     std::fs::set_permissions(&file, std::fs::Permissions::from_mode(0o600)).unwrap();
     let file = file.to_str().unwrap().to_string();
+    // The page and the setup script create objects: they speak as an admin.
+    let admin = dir.join("admin");
+    std::fs::write(&admin, "4b9e2d7f1a0c3e5d8f2b6a9c1e4d7f0a\n").unwrap();
+    std::fs::set_permissions(&admin, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let admin = admin.to_str().unwrap().to_string();
     let naming = free_port().to_string();
     let mut node_args = vec![
         "node",
@@ -87,10 +92,18 @@ fn system(name: &str, secret: bool) -> System {
         "--priority",
         "0",
     ];
-    let mut web_args = vec!["web", "--naming", &naming, "--listen", "127.0.0.1:0"];
+    let mut web_args = vec![
+        "web",
+        "--naming",
+        &naming,
+        "--listen",
+        "127.0.0.1:0",
+        "--role",
+        "admin",
+    ];
     if secret {
-        node_args.extend(["--secret-file", &file]);
-        web_args.extend(["--secret-file", &file]);
+        node_args.extend(["--secret-file", &file, "--admin-secret-file", &admin]);
+        web_args.extend(["--secret-file", &file, "--admin-secret-file", &admin]);
     }
     let (node, _) = start(&node_args, "Ctrl-C stops the node");
     let mut system = System {
@@ -98,7 +111,7 @@ fn system(name: &str, secret: bool) -> System {
         dir,
         web: String::new(),
         naming: naming.clone(),
-        secret: secret.then(|| file.clone()),
+        secret: secret.then(|| (file.clone(), admin.clone())),
     };
     let (web, line) = start(&web_args, "penelope web: serving");
     system.children.push(web);
@@ -291,8 +304,8 @@ fn estop_works(sys: &System, headers: &[(&str, &str)]) {
     std::fs::write(&script, SETUP).unwrap();
     let mut ctl = Command::new(BIN);
     ctl.args(["ctl", "--naming", &sys.naming]);
-    if let Some(secret) = &sys.secret {
-        ctl.args(["--secret-file", secret]);
+    if let Some((secret, admin)) = &sys.secret {
+        ctl.args(["--secret-file", secret, "--admin-secret-file", admin]);
     }
     let out = ctl
         .args(["run", script.to_str().unwrap()])
