@@ -2,12 +2,14 @@
 //! on free loopback ports, and `penelope ctl` creates, configures, activates, calls, watches and
 //! destroys objects through them, by script and by single verbs.
 
+mod common;
+
+use common::{BIN, Children, ctl, free_port, script, spawn, start, text};
+
 use std::net::{SocketAddr, TcpListener};
 use std::path::PathBuf;
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
-
-const BIN: &str = env!("CARGO_BIN_EXE_penelope");
 
 /// Control period and plant sub-step, µs: slower in unoptimised builds so a tick fits.
 const PERIOD_US: u32 = if cfg!(debug_assertions) {
@@ -16,59 +18,6 @@ const PERIOD_US: u32 = if cfg!(debug_assertions) {
     2_000
 };
 const SUBSTEP_US: u32 = if cfg!(debug_assertions) { 1_000 } else { 200 };
-
-/// The child processes, killed when the test ends, passed or failed.
-struct Children(Vec<Child>);
-
-impl Drop for Children {
-    fn drop(&mut self) {
-        for c in &mut self.0 {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
-
-fn free_port() -> SocketAddr {
-    let l = TcpListener::bind("127.0.0.1:0").unwrap();
-    l.local_addr().unwrap()
-}
-
-fn spawn(args: &[&str]) -> Child {
-    Command::new(BIN)
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap()
-}
-
-fn ctl(naming: SocketAddr, args: &[&str]) -> Output {
-    Command::new(BIN)
-        .arg("ctl")
-        .arg("--naming")
-        .arg(naming.to_string())
-        .args(args)
-        .stdin(Stdio::null())
-        .output()
-        .unwrap()
-}
-
-fn text(o: &Output) -> (String, String) {
-    (
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
-}
-
-fn script(name: &str, body: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("penelope-ctl-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
-    std::fs::write(&path, body).unwrap();
-    path
-}
 
 #[test]
 fn ctl_drives_a_node_through_the_naming_service() {
@@ -106,6 +55,7 @@ fn ctl_drives_a_node_through_the_naming_service() {
 
     // Set up a PUMA 560 on a simulated board with a joint PID holding it, by script.
     let setup = script(
+        "ctl",
         "setup.ctl",
         &format!(
             "# a PUMA 560 held at its start pose\n\
@@ -192,7 +142,7 @@ fn ctl_drives_a_node_through_the_naming_service() {
     assert_eq!(o.status.code(), Some(2), "{:?}", text(&o));
     let o = ctl(naming, &["call", "lab/slave", "frobnicate"]);
     assert_eq!(o.status.code(), Some(2));
-    let bad = script("bad.ctl", "ls\n# fine so far\nfrobnicate lab\nls\n");
+    let bad = script("ctl", "bad.ctl", "ls\n# fine so far\nfrobnicate lab\nls\n");
     let o = ctl(naming, &["run", bad.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).1.contains("bad.ctl:3"), "{:?}", text(&o));
@@ -247,7 +197,7 @@ fn ctl_drives_a_node_through_the_naming_service() {
 /// A secret file for these tests, with `mode`.
 fn secret_file(name: &str, mode: u32) -> PathBuf {
     use std::os::unix::fs::PermissionsExt as _;
-    let path = script(name, "correct horse battery staple\n");
+    let path = script("ctl", name, "correct horse battery staple\n");
     std::fs::set_permissions(&path, std::fs::Permissions::from_mode(mode)).unwrap();
     path
 }
@@ -400,7 +350,7 @@ fn ctl_watches_a_channels_link_between_two_nodes() {
     let file = include_str!("../../config/demo-two-nodes.toml")
         .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", udp()))
         .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", udp()));
-    let config = script("two-nodes.toml", &file);
+    let config = script("ctl", "two-nodes.toml", &file);
     let config = config.to_str().unwrap();
     let node = |name: &str, listen: SocketAddr| {
         spawn(&[

@@ -3,12 +3,14 @@
 //! PID. `estop --all` latches every loop of every node (each node answers once its loop has
 //! latched the stop); `estop NODE` one node's loops; `estop PATH` one controller.
 
+mod common;
+
+use common::{Children, ctl, free_port, script, spawn, start, text};
+
 use std::net::{SocketAddr, TcpListener};
 use std::path::PathBuf;
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
-
-const BIN: &str = env!("CARGO_BIN_EXE_penelope");
 
 /// Control period and plant sub-step, µs: slower in unoptimised builds so a tick fits.
 const PERIOD_US: u32 = if cfg!(debug_assertions) {
@@ -19,59 +21,6 @@ const PERIOD_US: u32 = if cfg!(debug_assertions) {
 const SUBSTEP_US: u32 = if cfg!(debug_assertions) { 1_000 } else { 200 };
 
 const NODES: [&str; 3] = ["east", "west", "north"];
-
-/// The child processes, killed when the test ends, passed or failed.
-struct Children(Vec<Child>);
-
-impl Drop for Children {
-    fn drop(&mut self) {
-        for c in &mut self.0 {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
-
-fn free_port() -> SocketAddr {
-    let l = TcpListener::bind("127.0.0.1:0").unwrap();
-    l.local_addr().unwrap()
-}
-
-fn spawn(args: &[&str]) -> Child {
-    Command::new(BIN)
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap()
-}
-
-fn ctl(naming: SocketAddr, args: &[&str]) -> Output {
-    Command::new(BIN)
-        .arg("ctl")
-        .arg("--naming")
-        .arg(naming.to_string())
-        .args(args)
-        .stdin(Stdio::null())
-        .output()
-        .unwrap()
-}
-
-fn text(o: &Output) -> (String, String) {
-    (
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
-}
-
-fn script(name: &str, body: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("penelope-estop-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
-    std::fs::write(&path, body).unwrap();
-    path
-}
 
 /// The safety state of `node`'s PID loop, from its newest sample.
 fn loop_state(naming: SocketAddr, node: &str) -> String {
@@ -145,6 +94,7 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
     // A PUMA 560 held at its start pose by a running PID, on every node.
     for node in NODES {
         let setup = script(
+            "estop",
             &format!("{node}.ctl"),
             &format!(
                 "create {node} board/sim sim0 axes=6 substep_us={SUBSTEP_US}\n\

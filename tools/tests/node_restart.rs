@@ -2,49 +2,13 @@
 //! comes back under its name: the naming service finds nothing answering at the old address
 //! and replaces the stale registration, long before its lease (30 s here) would have lapsed.
 
+mod common;
+
+use common::{Children, ctl, free_port, spawn};
+
 use std::net::{SocketAddr, TcpListener};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
-
-const BIN: &str = env!("CARGO_BIN_EXE_penelope");
-
-/// The child processes, killed when the test ends, passed or failed.
-struct Children(Vec<Child>);
-
-impl Drop for Children {
-    fn drop(&mut self) {
-        for c in &mut self.0 {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
-
-fn free_port() -> SocketAddr {
-    let l = TcpListener::bind("127.0.0.1:0").unwrap();
-    l.local_addr().unwrap()
-}
-
-fn spawn(args: &[&str]) -> Child {
-    Command::new(BIN)
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap()
-}
-
-fn ctl(naming: SocketAddr, args: &[&str]) -> Output {
-    Command::new(BIN)
-        .arg("ctl")
-        .arg("--naming")
-        .arg(naming.to_string())
-        .args(args)
-        .stdin(Stdio::null())
-        .output()
-        .unwrap()
-}
 
 /// The address the naming tree gives for node `phoenix`'s creator, if registered.
 fn registered_at(naming: SocketAddr) -> Option<String> {

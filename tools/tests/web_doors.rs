@@ -3,6 +3,10 @@
 //! a guesser's failed logins do not lock the right secret out of another address, stalled
 //! connections do not starve the page, and the E-STOP works for any logged-in browser.
 
+mod common;
+
+use common::{BIN, ctl, free_port, script, start, text};
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::os::unix::fs::PermissionsExt;
@@ -10,7 +14,6 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-const BIN: &str = env!("CARGO_BIN_EXE_penelope");
 const SECRET: &str = "correct horse battery staple";
 
 /// The child processes and a scratch directory, gone when the test ends, passed or failed.
@@ -33,38 +36,6 @@ impl Drop for System {
         }
         let _ = std::fs::remove_dir_all(&self.dir);
     }
-}
-
-fn free_port() -> SocketAddr {
-    TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-}
-
-/// Starts `args` and returns it with the first stdout line containing `ready`.
-fn start(args: &[&str], ready: &str) -> (Child, String) {
-    let mut child = Command::new(BIN)
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap();
-    let mut out = BufReader::new(child.stdout.take().unwrap());
-    let mut line = String::new();
-    // Bounded by the child: it either prints the line or exits (EOF).
-    loop {
-        line.clear();
-        let n = out.read_line(&mut line).unwrap();
-        assert!(n > 0, "{args:?} exited before printing {ready:?}");
-        if line.contains(ready) {
-            break;
-        }
-    }
-    // Keep draining so the child never blocks on a full pipe.
-    std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
-    (child, line)
 }
 
 /// A node hosting the naming service and `penelope web` on it, both with the secret when

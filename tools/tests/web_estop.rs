@@ -2,48 +2,14 @@
 //! every node and answers which loops latched it (here a node on loopback without a secret,
 //! its PID loop running, spoken to in plain HTTP; the browser tests press the button itself).
 
+mod common;
+
+use common::{BIN, Children, start, text};
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-
-const BIN: &str = env!("CARGO_BIN_EXE_penelope");
-
-/// The child processes, killed when the test ends, passed or failed.
-struct Children(Vec<Child>);
-
-impl Drop for Children {
-    fn drop(&mut self) {
-        for c in &mut self.0 {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
-
-/// Starts `args` and returns it with the first stdout line containing `ready`.
-fn start(args: &[&str], ready: &str) -> (Child, String) {
-    let mut child = Command::new(BIN)
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap();
-    let mut out = BufReader::new(child.stdout.take().unwrap());
-    let mut line = String::new();
-    // Bounded by the child: it either prints the line or exits (EOF).
-    loop {
-        line.clear();
-        let n = out.read_line(&mut line).unwrap();
-        assert!(n > 0, "{args:?} exited before printing {ready:?}");
-        if line.contains(ready) {
-            break;
-        }
-    }
-    std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
-    (child, line)
-}
 
 /// One HTTP/1.1 POST of JSON from the page's own origin; the status and the body.
 fn post(addr: &str, path: &str, body: &str) -> (u16, String) {

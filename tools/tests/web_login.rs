@@ -3,58 +3,17 @@
 //! secret, a cookie with the right attributes after it, and no state change from another
 //! origin even with that cookie.
 
+mod common;
+
+use common::{Children, free_port, start, text};
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::os::unix::fs::PermissionsExt;
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
-const BIN: &str = env!("CARGO_BIN_EXE_penelope");
 const SECRET: &str = "correct horse battery staple";
-
-/// The child processes, killed when the test ends, passed or failed.
-struct Children(Vec<Child>);
-
-impl Drop for Children {
-    fn drop(&mut self) {
-        for c in &mut self.0 {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
-
-fn free_port() -> SocketAddr {
-    TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-}
-
-/// Starts `args` and returns it with the first stdout line containing `ready`.
-fn start(args: &[&str], ready: &str) -> (Child, String) {
-    let mut child = Command::new(BIN)
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap();
-    let mut out = BufReader::new(child.stdout.take().unwrap());
-    let mut line = String::new();
-    // Bounded by the child: it either prints the line or exits (EOF).
-    loop {
-        line.clear();
-        let n = out.read_line(&mut line).unwrap();
-        assert!(n > 0, "{args:?} exited before printing {ready:?}");
-        if line.contains(ready) {
-            break;
-        }
-    }
-    // Keep draining so the child never blocks on a full pipe.
-    std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
-    (child, line)
-}
 
 /// One HTTP/1.1 request; the status, the headers (lower-case names) and the body.
 fn request(
