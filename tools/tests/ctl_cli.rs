@@ -4,11 +4,11 @@
 
 mod common;
 
-use common::{BIN, Children, ctl, free_port, script, spawn, start, text};
+use common::{BIN, Children, ctl, free_port, script, spawn, text};
 
 use std::net::{SocketAddr, TcpListener};
 use std::path::PathBuf;
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// Control period and plant sub-step, µs: slower in unoptimised builds so a tick fits.

@@ -5,11 +5,9 @@
 
 mod common;
 
-use common::{Children, ctl, free_port, script, spawn, start, text};
+use common::{Children, ctl, free_port, script, spawn, text};
 
-use std::net::{SocketAddr, TcpListener};
-use std::path::PathBuf;
-use std::process::{Child, Command, Output, Stdio};
+use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 /// Control period and plant sub-step, µs: slower in unoptimised builds so a tick fits.

@@ -6,8 +6,8 @@ mod common;
 
 use common::{Children, ctl, free_port, spawn};
 
-use std::net::{SocketAddr, TcpListener};
-use std::process::{Child, Command, Output, Stdio};
+use std::net::SocketAddr;
+use std::process::Child;
 use std::time::{Duration, Instant};
 
 /// The address the naming tree gives for node `phoenix`'s creator, if registered.

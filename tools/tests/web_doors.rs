@@ -5,10 +5,10 @@
 
 mod common;
 
-use common::{BIN, ctl, free_port, script, start, text};
+use common::{BIN, free_port, start};
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
 use std::os::unix::fs::PermissionsExt;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};

@@ -4,11 +4,11 @@
 
 mod common;
 
-use common::{BIN, Children, start, text};
+use common::{BIN, Children, start};
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// One HTTP/1.1 POST of JSON from the page's own origin; the status and the body.

@@ -5,12 +5,11 @@
 
 mod common;
 
-use common::{Children, free_port, start, text};
+use common::{Children, free_port, start};
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::io::{Read, Write};
+use std::net::TcpStream;
 use std::os::unix::fs::PermissionsExt;
-use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 const SECRET: &str = "correct horse battery staple";
