@@ -127,3 +127,58 @@ fn bad_configurations_an_absent_box_and_the_simulated_clock_are_typed_refusals()
         "{e:?}"
     );
 }
+
+/// A Net F/T box that reboots under a node (its RDT sequence starts again at 0) is read again
+/// within a second: the node's `sensor/netft` takes the new sequence instead of refusing it as
+/// out of order.
+#[test]
+fn a_net_ft_box_rebooted_under_a_node_is_read_again_within_a_second() {
+    let quiet = EmulatorConfig {
+        noise: [0.0, 0.0],
+        ..EmulatorConfig::default()
+    };
+    let emu = NetFtEmulator::spawn(quiet, |_t: Duration| [0.0, 0.0, 5.0, 0.0, 0.0, 0.0]).unwrap();
+    let address = emu.local_addr();
+    let c = creator();
+    let (s, _rx) = session(1);
+    let config = format!(
+        "address = \"{address}\"\ncounts_per_force = 1000000.0\ncounts_per_torque = 1000000.0"
+    );
+    create(&c, &s, "sensor/netft", "ft", &config);
+    lifecycle(&c, &s, "ft", Transition::Configure).expect("the emulator answers");
+    let off = EmulatorConfig::default().offset;
+    let force_z = || match call(&c, &s, ("ft", Method::Sensor(SensorMethod::Read))) {
+        Ok(Reply::Wrench(w)) => Some(w.force[2] - off[2]),
+        _ => None,
+    };
+    wait_for("the first box's 5 N", Duration::from_secs(10), || {
+        force_z().is_some_and(|f| (f - 5.0).abs() < 1e-4)
+    });
+    // Long enough that the old sequence is far ahead of the new one's (a reordering window
+    // is 64 records).
+    wait_for(
+        "500 records of the first box",
+        Duration::from_secs(30),
+        || emu.counters().sent >= 500,
+    );
+
+    // The box reboots: the emulator stops and another starts on the same port, from record 0,
+    // loaded differently so that its readings are told apart.
+    emu.stop();
+    let emu = NetFtEmulator::spawn(
+        EmulatorConfig {
+            bind: address,
+            ..quiet
+        },
+        |_t: Duration| [0.0, 0.0, 7.0, 0.0, 0.0, 0.0],
+    )
+    .unwrap();
+    let restarted = std::time::Instant::now();
+    wait_for("the rebooted box's 7 N", Duration::from_secs(30), || {
+        force_z().is_some_and(|f| (f - 7.0).abs() < 1e-4)
+    });
+    let back = restarted.elapsed();
+    println!("the sensor was read again {back:?} after its box rebooted");
+    assert!(back < Duration::from_secs(1), "{back:?}");
+    emu.stop();
+}

@@ -179,6 +179,13 @@ fn only_the_authenticated_operator_station_moves_the_slave_over_zenoh() {
         hand.put(pose(start)).wait().unwrap();
         stats(&node).poses_taken > 0
     });
+    // The loop above may have put a pose more than the one taken first: a query over the
+    // station's link, answered, means the node has seen every pose it put.
+    let replies = station.get("penelope/slave/objects").wait().unwrap();
+    replies
+        .recv_timeout(Duration::from_secs(20))
+        .expect("the node answers the station's query")
+        .expect("a reply");
     advance(&node, 20);
     let rest = tool(&node);
     let taken = stats(&node).poses_taken;
