@@ -436,7 +436,7 @@ pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result
     std::fs::write(&system_path, &file_text)?;
     let system = SystemFile::parse(&file_text).map_err(|e| anyhow::anyhow!("{e}"))?;
     let secret = scratch.0.join("secret");
-    write_secret(&secret)?;
+    crate::cmd::secret::write_new_secret(&secret)?;
 
     let s = |p: &Path| p.display().to_string();
     hosts.start(
@@ -609,25 +609,4 @@ fn system_nodes_of_task(system: &SystemFile) -> anyhow::Result<(&str, &str)> {
         if n.is_empty() { "lab" } else { n }
     }
     Ok((only(m), only(s)))
-}
-
-fn write_secret(path: &Path) -> anyhow::Result<()> {
-    use std::io::Write;
-    use std::os::unix::fs::OpenOptionsExt;
-    let mut bytes = [0u8; 32];
-    getrandom_bytes(&mut bytes)?;
-    let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
-    let mut f = std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .mode(0o600)
-        .open(path)?;
-    writeln!(f, "{hex}")?;
-    Ok(())
-}
-
-fn getrandom_bytes(out: &mut [u8]) -> anyhow::Result<()> {
-    use std::io::Read;
-    std::fs::File::open("/dev/urandom")?.read_exact(out)?;
-    Ok(())
 }
