@@ -1,4 +1,4 @@
-"""Penelope's Python client: the Rust client (``penelope_supervisor::client``) behind PyO3,
+"""Penelope's Python client: the Rust client (``penelope_protocol::client``) behind PyO3,
 so that the protocol has one implementation.
 
     import penelope

@@ -1,7 +1,7 @@
 """Exceptions: one class per kind of error, all subclasses of :class:`PenelopeError`.
 
 A node's error carries the kind of the wire error it answered (``WireError`` in
-``penelope_supervisor::proto``): ``UnknownName``, ``BadConfig``, ``AuthFailed``, ... The
+``penelope_protocol::proto``): ``UnknownName``, ``BadConfig``, ``AuthFailed``, ... The
 client's own transport failures have the kinds ``Io``, ``Frame``, ``Protocol``,
 ``Unauthenticated`` and ``Timeout``. The class is named as the kind, and ``.kind`` holds it.
 """

@@ -1,4 +1,4 @@
-//! The naming-aware client: one `penelope_supervisor::client::Client` (its connections cached
+//! The naming-aware client: one `penelope_protocol::client::Client` (its connections cached
 //! per node), the naming tree, the nodes' kinds, create and destroy, and the proxies.
 
 use std::net::ToSocketAddrs;
@@ -6,9 +6,9 @@ use std::os::unix::fs::PermissionsExt as _;
 use std::path::Path;
 use std::time::Duration;
 
-use penelope_supervisor::client::{self as rust, NodeProxy};
-use penelope_supervisor::net::conn::{ClientConfig, RpcError};
-use penelope_supervisor::proto::NameEntry;
+use penelope_protocol::client::{self as rust, NodeProxy};
+use penelope_protocol::net::conn::{ClientConfig, RpcError};
+use penelope_protocol::proto::NameEntry;
 use pyo3::exceptions::{PyOSError, PyPermissionError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -56,7 +56,7 @@ fn read_secret(file: &Path) -> PyResult<Vec<u8>> {
 /// A node's e-stop report as a dict: `node`, `stopped`, `pending`.
 fn stop_report<'py>(
     py: Python<'py>,
-    report: &penelope_supervisor::proto::StopReport,
+    report: &penelope_protocol::proto::StopReport,
 ) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("node", &report.node)?;
@@ -199,7 +199,7 @@ impl Client {
                     Some(n) => vec![self.inner.node(n)?],
                     None => self.inner.nodes()?,
                 };
-                let mut all: Vec<penelope_supervisor::proto::KindInfo> = Vec::new();
+                let mut all: Vec<penelope_protocol::proto::KindInfo> = Vec::new();
                 for n in nodes {
                     for k in n.kinds()? {
                         if !all.iter().any(|a| a.kind == k.kind) {

@@ -2,7 +2,7 @@
 //! named by its kind, which `penelope._errors._from_kind` makes (all subclasses of
 //! `penelope.PenelopeError`, with a `.kind` attribute).
 
-use penelope_supervisor::net::conn::RpcError;
+use penelope_protocol::net::conn::RpcError;
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 
@@ -16,7 +16,7 @@ impl From<RpcError> for Error {
     }
 }
 
-/// The kind of an error: the [`WireError`](penelope_supervisor::proto::WireError) variant's
+/// The kind of an error: the [`WireError`](penelope_protocol::proto::WireError) variant's
 /// name for a node's error, else the transport failure's (`Io`, `Frame`, `Protocol`,
 /// `Unauthenticated`, `Timeout`).
 pub fn kind(e: &RpcError) -> String {
@@ -58,7 +58,7 @@ impl From<Error> for PyErr {
 /// A bad argument found on this side, as the node would have answered it.
 pub fn bad_argument(message: impl Into<String>) -> Error {
     Error(RpcError::Remote(
-        penelope_supervisor::proto::WireError::BadArgument(message.into()),
+        penelope_protocol::proto::WireError::BadArgument(message.into()),
     ))
 }
 

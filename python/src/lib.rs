@@ -1,8 +1,8 @@
-//! `penelope._native`: the Rust client of `penelope-supervisor` behind PyO3, for the `penelope`
+//! `penelope._native`: the Rust client of `penelope-protocol` behind PyO3, for the `penelope`
 //! Python package (which wraps these classes with NumPy arrays, type hints and docstrings).
 //!
 //! # Layers
-//! - [`errors`]: every [`RpcError`](penelope_supervisor::net::conn::RpcError) becomes a Python
+//! - [`errors`]: every [`RpcError`](penelope_protocol::net::conn::RpcError) becomes a Python
 //!   exception of the class named by its kind (`penelope.UnknownName`, `penelope.AuthFailed`,
 //!   ...), made by `penelope._errors`.
 //! - [`client`]: [`client::Client`], one naming-aware client: the tree, the kinds, create,

@@ -1,10 +1,8 @@
 //! The typed proxies of remote objects, as Python classes: a robot, a sensor, a controller,
 //! and an object of any class (its lifecycle only).
 
-use penelope_supervisor::client::{
-    ControllerProxy, Lifecycle, ObjectProxy, RobotProxy, SensorProxy,
-};
-use penelope_supervisor::proto::parse_transition;
+use penelope_protocol::client::{ControllerProxy, Lifecycle, ObjectProxy, RobotProxy, SensorProxy};
+use penelope_protocol::proto::parse_transition;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 

@@ -3,7 +3,7 @@
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
 use penelope_hal::{JointVector, MAX_JOINTS, Pose, Wrench};
-use penelope_supervisor::proto::{KindInfo, ObjectInfo, ObjectRef, TelemetryRecord};
+use penelope_protocol::proto::{KindInfo, ObjectInfo, ObjectRef, TelemetryRecord};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 

@@ -3,8 +3,8 @@
 
 use std::sync::{Mutex, PoisonError};
 
-use penelope_supervisor::client::TelemetryStream;
-use penelope_supervisor::net::conn::RpcError;
+use penelope_protocol::client::TelemetryStream;
+use penelope_protocol::net::conn::RpcError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 

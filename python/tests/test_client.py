@@ -246,7 +246,7 @@ def test_the_secret_file_authenticates_and_its_absence_is_refused(secure_node, s
 
 def test_every_wire_error_kind_has_its_class() -> None:
     # The variants of WireError, read from the Rust source: a new one needs its class here.
-    source = (Path(__file__).resolve().parents[2] / "supervisor/src/proto/errors.rs").read_text()
+    source = (Path(__file__).resolve().parents[2] / "protocol/src/proto/errors.rs").read_text()
     body = source[source.index("pub enum WireError {"):]
     body = body[: body.index("\n}\n")]
     variants = re.findall(r"^    ([A-Z][A-Za-z]*)\b", body, re.MULTILINE)

@@ -24,10 +24,10 @@ use penelope_rt_core::clock::MonotonicClock;
 use serde::Serialize;
 
 use crate::dataplane::clock::{ClockError, LinkClock};
-use crate::proto::{Reply, WireError};
+use penelope_protocol::proto::{Reply, WireError};
 
 #[cfg(doc)]
-use crate::proto::Call;
+use penelope_protocol::proto::Call;
 
 /// Exchanges made when a node registers, back to back, so that its first recording starts
 /// on a filtered estimate.

@@ -66,11 +66,11 @@ use toml::Spanned;
 
 use crate::node::Node;
 use crate::objects::RtPolicy;
-use crate::proto::{
+use penelope_hal::{MAX_JOINTS, Transition};
+use penelope_protocol::proto::{
     Call, ControllerMethod, CreatorCall, JointAxis, Method, ObjectInfo, Reply, RobotMethod,
     WireError, check_name,
 };
-use penelope_hal::{MAX_JOINTS, Transition};
 
 /// The classes of a system file, in the order their objects are created and configured.
 pub const CLASSES: [&str; 5] = ["boards", "sensors", "robots", "trajectories", "controllers"];

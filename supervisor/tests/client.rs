@@ -12,17 +12,17 @@ use penelope_hal::{
     Dynamics, Frame, JacobianFrame, JointVector, Kinematics, LifecycleState, NamedPose, Pose,
     Reference, RobotModel, Wrench,
 };
-use penelope_supervisor::client::{
+use penelope_protocol::client::{
     BoardProxy, Client, ControllerProxy, Lifecycle, RobotProxy, SensorProxy, TrajectoryProxy,
     TypedProxy,
 };
-use penelope_supervisor::naming::{NamingLimits, NamingService};
-use penelope_supervisor::net::conn::{ClientConfig, RpcError};
-use penelope_supervisor::net::server::{Server, ServerConfig};
-use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::{
+use penelope_protocol::net::conn::{ClientConfig, RpcError};
+use penelope_protocol::net::server::{Server, ServerConfig};
+use penelope_protocol::proto::{
     Class, Method, NameEntry, ObjectRef, Reply, RobotMethod, WireError, object_path,
 };
+use penelope_supervisor::naming::{NamingLimits, NamingService};
+use penelope_supervisor::objects::{Creator, CreatorConfig};
 
 const NODE: &str = "lab";
 

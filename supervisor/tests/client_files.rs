@@ -8,10 +8,10 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use penelope_supervisor::client::Client;
-use penelope_supervisor::net::conn::{ClientConfig, RpcError};
+use penelope_protocol::client::Client;
+use penelope_protocol::net::conn::{ClientConfig, RpcError};
+use penelope_protocol::proto::WireError;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::proto::WireError;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("penelope-files-{}-{name}", std::process::id()));

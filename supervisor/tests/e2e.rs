@@ -10,14 +10,14 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use penelope_hal::{LifecycleState, NamedPose};
-use penelope_supervisor::client::{
+use penelope_protocol::client::{
     Client, ControllerProxy, Lifecycle, RobotProxy, SensorProxy, TrajectoryProxy,
 };
+use penelope_protocol::net::conn::{ClientConfig, RpcError};
+use penelope_protocol::net::server::{NetError, Server, ServerConfig};
+use penelope_protocol::proto::{Method, NameEntry, PoseMsg, Reply, SensorMethod, WireError};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
-use penelope_supervisor::net::conn::{ClientConfig, RpcError};
-use penelope_supervisor::net::server::{NetError, Server, ServerConfig};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig, NodeError};
-use penelope_supervisor::proto::{Method, NameEntry, PoseMsg, Reply, SensorMethod, WireError};
 
 const LEASE: Duration = Duration::from_millis(400);
 

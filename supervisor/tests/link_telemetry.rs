@@ -7,11 +7,11 @@
 use std::net::UdpSocket;
 use std::time::{Duration, Instant};
 
-use penelope_supervisor::client::Client;
-use penelope_supervisor::net::conn::{ClientConfig, Connection, Pushed, RpcError};
+use penelope_protocol::client::Client;
+use penelope_protocol::net::conn::{ClientConfig, Connection, Pushed, RpcError};
+use penelope_protocol::proto::{Call, CreatorCall, LinkRecord, Reply, WireError};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::objects::clock::ClockMode;
-use penelope_supervisor::proto::{Call, CreatorCall, LinkRecord, Reply, WireError};
 use penelope_supervisor::runs::DEMO_SYSTEM;
 use penelope_supervisor::system::SystemFile;
 

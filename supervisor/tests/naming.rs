@@ -5,13 +5,13 @@ use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use penelope_supervisor::naming::{NamingLimits, NamingService};
-use penelope_supervisor::net::conn::{ClientConfig, Connection, RpcError};
-use penelope_supervisor::net::server::{Server, ServerConfig};
-use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::proto::{
+use penelope_protocol::net::conn::{ClientConfig, Connection, RpcError};
+use penelope_protocol::net::server::{Server, ServerConfig};
+use penelope_protocol::proto::{
     Call, Class, CreatorCall, NameEntry, NamingCall, ObjectRef, Reply, WireError,
 };
+use penelope_supervisor::naming::{NamingLimits, NamingService};
+use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 
 fn serve() -> (Server, Arc<NamingService>) {
     let service = Arc::new(NamingService::new("naming", NamingLimits::default()));

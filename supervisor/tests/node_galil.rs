@@ -16,10 +16,10 @@ use std::time::{Duration, Instant};
 use penelope_drivers::galil::DEFAULT_WATCHDOG;
 use penelope_drivers::galil::emulator::{ArmConfig, DmcConfig, PtyEmulator, PtyOptions};
 use penelope_hal::NamedPose;
-use penelope_supervisor::client::{BoardProxy, Client, ControllerProxy, Lifecycle, RobotProxy};
-use penelope_supervisor::net::conn::{ClientConfig, RpcError};
+use penelope_protocol::client::{BoardProxy, Client, ControllerProxy, Lifecycle, RobotProxy};
+use penelope_protocol::net::conn::{ClientConfig, RpcError};
+use penelope_protocol::proto::WireError;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::proto::WireError;
 
 /// Polls `done` every 10 ms until it holds; fails with `what` after `limit` (a bound on a
 /// machine that stalls, not the expected time).

@@ -12,13 +12,13 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use penelope_supervisor::client::{Client, ControllerProxy, Lifecycle, RobotProxy};
-use penelope_supervisor::net::conn::{ClientConfig, Connection};
-use penelope_supervisor::net::frame::encode;
-use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::proto::{
+use penelope_protocol::client::{Client, ControllerProxy, Lifecycle, RobotProxy};
+use penelope_protocol::net::conn::{ClientConfig, Connection};
+use penelope_protocol::net::frame::encode;
+use penelope_protocol::proto::{
     Call, ClientHello, ClientMsg, ControlStatus, DEFAULT_MAX_FRAME, Reply, Role,
 };
+use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 
 const WINDOW: Duration = Duration::from_secs(2);
 

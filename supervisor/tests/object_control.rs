@@ -5,12 +5,12 @@
 use std::time::Duration;
 
 use penelope_hal::{NamedPose, Transition};
-use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::{
+use penelope_protocol::proto::{
     BoardMethod, Call, ControllerMethod, CreatorCall, Method, Reply, RobotMethod, ServerMsg,
     WireError,
 };
-use penelope_supervisor::service::Service;
+use penelope_protocol::service::Service;
+use penelope_supervisor::objects::{Creator, CreatorConfig};
 
 mod common;
 

@@ -9,13 +9,13 @@ use std::time::Duration;
 
 use nalgebra::Vector3;
 use penelope_hal::{Frame, Transition, Wrench};
+use penelope_protocol::proto::{
+    ControllerMethod, Method, Reply, RobotMethod, SensorMethod, WireError,
+};
+use penelope_protocol::service::Remote;
 use penelope_supervisor::dataplane::endpoint::Endpoint;
 use penelope_supervisor::dataplane::sensor_stream::{Probe, SensorPublisher};
 use penelope_supervisor::objects::Creator;
-use penelope_supervisor::proto::{
-    ControllerMethod, Method, Reply, RobotMethod, SensorMethod, WireError,
-};
-use penelope_supervisor::service::Remote;
 
 mod common;
 
@@ -139,7 +139,7 @@ fn a_local_virtual_sensor_measures_its_environment() {
         Err(WireError::NotReady(_))
     ));
     lifecycle(&c, &s, "ft", Transition::Configure).unwrap();
-    let pose = |z: f64| penelope_supervisor::proto::PoseMsg {
+    let pose = |z: f64| penelope_protocol::proto::PoseMsg {
         position: [0.0, 0.0, z],
         n: [1.0, 0.0, 0.0],
         o: [0.0, 1.0, 0.0],

@@ -3,12 +3,12 @@
 //! the force sensors in `object_sensors.rs`; the helpers they share in `common/`.
 
 use penelope_hal::{NamedPose, Transition};
-use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::{
+use penelope_protocol::proto::{
     BoardMethod, Call, Class, ControllerMethod, CreatorCall, JointAxis, Method, NamingCall, Reply,
     RobotMethod, TrajectoryMethod, WireError,
 };
-use penelope_supervisor::service::Service;
+use penelope_protocol::service::Service;
+use penelope_supervisor::objects::{Creator, CreatorConfig};
 
 mod common;
 

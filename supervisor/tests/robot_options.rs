@@ -4,11 +4,11 @@
 //! its force caps; a slave holds its pose).
 
 use penelope_hal::{JointVector, Timestamp, Transition};
-use penelope_rt_core::safety::SafetyState;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::{
+use penelope_protocol::proto::{
     ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod, WireError,
 };
+use penelope_rt_core::safety::SafetyState;
+use penelope_supervisor::objects::{Creator, CreatorConfig};
 
 fn creator() -> Creator {
     let mut config = CreatorConfig::new("options");

@@ -5,10 +5,10 @@
 //! messages naming the key or the element.
 
 use penelope_hal::{Timestamp, Transition};
-use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::{
+use penelope_protocol::proto::{
     ControllerMethod, JointAxis, Method, Reply, RobotMethod, WireError,
 };
+use penelope_supervisor::objects::{Creator, CreatorConfig};
 
 fn urdf(file: &str) -> String {
     format!("{}/../drivers/robots/{file}", env!("CARGO_MANIFEST_DIR"))

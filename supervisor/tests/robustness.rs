@@ -15,15 +15,15 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use penelope_rt_core::exec::{Flow, PeriodicConfig, RunReport, spawn};
-use penelope_supervisor::net::conn::{ClientConfig, Connection, RpcError};
-use penelope_supervisor::net::frame::{FrameError, encode, encode_into, read_frame};
-use penelope_supervisor::net::server::{ABUSE_STRIKES, NetError, Server, ServerConfig};
-use penelope_supervisor::proto::{
+use penelope_protocol::net::conn::{ClientConfig, Connection, RpcError};
+use penelope_protocol::net::frame::{FrameError, encode, encode_into, read_frame};
+use penelope_protocol::net::server::{ABUSE_STRIKES, NetError, Server, ServerConfig};
+use penelope_protocol::proto::{
     Call, ClientHello, ClientMsg, Reply, Role, ServerMsg, TelemetryBatch, TelemetryRecord,
     WireError, WrenchMsg,
 };
-use penelope_supervisor::service::{Outbox, Service, Session};
+use penelope_protocol::service::{Outbox, Service, Session};
+use penelope_rt_core::exec::{Flow, PeriodicConfig, RunReport, spawn};
 
 /// Tests of this file run one at a time (they count the process's threads).
 static SERIAL: Mutex<()> = Mutex::new(());

@@ -9,18 +9,18 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use penelope_supervisor::client::Client;
-use penelope_supervisor::naming::{NamingLimits, NamingService};
-use penelope_supervisor::net::auth::{self, ClientHandshake, Opener, Sealer};
-use penelope_supervisor::net::conn::{ClientConfig, Connection, RpcError};
-use penelope_supervisor::net::frame::{FrameDecoder, decode_body, encode, read_frame};
-use penelope_supervisor::net::server::{Server, ServerConfig};
-use penelope_supervisor::node::{NamingChoice, Node, NodeConfig, NodeError};
-use penelope_supervisor::proto::{
+use penelope_protocol::client::Client;
+use penelope_protocol::net::auth::{self, ClientHandshake, Opener, Sealer};
+use penelope_protocol::net::conn::{ClientConfig, Connection, RpcError};
+use penelope_protocol::net::frame::{FrameDecoder, decode_body, encode, read_frame};
+use penelope_protocol::net::server::{Server, ServerConfig};
+use penelope_protocol::proto::{
     Call, Class, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, MAGIC, NamingCall, ObjectRef,
     PROTOCOL_VERSION, Reply, Role, Security, ServerHello, ServerMsg, WireError,
 };
-use penelope_supervisor::service::{Service, Session};
+use penelope_protocol::service::{Service, Session};
+use penelope_supervisor::naming::{NamingLimits, NamingService};
+use penelope_supervisor::node::{NamingChoice, Node, NodeConfig, NodeError};
 
 const SECRET: &[u8] = b"correct horse battery staple";
 const ADMIN: &[u8] = b"the operator's own, longer admin secret";

@@ -17,18 +17,18 @@ use std::time::{Duration, Instant};
 
 use nalgebra::Vector3;
 use penelope_hal::{Pose, Transition};
+use penelope_protocol::net::server::{Server, ServerConfig};
+use penelope_protocol::proto::{
+    Call, ControllerMethod, CreatorCall, JointAxis, Method, Reply, RobotMethod, SensorMethod,
+    WireError,
+};
 use penelope_supervisor::dataplane::endpoint::Endpoint;
 use penelope_supervisor::dataplane::frame::{DATAPLANE_VERSION, DatagramKey, Header, StreamId};
 use penelope_supervisor::dataplane::sensor_stream::{
     Probe, SensorSubscriber, WrenchSample, sensor_reader_keys,
 };
 use penelope_supervisor::naming::{NamingLimits, NamingService};
-use penelope_supervisor::net::server::{Server, ServerConfig};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::proto::{
-    Call, ControllerMethod, CreatorCall, JointAxis, Method, Reply, RobotMethod, SensorMethod,
-    WireError,
-};
 use penelope_supervisor::system::{SystemFile, SystemFileError};
 
 const SECRET: &[u8] = b"sensor streams test secret";

@@ -15,17 +15,17 @@ use std::time::{Duration, Instant};
 use nix::sys::socket::{
     AddressFamily, SockFlag, SockType, SockaddrIn, bind, connect, setsockopt, socket, sockopt,
 };
-use penelope_supervisor::naming::{NamingLimits, NamingService};
-use penelope_supervisor::net::auth::{self, ClientHandshake, Secret};
-use penelope_supervisor::net::conn::{ClientConfig, Connection, RpcError};
-use penelope_supervisor::net::frame::{encode, read_frame};
-use penelope_supervisor::net::server::{Server, ServerConfig};
-use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::proto::{
+use penelope_protocol::net::auth::{self, ClientHandshake, Secret};
+use penelope_protocol::net::conn::{ClientConfig, Connection, RpcError};
+use penelope_protocol::net::frame::{encode, read_frame};
+use penelope_protocol::net::server::{Server, ServerConfig};
+use penelope_protocol::proto::{
     BoardMethod, Call, ClientHello, ClientMsg, ControllerMethod, CreatorCall, DEFAULT_MAX_FRAME,
     JointAxis, Method, Reply, RobotMethod, Role, ServerMsg, WireError,
 };
-use penelope_supervisor::service::{Service, Session};
+use penelope_protocol::service::{Service, Session};
+use penelope_supervisor::naming::{NamingLimits, NamingService};
+use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 
 const SECRET: &[u8] = b"5f0c2d9e8b7a61403f2e1d0c9b8a7f6e";
 const ADMIN: &[u8] = b"a1b2c3d4e5f60718293a4b5c6d7e8f90";

@@ -3,10 +3,10 @@
 //! the board comes by a `create` or from a system file, and keeps nothing; the same board on a
 //! real-time creator, and a `board/sim` on the simulated one, are made as before.
 
+use penelope_protocol::proto::WireError;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::WireError;
 use penelope_supervisor::system::{SystemFile, SystemFileError};
 
 /// The shipped Galil variant of the demo.

@@ -7,12 +7,12 @@ use std::net::{SocketAddr, TcpListener};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use penelope_supervisor::client::Client;
+use penelope_protocol::client::Client;
+use penelope_protocol::net::conn::{ClientConfig, RpcError};
+use penelope_protocol::net::server::{Server, ServerConfig};
+use penelope_protocol::proto::{Call, CreatorCall, Reply, WireError};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
-use penelope_supervisor::net::conn::{ClientConfig, RpcError};
-use penelope_supervisor::net::server::{Server, ServerConfig};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::proto::{Call, CreatorCall, Reply, WireError};
 
 /// A loopback address nobody listens on (yet).
 fn unused_address() -> SocketAddr {

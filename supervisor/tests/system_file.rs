@@ -5,8 +5,8 @@
 use std::time::{Duration, Instant};
 
 use penelope_hal::LifecycleState;
+use penelope_protocol::proto::{Call, ControllerMethod, CreatorCall, Method, Reply, WireError};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::proto::{Call, ControllerMethod, CreatorCall, Method, Reply, WireError};
 use penelope_supervisor::system::{SystemFile, SystemFileError};
 
 const TELEOP: &str = include_str!("../../config/teleop.toml");

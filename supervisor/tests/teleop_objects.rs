@@ -8,12 +8,12 @@
 
 use penelope_drivers::sim::scripts::{self, CONTACT_PHASE, FREE_MOTION_PHASES, INDEX_PHASE};
 use penelope_hal::{Frame, Timestamp, Transition};
+use penelope_protocol::proto::{
+    ControllerMethod, JointAxis, Method, PoseMsg, Reply, RobotMethod, SensorMethod, WireError,
+};
 use penelope_rt_core::cell::Stamped;
 use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
-use penelope_supervisor::proto::{
-    ControllerMethod, JointAxis, Method, PoseMsg, Reply, RobotMethod, SensorMethod, WireError,
-};
 
 fn create(c: &Creator, kind: &str, name: &str, config: &str) {
     c.create(kind, name, config)

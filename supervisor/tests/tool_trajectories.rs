@@ -3,10 +3,10 @@
 //! inverse kinematics in the communication task; a move that cannot take a tool goal says so.
 
 use penelope_hal::{Timestamp, Transition};
-use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::{
+use penelope_protocol::proto::{
     ControllerMethod, JointAxis, Method, Reply, RobotMethod, WireError,
 };
+use penelope_supervisor::objects::{Creator, CreatorConfig};
 
 fn ok(c: &Creator, name: &str, method: Method) -> Reply {
     c.call_object(name, method)

@@ -7,12 +7,12 @@
 use std::net::UdpSocket;
 use std::time::Duration;
 
+use penelope_protocol::proto::{
+    Call, ControllerMethod, Method, Reply, RobotMethod, TelemetryRecord, WireError,
+};
 use penelope_rt_core::safety::SafetyEvent;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::objects::clock::ClockMode;
-use penelope_supervisor::proto::{
-    Call, ControllerMethod, Method, Reply, RobotMethod, TelemetryRecord, WireError,
-};
 use penelope_supervisor::runs::DEMO_SYSTEM;
 use penelope_supervisor::system::{SystemFile, SystemFileError};
 

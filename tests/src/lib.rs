@@ -102,7 +102,7 @@ pub fn assert_pair_ran(
 pub fn call_object(
     c: &penelope_supervisor::objects::Creator,
     object: &str,
-    method: penelope_supervisor::proto::Method,
+    method: penelope_protocol::proto::Method,
 ) {
     c.call_object(object, method)
         .unwrap_or_else(|e| panic!("{object}: {e}"));

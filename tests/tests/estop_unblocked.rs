@@ -15,15 +15,15 @@ use std::sync::mpsc::channel;
 use std::time::{Duration, Instant};
 
 use penelope_hal::Transition;
-use penelope_supervisor::client::Client;
-use penelope_supervisor::naming::{NamingLimits, NamingService};
-use penelope_supervisor::net::conn::ClientConfig;
-use penelope_supervisor::net::server::{Server, ServerConfig};
-use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::{
+use penelope_protocol::client::Client;
+use penelope_protocol::net::conn::ClientConfig;
+use penelope_protocol::net::server::{Server, ServerConfig};
+use penelope_protocol::proto::{
     BoardMethod, Class, ControllerMethod, JointAxis, Method, ObjectRef, Reply, RobotMethod,
     object_path,
 };
+use penelope_supervisor::naming::{NamingLimits, NamingService};
+use penelope_supervisor::objects::{Creator, CreatorConfig};
 
 const NODE: &str = "lab";
 

@@ -28,6 +28,9 @@ use penelope_hal::{
     AxisCommand, AxisState, Board, ControlInput, Controller, ControllerError, ErrorKind,
     JointCommand, JointReference, JointState, JointVector, Reference, RobotModel, Timestamp,
 };
+use penelope_protocol::proto::{
+    Call, ControllerMethod, JointAxis, Method, Reply, RobotMethod, TelemetryRecord,
+};
 use penelope_rt_core::cell::{Stamped, latest};
 use penelope_rt_core::comm::CommLoop;
 use penelope_rt_core::control::{
@@ -43,9 +46,6 @@ use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::objects::runtime::{self, LoopBoard, LoopFault};
 use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::{
-    Call, ControllerMethod, JointAxis, Method, Reply, RobotMethod, TelemetryRecord,
-};
 use penelope_supervisor::system::SystemFile;
 use penelope_testbed::{ChainBoard, DecoupledChain, critically_damped_gains};
 

@@ -11,13 +11,13 @@ use std::time::{Duration, Instant};
 use penelope_drivers::netft::Status;
 use penelope_drivers::netft::emulator::{EmulatorConfig, NetFtEmulator};
 use penelope_hal::Transition;
+use penelope_protocol::proto::{
+    Call, ControllerMethod, CreatorCall, JointAxis, Method, RobotMethod,
+};
+use penelope_protocol::service::{Outbox, Session};
 use penelope_rt_core::clock::MonotonicClock;
 use penelope_rt_core::safety::SafetyEvent;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::{
-    Call, ControllerMethod, CreatorCall, JointAxis, Method, RobotMethod,
-};
-use penelope_supervisor::service::{Outbox, Session};
 use penelope_tests::{CountingAllocator, allocations, call_object};
 
 #[global_allocator]
@@ -25,7 +25,7 @@ static GLOBAL: CountingAllocator = CountingAllocator;
 
 #[test]
 fn control_ticks_reading_a_net_ft_allocate_nothing() {
-    use penelope_supervisor::service::Service;
+    use penelope_protocol::service::Service;
     let emu = NetFtEmulator::spawn(EmulatorConfig::default(), |_t: Duration| {
         [0.0, 0.0, 2.0, 0.0, 0.0, 0.0]
     })
@@ -38,7 +38,7 @@ fn control_ticks_reading_a_net_ft_allocate_nothing() {
         id: 1,
         peer: "127.0.0.1:1".parse().unwrap(),
         client: "test".into(),
-        identity: penelope_supervisor::service::Identity::IN_PROCESS,
+        identity: penelope_protocol::service::Identity::IN_PROCESS,
         outbox,
     };
     let ft = format!("address = \"{}\"\ntimeout_ms = 50", emu.local_addr());

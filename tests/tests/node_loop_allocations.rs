@@ -7,13 +7,13 @@
 //! stepped); this binary holds this one test only.
 
 use penelope_hal::{Frame, Timestamp, Transition, Wrench};
+use penelope_protocol::proto::{
+    Call, ControllerMethod, CreatorCall, JointAxis, Method, RobotMethod,
+};
+use penelope_protocol::service::{Outbox, Service, Session};
 use penelope_rt_core::cell::Stamped;
 use penelope_rt_core::safety::SafetyState;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::{
-    Call, ControllerMethod, CreatorCall, JointAxis, Method, RobotMethod,
-};
-use penelope_supervisor::service::{Outbox, Service, Session};
 use penelope_tests::{CountingAllocator, allocations, call_object};
 
 #[global_allocator]
@@ -29,7 +29,7 @@ fn fifty_thousand_node_loop_ticks_allocate_nothing() {
         id: 1,
         peer: "127.0.0.1:1".parse().unwrap(),
         client: "test".into(),
-        identity: penelope_supervisor::service::Identity::IN_PROCESS,
+        identity: penelope_protocol::service::Identity::IN_PROCESS,
         outbox,
     };
     for (kind, name, cfg) in [

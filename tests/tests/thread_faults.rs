@@ -6,11 +6,11 @@
 use std::time::{Duration, Instant};
 
 use penelope_hal::{LifecycleState, Transition};
-use penelope_supervisor::objects::runtime::LoopThread;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::{
+use penelope_protocol::proto::{
     BoardMethod, ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod, WireError,
 };
+use penelope_supervisor::objects::runtime::LoopThread;
+use penelope_supervisor::objects::{Creator, CreatorConfig};
 
 fn call(c: &Creator, name: &str, method: Method) -> Result<Reply, WireError> {
     c.call_object(name, method)

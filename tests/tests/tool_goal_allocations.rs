@@ -10,11 +10,11 @@
 //! stepped); this binary holds this one test only.
 
 use penelope_hal::{JointVector, Timestamp, Transition};
+use penelope_protocol::proto::{ControllerMethod, JointAxis, Method, Reply, RobotMethod};
 use penelope_rt_core::controller::JointPidGains;
 use penelope_rt_core::safety::SafetyState;
 use penelope_supervisor::objects::runtime::{GainsUpdate, RoutedGains};
 use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
-use penelope_supervisor::proto::{ControllerMethod, JointAxis, Method, Reply, RobotMethod};
 use penelope_tests::{CountingAllocator, allocations};
 
 #[global_allocator]

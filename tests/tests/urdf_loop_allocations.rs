@@ -10,9 +10,9 @@
 //! stepped); this binary holds this one test only.
 
 use penelope_hal::{Timestamp, Transition};
+use penelope_protocol::proto::{ControllerMethod, JointAxis, Method, Reply, RobotMethod};
 use penelope_rt_core::safety::SafetyState;
 use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
-use penelope_supervisor::proto::{ControllerMethod, JointAxis, Method, Reply, RobotMethod};
 use penelope_tests::{CountingAllocator, allocations};
 
 #[global_allocator]

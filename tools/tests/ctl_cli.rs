@@ -219,8 +219,8 @@ fn a_secret_file_others_may_read_is_refused_with_the_fix() {
 
 #[test]
 fn ctl_with_the_secret_sends_nothing_to_a_node_that_does_not_prove_it() {
-    use penelope_supervisor::net::frame::{encode, read_frame};
-    use penelope_supervisor::proto::{
+    use penelope_protocol::net::frame::{encode, read_frame};
+    use penelope_protocol::proto::{
         ClientMsg, DEFAULT_MAX_FRAME, MAGIC, PROTOCOL_VERSION, Security, ServerHello, ServerMsg,
     };
     let file = secret_file("lab.secret", 0o600);

@@ -1,8 +1,8 @@
 //! Who may make which naming call: the rules of the module's "Authorization" section, checked
 //! against a connection's [`Identity`] before the service serves the call.
 
-use crate::proto::{NamingCall, Role, WireError};
-use crate::service::Identity;
+use penelope_protocol::proto::{NamingCall, Role, WireError};
+use penelope_protocol::service::Identity;
 
 /// Whether a session of `identity`, named `client` in its hello, may make `call` (see the
 /// module's rules).

@@ -54,9 +54,9 @@
 use std::time::Duration;
 
 #[cfg(doc)]
-use crate::proto::{Call, NamingCall, Role, WireError, check_name};
+use penelope_protocol::proto::{Call, NamingCall, Role, WireError, check_name};
 #[cfg(doc)]
-use crate::service::{Identity, Service};
+use penelope_protocol::service::{Identity, Service};
 
 mod authorize;
 mod service;

@@ -7,8 +7,8 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use super::{NamingLimits, NamingTree, authorize};
-use crate::proto::{Call, NamingCall, NodeInfo, Reply, WireError};
-use crate::service::{Service, Session};
+use penelope_protocol::proto::{Call, NamingCall, NodeInfo, Reply, WireError};
+use penelope_protocol::service::{Service, Session};
 
 /// How long the naming service waits for a node's previous address to accept a connection
 /// before taking its registration as stale (a live node's kernel accepts at once, even when the

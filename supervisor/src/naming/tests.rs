@@ -6,10 +6,10 @@ use std::time::{Duration, Instant};
 
 use super::tree::join;
 use super::*;
-use crate::proto::{
+use penelope_protocol::proto::{
     Call, Class, NameEntry, NamingCall, NodeInfo, ObjectRef, Reply, Role, WireError,
 };
-use crate::service::{Identity, Service, Session};
+use penelope_protocol::service::{Identity, Service, Session};
 use proptest::prelude::*;
 
 fn r(node: &str, name: &str) -> ObjectRef {
@@ -229,12 +229,12 @@ fn the_service_serves_naming_calls_and_refuses_the_rest() {
         }),
         Err(WireError::UnknownName(_))
     ));
-    let (outbox, _rx) = crate::service::Outbox::bounded(1);
+    let (outbox, _rx) = penelope_protocol::service::Outbox::bounded(1);
     let session = Session {
         id: 1,
         peer: "127.0.0.1:1".parse().unwrap(),
         client: "t".into(),
-        identity: crate::service::Identity::LOCAL_NODE,
+        identity: penelope_protocol::service::Identity::LOCAL_NODE,
         outbox,
     };
     assert!(matches!(
@@ -245,7 +245,10 @@ fn the_service_serves_naming_calls_and_refuses_the_rest() {
         }))
     ));
     assert!(matches!(
-        s.call(&session, Call::Creator(crate::proto::CreatorCall::Kinds)),
+        s.call(
+            &session,
+            Call::Creator(penelope_protocol::proto::CreatorCall::Kinds)
+        ),
         Err(WireError::Unsupported { .. })
     ));
 }

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 #[cfg(doc)]
 use super::NamingService;
-use crate::proto::{NameEntry, NamingCall, ObjectRef, Reply, WireError, check_name};
+use penelope_protocol::proto::{NameEntry, NamingCall, ObjectRef, Reply, WireError, check_name};
 
 /// Longest `address` of a node or of an [`ObjectRef`], bytes.
 pub const MAX_ADDRESS_LEN: usize = 256;

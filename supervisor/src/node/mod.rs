@@ -38,18 +38,18 @@ use std::sync::{Arc, Mutex, MutexGuard, OnceLock, PoisonError, Weak};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crate::client::Client;
 use crate::common_clock::CommonClock;
 use crate::naming::{NamingLimits, NamingService, Reaper};
-use crate::net::conn::{ClientConfig, RpcError};
-use crate::net::server::{NetError, Server, ServerConfig, ServerStats};
 use crate::objects::clock::ClockMode;
 use crate::objects::{Creator, CreatorConfig};
-#[cfg(doc)]
-use crate::proto::object_path;
-use crate::proto::{Call, NamingCall, ObjectRef, Reply, WireError, check_name};
-use crate::service::{Remote, Service, Session};
 use crate::zenoh_bridge::{BridgeStats, ZenohBridge, ZenohError, ZenohSettings};
+use penelope_protocol::client::Client;
+use penelope_protocol::net::conn::{ClientConfig, RpcError};
+use penelope_protocol::net::server::{NetError, Server, ServerConfig, ServerStats};
+#[cfg(doc)]
+use penelope_protocol::proto::object_path;
+use penelope_protocol::proto::{Call, NamingCall, ObjectRef, Reply, WireError, check_name};
+use penelope_protocol::service::{Remote, Service, Session};
 
 mod naming_link;
 mod service;
@@ -85,8 +85,8 @@ pub struct NodeConfig {
     pub naming: NamingChoice,
     /// The shared secret: required by this node's server (and by a hosted naming service), and
     /// sent to the other nodes and the naming service. At least
-    /// [`MIN_SECRET_BITS`](crate::net::auth::MIN_SECRET_BITS) (else the start fails).
-    pub secret: Option<crate::net::auth::Secret>,
+    /// [`MIN_SECRET_BITS`](penelope_protocol::net::auth::MIN_SECRET_BITS) (else the start fails).
+    pub secret: Option<penelope_protocol::net::auth::Secret>,
     /// The lease in the naming service; renewed every third of it.
     pub lease: Duration,
     /// The creator's settings (`node` and `remote` are set by the node).

@@ -9,11 +9,11 @@ use std::time::{Duration, Instant};
 
 use super::{REGISTER_RETRY_FIRST, REGISTER_RETRY_MAX, Shared, local_session, lock};
 use crate::common_clock::EXCHANGES_AT_REGISTRATION;
-use crate::net::conn::RpcError;
-use crate::proto::{
+use penelope_protocol::net::conn::RpcError;
+use penelope_protocol::proto::{
     Call, Class, Method, NamingCall, ObjectInfo, ObjectRef, Reply, WireError, object_path,
 };
-use crate::service::{Remote, Service};
+use penelope_protocol::service::{Remote, Service};
 
 /// Most resolved paths cached at once.
 const MAX_RESOLVED: usize = 256;

@@ -5,8 +5,8 @@ use std::sync::Arc;
 
 use super::{Shared, lock};
 use crate::objects::Creator;
-use crate::proto::{Call, CreatorCall, NodeInfo, Reply, WireError};
-use crate::service::{Service, Session};
+use penelope_protocol::proto::{Call, CreatorCall, NodeInfo, Reply, WireError};
+use penelope_protocol::service::{Service, Session};
 
 /// What the node's server serves: the creator, plus naming bookkeeping and the hosted naming
 /// service.

@@ -1,7 +1,7 @@
 //! Unit tests of a node: its objects' naming bindings and the names and leases it refuses.
 
 use super::*;
-use crate::proto::{Class, CreatorCall, Method, NodeInfo};
+use penelope_protocol::proto::{Class, CreatorCall, Method, NodeInfo};
 
 fn names(node: &Node, context: &str) -> Vec<String> {
     let tree = node.hosted_naming().unwrap().snapshot();

@@ -15,7 +15,7 @@ use super::clock::{SteppedLoop, TickBody};
 use super::registry::{self, Body, Launch};
 use super::runtime::{self, LoopFault, LoopShared, Running, StopMode, StoppedLoop, TickStream};
 use super::{Creator, DetachedLoop, RtPolicy};
-use crate::proto::{Class, Method, Reply, WireError};
+use penelope_protocol::proto::{Class, Method, Reply, WireError};
 
 impl Creator {
     pub(super) fn fifo_allowed(&self) -> bool {
@@ -547,11 +547,14 @@ fn start_threads(
 /// The remote's error; a sensor without `publish` is refused with [`WireError::NotReady`]
 /// naming the path and the key.
 fn sensor_stream(
-    remote: &dyn crate::service::Remote,
+    remote: &dyn penelope_protocol::service::Remote,
     path: &str,
 ) -> Result<std::net::SocketAddr, WireError> {
     let reply = remote
-        .call(path, Method::Sensor(crate::proto::SensorMethod::Stream))
+        .call(
+            path,
+            Method::Sensor(penelope_protocol::proto::SensorMethod::Stream),
+        )
         .map_err(|e| match e {
             WireError::NotReady(why) => WireError::NotReady(format!("sensor `{path}`: {why}")),
             other => other,

@@ -62,12 +62,12 @@ use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 use penelope_hal::{LifecycleState, Timestamp, Transition};
 
-use crate::proto::{
+use clock::{ClockMode, SimWorld};
+use penelope_protocol::proto::{
     Call, Class, ControllerMethod, CreatorCall, KindInfo, Method, NodeInfo, ObjectInfo, Reply,
     WireError, check_name,
 };
-use crate::service::{Remote, Service, Session};
-use clock::{ClockMode, SimWorld};
+use penelope_protocol::service::{Remote, Service, Session};
 use registry::{Body, Registry};
 use runtime::{CommTask, ControlTask, LinkPump, Subscriptions};
 
@@ -253,7 +253,7 @@ impl Creator {
     /// Latches the e-stop of every loop running on this node, without the registry lock or
     /// any command queue (a slow call holding them never delays it), and waits briefly
     /// ([`stop_board::STOP_ACK_WAIT`], real clock only) for the loops to act.
-    pub fn estop_all(&self) -> crate::proto::StopReport {
+    pub fn estop_all(&self) -> penelope_protocol::proto::StopReport {
         self.stops.stop_all(&self.config.node, self.stop_wait())
     }
 

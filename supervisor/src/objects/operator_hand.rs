@@ -8,7 +8,7 @@ use penelope_drivers::sim::operator::{HandImpedance, OperatorScript};
 use penelope_drivers::sim::scripts;
 use serde::Deserialize;
 
-use crate::proto::WireError;
+use penelope_protocol::proto::WireError;
 
 /// `sensor/operator-hand` configuration: a scripted operator's hand holding a simulated master.
 #[derive(Clone, Debug, PartialEq, Deserialize)]

@@ -38,9 +38,9 @@ use penelope_rt_core::safety::SafetyEvent;
 use serde::Deserialize;
 
 use crate::objects::runtime::TickRecord;
-use crate::proto::WireError;
 use crate::runs::mcap_log::CONTROLLER_TOPIC;
 use crate::runs::recording::{RecordingError, read_recording};
+use penelope_protocol::proto::WireError;
 
 /// The keys of `sensor/replay`, as `penelope ctl kinds` lists them.
 pub const REPLAY_SENSOR_KEYS: &str = r#"

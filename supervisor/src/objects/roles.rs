@@ -15,11 +15,11 @@
 use penelope_hal::Transition;
 
 use crate::naming::role_name;
-use crate::proto::{
+use penelope_protocol::proto::{
     BoardMethod, Call, ControllerMethod, CreatorCall, Method, RobotMethod, Role, SensorMethod,
     TrajectoryMethod, WireError,
 };
-use crate::service::Identity;
+use penelope_protocol::service::Identity;
 
 /// What a call needs, weakest first.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]

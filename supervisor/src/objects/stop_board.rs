@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use penelope_rt_core::stop::StopLatch;
 
-use crate::proto::StopReport;
+use penelope_protocol::proto::StopReport;
 
 /// How long an e-stop waits for its loops' next ticks before answering (a loop ticks every
 /// millisecond or so; one that has not ticked by then is reported `pending`).

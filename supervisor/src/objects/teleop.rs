@@ -34,7 +34,7 @@ use super::kinematics::RobotKinematics;
 use super::runtime::ReferenceOut;
 use super::teleop_passivity::{PortLaw, TwoPortEnd};
 use super::teleop_wave::WaveEnd;
-use crate::proto::WireError;
+use penelope_protocol::proto::WireError;
 
 /// `trajectory/teleop` configuration.
 #[derive(Clone, Debug, PartialEq, Deserialize)]

@@ -227,10 +227,10 @@ pub struct LinkStats {
 
 impl LinkStats {
     /// As a client sees it, read at `time_ns` (the node's clock).
-    pub fn record(&self, time_ns: u64) -> crate::proto::LinkRecord {
+    pub fn record(&self, time_ns: u64) -> penelope_protocol::proto::LinkRecord {
         let s = &self.stream;
         let trips = self.one_way.count();
-        crate::proto::LinkRecord {
+        penelope_protocol::proto::LinkRecord {
             time_ns,
             down: self.down,
             losses: self.losses,

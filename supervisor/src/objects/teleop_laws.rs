@@ -10,7 +10,7 @@ use penelope_rt_core::teleop::{
 };
 
 use super::teleop_passivity::PortLaw;
-use crate::proto::WireError;
+use penelope_protocol::proto::WireError;
 
 crate::objects::kinds::loop_keys!(ForceDisplayToml {
     max_force: f64 = ForceDisplayConfig::default().max_force, #[doc = "Largest displayed force, N."]

@@ -37,7 +37,7 @@ use penelope_rt_core::teleop::{
 };
 
 use super::teleop_end::Side;
-use crate::proto::WireError;
+use penelope_protocol::proto::WireError;
 
 /// What a law's half runs in its channel end, besides the channel's mapping.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -38,7 +38,7 @@ use penelope_rt_core::teleop::{
 
 use super::kinematics::RobotKinematics;
 use super::teleop_end::Side;
-use crate::proto::WireError;
+use penelope_protocol::proto::WireError;
 
 /// Seconds from `*last` to `now` (0 when there is no `last`), and `now` becomes `last`: the
 /// period of a communication-thread transform's tick, as the clock measured it.

@@ -54,7 +54,7 @@ use serde_json::json;
 
 use super::recording::RecordingError;
 use crate::objects::runtime::TickRecord;
-use crate::proto::LinkRecord;
+use penelope_protocol::proto::LinkRecord;
 
 /// The MCAP profile written in the header (none of the well-known ones fits: JSON messages
 /// of our own).

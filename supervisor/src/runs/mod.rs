@@ -36,8 +36,8 @@ use crate::objects::kinds::{self, RobotConfig, SensorConfig, SimBoardConfig};
 use crate::objects::kinematics::RobotKinematics;
 use crate::objects::runtime::{TickRecord, TickStream};
 use crate::objects::teleop::{HandConfig, TeleopConfig};
-use crate::proto::{Call, Method, WireError};
 use crate::system::{ObjectSpec, SystemFile, SystemFileError};
+use penelope_protocol::proto::{Call, Method, WireError};
 
 /// The demo's system file (`config/demo.toml`), built in.
 pub const DEMO_SYSTEM: &str = include_str!("../../../config/demo.toml");

@@ -27,8 +27,8 @@ use crate::objects::clock::NodeTime;
 use crate::objects::lifecycle_feed::LifecycleEvent;
 use crate::objects::link_source::{LinkSource, StreamDatagram};
 use crate::objects::runtime::{TickRecord, TickStream};
-use crate::proto::{Call, LinkRecord, Method};
 use crate::system::SystemFile;
+use penelope_protocol::proto::{Call, LinkRecord, Method};
 
 /// How often the recorder writes what its streams hold.
 const DRAIN_EVERY: Duration = Duration::from_millis(50);
@@ -441,7 +441,7 @@ pub fn apply_recorded(
     node: &Node,
     file: &SystemFile,
     path: &Path,
-) -> Result<(Vec<crate::proto::ObjectInfo>, Recorder), RunError> {
+) -> Result<(Vec<penelope_protocol::proto::ObjectInfo>, Recorder), RunError> {
     let mut deferred = file.clone();
     let mut to_activate = Vec::new();
     for o in &mut deferred.objects {

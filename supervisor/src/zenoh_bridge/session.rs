@@ -23,7 +23,7 @@ use super::{BridgeStats, ZenohError, ZenohSettings};
 use crate::objects::Creator;
 use crate::objects::link_source::LinkSource;
 use crate::objects::runtime::TickStream;
-use crate::proto::Class;
+use penelope_protocol::proto::Class;
 
 /// How often the bridge drains the tick streams and publishes.
 const DRAIN_EVERY: Duration = Duration::from_millis(5);
@@ -333,7 +333,7 @@ fn declare_objects(
             // One object when the query names one plainly; the whole tree otherwise.
             let one = asked
                 .strip_prefix(&prefix)
-                .filter(|name| crate::proto::check_name(name).is_ok());
+                .filter(|name| penelope_protocol::proto::check_name(name).is_ok());
             let (key, body) = match one {
                 Some(name) => match creator.info(name) {
                     Some(info) => (asked.to_string(), serde_json::to_vec(&info)),

@@ -7,11 +7,11 @@
 use std::time::{Duration, Instant};
 
 use penelope_hal::Transition;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::{
+use penelope_protocol::proto::{
     Call, ControllerMethod, CreatorCall, JointAxis, Method, Reply, RobotMethod, WireError,
 };
-use penelope_supervisor::service::{Outbox, OutboxReceiver, Service, Session};
+use penelope_protocol::service::{Outbox, OutboxReceiver, Service, Session};
+use penelope_supervisor::objects::{Creator, CreatorConfig};
 
 pub fn session(id: u64) -> (Session, OutboxReceiver) {
     let (outbox, rx) = Outbox::bounded(1024);
@@ -20,7 +20,7 @@ pub fn session(id: u64) -> (Session, OutboxReceiver) {
             id,
             peer: "127.0.0.1:40000".parse().unwrap(),
             client: "test".into(),
-            identity: penelope_supervisor::service::Identity::IN_PROCESS,
+            identity: penelope_protocol::service::Identity::IN_PROCESS,
             outbox,
         },
         rx,

@@ -6,7 +6,7 @@
 //! penelope naming --listen 0.0.0.0:7300 --secret-file lab.secret
 //! ```
 //!
-//! It serves [`Call::Naming`](penelope_supervisor::proto::Call::Naming) (plus `Ping` and
+//! It serves [`Call::Naming`](penelope_protocol::proto::Call::Naming) (plus `Ping` and
 //! `NodeInfo`) until Ctrl-C or SIGTERM. Nodes register in it with `penelope node --naming ADDR`.
 
 use std::net::SocketAddr;
@@ -17,10 +17,10 @@ use std::time::Duration;
 
 use anyhow::Context as _;
 use nix::sys::signal::{SigSet, Signal};
+use penelope_protocol::net::auth::Secret;
+use penelope_protocol::net::server::{Server, ServerConfig};
+use penelope_protocol::proto::DEFAULT_PORT;
 use penelope_supervisor::naming::{NamingLimits, NamingService};
-use penelope_supervisor::net::auth::Secret;
-use penelope_supervisor::net::server::{Server, ServerConfig};
-use penelope_supervisor::proto::DEFAULT_PORT;
 
 /// Options of `penelope naming`.
 #[derive(clap::Args, Debug)]

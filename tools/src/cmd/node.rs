@@ -21,8 +21,8 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::Context as _;
+use penelope_protocol::proto::DEFAULT_PORT;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::proto::DEFAULT_PORT;
 use penelope_supervisor::system::SystemFile;
 
 use super::naming::{block_stop_signals, read_secret, refuse_open_listen, wait_for_stop};

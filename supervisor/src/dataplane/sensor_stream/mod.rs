@@ -33,7 +33,7 @@ use penelope_hal::Pose;
 use serde::{Deserialize, Serialize};
 
 use super::frame::{DatagramKey, DirectedKeys, StreamId};
-use crate::proto::{PoseMsg, WrenchMsg};
+use penelope_protocol::proto::{PoseMsg, WrenchMsg};
 
 pub mod publisher;
 pub mod subscriber;

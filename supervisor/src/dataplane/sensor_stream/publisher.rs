@@ -20,7 +20,7 @@ use super::{
 };
 use crate::dataplane::endpoint::{Endpoint, EndpointStats, RECEIVE_BURST};
 use crate::dataplane::stream::StreamSender;
-use crate::proto::WrenchMsg;
+use penelope_protocol::proto::WrenchMsg;
 
 /// How a publisher measures its sensor: at the newest probe, or, when no subscriber sent one,
 /// as it is (`None`). `None` back: no measurement this period (nothing is sent).

@@ -456,7 +456,8 @@ impl SensorConfig {
             ));
         }
         if let Some(r) = &self.robot {
-            crate::proto::check_name(r).map_err(|e| bad(kind, format!("robot: {e}")))?;
+            penelope_protocol::proto::check_name(r)
+                .map_err(|e| bad(kind, format!("robot: {e}")))?;
         }
         check_int(kind, "publish_period_ms", self.publish_period_ms, 1, 1000)?;
         if self.publish.is_some() && self.robot.is_some() {

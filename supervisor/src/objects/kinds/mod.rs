@@ -36,7 +36,7 @@ use super::teleop::{
     SLAVE_TRACKING_KEYS, TELEOP_KEYS,
 };
 use super::teleop_wave::{WAVE_MASTER_KEYS, WAVE_SLAVE_KEYS};
-use crate::proto::{Class, KindInfo, WireError};
+use penelope_protocol::proto::{Class, KindInfo, WireError};
 
 /// Every kind this creator makes, in listing order.
 pub const KINDS: [&str; 29] = [
@@ -473,7 +473,7 @@ macro_rules! loop_keys {
             ///
             /// # Errors
             /// [`WireError::BadConfig`].
-            pub fn timing(&self, kind: &str) -> Result<$crate::objects::kinds::LoopTiming, $crate::proto::WireError> {
+            pub fn timing(&self, kind: &str) -> Result<$crate::objects::kinds::LoopTiming, ::penelope_protocol::proto::WireError> {
                 $crate::objects::kinds::check_int(kind, "period_us", self.period_us, 250, 20_000)?;
                 $crate::objects::kinds::check_int(kind, "comm_period_us", self.comm_period_us, 250, 100_000)?;
                 $crate::objects::kinds::check_int(kind, "watchdog_ms", self.watchdog_ms, 1, 10_000)?;
@@ -593,7 +593,7 @@ impl JointGroupsConfig {
         }
         let mut claimed = [None::<usize>; penelope_hal::MAX_JOINTS];
         for (i, g) in self.groups.iter().enumerate() {
-            crate::proto::check_name(&g.controller)
+            penelope_protocol::proto::check_name(&g.controller)
                 .map_err(|e| bad(kind, format!("`groups[{i}].controller`: {e}")))?;
             if g.joints.is_empty() {
                 return Err(bad(kind, format!("`groups[{i}].joints` is empty")));

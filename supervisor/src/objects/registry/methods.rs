@@ -243,7 +243,7 @@ impl Registry {
                         "map the joints of `{name}` before configure (cleanup first)"
                     )));
                 }
-                crate::proto::check_name(&board)?;
+                penelope_protocol::proto::check_name(&board)?;
                 if joints.is_empty() || joints.len() > MAX_JOINTS {
                     return Err(bad_arg(format!("map 1 to {MAX_JOINTS} joints")));
                 }
@@ -559,13 +559,13 @@ impl Registry {
         match m {
             ControllerMethod::SetRobot { robot } => {
                 set_guard("robot")?;
-                crate::proto::check_name(&robot)?;
+                penelope_protocol::proto::check_name(&robot)?;
                 self.controller_mut(name)?.robot = Some(robot);
                 Ok(Reply::Unit)
             }
             ControllerMethod::SetTrajectory { trajectory } => {
                 set_guard("trajectory")?;
-                crate::proto::check_name(&trajectory)?;
+                penelope_protocol::proto::check_name(&trajectory)?;
                 self.controller_mut(name)?.trajectory = Some(trajectory);
                 Ok(Reply::Unit)
             }
@@ -573,10 +573,10 @@ impl Registry {
                 set_guard("sensor")?;
                 if let Some(path) = sensor.strip_prefix('/') {
                     for part in path.split('/') {
-                        crate::proto::check_name(part)?;
+                        penelope_protocol::proto::check_name(part)?;
                     }
                 } else {
-                    crate::proto::check_name(&sensor)?;
+                    penelope_protocol::proto::check_name(&sensor)?;
                 }
                 self.controller_mut(name)?.sensor = Some(sensor);
                 Ok(Reply::Unit)

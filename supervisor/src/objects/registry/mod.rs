@@ -55,7 +55,7 @@ use crate::objects::runtime::{
     CellSensor, ControlTask, GainsUpdate, GalilSet, GoToCommand, LoopBoard, NodeController,
     NodeLoop, NodeSink, NodeTrajectory, RoutedGains, SimBody, TrajectoryFeed, VirtualSensor,
 };
-use crate::proto::{
+use penelope_protocol::proto::{
     BoardMethod, Class, ControlStatus, ControllerMethod, JointAxis, Joints, MatrixMsg, ObjectInfo,
     OperationalMsg, PoseMsg, ReferenceMsg, Reply, RobotMethod, SensorMethod, TrajectoryMethod,
     WireError, WrenchMsg, joints_from_vector, joints_to_vector,
@@ -516,7 +516,7 @@ pub(crate) struct Registry {
 /// What activating a controller needs from the creator.
 pub(crate) struct Launch<'a> {
     pub rt: &'a crate::objects::RtPolicy,
-    pub remote: Option<Arc<dyn crate::service::Remote>>,
+    pub remote: Option<Arc<dyn penelope_protocol::service::Remote>>,
     /// Where the controller's sensor on another node is published, asked before the build.
     pub sensor_stream: Option<std::net::SocketAddr>,
 }

@@ -12,7 +12,7 @@ use std::thread::JoinHandle;
 
 use super::*;
 use crate::objects::link_source::LinkSource;
-use crate::proto::LinkBatch;
+use penelope_protocol::proto::LinkBatch;
 
 /// How often a link subscription of decimation 1 gets a record.
 pub const LINK_PERIOD: Duration = Duration::from_millis(100);

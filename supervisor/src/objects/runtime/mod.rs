@@ -58,10 +58,10 @@ use penelope_rt_core::wake::Doorbell;
 use super::kinematics::RobotKinematics;
 use super::teleop::TeleopComm;
 use crate::dataplane::sensor_stream::{Probe, SensorSubscriber};
-use crate::proto::{
+use penelope_protocol::proto::{
     ServerMsg, TelemetryBatch, TelemetryRecord, WireError, WrenchMsg, joints_from_vector,
 };
-use crate::service::Outbox;
+use penelope_protocol::service::Outbox;
 
 /// Telemetry samples buffered between a control thread and its pump (4 s at 1 kHz).
 pub const TELEMETRY_CAPACITY: usize = 4096;

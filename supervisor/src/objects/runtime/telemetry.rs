@@ -431,7 +431,7 @@ mod tests {
             assert!(b.samples.len() <= MAX_BATCH_RECORDS);
             let frame = postcard::to_allocvec(&ServerMsg::Telemetry(b.clone())).unwrap();
             assert!(
-                frame.len() <= crate::proto::DEFAULT_MAX_FRAME,
+                frame.len() <= penelope_protocol::proto::DEFAULT_MAX_FRAME,
                 "{}",
                 frame.len()
             );

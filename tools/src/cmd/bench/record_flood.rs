@@ -16,8 +16,8 @@ use std::path::Path;
 use std::time::Duration;
 
 use anyhow::Context as _;
+use penelope_protocol::proto::{Call, ControllerMethod, CreatorCall, Method, Reply};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::proto::{Call, ControllerMethod, CreatorCall, Method, Reply};
 use penelope_supervisor::runs::DEMO_SYSTEM;
 use penelope_supervisor::runs::recording::read_recording;
 use penelope_supervisor::system::SystemFile;

@@ -2,7 +2,7 @@
 
 use nalgebra::Vector3;
 use penelope_hal::{NamedPose, Pose};
-use penelope_supervisor::proto::{
+use penelope_protocol::proto::{
     BoardMethod, ControllerMethod, JointAxis, Joints, Method, PoseMsg, Reply, RobotMethod,
     SensorMethod, TrajectoryMethod, WrenchMsg, parse_transition,
 };

@@ -37,9 +37,9 @@ use std::time::Duration;
 
 use anyhow::Context as _;
 use clap::Parser;
-use penelope_supervisor::client::Client;
-use penelope_supervisor::net::conn::ClientConfig;
-use penelope_supervisor::proto::{
+use penelope_protocol::client::Client;
+use penelope_protocol::net::conn::ClientConfig;
+use penelope_protocol::proto::{
     BoardMethod, Call, Class, ControllerMethod, CreatorCall, Method, NameEntry, ObjectRef, Reply,
     RobotMethod, object_path, parse_transition,
 };
@@ -562,7 +562,7 @@ impl Ctl {
         let tree = client.naming().tree(context)?;
         let states = object_states(&client, &tree);
         let state_of = |r: &ObjectRef| -> Option<String> {
-            if r.class == penelope_supervisor::proto::Class::Creator {
+            if r.class == penelope_protocol::proto::Class::Creator {
                 None
             } else {
                 Some(
@@ -855,7 +855,7 @@ mod tests {
             .unwrap();
         assert_eq!(
             naming.to_str().unwrap(),
-            format!("127.0.0.1:{}", penelope_supervisor::proto::DEFAULT_PORT)
+            format!("127.0.0.1:{}", penelope_protocol::proto::DEFAULT_PORT)
         );
     }
 }

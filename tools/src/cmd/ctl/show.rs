@@ -2,7 +2,7 @@
 
 use std::fmt::Write as _;
 
-use penelope_supervisor::proto::{
+use penelope_protocol::proto::{
     ControlStatus, KindInfo, LinkRecord, MatrixMsg, NameEntry, ObjectInfo, ObjectRef, PoseMsg,
     ReferenceMsg, Reply, TelemetryRecord, WrenchMsg,
 };

@@ -4,9 +4,9 @@
 use std::io::Write;
 use std::time::{Duration, Instant};
 
-use penelope_supervisor::client::{Streamed, Subscription};
+use penelope_protocol::client::{Streamed, Subscription};
+use penelope_protocol::proto::{Class, LinkRecord, TelemetryRecord};
 use penelope_supervisor::objects::runtime::LINK_PERIOD;
-use penelope_supervisor::proto::{Class, LinkRecord, TelemetryRecord};
 use serde::Serialize;
 
 use super::{Ctl, show};

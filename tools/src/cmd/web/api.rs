@@ -8,9 +8,9 @@ use axum::Json;
 use axum::extract::{Query, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
-use penelope_supervisor::client::Client;
-use penelope_supervisor::net::conn::RpcError;
-use penelope_supervisor::proto::{
+use penelope_protocol::client::Client;
+use penelope_protocol::net::conn::RpcError;
+use penelope_protocol::proto::{
     BoardMethod, Class, ControllerMethod, Method, NameEntry, ObjectRef, Reply, RobotMethod,
     WireError, object_path,
 };

@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 use axum::extract::ws::{Message, Utf8Bytes, WebSocket, WebSocketUpgrade};
 use axum::extract::{Query, State};
 use axum::response::{IntoResponse, Response};
-use penelope_supervisor::proto::{ControllerMethod, Method, Reply, TelemetryRecord};
+use penelope_protocol::proto::{ControllerMethod, Method, Reply, TelemetryRecord};
 use serde::Deserialize;
 use serde_json::{Value, json};
 use tokio::sync::mpsc;
@@ -131,7 +131,7 @@ fn compact(r: &TelemetryRecord, t0_ns: u64) -> Value {
 /// The reader thread: subscription -> batches, events and status -> `tx`, until `tx` closes
 /// or the subscription fails.
 fn read(
-    client: &penelope_supervisor::client::Client,
+    client: &penelope_protocol::client::Client,
     path: &str,
     decimation: u32,
     tx: &mpsc::Sender<String>,

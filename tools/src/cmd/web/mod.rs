@@ -7,7 +7,7 @@
 //! ```
 //!
 //! It is one more client of the system: every request becomes calls of the client library
-//! ([`penelope_supervisor::client`], as `penelope ctl` makes them), run on tokio's blocking pool
+//! ([`penelope_protocol::client`], as `penelope ctl` makes them), run on tokio's blocking pool
 //! because the library blocks; live telemetry is a subscription like `ctl watch`'s, decimated
 //! by the node, so the real-time rings never see the browser.
 //!
@@ -41,9 +41,9 @@ use std::time::Duration;
 
 use axum::Router;
 use axum::routing::{get, post};
-use penelope_supervisor::client::Client;
-use penelope_supervisor::net::conn::ClientConfig;
-use penelope_supervisor::proto::Role;
+use penelope_protocol::client::Client;
+use penelope_protocol::net::conn::ClientConfig;
+use penelope_protocol::proto::Role;
 
 use crate::cmd::usage;
 

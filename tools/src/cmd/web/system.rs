@@ -8,7 +8,7 @@ use axum::Json;
 use axum::extract::{Query, State};
 use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
-use penelope_supervisor::proto::{Call, WireError};
+use penelope_protocol::proto::{Call, WireError};
 use penelope_supervisor::system::SystemFile;
 use serde::Deserialize;
 use serde_json::json;

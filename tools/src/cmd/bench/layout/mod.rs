@@ -23,9 +23,9 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
+use penelope_protocol::proto::LinkRecord;
 use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::objects::link_source::{StreamDatagram, StreamName};
-use penelope_supervisor::proto::LinkRecord;
 use penelope_supervisor::runs::recording::{Recording, from_recordings, read_recording};
 use penelope_supervisor::runs::report::{LoopTiming, report};
 use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, RunOutput};

@@ -22,8 +22,8 @@
 //! Writes `rpc.json` and one SVG per load (`rpc-<load>.svg`, plus `rpc-loads.svg` with every
 //! load) to `--out`.
 //!
-//! [`Server`]: penelope_supervisor::net::server::Server
-//! [`Connection`]: penelope_supervisor::net::conn::Connection
+//! [`Server`]: penelope_protocol::net::server::Server
+//! [`Connection`]: penelope_protocol::net::conn::Connection
 //! [`Instant`]: std::time::Instant
 
 pub mod load;

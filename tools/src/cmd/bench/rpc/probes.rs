@@ -9,10 +9,10 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
-use penelope_supervisor::net::conn::{ClientConfig, Connection};
-use penelope_supervisor::net::server::{Server, ServerConfig};
-use penelope_supervisor::proto::{Call, Reply, WireError};
-use penelope_supervisor::service::{Service, Session};
+use penelope_protocol::net::conn::{ClientConfig, Connection};
+use penelope_protocol::net::server::{Server, ServerConfig};
+use penelope_protocol::proto::{Call, Reply, WireError};
+use penelope_protocol::service::{Service, Session};
 use socket2::{Domain, Protocol, SockAddr, Socket, Type};
 
 /// Which round trip.

@@ -1,10 +1,10 @@
 //! Property tests of the frame layer: messages round-trip, the incremental decoder never panics
 //! and stays bounded on arbitrary bytes in arbitrary chunkings, and a valid stream decodes the
 //! same however it is split. Plus a seeded, bounded fuzz run of the decoder (what the cargo-fuzz
-//! target `supervisor/fuzz` explores without end).
+//! target `protocol/fuzz` explores without end).
 
-use penelope_supervisor::net::frame::{FrameDecoder, FrameError, encode, encode_into, read_frame};
-use penelope_supervisor::proto::{
+use penelope_protocol::net::frame::{FrameDecoder, FrameError, encode, encode_into, read_frame};
+use penelope_protocol::proto::{
     Call, ClientHello, ClientMsg, CreatorCall, FRAME_HEADER_LEN, Method, Reply, RobotMethod, Role,
     Security, ServerHello, ServerMsg, TelemetryBatch, WireError,
 };

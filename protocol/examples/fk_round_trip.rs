@@ -3,7 +3,7 @@
 //! benchmark (`scripts/bench-python`), which times the same call from Python.
 //!
 //! ```text
-//! cargo run --release -p penelope-supervisor --example fk_round_trip -- \
+//! cargo run --release -p penelope-protocol --example fk_round_trip -- \
 //!     NAMING_ADDR ROBOT_PATH CALLS [SECRET_FILE]
 //! ```
 //!
@@ -12,8 +12,8 @@
 use std::time::Instant;
 
 use penelope_hal::JointVector;
-use penelope_supervisor::client::Client;
-use penelope_supervisor::net::conn::ClientConfig;
+use penelope_protocol::client::Client;
+use penelope_protocol::net::conn::ClientConfig;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();

@@ -3,10 +3,10 @@
 //!
 //! ```no_run
 //! use penelope_hal::NamedPose;
-//! use penelope_supervisor::client::{Client, Lifecycle};
-//! use penelope_supervisor::net::conn::ClientConfig;
+//! use penelope_protocol::client::{Client, Lifecycle};
+//! use penelope_protocol::net::conn::ClientConfig;
 //!
-//! # fn main() -> Result<(), penelope_supervisor::net::conn::RpcError> {
+//! # fn main() -> Result<(), penelope_protocol::net::conn::RpcError> {
 //! let client = Client::connect("127.0.0.1:7300".parse().unwrap(), ClientConfig::new("me"))?;
 //! let node = client.node("lab-a")?;
 //! node.create("robot/puma560", "slave", "")?;

@@ -1,14 +1,14 @@
 //! Fuzzes the frame decoder: arbitrary bytes in arbitrary chunks must only ever give messages or
 //! typed errors, within the decoder's memory bound, and a valid frame after a reset decodes.
 //!
-//! Run with `cargo +nightly fuzz run frame_decoder` from `supervisor/`. The stable, bounded
-//! versions of this target run in the normal test suite: `supervisor/tests/frame_props.rs`
+//! Run with `cargo +nightly fuzz run frame_decoder` from `protocol/`. The stable, bounded
+//! versions of this target run in the normal test suite: `protocol/tests/frame_props.rs`
 //! (decoder) and `supervisor/tests/robustness.rs` (random bytes at a live server's handshake).
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use penelope_supervisor::net::frame::{FrameDecoder, encode};
-use penelope_supervisor::proto::{ClientMsg, FRAME_HEADER_LEN, ServerMsg};
+use penelope_protocol::net::frame::{FrameDecoder, encode};
+use penelope_protocol::proto::{ClientMsg, FRAME_HEADER_LEN, ServerMsg};
 
 fuzz_target!(|data: &[u8]| {
     let Some((&control, bytes)) = data.split_first() else {

@@ -1,14 +1,12 @@
 //! The cost of security per frame: sealing and opening one frame (ChaCha20-Poly1305 through
 //! `snow`'s stateless transport) of a session after a real handshake, for a 64-byte body (a
 //! typical call) and a 1 KiB one; and the handshake itself. `cargo bench -p
-//! penelope-supervisor --bench seal`; BENCHMARKS.md has the figures.
+//! penelope-protocol --bench seal`; BENCHMARKS.md has the figures.
 
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use penelope_supervisor::net::auth::{
-    ClientHandshake, Opener, Sealer, answer, member_psk, prologue,
-};
+use penelope_protocol::net::auth::{ClientHandshake, Opener, Sealer, answer, member_psk, prologue};
 
 fn session() -> (Sealer, Opener) {
     let psk = member_psk(b"penelope-bench-seal-shared-secret");

@@ -161,7 +161,7 @@ pub struct ControlStatus {
     pub last: Option<TelemetryRecord>,
 }
 
-/// One control tick as a client sees it (a compact [`penelope_rt_core::telemetry::TelemetrySample`]).
+/// One control tick as a client sees it (a compact `TelemetrySample` of `penelope-rt-core`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TelemetryRecord {
     /// The tick's time, ns on the node's monotonic clock.

@@ -10,9 +10,9 @@
 
 use std::collections::BTreeMap;
 
-use penelope_supervisor::net::auth::{self, ClientHandshake};
-use penelope_supervisor::net::frame;
-use penelope_supervisor::proto::{
+use penelope_protocol::net::auth::{self, ClientHandshake};
+use penelope_protocol::net::frame;
+use penelope_protocol::proto::{
     Call, ClientHello, ClientMsg, CreatorCall, DEFAULT_MAX_FRAME, LinkBatch, LinkRecord, MAGIC,
     Method, PROTOCOL_VERSION, PoseMsg, Reply, RobotMethod, Role, Security, ServerHello, ServerMsg,
     StopReport, TelemetryBatch, TelemetryRecord, WireError, WrenchMsg,
