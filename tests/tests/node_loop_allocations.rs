@@ -14,7 +14,8 @@ use penelope_supervisor::proto::{
     Call, ControllerMethod, CreatorCall, JointAxis, Method, RobotMethod,
 };
 use penelope_supervisor::service::{Outbox, Service, Session};
-use penelope_tests::{CountingAllocator, allocations, call_object};
+use penelope_testkit::alloc::{CountingAllocator, allocations};
+use penelope_tests::call_object;
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
