@@ -8,6 +8,7 @@ use penelope_drivers::galil::{
     Axes, Client, ClientConfig, Command, GalilError, Operand, SerialLink, SerialSettings, Setting,
     Tell,
 };
+use penelope_testkit::wait::wait_until;
 
 fn emulator(options: PtyOptions) -> PtyEmulator {
     PtyEmulator::spawn(options).expect("pseudo-terminal")
@@ -17,14 +18,6 @@ fn connect(emu: &PtyEmulator, baud: u32) -> Client<SerialLink> {
     let path = emu.path().to_string_lossy().into_owned();
     let link = SerialLink::open(&SerialSettings::new(path, baud)).expect("open pty");
     Client::new(link, ClientConfig::default())
-}
-
-fn wait_until(mut cond: impl FnMut() -> bool) {
-    let end = Instant::now() + Duration::from_secs(10);
-    while !cond() {
-        assert!(Instant::now() < end, "condition not reached in 10 s");
-        std::thread::sleep(Duration::from_millis(20));
-    }
 }
 
 #[test]
@@ -59,7 +52,7 @@ fn identify_move_and_read_back() {
         Some(300.0),
     ];
     c.set(Setting::PositionAbsolute, &targets).unwrap();
-    wait_until(|| {
+    wait_until("every axis at its target", || {
         let p = c.positions().unwrap();
         let v = c.tell(Tell::Velocity, Axes::NONE).unwrap();
         p.iter()
@@ -78,10 +71,14 @@ fn identify_move_and_read_back() {
     c.set(Setting::PositionTracking, &[Some(0.0)]).unwrap();
     c.set(Setting::PositionRelative, &[Some(500.0)]).unwrap();
     c.ack(&Command::Begin(Axes(1))).unwrap();
-    wait_until(|| c.message(Operand::Moving, 0).unwrap() == 0.0);
+    wait_until("the move done", || {
+        c.message(Operand::Moving, 0).unwrap() == 0.0
+    });
     assert_eq!(c.tell(Tell::StopCode, Axes(1)).unwrap().as_slice(), &[1.0]);
     // The profiler is done; the motor settles just after.
-    wait_until(|| (c.positions().unwrap()[0] - 1500).abs() <= 1);
+    wait_until("axis A at 1500", || {
+        (c.positions().unwrap()[0] - 1500).abs() <= 1
+    });
     assert_eq!(c.query(Setting::Kp, 2).unwrap().as_slice(), &[6.0, 6.0]);
     assert!((c.servo_period().unwrap() - 1000.0).abs() < 1e-9);
     assert!(c.stats().exchanges > 10);
@@ -103,7 +100,7 @@ fn leading_zeros_and_unsolicited_interleaving_end_to_end() {
         let p = c.positions().unwrap();
         assert_eq!(p.len(), 6);
     }
-    wait_until(|| c.positions().unwrap()[0] == -7);
+    wait_until("axis A at -7", || c.positions().unwrap()[0] == -7);
     let text = String::from_utf8(c.take_unsolicited()).unwrap();
     assert!(text.contains("MSG: from #AUTO?"), "{text:?}");
 }
@@ -122,7 +119,7 @@ fn device_disappearing_mid_exchange() {
     assert_eq!(c.initialize().unwrap().layout.axes, 4);
     assert_eq!(c.positions().unwrap().len(), 4);
     emu.unplug();
-    wait_until(|| !emu.is_plugged());
+    wait_until("the emulator unplugged", || !emu.is_plugged());
     let err = c.positions().unwrap_err();
     assert!(err.is_link_fault(), "{err:?}");
     // Every later call fails cleanly, never hangs for long and never panics.

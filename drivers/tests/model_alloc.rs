@@ -2,8 +2,7 @@
 //! real-time call of every built-in model, a numerical one, and two URDF robots (the PUMA 560's
 //! URDF and the SCARA with its prismatic quill and fixed tool).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
+use penelope_testkit::alloc::{CountingAllocator, allocations};
 
 use penelope_drivers::model;
 use penelope_hal::{
@@ -11,41 +10,8 @@ use penelope_hal::{
     RobotModel, Wrench,
 };
 
-struct Counting;
-
-thread_local! {
-    // Only this thread's allocations count (the test harness allocates on its own threads).
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-fn count() {
-    let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
-}
-
-fn allocations() -> usize {
-    ALLOCATIONS.with(Cell::get)
-}
-
-// SAFETY: forwards to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count();
-        // SAFETY: same contract as ours.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as ours.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count();
-        // SAFETY: same contract as ours.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 const NUMERICAL_FRHC: &str = "inverse_kinematics = \"numerical\"";
 

@@ -13,18 +13,10 @@ use penelope_drivers::netft::{
 };
 use penelope_hal::{ForceSensor, Sensor};
 use penelope_rt_core::clock::MonotonicClock;
+use penelope_testkit::wait::wait_until;
 
-/// How long any bounded wait lasts before the test fails.
+/// How long the hand-written waits of this file last before the test fails.
 const PATIENCE: Duration = Duration::from_secs(10);
-
-/// Polls `f` every millisecond until it holds; panics with `what` after [`PATIENCE`].
-fn wait_until(what: &str, mut f: impl FnMut() -> bool) {
-    let deadline = Instant::now() + PATIENCE;
-    while !f() {
-        assert!(Instant::now() < deadline, "timed out waiting for {what}");
-        std::thread::sleep(Duration::from_millis(1));
-    }
-}
 
 /// A scripted box: a loopback socket the test reads requests from and writes records with.
 struct ScriptedBox {

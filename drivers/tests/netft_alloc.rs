@@ -2,8 +2,7 @@
 //! around `NetFtReader::read` (healthy, faulted, stale and tared), with records streaming in
 //! from the emulator on other threads, and around the wire codec.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
+use penelope_testkit::alloc::{CountingAllocator, allocations};
 use std::time::{Duration, Instant};
 
 use penelope_drivers::netft::emulator::{EmulatorConfig, NetFtEmulator};
@@ -11,42 +10,8 @@ use penelope_drivers::netft::{NetFt, NetFtConfig, Record, Request};
 use penelope_hal::{ForceSensor, Sensor};
 use penelope_rt_core::clock::MonotonicClock;
 
-struct Counting;
-
-thread_local! {
-    // Only this thread's allocations count (the I/O and emulator threads allocate nothing
-    // either, but they are not what is proven here).
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-fn count() {
-    let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
-}
-
-fn allocations() -> usize {
-    ALLOCATIONS.with(Cell::get)
-}
-
-// SAFETY: forwards to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count();
-        // SAFETY: same contract as ours.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as ours.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count();
-        // SAFETY: same contract as ours.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 #[test]
 fn reading_the_net_ft_in_the_control_thread_allocates_nothing() {

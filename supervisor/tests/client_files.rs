@@ -3,7 +3,6 @@
 //! outside the node's robot-file directories). Each is refused at once, and the node keeps
 //! answering other calls meanwhile.
 
-use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -12,13 +11,7 @@ use penelope_protocol::client::Client;
 use penelope_protocol::net::conn::{ClientConfig, RpcError};
 use penelope_protocol::proto::WireError;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("penelope-files-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+use penelope_testkit::scratch::scratch_dir;
 
 /// A node hosting its naming service on loopback, reading robot files from `dir` only.
 fn node(name: &str, dir: &std::path::Path) -> Node {
@@ -37,8 +30,8 @@ fn refusal(e: RpcError) -> String {
 
 #[test]
 fn robot_files_a_client_names_are_read_only_from_the_nodes_directories_regular_and_bounded() {
-    let dir = scratch("robots");
-    let outside = scratch("outside");
+    let dir = scratch_dir("files", "robots");
+    let outside = scratch_dir("files", "outside");
     // A real URDF in the directory, and the same one outside it.
     let puma = concat!(
         env!("CARGO_MANIFEST_DIR"),

@@ -2,54 +2,15 @@
 //! allocator watches 100,000 samples go through delay, jitter, loss, duplication and
 //! reordering into the receiving cell (the communication thread's work each tick).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
 use penelope_hal::{CartesianReference, Pose, Reference, Timestamp, Twist};
 use penelope_rt_core::cell::{Fresh, latest};
 use penelope_rt_core::teleop::TeleopSample;
 use penelope_supervisor::dataplane::faults::FaultConfig;
 use penelope_supervisor::objects::delay_line::DelayLine;
-
-struct Counting;
-
-thread_local! {
-    /// Whether this thread's allocations are counted, and its (allocations, frees).
-    static TRACKING: Cell<bool> = const { Cell::new(false) };
-    static COUNTS: Cell<(u64, u64)> = const { Cell::new((0, 0)) };
-}
-
-fn count(allocs: u64, frees: u64) {
-    if TRACKING.try_with(Cell::get).unwrap_or(false) {
-        let _ = COUNTS.try_with(|c| {
-            let (a, f) = c.get();
-            c.set((a + allocs, f + frees));
-        });
-    }
-}
-
-// SAFETY: forwards to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count(1, 0);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        count(1, 0);
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count(1, 1);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        count(0, 1);
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
+use penelope_testkit::alloc::{CountingAllocator, counted};
 
 #[global_allocator]
-static ALLOCATOR: Counting = Counting;
+static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 #[test]
 fn a_hundred_thousand_samples_through_every_fault_allocate_nothing() {
@@ -65,23 +26,22 @@ fn a_hundred_thousand_samples_through_every_fault_allocate_nothing() {
     let (mut send, mut receive) = latest::<TeleopSample>();
     // Ticks after which the receiving end found a new sample.
     let mut delivered = 0u64;
-    TRACKING.with(|t| t.set(true));
-    for k in 1..=100_000u64 {
-        let sample = TeleopSample::new(
-            k,
-            Timestamp::from_nanos(k * 2_000_000),
-            Reference::Cartesian(CartesianReference {
-                pose: Pose::translation(k as f64 * 1e-6, 0.0, 0.0),
-                twist: Twist::default(),
-            }),
-        );
-        line.send(sample, &mut send);
-        if let Fresh::New(_) = receive.read() {
-            delivered += 1;
+    let ((), allocs, frees) = counted(|| {
+        for k in 1..=100_000u64 {
+            let sample = TeleopSample::new(
+                k,
+                Timestamp::from_nanos(k * 2_000_000),
+                Reference::Cartesian(CartesianReference {
+                    pose: Pose::translation(k as f64 * 1e-6, 0.0, 0.0),
+                    twist: Twist::default(),
+                }),
+            );
+            line.send(sample, &mut send);
+            if let Fresh::New(_) = receive.read() {
+                delivered += 1;
+            }
         }
-    }
-    TRACKING.with(|t| t.set(false));
-    let (allocs, frees) = COUNTS.with(Cell::get);
+    });
     let c = line.counters();
     println!(
         "delay line: {c:?}, {delivered} new in the cell, capacity {}",

@@ -30,6 +30,7 @@ use penelope_supervisor::dataplane::sensor_stream::{
 use penelope_supervisor::naming::{NamingLimits, NamingService};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::system::{SystemFile, SystemFileError};
+use penelope_testkit::wait::wait_until;
 
 const SECRET: &[u8] = b"sensor streams test secret";
 /// The wall's stiffness, N/m (no damping: the wrench depends on the pose only).
@@ -68,15 +69,6 @@ impl Lab {
             n.shutdown();
         }
         self.naming.shutdown();
-    }
-}
-
-/// Waits until `done` holds, at most 20 s (a bound against a hang, not a timing claim).
-fn wait_until(what: &str, mut done: impl FnMut() -> bool) {
-    let deadline = Instant::now() + Duration::from_secs(20);
-    while !done() {
-        assert!(Instant::now() < deadline, "never happened: {what}");
-        std::thread::sleep(Duration::from_millis(5));
     }
 }
 

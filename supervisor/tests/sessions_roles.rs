@@ -9,7 +9,6 @@ use std::io::Write;
 use std::net::{SocketAddr, TcpStream};
 use std::os::fd::{FromRawFd, IntoRawFd};
 use std::sync::Arc;
-use std::thread;
 use std::time::{Duration, Instant};
 
 use nix::sys::socket::{
@@ -26,6 +25,7 @@ use penelope_protocol::proto::{
 use penelope_protocol::service::{Service, Session};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
+use penelope_testkit::wait::wait_until;
 
 const SECRET: &[u8] = b"5f0c2d9e8b7a61403f2e1d0c9b8a7f6e";
 const ADMIN: &[u8] = b"a1b2c3d4e5f60718293a4b5c6d7e8f90";
@@ -71,15 +71,6 @@ fn connect_from(from: [u8; 4], to: SocketAddr) -> TcpStream {
     s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
     s.set_nodelay(true).unwrap();
     s
-}
-
-/// Waits (bounded) until `what` holds.
-fn wait_until(what: &str, mut cond: impl FnMut() -> bool) {
-    let deadline = Instant::now() + Duration::from_secs(20);
-    while !cond() {
-        assert!(Instant::now() < deadline, "timed out waiting for {what}");
-        thread::sleep(Duration::from_millis(5));
-    }
 }
 
 fn with_secret(mut c: ClientConfig) -> ClientConfig {

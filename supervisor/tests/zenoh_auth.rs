@@ -6,8 +6,6 @@
 //! Loopback only, scouting off; every wait is for something to happen, bounded.
 #![cfg(feature = "zenoh")]
 
-use std::net::TcpListener;
-use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use penelope_protocol::proto::{Call, ControllerMethod, Method, Reply};
@@ -16,6 +14,9 @@ use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::system::SystemFile;
 use penelope_supervisor::zenoh_bridge::encoding::OperatorPose;
 use penelope_supervisor::zenoh_bridge::{BridgeStats, ZenohSettings};
+use penelope_testkit::net::free_tcp_port;
+use penelope_testkit::scratch::scratch_dir;
+use penelope_testkit::wait::wait_until;
 use zenoh::Wait;
 
 /// The slave's half of a task whose master is an operator station on Zenoh.
@@ -45,21 +46,6 @@ robot = "puma"
 trajectory = "link"
 "#;
 
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("penelope-zauth-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 /// A participant connecting to `port` on loopback, scouting off, as `user` (or anonymous).
 fn participant(port: u16, user: Option<(&str, &str)>) -> zenoh::Result<zenoh::Session> {
     let mut c = zenoh::Config::default();
@@ -80,15 +66,6 @@ fn participant(port: u16, user: Option<(&str, &str)>) -> zenoh::Result<zenoh::Se
 
 fn stats(node: &Node) -> BridgeStats {
     node.zenoh_stats().expect("the node runs a bridge")
-}
-
-fn wait_until(what: &str, mut done: impl FnMut() -> bool) {
-    let give_up = Instant::now() + Duration::from_secs(20);
-    while !done() {
-        assert!(Instant::now() < give_up, "never happened: {what}");
-        // A poll interval; the bound above ends a wait.
-        std::thread::sleep(Duration::from_millis(1));
-    }
 }
 
 fn tool(node: &Node) -> [f64; 3] {
@@ -164,8 +141,8 @@ fn authenticated_slave(port: u16, dir: &std::path::Path) -> Node {
 
 #[test]
 fn only_the_authenticated_operator_station_moves_the_slave_over_zenoh() {
-    let dir = scratch("operators");
-    let port = free_port();
+    let dir = scratch_dir("zauth", "operators");
+    let port = free_tcp_port();
     let node = authenticated_slave(port, &dir);
     let start = [0.4, 0.1, 0.3];
 
@@ -292,7 +269,7 @@ fn only_the_authenticated_operator_station_moves_the_slave_over_zenoh() {
 
 #[test]
 fn off_loopback_zenoh_without_authentication_is_refused_before_anything_is_sent() {
-    let dir = scratch("wide");
+    let dir = scratch_dir("zauth", "wide");
     for (connect, config) in [
         // A documentation address (RFC 5737): nothing is sent there, the start is refused.
         (Some("tcp/192.0.2.1:7447"), None),

@@ -9,7 +9,6 @@
 //! for a time to pass.
 #![cfg(feature = "zenoh")]
 
-use std::net::TcpListener;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -19,6 +18,8 @@ use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::system::SystemFile;
 use penelope_supervisor::zenoh_bridge::encoding::OperatorPose;
 use penelope_supervisor::zenoh_bridge::{BridgeStats, ZenohSettings};
+use penelope_testkit::net::free_tcp_port;
+use penelope_testkit::wait::wait_until;
 use zenoh::Wait;
 
 /// The slave's half of a task whose master is an operator station on Zenoh: a PUMA 200 on a
@@ -48,15 +49,6 @@ kind = "slave-tracking"
 robot = "puma"
 trajectory = "link"
 "#;
-
-/// A loopback port free now.
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 /// The test's Zenoh peer: listens on loopback only, no scouting.
 fn test_peer(port: u16) -> zenoh::Session {
@@ -89,17 +81,6 @@ fn slave_node(port: u16) -> Node {
 
 fn stats(node: &Node) -> BridgeStats {
     node.zenoh_stats().expect("the node runs a bridge")
-}
-
-/// Waits until `done` holds, polling; panics when it has not after a generous bound (a
-/// broken bridge fails the test rather than hanging it).
-fn wait_until(what: &str, mut done: impl FnMut() -> bool) {
-    let give_up = Instant::now() + Duration::from_secs(20);
-    while !done() {
-        assert!(Instant::now() < give_up, "never happened: {what}");
-        // A poll interval, not a wait for time: the bound above is what ends a wait.
-        std::thread::sleep(Duration::from_micros(100));
-    }
 }
 
 fn status_last(node: &Node, controller: &str) -> TelemetryRecord {
@@ -138,7 +119,7 @@ fn pose(position: [f64; 3]) -> Vec<u8> {
 
 #[test]
 fn a_zenoh_subscriber_receives_every_tick_and_the_events_of_a_controller() {
-    let port = free_port();
+    let port = free_tcp_port();
     let peer = test_peer(port);
     let (tx, ticks) = mpsc::channel::<serde_json::Value>();
     let _telemetry = peer
@@ -206,7 +187,7 @@ fn a_zenoh_subscriber_receives_every_tick_and_the_events_of_a_controller() {
 
 #[test]
 fn a_zenoh_publisher_drives_the_slave_within_the_demos_tracking_bound() {
-    let port = free_port();
+    let port = free_tcp_port();
     let peer = test_peer(port);
     let node = slave_node(port);
     let publisher = peer.declare_publisher("station/hand/pose").wait().unwrap();
@@ -261,7 +242,7 @@ fn a_zenoh_publisher_drives_the_slave_within_the_demos_tracking_bound() {
 
 #[test]
 fn malformed_poses_are_refused_counted_and_never_reach_the_loop() {
-    let port = free_port();
+    let port = free_tcp_port();
     let peer = test_peer(port);
     let node = slave_node(port);
     let publisher = peer.declare_publisher("station/hand/pose").wait().unwrap();
@@ -334,7 +315,7 @@ fn malformed_poses_are_refused_counted_and_never_reach_the_loop() {
 
 #[test]
 fn the_queryable_answers_the_object_tree() {
-    let port = free_port();
+    let port = free_tcp_port();
     let peer = test_peer(port);
     let node = slave_node(port);
     // Ready when a reply comes: the queryable's declaration reached the test's peer.
@@ -381,7 +362,7 @@ fn free_udp_port() -> u16 {
 
 #[test]
 fn a_channels_link_statistics_reach_a_zenoh_subscriber() {
-    let port = free_port();
+    let port = free_tcp_port();
     let peer = test_peer(port);
     let (tx, links) = mpsc::channel::<serde_json::Value>();
     let _links = peer

@@ -1,50 +1,7 @@
 #![doc = include_str!("../README.md")]
 #![warn(missing_docs)]
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
-thread_local! {
-    // Const-initialised and without a destructor: reading it never allocates.
-    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
-}
-
-fn count() {
-    // During thread teardown the slot may be gone; such calls are not the code under test.
-    let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
-}
-
-/// A global allocator that forwards to the system allocator and counts every call (allocations,
-/// frees and reallocations) per thread, for the tests that prove a real-time path allocates
-/// nothing. A test binary installs it with `#[global_allocator]` and reads [`allocations`] around
-/// code it steps on its own thread; other threads (the test harness's "running for over 60
-/// seconds" notice, say) do not disturb the count. Such a binary still holds one test, so the
-/// tests' set-up does not run beside it.
-pub struct CountingAllocator;
-
-// SAFETY: forwards to the system allocator unchanged; only counts calls.
-unsafe impl GlobalAlloc for CountingAllocator {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count();
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        count();
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count();
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-/// Allocator calls counted so far by [`CountingAllocator`] on the calling thread.
-pub fn allocations() -> u64 {
-    ALLOCATIONS.with(Cell::get)
-}
+use penelope_testkit::alloc::allocations;
 
 /// Steps the detached loops of a teleoperation pair over ticks `ticks` of a 1 kHz control clock
 /// (communication every other tick, after `at_comm`, which plays any feed a thread would),

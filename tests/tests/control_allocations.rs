@@ -3,7 +3,6 @@
 //! reference updates, controller switches, watchdog trips, a fault, an e-stop and re-arms; then the
 //! same loops on real periodic threads.
 
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -21,62 +20,10 @@ use penelope_rt_core::safety::{SafetyConfig, SafetyEvent, SafetyState};
 use penelope_rt_core::sim::{self, SimRunner, SimTask};
 use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_testbed::{ChainBoard, DecoupledChain, SineTrajectory, critically_damped_gains};
-
-struct Counting;
-
-thread_local! {
-    /// Whether this thread's allocations are being counted.
-    static TRACKING: Cell<bool> = const { Cell::new(false) };
-    /// This thread's counted (allocations, frees). Per thread, so tests running in parallel do
-    /// not see each other's allocations.
-    static COUNTS: Cell<(u64, u64)> = const { Cell::new((0, 0)) };
-}
-
-fn count(allocs: u64, frees: u64) {
-    if TRACKING.try_with(Cell::get).unwrap_or(false) {
-        let _ = COUNTS.try_with(|c| {
-            let (a, f) = c.get();
-            c.set((a + allocs, f + frees));
-        });
-    }
-}
-
-fn thread_counts() -> (u64, u64) {
-    COUNTS.with(Cell::get)
-}
-
-// SAFETY: forwards to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count(1, 0);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        count(1, 0);
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count(1, 1);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        count(0, 1);
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
+use penelope_testkit::alloc::{CountingAllocator, counted, counts};
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-/// Runs `f` with this thread's allocations counted; returns (allocations, frees) it made.
-fn counted<R>(f: impl FnOnce() -> R) -> (R, u64, u64) {
-    let (a0, f0) = thread_counts();
-    TRACKING.with(|t| t.set(true));
-    let r = f();
-    TRACKING.with(|t| t.set(false));
-    let (a1, f1) = thread_counts();
-    (r, a1 - a0, f1 - f0)
-}
+static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 const CPR: f64 = 10_000.0;
 
@@ -276,21 +223,21 @@ fn periodic_threads_allocate_nothing_between_ticks() {
     // work between ticks (sleep, clock, histogram, live statistics) as well as the loops.
     let control_counts = Arc::new([AtomicU64::new(u64::MAX), AtomicU64::new(u64::MAX)]);
     let comm_counts = Arc::new([AtomicU64::new(u64::MAX), AtomicU64::new(u64::MAX)]);
-    let report_to = |counts: &[AtomicU64; 2]| {
-        TRACKING.with(|t| t.set(false));
-        let (a, f) = thread_counts();
-        counts[0].store(a, Ordering::Relaxed);
-        counts[1].store(f, Ordering::Relaxed);
+    let report_to = |since: (u64, u64), out: &[AtomicU64; 2]| {
+        let (a, f) = counts();
+        out[0].store(a - since.0, Ordering::Relaxed);
+        out[1].store(f - since.1, Ordering::Relaxed);
     };
     let out = control_counts.clone();
+    let mut first_tick_counts = None;
     let control_thread = exec::spawn(
         thread_config("alloc-control", Duration::from_micros(500)),
         move |tick| {
-            TRACKING.with(|t| t.set(true));
+            let since = *first_tick_counts.get_or_insert_with(counts);
             control.tick(tick.deadline);
             control.note_timing(tick.latency(), tick.previous_exec);
             if tick.index + 1 == TICKS {
-                report_to(&out);
+                report_to(since, &out);
                 Flow::Stop
             } else {
                 Flow::Continue
@@ -299,13 +246,14 @@ fn periodic_threads_allocate_nothing_between_ticks() {
     )
     .unwrap();
     let out = comm_counts.clone();
+    let mut first_tick_counts = None;
     let comm_thread = exec::spawn(
         thread_config("alloc-comm", Duration::from_millis(1)),
         move |tick| {
-            TRACKING.with(|t| t.set(true));
+            let since = *first_tick_counts.get_or_insert_with(counts);
             comm.tick(tick.deadline);
             if tick.index + 1 == TICKS / 2 {
-                report_to(&out);
+                report_to(since, &out);
                 Flow::Stop
             } else {
                 Flow::Continue

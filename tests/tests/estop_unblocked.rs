@@ -24,6 +24,7 @@ use penelope_protocol::proto::{
 };
 use penelope_supervisor::naming::{NamingLimits, NamingService};
 use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_testkit::wait::wait_until;
 
 const NODE: &str = "lab";
 
@@ -52,15 +53,6 @@ fn amplifiers_on(c: &Creator) -> bool {
     match ok(c, "sim", Method::Board(BoardMethod::AmplifiersEnabled)) {
         Reply::Flag(f) => f,
         other => panic!("amplifiers answered {other:?}"),
-    }
-}
-
-/// Waits until `done` holds, at most 20 s (a bound against a hang, not a timing claim).
-fn wait_until(what: &str, mut done: impl FnMut() -> bool) {
-    let deadline = Instant::now() + Duration::from_secs(20);
-    while !done() {
-        assert!(Instant::now() < deadline, "never happened: {what}");
-        std::thread::sleep(Duration::from_millis(5));
     }
 }
 

@@ -48,6 +48,8 @@ use penelope_supervisor::objects::runtime::{self, LoopBoard, LoopFault};
 use penelope_supervisor::objects::{Creator, CreatorConfig};
 use penelope_supervisor::system::SystemFile;
 use penelope_testbed::{ChainBoard, DecoupledChain, critically_damped_gains};
+use penelope_testkit::net::free_udp_port;
+use penelope_testkit::wait::wait_until;
 
 /// A law that asks for the same torque on every joint, whatever the state.
 struct ConstantTorque(f64);
@@ -68,15 +70,6 @@ struct Discard;
 impl TelemetrySink for Discard {
     fn push(&mut self, _sample: &TelemetrySample) -> bool {
         true
-    }
-}
-
-/// Waits (20 s at most: a bound against a hang, not a timing claim) until `done` holds.
-fn wait_until(what: &str, mut done: impl FnMut() -> bool) {
-    let deadline = Instant::now() + Duration::from_secs(20);
-    while !done() {
-        assert!(Instant::now() < deadline, "never happened: {what}");
-        std::thread::sleep(Duration::from_millis(1));
     }
 }
 
@@ -503,20 +496,12 @@ fn deactivating_a_torque_driven_slave_ends_its_torque_one_period_after_its_last_
     assert!(delay <= period, "{delay:?}");
 }
 
-fn free_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 /// The demo's two-node system (`config/demo-two-nodes.toml`) with the wave law's halves active
 /// instead of the default ones, and `channel` added to the channel's keys.
 fn two_wave_nodes(channel: &str) -> (Node, Node) {
     let text = include_str!("../../config/demo-two-nodes.toml")
-        .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", free_port()))
-        .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", free_port()))
+        .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", free_udp_port()))
+        .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", free_udp_port()))
         .replace(
             "[trajectories.link]\n",
             &format!("[trajectories.link]\n{channel}\n"),

@@ -18,7 +18,8 @@ use penelope_protocol::service::{Outbox, Session};
 use penelope_rt_core::clock::MonotonicClock;
 use penelope_rt_core::safety::SafetyEvent;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_tests::{CountingAllocator, allocations, call_object};
+use penelope_testkit::alloc::{CountingAllocator, allocations};
+use penelope_tests::call_object;
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;

@@ -14,7 +14,8 @@ use penelope_protocol::service::{Outbox, Service, Session};
 use penelope_rt_core::cell::Stamped;
 use penelope_rt_core::safety::SafetyState;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_tests::{CountingAllocator, allocations, call_object};
+use penelope_testkit::alloc::{CountingAllocator, allocations};
+use penelope_tests::call_object;
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;

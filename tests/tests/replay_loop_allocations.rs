@@ -16,7 +16,8 @@ use penelope_supervisor::objects::{Creator, CreatorConfig};
 use penelope_supervisor::runs::mcap_log::write_run;
 use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, run};
 use penelope_supervisor::system::SystemFile;
-use penelope_tests::{CountingAllocator, assert_pair_ran, step_teleop_pair};
+use penelope_testkit::alloc::CountingAllocator;
+use penelope_tests::{assert_pair_ran, step_teleop_pair};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;

@@ -3,14 +3,13 @@
 //! zero torque, amplifiers off), the controller shows `error` with the cause, the node keeps
 //! answering, and `rearm` brings the loop back from the measured state without a jump.
 
-use std::time::{Duration, Instant};
-
 use penelope_hal::{LifecycleState, Transition};
 use penelope_protocol::proto::{
     BoardMethod, ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod, WireError,
 };
 use penelope_supervisor::objects::runtime::LoopThread;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_testkit::wait::wait_until;
 
 fn call(c: &Creator, name: &str, method: Method) -> Result<Reply, WireError> {
     c.call_object(name, method)
@@ -53,15 +52,6 @@ fn joints(c: &Creator) -> Vec<f64> {
     match ok(c, "arm", Method::Robot(RobotMethod::JointPositions)) {
         Reply::Joints(q) => q.to_vec(),
         other => panic!("joint positions answered {other:?}"),
-    }
-}
-
-/// Waits until `done` holds, at most 20 s (a bound against a hang, not a timing claim).
-fn wait_until(what: &str, mut done: impl FnMut() -> bool) {
-    let deadline = Instant::now() + Duration::from_secs(20);
-    while !done() {
-        assert!(Instant::now() < deadline, "never happened: {what}");
-        std::thread::sleep(Duration::from_millis(5));
     }
 }
 

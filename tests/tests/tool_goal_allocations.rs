@@ -15,7 +15,7 @@ use penelope_rt_core::controller::JointPidGains;
 use penelope_rt_core::safety::SafetyState;
 use penelope_supervisor::objects::runtime::{GainsUpdate, RoutedGains};
 use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
-use penelope_tests::{CountingAllocator, allocations};
+use penelope_testkit::alloc::{CountingAllocator, allocations};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;

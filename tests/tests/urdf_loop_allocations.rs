@@ -13,7 +13,7 @@ use penelope_hal::{Timestamp, Transition};
 use penelope_protocol::proto::{ControllerMethod, JointAxis, Method, Reply, RobotMethod};
 use penelope_rt_core::safety::SafetyState;
 use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
-use penelope_tests::{CountingAllocator, allocations};
+use penelope_testkit::alloc::{CountingAllocator, allocations};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;

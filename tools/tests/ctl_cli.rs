@@ -2,14 +2,16 @@
 //! on free loopback ports, and `penelope ctl` creates, configures, activates, calls, watches and
 //! destroys objects through them, by script and by single verbs.
 
-mod common;
-
-use common::{BIN, Children, ctl, free_port, script, spawn, text};
-
+use penelope_testkit::net::free_tcp_addr;
+use penelope_testkit::process::{Children, Penelope, text};
+use penelope_testkit::scratch::scratch_file;
 use std::net::{SocketAddr, TcpListener};
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
+
+/// The binary under test.
+const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
 
 /// Control period and plant sub-step, µs: slower in unoptimised builds so a tick fits.
 const PERIOD_US: u32 = if cfg!(debug_assertions) {
@@ -21,11 +23,11 @@ const SUBSTEP_US: u32 = if cfg!(debug_assertions) { 1_000 } else { 200 };
 
 #[test]
 fn ctl_drives_a_node_through_the_naming_service() {
-    let naming = free_port();
-    let node = free_port();
+    let naming = free_tcp_addr();
+    let node = free_tcp_addr();
     let _children = Children(vec![
-        spawn(&["naming", "--listen", &naming.to_string()]),
-        spawn(&[
+        PENELOPE.spawn(&["naming", "--listen", &naming.to_string()]),
+        PENELOPE.spawn(&[
             "node",
             "--name",
             "lab",
@@ -41,7 +43,7 @@ fn ctl_drives_a_node_through_the_naming_service() {
     // Wait until the node is registered.
     let deadline = Instant::now() + Duration::from_secs(30);
     loop {
-        let o = ctl(naming, &["ls"]);
+        let o = PENELOPE.ctl(naming, &["ls"]);
         if o.status.success() && text(&o).0.contains("creator") {
             break;
         }
@@ -54,7 +56,7 @@ fn ctl_drives_a_node_through_the_naming_service() {
     }
 
     // Set up a PUMA 560 on a simulated board with a joint PID holding it, by script.
-    let setup = script(
+    let setup = scratch_file(
         "ctl",
         "setup.ctl",
         &format!(
@@ -78,7 +80,7 @@ fn ctl_drives_a_node_through_the_naming_service() {
              watch lab/pid --count 5\n"
         ),
     );
-    let o = ctl(naming, &["run", setup.to_str().unwrap()]);
+    let o = PENELOPE.ctl(naming, &["run", setup.to_str().unwrap()]);
     let (out, err) = text(&o);
     assert!(o.status.success(), "stdout:\n{out}\nstderr:\n{err}");
     assert!(
@@ -94,12 +96,12 @@ fn ctl_drives_a_node_through_the_naming_service() {
     assert_eq!(samples, 5, "{out}");
 
     // Single verbs, JSON, and the tree.
-    let o = ctl(naming, &["--json", "call", "lab/slave", "gravity", "start"]);
+    let o = PENELOPE.ctl(naming, &["--json", "call", "lab/slave", "gravity", "start"]);
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
     let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
     assert_eq!(v["Joints"].as_array().map(Vec::len), Some(6), "{out}");
-    let o = ctl(
+    let o = PENELOPE.ctl(
         naming,
         &[
             "call",
@@ -115,13 +117,13 @@ fn ctl_drives_a_node_through_the_naming_service() {
     assert!(
         serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()["Solutions"].is_array()
     );
-    let o = ctl(naming, &["ls"]);
+    let o = PENELOPE.ctl(naming, &["ls"]);
     let (out, _) = text(&o);
     assert!(
         out.contains("slave") && out.contains("robot/puma560") && out.contains("active"),
         "{out}"
     );
-    let o = ctl(naming, &["kinds", "lab"]);
+    let o = PENELOPE.ctl(naming, &["kinds", "lab"]);
     assert!(
         text(&o).0.contains("controller/joint-pid"),
         "{:?}",
@@ -129,24 +131,24 @@ fn ctl_drives_a_node_through_the_naming_service() {
     );
 
     // Errors: a node's refusal exits 1, bad input exits 2.
-    let o = ctl(naming, &["destroy", "lab/slave"]);
+    let o = PENELOPE.ctl(naming, &["destroy", "lab/slave"]);
     assert_eq!(o.status.code(), Some(1), "{:?}", text(&o));
     assert!(text(&o).1.contains("in use"), "{:?}", text(&o));
-    let o = ctl(naming, &["call", "/lab/robots/nobody", "joint-positions"]);
+    let o = PENELOPE.ctl(naming, &["call", "/lab/robots/nobody", "joint-positions"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(text(&o).1.contains("unknown name"), "{:?}", text(&o));
-    let o = ctl(
+    let o = PENELOPE.ctl(
         naming,
         &["call", "lab/slave", "fk", "0", "nan", "0", "0", "0", "0"],
     );
     assert_eq!(o.status.code(), Some(2), "{:?}", text(&o));
-    let o = ctl(naming, &["call", "lab/slave", "frobnicate"]);
+    let o = PENELOPE.ctl(naming, &["call", "lab/slave", "frobnicate"]);
     assert_eq!(o.status.code(), Some(2));
-    let bad = script("ctl", "bad.ctl", "ls\n# fine so far\nfrobnicate lab\nls\n");
-    let o = ctl(naming, &["run", bad.to_str().unwrap()]);
+    let bad = scratch_file("ctl", "bad.ctl", "ls\n# fine so far\nfrobnicate lab\nls\n");
+    let o = PENELOPE.ctl(naming, &["run", bad.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).1.contains("bad.ctl:3"), "{:?}", text(&o));
-    let o = ctl("127.0.0.1:1".parse().unwrap(), &["ls"]);
+    let o = PENELOPE.ctl("127.0.0.1:1".parse().unwrap(), &["ls"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
         text(&o).1.contains("cannot reach the naming service"),
@@ -161,7 +163,7 @@ fn ctl_drives_a_node_through_the_naming_service() {
                     destroy lab/hold\n\
                     destroy /lab/robots/slave\n\
                     destroy lab/sim0\n";
-    let mut child = Command::new(BIN)
+    let mut child = Command::new(PENELOPE.path())
         .args(["ctl", "--naming", &naming.to_string(), "run", "-"])
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
@@ -183,7 +185,7 @@ fn ctl_drives_a_node_through_the_naming_service() {
     assert!(out.contains("/lab/controllers/pid: inactive"), "{out}");
     assert!(out.contains("joint reference"), "{out}");
     assert!(out.contains("destroyed /lab/boards/sim0"), "{out}");
-    let o = ctl(naming, &["--json", "ls"]);
+    let o = PENELOPE.ctl(naming, &["--json", "ls"]);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let paths: Vec<&str> = v["entries"]
         .as_array()
@@ -197,7 +199,7 @@ fn ctl_drives_a_node_through_the_naming_service() {
 /// A secret file for these tests, with `mode`.
 fn secret_file(name: &str, mode: u32) -> PathBuf {
     use std::os::unix::fs::PermissionsExt as _;
-    let path = script("ctl", name, "correct horse battery staple\n");
+    let path = scratch_file("ctl", name, "correct horse battery staple\n");
     std::fs::set_permissions(&path, std::fs::Permissions::from_mode(mode)).unwrap();
     path
 }
@@ -205,8 +207,8 @@ fn secret_file(name: &str, mode: u32) -> PathBuf {
 #[test]
 fn a_secret_file_others_may_read_is_refused_with_the_fix() {
     let file = secret_file("open.secret", 0o644);
-    let out = ctl(
-        free_port(),
+    let out = PENELOPE.ctl(
+        free_tcp_addr(),
         &["--secret-file", file.to_str().unwrap(), "ls"],
     );
     let (_, err) = text(&out);
@@ -245,7 +247,7 @@ fn ctl_with_the_secret_sends_nothing_to_a_node_that_does_not_prove_it() {
         }
         got
     });
-    let out = ctl(addr, &["--secret-file", file.to_str().unwrap(), "ls"]);
+    let out = PENELOPE.ctl(addr, &["--secret-file", file.to_str().unwrap(), "ls"]);
     let (_, err) = text(&out);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("did not prove the shared secret"), "{err}");
@@ -262,11 +264,11 @@ fn ctl_with_the_secret_sends_nothing_to_a_node_that_does_not_prove_it() {
 /// streams; deactivating the slave's controller stops its loop.
 #[test]
 fn a_node_runs_the_teleoperation_system_file() {
-    let naming = free_port();
-    let node = free_port();
+    let naming = free_tcp_addr();
+    let node = free_tcp_addr();
     let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../config/teleop.toml");
     // The node first, its naming service later: start order does not matter.
-    let mut children = Children(vec![spawn(&[
+    let mut children = Children(vec![PENELOPE.spawn(&[
         "node",
         "--name",
         "lab",
@@ -281,11 +283,11 @@ fn a_node_runs_the_teleoperation_system_file() {
     ])]);
     children
         .0
-        .push(spawn(&["naming", "--listen", &naming.to_string()]));
+        .push(PENELOPE.spawn(&["naming", "--listen", &naming.to_string()]));
 
     let deadline = Instant::now() + Duration::from_secs(30);
     let listing = loop {
-        let o = ctl(naming, &["ls"]);
+        let o = PENELOPE.ctl(naming, &["ls"]);
         let (out, _) = text(&o);
         if o.status.success() && out.contains("follow") {
             break out;
@@ -312,7 +314,7 @@ fn a_node_runs_the_teleoperation_system_file() {
         assert!(line.contains(kind) && line.contains("active"), "{line}");
     }
 
-    let o = ctl(naming, &["watch", "lab/follow", "--count", "3"]);
+    let o = PENELOPE.ctl(naming, &["watch", "lab/follow", "--count", "3"]);
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
     assert_eq!(
@@ -322,14 +324,14 @@ fn a_node_runs_the_teleoperation_system_file() {
     );
 
     // Both ends of this channel are on the node: no link to watch, and ctl says why.
-    let o = ctl(naming, &["watch", "lab/link", "--count", "1"]);
+    let o = PENELOPE.ctl(naming, &["watch", "lab/link", "--count", "1"]);
     let (_, err) = text(&o);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("no data-plane link"), "{err}");
 
-    let o = ctl(naming, &["deactivate", "lab/follow"]);
+    let o = PENELOPE.ctl(naming, &["deactivate", "lab/follow"]);
     assert!(o.status.success(), "{:?}", text(&o));
-    let o = ctl(naming, &["describe", "lab/follow"]);
+    let o = PENELOPE.ctl(naming, &["describe", "lab/follow"]);
     assert!(text(&o).0.contains("inactive"), "{:?}", text(&o));
 }
 
@@ -338,8 +340,8 @@ fn a_node_runs_the_teleoperation_system_file() {
 /// line, their counters growing.
 #[test]
 fn ctl_watches_a_channels_link_between_two_nodes() {
-    let naming = free_port();
-    let (master, slave) = (free_port(), free_port());
+    let naming = free_tcp_addr();
+    let (master, slave) = (free_tcp_addr(), free_tcp_addr());
     let udp = || {
         std::net::UdpSocket::bind("127.0.0.1:0")
             .unwrap()
@@ -350,10 +352,10 @@ fn ctl_watches_a_channels_link_between_two_nodes() {
     let file = include_str!("../../config/demo-two-nodes.toml")
         .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", udp()))
         .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", udp()));
-    let config = script("ctl", "two-nodes.toml", &file);
+    let config = scratch_file("ctl", "two-nodes.toml", &file);
     let config = config.to_str().unwrap();
     let node = |name: &str, listen: SocketAddr| {
-        spawn(&[
+        PENELOPE.spawn(&[
             "node",
             "--name",
             name,
@@ -368,7 +370,7 @@ fn ctl_watches_a_channels_link_between_two_nodes() {
         ])
     };
     let _children = Children(vec![
-        spawn(&["naming", "--listen", &naming.to_string()]),
+        PENELOPE.spawn(&["naming", "--listen", &naming.to_string()]),
         node("master", master),
         node("slave", slave),
     ]);
@@ -376,7 +378,7 @@ fn ctl_watches_a_channels_link_between_two_nodes() {
     let deadline = Instant::now() + Duration::from_secs(30);
     loop {
         // The master's own channel and creator (the slave's may register first).
-        let o = ctl(naming, &["ls", "/master"]);
+        let o = PENELOPE.ctl(naming, &["ls", "/master"]);
         let listed = text(&o).0;
         if o.status.success() && listed.contains(" link ") && listed.contains(" creator") {
             break;
@@ -389,7 +391,7 @@ fn ctl_watches_a_channels_link_between_two_nodes() {
         std::thread::sleep(Duration::from_millis(100));
     }
 
-    let o = ctl(naming, &["watch", "master/link", "--count", "3", "--json"]);
+    let o = PENELOPE.ctl(naming, &["watch", "master/link", "--count", "3", "--json"]);
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
     let records: Vec<serde_json::Value> = out
@@ -417,7 +419,7 @@ fn ctl_watches_a_channels_link_between_two_nodes() {
     }
 
     // And for humans, one line per record.
-    let o = ctl(naming, &["watch", "master/link", "--count", "2"]);
+    let o = PENELOPE.ctl(naming, &["watch", "master/link", "--count", "2"]);
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
     assert_eq!(

@@ -3,12 +3,14 @@
 //! PID. `estop --all` latches every loop of every node (each node answers once its loop has
 //! latched the stop); `estop NODE` one node's loops; `estop PATH` one controller.
 
-mod common;
-
-use common::{Children, ctl, free_port, script, spawn, text};
-
+use penelope_testkit::net::free_tcp_addr;
+use penelope_testkit::process::{Children, Penelope, text};
+use penelope_testkit::scratch::scratch_file;
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
+
+/// The binary under test.
+const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
 
 /// Control period and plant sub-step, µs: slower in unoptimised builds so a tick fits.
 const PERIOD_US: u32 = if cfg!(debug_assertions) {
@@ -22,7 +24,7 @@ const NODES: [&str; 3] = ["east", "west", "north"];
 
 /// The safety state of `node`'s PID loop, from its newest sample.
 fn loop_state(naming: SocketAddr, node: &str) -> String {
-    let o = ctl(
+    let o = PENELOPE.ctl(
         naming,
         &["--json", "call", &format!("{node}/pid"), "status"],
     );
@@ -53,15 +55,15 @@ fn wait_state(naming: SocketAddr, node: &str, states: &[&str]) {
 
 #[test]
 fn ctl_estop_all_stops_every_controller_on_three_nodes() {
-    let naming = free_port();
-    let mut children = vec![spawn(&["naming", "--listen", &naming.to_string()])];
+    let naming = free_tcp_addr();
+    let mut children = vec![PENELOPE.spawn(&["naming", "--listen", &naming.to_string()])];
     for node in NODES {
-        children.push(spawn(&[
+        children.push(PENELOPE.spawn(&[
             "node",
             "--name",
             node,
             "--listen",
-            &free_port().to_string(),
+            &free_tcp_addr().to_string(),
             "--naming",
             &naming.to_string(),
             "--priority",
@@ -73,7 +75,7 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
     // Every node registered.
     let deadline = Instant::now() + Duration::from_secs(30);
     loop {
-        let o = ctl(naming, &["ls"]);
+        let o = PENELOPE.ctl(naming, &["ls"]);
         let listed = text(&o).0;
         if o.status.success()
             && NODES
@@ -91,7 +93,7 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
 
     // A PUMA 560 held at its start pose by a running PID, on every node.
     for node in NODES {
-        let setup = script(
+        let setup = scratch_file(
             "estop",
             &format!("{node}.ctl"),
             &format!(
@@ -109,7 +111,7 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
                  activate {node}/pid\n"
             ),
         );
-        let o = ctl(naming, &["run", setup.to_str().unwrap()]);
+        let o = PENELOPE.ctl(naming, &["run", setup.to_str().unwrap()]);
         assert!(o.status.success(), "{node}: {:?}", text(&o));
     }
     for node in NODES {
@@ -118,7 +120,7 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
 
     // The whole system's red button: every node answers that its loop latched the stop.
     let started = Instant::now();
-    let o = ctl(naming, &["--json", "estop", "--all"]);
+    let o = PENELOPE.ctl(naming, &["--json", "estop", "--all"]);
     let took = started.elapsed();
     let (out, err) = text(&o);
     assert!(o.status.success(), "stdout:\n{out}\nstderr:\n{err}");
@@ -143,13 +145,13 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
 
     // One node: only its loops.
     for node in NODES {
-        let o = ctl(naming, &["rearm", &format!("{node}/pid")]);
+        let o = PENELOPE.ctl(naming, &["rearm", &format!("{node}/pid")]);
         assert!(o.status.success(), "{node}: {:?}", text(&o));
     }
     for node in NODES {
         wait_state(naming, node, &["running", "holding"]);
     }
-    let o = ctl(naming, &["estop", "west"]);
+    let o = PENELOPE.ctl(naming, &["estop", "west"]);
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
     assert!(
@@ -162,7 +164,7 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
     }
 
     // One controller, by naming path.
-    let o = ctl(naming, &["estop", "/north/controllers/pid"]);
+    let o = PENELOPE.ctl(naming, &["estop", "/north/controllers/pid"]);
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
     assert!(
@@ -173,6 +175,6 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
     assert_ne!(loop_state(naming, "east"), "estop");
 
     // Bad input: nothing to stop named.
-    let o = ctl(naming, &["estop"]);
+    let o = PENELOPE.ctl(naming, &["estop"]);
     assert_eq!(o.status.code(), Some(2), "{:?}", text(&o));
 }

@@ -15,8 +15,8 @@
 mod files;
 
 use std::net::SocketAddr;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::path::Path;
+use std::process::{Output, Stdio};
 use std::time::{Duration, Instant};
 
 use penelope_drivers::sim::scripts;
@@ -25,21 +25,13 @@ use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::objects::runtime::TickRecord;
 use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions};
 use penelope_supervisor::system::SystemFile;
+use penelope_testkit::process::Penelope;
+use penelope_testkit::scratch::scratch_dir;
 
-const BIN: &str = env!("CARGO_BIN_EXE_penelope");
+const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
 const SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../config/demo.ctl");
 /// The seed `config/demo.ctl` gives the wrist sensor (as `penelope demo --seed 1`).
 const SEED: u64 = 1;
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "penelope-demo-by-ctl-{}-{name}",
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 fn text(o: &Output) -> String {
     format!(
@@ -51,7 +43,8 @@ fn text(o: &Output) -> String {
 }
 
 fn ctl(naming: SocketAddr, args: &[&str]) -> Output {
-    Command::new(BIN)
+    PENELOPE
+        .command()
         .arg("ctl")
         .arg("--naming")
         .arg(naming.to_string())
@@ -67,7 +60,7 @@ fn ctl(naming: SocketAddr, args: &[&str]) -> Output {
 
 /// `penelope demo --sim-clock --seed SEED --out DIR [--duration D]`: its telemetry files.
 fn demo(seed: u64, dir: &Path, duration: Option<&str>) {
-    let mut cmd = Command::new(BIN);
+    let mut cmd = PENELOPE.command();
     cmd.args(["demo", "--sim-clock", "--json", "--seed", &seed.to_string()])
         .arg("--out")
         .arg(dir);
@@ -173,7 +166,11 @@ fn the_demo_built_by_ctl_verbs_on_a_sim_clock_node_gives_the_demos_telemetry() {
 
     // Byte for byte: `penelope demo --sim-clock`'s files against the node's ticks written by
     // the demo's own writer.
-    let (ours, same, other) = (scratch("ctl"), scratch("demo"), scratch("demo-seed2"));
+    let (ours, same, other) = (
+        scratch_dir("demo-by-ctl", "ctl"),
+        scratch_dir("demo-by-ctl", "demo"),
+        scratch_dir("demo-by-ctl", "demo-seed2"),
+    );
     files::write_telemetry(&ours.join("telemetry-master.csv"), start, &script, &master).unwrap();
     files::write_telemetry(&ours.join("telemetry-slave.csv"), start, &script, &slave).unwrap();
     demo(SEED, &same, None);

@@ -1,11 +1,10 @@
 //! `penelope demo` from the command line: files, JSON, reproducibility, bad input.
 
+use penelope_testkit::process::Penelope;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-fn penelope() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_penelope"))
-}
+/// The binary under test.
+const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("penelope-demo-cli-{}-{name}", std::process::id()));
@@ -14,7 +13,8 @@ fn scratch(name: &str) -> PathBuf {
 }
 
 fn run_sim(out: &Path, seed: u64) -> serde_json::Value {
-    let output = penelope()
+    let output = PENELOPE
+        .command()
         .args([
             "demo",
             "--sim-clock",
@@ -70,7 +70,8 @@ fn bad_options_exit_with_code_two_and_say_why() {
         vec!["demo", "--sim-clock", "--duration", "soon"],
         vec!["demo", "--sim-clock", "--config", "/nonexistent/lab.toml"],
     ] {
-        let output = penelope()
+        let output = PENELOPE
+            .command()
             .args(&args)
             .arg("--out")
             .arg(&out)
@@ -89,7 +90,8 @@ fn bad_options_exit_with_code_two_and_say_why() {
 #[test]
 fn the_kinematics_option_runs_the_master_on_its_fpga_board_and_reports_the_latency() {
     let out = scratch("fpga");
-    let output = penelope()
+    let output = PENELOPE
+        .command()
         .args([
             "demo",
             "--sim-clock",
@@ -116,7 +118,8 @@ fn the_kinematics_option_runs_the_master_on_its_fpga_board_and_reports_the_laten
     assert!(k["command_delay_us"].as_f64().unwrap() > 2.3, "{k}");
     assert!(report["tracking"]["rms_mm"].as_f64().unwrap() < 2.0);
     // A word it does not know is a usage error.
-    let bad = penelope()
+    let bad = PENELOPE
+        .command()
         .args(["demo", "--sim-clock", "--kinematics", "abacus", "--out"])
         .arg(&out)
         .output()

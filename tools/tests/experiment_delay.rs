@@ -2,13 +2,12 @@
 //! simulated clock. Each run is the demo's 20-second task (about 1.5 s of wall time).
 
 use std::path::PathBuf;
-use std::process::Command;
 
+use penelope_testkit::process::Penelope;
 use serde_json::Value;
 
-fn penelope() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_penelope"))
-}
+/// The binary under test.
+const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!(
@@ -21,7 +20,8 @@ fn scratch(name: &str) -> PathBuf {
 
 /// Runs the experiment with `args` and `--json --out DIR`; its `runs`.
 fn experiment(args: &[&str], out: &PathBuf) -> Vec<Value> {
-    let output = penelope()
+    let output = PENELOPE
+        .command()
         .args(["experiment", "delay", "--json", "--out"])
         .arg(out)
         .args(args)
@@ -167,7 +167,8 @@ fn bad_options_exit_with_code_two_and_say_why() {
         vec!["--wall-stiffness", "-1"],
         vec!["--jitter", "fast"],
     ] {
-        let output = penelope()
+        let output = PENELOPE
+            .command()
             .args(["experiment", "delay", "--out"])
             .arg(&out)
             .args(&args)

@@ -2,12 +2,12 @@
 //! loopback port (it prints the address), then `read`, `bias` and `monitor` against it; bad
 //! input exits 2 with a message, an absent box exits 1.
 
+use penelope_testkit::process::Penelope;
 use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Child, Output, Stdio};
 
-fn penelope() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_penelope"))
-}
+/// The binary under test.
+const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
 
 /// The emulator on a free port, and the address it printed (a bounded read of its first line).
 struct Sim {
@@ -17,7 +17,8 @@ struct Sim {
 
 impl Sim {
     fn spawn() -> Sim {
-        let mut child = penelope()
+        let mut child = PENELOPE
+            .command()
             .args([
                 "netft-sim",
                 "--bind",
@@ -52,7 +53,8 @@ impl Drop for Sim {
 }
 
 fn netft(addr: &str, args: &[&str]) -> Output {
-    penelope()
+    PENELOPE
+        .command()
         .args(["netft", "--addr", addr])
         .args(args)
         .output()
@@ -91,7 +93,8 @@ fn bad_input_exits_2_and_an_absent_box_exits_1() {
     assert_eq!(o.status.code(), Some(2), "{o:?}");
     let o = netft("127.0.0.1:9", &["--counts-per-force", "0", "read"]);
     assert_eq!(o.status.code(), Some(2), "{o:?}");
-    let o = penelope()
+    let o = PENELOPE
+        .command()
         .args(["netft-sim", "--rate", "9000"])
         .output()
         .unwrap();

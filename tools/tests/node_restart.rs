@@ -2,17 +2,18 @@
 //! comes back under its name: the naming service finds nothing answering at the old address
 //! and replaces the stale registration, long before its lease (30 s here) would have lapsed.
 
-mod common;
-
-use common::{Children, ctl, free_port, spawn};
-
+use penelope_testkit::net::free_tcp_addr;
+use penelope_testkit::process::{Children, Penelope};
 use std::net::SocketAddr;
 use std::process::Child;
 use std::time::{Duration, Instant};
 
+/// The binary under test.
+const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
+
 /// The address the naming tree gives for node `phoenix`'s creator, if registered.
 fn registered_at(naming: SocketAddr) -> Option<String> {
-    let o = ctl(naming, &["ls"]);
+    let o = PENELOPE.ctl(naming, &["ls"]);
     let out = String::from_utf8_lossy(&o.stdout).into_owned();
     out.lines()
         .find_map(|l| l.split("node phoenix at ").nth(1))
@@ -39,7 +40,7 @@ fn wait_registered(naming: SocketAddr, node: &mut Child, not: Option<&str>) -> S
 
 #[test]
 fn a_node_killed_and_restarted_at_once_comes_back_under_its_name() {
-    let naming = free_port();
+    let naming = free_tcp_addr();
     let node_args = [
         "node",
         "--name",
@@ -51,8 +52,12 @@ fn a_node_killed_and_restarted_at_once_comes_back_under_its_name() {
         "--lease-ms",
         "30000",
     ];
-    let mut children = Children(vec![spawn(&["naming", "--listen", &naming.to_string()])]);
-    children.0.push(spawn(&node_args));
+    let mut children = Children(vec![PENELOPE.spawn(&[
+        "naming",
+        "--listen",
+        &naming.to_string(),
+    ])]);
+    children.0.push(PENELOPE.spawn(&node_args));
     let first = wait_registered(naming, &mut children.0[1], None);
 
     // Killed: its registration stays, with most of 30 s of lease left.
@@ -63,12 +68,12 @@ fn a_node_killed_and_restarted_at_once_comes_back_under_its_name() {
 
     // Started again at once (any free port: another address).
     let restarted = Instant::now();
-    children.0.push(spawn(&node_args));
+    children.0.push(PENELOPE.spawn(&node_args));
     let second = wait_registered(naming, &mut children.0[1], Some(&first));
     let took = restarted.elapsed();
     println!("node back under its name {took:?} after its restart ({first} -> {second})");
     assert!(took < Duration::from_secs(10), "{took:?}");
     // And it serves under that name.
-    let o = ctl(naming, &["kinds", "phoenix"]);
+    let o = PENELOPE.ctl(naming, &["kinds", "phoenix"]);
     assert!(o.status.success(), "{o:?}");
 }

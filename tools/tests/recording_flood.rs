@@ -13,14 +13,14 @@
 //! the result does not depend on this machine's load; the real-time figures are in the
 //! recording throughput bench (`penelope bench record`).
 
+use penelope_testkit::process::Penelope;
 use std::io::BufRead;
 use std::net::SocketAddr;
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 
-fn penelope() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_penelope"))
-}
+/// The binary under test.
+const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
 
 /// A child process, killed when the test ends.
 struct Child(std::process::Child);
@@ -47,7 +47,8 @@ fn sim_node(
         .unwrap();
     let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/demo.toml");
     let mut child = Child(
-        penelope()
+        PENELOPE
+            .command()
             .args(["node", "--name", "lab", "--host-naming", "--listen"])
             .arg(listen.to_string())
             .args(["--sim-clock", "--priority", "0", "--config"])
@@ -70,7 +71,8 @@ fn sim_node(
 }
 
 fn ctl(naming: SocketAddr, args: &[&str]) -> Output {
-    penelope()
+    PENELOPE
+        .command()
         .args(["ctl", "--naming", &naming.to_string(), "--timeout", "300"])
         .args(args)
         .stdin(Stdio::null())
@@ -102,7 +104,8 @@ fn a_recording_under_a_flood_of_slow_readers_loses_nothing_uncounted_and_no_loop
     for i in 0..WATCHERS {
         let controller = if i % 2 == 0 { "display" } else { "follow" };
         let mut w = Child(
-            penelope()
+            PENELOPE
+                .command()
                 .args(["ctl", "--naming", &naming.to_string(), "--timeout", "300"])
                 .args(["watch", &format!("/lab/controllers/{controller}")])
                 .args(["--decimation", "1", "--json"])

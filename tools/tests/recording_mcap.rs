@@ -1,13 +1,12 @@
 //! `penelope demo`'s `run.mcap` read back with the `mcap` crate against the run's CSV files,
 //! and `penelope replay` on it; `penelope node --record FILE` on the simulated clock, read back.
 
+use penelope_testkit::process::Penelope;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-fn penelope() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_penelope"))
-}
+/// The binary under test.
+const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("penelope-mcap-{}-{name}", std::process::id()));
@@ -43,7 +42,8 @@ struct Message {
 #[test]
 fn the_demo_writes_run_mcap_with_every_tick_of_its_csv_files_and_replay_lists_it() {
     let out = scratch("demo");
-    let status = penelope()
+    let status = PENELOPE
+        .command()
         .args(["demo", "--sim-clock", "--duration", "3s", "--json", "--out"])
         .arg(&out)
         .output()
@@ -164,7 +164,8 @@ fn the_demo_writes_run_mcap_with_every_tick_of_its_csv_files_and_replay_lists_it
     assert!(by_topic["/safety"].len() >= 2);
 
     // `penelope replay` says the same.
-    let replay = penelope()
+    let replay = PENELOPE
+        .command()
         .arg("replay")
         .arg(out.join("run.mcap"))
         .arg("--json")
@@ -195,7 +196,8 @@ fn the_demo_writes_run_mcap_with_every_tick_of_its_csv_files_and_replay_lists_it
     assert_eq!(listed["start_ns"].as_u64(), Some(start));
     assert_eq!(listed["end_ns"].as_u64(), Some(end));
     assert_eq!(listed["duration_ns"].as_u64(), Some(end - start));
-    let text = penelope()
+    let text = PENELOPE
+        .command()
         .arg("replay")
         .arg(out.join("run.mcap"))
         .output()
@@ -215,7 +217,12 @@ fn replay_of_a_missing_or_foreign_file_exits_with_code_two() {
     let foreign = dir.join("not.mcap");
     std::fs::write(&foreign, "time_s,q\n0,1\n").unwrap();
     for file in [dir.join("missing.mcap"), foreign] {
-        let out = penelope().arg("replay").arg(&file).output().unwrap();
+        let out = PENELOPE
+            .command()
+            .arg("replay")
+            .arg(&file)
+            .output()
+            .unwrap();
         assert_eq!(out.status.code(), Some(2), "{}", file.display());
         assert!(String::from_utf8_lossy(&out.stderr).contains("error:"));
     }
@@ -243,7 +250,8 @@ fn sim_node(config: &std::path::Path, extra: &[&str]) -> (std::net::SocketAddr, 
         .unwrap()
         .local_addr()
         .unwrap();
-    let child = penelope()
+    let child = PENELOPE
+        .command()
         .args(["node", "--name", "lab", "--host-naming", "--listen"])
         .arg(listen.to_string())
         .args(["--sim-clock", "--priority", "0", "--config"])
@@ -271,7 +279,8 @@ fn sim_node(config: &std::path::Path, extra: &[&str]) -> (std::net::SocketAddr, 
 const DEMO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../config/demo.toml");
 
 fn ctl(naming: std::net::SocketAddr, args: &[&str]) -> std::process::Output {
-    penelope()
+    PENELOPE
+        .command()
         .args(["ctl", "--naming", &naming.to_string(), "--timeout", "300"])
         .args(args)
         .stdin(std::process::Stdio::null())
@@ -321,7 +330,8 @@ fn a_node_records_every_tick_from_the_first_to_mcap_and_it_reads_back() {
         }
         assert_eq!(r.dropped[name], 0);
     }
-    let replay = penelope()
+    let replay = PENELOPE
+        .command()
         .arg("replay")
         .arg(&file)
         .arg("--json")

@@ -3,22 +3,16 @@
 //! and reported; the replay kinds' inputs are the recording's (a changed sensor model changes
 //! nothing), their errors are typed, and a recording shorter than the run ends as documented.
 
+use penelope_testkit::process::Penelope;
+use penelope_testkit::scratch::scratch_dir;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn penelope() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_penelope"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("penelope-rerun-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+/// The binary under test.
+const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
 
 fn demo(out: &Path, duration: &str, config: Option<&Path>) -> Output {
-    let mut c = penelope();
+    let mut c = PENELOPE.command();
     c.args([
         "demo",
         "--sim-clock",
@@ -45,7 +39,7 @@ fn ok(o: &Output) {
 
 /// `replay --rerun --json` on `file` (with `config`): its exit code and report.
 fn rerun(file: &Path, config: Option<&Path>) -> (i32, serde_json::Value) {
-    let mut c = penelope();
+    let mut c = PENELOPE.command();
     c.args(["replay", "--rerun", "--json"]).arg(file);
     if let Some(config) = config {
         c.arg("--config").arg(config);
@@ -93,7 +87,7 @@ fn demo_file_with(dir: &Path, from: &str, to: &str) -> PathBuf {
 
 #[test]
 fn a_rerun_of_a_simulated_demo_is_bit_for_bit_and_a_changed_gain_is_reported() {
-    let dir = scratch("same");
+    let dir = scratch_dir("rerun", "same");
     ok(&demo(&dir, "2s", None));
     let file = dir.join("run.mcap");
 
@@ -150,7 +144,7 @@ fn a_rerun_of_a_simulated_demo_is_bit_for_bit_and_a_changed_gain_is_reported() {
 
 #[test]
 fn the_replayed_inputs_are_the_recordings_whatever_the_live_models_say() {
-    let dir = scratch("inputs");
+    let dir = scratch_dir("rerun", "inputs");
     ok(&demo(&dir, "1s", None));
     let file = dir.join("run.mcap");
     // Ten times the sensor noise, another hand script stiffness: the rerun replays the
@@ -237,7 +231,7 @@ fn ticks(path: &Path, topic: &str) -> Vec<serde_json::Value> {
 
 #[test]
 fn a_recording_shorter_than_the_run_ends_in_a_held_hand_and_a_silent_sensor() {
-    let dir = scratch("short");
+    let dir = scratch_dir("rerun", "short");
     ok(&demo(&dir.join("rec"), "1s", None));
     let rec = dir.join("rec/run.mcap");
     let config = replayed_demo_file(&dir, &rec, None);
@@ -274,7 +268,7 @@ fn a_recording_shorter_than_the_run_ends_in_a_held_hand_and_a_silent_sensor() {
 
 #[test]
 fn replay_kinds_refuse_a_missing_recording_or_channel_with_the_reason() {
-    let dir = scratch("errors");
+    let dir = scratch_dir("rerun", "errors");
     let missing = dir.join("nothing.mcap");
     let config = replayed_demo_file(&dir, &missing, None);
     let o = demo(&dir.join("out"), "1s", Some(&config));
@@ -294,7 +288,8 @@ fn replay_kinds_refuse_a_missing_recording_or_channel_with_the_reason() {
     );
 
     // Not a recording: typed, exit code 2.
-    let o = penelope()
+    let o = PENELOPE
+        .command()
         .args(["replay", "--rerun"])
         .arg(&missing)
         .output()

@@ -3,16 +3,17 @@
 //! a guesser's failed logins do not lock the right secret out of another address, stalled
 //! connections do not starve the page, and the E-STOP works for any logged-in browser.
 
-mod common;
-
-use common::{BIN, free_port, start};
-
+use penelope_testkit::net::free_tcp_addr;
+use penelope_testkit::process::Penelope;
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::os::unix::fs::PermissionsExt;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
+
+/// The binary under test.
+const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
 
 const SECRET: &str = "correct horse battery staple";
 
@@ -52,7 +53,7 @@ fn system(name: &str, secret: bool) -> System {
     std::fs::write(&admin, "4b9e2d7f1a0c3e5d8f2b6a9c1e4d7f0a\n").unwrap();
     std::fs::set_permissions(&admin, std::fs::Permissions::from_mode(0o600)).unwrap();
     let admin = admin.to_str().unwrap().to_string();
-    let naming = free_port().to_string();
+    let naming = free_tcp_addr().to_string();
     let mut node_args = vec![
         "node",
         "--name",
@@ -76,7 +77,7 @@ fn system(name: &str, secret: bool) -> System {
         node_args.extend(["--secret-file", &file, "--admin-secret-file", &admin]);
         web_args.extend(["--secret-file", &file, "--admin-secret-file", &admin]);
     }
-    let (node, _) = start(&node_args, "Ctrl-C stops the node");
+    let (node, _) = PENELOPE.start(&node_args, "Ctrl-C stops the node");
     let mut system = System {
         children: vec![node],
         dir,
@@ -84,7 +85,7 @@ fn system(name: &str, secret: bool) -> System {
         naming: naming.clone(),
         secret: secret.then(|| (file.clone(), admin.clone())),
     };
-    let (web, line) = start(&web_args, "penelope web: serving");
+    let (web, line) = PENELOPE.start(&web_args, "penelope web: serving");
     system.children.push(web);
     system.web = line
         .split("http://")
@@ -273,7 +274,7 @@ activate lab/pid
 fn estop_works(sys: &System, headers: &[(&str, &str)]) {
     let script = sys.dir.join("setup.ctl");
     std::fs::write(&script, SETUP).unwrap();
-    let mut ctl = Command::new(BIN);
+    let mut ctl = Command::new(PENELOPE.path());
     ctl.args(["ctl", "--naming", &sys.naming]);
     if let Some((secret, admin)) = &sys.secret {
         ctl.args(["--secret-file", secret, "--admin-secret-file", admin]);

@@ -2,14 +2,14 @@
 //! every node and answers which loops latched it (here a node on loopback without a secret,
 //! its PID loop running, spoken to in plain HTTP; the browser tests press the button itself).
 
-mod common;
-
-use common::{BIN, Children, start};
-
+use penelope_testkit::process::{Children, Penelope};
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
+
+/// The binary under test.
+const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
 
 /// One HTTP/1.1 POST of JSON from the page's own origin; the status and the body.
 fn post(addr: &str, path: &str, body: &str) -> (u16, String) {
@@ -29,7 +29,7 @@ fn post(addr: &str, path: &str, body: &str) -> (u16, String) {
 }
 
 fn ctl(naming: &str, args: &[&str]) -> std::process::Output {
-    Command::new(BIN)
+    Command::new(PENELOPE.path())
         .args(["ctl", "--naming", naming])
         .args(args)
         .stdin(Stdio::null())
@@ -44,7 +44,7 @@ fn the_pages_estop_latches_every_loop_of_every_node() {
         .local_addr()
         .unwrap()
         .to_string();
-    let (node, _) = start(
+    let (node, _) = PENELOPE.start(
         &[
             "node",
             "--name",
@@ -79,7 +79,7 @@ fn the_pages_estop_latches_every_loop_of_every_node() {
     .unwrap();
     let o = ctl(&naming, &["run", setup.to_str().unwrap()]);
     assert!(o.status.success(), "{o:?}");
-    let (web, line) = start(
+    let (web, line) = PENELOPE.start(
         &["web", "--naming", &naming, "--listen", "127.0.0.1:0"],
         "penelope web: serving",
     );

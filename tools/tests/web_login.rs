@@ -3,14 +3,15 @@
 //! secret, a cookie with the right attributes after it, and no state change from another
 //! origin even with that cookie.
 
-mod common;
-
-use common::{Children, free_port, start};
-
+use penelope_testkit::net::free_tcp_addr;
+use penelope_testkit::process::{Children, Penelope};
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::os::unix::fs::PermissionsExt;
 use std::time::Duration;
+
+/// The binary under test.
+const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
 
 const SECRET: &str = "correct horse battery staple";
 
@@ -73,8 +74,8 @@ fn a_browser_proves_the_secret_once_and_holds_a_strict_cookie() {
     std::fs::write(&admin, "4b9e2d7f1a0c3e5d8f2b6a9c1e4d7f0a\n").unwrap();
     std::fs::set_permissions(&admin, std::fs::Permissions::from_mode(0o600)).unwrap();
     let admin = admin.to_str().unwrap();
-    let naming = free_port().to_string();
-    let (node, _) = start(
+    let naming = free_tcp_addr().to_string();
+    let (node, _) = PENELOPE.start(
         &[
             "node",
             "--name",
@@ -92,7 +93,7 @@ fn a_browser_proves_the_secret_once_and_holds_a_strict_cookie() {
         "Ctrl-C stops the node",
     );
     let mut children = Children(vec![node]);
-    let (web, line) = start(
+    let (web, line) = PENELOPE.start(
         &[
             "web",
             "--naming",

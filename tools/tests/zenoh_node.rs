@@ -4,30 +4,16 @@
 #![cfg(feature = "zenoh")]
 
 use std::io::BufRead;
-use std::path::PathBuf;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::time::{Duration, Instant};
 
+use penelope_testkit::net::free_tcp_port;
+use penelope_testkit::process::Penelope;
+use penelope_testkit::scratch::scratch_dir;
 use zenoh::Wait;
 
-fn penelope() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_penelope"))
-}
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("penelope-zenoh-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+/// The binary under test.
+const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
 
 /// A child process killed when the test ends, its stdout kept open.
 struct Child(
@@ -45,8 +31,9 @@ impl Drop for Child {
 /// A `--sim-clock` node `lab` hosting its naming service, running `config` with `extra`
 /// arguments; returned once it says it applied the file. Its first lines are returned too.
 fn sim_node(config: &std::path::Path, extra: &[&str]) -> (Child, String) {
-    let listen = format!("127.0.0.1:{}", free_port());
-    let child = penelope()
+    let listen = format!("127.0.0.1:{}", free_tcp_port());
+    let child = PENELOPE
+        .command()
         .args([
             "node",
             "--name",
@@ -113,7 +100,7 @@ const DEMO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../config/demo.toml");
 
 #[test]
 fn a_node_started_with_zenoh_answers_its_object_tree_on_zenoh() {
-    let port = free_port();
+    let port = free_tcp_port();
     let peer = test_peer(port);
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let (_node, said) = sim_node(DEMO.as_ref(), &["--zenoh", &endpoint]);
@@ -126,9 +113,9 @@ fn a_node_started_with_zenoh_answers_its_object_tree_on_zenoh() {
 
 #[test]
 fn the_system_files_zenoh_table_and_a_zenoh_config_file_reach_the_bridge() {
-    let port = free_port();
+    let port = free_tcp_port();
     let peer = test_peer(port);
-    let dir = scratch("config");
+    let dir = scratch_dir("zenoh", "config");
     // Zenoh's own file: where to connect, scouting off as it says.
     let zenoh_file = dir.join("zenoh.json5");
     std::fs::write(
@@ -158,12 +145,13 @@ fn the_system_files_zenoh_table_and_a_zenoh_config_file_reach_the_bridge() {
 
 #[test]
 fn a_bad_zenoh_config_file_stops_the_node_with_the_reason() {
-    let dir = scratch("bad");
+    let dir = scratch_dir("zenoh", "bad");
     let zenoh_file = dir.join("zenoh.json5");
     std::fs::write(&zenoh_file, "{ mode: ").unwrap();
-    let out = penelope()
+    let out = PENELOPE
+        .command()
         .args(["node", "--name", "lab", "--host-naming", "--listen"])
-        .arg(format!("127.0.0.1:{}", free_port()))
+        .arg(format!("127.0.0.1:{}", free_tcp_port()))
         .args(["--sim-clock", "--priority", "0", "--zenoh-config"])
         .arg(&zenoh_file)
         .stdin(Stdio::null())
@@ -176,7 +164,8 @@ fn a_bad_zenoh_config_file_stops_the_node_with_the_reason() {
 
 #[test]
 fn bench_zenoh_reports_both_transports() {
-    let out = penelope()
+    let out = PENELOPE
+        .command()
         .args(["bench", "zenoh", "--samples", "200", "--rate", "1000"])
         .stdin(Stdio::null())
         .output()

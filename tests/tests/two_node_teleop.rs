@@ -4,7 +4,6 @@
 //! task on one node; with injected loss and jitter; with the link cut in contact; the
 //! wave-variable law with its waves crossing the data plane, at zero and 100 ms each way.
 
-use std::net::UdpSocket;
 use std::time::Duration;
 
 use penelope_protocol::proto::{
@@ -15,14 +14,15 @@ use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::runs::DEMO_SYSTEM;
 use penelope_supervisor::system::{SystemFile, SystemFileError};
+use penelope_testkit::net::free_udp_port;
 
 /// The demo's two-node system (`config/demo-two-nodes.toml`: the FRHC on node `master`, the
 /// PUMA on node `slave`) on free ports, with `channel` (faults, a link timeout) added to the
 /// channel's keys.
 fn two_nodes(channel: &str) -> String {
     include_str!("../../config/demo-two-nodes.toml")
-        .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", free_port()))
-        .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", free_port()))
+        .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", free_udp_port()))
+        .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", free_udp_port()))
         .replace(
             "[trajectories.link]\n",
             &format!("[trajectories.link]\n{channel}\n"),
@@ -36,14 +36,6 @@ fn master_and_slave(channel: &str, secret: Option<&[u8]>) -> (Node, Node) {
     file.apply(&a).expect("the master's half");
     file.apply(&b).expect("the slave's half");
     (a, b)
-}
-
-fn free_port() -> u16 {
-    UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
 }
 
 fn node(name: &str, secret: Option<&[u8]>) -> Node {

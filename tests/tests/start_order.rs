@@ -5,7 +5,7 @@
 
 use std::net::{SocketAddr, TcpListener};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use penelope_protocol::client::Client;
 use penelope_protocol::net::conn::{ClientConfig, RpcError};
@@ -13,6 +13,7 @@ use penelope_protocol::net::server::{Server, ServerConfig};
 use penelope_protocol::proto::{Call, CreatorCall, Reply, WireError};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
+use penelope_testkit::wait::wait_until;
 
 /// A loopback address nobody listens on (yet).
 fn unused_address() -> SocketAddr {
@@ -26,15 +27,6 @@ fn naming_at(address: SocketAddr) -> (Arc<NamingService>, Server) {
     let naming = Arc::new(NamingService::new("naming", NamingLimits::default()));
     let server = Server::bind(address, ServerConfig::new("naming"), naming.clone()).unwrap();
     (naming, server)
-}
-
-/// Waits until `done` holds, at most 20 s (a bound against a hang, not a timing claim).
-fn wait_until(what: &str, mut done: impl FnMut() -> bool) {
-    let deadline = Instant::now() + Duration::from_secs(20);
-    while !done() {
-        assert!(Instant::now() < deadline, "never happened: {what}");
-        std::thread::sleep(Duration::from_millis(10));
-    }
 }
 
 fn resolves(client: &Client, path: &str) -> bool {

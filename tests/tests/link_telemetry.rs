@@ -4,7 +4,6 @@
 //! stepped in turn, 1 ms at a time (records follow the simulated clock: one every 100 ms), and
 //! a LinkStream through the naming service on real clocks.
 
-use std::net::UdpSocket;
 use std::time::{Duration, Instant};
 
 use penelope_protocol::client::Client;
@@ -14,20 +13,13 @@ use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::runs::DEMO_SYSTEM;
 use penelope_supervisor::system::SystemFile;
+use penelope_testkit::net::free_udp_port;
 
 /// The demo's two-node system on free loopback ports.
 fn two_nodes() -> String {
     include_str!("../../config/demo-two-nodes.toml")
-        .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", free_port()))
-        .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", free_port()))
-}
-
-fn free_port() -> u16 {
-    UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
+        .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", free_udp_port()))
+        .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", free_udp_port()))
 }
 
 fn node(name: &str, clock: ClockMode, naming: NamingChoice) -> Node {

@@ -20,20 +20,13 @@ use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::runs::report::report;
 use penelope_supervisor::runs::{RunOptions, run};
 use penelope_supervisor::system::SystemFile;
+use penelope_testkit::net::free_udp_port;
 use sensor_fault::assert_master_let_go;
 
 /// The force the emulated transducer feels all along, N (along the sensor's z).
 const LOAD_N: f64 = 8.0;
 /// How long the injected fault lasts.
 const FAULT_FOR: Duration = Duration::from_millis(150);
-
-fn free_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 /// The two-node demo on free ports, its wrist sensor a Net F/T at `sensor`.
 fn two_nodes_with_net_ft(sensor: std::net::SocketAddr) -> String {
@@ -46,8 +39,8 @@ fn two_nodes_with_net_ft(sensor: std::net::SocketAddr) -> String {
          max_gap = 4\nbias_on_start = false\n"
     );
     format!("{}{wrist}{}", &text[..start], &text[end..])
-        .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", free_port()))
-        .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", free_port()))
+        .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", free_udp_port()))
+        .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", free_udp_port()))
 }
 
 #[test]
