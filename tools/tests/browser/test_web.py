@@ -194,7 +194,7 @@ def test_creating_and_activating_a_robot_and_controller_plots_its_joints(system,
         "return Math.max(...s) - Math.min(...s);")
     assert spread > 0.05, f"joint 2 moved by {spread} rad only"
     assert browser.find_element(By.ID, "live").get_attribute("data-state") == "running"
-    # The README's picture: the page from its top, the robot selected, its joints moving.
+    # The web guide's picture (docs/clients.md): the page from its top, the robot selected, its joints moving.
     browser.execute_script("window.scrollTo(0, 0)")
     SCREENSHOT.parent.mkdir(parents=True, exist_ok=True)
     assert browser.save_screenshot(str(SCREENSHOT)), "the screenshot was not written"
