@@ -260,6 +260,9 @@ pub struct SimBoardConfig {
     pub substep_us: u64,
     /// Model friction in the plant.
     pub friction: bool,
+    /// The board's command-freshness watchdog, ms (0: none): with torque on, no new command
+    /// for this long turns every axis off.
+    pub command_timeout_ms: u64,
     /// The environment the plant's tool touches.
     pub shapes: Vec<ShapeConfig>,
 }
@@ -271,6 +274,8 @@ impl Default for SimBoardConfig {
             dac_bits: 16,
             substep_us: 200,
             friction: true,
+            command_timeout_ms: penelope_drivers::sim::board::DEFAULT_COMMAND_TIMEOUT.as_millis()
+                as u64,
             shapes: Vec::new(),
         }
     }
@@ -285,6 +290,15 @@ impl SimBoardConfig {
         check_int(kind, "axes", self.axes.into(), 1, MAX_AXES as u64)?;
         check_int(kind, "dac_bits", self.dac_bits.into(), 8, 24)?;
         check_int(kind, "substep_us", self.substep_us, 20, 2000)?;
+        if self.command_timeout_ms != 0 {
+            check_int(
+                kind,
+                "command_timeout_ms",
+                self.command_timeout_ms,
+                5,
+                10_000,
+            )?;
+        }
         environment(kind, &self.shapes)
     }
 }
@@ -307,6 +321,9 @@ pub struct GalilConfig {
     pub connect_timeout_ms: u64,
     /// The board-side watchdog time, ms (0: none).
     pub watchdog_ms: u64,
+    /// The I/O thread's command-freshness watchdog, ms (0: none): with torque on, no new
+    /// command from the control tick for this long turns the amplifiers off.
+    pub command_timeout_ms: u64,
 }
 
 impl Default for GalilConfig {
@@ -319,6 +336,7 @@ impl Default for GalilConfig {
             volts_per_newton_metre: PerJoint::One(0.1),
             connect_timeout_ms: 1000,
             watchdog_ms: penelope_drivers::galil::DEFAULT_WATCHDOG.as_millis() as u64,
+            command_timeout_ms: penelope_drivers::galil::DEFAULT_COMMAND_TIMEOUT.as_millis() as u64,
         }
     }
 }
@@ -359,6 +377,15 @@ impl GalilConfig {
         )?;
         if self.watchdog_ms != 0 {
             check_int(kind, "watchdog_ms", self.watchdog_ms, 5, 1000)?;
+        }
+        if self.command_timeout_ms != 0 {
+            check_int(
+                kind,
+                "command_timeout_ms",
+                self.command_timeout_ms,
+                5,
+                10_000,
+            )?;
         }
         self.volts_per_newton_metre
             .check(kind, "volts_per_newton_metre", -10.0, 10.0)?;

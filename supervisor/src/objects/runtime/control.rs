@@ -371,6 +371,16 @@ impl ControlTask {
         &self.lp
     }
 
+    /// Starts the plant keeper of a simulated body ([`SimDrive::start_keeper`]); nothing for
+    /// Galil boards (their I/O thread watches the commands).
+    pub fn keep_plant_moving(&mut self) {
+        each_loop!(&mut self.lp, l => {
+            if let LoopBoard::Sim(d) | LoopBoard::Fpga(d) = l.board_mut() {
+                d.start_keeper();
+            }
+        })
+    }
+
     /// The loop, taken out.
     pub fn into_loop(self) -> NodeLoop {
         self.lp
