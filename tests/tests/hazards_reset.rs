@@ -1,17 +1,28 @@
 //! Reset never starts motion (issue 30), for a teleoperation slave: the paper's task made of
 //! objects on one node (an FRHC held by the scripted operator's hand, a PUMA 200 over a wall
 //! with a wrist sensor, position-forward / force-back), stepped on a simulated clock; the slave
-//! is e-stopped while the master moves on, then re-armed and activated again.
+//! is e-stopped while the master moves on, then re-armed and activated again. And for a
+//! trajectory mid-move on a simulated clock: a board fault and a link loss (the reference
+//! stops), then the return and the reset: the arm moves less than 5 mrad in the second after.
 
-use penelope_hal::{Frame, Timestamp, Transition};
-use penelope_rt_core::cell::Stamped;
-use penelope_rt_core::control::ControlCommand;
-use penelope_rt_core::safety::SafetyState;
+use std::time::Duration;
+
+use penelope_hal::{Frame, JointReference, JointVector, Reference, Timestamp, Transition};
+use penelope_rt_core::cell::{Stamped, latest};
+use penelope_rt_core::comm::CommLoop;
+use penelope_rt_core::control::{
+    ControlCommand, ControlConfig, ControlLoop, ControlPorts, NoCommands,
+};
+use penelope_rt_core::controller::JointPid;
+use penelope_rt_core::safety::{FaultCause, SafetyConfig, SafetyState};
 use penelope_rt_core::telemetry::TelemetrySample;
+use penelope_rt_core::telemetry::TelemetrySink;
+use penelope_rt_core::trajectory::Trapezoidal;
 use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
 use penelope_supervisor::proto::{
     ControllerMethod, JointAxis, Method, PoseMsg, Reply, RobotMethod, SensorMethod,
 };
+use penelope_testbed::{ChainBoard, DecoupledChain, critically_damped_gains};
 
 fn create(c: &Creator, kind: &str, name: &str, config: &str) {
     c.create(kind, name, config)
@@ -244,5 +255,172 @@ fn a_rearmed_teleoperation_slave_reanchors_where_it_is_and_follows_without_a_jum
             .filter(|s| s.time > back.time)
             .all(|s| s.state == SafetyState::Running),
         "the slave stopped following"
+    );
+}
+
+/// A telemetry port that keeps nothing.
+struct Discard;
+
+impl TelemetrySink for Discard {
+    fn push(&mut self, _sample: &TelemetrySample) -> bool {
+        true
+    }
+}
+
+fn ms(t: u64) -> Timestamp {
+    Timestamp::from_nanos(t * 1_000_000)
+}
+
+/// What interrupts the move.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Interruption {
+    /// The board's reads fail (a line fault) for a while, then work again.
+    BoardFault,
+    /// The reference stops for a second (its link or its producer lost), then comes back.
+    LinkLoss,
+}
+
+/// A 1 rad move of joint 0 interrupted at a quarter by `what`; after its return and past the
+/// move's end, the reset (re-arm, activate). Returns how far the arm moved in the second after
+/// the return and in the second after the reset, rad; then checks that a new command moves it.
+fn interrupted_then_reset(what: Interruption) -> (f64, f64) {
+    // No gravity: with its amplifiers off the arm coasts to rest, as a braked arm would stand,
+    // so what moves it after the reset is the loop alone.
+    let model = DecoupledChain {
+        mass: JointVector::zeros(),
+        ..DecoupledChain::six_joint()
+    };
+    const CPR: f64 = 10_000.0;
+    let board = ChainBoard::new(model.clone(), CPR);
+    let config = ControlConfig::new(
+        Duration::from_millis(1),
+        SafetyConfig::slave(6, model.limits),
+    )
+    .with_counts_per_radian(CPR);
+    let (reference, reference_port) = latest::<Stamped<Reference>>();
+    let ports = ControlPorts {
+        reference: reference_port,
+        telemetry: Discard,
+        commands: NoCommands,
+    };
+    let pid = JointPid::new(critically_damped_gains(&model, 20.0));
+    let mut ctl = ControlLoop::new(config, board, model, [pid], ports).unwrap();
+    let mut goal = JointVector::zeros();
+    goal[0] = 1.0;
+    let trajectory =
+        Trapezoidal::joint(goal, JointVector::repeat(1.0), JointVector::repeat(2.0)).unwrap();
+    let mut comm = CommLoop::new(trajectory, reference);
+    let here = |q: JointVector| {
+        Reference::Joint(JointReference {
+            position: q,
+            ..JointReference::default()
+        })
+    };
+    comm.start(ms(0), &here(JointVector::zeros()));
+    ctl.tick(ms(0));
+    ctl.apply(ms(0), ControlCommand::Activate);
+    let mut t = 0;
+    let mut comm_on = true;
+    macro_rules! run_until {
+        ($end:expr, $each:block) => {
+            let end = $end;
+            while t < end {
+                t += 1;
+                if comm_on && t % 4 == 0 {
+                    comm.tick(ms(t));
+                }
+                ctl.tick(ms(t));
+                $each
+            }
+        };
+    }
+    run_until!(3_000, {
+        if ctl.board().true_position()[0] >= 0.25 {
+            break;
+        }
+    });
+    assert_eq!(ctl.safety().state(), SafetyState::Running);
+    match what {
+        Interruption::BoardFault => {
+            // Longer than the loop tolerates, then the line answers again.
+            ctl.board_mut().fail_next_reads(200);
+            run_until!(t + 1_000, {});
+            assert!(
+                matches!(ctl.safety().fault_cause(), Some(FaultCause::BoardRead(_))),
+                "{:?}",
+                ctl.safety().fault_cause()
+            );
+        }
+        Interruption::LinkLoss => {
+            comm_on = false;
+            run_until!(t + 1_000, {});
+            assert_eq!(
+                ctl.safety().fault_cause(),
+                Some(FaultCause::ReferenceTimeout)
+            );
+            // The link comes back; the trajectory's time went on meanwhile.
+            comm_on = true;
+        }
+    }
+    let at_return = ctl.board().true_position();
+    let mut after_return: f64 = 0.0;
+    run_until!(t + 1_000, {
+        after_return = after_return.max((ctl.board().true_position() - at_return).amax());
+    });
+    // Well past the move's end, then reset as the creator does: re-arm, activate.
+    run_until!(t + 2_000, {});
+    let at_rearm = ctl.board().true_position();
+    ctl.apply(ms(t), ControlCommand::Rearm);
+    ctl.apply(ms(t), ControlCommand::Activate);
+    let mut after_reset: f64 = 0.0;
+    run_until!(t + 1_000, {
+        after_reset = after_reset.max((ctl.board().true_position() - at_rearm).amax());
+    });
+    println!(
+        "{what:?} at a quarter of a 1 rad move: the arm moved {:.3} mrad in the second after \
+         the return, {:.3} mrad in the second after the reset ({})",
+        after_return * 1e3,
+        after_reset * 1e3,
+        ctl.safety().state()
+    );
+    assert_eq!(ctl.safety().state(), SafetyState::Holding);
+    assert!(ctl.safety().awaiting_new_motion());
+
+    // An explicit new command (the trajectory restarted from the measured state) moves it.
+    let q = ctl.joint_state().position;
+    comm.start(ms(t), &here(q));
+    run_until!(t + 2_000, {});
+    assert_eq!(ctl.safety().state(), SafetyState::Running);
+    let to_goal = (ctl.board().true_position()[0] - 1.0).abs();
+    assert!(
+        to_goal < 0.02,
+        "the new command did not reach the goal: {to_goal} rad away"
+    );
+    (after_return, after_reset)
+}
+
+#[test]
+fn a_reset_after_a_board_fault_mid_move_does_not_start_motion() {
+    let (after_return, after_reset) = interrupted_then_reset(Interruption::BoardFault);
+    assert!(
+        after_return < 5e-3,
+        "the board's return moved the arm: {after_return} rad"
+    );
+    assert!(
+        after_reset < 5e-3,
+        "the reset started motion: {after_reset} rad"
+    );
+}
+
+#[test]
+fn a_reset_after_a_link_loss_mid_move_does_not_start_motion() {
+    let (after_return, after_reset) = interrupted_then_reset(Interruption::LinkLoss);
+    assert!(
+        after_return < 5e-3,
+        "the link's return moved the arm: {after_return} rad"
+    );
+    assert!(
+        after_reset < 5e-3,
+        "the reset started motion: {after_reset} rad"
     );
 }
