@@ -95,6 +95,7 @@ fn board_config(counts_per_radian: f64) -> SimBoardConfig {
         position_kd: JointVector::repeat(40.0),
         velocity_cutoff_hz: 0.0,
         command_timeout: None,
+        brake: false,
     }
 }
 

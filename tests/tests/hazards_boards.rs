@@ -71,6 +71,7 @@ fn body() -> Box<penelope_supervisor::objects::runtime::SimBody> {
             position_kd: JointVector::repeat(1.0),
             velocity_cutoff_hz: 0.0,
             command_timeout: Some(DEFAULT_COMMAND_TIMEOUT),
+            brake: false,
         },
         ToolContact::Free,
         puma560().named_pose(NamedPose::Start),

@@ -20,7 +20,7 @@ use penelope_rt_core::telemetry::TelemetrySink;
 use penelope_rt_core::trajectory::Trapezoidal;
 use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
 use penelope_supervisor::proto::{
-    ControllerMethod, JointAxis, Method, PoseMsg, Reply, RobotMethod, SensorMethod,
+    BoardMethod, ControllerMethod, JointAxis, Method, PoseMsg, Reply, RobotMethod, SensorMethod,
 };
 use penelope_testbed::{ChainBoard, DecoupledChain, critically_damped_gains};
 
@@ -423,4 +423,106 @@ fn a_reset_after_a_link_loss_mid_move_does_not_start_motion() {
         after_reset < 5e-3,
         "the reset started motion: {after_reset} rad"
     );
+}
+
+/// The joints of robot `arm`, rad.
+fn joints_of(c: &Creator, arm: &str) -> JointVector {
+    match ok(c, arm, Method::Robot(RobotMethod::JointPositions)) {
+        Reply::Joints(q) => JointVector::from_iterator(q.into_iter().chain(std::iter::repeat(0.0))),
+        other => panic!("joint positions answered {other:?}"),
+    }
+}
+
+/// Waits until `done` holds, at most 20 s (a bound against a hang, not a timing claim).
+fn wait_until(what: &str, mut done: impl FnMut() -> bool) {
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    while !done() {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "never happened: {what}"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+#[test]
+fn a_node_rearm_after_an_estop_mid_move_under_gravity_does_not_start_motion() {
+    // A PUMA 560 under gravity on a simulated board with power-off brakes (they hold it while
+    // the e-stop has its amplifiers off), moving from its start pose to its work pose in 2 s
+    // under a joint PID with gravity compensation, on the real clock as a node runs it.
+    let mut config = CreatorConfig::new("lab");
+    config.rt.priority = None;
+    let c = Creator::new(config);
+    for (kind, name, cfg) in [
+        ("robot/puma560", "arm", ""),
+        ("board/sim", "sim", "brake = true"),
+        (
+            "trajectory/spline",
+            "move",
+            "[[waypoints]]\nat_s = 2.0\npose = \"work\"\n",
+        ),
+        ("controller/joint-pid", "pid", ""),
+    ] {
+        c.create(kind, name, cfg).unwrap();
+    }
+    map_all(&c, "arm", "sim");
+    for name in ["sim", "arm", "move"] {
+        ok(&c, name, Method::Transition(Transition::Configure));
+    }
+    for m in [
+        ControllerMethod::SetRobot {
+            robot: "arm".into(),
+        },
+        ControllerMethod::SetTrajectory {
+            trajectory: "move".into(),
+        },
+    ] {
+        ok(&c, "pid", Method::Controller(m));
+    }
+    ok(&c, "pid", Method::Transition(Transition::Configure));
+    let start = joints_of(&c, "arm");
+    ok(&c, "pid", Method::Transition(Transition::Activate));
+    // E-stop once the arm is well under way.
+    wait_until("the arm moves", || {
+        c.call_object("arm", Method::Robot(RobotMethod::JointPositions))
+            .is_ok()
+            && (joints_of(&c, "arm") - start).amax() > 0.1
+    });
+    assert_eq!(c.estop_loop("pid"), Some(true));
+    // Past the move's end (2 s from its start), then the reset.
+    std::thread::sleep(Duration::from_secs(2));
+    let at_rearm = joints_of(&c, "arm");
+    ok(&c, "pid", Method::Controller(ControllerMethod::Rearm));
+    let rearmed = std::time::Instant::now();
+    let mut moved: f64 = 0.0;
+    while rearmed.elapsed() < Duration::from_secs(1) {
+        moved = moved.max((joints_of(&c, "arm") - at_rearm).amax());
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    println!(
+        "node-level re-arm under gravity after an e-stop mid-move ({:.3} rad from the start): \
+         the arm moved {:.3} mrad in the second after the re-arm",
+        (at_rearm - start).amax(),
+        moved * 1e3
+    );
+    assert!(moved < 5e-3, "the reset started motion: {moved} rad");
+    // Re-armed for real: active, amplifiers on (the brakes released), holding against gravity.
+    let amplifiers = ok(&c, "sim", Method::Board(BoardMethod::AmplifiersEnabled));
+    assert_eq!(amplifiers, Reply::Flag(true));
+    let status = match ok(&c, "pid", Method::Controller(ControllerMethod::Status)) {
+        Reply::Status(s) => s,
+        other => panic!("status answered {other:?}"),
+    };
+    let last = status.last.expect("the loop ticks");
+    // Holding, or following the communication task's hold at the measured pose that replaced
+    // the interrupted move: either way with torque against gravity, and nowhere else to go.
+    assert!(
+        [SafetyState::Holding, SafetyState::Running]
+            .iter()
+            .any(|s| s.to_string() == last.state),
+        "{last:?}"
+    );
+    let torque = last.effort.iter().fold(0.0_f64, |m, e| m.max(e.abs()));
+    assert!(torque > 1.0, "no torque against gravity: {last:?}");
+    c.shutdown();
 }

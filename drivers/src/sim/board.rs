@@ -42,6 +42,10 @@ pub struct SimBoardConfig {
     /// The command-freshness watchdog: with an axis driven by effort, no new command for this
     /// long (plant time) turns every axis off. `None` turns the check off.
     pub command_timeout: Option<core::time::Duration>,
+    /// Power-off holding brakes: while the amplifiers are off every joint stands where it is
+    /// (as most industrial arms' brakes hold them against gravity); without, an arm whose
+    /// amplifiers are off falls.
+    pub brake: bool,
 }
 
 /// The default [`SimBoardConfig::command_timeout`], the Galil board's
@@ -234,6 +238,16 @@ impl<M: RobotModel, I: Interaction> SimBoard<M, I> {
     /// Integrates the plant to `now` with the held commands.
     fn integrate(&mut self, now: Timestamp) {
         let n = self.axis_count();
+        if self.config.brake && !self.enabled {
+            // The brakes hold: time passes, the joints stand.
+            let q = self.plant.snapshot().joints.position;
+            self.plant
+                .advance_to(now, &JointVector::zeros(), &mut self.interaction);
+            for (j, position) in q.iter().enumerate().take(n) {
+                self.plant.hold_joint(j, *position);
+            }
+            return;
+        }
         let needs_servo = self.enabled
             && self.held[..n]
                 .iter()
@@ -424,6 +438,7 @@ mod tests {
             position_kd: JointVector::repeat(1.0),
             velocity_cutoff_hz: 0.0,
             command_timeout: Some(DEFAULT_COMMAND_TIMEOUT),
+            brake: false,
         };
         let mut b = SimBoard::new(
             puma560(),
@@ -464,5 +479,55 @@ mod tests {
         b.read_axes(ms(63) + Duration::from_secs(1), &mut out)
             .unwrap();
         assert_eq!(b.command_stale_since(), None);
+    }
+}
+
+#[cfg(test)]
+mod brake_tests {
+    use super::*;
+    use crate::model::puma560;
+    use crate::sim::FreeSpace;
+    use crate::sim::plant::PlantConfig;
+
+    fn ms(k: u64) -> Timestamp {
+        Timestamp::from_nanos(k * 1_000_000)
+    }
+
+    #[test]
+    fn brakes_hold_an_arm_whose_amplifiers_are_off_and_let_go_when_they_are_on() {
+        let board = |brake| {
+            let config = SimBoardConfig {
+                counts_per_radian: JointVector::repeat(1000.0),
+                effort_full_scale: JointVector::repeat(100.0),
+                dac_bits: 16,
+                position_kp: JointVector::repeat(100.0),
+                position_kd: JointVector::repeat(1.0),
+                velocity_cutoff_hz: 0.0,
+                command_timeout: None,
+                brake,
+            };
+            let model = puma560();
+            let q0 = model.named_pose(penelope_hal::NamedPose::Start);
+            (
+                SimBoard::new(model, PlantConfig::default(), config, FreeSpace, q0, ms(0)),
+                q0,
+            )
+        };
+        let mut out = [AxisState::default(); 6];
+        // Under gravity, amplifiers off: without brakes the arm falls, with them it stands.
+        let (mut free, q0) = board(false);
+        free.read_axes(ms(500), &mut out).unwrap();
+        let fell = (free.plant().snapshot().joints.position - q0).amax();
+        assert!(fell > 0.05, "no gravity to hold against: {fell} rad");
+        let (mut braked, q0) = board(true);
+        braked.read_axes(ms(500), &mut out).unwrap();
+        let snapshot = braked.plant().snapshot();
+        assert_eq!(snapshot.joints.position, q0);
+        assert_eq!(snapshot.joints.velocity, JointVector::zeros());
+        assert_eq!(snapshot.time, ms(500));
+        // Amplifiers on with no torque: the brakes release and gravity acts.
+        braked.set_enabled(true).unwrap();
+        braked.read_axes(ms(1000), &mut out).unwrap();
+        assert!((braked.plant().snapshot().joints.position - q0).amax() > 0.05);
     }
 }

@@ -263,6 +263,8 @@ pub struct SimBoardConfig {
     /// The board's command-freshness watchdog, ms (0: none): with torque on, no new command
     /// for this long turns every axis off.
     pub command_timeout_ms: u64,
+    /// Power-off holding brakes in the plant: joints stand while the amplifiers are off.
+    pub brake: bool,
     /// The environment the plant's tool touches.
     pub shapes: Vec<ShapeConfig>,
 }
@@ -276,6 +278,7 @@ impl Default for SimBoardConfig {
             friction: true,
             command_timeout_ms: penelope_drivers::sim::board::DEFAULT_COMMAND_TIMEOUT.as_millis()
                 as u64,
+            brake: false,
             shapes: Vec::new(),
         }
     }

@@ -38,6 +38,8 @@ substep_us = 200   # plant integration sub-step, 20..=2000 µs
 friction = true    # joint friction of the model in the plant
 command_timeout_ms = 50  # with torque on, no new command from the control tick for this long turns
                    # every axis off (the board's own check; the plant keeps moving), 5..=10000 ms (0: off)
+brake = false      # power-off holding brakes: the joints stand while the amplifiers are off
+                   # (without, an arm whose amplifiers are off falls under gravity)
 # the environment the plant's tool touches (none by default):
 "#;
 

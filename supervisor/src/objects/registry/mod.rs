@@ -745,6 +745,7 @@ impl Registry {
                 velocity_cutoff_hz: 150.0,
                 command_timeout: (cfg.command_timeout_ms > 0)
                     .then(|| Duration::from_millis(cfg.command_timeout_ms)),
+                brake: cfg.brake,
             };
             // The operator's hand holds a master's handle; anything else meets the board's
             // environment (free space without shapes).

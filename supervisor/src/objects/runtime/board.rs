@@ -417,6 +417,7 @@ mod tests {
                 position_kd: JointVector::repeat(1.0),
                 velocity_cutoff_hz: 0.0,
                 command_timeout: None,
+                brake: false,
             },
             ToolContact::Environment(Environment::new()),
             JointVector::zeros(),
