@@ -294,17 +294,22 @@ impl SimBoardConfig {
         check_int(kind, "dac_bits", self.dac_bits.into(), 8, 24)?;
         check_int(kind, "substep_us", self.substep_us, 20, 2000)?;
         if self.command_timeout_ms != 0 {
+            // Two of the longest control period: no loop's commands can look stale.
             check_int(
                 kind,
                 "command_timeout_ms",
                 self.command_timeout_ms,
-                5,
+                MIN_COMMAND_TIMEOUT_MS,
                 10_000,
             )?;
         }
         environment(kind, &self.shapes)
     }
 }
+
+/// The shortest command timeout a board accepts, ms: twice the longest control period
+/// (`period_us` at most 20 ms), so that no loop's commands can look stale between its ticks.
+pub const MIN_COMMAND_TIMEOUT_MS: u64 = 40;
 
 /// `board/galil` configuration.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -382,11 +387,12 @@ impl GalilConfig {
             check_int(kind, "watchdog_ms", self.watchdog_ms, 5, 1000)?;
         }
         if self.command_timeout_ms != 0 {
+            // Two of the longest control period: no loop's commands can look stale.
             check_int(
                 kind,
                 "command_timeout_ms",
                 self.command_timeout_ms,
-                5,
+                MIN_COMMAND_TIMEOUT_MS,
                 10_000,
             )?;
         }
@@ -616,5 +622,32 @@ impl NetFtSensorConfig {
             nalgebra::Translation3::new(self.mount_xyz[0], self.mount_xyz[1], self.mount_xyz[2]),
             nalgebra::UnitQuaternion::from_euler_angles(r, p, y),
         )
+    }
+}
+
+#[cfg(test)]
+mod command_timeout_tests {
+    use super::*;
+
+    #[test]
+    fn command_timeouts_are_off_or_at_least_two_of_the_longest_period() {
+        let sim = |ms| SimBoardConfig {
+            command_timeout_ms: ms,
+            ..SimBoardConfig::default()
+        };
+        assert_eq!(SimBoardConfig::default().command_timeout_ms, 50);
+        assert!(sim(0).check("board/sim").is_ok());
+        assert!(sim(40).check("board/sim").is_ok());
+        let e = sim(39).check("board/sim").unwrap_err();
+        assert!(e.to_string().contains("command_timeout_ms"), "{e}");
+        let galil = |ms| GalilConfig {
+            device: Some("/dev/ttyUSB0".into()),
+            command_timeout_ms: ms,
+            ..GalilConfig::default()
+        };
+        assert_eq!(GalilConfig::default().command_timeout_ms, 50);
+        assert!(galil(0).check("board/galil").is_ok());
+        assert!(galil(10).check("board/galil").is_err());
+        assert!(galil(10_001).check("board/galil").is_err());
     }
 }
