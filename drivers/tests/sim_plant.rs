@@ -94,6 +94,8 @@ fn board_config(counts_per_radian: f64) -> SimBoardConfig {
         position_kp: JointVector::repeat(2000.0),
         position_kd: JointVector::repeat(40.0),
         velocity_cutoff_hz: 0.0,
+        command_timeout: None,
+        brake: false,
     }
 }
 

@@ -473,9 +473,10 @@ fn deactivating_a_torque_driven_slave_ends_its_torque_one_period_after_its_last_
     stop.store(true, Ordering::Release);
     assert_eq!(control(tick(k)), Flow::Stop);
     let task = handed_back.try_recv().expect("the task is handed back");
-    let LoopBoard::Sim(board, _) = task.into_loop().into_board() else {
+    let LoopBoard::Sim(drive) = task.into_loop().into_board() else {
         panic!("a simulated board");
     };
+    let board = drive.into_body();
     let safe_at = board.plant().snapshot().time;
     let delay = safe_at.saturating_since(last_tick);
     println!(

@@ -5,6 +5,14 @@
 //! `2^bits` levels; the command written is held until the next write (sample-and-hold), while the
 //! plant keeps moving; an optional on-board position loop servos `AxisCommand::Position` targets
 //! at the plant's sub-step rate, as a motion controller's own servo loop does.
+//!
+//! The command-freshness watchdog (issue 30), the rule of the Galil board's I/O thread: while
+//! any axis is driven by effort with the amplifiers on, a command older than
+//! [`SimBoardConfig::command_timeout`] on the plant's clock is a fault,
+//! [`SimBoardError::CommandStale`]: from that instant every axis is off (zero torque, amplifiers
+//! off) until [`Board::rearm`] or an explicit disable. The check is the board's own, made
+//! whenever the plant is stepped, by the control thread or by anything else that steps it (the
+//! supervisor's plant keeper steps it while the control thread is silent).
 
 use penelope_hal::{
     AxisCommand, AxisState, Board, Error, ErrorKind, Frame, JointVector, MAX_AXES, RobotModel,
@@ -31,7 +39,18 @@ pub struct SimBoardConfig {
     /// Corner of the first-order low-pass on the reported velocity (count differences), Hz; 0
     /// reports raw differences. Motion boards filter their velocity estimate the same way.
     pub velocity_cutoff_hz: f64,
+    /// The command-freshness watchdog: with an axis driven by effort, no new command for this
+    /// long (plant time) turns every axis off. `None` turns the check off.
+    pub command_timeout: Option<core::time::Duration>,
+    /// Power-off holding brakes: while the amplifiers are off every joint stands where it is
+    /// (as most industrial arms' brakes hold them against gravity); without, an arm whose
+    /// amplifiers are off falls.
+    pub brake: bool,
 }
+
+/// The default [`SimBoardConfig::command_timeout`], the Galil board's
+/// (`penelope_drivers::galil::DEFAULT_COMMAND_TIMEOUT`): 50 control periods at 1 kHz.
+pub const DEFAULT_COMMAND_TIMEOUT: core::time::Duration = core::time::Duration::from_millis(50);
 
 /// Invalid use of a simulated board.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -40,6 +59,9 @@ pub enum SimBoardError {
     WrongLength,
     /// A NaN or infinite effort.
     NonFinite,
+    /// The command-freshness watchdog tripped: no new command while driving by effort for the
+    /// command timeout; every axis is off until a re-arm or a disable.
+    CommandStale,
 }
 
 impl Error for SimBoardError {
@@ -47,6 +69,7 @@ impl Error for SimBoardError {
         match self {
             SimBoardError::WrongLength => ErrorKind::InvalidInput,
             SimBoardError::NonFinite => ErrorKind::NonFinite,
+            SimBoardError::CommandStale => ErrorKind::Timeout,
         }
     }
 }
@@ -56,6 +79,9 @@ impl core::fmt::Display for SimBoardError {
         f.write_str(match self {
             SimBoardError::WrongLength => "slice shorter than the axis count",
             SimBoardError::NonFinite => "effort is NaN or infinite",
+            SimBoardError::CommandStale => {
+                "no fresh command while driving by effort: every axis off (command timeout)"
+            }
         })
     }
 }
@@ -71,6 +97,10 @@ pub struct SimBoard<M, I> {
     velocity: [f64; MAX_AXES],
     last_read: Option<Timestamp>,
     tap: Option<TapWriter>,
+    /// Plant time of the newest command written (or of the last re-arm).
+    last_write: Timestamp,
+    /// When the command-freshness watchdog tripped (plant time), until a re-arm or a disable.
+    stale_at: Option<Timestamp>,
 }
 
 impl<M: RobotModel, I: Interaction> SimBoard<M, I> {
@@ -95,6 +125,8 @@ impl<M: RobotModel, I: Interaction> SimBoard<M, I> {
             velocity: [0.0; MAX_AXES],
             last_read: None,
             tap: None,
+            last_write: start,
+            stale_at: None,
         };
         for j in 0..board.axis_count() {
             board.last_counts[j] = board.encoder(j);
@@ -124,6 +156,27 @@ impl<M: RobotModel, I: Interaction> SimBoard<M, I> {
     /// The commands the board holds (the last written), one per axis.
     pub fn held_commands(&self) -> &[AxisCommand] {
         &self.held[..self.axis_count()]
+    }
+
+    /// The command-freshness watchdog's timeout, if it has one.
+    pub fn command_timeout(&self) -> Option<core::time::Duration> {
+        self.config.command_timeout
+    }
+
+    /// When the command-freshness watchdog tripped (plant time), if it did and has not been
+    /// cleared by a re-arm or a disable.
+    pub fn command_stale_since(&self) -> Option<Timestamp> {
+        self.stale_at
+    }
+
+    /// Steps the plant to `now` with the held commands, the command-freshness watchdog
+    /// included, without reading or writing: for whoever keeps a simulated world moving while
+    /// its control thread is silent (the world does not stop with the host).
+    ///
+    /// # Real-time
+    /// No allocation; as [`Board::read_axes`].
+    pub fn step_to(&mut self, now: Timestamp) {
+        self.advance(now);
     }
 
     /// The plant (ground truth).
@@ -157,15 +210,44 @@ impl<M: RobotModel, I: Interaction> SimBoard<M, I> {
     /// Integrates the plant to `now` with the held commands, then takes the state the tool's
     /// surroundings impose, if they do (a recorded hand).
     fn advance(&mut self, now: Timestamp) {
+        if let Some(deadline) = self.stale_deadline()
+            && now > deadline
+        {
+            // What really happened: the old torque until the deadline, then nothing.
+            self.integrate(deadline);
+            self.held = [AxisCommand::Off; MAX_AXES];
+            self.enabled = false;
+            self.stale_at = Some(deadline);
+        }
         self.integrate(now);
         if let Some(state) = self.interaction.imposed_state(now) {
             self.plant.impose(&state);
         }
     }
 
+    /// When the held commands go stale: amplifiers on, an axis driven by effort, a timeout set.
+    fn stale_deadline(&self) -> Option<Timestamp> {
+        let timeout = self.config.command_timeout?;
+        let torque = self.enabled
+            && self.held[..self.axis_count()]
+                .iter()
+                .any(|c| matches!(c, AxisCommand::Effort(_)));
+        torque.then(|| self.last_write + timeout)
+    }
+
     /// Integrates the plant to `now` with the held commands.
     fn integrate(&mut self, now: Timestamp) {
         let n = self.axis_count();
+        if self.config.brake && !self.enabled {
+            // The brakes hold: time passes, the joints stand.
+            let q = self.plant.snapshot().joints.position;
+            self.plant
+                .advance_to(now, &JointVector::zeros(), &mut self.interaction);
+            for (j, position) in q.iter().enumerate().take(n) {
+                self.plant.hold_joint(j, *position);
+            }
+            return;
+        }
         let needs_servo = self.enabled
             && self.held[..n]
                 .iter()
@@ -244,6 +326,10 @@ impl<M: RobotModel, I: Interaction> Board for SimBoard<M, I> {
             return Err(SimBoardError::WrongLength);
         }
         self.advance(now);
+        if self.stale_at.is_some() {
+            self.publish();
+            return Err(SimBoardError::CommandStale);
+        }
         let dt = self
             .last_read
             .map(|t| (now - t).as_secs_f64())
@@ -301,12 +387,147 @@ impl<M: RobotModel, I: Interaction> Board for SimBoard<M, I> {
             return Err(SimBoardError::NonFinite);
         }
         self.advance(now);
+        if self.stale_at.is_some() {
+            return Err(SimBoardError::CommandStale);
+        }
         self.held[..n].copy_from_slice(&commands[..n]);
+        self.last_write = self.plant.snapshot().time.max(now);
         Ok(())
     }
 
+    /// Turning the amplifiers off also clears a tripped command watchdog (nothing is driven
+    /// any more); turning them on while it is tripped is refused.
     fn set_enabled(&mut self, enabled: bool) -> Result<(), SimBoardError> {
+        if !enabled {
+            self.stale_at = None;
+        } else if self.stale_at.is_some() {
+            return Err(SimBoardError::CommandStale);
+        }
         self.enabled = enabled;
+        self.last_write = self.plant.snapshot().time;
         Ok(())
+    }
+
+    /// Clears a tripped command watchdog: every axis stays off until the next command.
+    fn rearm(&mut self) -> Result<(), SimBoardError> {
+        self.stale_at = None;
+        self.last_write = self.plant.snapshot().time;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::puma560;
+    use crate::sim::FreeSpace;
+    use crate::sim::plant::PlantConfig;
+    use core::time::Duration;
+
+    fn ms(k: u64) -> Timestamp {
+        Timestamp::from_nanos(k * 1_000_000)
+    }
+
+    #[test]
+    fn a_stale_effort_command_turns_every_axis_off_at_the_timeout_on_the_plants_clock() {
+        let config = SimBoardConfig {
+            counts_per_radian: JointVector::repeat(1000.0),
+            effort_full_scale: JointVector::repeat(100.0),
+            dac_bits: 16,
+            position_kp: JointVector::repeat(100.0),
+            position_kd: JointVector::repeat(1.0),
+            velocity_cutoff_hz: 0.0,
+            command_timeout: Some(DEFAULT_COMMAND_TIMEOUT),
+            brake: false,
+        };
+        let mut b = SimBoard::new(
+            puma560(),
+            PlantConfig::default(),
+            config,
+            FreeSpace,
+            JointVector::zeros(),
+            ms(0),
+        );
+        let mut out = [AxisState::default(); 6];
+        b.set_enabled(true).unwrap();
+        b.write_axes(ms(1), &[AxisCommand::Effort(3.0); 6]).unwrap();
+        // Fresh enough up to the timeout.
+        b.read_axes(ms(50), &mut out).unwrap();
+        assert_eq!(out[0].effort, b.dac(0, 3.0));
+        // One step past it: tripped at exactly the last command plus the timeout.
+        assert_eq!(
+            b.read_axes(ms(60), &mut out),
+            Err(SimBoardError::CommandStale)
+        );
+        assert_eq!(b.command_stale_since(), Some(ms(51)));
+        assert!(!b.is_enabled());
+        assert!(b.held_commands().iter().all(|c| *c == AxisCommand::Off));
+        assert_eq!(b.plant().snapshot().joints.effort, JointVector::zeros());
+        // Refused until re-armed: no command, no re-enable.
+        assert_eq!(
+            b.write_axes(ms(61), &[AxisCommand::Effort(3.0); 6]),
+            Err(SimBoardError::CommandStale)
+        );
+        assert_eq!(b.set_enabled(true), Err(SimBoardError::CommandStale));
+        b.rearm().unwrap();
+        b.set_enabled(true).unwrap();
+        b.read_axes(ms(62), &mut out).unwrap();
+        assert!(b.held_commands().iter().all(|c| *c == AxisCommand::Off));
+        // Position targets alone never go stale (the board's servo holds them).
+        b.write_axes(ms(63), &[AxisCommand::Position(0); 6])
+            .unwrap();
+        b.read_axes(ms(63) + Duration::from_secs(1), &mut out)
+            .unwrap();
+        assert_eq!(b.command_stale_since(), None);
+    }
+}
+
+#[cfg(test)]
+mod brake_tests {
+    use super::*;
+    use crate::model::puma560;
+    use crate::sim::FreeSpace;
+    use crate::sim::plant::PlantConfig;
+
+    fn ms(k: u64) -> Timestamp {
+        Timestamp::from_nanos(k * 1_000_000)
+    }
+
+    #[test]
+    fn brakes_hold_an_arm_whose_amplifiers_are_off_and_let_go_when_they_are_on() {
+        let board = |brake| {
+            let config = SimBoardConfig {
+                counts_per_radian: JointVector::repeat(1000.0),
+                effort_full_scale: JointVector::repeat(100.0),
+                dac_bits: 16,
+                position_kp: JointVector::repeat(100.0),
+                position_kd: JointVector::repeat(1.0),
+                velocity_cutoff_hz: 0.0,
+                command_timeout: None,
+                brake,
+            };
+            let model = puma560();
+            let q0 = model.named_pose(penelope_hal::NamedPose::Start);
+            (
+                SimBoard::new(model, PlantConfig::default(), config, FreeSpace, q0, ms(0)),
+                q0,
+            )
+        };
+        let mut out = [AxisState::default(); 6];
+        // Under gravity, amplifiers off: without brakes the arm falls, with them it stands.
+        let (mut free, q0) = board(false);
+        free.read_axes(ms(500), &mut out).unwrap();
+        let fell = (free.plant().snapshot().joints.position - q0).amax();
+        assert!(fell > 0.05, "no gravity to hold against: {fell} rad");
+        let (mut braked, q0) = board(true);
+        braked.read_axes(ms(500), &mut out).unwrap();
+        let snapshot = braked.plant().snapshot();
+        assert_eq!(snapshot.joints.position, q0);
+        assert_eq!(snapshot.joints.velocity, JointVector::zeros());
+        assert_eq!(snapshot.time, ms(500));
+        // Amplifiers on with no torque: the brakes release and gravity acts.
+        braked.set_enabled(true).unwrap();
+        braked.read_axes(ms(1000), &mut out).unwrap();
+        assert!((braked.plant().snapshot().joints.position - q0).amax() > 0.05);
     }
 }

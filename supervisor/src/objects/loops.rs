@@ -122,6 +122,11 @@ impl Creator {
             log::warn!("controller `{name}`: urgent samples wait for the period ({e})");
             None
         });
+        let mut control = control;
+        if self.sim.is_none() {
+            // On the real clock the simulated world goes on when the control thread does not.
+            control.keep_plant_moving();
+        }
         let control_body =
             runtime::control_body(control, control_stop.clone(), back_tx, fault.clone());
         let comm_body = runtime::comm_body(comm, fault.clone(), comm_stop.clone(), comm_back_tx);

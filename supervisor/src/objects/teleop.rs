@@ -260,6 +260,9 @@ pub struct TeleopComm {
     link_timeout: Option<Duration>,
     /// While the link is lost: the pose this robot had when it was (a slave holds it); neutral
     /// references until the other side is heard again.
+    /// Since the slave's loop latched a fault or an e-stop, until it runs again: the channel
+    /// restarts from the slave's pose every tick.
+    reanchoring: bool,
     lost_at: Option<Pose>,
     /// The wave-variable transform, when the law is a wave half (`controller/wave-*`).
     wave: Option<WaveEnd>,
@@ -309,6 +312,7 @@ impl TeleopComm {
             received_at: None,
             link_timeout: None,
             lost_at: None,
+            reanchoring: false,
             wave: None,
             two_port: None,
             hand_wrench: false,
@@ -661,8 +665,36 @@ impl TeleopComm {
             self.start_channel(now, &pose);
             self.started = true;
         }
+        self.reanchor_after_a_latch(now, &sample, &pose);
         let contact = self.send_own(now, &sample, &pose);
         self.hand_on(now, &sample, &pose, &contact, out);
+    }
+
+    /// A slave whose loop latched a fault or an e-stop lost the motion it was following: from
+    /// then until its loop runs again (re-armed and activated: it holds where it is until a
+    /// reference starts there), the channel restarts every tick from where the slave is, as
+    /// when a link comes back, so the re-armed slave neither moves by itself nor jumps: it
+    /// follows the master's motion from its own pose with the offset re-anchored.
+    ///
+    /// # Real-time
+    /// Constant time: the channel's reset and start.
+    fn reanchor_after_a_latch(&mut self, now: Timestamp, sample: &TelemetrySample, pose: &Pose) {
+        use penelope_rt_core::safety::SafetyState;
+        if self.end.side != Side::Slave {
+            return;
+        }
+        match sample.state {
+            SafetyState::Fault | SafetyState::EStop => self.reanchoring = true,
+            SafetyState::Running => self.reanchoring = false,
+            SafetyState::Inactive | SafetyState::Holding => {}
+        }
+        if self.reanchoring {
+            self.channel.reset();
+            self.start_channel(now, pose);
+            if let Some(t) = self.two_port.as_mut() {
+                t.restart_motion();
+            }
+        }
     }
 
     /// Takes what the other side sent (or what an early wake left) into the channel, goes

@@ -260,6 +260,11 @@ pub struct SimBoardConfig {
     pub substep_us: u64,
     /// Model friction in the plant.
     pub friction: bool,
+    /// The board's command-freshness watchdog, ms (0: none): with torque on, no new command
+    /// for this long turns every axis off.
+    pub command_timeout_ms: u64,
+    /// Power-off holding brakes in the plant: joints stand while the amplifiers are off.
+    pub brake: bool,
     /// The environment the plant's tool touches.
     pub shapes: Vec<ShapeConfig>,
 }
@@ -271,6 +276,9 @@ impl Default for SimBoardConfig {
             dac_bits: 16,
             substep_us: 200,
             friction: true,
+            command_timeout_ms: penelope_drivers::sim::board::DEFAULT_COMMAND_TIMEOUT.as_millis()
+                as u64,
+            brake: false,
             shapes: Vec::new(),
         }
     }
@@ -285,9 +293,23 @@ impl SimBoardConfig {
         check_int(kind, "axes", self.axes.into(), 1, MAX_AXES as u64)?;
         check_int(kind, "dac_bits", self.dac_bits.into(), 8, 24)?;
         check_int(kind, "substep_us", self.substep_us, 20, 2000)?;
+        if self.command_timeout_ms != 0 {
+            // Two of the longest control period: no loop's commands can look stale.
+            check_int(
+                kind,
+                "command_timeout_ms",
+                self.command_timeout_ms,
+                MIN_COMMAND_TIMEOUT_MS,
+                10_000,
+            )?;
+        }
         environment(kind, &self.shapes)
     }
 }
+
+/// The shortest command timeout a board accepts, ms: twice the longest control period
+/// (`period_us` at most 20 ms), so that no loop's commands can look stale between its ticks.
+pub const MIN_COMMAND_TIMEOUT_MS: u64 = 40;
 
 /// `board/galil` configuration.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -307,6 +329,9 @@ pub struct GalilConfig {
     pub connect_timeout_ms: u64,
     /// The board-side watchdog time, ms (0: none).
     pub watchdog_ms: u64,
+    /// The I/O thread's command-freshness watchdog, ms (0: none): with torque on, no new
+    /// command from the control tick for this long turns the amplifiers off.
+    pub command_timeout_ms: u64,
 }
 
 impl Default for GalilConfig {
@@ -319,6 +344,7 @@ impl Default for GalilConfig {
             volts_per_newton_metre: PerJoint::One(0.1),
             connect_timeout_ms: 1000,
             watchdog_ms: penelope_drivers::galil::DEFAULT_WATCHDOG.as_millis() as u64,
+            command_timeout_ms: penelope_drivers::galil::DEFAULT_COMMAND_TIMEOUT.as_millis() as u64,
         }
     }
 }
@@ -359,6 +385,16 @@ impl GalilConfig {
         )?;
         if self.watchdog_ms != 0 {
             check_int(kind, "watchdog_ms", self.watchdog_ms, 5, 1000)?;
+        }
+        if self.command_timeout_ms != 0 {
+            // Two of the longest control period: no loop's commands can look stale.
+            check_int(
+                kind,
+                "command_timeout_ms",
+                self.command_timeout_ms,
+                MIN_COMMAND_TIMEOUT_MS,
+                10_000,
+            )?;
         }
         self.volts_per_newton_metre
             .check(kind, "volts_per_newton_metre", -10.0, 10.0)?;
@@ -587,5 +623,32 @@ impl NetFtSensorConfig {
             nalgebra::Translation3::new(self.mount_xyz[0], self.mount_xyz[1], self.mount_xyz[2]),
             nalgebra::UnitQuaternion::from_euler_angles(r, p, y),
         )
+    }
+}
+
+#[cfg(test)]
+mod command_timeout_tests {
+    use super::*;
+
+    #[test]
+    fn command_timeouts_are_off_or_at_least_two_of_the_longest_period() {
+        let sim = |ms| SimBoardConfig {
+            command_timeout_ms: ms,
+            ..SimBoardConfig::default()
+        };
+        assert_eq!(SimBoardConfig::default().command_timeout_ms, 50);
+        assert!(sim(0).check("board/sim").is_ok());
+        assert!(sim(40).check("board/sim").is_ok());
+        let e = sim(39).check("board/sim").unwrap_err();
+        assert!(e.to_string().contains("command_timeout_ms"), "{e}");
+        let galil = |ms| GalilConfig {
+            device: Some("/dev/ttyUSB0".into()),
+            command_timeout_ms: ms,
+            ..GalilConfig::default()
+        };
+        assert_eq!(GalilConfig::default().command_timeout_ms, 50);
+        assert!(galil(0).check("board/galil").is_ok());
+        assert!(galil(10).check("board/galil").is_err());
+        assert!(galil(10_001).check("board/galil").is_err());
     }
 }

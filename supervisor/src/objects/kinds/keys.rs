@@ -36,6 +36,10 @@ axes = 6           # number of axes, 1..=8
 dac_bits = 16      # DAC resolution, 8..=24 bits
 substep_us = 200   # plant integration sub-step, 20..=2000 µs
 friction = true    # joint friction of the model in the plant
+command_timeout_ms = 50  # with torque on, no new command from the control tick for this long turns
+                   # every axis off (the board's own check; the plant keeps moving), 40..=10000 ms (0: off)
+brake = false      # power-off holding brakes: the joints stand while the amplifiers are off
+                   # (without, an arm whose amplifiers are off falls under gravity)
 # the environment the plant's tool touches (none by default):
 "#;
 
@@ -56,6 +60,7 @@ volts_per_newton_metre = 0.1   # amplifier scaling, V per N·m of joint torque: 
                                # the sign per joint comes from the robot's gear and encoder (negative flips a reversed amplifier)
 connect_timeout_ms = 1000      # TCP connect timeout, 10..=60000 ms
 watchdog_ms = 30               # the DMC turns its motors off when no exchange reached it for this long, 5..=1000 ms (0: no watchdog)
+command_timeout_ms = 50        # with torque on, no new command from the control tick for this long: OF 0, MO, heartbeat stopped, 40..=10000 ms (0: off)
 "#;
 
 pub(super) const SENSOR_KEYS: &str = r#"

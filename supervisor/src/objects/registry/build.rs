@@ -259,9 +259,9 @@ impl Registry {
             }
             body.set_tap(tap);
             if r.kinematics.is_fpga_board() {
-                LoopBoard::Fpga(body, None)
+                LoopBoard::Fpga(SimDrive::new(body))
             } else {
-                LoopBoard::Sim(body, None)
+                LoopBoard::Sim(SimDrive::new(body))
             }
         } else {
             let mut boards: Vec<(String, GalilBoard)> = Vec::new();
@@ -510,7 +510,8 @@ impl Registry {
             let _ = board.set_enabled(false);
         }
         match board {
-            LoopBoard::Sim(body, _) | LoopBoard::Fpga(body, _) => {
+            LoopBoard::Sim(drive) | LoopBoard::Fpga(drive) => {
+                let body = drive.into_body();
                 if let Some(Object {
                     body: Body::Robot(r),
                     ..

@@ -9,6 +9,8 @@ pub(super) fn open_galil(cfg: &GalilConfig) -> Result<GalilBoard, WireError> {
     let mut board_cfg = GalilBoardConfig::new(path.clone(), cfg.axes as usize, &volts);
     board_cfg.serial.baud = cfg.baud;
     board_cfg.watchdog = (cfg.watchdog_ms > 0).then(|| Duration::from_millis(cfg.watchdog_ms));
+    board_cfg.command_timeout =
+        (cfg.command_timeout_ms > 0).then(|| Duration::from_millis(cfg.command_timeout_ms));
     let result = match &cfg.address {
         Some(address) => {
             let address = address.clone();

@@ -53,7 +53,8 @@ use crate::dataplane::frame::DatagramKey;
 use crate::dataplane::sensor_stream::{SensorPublisher, SensorSubscriber};
 use crate::objects::runtime::{
     CellSensor, ControlTask, GainsUpdate, GalilSet, GoToCommand, LoopBoard, NodeController,
-    NodeLoop, NodeSink, NodeTrajectory, RoutedGains, SimBody, TrajectoryFeed, VirtualSensor,
+    NodeLoop, NodeSink, NodeTrajectory, RoutedGains, SimBody, SimDrive, TrajectoryFeed,
+    VirtualSensor,
 };
 use penelope_protocol::proto::{
     BoardMethod, Class, ControlStatus, ControllerMethod, JointAxis, Joints, MatrixMsg, ObjectInfo,
@@ -742,6 +743,9 @@ impl Registry {
                 position_kp: full * 200.0,
                 position_kd: full * 4.0,
                 velocity_cutoff_hz: 150.0,
+                command_timeout: (cfg.command_timeout_ms > 0)
+                    .then(|| Duration::from_millis(cfg.command_timeout_ms)),
+                brake: cfg.brake,
             };
             // The operator's hand holds a master's handle; anything else meets the board's
             // environment (free space without shapes).

@@ -2,22 +2,222 @@
 //! FPGA board), or its joints on Galil boards.
 
 use super::*;
+use std::sync::PoisonError;
 
 /// The board a control loop sees: one axis per robot joint, in joint order, whatever boards
 /// the joints are mapped onto.
 pub enum LoopBoard {
-    /// The robot's simulated body, and the offset from the loop's clock to the plant's (set at
-    /// the first call, so the plant goes on from its own time whenever a loop starts; grown by
-    /// stalls longer than [`MAX_PLANT_STEP_NS`]).
-    Sim(Box<SimBody>, Option<u64>),
+    /// The robot's simulated body (see [`SimDrive`] for its clock and its plant keeper).
+    Sim(SimDrive),
     /// The robot's simulated body behind a `board/fpga` (the FRHC): as [`LoopBoard::Sim`], but
     /// a tick's command reaches the motors
     /// [`command_delay_ns`](crate::objects::fpga_board::command_delay_ns) after its encoders
     /// were latched (the board's kinematics, force transformation and DMA transfers); the
     /// plant runs on with the previous command until then.
-    Fpga(Box<SimBody>, Option<u64>),
+    Fpga(SimDrive),
     /// One or more Galil boards.
     Galil(Box<GalilSet>),
+}
+
+/// A simulated body as a loop drives it: the body, and the offset from the loop's clock to
+/// the plant's (set at the first call, so the plant goes on from its own time whenever a loop
+/// starts; grown by stalls longer than [`MAX_PLANT_STEP_NS`]).
+///
+/// On the real clock a loop's simulated world does not stop when its control thread does: a
+/// plant keeper ([`SimDrive::start_keeper`]), a thread of its own, steps the plant on the
+/// monotonic clock whenever the loop has not called the board for the board's command timeout,
+/// so the board's command-freshness watchdog
+/// ([`SimBoardError::CommandStale`]) trips as it would on hardware, and the robot ends with
+/// zero torque, whether the control thread hangs, stalls or is gone. The body sits behind a
+/// mutex only the keeper contends for, and only after the loop was silent that long: the
+/// control thread never waits for it otherwise.
+pub struct SimDrive {
+    shared: Arc<SimShared>,
+    keeper: Option<std::thread::JoinHandle<()>>,
+}
+
+/// Reads a [`SimDrive`]'s body from another thread ([`SimDrive::observer`]).
+#[derive(Clone)]
+pub struct SimObserver(std::sync::Weak<SimShared>);
+
+impl SimObserver {
+    /// Runs `f` on the body; `None` once the drive is gone.
+    pub fn with_body<T>(&self, f: impl FnOnce(&SimBody) -> T) -> Option<T> {
+        let shared = self.0.upgrade()?;
+        let state = shared.state.lock().unwrap_or_else(PoisonError::into_inner);
+        Some(f(&state.body))
+    }
+}
+
+struct SimShared {
+    state: Mutex<SimState>,
+    /// The loop's last board call, ns since `epoch` (monotonic).
+    fed_ns: AtomicU64,
+    epoch: std::time::Instant,
+    stop: AtomicBool,
+}
+
+struct SimState {
+    body: Box<SimBody>,
+    offset: Option<u64>,
+}
+
+impl SimDrive {
+    /// A drive of `body`, stepped by the loop only (a simulated clock, a detached loop).
+    pub fn new(body: Box<SimBody>) -> Self {
+        SimDrive {
+            shared: Arc::new(SimShared {
+                state: Mutex::new(SimState { body, offset: None }),
+                fed_ns: AtomicU64::new(0),
+                epoch: std::time::Instant::now(),
+                stop: AtomicBool::new(false),
+            }),
+            keeper: None,
+        }
+    }
+
+    /// Starts the plant keeper (real clock only): while the loop does not call the board for
+    /// its command timeout, a thread steps the plant on the monotonic clock (polling every
+    /// fifth of the timeout, 1 to 10 ms). Does nothing without a command timeout or when
+    /// already started.
+    pub fn start_keeper(&mut self) {
+        if self.keeper.is_some() {
+            return;
+        }
+        let Some(timeout) = self.with_body(|b| b.command_timeout()) else {
+            return;
+        };
+        self.feed();
+        let shared = Arc::downgrade(&self.shared);
+        let poll = (timeout / 5).clamp(Duration::from_millis(1), Duration::from_millis(10));
+        let spawned = std::thread::Builder::new()
+            .name("plant-keeper".into())
+            .spawn(move || keep_plant(&shared, timeout, poll));
+        match spawned {
+            Ok(h) => self.keeper = Some(h),
+            Err(e) => log::warn!("no plant keeper ({e}): the simulated world waits for its loop"),
+        }
+    }
+
+    /// Runs `f` on the body (the keeper waits meanwhile).
+    pub fn with_body<T>(&self, f: impl FnOnce(&mut SimBody) -> T) -> T {
+        let mut state = self
+            .shared
+            .state
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        f(&mut state.body)
+    }
+
+    /// A handle that reads the body from another thread while the loop runs (a test's, a
+    /// monitor's); it does not keep the body alive.
+    pub fn observer(&self) -> SimObserver {
+        SimObserver(Arc::downgrade(&self.shared))
+    }
+
+    /// Stops the keeper and gives the body back.
+    pub fn into_body(mut self) -> Box<SimBody> {
+        self.stop_keeper();
+        let mut shared = self.shared;
+        loop {
+            // The keeper holds the body only through a weak reference, upgraded for one step at
+            // a time: once it is joined, this is the only owner.
+            match Arc::try_unwrap(shared) {
+                Ok(s) => {
+                    return s
+                        .state
+                        .into_inner()
+                        .unwrap_or_else(PoisonError::into_inner)
+                        .body;
+                }
+                Err(back) => {
+                    shared = back;
+                    std::thread::yield_now();
+                }
+            }
+        }
+    }
+
+    fn stop_keeper(&mut self) {
+        self.shared.stop.store(true, Ordering::Release);
+        if let Some(h) = self.keeper.take() {
+            h.thread().unpark();
+            let _ = h.join();
+        }
+    }
+
+    fn feed(&self) {
+        let ns = self.shared.epoch.elapsed().as_nanos() as u64;
+        self.shared.fed_ns.store(ns, Ordering::Release);
+    }
+
+    /// Runs `f` with the body and the loop's `now` turned into plant time (`delay_ns` later).
+    ///
+    /// # Real-time
+    /// The mutex is uncontended unless the loop was silent for the command timeout.
+    fn call<T>(
+        &mut self,
+        now: Timestamp,
+        delay_ns: u64,
+        f: impl FnOnce(&mut SimBody, Timestamp) -> T,
+    ) -> T {
+        let out = {
+            let mut state = self
+                .shared
+                .state
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            let SimState { body, offset } = &mut *state;
+            let now = plant_time(
+                body,
+                offset,
+                Timestamp::from_nanos(now.as_nanos().saturating_add(delay_ns)),
+            );
+            f(body, now)
+        };
+        if self.keeper.is_some() {
+            self.feed();
+        }
+        out
+    }
+}
+
+/// The longest stretch of simulated time the plant keeper integrates at once, ns.
+const KEEPER_MAX_STEP_NS: u64 = 1_000_000_000;
+
+/// The plant keeper's body: steps the plant by the wall time that passed while the loop was
+/// silent for `timeout` or longer, and makes the loop re-anchor its clock to the plant's when
+/// it comes back.
+fn keep_plant(shared: &std::sync::Weak<SimShared>, timeout: Duration, poll: Duration) {
+    let mut stepped_ns: Option<u64> = None;
+    loop {
+        std::thread::park_timeout(poll);
+        // The drive is gone (dropped with its loop), or asked the keeper to stop.
+        let Some(shared) = shared.upgrade() else {
+            return;
+        };
+        if shared.stop.load(Ordering::Acquire) {
+            return;
+        }
+        let now_ns = shared.epoch.elapsed().as_nanos() as u64;
+        let fed = shared.fed_ns.load(Ordering::Acquire);
+        if now_ns.saturating_sub(fed) < timeout.as_nanos() as u64 {
+            stepped_ns = None;
+            continue;
+        }
+        let from = stepped_ns.map_or(fed, |s| s.max(fed));
+        // The whole silence at once (a thread of no priority, unlike the loop's catch-up
+        // capped at MAX_PLANT_STEP_NS): the watchdog trips at the first step, not five later.
+        let step = now_ns.saturating_sub(from).min(KEEPER_MAX_STEP_NS);
+        let mut state = shared.state.lock().unwrap_or_else(PoisonError::into_inner);
+        let plant_now = state.body.plant().snapshot().time;
+        state.body.step_to(Timestamp::from_nanos(
+            plant_now.as_nanos().saturating_add(step),
+        ));
+        // The loop's clock no longer matches the plant's: anchor it again at its next call.
+        state.offset = None;
+        stepped_ns = Some(now_ns);
+    }
 }
 
 /// Joints spread over Galil boards: joint `j` is axis `map[j].1` of board `map[j].0`.
@@ -93,7 +293,7 @@ impl Board for LoopBoard {
 
     fn axis_count(&self) -> usize {
         match self {
-            LoopBoard::Sim(b, _) | LoopBoard::Fpga(b, _) => b.axis_count(),
+            LoopBoard::Sim(d) | LoopBoard::Fpga(d) => d.with_body(|b| b.axis_count()),
             LoopBoard::Galil(g) => g.joints,
         }
     }
@@ -102,10 +302,9 @@ impl Board for LoopBoard {
     /// Simulated: steps the plant (bounded sub-steps). Galil: one wait-free cell read per board.
     fn read_axes(&mut self, now: Timestamp, out: &mut [AxisState]) -> Result<(), LoopBoardError> {
         match self {
-            LoopBoard::Sim(b, offset) | LoopBoard::Fpga(b, offset) => {
-                let now = plant_time(b, offset, now);
-                b.read_axes(now, out).map_err(LoopBoardError::Sim)
-            }
+            LoopBoard::Sim(d) | LoopBoard::Fpga(d) => d
+                .call(now, 0, |b, now| b.read_axes(now, out))
+                .map_err(LoopBoardError::Sim),
             LoopBoard::Galil(g) => {
                 if out.len() < g.joints {
                     return Err(LoopBoardError::WrongLength);
@@ -133,18 +332,13 @@ impl Board for LoopBoard {
         commands: &[AxisCommand],
     ) -> Result<(), LoopBoardError> {
         match self {
-            LoopBoard::Sim(b, offset) => {
-                let now = plant_time(b, offset, now);
-                b.write_axes(now, commands).map_err(LoopBoardError::Sim)
-            }
-            LoopBoard::Fpga(b, offset) => {
+            LoopBoard::Sim(d) => d
+                .call(now, 0, |b, now| b.write_axes(now, commands))
+                .map_err(LoopBoardError::Sim),
+            LoopBoard::Fpga(d) => {
                 let delay = crate::objects::fpga_board::command_delay_ns();
-                let now = plant_time(
-                    b,
-                    offset,
-                    Timestamp::from_nanos(now.as_nanos().saturating_add(delay)),
-                );
-                b.write_axes(now, commands).map_err(LoopBoardError::Sim)
+                d.call(now, delay, |b, now| b.write_axes(now, commands))
+                    .map_err(LoopBoardError::Sim)
             }
             LoopBoard::Galil(g) => {
                 if commands.len() < g.joints {
@@ -169,11 +363,13 @@ impl Board for LoopBoard {
     }
 
     /// # Real-time
-    /// Wait-free: a simulated board has no latch; each Galil board takes the request to its
-    /// I/O thread.
+    /// Wait-free: a simulated board clears its command watchdog; each Galil board takes the
+    /// request to its I/O thread.
     fn rearm(&mut self) -> Result<(), LoopBoardError> {
         match self {
-            LoopBoard::Sim(b, _) | LoopBoard::Fpga(b, _) => b.rearm().map_err(LoopBoardError::Sim),
+            LoopBoard::Sim(d) | LoopBoard::Fpga(d) => {
+                d.with_body(|b| b.rearm()).map_err(LoopBoardError::Sim)
+            }
             LoopBoard::Galil(g) => {
                 for (_, board) in g.boards.iter_mut() {
                     board.rearm().map_err(LoopBoardError::Galil)?;
@@ -185,9 +381,9 @@ impl Board for LoopBoard {
 
     fn set_enabled(&mut self, enabled: bool) -> Result<(), LoopBoardError> {
         match self {
-            LoopBoard::Sim(b, _) | LoopBoard::Fpga(b, _) => {
-                b.set_enabled(enabled).map_err(LoopBoardError::Sim)
-            }
+            LoopBoard::Sim(d) | LoopBoard::Fpga(d) => d
+                .with_body(|b| b.set_enabled(enabled))
+                .map_err(LoopBoardError::Sim),
             LoopBoard::Galil(g) => {
                 let mut result = Ok(());
                 for (_, board) in g.boards.iter_mut() {
@@ -220,6 +416,8 @@ mod tests {
                 position_kp: JointVector::repeat(100.0),
                 position_kd: JointVector::repeat(1.0),
                 velocity_cutoff_hz: 0.0,
+                command_timeout: None,
+                brake: false,
             },
             ToolContact::Environment(Environment::new()),
             JointVector::zeros(),
@@ -229,7 +427,9 @@ mod tests {
 
     fn plant_ns(b: &LoopBoard) -> u64 {
         match b {
-            LoopBoard::Sim(s, _) | LoopBoard::Fpga(s, _) => s.plant().snapshot().time.as_nanos(),
+            LoopBoard::Sim(d) | LoopBoard::Fpga(d) => {
+                d.with_body(|s| s.plant().snapshot().time.as_nanos())
+            }
             LoopBoard::Galil(_) => unreachable!(),
         }
     }
@@ -249,15 +449,15 @@ mod tests {
             let later = Timestamp::from_nanos(now.as_nanos() + 1_000_000);
             board.read_axes(later, &mut out[..6]).unwrap();
             let v = match &board {
-                LoopBoard::Sim(s, _) | LoopBoard::Fpga(s, _) => {
-                    s.plant().snapshot().joints.velocity
+                LoopBoard::Sim(d) | LoopBoard::Fpga(d) => {
+                    d.with_body(|s| s.plant().snapshot().joints.velocity)
                 }
                 LoopBoard::Galil(_) => unreachable!(),
             };
             (at_write, v[0])
         };
-        let (sim_write, sim_v) = ticked(LoopBoard::Sim(Box::new(body()), None));
-        let (fpga_write, fpga_v) = ticked(LoopBoard::Fpga(Box::new(body()), None));
+        let (sim_write, sim_v) = ticked(LoopBoard::Sim(SimDrive::new(Box::new(body()))));
+        let (fpga_write, fpga_v) = ticked(LoopBoard::Fpga(SimDrive::new(Box::new(body()))));
         // The plain board applies the command at once; the FPGA board holds the old one (none)
         // for the delay, so its joint has had less time to speed up.
         assert_eq!(sim_write, 0);
@@ -267,7 +467,7 @@ mod tests {
 
     #[test]
     fn a_stalled_loop_finds_the_simulated_world_paused_not_fast_forwarded() {
-        let mut board = LoopBoard::Sim(Box::new(body()), None);
+        let mut board = LoopBoard::Sim(SimDrive::new(Box::new(body())));
         let mut out = [AxisState::default(); MAX_AXES];
         let start = 5_000_000_000_u64;
         board

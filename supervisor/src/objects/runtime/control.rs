@@ -358,6 +358,15 @@ impl ControlTask {
         each_loop!(&mut self.lp, l => l.tick(now))
     }
 
+    /// Applies `command` at `now` as if it came through the loop's command port (a test's or a
+    /// stepped loop's way in; a thread's loop takes its commands from the ring).
+    ///
+    /// # Real-time
+    /// As [`ControlLoop::apply`].
+    pub fn apply(&mut self, now: Timestamp, command: penelope_rt_core::control::ControlCommand) {
+        each_loop!(&mut self.lp, l => l.apply(now, command))
+    }
+
     /// Passes the executor's timing of the previous tick to the loop.
     ///
     /// # Real-time
@@ -369,6 +378,16 @@ impl ControlTask {
     /// The loop.
     pub fn control_loop(&self) -> &NodeLoop {
         &self.lp
+    }
+
+    /// Starts the plant keeper of a simulated body ([`SimDrive::start_keeper`]); nothing for
+    /// Galil boards (their I/O thread watches the commands).
+    pub fn keep_plant_moving(&mut self) {
+        each_loop!(&mut self.lp, l => {
+            if let LoopBoard::Sim(d) | LoopBoard::Fpga(d) = l.board_mut() {
+                d.start_keeper();
+            }
+        })
     }
 
     /// The loop, taken out.

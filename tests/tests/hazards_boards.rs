@@ -1,0 +1,227 @@
+//! Fault injection on the simulated and FPGA boards (issue 30): a control thread that hangs (does
+//! not die) in torque mode. The board's own command-freshness watchdog, stepped by the plant
+//! keeper beside the loop (not by the control thread), ends the torque.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use penelope_drivers::model::puma560;
+use penelope_drivers::sim::ToolContact;
+use penelope_drivers::sim::board::{
+    DEFAULT_COMMAND_TIMEOUT, SimBoard, SimBoardConfig, SimBoardError,
+};
+use penelope_drivers::sim::plant::PlantConfig;
+use penelope_hal::{
+    AxisCommand, AxisState, Board, ControlInput, Controller, ControllerError, JointCommand,
+    JointReference, JointState, JointVector, NamedPose, Reference, RobotModel, Timestamp,
+};
+use penelope_rt_core::cell::{Stamped, latest};
+use penelope_rt_core::control::{
+    ControlCommand, ControlConfig, ControlLoop, ControlPorts, NoCommands,
+};
+use penelope_rt_core::safety::{SafetyConfig, SafetyState};
+use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
+use penelope_supervisor::objects::runtime::{LoopBoard, LoopBoardError, SimDrive};
+
+/// A law that asks for the same torque on every joint, whatever the state.
+struct ConstantTorque(f64);
+
+impl Controller for ConstantTorque {
+    fn kind(&self) -> &'static str {
+        "constant-torque"
+    }
+    fn activate(&mut self, _now: Timestamp, _measured: &JointState, _model: &dyn RobotModel) {}
+    fn update(&mut self, _input: &ControlInput<'_>) -> Result<JointCommand, ControllerError> {
+        Ok(JointCommand::Effort(JointVector::repeat(self.0)))
+    }
+}
+
+/// A telemetry port that keeps nothing.
+struct Discard;
+
+impl TelemetrySink for Discard {
+    fn push(&mut self, _sample: &TelemetrySample) -> bool {
+        true
+    }
+}
+
+/// Waits (20 s at most: a bound against a hang, not a timing claim) until `done` holds.
+fn wait_until(what: &str, mut done: impl FnMut() -> bool) {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while !done() {
+        assert!(Instant::now() < deadline, "never happened: {what}");
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+const COUNTS_PER_RADIAN: f64 = 1000.0;
+
+/// A PUMA 560's simulated body with the default command timeout, at rest at its start pose.
+fn body() -> Box<penelope_supervisor::objects::runtime::SimBody> {
+    Box::new(SimBoard::new(
+        puma560(),
+        PlantConfig::default(),
+        SimBoardConfig {
+            counts_per_radian: JointVector::repeat(COUNTS_PER_RADIAN),
+            effort_full_scale: JointVector::repeat(100.0),
+            dac_bits: 16,
+            position_kp: JointVector::repeat(100.0),
+            position_kd: JointVector::repeat(1.0),
+            velocity_cutoff_hz: 0.0,
+            command_timeout: Some(DEFAULT_COMMAND_TIMEOUT),
+            brake: false,
+        },
+        ToolContact::Free,
+        puma560().named_pose(NamedPose::Start),
+        Timestamp::ZERO,
+    ))
+}
+
+/// Runs a torque law on `board` in a thread of its own on the real clock (as a node's control
+/// thread does, with the plant keeper started), makes the thread hang in torque mode, and
+/// returns the wall time from the hang to zero torque.
+fn hang_in_torque_mode(mut board: LoopBoard, what: &str) -> Duration {
+    let observer = match &mut board {
+        LoopBoard::Sim(d) | LoopBoard::Fpga(d) => {
+            d.start_keeper();
+            d.observer()
+        }
+        LoopBoard::Galil(_) => unreachable!("a simulated body"),
+    };
+    let model = puma560();
+    let safety = SafetyConfig::slave(6, *model.limits());
+    let config = ControlConfig::new(Duration::from_millis(1), safety)
+        .with_counts_per_radian(COUNTS_PER_RADIAN);
+    let (mut reference, reference_port) = latest::<Stamped<Reference>>();
+    let ports = ControlPorts {
+        reference: reference_port,
+        telemetry: Discard,
+        commands: NoCommands,
+    };
+    let mut ctl = ControlLoop::new(config, board, model, [ConstantTorque(2.0)], ports).unwrap();
+
+    let hang = Arc::new(AtomicBool::new(false));
+    let running = Arc::new(AtomicBool::new(false));
+    let (release, hung) = mpsc::channel::<()>();
+    let start = Instant::now();
+    let thread = {
+        let (hang, running) = (hang.clone(), running.clone());
+        std::thread::spawn(move || {
+            let now = || Timestamp::from_nanos(start.elapsed().as_nanos() as u64);
+            ctl.tick(now());
+            std::thread::sleep(Duration::from_millis(1));
+            ctl.apply(now(), ControlCommand::Activate);
+            while !hang.load(Ordering::Acquire) {
+                reference.write(Stamped {
+                    stamp: now(),
+                    value: Reference::Joint(JointReference::default()),
+                });
+                let out = ctl.tick(now());
+                running.store(out.state == SafetyState::Running, Ordering::Release);
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            // Hung: alive, not ticking, until the test lets it go.
+            let _ = hung.recv();
+            ctl
+        })
+    };
+    wait_until("torque on every axis", || {
+        running.load(Ordering::Acquire)
+            && observer
+                .with_body(|b| {
+                    b.is_enabled()
+                        && b.held_commands()
+                            .iter()
+                            .all(|c| matches!(c, AxisCommand::Effort(e) if *e > 1.0))
+                })
+                .unwrap_or(false)
+    });
+    hang.store(true, Ordering::Release);
+    let hung_at = Instant::now();
+    wait_until("zero torque", || {
+        observer
+            .with_body(|b| b.command_stale_since().is_some())
+            .unwrap_or(false)
+    });
+    let delay = hung_at.elapsed();
+    let (stale_at, last_effort, held, enabled) = observer
+        .with_body(|b| {
+            (
+                b.command_stale_since().expect("tripped"),
+                b.plant().snapshot().joints.effort,
+                b.held_commands().to_vec(),
+                b.is_enabled(),
+            )
+        })
+        .expect("the drive is alive");
+    assert!(!enabled, "{what}: amplifiers still on");
+    assert!(
+        held.iter().all(|c| *c == AxisCommand::Off),
+        "{what}: {held:?}"
+    );
+    assert_eq!(last_effort, JointVector::zeros(), "{what}: torque left on");
+    // The world goes on without the control thread: the arm falls with no torque held.
+    let plant_then = observer.with_body(|b| b.plant().snapshot().time).unwrap();
+    wait_until("the plant keeps moving", || {
+        observer.with_body(|b| b.plant().snapshot().time).unwrap() > plant_then
+    });
+
+    // Let the thread go: its loop finds the board faulted, and says why.
+    drop(release);
+    let mut ctl = thread.join().unwrap();
+    let mut out = [AxisState::default(); 6];
+    let now = Timestamp::from_nanos(start.elapsed().as_nanos() as u64);
+    assert_eq!(
+        ctl.board_mut().read_axes(now, &mut out),
+        Err(LoopBoardError::Sim(SimBoardError::CommandStale))
+    );
+    // A read or two may be tolerated (`board_read_tolerance`); then the loop faults.
+    let faulted = (0..20).any(|_| {
+        let now = Timestamp::from_nanos(start.elapsed().as_nanos() as u64);
+        ctl.tick(now).state == SafetyState::Fault
+    });
+    assert!(faulted, "{what}: the loop runs on");
+    let (board, ..) = ctl.into_parts();
+    let (LoopBoard::Sim(d) | LoopBoard::Fpga(d)) = board else {
+        unreachable!("a simulated body")
+    };
+    // The keeper is stopped and the body handed back whole, still off (the loop's fault path
+    // turned the amplifiers off, which acknowledges the watchdog).
+    let body = d.into_body();
+    assert!(!body.is_enabled(), "{what}: amplifiers on after the fault");
+    assert!(body.plant().snapshot().time >= stale_at);
+    delay
+}
+
+fn check(delay: Duration, what: &str) {
+    println!(
+        "{what}: a hung control thread in torque mode: zero torque, amplifiers off {:.1} ms after \
+         its last tick (command timeout {} ms, wall clock)",
+        delay.as_secs_f64() * 1e3,
+        DEFAULT_COMMAND_TIMEOUT.as_millis()
+    );
+    // Not before the timeout (it was this watchdog, not another fault: the thread's last tick
+    // may precede the hang by a period); generous above for a busy 2-core machine.
+    assert!(
+        delay >= DEFAULT_COMMAND_TIMEOUT / 2,
+        "{what}: off before the timeout: {delay:?}"
+    );
+    assert!(
+        delay <= DEFAULT_COMMAND_TIMEOUT + Duration::from_millis(500),
+        "{what}: {delay:?}"
+    );
+}
+
+#[test]
+fn a_hung_control_thread_in_torque_mode_leaves_the_simulated_board_with_zero_torque() {
+    let delay = hang_in_torque_mode(LoopBoard::Sim(SimDrive::new(body())), "board/sim");
+    check(delay, "board/sim");
+}
+
+#[test]
+fn a_hung_control_thread_in_torque_mode_leaves_the_fpga_board_with_zero_torque() {
+    let delay = hang_in_torque_mode(LoopBoard::Fpga(SimDrive::new(body())), "board/fpga");
+    check(delay, "board/fpga");
+}
