@@ -24,6 +24,7 @@ use penelope_rt_core::control::{
 use penelope_rt_core::safety::{SafetyConfig, SafetyState};
 use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
 use penelope_supervisor::objects::runtime::{LoopBoard, LoopBoardError, SimDrive};
+use penelope_testkit::wait::wait_until;
 
 /// A law that asks for the same torque on every joint, whatever the state.
 struct ConstantTorque(f64);
@@ -44,15 +45,6 @@ struct Discard;
 impl TelemetrySink for Discard {
     fn push(&mut self, _sample: &TelemetrySample) -> bool {
         true
-    }
-}
-
-/// Waits (20 s at most: a bound against a hang, not a timing claim) until `done` holds.
-fn wait_until(what: &str, mut done: impl FnMut() -> bool) {
-    let deadline = Instant::now() + Duration::from_secs(20);
-    while !done() {
-        assert!(Instant::now() < deadline, "never happened: {what}");
-        std::thread::sleep(Duration::from_millis(1));
     }
 }
 

@@ -8,6 +8,9 @@
 use std::time::Duration;
 
 use penelope_hal::{Frame, JointReference, JointVector, Reference, Timestamp, Transition};
+use penelope_protocol::proto::{
+    BoardMethod, ControllerMethod, JointAxis, Method, PoseMsg, Reply, RobotMethod, SensorMethod,
+};
 use penelope_rt_core::cell::{Stamped, latest};
 use penelope_rt_core::comm::CommLoop;
 use penelope_rt_core::control::{
@@ -19,10 +22,8 @@ use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_rt_core::telemetry::TelemetrySink;
 use penelope_rt_core::trajectory::Trapezoidal;
 use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
-use penelope_supervisor::proto::{
-    BoardMethod, ControllerMethod, JointAxis, Method, PoseMsg, Reply, RobotMethod, SensorMethod,
-};
 use penelope_testbed::{ChainBoard, DecoupledChain, critically_damped_gains};
+use penelope_testkit::wait::wait_until;
 
 fn create(c: &Creator, kind: &str, name: &str, config: &str) {
     c.create(kind, name, config)
@@ -430,18 +431,6 @@ fn joints_of(c: &Creator, arm: &str) -> JointVector {
     match ok(c, arm, Method::Robot(RobotMethod::JointPositions)) {
         Reply::Joints(q) => JointVector::from_iterator(q.into_iter().chain(std::iter::repeat(0.0))),
         other => panic!("joint positions answered {other:?}"),
-    }
-}
-
-/// Waits until `done` holds, at most 20 s (a bound against a hang, not a timing claim).
-fn wait_until(what: &str, mut done: impl FnMut() -> bool) {
-    let deadline = std::time::Instant::now() + Duration::from_secs(20);
-    while !done() {
-        assert!(
-            std::time::Instant::now() < deadline,
-            "never happened: {what}"
-        );
-        std::thread::sleep(Duration::from_millis(5));
     }
 }
 

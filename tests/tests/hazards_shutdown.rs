@@ -9,19 +9,11 @@ use std::time::{Duration, Instant};
 
 use penelope_drivers::galil::emulator::{Dmc, PtyEmulator, PtyOptions};
 use penelope_hal::Transition;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::proto::{
+use penelope_protocol::proto::{
     BoardMethod, ControllerMethod, JointAxis, Method, Reply, RobotMethod,
 };
-
-/// Waits (20 s at most: a bound against a hang, not a timing claim) until `done` holds.
-fn wait_until(what: &str, mut done: impl FnMut() -> bool) {
-    let deadline = Instant::now() + Duration::from_secs(20);
-    while !done() {
-        assert!(Instant::now() < deadline, "never happened: {what}");
-        std::thread::sleep(Duration::from_millis(2));
-    }
-}
+use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_testkit::wait::wait_until;
 
 fn ok(c: &Creator, name: &str, method: Method) -> Reply {
     c.call_object(name, method)
