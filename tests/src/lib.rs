@@ -3,6 +3,9 @@
 
 use penelope_testkit::alloc::allocations;
 
+pub mod fixtures;
+pub mod papers_task;
+
 /// Steps the detached loops of a teleoperation pair over ticks `ticks` of a 1 kHz control clock
 /// (communication every other tick, after `at_comm`, which plays any feed a thread would),
 /// draining their telemetry as a pump would, and returns the allocator calls made meanwhile.

@@ -24,157 +24,8 @@ use penelope_rt_core::trajectory::Trapezoidal;
 use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
 use penelope_testbed::{ChainBoard, DecoupledChain, critically_damped_gains};
 use penelope_testkit::wait::wait_until;
-
-fn create(c: &Creator, kind: &str, name: &str, config: &str) {
-    c.create(kind, name, config)
-        .unwrap_or_else(|e| panic!("create {name}: {e}"));
-}
-
-fn ok(c: &Creator, name: &str, method: Method) -> Reply {
-    c.call_object(name, method)
-        .unwrap_or_else(|e| panic!("{name}: {e}"))
-}
-
-fn map_all(c: &Creator, robot: &str, board: &str) {
-    ok(
-        c,
-        robot,
-        Method::Robot(RobotMethod::MapJoints {
-            board: board.into(),
-            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
-        }),
-    );
-}
-
-fn relate(c: &Creator, controller: &str, robot: &str, sensor: Option<&str>) {
-    let mut methods = vec![
-        ControllerMethod::SetRobot {
-            robot: robot.into(),
-        },
-        ControllerMethod::SetTrajectory {
-            trajectory: "link".into(),
-        },
-    ];
-    if let Some(s) = sensor {
-        methods.push(ControllerMethod::SetSensor { sensor: s.into() });
-    }
-    for m in methods {
-        ok(c, controller, Method::Controller(m));
-    }
-}
-
-/// The task's objects, configured; the wall 4 cm below the slave's tool at its start pose.
-fn the_task() -> Creator {
-    let mut config = CreatorConfig::new("lab");
-    config.rt.priority = None;
-    let c = Creator::new(config);
-    create(&c, "robot/puma200", "puma", "");
-    let start = match ok(
-        &c,
-        "puma",
-        Method::Robot(RobotMethod::NamedPose {
-            pose: penelope_hal::NamedPose::Start,
-        }),
-    ) {
-        Reply::Joints(q) => q,
-        other => panic!("named pose answered {other:?}"),
-    };
-    let tool = match ok(
-        &c,
-        "puma",
-        Method::Robot(RobotMethod::ForwardKinematics { q: Some(start) }),
-    ) {
-        Reply::Pose(p) => p.position,
-        other => panic!("fk answered {other:?}"),
-    };
-    let wall = format!(
-        "[[shapes]]\nkind = \"plane\"\npoint = [{}, {}, {}]\nnormal = [0.0, 0.0, 1.0]\n\
-         stiffness = 4000.0\ndamping = 20.0\n",
-        tool[0],
-        tool[1],
-        tool[2] - 0.04
-    );
-    create(&c, "board/sim", "puma-io", &wall);
-    create(&c, "sensor/virtual", "wrist", &wall);
-    create(&c, "robot/frhc", "frhc", "");
-    create(&c, "board/sim", "frhc-io", "");
-    create(&c, "sensor/operator-hand", "hand", "robot = \"frhc\"");
-    create(
-        &c,
-        "trajectory/teleop",
-        "link",
-        "master = \"frhc\"\nslave = \"puma\"\nforce_gain = 0.5",
-    );
-    create(&c, "controller/force-display", "display", "");
-    create(&c, "controller/slave-tracking", "follow", "");
-    map_all(&c, "frhc", "frhc-io");
-    map_all(&c, "puma", "puma-io");
-    relate(&c, "display", "frhc", None);
-    relate(&c, "follow", "puma", Some("wrist"));
-    for name in [
-        "frhc-io", "puma-io", "wrist", "hand", "frhc", "puma", "link", "display", "follow",
-    ] {
-        ok(&c, name, Method::Transition(Transition::Configure));
-    }
-    c
-}
-
-/// Every control tick of both sides for `seconds` of simulated time (communication every
-/// 2 ms, control every 1 ms, the sensor feed's work done here), with `at(tick, slave)` called
-/// before each control tick.
-fn run(
-    c: &Creator,
-    seconds: f64,
-    mut at: impl FnMut(u64, Timestamp, &mut DetachedLoop),
-) -> (Vec<TelemetrySample>, Vec<TelemetrySample>) {
-    let mut master = c.detach_loop("display").expect("the master's loop builds");
-    let mut slave = c.detach_loop("follow").expect("the slave's loop builds");
-    let mut wrench = slave.wrench.take().expect("a sensor is bound");
-    let (mut m_rows, mut s_rows) = (Vec::new(), Vec::new());
-    for i in 1..=(seconds * 1000.0) as u64 {
-        let now = Timestamp::from_nanos(i * 1_000_000);
-        if i % 2 == 1 {
-            master.comm.tick(now);
-            slave.comm.tick(now);
-            if let Some(s) = slave.probe.latest() {
-                let pose = match ok(
-                    c,
-                    "puma",
-                    Method::Robot(RobotMethod::ForwardKinematics {
-                        q: Some(s.q.iter().take(6).copied().collect()),
-                    }),
-                ) {
-                    Reply::Pose(p) => p,
-                    other => panic!("fk answered {other:?}"),
-                };
-                let measured = ok(
-                    c,
-                    "wrist",
-                    Method::Sensor(SensorMethod::Measure {
-                        pose: PoseMsg { ..pose },
-                        velocity: [0.0; 3],
-                    }),
-                );
-                if let Reply::Wrench(w) = measured {
-                    wrench.write(Stamped {
-                        stamp: now,
-                        value: w.to_wrench(Frame::Base).unwrap(),
-                    });
-                }
-            }
-        }
-        at(i, now, &mut slave);
-        master.control.tick(now);
-        slave.control.tick(now);
-        while let Some(s) = master.telemetry.pop().map(|t| t.sample) {
-            m_rows.push(s);
-        }
-        while let Some(s) = slave.telemetry.pop().map(|t| t.sample) {
-            s_rows.push(s);
-        }
-    }
-    (m_rows, s_rows)
-}
+use penelope_tests::fixtures::Discard;
+use penelope_tests::papers_task::{create, map_all, ok, papers_task, step_papers_task};
 
 fn at_ms(rows: &[TelemetrySample], ms: u64) -> &TelemetrySample {
     rows.iter()
@@ -186,8 +37,8 @@ fn at_ms(rows: &[TelemetrySample], ms: u64) -> &TelemetrySample {
 fn a_rearmed_teleoperation_slave_reanchors_where_it_is_and_follows_without_a_jump() {
     const ESTOP_MS: u64 = 2_500;
     const REARM_MS: u64 = 2_800;
-    let c = the_task();
-    let (master, slave) = run(&c, 4.0, |i, now, slave| {
+    let c = papers_task();
+    let (master, slave) = step_papers_task(&c, 4.0, f64::INFINITY, |i, now, slave| {
         if i == ESTOP_MS {
             slave.control.apply(now, ControlCommand::EStop);
         }
@@ -257,15 +108,6 @@ fn a_rearmed_teleoperation_slave_reanchors_where_it_is_and_follows_without_a_jum
             .all(|s| s.state == SafetyState::Running),
         "the slave stopped following"
     );
-}
-
-/// A telemetry port that keeps nothing.
-struct Discard;
-
-impl TelemetrySink for Discard {
-    fn push(&mut self, _sample: &TelemetrySample) -> bool {
-        true
-    }
 }
 
 fn ms(t: u64) -> Timestamp {

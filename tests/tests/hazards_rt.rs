@@ -50,28 +50,7 @@ use penelope_supervisor::system::SystemFile;
 use penelope_testbed::{ChainBoard, DecoupledChain, critically_damped_gains};
 use penelope_testkit::net::free_udp_port;
 use penelope_testkit::wait::wait_until;
-
-/// A law that asks for the same torque on every joint, whatever the state.
-struct ConstantTorque(f64);
-
-impl Controller for ConstantTorque {
-    fn kind(&self) -> &'static str {
-        "constant-torque"
-    }
-    fn activate(&mut self, _now: Timestamp, _measured: &JointState, _model: &dyn RobotModel) {}
-    fn update(&mut self, _input: &ControlInput<'_>) -> Result<JointCommand, ControllerError> {
-        Ok(JointCommand::Effort(JointVector::repeat(self.0)))
-    }
-}
-
-/// A telemetry port that keeps nothing.
-struct Discard;
-
-impl TelemetrySink for Discard {
-    fn push(&mut self, _sample: &TelemetrySample) -> bool {
-        true
-    }
-}
+use penelope_tests::fixtures::{ConstantTorque, Discard};
 
 const GALIL_AXES: usize = 6;
 

@@ -14,165 +14,10 @@ use penelope_protocol::proto::{
 use penelope_rt_core::cell::Stamped;
 use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
-
-fn create(c: &Creator, kind: &str, name: &str, config: &str) {
-    c.create(kind, name, config)
-        .unwrap_or_else(|e| panic!("create {name}: {e}"));
-}
+use penelope_tests::papers_task::{ok, papers_task, step_papers_task};
 
 fn call(c: &Creator, name: &str, method: Method) -> Result<Reply, WireError> {
     c.call_object(name, method)
-}
-
-fn ok(c: &Creator, name: &str, method: Method) -> Reply {
-    call(c, name, method).unwrap_or_else(|e| panic!("{name}: {e}"))
-}
-
-fn map_all(c: &Creator, robot: &str, board: &str) {
-    ok(
-        c,
-        robot,
-        Method::Robot(RobotMethod::MapJoints {
-            board: board.into(),
-            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
-        }),
-    );
-}
-
-fn relate(c: &Creator, controller: &str, robot: &str, trajectory: &str, sensor: Option<&str>) {
-    let mut methods = vec![
-        ControllerMethod::SetRobot {
-            robot: robot.into(),
-        },
-        ControllerMethod::SetTrajectory {
-            trajectory: trajectory.into(),
-        },
-    ];
-    if let Some(s) = sensor {
-        methods.push(ControllerMethod::SetSensor { sensor: s.into() });
-    }
-    for m in methods {
-        ok(c, controller, Method::Controller(m));
-    }
-}
-
-/// The task's objects, configured; the wall 4 cm below the slave's tool at its start pose.
-fn the_task() -> Creator {
-    let mut config = CreatorConfig::new("lab");
-    config.rt.priority = None;
-    let c = Creator::new(config);
-    create(&c, "robot/puma200", "puma", "");
-    let start = match ok(
-        &c,
-        "puma",
-        Method::Robot(RobotMethod::NamedPose {
-            pose: penelope_hal::NamedPose::Start,
-        }),
-    ) {
-        Reply::Joints(q) => q,
-        other => panic!("named pose answered {other:?}"),
-    };
-    let tool = match ok(
-        &c,
-        "puma",
-        Method::Robot(RobotMethod::ForwardKinematics { q: Some(start) }),
-    ) {
-        Reply::Pose(p) => p.position,
-        other => panic!("fk answered {other:?}"),
-    };
-    let wall = format!(
-        "[[shapes]]\nkind = \"plane\"\npoint = [{}, {}, {}]\nnormal = [0.0, 0.0, 1.0]\n\
-         stiffness = 4000.0\ndamping = 20.0\n",
-        tool[0],
-        tool[1],
-        tool[2] - 0.04
-    );
-    create(&c, "board/sim", "puma-io", &wall);
-    create(&c, "sensor/virtual", "wrist", &wall);
-    create(&c, "robot/frhc", "frhc", "");
-    create(&c, "board/sim", "frhc-io", "");
-    create(&c, "sensor/operator-hand", "hand", "robot = \"frhc\"");
-    create(
-        &c,
-        "trajectory/teleop",
-        "link",
-        "master = \"frhc\"\nslave = \"puma\"\nforce_gain = 0.5",
-    );
-    create(&c, "controller/force-display", "display", "");
-    create(&c, "controller/slave-tracking", "follow", "");
-    map_all(&c, "frhc", "frhc-io");
-    map_all(&c, "puma", "puma-io");
-    relate(&c, "display", "frhc", "link", None);
-    relate(&c, "follow", "puma", "link", Some("wrist"));
-    for name in [
-        "frhc-io", "puma-io", "wrist", "hand", "frhc", "puma", "link", "display", "follow",
-    ] {
-        ok(&c, name, Method::Transition(Transition::Configure));
-    }
-    c
-}
-
-/// Every control tick of both sides over `seconds` of simulated time.
-fn run(c: &Creator, seconds: f64) -> (Vec<TelemetrySample>, Vec<TelemetrySample>) {
-    run_with_master_until(c, seconds, f64::INFINITY)
-}
-
-/// As [`run`], with the master's communication thread silent after `master_stops` seconds.
-fn run_with_master_until(
-    c: &Creator,
-    seconds: f64,
-    master_stops: f64,
-) -> (Vec<TelemetrySample>, Vec<TelemetrySample>) {
-    let mut master: DetachedLoop = c.detach_loop("display").expect("the master's loop builds");
-    let mut slave: DetachedLoop = c.detach_loop("follow").expect("the slave's loop builds");
-    let mut wrench = slave.wrench.take().expect("a sensor is bound");
-    let (mut m_rows, mut s_rows) = (Vec::new(), Vec::new());
-    let ticks = (seconds * 1000.0) as u64;
-    for i in 1..=ticks {
-        let now = Timestamp::from_nanos(i * 1_000_000);
-        if i % 2 == 1 {
-            // What the communication threads and the sensor feed do each period.
-            if (i as f64) < master_stops * 1000.0 {
-                master.comm.tick(now);
-            }
-            slave.comm.tick(now);
-            if let Some(s) = slave.probe.latest() {
-                let pose = match ok(
-                    c,
-                    "puma",
-                    Method::Robot(RobotMethod::ForwardKinematics {
-                        q: Some(s.q.iter().take(6).copied().collect()),
-                    }),
-                ) {
-                    Reply::Pose(p) => p,
-                    other => panic!("fk answered {other:?}"),
-                };
-                let measured = ok(
-                    c,
-                    "wrist",
-                    Method::Sensor(SensorMethod::Measure {
-                        pose: PoseMsg { ..pose },
-                        velocity: [0.0; 3],
-                    }),
-                );
-                if let Reply::Wrench(w) = measured {
-                    wrench.write(Stamped {
-                        stamp: now,
-                        value: w.to_wrench(Frame::Base).unwrap(),
-                    });
-                }
-            }
-        }
-        master.control.tick(now);
-        slave.control.tick(now);
-        while let Some(s) = master.telemetry.pop().map(|t| t.sample) {
-            m_rows.push(s);
-        }
-        while let Some(s) = slave.telemetry.pop().map(|t| t.sample) {
-            s_rows.push(s);
-        }
-    }
-    (m_rows, s_rows)
 }
 
 fn phase(t: Timestamp) -> &'static str {
@@ -183,8 +28,8 @@ fn phase(t: Timestamp) -> &'static str {
 
 #[test]
 fn a_node_runs_the_papers_task_from_objects() {
-    let c = the_task();
-    let (master, slave) = run(&c, 14.5);
+    let c = papers_task();
+    let (master, slave) = step_papers_task(&c, 14.5, f64::INFINITY, |_, _, _| {});
     assert!(master.len() > 14_000 && slave.len() > 14_000);
 
     // Free motion: the slave follows its reference (the mapped master pose) closely, and it
@@ -258,7 +103,8 @@ fn a_node_runs_the_papers_task_from_objects() {
 
 #[test]
 fn the_task_runs_the_same_twice_and_its_channel_is_guarded() {
-    let (a, b) = (run(&the_task(), 3.0), run(&the_task(), 3.0));
+    let run = || step_papers_task(&papers_task(), 3.0, f64::INFINITY, |_, _, _| {});
+    let (a, b) = (run(), run());
     assert_eq!(a.1.len(), b.1.len());
     assert!(
         a.1.iter()
@@ -268,7 +114,7 @@ fn the_task_runs_the_same_twice_and_its_channel_is_guarded() {
     );
 
     // A teleoperation law needs a channel whose side it runs, and a joint law no channel.
-    let c = the_task();
+    let c = papers_task();
     create(&c, "controller/slave-tracking", "wrong-side", "");
     relate(&c, "wrong-side", "frhc", "link", None);
     ok(&c, "wrong-side", Method::Transition(Transition::Configure));
@@ -288,7 +134,7 @@ fn the_task_runs_the_same_twice_and_its_channel_is_guarded() {
 
 #[test]
 fn set_gains_changes_a_teleoperation_laws_gains_and_keeps_the_rest() {
-    let c = the_task();
+    let c = papers_task();
     let set = |gains: &str| {
         call(
             &c,
@@ -314,7 +160,7 @@ fn set_gains_changes_a_teleoperation_laws_gains_and_keeps_the_rest() {
     set("max_force = 3.0").unwrap();
     // In steady contact the motors now display 3 N (7.9 N uncapped): the force the FRHC's
     // motors produce, F = J^-T (tau - g(q)), not the reference they were given.
-    let (master, _) = run(&c, 14.5);
+    let (master, _) = step_papers_task(&c, 14.5, f64::INFINITY, |_, _, _| {});
     let contact: Vec<&TelemetrySample> = master
         .iter()
         .filter(|s| phase(s.time) == CONTACT_PHASE)
@@ -361,9 +207,9 @@ fn motor_force(c: &Creator, robot: &str, s: &TelemetrySample) -> nalgebra::Vecto
 #[test]
 fn a_silent_master_makes_the_slave_hold_within_its_watchdog() {
     use penelope_rt_core::safety::SafetyState;
-    let c = the_task();
+    let c = papers_task();
     // The master's side goes silent at 3 s (the reach is under way).
-    let (_, slave) = run_with_master_until(&c, 3.5, 3.0);
+    let (_, slave) = step_papers_task(&c, 3.5, 3.0, |_, _, _| {});
     let first_hold = slave
         .iter()
         .find(|s| s.time.as_nanos() > 3_000_000_000 && s.state != SafetyState::Running)
