@@ -428,18 +428,23 @@ mod tests {
         Timestamp::from_nanos(k * 1_000_000)
     }
 
-    #[test]
-    fn a_stale_effort_command_turns_every_axis_off_at_the_timeout_on_the_plants_clock() {
-        let config = SimBoardConfig {
+    /// A board of 1000 counts/rad and 100 N·m full scale, with the given watchdog and brakes.
+    fn config(command_timeout: Option<Duration>, brake: bool) -> SimBoardConfig {
+        SimBoardConfig {
             counts_per_radian: JointVector::repeat(1000.0),
             effort_full_scale: JointVector::repeat(100.0),
             dac_bits: 16,
             position_kp: JointVector::repeat(100.0),
             position_kd: JointVector::repeat(1.0),
             velocity_cutoff_hz: 0.0,
-            command_timeout: Some(DEFAULT_COMMAND_TIMEOUT),
-            brake: false,
-        };
+            command_timeout,
+            brake,
+        }
+    }
+
+    #[test]
+    fn a_stale_effort_command_turns_every_axis_off_at_the_timeout_on_the_plants_clock() {
+        let config = config(Some(DEFAULT_COMMAND_TIMEOUT), false);
         let mut b = SimBoard::new(
             puma560(),
             PlantConfig::default(),
@@ -480,32 +485,11 @@ mod tests {
             .unwrap();
         assert_eq!(b.command_stale_since(), None);
     }
-}
-
-#[cfg(test)]
-mod brake_tests {
-    use super::*;
-    use crate::model::puma560;
-    use crate::sim::FreeSpace;
-    use crate::sim::plant::PlantConfig;
-
-    fn ms(k: u64) -> Timestamp {
-        Timestamp::from_nanos(k * 1_000_000)
-    }
 
     #[test]
     fn brakes_hold_an_arm_whose_amplifiers_are_off_and_let_go_when_they_are_on() {
         let board = |brake| {
-            let config = SimBoardConfig {
-                counts_per_radian: JointVector::repeat(1000.0),
-                effort_full_scale: JointVector::repeat(100.0),
-                dac_bits: 16,
-                position_kp: JointVector::repeat(100.0),
-                position_kd: JointVector::repeat(1.0),
-                velocity_cutoff_hz: 0.0,
-                command_timeout: None,
-                brake,
-            };
+            let config = config(None, brake);
             let model = puma560();
             let q0 = model.named_pose(penelope_hal::NamedPose::Start);
             (

@@ -293,16 +293,7 @@ impl SimBoardConfig {
         check_int(kind, "axes", self.axes.into(), 1, MAX_AXES as u64)?;
         check_int(kind, "dac_bits", self.dac_bits.into(), 8, 24)?;
         check_int(kind, "substep_us", self.substep_us, 20, 2000)?;
-        if self.command_timeout_ms != 0 {
-            // Two of the longest control period: no loop's commands can look stale.
-            check_int(
-                kind,
-                "command_timeout_ms",
-                self.command_timeout_ms,
-                MIN_COMMAND_TIMEOUT_MS,
-                10_000,
-            )?;
-        }
+        check_command_timeout(kind, self.command_timeout_ms)?;
         environment(kind, &self.shapes)
     }
 }
@@ -310,6 +301,21 @@ impl SimBoardConfig {
 /// The shortest command timeout a board accepts, ms: twice the longest control period
 /// (`period_us` at most 20 ms), so that no loop's commands can look stale between its ticks.
 pub const MIN_COMMAND_TIMEOUT_MS: u64 = 40;
+
+/// Checks a board's `command_timeout_ms`: 0 (off), or from [`MIN_COMMAND_TIMEOUT_MS`] (two of the
+/// longest control period, so that no loop's commands can look stale) to 10 s.
+fn check_command_timeout(kind: &str, ms: u64) -> Result<(), WireError> {
+    if ms == 0 {
+        return Ok(());
+    }
+    check_int(
+        kind,
+        "command_timeout_ms",
+        ms,
+        MIN_COMMAND_TIMEOUT_MS,
+        10_000,
+    )
+}
 
 /// `board/galil` configuration.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -386,16 +392,7 @@ impl GalilConfig {
         if self.watchdog_ms != 0 {
             check_int(kind, "watchdog_ms", self.watchdog_ms, 5, 1000)?;
         }
-        if self.command_timeout_ms != 0 {
-            // Two of the longest control period: no loop's commands can look stale.
-            check_int(
-                kind,
-                "command_timeout_ms",
-                self.command_timeout_ms,
-                MIN_COMMAND_TIMEOUT_MS,
-                10_000,
-            )?;
-        }
+        check_command_timeout(kind, self.command_timeout_ms)?;
         self.volts_per_newton_metre
             .check(kind, "volts_per_newton_metre", -10.0, 10.0)?;
         if let PerJoint::Each(v) = &self.volts_per_newton_metre
