@@ -1,4 +1,4 @@
-//! Fault injection on the simulated and FPGA boards (issue 30): a control thread that hangs (does
+//! Fault injection on the simulated and FPGA boards: a control thread that hangs (does
 //! not die) in torque mode. The board's own command-freshness watchdog, stepped by the plant
 //! keeper beside the loop (not by the control thread), ends the torque.
 

@@ -1,4 +1,4 @@
-//! Reset never starts motion (issue 30), for a teleoperation slave: the paper's task made of
+//! Reset never starts motion, for a teleoperation slave: the paper's task made of
 //! objects on one node (an FRHC held by the scripted operator's hand, a PUMA 200 over a wall
 //! with a wrist sensor, position-forward / force-back), stepped on a simulated clock; the slave
 //! is e-stopped while the master moves on, then re-armed and activated again. And for a

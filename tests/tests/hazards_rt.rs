@@ -1,4 +1,4 @@
-//! Fault injection on the real-time side (issue 30): each test drives a fault and asserts the
+//! Fault injection on the real-time side: each test drives a fault and asserts the
 //! safe state reached and a time bound, printing the measured figure.
 //!
 //! - a control thread that hangs (does not die) in torque mode on the emulated Galil DMC: the

@@ -1,4 +1,4 @@
-//! Node shutdown and a forced destroy end torque (issue 30): a node's creator with two
+//! Node shutdown and a forced destroy end torque: a node's creator with two
 //! torque-driven loops on the real clock, one on a PUMA 200 behind the emulated Galil DMC, one on
 //! a simulated PUMA 560; `Creator::shutdown` (what `Node::shutdown` and Ctrl-C run after the
 //! server stops) and a forced destroy of an object a running loop uses leave every board with

@@ -415,7 +415,7 @@ fn ctl_record_starts_and_stops_a_recording_and_refuses_bad_input_with_the_reason
     let _ = std::fs::remove_dir_all(dir);
 }
 
-/// A hostile client (issue 31): a recording it names is a plain file name, created new in
+/// A hostile client: a recording it names is a plain file name, created new in
 /// the node's recordings directory without following a link; nothing outside the directory is
 /// created or changed, and an existing file is left as it was.
 #[test]

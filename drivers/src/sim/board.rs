@@ -6,7 +6,7 @@
 //! plant keeps moving; an optional on-board position loop servos `AxisCommand::Position` targets
 //! at the plant's sub-step rate, as a motion controller's own servo loop does.
 //!
-//! The command-freshness watchdog (issue 30), the rule of the Galil board's I/O thread: while
+//! The command-freshness watchdog, the rule of the Galil board's I/O thread: while
 //! any axis is driven by effort with the amplifiers on, a command older than
 //! [`SimBoardConfig::command_timeout`] on the plant's clock is a fault,
 //! [`SimBoardError::CommandStale`]: from that instant every axis is off (zero torque, amplifiers
