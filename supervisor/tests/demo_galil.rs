@@ -184,10 +184,11 @@ fn the_galil_demo_reflects_its_wall_to_the_operator() {
     let emulator = PtyEmulator::spawn(PtyOptions::default()).expect("a pseudo-terminal");
     let text = DEMO_GALIL.replace(
         DEVICE_LINE,
-        // A board watchdog of 250 ms instead of 30: this test shares a loaded host, and a
-        // watchdog trip there is not what it is about (the watchdog has its own tests).
+        // A board watchdog and a command timeout of 250 ms instead of 30 and 50: this test
+        // shares a loaded host, and a watchdog trip there is not what it is about (the
+        // watchdogs have their own tests).
         &format!(
-            "device = \"{}\"\nwatchdog_ms = 250",
+            "device = \"{}\"\nwatchdog_ms = 250\ncommand_timeout_ms = 250",
             emulator.path().display()
         ),
     );

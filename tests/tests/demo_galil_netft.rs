@@ -83,9 +83,13 @@ fn the_galil_demo_with_a_net_ft_displays_the_wall_and_drops_to_zero_on_a_sensor_
     let text = DEMO_GALIL_NETFT
         .replace(
             DEVICE_LINE,
-            // A board watchdog of 250 ms instead of 30: this test shares a loaded host, and a
-            // watchdog trip there is not what it is about (the watchdog has its own tests).
-            &format!("device = \"{}\"\nwatchdog_ms = 250", dmc.path().display()),
+            // A board watchdog and a command timeout of 250 ms instead of 30 and 50: this test
+            // shares a loaded host, and a watchdog trip there is not what it is about (the
+            // watchdogs have their own tests).
+            &format!(
+                "device = \"{}\"\nwatchdog_ms = 250\ncommand_timeout_ms = 250",
+                dmc.path().display()
+            ),
         )
         .replace(ADDRESS_LINE, &format!("address = \"{}\"", ft.local_addr()));
     let file = SystemFile::parse(&text).unwrap();

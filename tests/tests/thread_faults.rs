@@ -62,7 +62,8 @@ fn running_arm() -> Creator {
     let c = Creator::new(config);
     for (kind, name, cfg) in [
         ("robot/puma560", "arm", ""),
-        ("board/sim", "sim", ""),
+        // Brakes, as a real arm has: with its amplifiers off after a fault it stands, not falls.
+        ("board/sim", "sim", "brake = true"),
         ("trajectory/step", "hold", "pose = \"start\""),
         ("controller/joint-pid", "pid", ""),
     ] {
