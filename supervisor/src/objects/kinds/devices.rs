@@ -1,7 +1,14 @@
 //! The configurations of robots, boards and sensors, and the environment a simulated tool or a
 //! virtual sensor touches.
 
-use super::*;
+use super::per_joint::PerJoint;
+use crate::objects::kinds::{bad, check_int, check_range};
+use nalgebra::{Unit, Vector3};
+use penelope_drivers::sim::environment::{ContactModel, Environment, Shape};
+use penelope_hal::{JointVector, MAX_AXES, NamedPose};
+use penelope_protocol::proto::WireError;
+use penelope_rt_core::safety::Role;
+use serde::Deserialize;
 use std::collections::BTreeMap;
 
 use penelope_drivers::model as models;

@@ -3,10 +3,6 @@
 
 use std::time::Duration;
 
-use nalgebra::{Unit, Vector3};
-use penelope_drivers::sim::environment::{ContactModel, Environment, Shape};
-use penelope_hal::{JointVector, MAX_AXES, MAX_JOINTS, NamedPose};
-use serde::Deserialize;
 use serde::de::DeserializeOwned;
 
 mod devices;
@@ -28,8 +24,6 @@ pub use trajectory::{
     TrapezoidalConfig, WaypointConfig, trajectory_spec,
 };
 use trajectory::{RAMP_KEYS, SPLINE_KEYS, STEP_KEYS, TRAPEZOIDAL_KEYS};
-
-use penelope_rt_core::safety::Role;
 
 use super::teleop::{
     FORCE_DISPLAY_KEYS, FOUR_CHANNEL_KEYS, FOUR_CHANNEL_SLAVE_KEYS, HAND_KEYS, POSITION_ERROR_KEYS,

@@ -1,7 +1,10 @@
 //! [`PerJoint`]: one value for every joint, or one per joint, as the configurations write gains
 //! and limits.
 
-use super::*;
+use crate::objects::kinds::{bad, check_range};
+use penelope_hal::{JointVector, MAX_AXES, MAX_JOINTS};
+use penelope_protocol::proto::WireError;
+use serde::Deserialize;
 
 /// One value for every joint, or one per joint.
 #[derive(Clone, Debug, PartialEq, Deserialize)]

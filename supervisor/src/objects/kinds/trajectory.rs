@@ -1,7 +1,12 @@
 //! The trajectory kinds' configurations: goals in joint space (joints or a named pose) or in
 //! operational space (a tool position and orientation), and their checks.
 
-use super::*;
+use super::per_joint::PerJoint;
+use crate::objects::kinds::{Kind, bad, check_range, parse};
+use penelope_hal::{MAX_JOINTS, NamedPose};
+use penelope_protocol::proto::WireError;
+use serde::Deserialize;
+use std::time::Duration;
 
 pub(super) const STEP_KEYS: &str = r#"
 goal = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # rad, one per joint; or else

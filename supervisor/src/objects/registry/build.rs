@@ -1,6 +1,32 @@
 //! Building a controller's loop from its objects, and taking a stopped loop back.
 
-use super::*;
+use super::trajectories::{build_trajectory, spec_is_tool};
+use crate::dataplane::sensor_stream::SensorSubscriber;
+use crate::objects::registry::{
+    ControllerConfig, JointPidConfig, Launch, LoopTiming, Object, RobotKinematics, TeleopObj,
+    bad_arg, finite_effort, impedance, not_ready, unsupported,
+};
+use crate::objects::runtime::{
+    CellSensor, ControlTask, GalilSet, GoToCommand, LoopBoard, NodeController, NodeLoop, NodeSink,
+    RoutedGains, SimDrive, TrajectoryFeed,
+};
+use crate::objects::teleop::TeleopComm;
+use crate::objects::teleop_end::Side;
+use crate::objects::{Body, Registry};
+use penelope_drivers::galil::GalilBoard;
+use penelope_drivers::model::DhRobotModel;
+use penelope_drivers::sim::force_sensor::VirtualForceSensor;
+use penelope_drivers::sim::tap::TapWriter;
+use penelope_hal::{
+    Board, JointSet, JointVector, Kinematics, LifecycleState, MAX_JOINTS, RobotModel, Transition,
+};
+use penelope_protocol::proto::{Class, WireError};
+use penelope_rt_core::control::{
+    AxisBinding, ControlCommand, ControlConfig, ControlLoop, ControlPorts,
+};
+use penelope_rt_core::controller::{JointGroups, JointPid, JointPidGains, JointPositionServo};
+use penelope_rt_core::safety::{HoldMode, Role, SafetyConfig};
+use penelope_rt_core::teleop::CartesianImpedance;
 
 impl Registry {
     /// Builds the loop of controller `name` (configured, inactive) without starting threads.

@@ -1,8 +1,10 @@
 //! Which `board/fpga` a robot's joints are on, checked: the board computes the FRHC's whole
 //! chain.
 
-use super::*;
 use crate::objects::fpga_board::{FpgaBoardError, robot_on_boards};
+use crate::objects::registry::Kind;
+use crate::objects::{Body, Registry};
+use penelope_protocol::proto::WireError;
 
 impl Registry {
     /// The `board/fpga` robot `name`'s joints are on, if any (boards not yet created count as

@@ -1,6 +1,10 @@
 //! Opening a Galil board when it is configured.
 
-use super::*;
+use crate::objects::registry::GalilConfig;
+use penelope_drivers::galil::board::LinkFactory;
+use penelope_drivers::galil::{GalilBoard, GalilBoardConfig, Link, TcpLink};
+use penelope_protocol::proto::WireError;
+use std::time::Duration;
 
 /// Opens a Galil board.
 pub(super) fn open_galil(cfg: &GalilConfig) -> Result<GalilBoard, WireError> {

@@ -3,8 +3,13 @@
 //! own trajectory; the group runs them in one loop (one board, one safety layer) and merges
 //! their commands and references joint by joint.
 
-use super::*;
-use crate::objects::runtime::TrajectoryFeed;
+use super::trajectories::{build_trajectory, spec_is_tool};
+use crate::objects::registry::{ControllerConfig, Kind, bad_arg, build, not_ready};
+use crate::objects::runtime::{NodeController, TrajectoryFeed};
+use crate::objects::{Body, Registry, kinds};
+use penelope_drivers::model::DhRobotModel;
+use penelope_hal::{JointSet, JointVector, LifecycleState};
+use penelope_protocol::proto::{Class, WireError};
 
 /// A group member, ready for the group's loop.
 pub(super) struct Member {

@@ -1,6 +1,29 @@
 //! The methods every object answers, by class.
 
-use super::*;
+use super::build::{default_joint_gains, pid_gains};
+use super::trajectories::{build_standalone, build_trajectory, spec_joints};
+use crate::objects::registry::{
+    ControllerConfig, ImpedanceConfigToml, JointPidConfig, Object, TrajectorySpec, bad_arg,
+    finite3, impedance, not_ready, unreachable_body,
+};
+use crate::objects::runtime::{GainsUpdate, GoToCommand, RoutedGains};
+use crate::objects::teleop_laws::{
+    ForceDisplayToml, FourChannelSlaveToml, FourChannelToml, PositionErrorToml, SlaveTrackingToml,
+};
+use crate::objects::teleop_wave::{WaveMasterToml, WaveSlaveToml};
+use crate::objects::{Body, Registry, kinds};
+use penelope_drivers::galil::GalilBoard;
+use penelope_drivers::model::DhRobotModel;
+use penelope_hal::{
+    AxisState, Board, Dynamics, Frame, InverseKinematics, JacobianFrame, JointState, JointVector,
+    Kinematics, LifecycleState, MAX_AXES, MAX_JOINTS, RobotModel, Timestamp,
+};
+use penelope_protocol::proto::{
+    BoardMethod, Class, ControlStatus, ControllerMethod, JointAxis, Joints, MatrixMsg,
+    OperationalMsg, PoseMsg, ReferenceMsg, Reply, RobotMethod, SensorMethod, TrajectoryMethod,
+    WireError, WrenchMsg, joints_from_vector, joints_to_vector,
+};
+use std::time::Duration;
 
 impl Registry {
     /// The measured joint state of `robot`: from its running loop, its simulated body, or its

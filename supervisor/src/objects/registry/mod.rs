@@ -14,29 +14,16 @@ use std::time::Duration;
 
 use crate::objects::teleop_passivity::PortLaw;
 use nalgebra::Vector3;
-use penelope_drivers::galil::board::LinkFactory;
-use penelope_drivers::galil::{GalilBoard, GalilBoardConfig, Link, TcpLink};
-use penelope_drivers::model::{self as models, DhRobotModel};
-use penelope_drivers::sim::ToolContact;
+use penelope_drivers::galil::GalilBoard;
+use penelope_drivers::model::DhRobotModel;
 use penelope_drivers::sim::board::{SimBoard, SimBoardConfig as DriverSimConfig};
-use penelope_drivers::sim::force_sensor::VirtualForceSensor;
-use penelope_drivers::sim::operator::VirtualOperator;
 use penelope_drivers::sim::plant::PlantConfig;
-use penelope_drivers::sim::tap::TapWriter;
 use penelope_hal::{
-    AxisState, Board, Dynamics, Frame, InverseKinematics, JacobianFrame, JointSet, JointState,
-    JointVector, Kinematics, LifecycleState, MAX_AXES, MAX_JOINTS, NamedPose, RobotModel,
-    Timestamp, Transition,
+    JointVector, Kinematics, LifecycleState, MAX_JOINTS, NamedPose, RobotModel, Timestamp,
+    Transition,
 };
-use penelope_rt_core::control::{
-    AxisBinding, ControlCommand, ControlConfig, ControlLoop, ControlPorts,
-};
-use penelope_rt_core::controller::{JointGroups, JointPid, JointPidGains, JointPositionServo};
-use penelope_rt_core::safety::{HoldMode, Role, SafetyConfig};
-use penelope_rt_core::teleop::{CartesianImpedance, ImpedanceConfig};
-use penelope_rt_core::trajectory::{
-    CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
-};
+use penelope_rt_core::safety::Role;
+use penelope_rt_core::teleop::ImpedanceConfig;
 
 use super::kinds::{
     self, GalilConfig, GoalConfig, ImpedanceConfigToml, JointPidConfig, JointPositionConfig, Kind,
@@ -45,22 +32,13 @@ use super::kinds::{
 use super::kinematics::RobotKinematics;
 use super::teleop::{
     ForceDisplayToml, FourChannelSlaveToml, FourChannelToml, HandConfig, HandObj,
-    PositionErrorToml, Side, SlaveTrackingToml, TeleopComm, TeleopConfig, TeleopLink,
+    PositionErrorToml, Side, SlaveTrackingToml, TeleopConfig, TeleopLink,
 };
 use super::teleop_wave::{WaveMasterToml, WaveSlaveToml};
-use crate::dataplane::endpoint::Endpoint;
 use crate::dataplane::frame::DatagramKey;
-use crate::dataplane::sensor_stream::{SensorPublisher, SensorSubscriber};
-use crate::objects::runtime::{
-    CellSensor, ControlTask, GainsUpdate, GalilSet, GoToCommand, LoopBoard, NodeController,
-    NodeLoop, NodeSink, NodeTrajectory, RoutedGains, SimBody, SimDrive, TrajectoryFeed,
-    VirtualSensor,
-};
-use penelope_protocol::proto::{
-    BoardMethod, Class, ControlStatus, ControllerMethod, JointAxis, Joints, MatrixMsg, ObjectInfo,
-    OperationalMsg, PoseMsg, ReferenceMsg, Reply, RobotMethod, SensorMethod, TrajectoryMethod,
-    WireError, WrenchMsg, joints_from_vector, joints_to_vector,
-};
+use crate::dataplane::sensor_stream::SensorPublisher;
+use crate::objects::runtime::{SimBody, VirtualSensor};
+use penelope_protocol::proto::{Class, JointAxis, ObjectInfo, WireError};
 
 mod build;
 mod fpga;
@@ -74,12 +52,10 @@ mod teleop;
 mod trajectories;
 
 pub(crate) use build::Built;
-use build::{default_joint_gains, pid_gains};
 use galil::open_galil;
 use netft::{netft_body, netft_relations};
 use sensors::publisher_relations;
 use teleop::link_relations;
-use trajectories::{build_standalone, build_trajectory, spec_is_tool, spec_joints};
 
 /// One object.
 pub(crate) struct Object {

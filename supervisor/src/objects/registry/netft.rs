@@ -2,8 +2,11 @@
 //! for the first record; cleanup stops it; `describe` shows the driver's counters; `read` and
 //! `bias` reach the driver from the non-real-time side.
 
-use super::*;
+use crate::objects::registry::{Kind, not_ready};
+use crate::objects::{Body, Registry, kinds};
 use penelope_drivers::netft::{NetFt, NetFtConfig, NetFtReader};
+use penelope_protocol::proto::{Reply, SensorMethod, WireError, WrenchMsg};
+use std::time::Duration;
 
 /// How long `configure` of a Net F/T waits for its first record.
 const FIRST_RECORD_TIMEOUT: Duration = Duration::from_secs(2);

@@ -7,10 +7,16 @@ use std::sync::atomic::AtomicBool;
 use penelope_drivers::sim::environment::Environment;
 use penelope_hal::Pose;
 
-use super::*;
+use crate::objects::registry::{Kind, not_ready};
 use crate::objects::replay::{
     OperatorReplayConfig, OperatorReplayObj, ReplaySensor, ReplaySensorConfig, ReplaySensorObj,
 };
+use crate::objects::{Body, Registry, kinds};
+use penelope_drivers::sim::ToolContact;
+use penelope_drivers::sim::operator::VirtualOperator;
+use penelope_hal::Timestamp;
+use penelope_protocol::proto::WireError;
+use std::sync::Arc;
 
 /// The body of a new replay object of `kind` (configuration checked; nothing read yet).
 pub(super) fn replay_body(kind: Kind, config: &str) -> Result<Body, WireError> {

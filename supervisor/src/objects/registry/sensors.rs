@@ -2,7 +2,12 @@
 //! plane from the moment it is configured until it is cleaned up or destroyed, and `describe`
 //! shows its publisher's counters.
 
-use super::*;
+use crate::dataplane::endpoint::Endpoint;
+use crate::dataplane::sensor_stream::SensorPublisher;
+use crate::objects::registry::{SensorObj, bad_arg, not_ready};
+use crate::objects::{Body, Registry};
+use penelope_protocol::proto::{Reply, WireError};
+use std::time::Duration;
 
 /// `describe`'s lines about a sensor's publisher (none for a sensor that does not publish, or
 /// is not configured).

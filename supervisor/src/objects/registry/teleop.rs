@@ -2,7 +2,11 @@
 //! node's end linked over the data plane to the other node's), and what `describe` shows of
 //! its link.
 
-use super::*;
+use crate::dataplane::endpoint::Endpoint;
+use crate::objects::registry::{TeleopObj, bad_arg};
+use crate::objects::teleop_end::{Side, TeleopLink};
+use crate::objects::{Body, Registry};
+use penelope_protocol::proto::{Class, WireError};
 
 use crate::dataplane::end_clock::LinkTime;
 use crate::objects::clock::ClockMode;

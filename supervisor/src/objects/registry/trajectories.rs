@@ -1,6 +1,14 @@
 //! Trajectories from their specifications: for a robot, or standalone (for `reference`).
 
-use super::*;
+use crate::objects::kinds;
+use crate::objects::registry::{GoalConfig, TrajectorySpec, not_ready};
+use crate::objects::runtime::NodeTrajectory;
+use penelope_drivers::model::{self as models, DhRobotModel};
+use penelope_hal::{JointVector, Kinematics, MAX_JOINTS, NamedPose};
+use penelope_protocol::proto::{WireError, joints_to_vector};
+use penelope_rt_core::trajectory::{
+    CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
+};
 
 pub(super) fn goal_vector(
     g: &GoalConfig,

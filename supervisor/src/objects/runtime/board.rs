@@ -1,8 +1,15 @@
 //! The board a loop drives: a robot's simulated body (behind a simulated board or the FRHC's
 //! FPGA board), or its joints on Galil boards.
 
-use super::*;
-use std::sync::PoisonError;
+use crate::objects::runtime::SimBody;
+use penelope_drivers::galil::{GalilBoard, GalilBoardError};
+use penelope_drivers::sim::board::SimBoardError;
+use penelope_hal::{
+    AxisCommand, AxisState, Board, Error, ErrorKind, MAX_AXES, MAX_JOINTS, Timestamp,
+};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::Duration;
 
 /// The board a control loop sees: one axis per robot joint, in joint order, whatever boards
 /// the joints are mapped onto.
@@ -401,8 +408,11 @@ impl Board for LoopBoard {
 mod tests {
     use super::*;
     use penelope_drivers::model::puma560;
+    use penelope_drivers::sim::ToolContact;
     use penelope_drivers::sim::board::SimBoardConfig as DriverSimConfig;
+    use penelope_drivers::sim::environment::Environment;
     use penelope_drivers::sim::plant::PlantConfig;
+    use penelope_hal::JointVector;
 
     fn body() -> SimBody {
         let model = puma560();

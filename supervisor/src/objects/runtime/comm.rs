@@ -1,6 +1,20 @@
 //! The trajectories a node runs and the communication task that publishes their references.
 
-use super::*;
+use super::{GOTO_CAPACITY, SPLINE_CAPACITY};
+use crate::objects::runtime::{RefWriter, RobotKinematics};
+use crate::objects::teleop::TeleopComm;
+use penelope_hal::{
+    Frame, InverseKinematics, JacobianFrame, JointReference, JointSet, JointVector, Kinematics,
+    MAX_JOINTS, Reference, Timestamp, Trajectory, TrajectoryError, Twist,
+};
+use penelope_protocol::proto::WireError;
+use penelope_rt_core::cell::{ArcLatestReader, Stamped};
+use penelope_rt_core::ring::ArcConsumer;
+use penelope_rt_core::telemetry::TelemetrySample;
+use penelope_rt_core::trajectory::{
+    CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
+};
+use std::time::Duration;
 
 /// The trajectories a node runs. Inline, not boxed: a GoTo swaps the variant in the
 /// communication thread, which must not allocate or free.

@@ -1,6 +1,28 @@
 //! The control laws a node runs, the loop's ports and the control task.
 
-use super::*;
+use crate::objects::runtime::{Commands, LoopBoard, RefReader, RobotKinematics};
+use crate::objects::runtime::{GAINS_CAPACITY, TELEMETRY_CAPACITY};
+use penelope_drivers::sim::force_sensor::VirtualForceSensor;
+use penelope_drivers::sim::tap::{TapReader, TapSample};
+use penelope_hal::{
+    ControlInput, Controller, ControllerError, Error, ErrorKind, JointCommand, JointState, Pose,
+    RobotModel, Sensor, Timestamp, Wrench,
+};
+use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Stamped};
+use penelope_rt_core::control::{ControlLoop, NoSensor, TickOutcome};
+use penelope_rt_core::controller::{JointGroups, JointPid, JointPidGains, JointPositionServo};
+use penelope_rt_core::ring::{ArcConsumer, ArcProducer};
+use penelope_rt_core::safety::EventSet;
+use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
+use penelope_rt_core::teleop::{
+    CartesianImpedance, ForceDisplay, ForceDisplayConfig, FourChannelConfig, FourChannelMaster,
+    FourChannelSlave, FourChannelSlaveConfig, ImpedanceConfig, PositionErrorMaster, SlaveTracking,
+    TrackingConfig,
+};
+use penelope_rt_core::wake::Doorbell;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
 
 /// The control laws a node runs. Inline, not boxed: one per loop, built before its thread
 /// starts, and the control thread must reach it without a pointer chase.

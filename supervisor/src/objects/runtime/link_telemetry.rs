@@ -10,9 +10,13 @@
 use std::sync::mpsc::{RecvTimeoutError, SyncSender};
 use std::thread::JoinHandle;
 
-use super::*;
+use crate::objects::Subscriptions;
 use crate::objects::link_source::LinkSource;
-use penelope_protocol::proto::LinkBatch;
+use penelope_protocol::proto::{LinkBatch, ServerMsg, WireError};
+use penelope_protocol::service::Outbox;
+use penelope_rt_core::clock::MonotonicClock;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 /// How often a link subscription of decimation 1 gets a record.
 pub const LINK_PERIOD: Duration = Duration::from_millis(100);

@@ -18,50 +18,14 @@
 //! threads per controller, and a GoTo or a new trajectory is then swapped without touching the
 //! control thread; the control loop's watchdog holds the robot if that task ever stalls.
 
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{Receiver, SyncSender};
-use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::sync::Arc;
 
-use nalgebra::Vector3;
-use penelope_drivers::galil::{GalilBoard, GalilBoardError};
 use penelope_drivers::model::DhRobotModel;
 use penelope_drivers::sim::ToolContact;
-use penelope_drivers::sim::board::{SimBoard, SimBoardError};
-use penelope_drivers::sim::environment::Environment;
-use penelope_drivers::sim::force_sensor::VirtualForceSensor;
-use penelope_drivers::sim::tap::{TapReader, TapSample};
-use penelope_hal::{
-    AxisCommand, AxisState, Board, ControlInput, Controller, ControllerError, Error, ErrorKind,
-    Frame, InverseKinematics, JacobianFrame, JointCommand, JointReference, JointSet, JointState,
-    JointVector, Kinematics, MAX_AXES, MAX_JOINTS, Pose, Reference, RobotModel, Sensor, Timestamp,
-    Trajectory, TrajectoryError, Twist, Wrench,
-};
-use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Stamped};
-use penelope_rt_core::clock::MonotonicClock;
-use penelope_rt_core::control::{ControlLoop, NoSensor, TickOutcome};
-use penelope_rt_core::controller::{JointGroups, JointPid, JointPidGains, JointPositionServo};
-use penelope_rt_core::exec::{Flow, PeriodicThread};
-use penelope_rt_core::ring::{ArcConsumer, ArcProducer};
-use penelope_rt_core::safety::EventSet;
-use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
-use penelope_rt_core::teleop::{
-    CartesianImpedance, ForceDisplay, ForceDisplayConfig, FourChannelConfig, FourChannelMaster,
-    FourChannelSlave, FourChannelSlaveConfig, ImpedanceConfig, PositionErrorMaster, SlaveTracking,
-    TrackingConfig,
-};
-use penelope_rt_core::trajectory::{
-    CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
-};
-use penelope_rt_core::wake::Doorbell;
+use penelope_drivers::sim::board::SimBoard;
+use penelope_rt_core::ring::ArcConsumer;
 
 use super::kinematics::RobotKinematics;
-use super::teleop::TeleopComm;
-use crate::dataplane::sensor_stream::{Probe, SensorSubscriber};
-use penelope_protocol::proto::{
-    ServerMsg, TelemetryBatch, TelemetryRecord, WireError, WrenchMsg, joints_from_vector,
-};
-use penelope_protocol::service::Outbox;
 
 /// Telemetry samples buffered between a control thread and its pump (4 s at 1 kHz).
 pub const TELEMETRY_CAPACITY: usize = 4096;

@@ -5,7 +5,9 @@
 //! channel's two-port passivity observer at this side's port (one atomic word), for the same
 //! telemetry.
 
-use super::*;
+use penelope_hal::Reference;
+use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Stamped};
+use std::sync::Arc;
 
 use penelope_rt_core::cell::{Fresh, latest};
 use penelope_rt_core::control::ReferenceSource;

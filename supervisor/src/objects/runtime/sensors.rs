@@ -1,7 +1,18 @@
 //! Force sensors: the probe model of `sensor/virtual`, where a feed gets its wrench, and the
 //! sensor feed.
 
-use super::*;
+use crate::dataplane::sensor_stream::{Probe, SensorSubscriber};
+use crate::objects::runtime::RobotKinematics;
+use nalgebra::Vector3;
+use penelope_drivers::sim::environment::Environment;
+use penelope_hal::{Frame, JacobianFrame, Kinematics, Pose, Timestamp, Twist, Wrench};
+use penelope_protocol::proto::WireError;
+use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Stamped};
+use penelope_rt_core::clock::MonotonicClock;
+use penelope_rt_core::telemetry::TelemetrySample;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 /// The state of a `sensor/virtual`: an environment pushed by a probe.
 #[derive(Clone, Debug)]

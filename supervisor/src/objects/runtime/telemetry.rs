@@ -1,8 +1,19 @@
 //! Telemetry: the pump and the subscriptions (of controllers here; of channels' links in
 //! `link_telemetry`).
 
-use super::*;
 use crate::objects::link_source::LinkSource;
+use crate::objects::runtime::{LinkSubscriptions, TELEMETRY_CAPACITY, TickRecord};
+use penelope_hal::JointVector;
+use penelope_protocol::proto::{
+    ServerMsg, TelemetryBatch, TelemetryRecord, WireError, WrenchMsg, joints_from_vector,
+};
+use penelope_protocol::service::Outbox;
+use penelope_rt_core::ring::ArcConsumer;
+use penelope_rt_core::telemetry::TelemetrySample;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 /// The newest state of a running loop, as the pump keeps it.
 #[derive(Clone, Copy, Debug, PartialEq)]

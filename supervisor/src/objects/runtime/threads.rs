@@ -1,6 +1,14 @@
 //! The threads of a running controller: their bodies, how they stop, how they fail.
 
-use super::*;
+use super::{COMMAND_CAPACITY, GAINS_CAPACITY, GOTO_CAPACITY};
+use crate::objects::runtime::{FeedStats, GoToCommand, LoopShared, RoutedGains};
+use crate::objects::{CommTask, ControlTask};
+use penelope_rt_core::exec::{Flow, PeriodicThread};
+use penelope_rt_core::ring::ArcProducer;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 /// The threads of an active controller and the non-real-time ends of their ports.
 pub struct Running {
