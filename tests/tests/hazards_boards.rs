@@ -14,15 +14,14 @@ use penelope_drivers::sim::board::{
 };
 use penelope_drivers::sim::plant::PlantConfig;
 use penelope_hal::{
-    AxisCommand, AxisState, Board, ControlInput, Controller, ControllerError, JointCommand,
-    JointReference, JointState, JointVector, NamedPose, Reference, RobotModel, Timestamp,
+    AxisCommand, AxisState, Board, JointReference, JointVector, NamedPose, Reference, RobotModel,
+    Timestamp,
 };
 use penelope_rt_core::cell::{Stamped, latest};
 use penelope_rt_core::control::{
     ControlCommand, ControlConfig, ControlLoop, ControlPorts, NoCommands,
 };
 use penelope_rt_core::safety::{SafetyConfig, SafetyState};
-use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
 use penelope_supervisor::objects::runtime::{LoopBoard, LoopBoardError, SimDrive};
 use penelope_testkit::wait::wait_until;
 use penelope_tests::fixtures::{ConstantTorque, Discard};

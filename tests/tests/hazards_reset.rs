@@ -7,10 +7,8 @@
 
 use std::time::Duration;
 
-use penelope_hal::{Frame, JointReference, JointVector, Reference, Timestamp, Transition};
-use penelope_protocol::proto::{
-    BoardMethod, ControllerMethod, JointAxis, Method, PoseMsg, Reply, RobotMethod, SensorMethod,
-};
+use penelope_hal::{JointReference, JointVector, Reference, Timestamp, Transition};
+use penelope_protocol::proto::{BoardMethod, ControllerMethod, Method, Reply, RobotMethod};
 use penelope_rt_core::cell::{Stamped, latest};
 use penelope_rt_core::comm::CommLoop;
 use penelope_rt_core::control::{
@@ -19,13 +17,12 @@ use penelope_rt_core::control::{
 use penelope_rt_core::controller::JointPid;
 use penelope_rt_core::safety::{FaultCause, SafetyConfig, SafetyState};
 use penelope_rt_core::telemetry::TelemetrySample;
-use penelope_rt_core::telemetry::TelemetrySink;
 use penelope_rt_core::trajectory::Trapezoidal;
-use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
+use penelope_supervisor::objects::{Creator, CreatorConfig};
 use penelope_testbed::{ChainBoard, DecoupledChain, critically_damped_gains};
 use penelope_testkit::wait::wait_until;
 use penelope_tests::fixtures::Discard;
-use penelope_tests::papers_task::{create, map_all, ok, papers_task, step_papers_task};
+use penelope_tests::papers_task::{map_all, ok, papers_task, step_papers_task};
 
 fn at_ms(rows: &[TelemetrySample], ms: u64) -> &TelemetrySample {
     rows.iter()

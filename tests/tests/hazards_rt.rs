@@ -25,8 +25,7 @@ use penelope_drivers::galil::{
 };
 use penelope_hal::Transition;
 use penelope_hal::{
-    AxisCommand, AxisState, Board, ControlInput, Controller, ControllerError, ErrorKind,
-    JointCommand, JointReference, JointState, JointVector, Reference, RobotModel, Timestamp,
+    AxisCommand, AxisState, Board, ErrorKind, JointReference, JointVector, Reference, Timestamp,
 };
 use penelope_protocol::proto::{
     Call, ControllerMethod, JointAxis, Method, Reply, RobotMethod, TelemetryRecord,
@@ -40,7 +39,6 @@ use penelope_rt_core::controller::JointPid;
 use penelope_rt_core::exec::{Flow, Tick};
 use penelope_rt_core::safety::SafetyEvent;
 use penelope_rt_core::safety::{FaultCause, HoldMode, SafetyConfig, SafetyState};
-use penelope_rt_core::telemetry::{TelemetrySample, TelemetrySink};
 use penelope_rt_core::trajectory::Trapezoidal;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::objects::clock::ClockMode;

@@ -7,14 +7,11 @@
 //! by the test each 2 ms).
 
 use penelope_drivers::sim::scripts::{self, CONTACT_PHASE, FREE_MOTION_PHASES, INDEX_PHASE};
-use penelope_hal::{Frame, Timestamp, Transition};
-use penelope_protocol::proto::{
-    ControllerMethod, JointAxis, Method, PoseMsg, Reply, RobotMethod, SensorMethod, WireError,
-};
-use penelope_rt_core::cell::Stamped;
+use penelope_hal::{Timestamp, Transition};
+use penelope_protocol::proto::{ControllerMethod, Method, Reply, RobotMethod, WireError};
 use penelope_rt_core::telemetry::TelemetrySample;
-use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
-use penelope_tests::papers_task::{ok, papers_task, step_papers_task};
+use penelope_supervisor::objects::Creator;
+use penelope_tests::papers_task::{create, ok, papers_task, relate, step_papers_task};
 
 fn call(c: &Creator, name: &str, method: Method) -> Result<Reply, WireError> {
     c.call_object(name, method)
