@@ -402,7 +402,7 @@ impl ControlTask {
         &self.lp
     }
 
-    /// Starts the plant keeper of a simulated body ([`SimDrive::start_keeper`]); nothing for
+    /// Starts the plant keeper of a simulated body ([`SimDrive::start_keeper`](crate::objects::runtime::SimDrive::start_keeper)); nothing for
     /// Galil boards (their I/O thread watches the commands).
     pub fn keep_plant_moving(&mut self) {
         each_loop!(&mut self.lp, l => {

@@ -150,7 +150,7 @@ impl Subscriptions {
     }
 
     /// Adds one to `channel`'s link, read from `source` (at most `limit` subscriptions in
-    /// all), returning its id: a record every [`LINK_PERIOD`] times `decimation`.
+    /// all), returning its id: a record every [`LINK_PERIOD`](crate::objects::runtime::LINK_PERIOD) times `decimation`.
     ///
     /// # Errors
     /// [`WireError::LimitReached`].

@@ -240,7 +240,7 @@ pub fn guarded<T>(f: impl FnOnce() -> T) -> Result<T, String> {
 /// ([`ControlTask::stop_safely`]) and hands the task back through `back`.
 ///
 /// A tick that panics, or a failure of the loop's other threads reported through `fault`,
-/// brings the robot to its safe state ([`ControlLoop::fail_safe`]: e-stop latched, amplifiers
+/// brings the robot to its safe state ([`ControlLoop::fail_safe`](penelope_rt_core::control::ControlLoop::fail_safe): e-stop latched, amplifiers
 /// off or the board's servo holding), records the cause, hands the task back and ends the
 /// thread; the creator then shows the controller in `error`.
 pub fn control_body(
