@@ -365,8 +365,8 @@ impl SystemFile {
     }
 
     /// [`SystemFile::apply`] to node `node` through `call`, which sends one call to that node's
-    /// creator: a client applies a file to a node it reaches over the network (`penelope web`
-    /// loads system files this way), step for step as the node would itself.
+    /// creator, step for step: the node serves `CreatorCall::ApplySystem` this way, each step
+    /// a call of its own service (so what is created is bound by name).
     ///
     /// # Errors
     /// As [`SystemFile::apply`].
