@@ -13,18 +13,18 @@
 //! by the node, so the real-time rings never see the browser.
 //!
 //! # Layers
-//! - [`doors`]: before any handler: a `Host` that names this server (no DNS rebinding),
+//! - `doors`: before any handler: a `Host` that names this server (no DNS rebinding),
 //!   connection caps (in all and per client) and a deadline for a request's head.
-//! - [`session`]: who may ask: loopback needs nothing, any other address (or a `--secret-file`)
+//! - `session`: who may ask: loopback needs nothing, any other address (or a `--secret-file`)
 //!   needs the shared secret once at `/login`, then a login cookie; state-changing requests
 //!   and WebSockets from another site are refused.
-//! - [`api`]: the JSON endpoints behind the page: the naming tree with states, kinds with their
+//! - `api`: the JSON endpoints behind the page: the naming tree with states, kinds with their
 //!   configuration keys, create, destroy, lifecycle, method calls, e-stop and re-arm.
-//! - [`system`]: experiments as wholes: system files (the demo's among them) applied through
-//!   the client, recordings started, stopped and downloaded.
-//! - [`live`]: one WebSocket per plot: telemetry records thinned for a browser, and safety
+//! - `system`: experiments as wholes: system files (the demo's among them) sent to the
+//!   node, which applies them, recordings started, stopped and downloaded.
+//! - `live`: one WebSocket per plot: telemetry records thinned for a browser, and safety
 //!   events (changes of the loop's safety state) as they happen.
-//! - [`assets`]: the page, its script and style and the vendored uPlot, compiled into the
+//! - `assets`: the page, its script and style and the vendored uPlot, compiled into the
 //!   binary (nothing is fetched from the network when the page runs).
 //! - [`cli`]: what the server shares with `penelope ctl`: method text parsed into calls, replies
 //!   formatted for people, usage errors, secret files.
