@@ -281,6 +281,15 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
             })),
         }),
     );
+    m.insert(
+        "request-apply-system",
+        framed(&ClientMsg::Request {
+            id: 7,
+            call: Call::Creator(CreatorCall::ApplySystem {
+                text: "[boards.io]\nkind = \"sim\"\n".into(),
+            }),
+        }),
+    );
     m.insert("client-bye", framed(&ClientMsg::Bye));
     m
 }

@@ -64,7 +64,6 @@ use std::collections::BTreeMap;
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::node::Node;
 use crate::objects::RtPolicy;
 use penelope_hal::{MAX_JOINTS, Transition};
 use penelope_protocol::proto::{
@@ -176,6 +175,18 @@ pub struct ObjectSpec {
     pub active: bool,
     /// Line of its table in the file (1-based).
     pub line: usize,
+}
+
+/// What a system file is applied to: a node, by its name and its calls (the node module
+/// implements it for `Node`, so this module needs nothing of the node).
+pub trait ApplyTarget {
+    /// The node's name: the file's objects placed on it are applied.
+    fn node_name(&self) -> &str;
+    /// One call to the node, served as its server serves a peer's.
+    ///
+    /// # Errors
+    /// The node's refusal.
+    fn node_call(&self, call: Call) -> Result<Reply, WireError>;
 }
 
 /// A parsed system file.
@@ -360,13 +371,13 @@ impl SystemFile {
     /// # Errors
     /// [`SystemFileError::Invalid`] when the file names its nodes and `node` is not one of them;
     /// [`SystemFileError::Step`] for the first refused step.
-    pub fn apply(&self, node: &Node) -> Result<Vec<ObjectInfo>, SystemFileError> {
-        self.apply_through(node.name(), |call| node.call(call))
+    pub fn apply(&self, node: &impl ApplyTarget) -> Result<Vec<ObjectInfo>, SystemFileError> {
+        self.apply_through(node.node_name(), |call| node.node_call(call))
     }
 
     /// [`SystemFile::apply`] to node `node` through `call`, which sends one call to that node's
-    /// creator: a client applies a file to a node it reaches over the network (`penelope web`
-    /// loads system files this way), step for step as the node would itself.
+    /// creator, step for step: the node serves `CreatorCall::ApplySystem` this way, each step
+    /// a call of its own service (so what is created is bound by name).
     ///
     /// # Errors
     /// As [`SystemFile::apply`].

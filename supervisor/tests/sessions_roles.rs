@@ -20,7 +20,7 @@ use penelope_protocol::net::frame::{encode, read_frame};
 use penelope_protocol::net::server::{Server, ServerConfig};
 use penelope_protocol::proto::{
     BoardMethod, Call, ClientHello, ClientMsg, ControllerMethod, CreatorCall, DEFAULT_MAX_FRAME,
-    JointAxis, Method, Reply, RobotMethod, Role, ServerMsg, WireError,
+    JointAxis, Method, NamingCall, Reply, RobotMethod, Role, ServerMsg, WireError,
 };
 use penelope_protocol::service::{Service, Session};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
@@ -453,6 +453,117 @@ fn a_reader_cannot_create_rearm_or_record_but_can_stop() {
     admin_cfg.admin_secret = Some(ADMIN.into());
     let mut admin = Connection::connect(addr, &admin_cfg).unwrap();
     assert!(matches!(admin.call(create), Ok(Reply::Object(_))));
+    drop((reader, operator, admin));
+    node.shutdown();
+}
+
+/// A system file for node `lab`: a board, a robot on it, a trajectory and a controller that
+/// comes up active.
+const SMALL_SYSTEM: &str = r#"
+[boards.io2]
+kind = "sim"
+
+[robots.arm2]
+kind = "puma560"
+start = "start"
+joints = [{ board = "io2", joints = [0, 1, 2, 3, 4, 5] }]
+
+[trajectories.hold2]
+kind = "spline"
+waypoints = [{ at_s = 1.0, pose = "start" }]
+
+[controllers.pid2]
+kind = "joint-pid"
+robot = "arm2"
+trajectory = "hold2"
+period_us = 2000
+"#;
+
+fn names(objects: &[penelope_protocol::proto::ObjectInfo]) -> Vec<&str> {
+    objects.iter().map(|o| o.name.as_str()).collect()
+}
+
+#[test]
+fn a_reader_cannot_apply_a_system_file_an_admin_can_and_a_bad_one_is_a_typed_error() {
+    let node = node_with_a_running_controller();
+    let addr = node.address();
+    let apply = |text: &str| {
+        Call::Creator(CreatorCall::ApplySystem {
+            text: text.to_string(),
+        })
+    };
+    let mut reader = Connection::connect(addr, &with_secret(ClientConfig::new("web"))).unwrap();
+    assert!(forbidden(reader.call(apply(SMALL_SYSTEM))));
+    // Refused before the text is read: a reader's malformed file is still just forbidden.
+    assert!(forbidden(reader.call(apply("[[[ not toml"))));
+    let mut operator =
+        Connection::connect(addr, &with_secret(ClientConfig::operator("ops"))).unwrap();
+    assert!(forbidden(operator.call(apply(SMALL_SYSTEM))));
+    let list = |c: &mut Connection| match c.call(Call::Creator(CreatorCall::List)) {
+        Ok(Reply::Objects(o)) => o,
+        other => panic!("list: {other:?}"),
+    };
+    assert_eq!(
+        list(&mut reader).len(),
+        4,
+        "nothing created by the refusals"
+    );
+
+    let mut admin_cfg = with_secret(ClientConfig::admin("root"));
+    admin_cfg.admin_secret = Some(ADMIN.into());
+    let mut admin = Connection::connect(addr, &admin_cfg).unwrap();
+    // Malformed: a typed error naming the line, and nothing created.
+    match admin.call(apply("[boards.x]\nkind = \"sim\"\n[[[")) {
+        Err(RpcError::Remote(WireError::BadConfig { kind, message })) => {
+            assert_eq!(kind, "system file");
+            assert!(message.starts_with("line 3"), "{message}");
+        }
+        other => panic!("a malformed file: {other:?}"),
+    }
+    // A refused step (an unknown key of the robot's kind): typed, and nothing kept.
+    let refused = SMALL_SYSTEM.replace("start = \"start\"", "speed = 3");
+    match admin.call(apply(&refused)) {
+        Err(RpcError::Remote(WireError::BadConfig { kind, message })) => {
+            assert_eq!(kind, "system file");
+            assert!(message.contains("robots.arm2"), "{message}");
+            assert!(
+                message.contains("nothing from the file was kept"),
+                "{message}"
+            );
+        }
+        other => panic!("a refused step: {other:?}"),
+    }
+    assert_eq!(names(&list(&mut admin)), ["hold", "pid", "sim0", "slave"]);
+
+    let created = match admin.call(apply(SMALL_SYSTEM)) {
+        Ok(Reply::Objects(o)) => o,
+        other => panic!("apply: {other:?}"),
+    };
+    assert_eq!(names(&created), ["io2", "arm2", "hold2", "pid2"]);
+    let mut all = names(&list(&mut admin))
+        .into_iter()
+        .map(String::from)
+        .collect::<Vec<_>>();
+    all.sort();
+    assert_eq!(
+        all,
+        [
+            "arm2", "hold", "hold2", "io2", "pid", "pid2", "sim0", "slave"
+        ]
+    );
+    // Bound in the naming tree like any created object, and the controller runs.
+    match admin.call(Call::Naming(NamingCall::Resolve {
+        path: "/lab/controllers/pid2".into(),
+    })) {
+        Ok(Reply::Resolved(r)) => assert_eq!(r.name, "pid2"),
+        other => panic!("resolve: {other:?}"),
+    }
+    wait_until("the file's controller to run", || {
+        matches!(admin.call(Call::Object {
+            object: "pid2".into(),
+            method: Method::Controller(ControllerMethod::Status),
+        }), Ok(Reply::Status(s)) if s.last.as_ref().is_some_and(|l| l.state == "running"))
+    });
     drop((reader, operator, admin));
     node.shutdown();
 }

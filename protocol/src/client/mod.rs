@@ -767,6 +767,21 @@ impl NodeProxy {
         }
     }
 
+    /// Applies the system file `text` to this node: the objects it places here are created,
+    /// related, configured and activated by the node, or none is kept. Returns the objects
+    /// created, in creation order.
+    ///
+    /// # Errors
+    /// What [`CreatorCall::ApplySystem`] lists; transport errors.
+    pub fn apply_system(&self, text: &str) -> Result<Vec<ObjectInfo>, RpcError> {
+        match self.creator(CreatorCall::ApplySystem {
+            text: text.to_string(),
+        })? {
+            Reply::Objects(o) => Ok(o),
+            other => Err(unexpected("the objects created", &other)),
+        }
+    }
+
     /// Latches the e-stop of every loop running on this node, on a connection of its own
     /// ([`Client::call_alone`]): the node answers without waiting for any other call. Returns
     /// which loops latched it before the answer and which had yet to tick.

@@ -66,4 +66,16 @@ pub enum CreatorCall {
     /// `create` reading a file) never holds it back; allowed to every authenticated peer.
     /// (Appended last.)
     EStop,
+    /// Applies a system file (its TOML `text`) to this node, as `penelope node --config` does:
+    /// the objects the file places on this node are created, related, configured and
+    /// activated through the node's own creator, and on any refusal everything created from
+    /// the file is destroyed again. [`Reply::Objects`] with the objects created, in creation
+    /// order. A file that cannot be read, places nothing on this node while naming other
+    /// nodes, or has a step refused is [`WireError::BadConfig`] with `kind` `system file` and
+    /// a message naming the line, the object and the step. Needs the create role, like
+    /// [`CreatorCall::Create`]. (Appended last.)
+    ApplySystem {
+        /// The system file's TOML text.
+        text: String,
+    },
 }

@@ -42,6 +42,7 @@ use crate::common_clock::CommonClock;
 use crate::naming::{NamingLimits, NamingService, Reaper};
 use crate::objects::clock::ClockMode;
 use crate::objects::{Creator, CreatorConfig};
+use crate::system::ApplyTarget;
 use crate::zenoh_bridge::{BridgeStats, ZenohBridge, ZenohError, ZenohSettings};
 use penelope_protocol::client::Client;
 use penelope_protocol::net::conn::{ClientConfig, RpcError};
@@ -230,6 +231,16 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 
 fn local_session(name: &str) -> Session {
     Session::in_process(name)
+}
+
+impl ApplyTarget for Node {
+    fn node_name(&self) -> &str {
+        self.name()
+    }
+
+    fn node_call(&self, call: Call) -> Result<Reply, WireError> {
+        self.call(call)
+    }
 }
 
 impl Node {

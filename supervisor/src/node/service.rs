@@ -5,6 +5,8 @@ use std::sync::Arc;
 
 use super::{Shared, lock};
 use crate::objects::Creator;
+use crate::objects::roles::authorize_call;
+use crate::system::{SystemFile, SystemFileError};
 use penelope_protocol::proto::{Call, CreatorCall, NodeInfo, Reply, WireError};
 use penelope_protocol::service::{Service, Session};
 
@@ -13,6 +15,15 @@ use penelope_protocol::service::{Service, Session};
 pub(super) struct NodeService {
     pub(super) shared: Arc<Shared>,
     pub(super) creator: Arc<Creator>,
+}
+
+/// A system file that cannot be applied, as the wire says it: the message names the line, the
+/// object and the step.
+fn system_file_error(e: SystemFileError) -> WireError {
+    WireError::BadConfig {
+        kind: "system file".into(),
+        message: e.to_string(),
+    }
 }
 
 impl Service for NodeService {
@@ -55,6 +66,16 @@ impl Service for NodeService {
                     shared.unbind(&info);
                 }
                 Ok(reply)
+            }
+            Call::Creator(CreatorCall::ApplySystem { ref text }) => {
+                // Checked before the text is read: a reader learns nothing of the file.
+                authorize_call(session.identity, &call)?;
+                let file = SystemFile::parse(text).map_err(system_file_error)?;
+                // Each step is a call of this service, so what is created is bound by name.
+                let created = file
+                    .apply_through(&shared.name, |step| self.call(session, step))
+                    .map_err(system_file_error)?;
+                Ok(Reply::Objects(created))
             }
             other => self.creator.call(session, other),
         }

@@ -789,6 +789,11 @@ impl Service for Creator {
                 self.record_start(&path, &objects)
             }
             Call::Creator(CreatorCall::RecordStop) => self.record_stop(),
+            // The node serves it: it binds what it creates in the naming tree.
+            Call::Creator(CreatorCall::ApplySystem { .. }) => Err(WireError::Unsupported {
+                kind: "creator".into(),
+                method: "apply-system without its node".into(),
+            }),
             Call::Object { object, method } => self.object_call(&object, method),
             Call::Naming(_) => Err(WireError::NoNamingService),
             Call::Time => Ok(crate::common_clock::time_reply()),

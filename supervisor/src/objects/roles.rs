@@ -46,7 +46,9 @@ pub fn needs(call: &Call) -> Needs {
         Call::Creator(c) => match c {
             CreatorCall::Kinds | CreatorCall::List => Needs::Watch,
             CreatorCall::EStop => Needs::Stop,
-            CreatorCall::Create { .. } | CreatorCall::Destroy { .. } => Needs::Create,
+            CreatorCall::Create { .. }
+            | CreatorCall::Destroy { .. }
+            | CreatorCall::ApplySystem { .. } => Needs::Create,
             CreatorCall::Advance { .. }
             | CreatorCall::RecordStart { .. }
             | CreatorCall::RecordStop => Needs::Operate,
@@ -173,6 +175,9 @@ mod tests {
             path: "x.mcap".into(),
             objects: Vec::new(),
         });
+        let apply = Call::Creator(CreatorCall::ApplySystem {
+            text: String::new(),
+        });
         let estop_node = Call::Creator(CreatorCall::EStop);
         let list = Call::Creator(CreatorCall::List);
         for (role, may_create, may_operate) in [
@@ -183,6 +188,11 @@ mod tests {
         ] {
             assert_eq!(
                 authorize_call(id(role), &create).is_ok(),
+                may_create,
+                "{role:?}"
+            );
+            assert_eq!(
+                authorize_call(id(role), &apply).is_ok(),
                 may_create,
                 "{role:?}"
             );

@@ -18,22 +18,8 @@ pub mod replay;
 pub mod secret;
 pub mod web;
 
-/// Bad input from the user (unknown robot, wrong joint count, NaN): exit code 2.
-#[derive(Debug)]
-pub struct UsageError(pub String);
-
-impl std::fmt::Display for UsageError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for UsageError {}
-
-/// Shorthand: an `anyhow` error carrying a [`UsageError`].
-pub fn usage(message: impl Into<String>) -> anyhow::Error {
-    anyhow::Error::new(UsageError(message.into()))
-}
+// Shared with the web server, which the tools sit above.
+pub use penelope_web::cli::{UsageError, usage};
 
 /// Prints `err` and picks the exit code: 2 for a [`UsageError`], 1 for anything else.
 pub fn report_error(err: &anyhow::Error) -> ExitCode {

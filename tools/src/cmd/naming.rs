@@ -10,17 +10,17 @@
 //! `NodeInfo`) until Ctrl-C or SIGTERM. Nodes register in it with `penelope node --naming ADDR`.
 
 use std::net::SocketAddr;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Context as _;
 use nix::sys::signal::{SigSet, Signal};
-use penelope_protocol::net::auth::Secret;
 use penelope_protocol::net::server::{Server, ServerConfig};
 use penelope_protocol::proto::DEFAULT_PORT;
 use penelope_supervisor::naming::{NamingLimits, NamingService};
+pub(crate) use penelope_web::cli::read_secret;
 
 /// Options of `penelope naming`.
 #[derive(clap::Args, Debug)]
@@ -72,51 +72,6 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The secret in `file` (its bytes without a trailing newline), if given: the one reader of
-/// secret files for every command (`naming`, `node`, `ctl`).
-///
-/// Like ssh with private keys, a file that anyone but its owner may read or write is refused,
-/// with the command that fixes it.
-///
-/// A secret under 128 bits ([`Secret::check_strength`]) is refused, saying how to make one
-/// (`penelope secret new FILE`).
-///
-/// # Errors
-/// The file cannot be read, others may read or write it, or the secret is empty or too weak
-/// (usage errors, exit 2).
-pub(crate) fn read_secret(file: Option<&Path>) -> anyhow::Result<Option<Secret>> {
-    use std::os::unix::fs::PermissionsExt as _;
-    let Some(file) = file else {
-        return Ok(None);
-    };
-    let meta = std::fs::metadata(file)
-        .with_context(|| format!("reading the secret file {}", file.display()))?;
-    let mode = meta.permissions().mode() & 0o777;
-    if mode & 0o077 != 0 {
-        return Err(crate::cmd::usage(format!(
-            "the secret file {f} may be read or written by others (mode {mode:03o}); a secret \
-             must be readable by its owner only: run `chmod 600 {f}`",
-            f = file.display()
-        )));
-    }
-    let mut bytes = std::fs::read(file)
-        .with_context(|| format!("reading the secret file {}", file.display()))?;
-    while bytes.last().is_some_and(|b| *b == b'\n' || *b == b'\r') {
-        bytes.pop();
-    }
-    if bytes.is_empty() {
-        return Err(crate::cmd::usage(format!(
-            "the secret file {} is empty",
-            file.display()
-        )));
-    }
-    let secret = Secret::from(bytes);
-    secret
-        .check_strength(&format!("the secret in {}", file.display()))
-        .map_err(crate::cmd::usage)?;
-    Ok(Some(secret))
-}
-
 /// A usage error (exit 2) for a non-loopback `listen` without a secret.
 pub(crate) fn refuse_open_listen(listen: SocketAddr, has_secret: bool) -> anyhow::Result<()> {
     if !listen.ip().is_loopback() && !has_secret {
@@ -153,6 +108,7 @@ pub(crate) fn wait_for_stop(set: &SigSet) -> anyhow::Result<Signal> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use penelope_protocol::net::auth::Secret;
 
     #[test]
     fn open_listen_needs_a_secret_and_secrets_are_trimmed() {

@@ -24,11 +24,9 @@
 //! protocol defines it; for `watch`, one JSON telemetry or link record per line). Bad input exits with
 //! code 2 (nothing is sent), an error from a node with code 1 and the node's message.
 
-pub(crate) mod method;
-pub(crate) mod show;
+use penelope_web::cli::{config_text, method, object_states, show};
 mod watch;
 
-use std::collections::HashMap;
 use std::io::{Read, Write};
 use std::net::{SocketAddr, ToSocketAddrs};
 use std::path::PathBuf;
@@ -40,8 +38,8 @@ use clap::Parser;
 use penelope_protocol::client::Client;
 use penelope_protocol::net::conn::ClientConfig;
 use penelope_protocol::proto::{
-    BoardMethod, Call, Class, ControllerMethod, CreatorCall, Method, NameEntry, ObjectRef, Reply,
-    RobotMethod, object_path, parse_transition,
+    BoardMethod, Call, Class, ControllerMethod, Method, NameEntry, ObjectRef, Reply, RobotMethod,
+    object_path, parse_transition,
 };
 use serde_json::json;
 
@@ -711,112 +709,9 @@ fn path_of(r: &ObjectRef) -> String {
     object_path(&r.node, r.class, &r.name)
 }
 
-/// The lifecycle state of every object in `tree`, by `(node, name)`, from one creator `List`
-/// per node (nodes that do not answer are left out).
-pub(crate) fn object_states(
-    client: &Client,
-    tree: &[(String, usize, NameEntry)],
-) -> HashMap<(String, String), String> {
-    let mut nodes: Vec<(String, String)> = tree
-        .iter()
-        .filter_map(|(_, _, e)| match e {
-            NameEntry::Object { reference, .. } => {
-                Some((reference.node.clone(), reference.address.clone()))
-            }
-            NameEntry::Context { .. } => None,
-        })
-        .collect();
-    nodes.sort();
-    nodes.dedup();
-    let mut states = HashMap::new();
-    for (node, address) in nodes {
-        let Some(addr) = address.to_socket_addrs().ok().and_then(|mut a| a.next()) else {
-            continue;
-        };
-        if let Ok(Reply::Objects(list)) = client.call_at(addr, Call::Creator(CreatorCall::List)) {
-            for o in list {
-                states.insert((node.clone(), o.name), o.state.to_string());
-            }
-        }
-    }
-    states
-}
-
-/// The configuration text of `create`: the key=value settings, then --config or
-/// --config-file, checked to be TOML.
-pub(crate) fn config_text(
-    config: Option<String>,
-    file: Option<&std::path::Path>,
-    settings: &[String],
-) -> anyhow::Result<String> {
-    let mut text = String::new();
-    for s in settings {
-        let Some((key, value)) = s.split_once('=') else {
-            return Err(usage(format!("`{s}` is not KEY=VALUE")));
-        };
-        let (key, value) = (key.trim(), value.trim());
-        if key.is_empty()
-            || !key
-                .bytes()
-                .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.'))
-        {
-            return Err(usage(format!("`{key}` is not a configuration key")));
-        }
-        let value = if format!("v = {value}").parse::<toml::Table>().is_ok() {
-            value.to_string()
-        } else {
-            toml::Value::String(value.to_string()).to_string()
-        };
-        text.push_str(&format!("{key} = {value}\n"));
-    }
-    match (config, file) {
-        (Some(c), _) => text.push_str(&c),
-        (None, Some(f)) => text.push_str(
-            &std::fs::read_to_string(f)
-                .map_err(|e| usage(format!("--config-file {}: {e}", f.display())))?,
-        ),
-        (None, None) => {}
-    }
-    text.parse::<toml::Table>().map_err(|e| {
-        usage(format!(
-            "the configuration is not valid TOML: {}",
-            e.message()
-        ))
-    })?;
-    Ok(text)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn settings_become_toml_and_bad_ones_are_usage_errors() {
-        let text = config_text(
-            Some("[gains]\nkp = 1.0".into()),
-            None,
-            &[
-                "axes=6".into(),
-                "device=/dev/ttyUSB0".into(),
-                "q0=[0, 0.5]".into(),
-            ],
-        )
-        .unwrap();
-        let t: toml::Table = text.parse().unwrap();
-        assert_eq!(t["axes"].as_integer(), Some(6));
-        assert_eq!(t["device"].as_str(), Some("/dev/ttyUSB0"));
-        assert_eq!(t["q0"].as_array().map(Vec::len), Some(2));
-        assert!(t["gains"]["kp"].as_float().is_some());
-        for bad in ["novalue", "bad key=1", "=3"] {
-            let e = config_text(None, None, &[bad.into()]).unwrap_err();
-            assert!(
-                e.downcast_ref::<crate::cmd::UsageError>().is_some(),
-                "{bad}"
-            );
-        }
-        let e = config_text(Some("a = [".into()), None, &[]).unwrap_err();
-        assert!(e.downcast_ref::<crate::cmd::UsageError>().is_some());
-    }
 
     #[test]
     fn script_lines_parse_as_verbs() {

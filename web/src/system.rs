@@ -8,8 +8,8 @@ use axum::Json;
 use axum::extract::{Query, State};
 use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
-use penelope_protocol::proto::{Call, WireError};
-use penelope_supervisor::system::SystemFile;
+use penelope_protocol::net::conn::RpcError;
+use penelope_protocol::proto::WireError;
 use serde::Deserialize;
 use serde_json::json;
 
@@ -77,16 +77,16 @@ pub(crate) async fn load_system(
     if text.trim().is_empty() {
         return Err(ApiError::bad_input("the system file is empty"));
     }
-    let file =
-        SystemFile::parse(&text).map_err(|e| ApiError::bad_input(format!("system file: {e}")))?;
     blocking(&state, move |client| {
         let node = client.node(&req.node)?;
-        let address = node.address();
-        let created = file
-            .apply_through(node.name(), |call: Call| {
-                client.call_at(address, call).map_err(WireError::from)
-            })
-            .map_err(|e| ApiError::bad_input(format!("system file: {e}")))?;
+        // The node parses and applies the file itself (`CreatorCall::ApplySystem`): this
+        // server needs nothing of the runtime.
+        let created = node.apply_system(&text).map_err(|e| match e {
+            RpcError::Remote(WireError::BadConfig { message, .. }) => {
+                ApiError::bad_input(format!("system file: {message}"))
+            }
+            other => ApiError::from(other),
+        })?;
         let paths: Vec<String> = created.iter().map(|o| node.path_of(o)).collect();
         Ok(Json(json!({ "node": node.name(), "created": paths })))
     })

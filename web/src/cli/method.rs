@@ -7,7 +7,7 @@ use penelope_protocol::proto::{
     SensorMethod, TrajectoryMethod, WrenchMsg, parse_transition,
 };
 
-use crate::cmd::usage;
+use crate::cli::usage;
 
 /// How a reply is labelled in human output.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -518,7 +518,7 @@ mod tests {
         ] {
             let err = parse(name, &words(args), &mut lookup).unwrap_err();
             assert!(
-                err.downcast_ref::<crate::cmd::UsageError>().is_some(),
+                err.downcast_ref::<crate::cli::UsageError>().is_some(),
                 "{name} {args}: {err}"
             );
         }

@@ -59,7 +59,7 @@ impl Hosts {
                     .ok()
                     .filter(|a| !a.as_str().contains('@') && !a.host().is_empty())
                     .ok_or_else(|| {
-                        crate::cmd::usage(format!("--allow-host `{name}` is not NAME or NAME:PORT"))
+                        crate::cli::usage(format!("--allow-host `{name}` is not NAME or NAME:PORT"))
                     })?;
                 Ok((unbracket(authority.host()), authority.port_u16()))
             })

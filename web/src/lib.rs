@@ -1,5 +1,6 @@
 //! `penelope web`: the paper's planned web interface (its `webInterface` class), as a browser
-//! page served by this process.
+//! page served by this process. A client of the protocol crate and nothing of the runtime:
+//! a system file is applied by the node it is sent to (`CreatorCall::ApplySystem`).
 //!
 //! ```text
 //! penelope web [--naming ADDR] [--listen 127.0.0.1:8080] [--secret-file FILE]
@@ -12,22 +13,27 @@
 //! by the node, so the real-time rings never see the browser.
 //!
 //! # Layers
-//! - [`doors`]: before any handler: a `Host` that names this server (no DNS rebinding),
+//! - `doors`: before any handler: a `Host` that names this server (no DNS rebinding),
 //!   connection caps (in all and per client) and a deadline for a request's head.
-//! - [`session`]: who may ask: loopback needs nothing, any other address (or a `--secret-file`)
+//! - `session`: who may ask: loopback needs nothing, any other address (or a `--secret-file`)
 //!   needs the shared secret once at `/login`, then a login cookie; state-changing requests
 //!   and WebSockets from another site are refused.
-//! - [`api`]: the JSON endpoints behind the page: the naming tree with states, kinds with their
+//! - `api`: the JSON endpoints behind the page: the naming tree with states, kinds with their
 //!   configuration keys, create, destroy, lifecycle, method calls, e-stop and re-arm.
-//! - [`system`]: experiments as wholes: system files (the demo's among them) applied through
-//!   the client, recordings started, stopped and downloaded.
-//! - [`live`]: one WebSocket per plot: telemetry records thinned for a browser, and safety
+//! - `system`: experiments as wholes: system files (the demo's among them) sent to the
+//!   node, which applies them, recordings started, stopped and downloaded.
+//! - `live`: one WebSocket per plot: telemetry records thinned for a browser, and safety
 //!   events (changes of the loop's safety state) as they happen.
-//! - [`assets`]: the page, its script and style and the vendored uPlot, compiled into the
+//! - `assets`: the page, its script and style and the vendored uPlot, compiled into the
 //!   binary (nothing is fetched from the network when the page runs).
+//! - [`cli`]: what the server shares with `penelope ctl`: method text parsed into calls, replies
+//!   formatted for people, usage errors, secret files.
+
+#![warn(missing_docs)]
 
 mod api;
 mod assets;
+pub mod cli;
 mod doors;
 mod live;
 mod session;
@@ -45,7 +51,7 @@ use penelope_protocol::client::Client;
 use penelope_protocol::net::conn::ClientConfig;
 use penelope_protocol::proto::Role;
 
-use crate::cmd::usage;
+use crate::cli::usage;
 
 /// Options of `penelope web`.
 #[derive(clap::Args, Debug)]
@@ -135,7 +141,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             args.login_hours
         )));
     }
-    let secret = crate::cmd::naming::read_secret(args.secret_file.as_deref())?;
+    let secret = crate::cli::read_secret(args.secret_file.as_deref())?;
     // As every server of the system: loopback alone may go without the secret.
     if !listen.ip().is_loopback() && secret.is_none() {
         return Err(usage(format!(
@@ -143,7 +149,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
              prove the shared secret at the login page)"
         )));
     }
-    let admin_secret = crate::cmd::naming::read_secret(args.admin_secret_file.as_deref())?;
+    let admin_secret = crate::cli::read_secret(args.admin_secret_file.as_deref())?;
     if admin_secret.is_some() && args.role != WebRole::Admin {
         return Err(usage("--admin-secret-file is only for --role admin"));
     }

@@ -18,8 +18,8 @@ use serde::Deserialize;
 use serde_json::{Value, json};
 
 use super::WebState;
-use crate::cmd::UsageError;
-use crate::cmd::ctl::{config_text, method, object_states, show};
+use crate::cli::UsageError;
+use crate::cli::{config_text, method, object_states, show};
 
 /// An error as the page receives it: `{"error": {"kind": ..., "message": ...}}` with an HTTP
 /// status that says whose fault it is (4xx: the request, 502: the system).
@@ -553,7 +553,7 @@ mod tests {
             (e.status, e.kind.as_str()),
             (StatusCode::NOT_FOUND, "unknown-name")
         );
-        let e = ApiError::from(crate::cmd::usage("`x` is not a number"));
+        let e = ApiError::from(crate::cli::usage("`x` is not a number"));
         assert_eq!(
             (e.status, e.kind.as_str()),
             (StatusCode::BAD_REQUEST, "bad-input")
