@@ -2,9 +2,6 @@
 //! not die) in torque mode. The board's own command-freshness watchdog, stepped by the plant
 //! keeper beside the loop (not by the control thread), ends the torque.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use penelope_drivers::model::puma560;
@@ -24,7 +21,7 @@ use penelope_rt_core::control::{
 use penelope_rt_core::safety::{SafetyConfig, SafetyState};
 use penelope_supervisor::objects::runtime::{LoopBoard, LoopBoardError, SimDrive};
 use penelope_testkit::wait::wait_until;
-use penelope_tests::fixtures::{ConstantTorque, Discard};
+use penelope_tests::fixtures::{ConstantTorque, Discard, HangableThread};
 
 const COUNTS_PER_RADIAN: f64 = 1000.0;
 
@@ -64,41 +61,31 @@ fn hang_in_torque_mode(mut board: LoopBoard, what: &str) -> Duration {
     let safety = SafetyConfig::slave(6, *model.limits());
     let config = ControlConfig::new(Duration::from_millis(1), safety)
         .with_counts_per_radian(COUNTS_PER_RADIAN);
-    let (mut reference, reference_port) = latest::<Stamped<Reference>>();
+    let (reference, reference_port) = latest::<Stamped<Reference>>();
     let ports = ControlPorts {
         reference: reference_port,
         telemetry: Discard,
         commands: NoCommands,
     };
-    let mut ctl = ControlLoop::new(config, board, model, [ConstantTorque(2.0)], ports).unwrap();
-
-    let hang = Arc::new(AtomicBool::new(false));
-    let running = Arc::new(AtomicBool::new(false));
-    let (release, hung) = mpsc::channel::<()>();
-    let start = Instant::now();
-    let thread = {
-        let (hang, running) = (hang.clone(), running.clone());
-        std::thread::spawn(move || {
-            let now = || Timestamp::from_nanos(start.elapsed().as_nanos() as u64);
-            ctl.tick(now());
+    let ctl = ControlLoop::new(config, board, model, [ConstantTorque(2.0)], ports).unwrap();
+    let thread = HangableThread::spawn(
+        (ctl, reference),
+        |(ctl, _), clock| {
+            ctl.tick(clock());
+            // A period between the first reading and the activation, as a node's thread has.
             std::thread::sleep(Duration::from_millis(1));
-            ctl.apply(now(), ControlCommand::Activate);
-            while !hang.load(Ordering::Acquire) {
-                reference.write(Stamped {
-                    stamp: now(),
-                    value: Reference::Joint(JointReference::default()),
-                });
-                let out = ctl.tick(now());
-                running.store(out.state == SafetyState::Running, Ordering::Release);
-                std::thread::sleep(Duration::from_millis(1));
-            }
-            // Hung: alive, not ticking, until the test lets it go.
-            let _ = hung.recv();
-            ctl
-        })
-    };
+            ctl.apply(clock(), ControlCommand::Activate);
+        },
+        |(ctl, reference), now| {
+            reference.write(Stamped {
+                stamp: now,
+                value: Reference::Joint(JointReference::default()),
+            });
+            ctl.tick(now).state == SafetyState::Running
+        },
+    );
     wait_until("torque on every axis", || {
-        running.load(Ordering::Acquire)
+        thread.is_running()
             && observer
                 .with_body(|b| {
                     b.is_enabled()
@@ -108,7 +95,7 @@ fn hang_in_torque_mode(mut board: LoopBoard, what: &str) -> Duration {
                 })
                 .unwrap_or(false)
     });
-    hang.store(true, Ordering::Release);
+    thread.hang();
     let hung_at = Instant::now();
     wait_until("zero torque", || {
         observer
@@ -139,17 +126,16 @@ fn hang_in_torque_mode(mut board: LoopBoard, what: &str) -> Duration {
     });
 
     // Let the thread go: its loop finds the board faulted, and says why.
-    drop(release);
-    let mut ctl = thread.join().unwrap();
+    let now = thread.now();
+    let (mut ctl, _) = thread.release();
     let mut out = [AxisState::default(); 6];
-    let now = Timestamp::from_nanos(start.elapsed().as_nanos() as u64);
     assert_eq!(
         ctl.board_mut().read_axes(now, &mut out),
         Err(LoopBoardError::Sim(SimBoardError::CommandStale))
     );
     // A read or two may be tolerated (`board_read_tolerance`); then the loop faults.
-    let faulted = (0..20).any(|_| {
-        let now = Timestamp::from_nanos(start.elapsed().as_nanos() as u64);
+    let faulted = (1..=20).any(|k| {
+        let now = Timestamp::from_nanos(now.as_nanos() + k * 1_000_000);
         ctl.tick(now).state == SafetyState::Fault
     });
     assert!(faulted, "{what}: the loop runs on");

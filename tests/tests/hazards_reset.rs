@@ -7,21 +7,14 @@
 
 use std::time::Duration;
 
-use penelope_hal::{JointReference, JointVector, Reference, Timestamp, Transition};
+use penelope_hal::{JointVector, Timestamp, Transition};
 use penelope_protocol::proto::{BoardMethod, ControllerMethod, Method, Reply, RobotMethod};
-use penelope_rt_core::cell::{Stamped, latest};
-use penelope_rt_core::comm::CommLoop;
-use penelope_rt_core::control::{
-    ControlCommand, ControlConfig, ControlLoop, ControlPorts, NoCommands,
-};
-use penelope_rt_core::controller::JointPid;
-use penelope_rt_core::safety::{FaultCause, SafetyConfig, SafetyState};
+use penelope_rt_core::control::ControlCommand;
+use penelope_rt_core::safety::{FaultCause, SafetyState};
 use penelope_rt_core::telemetry::TelemetrySample;
-use penelope_rt_core::trajectory::Trapezoidal;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_testbed::{ChainBoard, DecoupledChain, critically_damped_gains};
 use penelope_testkit::wait::wait_until;
-use penelope_tests::fixtures::Discard;
+use penelope_tests::fixtures::{hold_at, one_radian_move};
 use penelope_tests::papers_task::{map_all, ok, papers_task, step_papers_task};
 
 fn at_ms(rows: &[TelemetrySample], ms: u64) -> &TelemetrySample {
@@ -124,41 +117,7 @@ enum Interruption {
 /// move's end, the reset (re-arm, activate). Returns how far the arm moved in the second after
 /// the return and in the second after the reset, rad; then checks that a new command moves it.
 fn interrupted_then_reset(what: Interruption) -> (f64, f64) {
-    // No gravity: with its amplifiers off the arm coasts to rest, as a braked arm would stand,
-    // so what moves it after the reset is the loop alone.
-    let model = DecoupledChain {
-        mass: JointVector::zeros(),
-        ..DecoupledChain::six_joint()
-    };
-    const CPR: f64 = 10_000.0;
-    let board = ChainBoard::new(model.clone(), CPR);
-    let config = ControlConfig::new(
-        Duration::from_millis(1),
-        SafetyConfig::slave(6, model.limits),
-    )
-    .with_counts_per_radian(CPR);
-    let (reference, reference_port) = latest::<Stamped<Reference>>();
-    let ports = ControlPorts {
-        reference: reference_port,
-        telemetry: Discard,
-        commands: NoCommands,
-    };
-    let pid = JointPid::new(critically_damped_gains(&model, 20.0));
-    let mut ctl = ControlLoop::new(config, board, model, [pid], ports).unwrap();
-    let mut goal = JointVector::zeros();
-    goal[0] = 1.0;
-    let trajectory =
-        Trapezoidal::joint(goal, JointVector::repeat(1.0), JointVector::repeat(2.0)).unwrap();
-    let mut comm = CommLoop::new(trajectory, reference);
-    let here = |q: JointVector| {
-        Reference::Joint(JointReference {
-            position: q,
-            ..JointReference::default()
-        })
-    };
-    comm.start(ms(0), &here(JointVector::zeros()));
-    ctl.tick(ms(0));
-    ctl.apply(ms(0), ControlCommand::Activate);
+    let (mut ctl, mut comm) = one_radian_move();
     let mut t = 0;
     let mut comm_on = true;
     macro_rules! run_until {
@@ -228,7 +187,7 @@ fn interrupted_then_reset(what: Interruption) -> (f64, f64) {
 
     // An explicit new command (the trajectory restarted from the measured state) moves it.
     let q = ctl.joint_state().position;
-    comm.start(ms(t), &here(q));
+    comm.start(ms(t), &hold_at(q));
     run_until!(t + 2_000, {});
     assert_eq!(ctl.safety().state(), SafetyState::Running);
     let to_goal = (ctl.board().true_position()[0] - 1.0).abs();

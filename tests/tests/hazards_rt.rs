@@ -15,7 +15,7 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use penelope_drivers::galil::board::BoardFault;
 use penelope_drivers::galil::board::watchdog::TRIPPED;
@@ -31,24 +31,21 @@ use penelope_protocol::proto::{
     Call, ControllerMethod, JointAxis, Method, Reply, RobotMethod, TelemetryRecord,
 };
 use penelope_rt_core::cell::{Stamped, latest};
-use penelope_rt_core::comm::CommLoop;
 use penelope_rt_core::control::{
     ControlCommand, ControlConfig, ControlLoop, ControlPorts, NoCommands,
 };
-use penelope_rt_core::controller::JointPid;
 use penelope_rt_core::exec::{Flow, Tick};
 use penelope_rt_core::safety::SafetyEvent;
 use penelope_rt_core::safety::{FaultCause, HoldMode, SafetyConfig, SafetyState};
-use penelope_rt_core::trajectory::Trapezoidal;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::objects::runtime::{self, LoopBoard, LoopFault};
 use penelope_supervisor::objects::{Creator, CreatorConfig};
 use penelope_supervisor::system::SystemFile;
-use penelope_testbed::{ChainBoard, DecoupledChain, critically_damped_gains};
+use penelope_testbed::DecoupledChain;
 use penelope_testkit::net::free_udp_port;
 use penelope_testkit::wait::wait_until;
-use penelope_tests::fixtures::{ConstantTorque, Discard};
+use penelope_tests::fixtures::{ConstantTorque, Discard, HangableThread, hold_at, one_radian_move};
 
 const GALIL_AXES: usize = 6;
 
@@ -70,41 +67,32 @@ fn a_hung_control_thread_in_torque_mode_leaves_the_galil_motors_off_within_the_c
     let safety = SafetyConfig::slave(GALIL_AXES, model.limits);
     let config =
         ControlConfig::new(Duration::from_millis(1), safety).with_counts_per_radian(1000.0);
-    let (mut reference, reference_port) = latest::<Stamped<Reference>>();
+    let (reference, reference_port) = latest::<Stamped<Reference>>();
     let ports = ControlPorts {
         reference: reference_port,
         telemetry: Discard,
         commands: NoCommands,
     };
-    let mut ctl = ControlLoop::new(config, board, model, [ConstantTorque(0.4)], ports).unwrap();
+    let ctl = ControlLoop::new(config, board, model, [ConstantTorque(0.4)], ports).unwrap();
 
     // The control thread: ticks every millisecond until told to hang, then blocks (alive, not
     // ticking) until the test lets it go.
-    let hang = Arc::new(AtomicBool::new(false));
-    let running = Arc::new(AtomicBool::new(false));
-    let (release, hung) = mpsc::channel::<()>();
-    let start = Instant::now();
-    let thread = {
-        let (hang, running) = (hang.clone(), running.clone());
-        std::thread::spawn(move || {
-            let now = || Timestamp::from_nanos(start.elapsed().as_nanos() as u64);
-            ctl.tick(now());
-            ctl.apply(now(), ControlCommand::Activate);
-            while !hang.load(Ordering::Acquire) {
-                reference.write(Stamped {
-                    stamp: now(),
-                    value: Reference::Joint(JointReference::default()),
-                });
-                let out = ctl.tick(now());
-                running.store(out.state == SafetyState::Running, Ordering::Release);
-                std::thread::sleep(Duration::from_millis(1));
-            }
-            let _ = hung.recv();
-            ctl
-        })
-    };
+    let thread = HangableThread::spawn(
+        (ctl, reference),
+        |(ctl, _), clock| {
+            ctl.tick(clock());
+            ctl.apply(clock(), ControlCommand::Activate);
+        },
+        |(ctl, reference), now| {
+            reference.write(Stamped {
+                stamp: now,
+                value: Reference::Joint(JointReference::default()),
+            });
+            ctl.tick(now).state == SafetyState::Running
+        },
+    );
     wait_until("torque on every axis", || {
-        running.load(Ordering::Acquire)
+        thread.is_running()
             && emu.inspect(|d| {
                 galil_axes(d)
                     .iter()
@@ -112,7 +100,7 @@ fn a_hung_control_thread_in_torque_mode_leaves_the_galil_motors_off_within_the_c
             })
     });
     // Hang, in torque mode.
-    hang.store(true, Ordering::Release);
+    thread.hang();
     let hung_at = emu.inspect(Dmc::now);
 
     wait_until("motors off", || {
@@ -142,10 +130,9 @@ fn a_hung_control_thread_in_torque_mode_leaves_the_galil_motors_off_within_the_c
     });
 
     // Let the thread go: its loop finds the board faulted, and says why.
-    drop(release);
-    let mut ctl = thread.join().unwrap();
+    let now = thread.now();
+    let (mut ctl, _) = thread.release();
     let mut out = [AxisState::default(); GALIL_AXES];
-    let now = Timestamp::from_nanos(start.elapsed().as_nanos() as u64);
     assert_eq!(
         ctl.board_mut().read_axes(now, &mut out),
         Err(GalilBoardError::Fault(BoardFault::CommandStale))
@@ -265,42 +252,7 @@ fn ms(t: u64) -> Timestamp {
 
 #[test]
 fn a_rearm_after_an_estop_mid_move_does_not_start_motion() {
-    // No gravity: with its amplifiers off during the e-stop the arm coasts to rest, as a braked
-    // arm would stand, so what moves it after the reset is the loop alone.
-    let model = DecoupledChain {
-        mass: JointVector::zeros(),
-        ..DecoupledChain::six_joint()
-    };
-    const CPR: f64 = 10_000.0;
-    let board = ChainBoard::new(model.clone(), CPR);
-    let config = ControlConfig::new(
-        Duration::from_millis(1),
-        SafetyConfig::slave(6, model.limits),
-    )
-    .with_counts_per_radian(CPR);
-    let (reference, reference_port) = latest::<Stamped<Reference>>();
-    let ports = ControlPorts {
-        reference: reference_port,
-        telemetry: Discard,
-        commands: NoCommands,
-    };
-    let pid = JointPid::new(critically_damped_gains(&model, 20.0));
-    let mut ctl = ControlLoop::new(config, board, model, [pid], ports).unwrap();
-    // A 1 rad move of joint 0 at 1 rad/s and 2 rad/s²: 1.5 s.
-    let mut goal = JointVector::zeros();
-    goal[0] = 1.0;
-    let trajectory =
-        Trapezoidal::joint(goal, JointVector::repeat(1.0), JointVector::repeat(2.0)).unwrap();
-    let mut comm = CommLoop::new(trajectory, reference);
-    let here = |q: JointVector| {
-        Reference::Joint(JointReference {
-            position: q,
-            ..JointReference::default()
-        })
-    };
-    comm.start(ms(0), &here(JointVector::zeros()));
-    ctl.tick(ms(0));
-    ctl.apply(ms(0), ControlCommand::Activate);
+    let (mut ctl, mut comm) = one_radian_move();
     // The communication task every 4 ms, the loop every 1 ms, on a simulated clock.
     let mut t = 0;
     macro_rules! run_until {
@@ -347,7 +299,7 @@ fn a_rearm_after_an_estop_mid_move_does_not_start_motion() {
 
     // An explicit new command (the trajectory restarted from the measured state) moves it.
     let q = ctl.joint_state().position;
-    comm.start(ms(t), &here(q));
+    comm.start(ms(t), &hold_at(q));
     run_until!(t + 2_000, {});
     assert_eq!(ctl.safety().state(), SafetyState::Running);
     let to_goal = (ctl.board().true_position()[0] - 1.0).abs();
