@@ -20,31 +20,7 @@ use penelope_testkit::wait::wait_until;
 use zenoh::Wait;
 
 /// The slave's half of a task whose master is an operator station on Zenoh.
-const SLAVE_SYSTEM: &str = r#"
-[timing]
-period_us = 1000
-comm_period_us = 2000
-watchdog_ms = 50
-
-[boards.puma-io]
-kind = "sim"
-
-[robots.puma]
-kind = "puma200"
-joints = [{ board = "puma-io", axes = [0, 1, 2, 3, 4, 5] }]
-start = "start"
-
-[trajectories.link]
-kind = "teleop"
-master = "station"
-slave = "puma"
-zenoh_reference = "station/hand/pose"
-
-[controllers.follow]
-kind = "slave-tracking"
-robot = "puma"
-trajectory = "link"
-"#;
+const SLAVE_SYSTEM: &str = include_str!("data/zenoh_station_slave.toml");
 
 /// A participant connecting to `port` on loopback, scouting off, as `user` (or anonymous).
 fn participant(port: u16, user: Option<(&str, &str)>) -> zenoh::Result<zenoh::Session> {

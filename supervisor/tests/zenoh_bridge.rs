@@ -24,31 +24,7 @@ use zenoh::Wait;
 
 /// The slave's half of a task whose master is an operator station on Zenoh: a PUMA 200 on a
 /// simulated board following the poses on `station/hand/pose`.
-const SLAVE_SYSTEM: &str = r#"
-[timing]
-period_us = 1000
-comm_period_us = 2000
-watchdog_ms = 50
-
-[boards.puma-io]
-kind = "sim"
-
-[robots.puma]
-kind = "puma200"
-joints = [{ board = "puma-io", axes = [0, 1, 2, 3, 4, 5] }]
-start = "start"
-
-[trajectories.link]
-kind = "teleop"
-master = "station"
-slave = "puma"
-zenoh_reference = "station/hand/pose"
-
-[controllers.follow]
-kind = "slave-tracking"
-robot = "puma"
-trajectory = "link"
-"#;
+const SLAVE_SYSTEM: &str = include_str!("data/zenoh_station_slave.toml");
 
 /// The test's Zenoh peer: listens on loopback only, no scouting.
 fn test_peer(port: u16) -> zenoh::Session {
