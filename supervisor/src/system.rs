@@ -64,12 +64,12 @@ use std::collections::BTreeMap;
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::objects::RtPolicy;
 use penelope_hal::{MAX_JOINTS, Transition};
 use penelope_protocol::proto::{
     Call, ControllerMethod, CreatorCall, JointAxis, Method, ObjectInfo, Reply, RobotMethod,
     WireError, check_name,
 };
+use penelope_runtime::objects::RtPolicy;
 
 /// The classes of a system file, in the order their objects are created and configured.
 pub const CLASSES: [&str; 5] = ["boards", "sensors", "robots", "trajectories", "controllers"];
@@ -688,7 +688,7 @@ fn object_spec(
         Some(_) => return Err(invalid(format!("{key}.kind"), "must be a string".into())),
         None => return Err(invalid(format!("{key}.kind"), "missing".into())),
     };
-    if crate::objects::kinds::Kind::parse(&kind).is_none() {
+    if penelope_runtime::objects::kinds::Kind::parse(&kind).is_none() {
         return Err(invalid(
             format!("{key}.kind"),
             format!("unknown kind `{kind}` (see `penelope ctl kinds`)"),

@@ -21,8 +21,8 @@ use penelope_protocol::net::server::{Server, ServerConfig};
 use penelope_protocol::proto::{
     Class, Method, NameEntry, ObjectRef, Reply, RobotMethod, WireError, object_path,
 };
+use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
-use penelope_supervisor::objects::{Creator, CreatorConfig};
 
 const NODE: &str = "lab";
 

@@ -3,7 +3,7 @@
 
 use std::time::Duration;
 
-use penelope_supervisor::objects::clock::ClockMode;
+use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::runs::report::{Report, report};
 use penelope_supervisor::runs::{DEMO_SYSTEM, Law, RunOptions, RunOutput, run};
 use penelope_supervisor::system::SystemFile;

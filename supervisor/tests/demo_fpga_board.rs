@@ -8,9 +8,9 @@ use penelope_hal::{Frame, JointVector, Kinematics, RobotModel, Transition, Wrenc
 use penelope_protocol::proto::{
     JointAxis, Method, PoseMsg, Reply, RobotMethod, WireError, WrenchMsg, joints_to_vector,
 };
-use penelope_supervisor::objects::clock::ClockMode;
-use penelope_supervisor::objects::kinematics::RobotKinematics;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::kinematics::RobotKinematics;
+use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_supervisor::runs::report::{Report, report};
 use penelope_supervisor::runs::{
     DEMO_SYSTEM, Law, MasterKinematics, RunOptions, RunOutput, run, with_master_kinematics,

@@ -17,7 +17,7 @@ use penelope_drivers::galil::{
 use penelope_drivers::model::puma200;
 use penelope_hal::NamedPose;
 use penelope_rt_core::safety::SafetyState;
-use penelope_supervisor::objects::clock::ClockMode;
+use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::runs::report::report;
 use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, run};
 use penelope_supervisor::system::SystemFile;

@@ -4,7 +4,7 @@
 //! truth included); with a handle sensor on the master, the slave's `C_3` pushes the wall with
 //! the operator's force.
 
-use penelope_supervisor::objects::clock::ClockMode;
+use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, RunOutput, run};
 use penelope_supervisor::system::SystemFile;
 

@@ -13,9 +13,9 @@ use penelope_fpga::cosim::{self, Bench, KinVector};
 use penelope_fpga::pipeline::{POS, TORQUE};
 use penelope_fpga::{DhTable, FpgaKinematics};
 use penelope_hal::{Kinematics, RobotModel, Wrench};
-use penelope_supervisor::objects::clock::ClockMode;
-use penelope_supervisor::objects::fpga_board::{FK, FK_FORCE};
-use penelope_supervisor::objects::kinematics::RobotKinematics;
+use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::fpga_board::{FK, FK_FORCE};
+use penelope_runtime::objects::kinematics::RobotKinematics;
 use penelope_supervisor::runs::{
     DEMO_SYSTEM, MasterKinematics, RunOptions, run, with_master_kinematics,
 };

@@ -7,8 +7,8 @@ use std::time::Duration;
 
 use penelope_hal::{LifecycleState, Transition};
 use penelope_protocol::proto::{Call, ControllerMethod, Method, Reply, RobotMethod, WireError};
+use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::system::{SystemFile, SystemFileError};
 
 /// The arm's goal (its trajectory gives goals for every joint; the group takes joints 0-2).

@@ -22,9 +22,9 @@ use penelope_protocol::proto::{
     Call, ControllerMethod, CreatorCall, JointAxis, Method, Reply, RobotMethod, SensorMethod,
     WireError,
 };
-use penelope_supervisor::dataplane::endpoint::Endpoint;
-use penelope_supervisor::dataplane::frame::{DATAPLANE_VERSION, DatagramKey, Header, StreamId};
-use penelope_supervisor::dataplane::sensor_stream::{
+use penelope_runtime::dataplane::endpoint::Endpoint;
+use penelope_runtime::dataplane::frame::{DATAPLANE_VERSION, DatagramKey, Header, StreamId};
+use penelope_runtime::dataplane::sensor_stream::{
     Probe, SensorSubscriber, WrenchSample, sensor_reader_keys,
 };
 use penelope_supervisor::naming::{NamingLimits, NamingService};
@@ -457,7 +457,7 @@ fn a_sensor_on_another_node_is_refused_to_a_loop_on_a_simulated_clock() {
     let mut config = NodeConfig::new("arm", NamingChoice::Remote(lab.naming.local_addr()));
     config.secret = Some(SECRET.into());
     config.creator.rt.priority = None;
-    config.creator.clock = penelope_supervisor::objects::clock::ClockMode::Simulated;
+    config.creator.clock = penelope_runtime::objects::clock::ClockMode::Simulated;
     let arm = Node::start(config).unwrap();
     wait_until("the sensor's naming entry", || {
         arm.remote()

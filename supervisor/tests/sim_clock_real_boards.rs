@@ -4,9 +4,9 @@
 //! real-time creator, and a `board/sim` on the simulated one, are made as before.
 
 use penelope_protocol::proto::WireError;
+use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::objects::clock::ClockMode;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
 use penelope_supervisor::system::{SystemFile, SystemFileError};
 
 /// The shipped Galil variant of the demo.

@@ -7,8 +7,8 @@ use std::time::Duration;
 
 use penelope_hal::Transition;
 use penelope_protocol::proto::{Call, ControllerMethod, Method, Reply};
+use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::runs::DEMO_SYSTEM;
 use penelope_supervisor::system::SystemFile;
 

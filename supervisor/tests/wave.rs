@@ -2,7 +2,7 @@
 //! observers in telemetry, on the demo's task and simulated clock (issue 14). Zero delay here:
 //! the delayed runs come with the delay channel.
 
-use penelope_supervisor::objects::clock::ClockMode;
+use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::runs::report::{Report, report};
 use penelope_supervisor::runs::{DEMO_SYSTEM, Law, RunOptions, RunOutput, run};
 use penelope_supervisor::system::SystemFile;

@@ -9,8 +9,8 @@
 use std::time::{Duration, Instant};
 
 use penelope_protocol::proto::{Call, ControllerMethod, Method, Reply};
+use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig, NodeError};
-use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::system::SystemFile;
 use penelope_supervisor::zenoh_bridge::encoding::OperatorPose;
 use penelope_supervisor::zenoh_bridge::{BridgeStats, ZenohSettings};

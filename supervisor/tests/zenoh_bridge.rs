@@ -13,8 +13,8 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use penelope_protocol::proto::{Call, ControllerMethod, Method, Reply, TelemetryRecord};
+use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::system::SystemFile;
 use penelope_supervisor::zenoh_bridge::encoding::OperatorPose;
 use penelope_supervisor::zenoh_bridge::{BridgeStats, ZenohSettings};

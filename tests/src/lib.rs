@@ -10,8 +10,8 @@ pub mod papers_task;
 /// (communication every other tick, after `at_comm`, which plays any feed a thread would),
 /// draining their telemetry as a pump would, and returns the allocator calls made meanwhile.
 pub fn step_teleop_pair(
-    master: &mut penelope_supervisor::objects::DetachedLoop,
-    slave: &mut penelope_supervisor::objects::DetachedLoop,
+    master: &mut penelope_runtime::objects::DetachedLoop,
+    slave: &mut penelope_runtime::objects::DetachedLoop,
     ticks: std::ops::Range<u64>,
     at_comm: &mut dyn FnMut(penelope_hal::Timestamp),
 ) -> u64 {
@@ -39,8 +39,8 @@ pub fn step_teleop_pair(
 /// Asserts that both loops of a pair ran `ticks` control ticks with no fault and published
 /// more than `published` references.
 pub fn assert_pair_ran(
-    master: &penelope_supervisor::objects::DetachedLoop,
-    slave: &penelope_supervisor::objects::DetachedLoop,
+    master: &penelope_runtime::objects::DetachedLoop,
+    slave: &penelope_runtime::objects::DetachedLoop,
     ticks: u64,
     published: u64,
 ) {
@@ -60,7 +60,7 @@ pub fn assert_pair_ran(
 /// Calls `method` on `object` of creator `c`, panicking with the object's name on an error
 /// (set-up steps of the allocation tests).
 pub fn call_object(
-    c: &penelope_supervisor::objects::Creator,
+    c: &penelope_runtime::objects::Creator,
     object: &str,
     method: penelope_protocol::proto::Method,
 ) {

@@ -10,7 +10,7 @@ use penelope_protocol::proto::{
 };
 use penelope_rt_core::cell::Stamped;
 use penelope_rt_core::telemetry::TelemetrySample;
-use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
+use penelope_runtime::objects::{Creator, CreatorConfig, DetachedLoop};
 
 /// Creates `kind` `name` with `config` (TOML), panicking with the reason on an error.
 pub fn create(c: &Creator, kind: &str, name: &str, config: &str) {

@@ -10,9 +10,9 @@
 use std::path::PathBuf;
 
 use penelope_hal::Transition;
-use penelope_supervisor::common_clock::ClockSource;
+use penelope_runtime::common_clock::ClockSource;
+use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::objects::clock::ClockMode;
 
 fn node(name: &str, clock: ClockMode, naming: NamingChoice) -> Node {
     let mut config = NodeConfig::new(name, naming);

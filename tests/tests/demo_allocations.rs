@@ -12,8 +12,8 @@ use std::net::SocketAddr;
 
 use penelope_hal::Transition;
 use penelope_protocol::proto::{Call, Method};
+use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::runs::DEMO_SYSTEM;
 use penelope_supervisor::system::SystemFile;
 use penelope_testkit::alloc::CountingAllocator;

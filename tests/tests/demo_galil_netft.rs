@@ -20,8 +20,8 @@ use penelope_drivers::netft::emulator::{
 };
 use penelope_drivers::sim::environment::{ContactModel, Environment, Shape};
 use penelope_hal::{NamedPose, Pose, Timestamp};
-use penelope_supervisor::objects::clock::ClockMode;
-use penelope_supervisor::objects::kinds::NetFtSensorConfig;
+use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::kinds::NetFtSensorConfig;
 use penelope_supervisor::runs::report::report;
 use penelope_supervisor::runs::{RunOptions, run};
 use penelope_supervisor::system::SystemFile;
@@ -46,7 +46,7 @@ fn wall() -> Environment {
     let text = include_str!("../../config/demo-galil.toml");
     let file = SystemFile::parse(text).unwrap();
     let wrist = file.objects.iter().find(|o| o.name == "wrist").unwrap();
-    let cfg: penelope_supervisor::objects::kinds::SensorConfig =
+    let cfg: penelope_runtime::objects::kinds::SensorConfig =
         toml::from_str(&wrist.config).unwrap();
     let s = &cfg.shapes[0];
     Environment::new()

@@ -22,8 +22,8 @@ use penelope_protocol::proto::{
     BoardMethod, Class, ControllerMethod, JointAxis, Method, ObjectRef, Reply, RobotMethod,
     object_path,
 };
+use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
-use penelope_supervisor::objects::{Creator, CreatorConfig};
 use penelope_testkit::wait::wait_until;
 
 const NODE: &str = "lab";

@@ -19,14 +19,14 @@ use penelope_rt_core::control::{
     ControlCommand, ControlConfig, ControlLoop, ControlPorts, NoCommands,
 };
 use penelope_rt_core::safety::{SafetyConfig, SafetyState};
-use penelope_supervisor::objects::runtime::{LoopBoard, LoopBoardError, SimDrive};
+use penelope_runtime::objects::runtime::{LoopBoard, LoopBoardError, SimDrive};
 use penelope_testkit::wait::wait_until;
 use penelope_tests::fixtures::{ConstantTorque, Discard, HangableThread};
 
 const COUNTS_PER_RADIAN: f64 = 1000.0;
 
 /// A PUMA 560's simulated body with the default command timeout, at rest at its start pose.
-fn body() -> Box<penelope_supervisor::objects::runtime::SimBody> {
+fn body() -> Box<penelope_runtime::objects::runtime::SimBody> {
     Box::new(SimBoard::new(
         puma560(),
         PlantConfig::default(),

@@ -12,7 +12,7 @@ use penelope_protocol::proto::{BoardMethod, ControllerMethod, Method, Reply, Rob
 use penelope_rt_core::control::ControlCommand;
 use penelope_rt_core::safety::{FaultCause, SafetyState};
 use penelope_rt_core::telemetry::TelemetrySample;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_testkit::wait::wait_until;
 use penelope_tests::fixtures::{hold_at, one_radian_move};
 use penelope_tests::papers_task::{map_all, ok, papers_task, step_papers_task};

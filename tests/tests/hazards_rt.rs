@@ -37,10 +37,10 @@ use penelope_rt_core::control::{
 use penelope_rt_core::exec::{Flow, Tick};
 use penelope_rt_core::safety::SafetyEvent;
 use penelope_rt_core::safety::{FaultCause, HoldMode, SafetyConfig, SafetyState};
+use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::runtime::{self, LoopBoard, LoopFault};
+use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::objects::clock::ClockMode;
-use penelope_supervisor::objects::runtime::{self, LoopBoard, LoopFault};
-use penelope_supervisor::objects::{Creator, CreatorConfig};
 use penelope_supervisor::system::SystemFile;
 use penelope_testbed::DecoupledChain;
 use penelope_testkit::net::free_udp_port;

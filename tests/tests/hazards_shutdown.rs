@@ -12,7 +12,7 @@ use penelope_hal::Transition;
 use penelope_protocol::proto::{
     BoardMethod, ControllerMethod, JointAxis, Method, Reply, RobotMethod,
 };
-use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_testkit::wait::wait_until;
 
 fn ok(c: &Creator, name: &str, method: Method) -> Reply {

@@ -17,7 +17,7 @@ use penelope_protocol::proto::{
 use penelope_protocol::service::{Outbox, Session};
 use penelope_rt_core::clock::MonotonicClock;
 use penelope_rt_core::safety::SafetyEvent;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_testkit::alloc::{CountingAllocator, allocations};
 use penelope_tests::call_object;
 
@@ -103,7 +103,7 @@ fn control_ticks_reading_a_net_ft_allocate_nothing() {
         std::thread::sleep(Duration::from_micros(200));
     }
 
-    let tick = |d: &mut penelope_supervisor::objects::DetachedLoop| -> bool {
+    let tick = |d: &mut penelope_runtime::objects::DetachedLoop| -> bool {
         let now = MonotonicClock::read();
         d.comm.tick(now);
         d.control.tick(now);

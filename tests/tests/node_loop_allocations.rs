@@ -13,7 +13,7 @@ use penelope_protocol::proto::{
 use penelope_protocol::service::{Outbox, Service, Session};
 use penelope_rt_core::cell::Stamped;
 use penelope_rt_core::safety::SafetyState;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_testkit::alloc::{CountingAllocator, allocations};
 use penelope_tests::call_object;
 
@@ -104,7 +104,7 @@ fn fifty_thousand_node_loop_ticks_allocate_nothing() {
     let mut detached = c.detach_loop("pid").expect("the loop builds");
     let mut wrench = detached.wrench.take().expect("a sensor is bound");
     let period_ns = 1_000_000u64;
-    let mut step = |i: u64, d: &mut penelope_supervisor::objects::DetachedLoop| {
+    let mut step = |i: u64, d: &mut penelope_runtime::objects::DetachedLoop| {
         let now = Timestamp::from_nanos((i + 1) * period_ns);
         if i.is_multiple_of(2) {
             d.comm.tick(now);

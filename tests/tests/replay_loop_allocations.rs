@@ -12,8 +12,8 @@ use std::time::Duration;
 
 use penelope_hal::{Timestamp, Transition};
 use penelope_protocol::proto::{ControllerMethod, JointAxis, Method, RobotMethod};
-use penelope_supervisor::objects::{Creator, CreatorConfig};
-use penelope_supervisor::runs::mcap_log::write_run;
+use penelope_runtime::objects::{Creator, CreatorConfig};
+use penelope_supervisor::runs::recording::write_run;
 use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, run};
 use penelope_supervisor::system::SystemFile;
 use penelope_testkit::alloc::CountingAllocator;

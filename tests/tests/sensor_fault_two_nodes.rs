@@ -16,7 +16,7 @@ use std::time::Duration;
 use penelope_drivers::netft::Status;
 use penelope_drivers::netft::emulator::{EmulatorConfig, NetFtEmulator};
 use penelope_hal::Timestamp;
-use penelope_supervisor::objects::clock::ClockMode;
+use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::runs::report::report;
 use penelope_supervisor::runs::{RunOptions, run};
 use penelope_supervisor::system::SystemFile;

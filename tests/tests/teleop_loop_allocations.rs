@@ -15,7 +15,7 @@ use std::time::Duration;
 use penelope_hal::{Frame, Timestamp, Transition, Wrench};
 use penelope_protocol::proto::{ControllerMethod, JointAxis, Method, RobotMethod};
 use penelope_rt_core::cell::Stamped;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_testkit::alloc::CountingAllocator;
 use penelope_tests::{assert_pair_ran, call_object, step_teleop_pair};
 

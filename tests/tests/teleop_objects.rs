@@ -10,7 +10,7 @@ use penelope_drivers::sim::scripts::{self, CONTACT_PHASE, FREE_MOTION_PHASES, IN
 use penelope_hal::{Timestamp, Transition};
 use penelope_protocol::proto::{ControllerMethod, Method, Reply, RobotMethod, WireError};
 use penelope_rt_core::telemetry::TelemetrySample;
-use penelope_supervisor::objects::Creator;
+use penelope_runtime::objects::Creator;
 use penelope_tests::papers_task::{create, ok, papers_task, relate, step_papers_task};
 
 fn call(c: &Creator, name: &str, method: Method) -> Result<Reply, WireError> {

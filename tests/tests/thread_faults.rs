@@ -7,8 +7,8 @@ use penelope_hal::{LifecycleState, Transition};
 use penelope_protocol::proto::{
     BoardMethod, ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod, WireError,
 };
-use penelope_supervisor::objects::runtime::LoopThread;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_runtime::objects::runtime::LoopThread;
+use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_testkit::wait::wait_until;
 
 fn call(c: &Creator, name: &str, method: Method) -> Result<Reply, WireError> {

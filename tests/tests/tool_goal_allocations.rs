@@ -13,8 +13,8 @@ use penelope_hal::{JointVector, Timestamp, Transition};
 use penelope_protocol::proto::{ControllerMethod, JointAxis, Method, Reply, RobotMethod};
 use penelope_rt_core::controller::JointPidGains;
 use penelope_rt_core::safety::SafetyState;
-use penelope_supervisor::objects::runtime::{GainsUpdate, RoutedGains};
-use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
+use penelope_runtime::objects::runtime::{GainsUpdate, RoutedGains};
+use penelope_runtime::objects::{Creator, CreatorConfig, DetachedLoop};
 use penelope_testkit::alloc::{CountingAllocator, allocations};
 
 #[global_allocator]

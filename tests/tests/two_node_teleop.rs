@@ -10,8 +10,8 @@ use penelope_protocol::proto::{
     Call, ControllerMethod, Method, Reply, RobotMethod, TelemetryRecord, WireError,
 };
 use penelope_rt_core::safety::SafetyEvent;
+use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
-use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::runs::DEMO_SYSTEM;
 use penelope_supervisor::system::{SystemFile, SystemFileError};
 use penelope_testkit::net::free_udp_port;

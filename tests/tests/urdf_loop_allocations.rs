@@ -12,7 +12,7 @@
 use penelope_hal::{Timestamp, Transition};
 use penelope_protocol::proto::{ControllerMethod, JointAxis, Method, Reply, RobotMethod};
 use penelope_rt_core::safety::SafetyState;
-use penelope_supervisor::objects::{Creator, CreatorConfig, DetachedLoop};
+use penelope_runtime::objects::{Creator, CreatorConfig, DetachedLoop};
 use penelope_testkit::alloc::{CountingAllocator, allocations};
 
 #[global_allocator]

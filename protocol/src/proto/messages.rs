@@ -80,6 +80,18 @@ pub enum Role {
     Operator,
 }
 
+impl Role {
+    /// The role's name in messages (`reader`, `operator`, `node`, `admin`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Role::Reader => "reader",
+            Role::Operator => "operator",
+            Role::Node => "node",
+            Role::Admin => "admin",
+        }
+    }
+}
+
 /// How a node protects a connection, as its hello says.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Security {

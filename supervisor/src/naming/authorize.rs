@@ -19,7 +19,7 @@ pub fn authorize(identity: Identity, client: &str, call: &NamingCall) -> Result<
         Role::Reader | Role::Operator => Err(WireError::Forbidden(format!(
             "`{client}` is a {}: it may not {what} a node (connect as that node or with the \
              admin secret)",
-            role_name(identity.role)
+            identity.role.name()
         ))),
     };
     let own_path = |path: &str, what: &str| {
@@ -32,7 +32,7 @@ pub fn authorize(identity: Identity, client: &str, call: &NamingCall) -> Result<
             ))),
             Role::Reader | Role::Operator => Err(WireError::Forbidden(format!(
                 "`{client}` is a {}: it may not {what} `{path}`",
-                role_name(identity.role)
+                identity.role.name()
             ))),
         }
     };
@@ -45,15 +45,5 @@ pub fn authorize(identity: Identity, client: &str, call: &NamingCall) -> Result<
             own_path(path, if *rebind { "rebind" } else { "bind" })
         }
         NamingCall::Unbind { path } => own_path(path, "unbind"),
-    }
-}
-
-/// The role's name in messages.
-pub fn role_name(role: Role) -> &'static str {
-    match role {
-        Role::Reader => "reader",
-        Role::Operator => "operator",
-        Role::Node => "node",
-        Role::Admin => "admin",
     }
 }

@@ -64,6 +64,6 @@ mod service;
 mod tests;
 mod tree;
 
-pub use authorize::{authorize, role_name};
+pub use authorize::authorize;
 pub use service::{NamingService, Reaper, STALE_PROBE_TIMEOUT};
 pub use tree::{MAX_ADDRESS_LEN, MAX_KIND_LEN, NamingLimits, NamingTree, NodeLease};

@@ -218,7 +218,7 @@ impl Service for NamingService {
                 objects: 0,
             })),
             Call::Naming(c) => self.handle_for(session, c),
-            Call::Time => Ok(crate::common_clock::time_reply()),
+            Call::Time => Ok(penelope_runtime::common_clock::time_reply()),
             Call::Creator(_) => Err(unsupported("creator calls")),
             Call::Object { .. } => Err(unsupported("object calls")),
             Call::Subscribe { .. } | Call::Unsubscribe { .. } => {

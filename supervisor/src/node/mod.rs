@@ -38,10 +38,7 @@ use std::sync::{Arc, Mutex, MutexGuard, OnceLock, PoisonError, Weak};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crate::common_clock::CommonClock;
 use crate::naming::{NamingLimits, NamingService, Reaper};
-use crate::objects::clock::ClockMode;
-use crate::objects::{Creator, CreatorConfig};
 use crate::system::ApplyTarget;
 use crate::zenoh_bridge::{BridgeStats, ZenohBridge, ZenohError, ZenohSettings};
 use penelope_protocol::client::Client;
@@ -51,6 +48,9 @@ use penelope_protocol::net::server::{NetError, Server, ServerConfig, ServerStats
 use penelope_protocol::proto::object_path;
 use penelope_protocol::proto::{Call, NamingCall, ObjectRef, Reply, WireError, check_name};
 use penelope_protocol::service::{Remote, Service, Session};
+use penelope_runtime::common_clock::CommonClock;
+use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::{Creator, CreatorConfig};
 
 mod naming_link;
 mod service;
@@ -270,9 +270,8 @@ impl Node {
         creator_config.node = name.clone();
         // The data plane's datagrams are authenticated with a key from the same secret.
         if let Some(secret) = &config.secret {
-            creator_config.datagram_key = Some(crate::dataplane::frame::DatagramKey::from_secret(
-                secret.bytes(),
-            ));
+            creator_config.datagram_key =
+                Some(penelope_runtime::dataplane::frame::DatagramKey::from_secret(secret.bytes()));
         }
         // The common clock: the naming service's host's, when it is another process on the
         // real clock.

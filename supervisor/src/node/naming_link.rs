@@ -8,12 +8,12 @@ use std::sync::mpsc::{self, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
 use super::{REGISTER_RETRY_FIRST, REGISTER_RETRY_MAX, Shared, local_session, lock};
-use crate::common_clock::EXCHANGES_AT_REGISTRATION;
 use penelope_protocol::net::conn::RpcError;
 use penelope_protocol::proto::{
     Call, Class, Method, NamingCall, ObjectInfo, ObjectRef, Reply, WireError, object_path,
 };
 use penelope_protocol::service::{Remote, Service};
+use penelope_runtime::common_clock::EXCHANGES_AT_REGISTRATION;
 
 /// Most resolved paths cached at once.
 const MAX_RESOLVED: usize = 256;

@@ -4,11 +4,11 @@
 use std::sync::Arc;
 
 use super::{Shared, lock};
-use crate::objects::Creator;
-use crate::objects::roles::authorize_call;
 use crate::system::{SystemFile, SystemFileError};
 use penelope_protocol::proto::{Call, CreatorCall, NodeInfo, Reply, WireError};
 use penelope_protocol::service::{Service, Session};
+use penelope_runtime::objects::Creator;
+use penelope_runtime::objects::roles::authorize_call;
 
 /// What the node's server serves: the creator, plus naming bookkeeping and the hosted naming
 /// service.

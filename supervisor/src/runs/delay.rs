@@ -6,7 +6,7 @@
 //! # The delay
 //! A round-trip delay `T` is split half each way: the channel gets `faults = { delay_ms = T/2,
 //! jitter_ms = J }` in both directions (the one-node channel's seeded delay line, see
-//! [`crate::objects::delay_line`]), so a sample of the master's reaches the slave `T/2 +
+//! [`penelope_runtime::objects::delay_line`]), so a sample of the master's reaches the slave `T/2 +
 //! U(0, J)` later (to within one communication period) and the slave's wrench comes back as
 //! late. `T = 0` with no jitter runs the channel without faults: the demo as it is.
 //!
@@ -43,8 +43,8 @@ use serde::Serialize;
 
 use super::report::{Report, report};
 use super::{Law, RunError, RunOptions, RunOutput, run, set_key, task};
-use crate::objects::clock::ClockMode;
 use crate::system::SystemFile;
+use penelope_runtime::objects::clock::ClockMode;
 
 /// Largest growth ratio of the tap cycles' peak energy of a stable run.
 pub const MAX_GROWTH_RATIO: f64 = 1.25;
@@ -410,9 +410,9 @@ fn within(value: f64, limit: f64) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::objects::kinds::{self, SimBoardConfig};
-    use crate::objects::teleop::TeleopConfig;
     use crate::runs::DEMO_SYSTEM;
+    use penelope_runtime::objects::kinds::{self, SimBoardConfig};
+    use penelope_runtime::objects::teleop::TeleopConfig;
 
     fn object<'a>(file: &'a SystemFile, kind: &str) -> &'a crate::system::ObjectSpec {
         file.objects.iter().find(|o| o.kind == kind).unwrap()

@@ -4,7 +4,7 @@
 //! [`run`] starts the nodes the file names in this process (the first hosts the naming
 //! service, on loopback), applies the file to each through its creator with the controllers
 //! still inactive, starts recording the active ones, activates them, then moves the clock on
-//! (the simulated clock by [`Creator::advance`](crate::objects::Creator::advance), the real
+//! (the simulated clock by [`Creator::advance`](penelope_runtime::objects::Creator::advance), the real
 //! one by waiting) and deactivates them at the end (amplifiers off). What a `penelope node
 //! --config` runs is exactly this, without the duration and the recording.
 //!
@@ -13,7 +13,6 @@
 //! experiment delay`).
 
 pub mod delay;
-pub mod mcap_log;
 pub mod recording;
 pub mod report;
 pub mod rerun;
@@ -30,14 +29,14 @@ use penelope_hal::{Pose, Timestamp, Transition};
 use penelope_rt_core::teleop::MappingConfig;
 
 use crate::node::{NamingChoice, Node, NodeConfig};
-use crate::objects::clock::ClockMode;
-use crate::objects::fpga_board;
-use crate::objects::kinds::{self, RobotConfig, SensorConfig, SimBoardConfig};
-use crate::objects::kinematics::RobotKinematics;
-use crate::objects::runtime::{TickRecord, TickStream};
-use crate::objects::teleop::{HandConfig, TeleopConfig};
 use crate::system::{ObjectSpec, SystemFile, SystemFileError};
 use penelope_protocol::proto::{Call, Method, WireError};
+use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::fpga_board;
+use penelope_runtime::objects::kinds::{self, RobotConfig, SensorConfig, SimBoardConfig};
+use penelope_runtime::objects::kinematics::RobotKinematics;
+use penelope_runtime::objects::runtime::{TickRecord, TickStream};
+use penelope_runtime::objects::teleop::{HandConfig, TeleopConfig};
 
 /// The demo's system file (`config/demo.toml`), built in.
 pub const DEMO_SYSTEM: &str = include_str!("../../../config/demo.toml");
@@ -480,7 +479,7 @@ fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task, RunError> 
                 Pose::translation(c.mount_xyz[0], c.mount_xyz[1], c.mount_xyz[2])
             }
             Some(o) if o.kind == "sensor/replay" => {
-                parse::<crate::objects::replay::ReplaySensorConfig>(o)?.mount()
+                parse::<penelope_runtime::objects::replay::ReplaySensorConfig>(o)?.mount()
             }
             Some(o) if o.kind == "sensor/netft" => parse::<kinds::NetFtSensorConfig>(o)?.mount(),
             _ => Pose::identity(),

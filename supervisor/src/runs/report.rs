@@ -12,11 +12,11 @@ use penelope_rt_core::telemetry::ReferenceKind;
 use serde::Serialize;
 
 use super::{RunInfo, RunOutput};
-use crate::objects::clock::ClockMode;
-use crate::objects::runtime::TickRecord;
-use crate::objects::teleop::sensor_to_base;
 use penelope_drivers::sim::scripts::{CONTACT_PHASE, FREE_MOTION_PHASES, INDEX_PHASE, TAP_PHASE};
 use penelope_rt_core::teleop::WorkspaceMapping;
+use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::runtime::TickRecord;
+use penelope_runtime::objects::teleop::sensor_to_base;
 
 /// Position tracking in free motion.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -124,7 +124,7 @@ pub struct LoopTiming {
 }
 
 /// The kinematics the master computed with and, on its FPGA board, the board's modelled
-/// latency per tick ([`crate::objects::fpga_board`]).
+/// latency per tick ([`penelope_runtime::objects::fpga_board`]).
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct KinematicsReport {
     /// `float` (on the host) or `fpga` (on the master's `board/fpga`).
@@ -142,7 +142,7 @@ pub struct KinematicsReport {
 }
 
 fn kinematics_report(info: &RunInfo) -> KinematicsReport {
-    use crate::objects::fpga_board::{FK, FK_FORCE, command_delay_ns};
+    use penelope_runtime::objects::fpga_board::{FK, FK_FORCE, command_delay_ns};
     if info.master_model.is_fpga_board() {
         KinematicsReport {
             master: "fpga".into(),

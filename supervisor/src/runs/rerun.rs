@@ -24,13 +24,13 @@ use std::time::Duration;
 use penelope_drivers::sim::operator::{Motion, OperatorScript, Segment};
 use serde::Serialize;
 
-use super::mcap_log::{CONTROLLER_TOPIC, summarize};
-use super::recording::{RecordingError, read_recording};
 use super::{MasterKinematics, RunError, RunOptions, find_task, task, with_master_kinematics};
-use crate::objects::clock::ClockMode;
-use crate::objects::replay::OperatorReplayConfig;
-use crate::objects::runtime::TickRecord;
 use crate::system::{SystemFile, SystemFileError};
+use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::replay::OperatorReplayConfig;
+use penelope_runtime::objects::runtime::TickRecord;
+use penelope_runtime::recording::mcap_log::{CONTROLLER_TOPIC, summarize};
+use penelope_runtime::recording::{RecordingError, read_recording};
 
 /// The name of the metadata record that holds a run's [`RunRecipe`].
 pub const RECIPE: &str = "run";

@@ -10,13 +10,12 @@
 //!
 //! Nothing here needs the `zenoh` crate: the encoding is tested in every build.
 
-use nalgebra::{Quaternion, Translation3, UnitQuaternion, Vector3};
-use penelope_hal::{CartesianReference, Pose, Reference, Timestamp, Twist};
+use penelope_hal::Reference;
 use penelope_rt_core::safety::{FaultCause, SafetyState};
 use penelope_rt_core::teleop::TeleopSample;
 use serde_json::json;
 
-use crate::objects::runtime::TickRecord;
+use penelope_runtime::objects::runtime::TickRecord;
 
 /// The first chunk of every key expression the bridge uses.
 pub const KEY_ROOT: &str = "penelope";
@@ -43,135 +42,11 @@ pub fn objects_key(node: &str) -> String {
     format!("{KEY_ROOT}/{node}/{OBJECTS}")
 }
 
-/// The length of an encoded [`OperatorPose`], bytes.
-pub const OPERATOR_POSE_LEN: usize = 58;
-/// The tag (first byte) of an [`OperatorPose`], version 1.
-pub const OPERATOR_POSE_TAG: u8 = 0x01;
-/// How far from 1 the norm of an operator pose's quaternion may be (it is normalized after).
-pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
-/// The largest distance of an operator pose's position from its frame's origin, m: anything
-/// farther is no hand-held master's pose.
-pub const MAX_POSITION_M: f64 = 100.0;
-
-/// An operator station's master tool pose, as a `trajectory/teleop` channel's bridged end
-/// takes it: the master side's sample (its base frame), mapped to the slave by the channel as
-/// any master's.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct OperatorPose {
-    /// The clutch (indexing) button: held = `true` (the slave holds; motion re-anchors on
-    /// release).
-    pub clutch: bool,
-    /// The tool position, m.
-    pub position: [f64; 3],
-    /// The tool orientation, a unit quaternion `[w, x, y, z]`.
-    pub orientation: [f64; 4],
-}
-
-/// Why an operator pose payload was refused (counted per channel; never reaches a loop).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
-#[non_exhaustive]
-pub enum PoseError {
-    /// Not [`OPERATOR_POSE_LEN`] bytes.
-    #[error("{0} bytes, not {OPERATOR_POSE_LEN}")]
-    Length(usize),
-    /// The first byte is not [`OPERATOR_POSE_TAG`].
-    #[error("tag {0:#04x}, not {OPERATOR_POSE_TAG:#04x}")]
-    Tag(u8),
-    /// The clutch byte is neither 0 nor 1.
-    #[error("clutch byte {0:#04x}, neither 0 nor 1")]
-    Clutch(u8),
-    /// A number is NaN or infinite.
-    #[error("a number is not finite")]
-    NotFinite,
-    /// The position is farther than [`MAX_POSITION_M`] from the origin.
-    #[error("the position is farther than {MAX_POSITION_M} m from the origin")]
-    OutOfReach,
-    /// The quaternion's norm is off 1 by more than [`QUATERNION_NORM_TOLERANCE`].
-    #[error("the orientation is not a unit quaternion")]
-    NotUnit,
-}
-
-impl OperatorPose {
-    /// The 58 bytes: tag `0x01`, clutch (0 or 1), position x, y, z and orientation w, x, y, z
-    /// as IEEE 754 doubles, little-endian.
-    pub fn encode(&self) -> [u8; OPERATOR_POSE_LEN] {
-        let mut out = [0u8; OPERATOR_POSE_LEN];
-        out[0] = OPERATOR_POSE_TAG;
-        out[1] = u8::from(self.clutch);
-        let numbers = self.position.iter().chain(self.orientation.iter());
-        for (i, v) in numbers.enumerate() {
-            out[2 + 8 * i..10 + 8 * i].copy_from_slice(&v.to_le_bytes());
-        }
-        out
-    }
-
-    /// Reads and checks a payload.
-    ///
-    /// # Errors
-    /// [`PoseError`]: the wrong length or tag, a clutch byte other than 0 or 1, a number not
-    /// finite, a position out of reach, a quaternion not of unit norm.
-    pub fn decode(bytes: &[u8]) -> Result<OperatorPose, PoseError> {
-        if bytes.len() != OPERATOR_POSE_LEN {
-            return Err(PoseError::Length(bytes.len()));
-        }
-        if bytes[0] != OPERATOR_POSE_TAG {
-            return Err(PoseError::Tag(bytes[0]));
-        }
-        let clutch = match bytes[1] {
-            0 => false,
-            1 => true,
-            other => return Err(PoseError::Clutch(other)),
-        };
-        let mut n = [0f64; 7];
-        for (i, v) in n.iter_mut().enumerate() {
-            let mut b = [0u8; 8];
-            b.copy_from_slice(&bytes[2 + 8 * i..10 + 8 * i]);
-            *v = f64::from_le_bytes(b);
-        }
-        if n.iter().any(|v| !v.is_finite()) {
-            return Err(PoseError::NotFinite);
-        }
-        let position = [n[0], n[1], n[2]];
-        if Vector3::from(position).norm() > MAX_POSITION_M {
-            return Err(PoseError::OutOfReach);
-        }
-        let orientation = [n[3], n[4], n[5], n[6]];
-        let norm = orientation.iter().map(|v| v * v).sum::<f64>().sqrt();
-        if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
-            return Err(PoseError::NotUnit);
-        }
-        Ok(OperatorPose {
-            clutch,
-            position,
-            orientation,
-        })
-    }
-
-    /// The pose (orientation normalized).
-    pub fn pose(&self) -> Pose {
-        let [w, x, y, z] = self.orientation;
-        Pose::from_parts(
-            Translation3::from(Vector3::from(self.position)),
-            UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z)),
-        )
-    }
-
-    /// The channel sample it makes: sequence `sequence` (the bridge numbers what it took), a
-    /// master's Cartesian reference with the clutch. Its send time is the tick's that takes it.
-    pub fn sample(&self, sequence: u64) -> TeleopSample {
-        TeleopSample {
-            clutch: self.clutch,
-            ..TeleopSample::new(
-                sequence,
-                Timestamp::ZERO,
-                Reference::Cartesian(CartesianReference {
-                    pose: self.pose(),
-                    twist: Twist::default(),
-                }),
-            )
-        }
-    }
-}
+/// The operator pose a bridged channel takes is the runtime's (one format for every bridge).
+pub use penelope_runtime::objects::bridged::{
+    MAX_POSITION_M, OPERATOR_POSE_LEN, OPERATOR_POSE_TAG, OperatorPose, PoseError,
+    QUATERNION_NORM_TOLERANCE,
+};
 
 /// A tick's JSON message on `…/telemetry`: the serde form of [`TickRecord`] (what a
 /// recording's `/controllers/<name>` channel holds).

@@ -6,18 +6,19 @@
 //!
 //! # Layers
 //! - [`encoding`]: the key expressions and the bytes (documented in `docs/zenoh.md`);
-//! - [`channels`]: the channels fed from Zenoh, shared by the creator (which registers them
-//!   when it configures one) and the bridge (which feeds their cells);
+//! - the channels fed from Zenoh are the runtime's
+//!   ([`BridgedChannels`](penelope_runtime::objects::bridged::BridgedChannels)): the creator
+//!   registers them when it configures one, the bridge feeds their cells;
 //! - `session.rs` (feature `zenoh`): the Zenoh session, its publishers, subscribers and
 //!   queryable, and the bridge's thread.
 //!
 //! # Real time
 //! Nothing here runs in a loop's thread. Ticks reach the bridge the way they reach a recording:
-//! the telemetry pump hands every tick to a bounded stream ([`crate::objects::Creator::record_ticks`]);
+//! the telemetry pump hands every tick to a bounded stream ([`penelope_runtime::objects::Creator::record_ticks`]);
 //! a bridge that falls behind loses ticks (counted), never the loop. Operator poses reach the
 //! loop the way the data plane's samples do: the bridge writes a lock-free latest-value cell
 //! that the channel's communication thread reads each tick
-//! ([`crate::objects::teleop_end::TeleopLink::bridged`]); a malformed payload is refused and
+//! ([`penelope_runtime::objects::teleop_end::TeleopLink::bridged`]); a malformed payload is refused and
 //! counted before it reaches the cell.
 //!
 //! # Scope of the network
@@ -34,14 +35,12 @@
 //! [`ZenohSettings::operators`], the session's access control lets every authenticated
 //! participant subscribe and query, and only those users put.
 
-pub mod channels;
 pub mod encoding;
 #[cfg(feature = "zenoh")]
 mod session;
 
 use std::path::PathBuf;
 
-pub use channels::{BridgedChannels, BridgedCounts};
 #[cfg(feature = "zenoh")]
 pub use session::ZenohBridge;
 
@@ -136,37 +135,6 @@ pub struct BridgeStats {
     pub queries: u64,
 }
 
-/// Checks a key expression a channel takes poses from: chunks separated by `/`, none empty,
-/// no wildcard or reserved character (`*`, `$`, `?`, `#`): a plain key.
-///
-/// # Errors
-/// Why it is no plain key.
-pub fn check_key(key: &str) -> Result<(), &'static str> {
-    if key.is_empty() || key.len() > 256 {
-        return Err("a key is 1 to 256 characters");
-    }
-    if key.split('/').any(str::is_empty) {
-        return Err("a key's chunks are not empty (no leading, trailing or double `/`)");
-    }
-    if key.contains(['*', '$', '?', '#']) || key.chars().any(char::is_whitespace) {
-        return Err("a key has no wildcard (`*`), `$`, `?`, `#` or white space");
-    }
-    Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::check_key;
-
-    #[test]
-    fn plain_keys_pass_and_wildcards_do_not() {
-        assert!(check_key("station/hand/pose").is_ok());
-        for bad in ["", "/a", "a/", "a//b", "a/*", "a/**", "a/$b", "a b"] {
-            assert!(check_key(bad).is_err(), "{bad}");
-        }
-    }
-}
-
 /// A node's Zenoh bridge, in a build without the `zenoh` feature: it never starts.
 #[cfg(not(feature = "zenoh"))]
 #[derive(Debug)]
@@ -180,7 +148,7 @@ impl ZenohBridge {
     /// Always [`ZenohError::NotBuilt`].
     pub fn start(
         _node: &str,
-        _creator: std::sync::Weak<crate::objects::Creator>,
+        _creator: std::sync::Weak<penelope_runtime::objects::Creator>,
         _settings: &ZenohSettings,
     ) -> Result<ZenohBridge, ZenohError> {
         Err(ZenohError::NotBuilt)

@@ -17,13 +17,13 @@ use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::CongestionControl;
 use zenoh::query::{Query, Queryable};
 
-use super::channels::BridgedChannels;
 use super::encoding::{self, EVENTS, FEEDBACK, LINK, TELEMETRY, objects_key, stream_key};
 use super::{BridgeStats, ZenohError, ZenohSettings};
-use crate::objects::Creator;
-use crate::objects::link_source::LinkSource;
-use crate::objects::runtime::TickStream;
 use penelope_protocol::proto::Class;
+use penelope_runtime::objects::Creator;
+use penelope_runtime::objects::bridged::BridgedChannels;
+use penelope_runtime::objects::link_source::LinkSource;
+use penelope_runtime::objects::runtime::TickStream;
 
 /// How often the bridge drains the tick streams and publishes.
 const DRAIN_EVERY: Duration = Duration::from_millis(5);

@@ -24,9 +24,8 @@ pub fn assert_master_let_go(
     until: Duration,
     what: &str,
 ) {
-    let commanded = |s: &penelope_supervisor::objects::runtime::TickRecord| {
-        s.sample.commanded_wrench.force.norm()
-    };
+    let commanded =
+        |s: &penelope_runtime::objects::runtime::TickRecord| s.sample.commanded_wrench.force.norm();
     let before: Vec<f64> = out
         .master
         .iter()

@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use penelope_supervisor::objects::clock::ClockMode;
+use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::runs::report::{Report, report};
 use penelope_supervisor::runs::rerun::RunRecipe;
 use penelope_supervisor::runs::{
@@ -198,7 +198,7 @@ fn write_outputs(
         written.push(path);
     }
     let path = dir.join("run.mcap");
-    penelope_supervisor::runs::mcap_log::write_run(&path, output, Some(recipe))
+    penelope_supervisor::runs::recording::write_run(&path, output, Some(recipe))
         .with_context(|| format!("writing {}", path.display()))?;
     written.push(path);
     let path = dir.join("report.json");

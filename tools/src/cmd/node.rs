@@ -158,7 +158,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     rt.lock_memory |= args.lock_memory;
     config.creator.rt = rt;
     if args.sim_clock {
-        config.creator.clock = penelope_supervisor::objects::clock::ClockMode::Simulated;
+        config.creator.clock = penelope_runtime::objects::clock::ClockMode::Simulated;
     }
     // Where clients' files go and come from: the command line, the system file, defaults.
     let policy = file.as_ref().and_then(|f| f.nodes.get(&args.name));
@@ -166,9 +166,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         args.records
             .clone()
             .or_else(|| policy.and_then(|p| p.records.clone()))
-            .unwrap_or_else(|| {
-                penelope_supervisor::objects::files::default_records_dir(&args.name)
-            }),
+            .unwrap_or_else(|| penelope_runtime::objects::files::default_records_dir(&args.name)),
     );
     config.creator.robot_files = if !args.robot_files.is_empty() {
         args.robot_files.clone()

@@ -1,7 +1,7 @@
 //! `penelope bench fpga`: throughput of the bit-exact FPGA kinematics model beside the float
 //! (f64) forward kinematics of the same DH table, single-threaded, and the modelled hardware
 //! latency at 40 MHz, alone and as `board/fpga` hands results to the host (with its DMA FIFO
-//! transfers, `penelope_supervisor::objects::fpga_board`).
+//! transfers, `penelope_runtime::objects::fpga_board`).
 //!
 //! Every implementation runs over the same batch of seeded random FRHC configurations (the
 //! float one at the exact values of the binary angles), one call after another on one thread;
@@ -19,7 +19,7 @@ use penelope_fpga::sincos::angle_to_radians;
 use penelope_fpga::{FkWords, FpgaKinematics};
 use penelope_hal::joint::JointVector;
 use penelope_hal::robot::Kinematics;
-use penelope_supervisor::objects::fpga_board::{self, FK, FK_FORCE};
+use penelope_runtime::objects::fpga_board::{self, FK, FK_FORCE};
 use serde_json::json;
 
 /// Options of `penelope bench fpga`.

@@ -28,11 +28,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use penelope_supervisor::common_clock::CommonClock;
-use penelope_supervisor::objects::clock::NodeTime;
-use penelope_supervisor::objects::runtime::{Subscriptions, TickRecord};
-use penelope_supervisor::runs::mcap_log::McapLog;
-use penelope_supervisor::runs::recording::Recorder;
+use penelope_runtime::common_clock::CommonClock;
+use penelope_runtime::objects::clock::NodeTime;
+use penelope_runtime::objects::runtime::{Subscriptions, TickRecord};
+use penelope_runtime::recording::Recorder;
+use penelope_runtime::recording::mcap_log::McapLog;
 use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, run as run_task};
 use penelope_supervisor::system::SystemFile;
 use serde_json::json;

@@ -23,11 +23,11 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
-use penelope_supervisor::dataplane::endpoint::Endpoint;
-use penelope_supervisor::dataplane::frame::StreamId;
-use penelope_supervisor::dataplane::stream::StreamSender;
-use penelope_supervisor::objects::teleop::{Side, TeleopLink};
-use penelope_supervisor::zenoh_bridge::BridgedChannels;
+use penelope_runtime::dataplane::endpoint::Endpoint;
+use penelope_runtime::dataplane::frame::StreamId;
+use penelope_runtime::dataplane::stream::StreamSender;
+use penelope_runtime::objects::bridged::BridgedChannels;
+use penelope_runtime::objects::teleop::{Side, TeleopLink};
 use penelope_supervisor::zenoh_bridge::encoding::OperatorPose;
 use zenoh::Wait;
 

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use penelope_protocol::client::{Streamed, Subscription};
 use penelope_protocol::proto::{Class, LinkRecord, TelemetryRecord};
-use penelope_supervisor::objects::runtime::LINK_PERIOD;
+use penelope_runtime::objects::runtime::LINK_PERIOD;
 use serde::Serialize;
 
 use super::{Ctl, show};

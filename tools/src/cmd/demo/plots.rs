@@ -4,9 +4,9 @@ use std::path::{Path, PathBuf};
 
 use penelope_hal::Kinematics;
 use penelope_rt_core::telemetry::ReferenceKind;
-use penelope_supervisor::objects::clock::ClockMode;
-use penelope_supervisor::objects::runtime::TickRecord;
-use penelope_supervisor::objects::teleop::sensor_to_base;
+use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::runtime::TickRecord;
+use penelope_runtime::objects::teleop::sensor_to_base;
 use penelope_supervisor::runs::RunOutput;
 use penelope_supervisor::runs::report::motor_force;
 use plotters::prelude::*;

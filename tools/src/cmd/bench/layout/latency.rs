@@ -15,10 +15,10 @@ use std::time::{Duration, Instant};
 
 use nalgebra::Vector3;
 use penelope_hal::Timestamp;
-use penelope_supervisor::dataplane::endpoint::{
+use penelope_runtime::dataplane::endpoint::{
     ControlBuffer, enable_kernel_stamps, receive_with_stamp,
 };
-use penelope_supervisor::objects::runtime::TickRecord;
+use penelope_runtime::objects::runtime::TickRecord;
 use penelope_supervisor::runs::RunOutput;
 use serde::Serialize;
 

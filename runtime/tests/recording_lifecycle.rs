@@ -3,8 +3,8 @@
 //! in, stamped on the node's clock; a refused call leaves no trace.
 
 use penelope_hal::Transition;
-use penelope_supervisor::objects::clock::ClockMode;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::{Creator, CreatorConfig};
 
 #[test]
 fn a_recording_holds_the_nodes_lifecycle_transitions_in_order() {

@@ -6,9 +6,9 @@
 use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
-use penelope_supervisor::dataplane::endpoint::Endpoint;
-use penelope_supervisor::dataplane::frame::{DatagramKey, MAX_DATAGRAM, StreamId, encode};
-use penelope_supervisor::dataplane::stream::{StreamReceiver, StreamSender, Verdict, next_session};
+use penelope_runtime::dataplane::endpoint::Endpoint;
+use penelope_runtime::dataplane::frame::{DatagramKey, MAX_DATAGRAM, StreamId, encode};
+use penelope_runtime::dataplane::stream::{StreamReceiver, StreamSender, Verdict, next_session};
 
 /// The master-to-slave stream of a channel (as `teleop_end` numbers it).
 const FORWARD: StreamId = StreamId(1);

@@ -11,6 +11,8 @@
 //!   the bilateral laws.
 //! - [`replay`]: `sensor/replay` and `sensor/operator-replay`, a recording played back in place
 //!   of a force sensor or of the operator's hand.
+//! - [`bridged`]: the channels whose master end a bridge feeds from outside the node, and the
+//!   operator pose record they take.
 //! - [`delay_line`]: the seeded delay (jitter, loss) a channel on one node injects between its
 //!   ends when it has `faults`, as the data plane's fault layer does between nodes.
 //! - `registry` (private): the objects, relations, lifecycles and methods.
@@ -37,6 +39,7 @@
 //! so commands start from the measured state. Deactivating sends `Deactivate` (amplifiers off),
 //! joins the threads and gives the boards back.
 
+pub mod bridged;
 pub mod clock;
 pub mod delay_line;
 pub mod files;
@@ -188,7 +191,7 @@ pub struct Creator {
     /// The loops and the clock, on a simulated clock.
     sim: Option<Arc<Mutex<SimWorld>>>,
     /// The recording `ctl record start` began (its file and writer thread).
-    recording: Mutex<Option<(String, crate::runs::recording::Recorder)>>,
+    recording: Mutex<Option<(String, crate::recording::Recorder)>>,
     /// The transitions, for recorders.
     lifecycle: lifecycle_feed::LifecycleFeed,
     /// The stop latches of the running loops, reached by an e-stop without the registry lock.
@@ -347,7 +350,7 @@ impl Creator {
 
     /// The channels whose master is an operator station behind the Zenoh bridge (shared: the
     /// bridge reads and feeds them).
-    pub fn bridged_channels(&self) -> crate::zenoh_bridge::BridgedChannels {
+    pub fn bridged_channels(&self) -> crate::objects::bridged::BridgedChannels {
         self.lock().map(|r| r.bridged.clone()).unwrap_or_default()
     }
 
@@ -434,13 +437,13 @@ impl Creator {
         let (path, file) =
             files::create_in(dir, name).map_err(|e| WireError::BadArgument(e.to_string()))?;
         let path = path.display().to_string();
-        let recorder = crate::runs::recording::Recorder::start_in(
+        let recorder = crate::recording::Recorder::start_in(
             file,
             std::path::Path::new(&path),
             &self.config.node,
             streams,
             links,
-            Some(self.lifecycle_events(crate::runs::recording::LIFECYCLE_CAPACITY)),
+            Some(self.lifecycle_events(crate::recording::LIFECYCLE_CAPACITY)),
             &self.config.common_clock,
             self.node_time(),
         )

@@ -6,7 +6,7 @@ use penelope_hal::{Timestamp, Transition};
 use penelope_protocol::proto::{
     ControllerMethod, JointAxis, Method, Reply, RobotMethod, WireError,
 };
-use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_runtime::objects::{Creator, CreatorConfig};
 
 fn ok(c: &Creator, name: &str, method: Method) -> Reply {
     c.call_object(name, method)

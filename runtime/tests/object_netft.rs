@@ -8,8 +8,8 @@ use std::time::Duration;
 use penelope_drivers::netft::emulator::{EmulatorConfig, NetFtEmulator};
 use penelope_hal::Transition;
 use penelope_protocol::proto::{Method, PoseMsg, Reply, SensorMethod, WireError};
-use penelope_supervisor::objects::clock::ClockMode;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::{Creator, CreatorConfig};
 
 mod common;
 

@@ -5,8 +5,8 @@
 use penelope_hal::{CartesianReference, Pose, Reference, Timestamp, Twist};
 use penelope_rt_core::cell::{Fresh, latest};
 use penelope_rt_core::teleop::TeleopSample;
-use penelope_supervisor::dataplane::faults::FaultConfig;
-use penelope_supervisor::objects::delay_line::DelayLine;
+use penelope_runtime::dataplane::faults::FaultConfig;
+use penelope_runtime::objects::delay_line::DelayLine;
 use penelope_testkit::alloc::{CountingAllocator, counted};
 
 #[global_allocator]

@@ -11,7 +11,7 @@ use penelope_protocol::proto::{
     Call, ControllerMethod, CreatorCall, JointAxis, Method, Reply, RobotMethod, WireError,
 };
 use penelope_protocol::service::{Outbox, OutboxReceiver, Service, Session};
-use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_runtime::objects::{Creator, CreatorConfig};
 
 pub fn session(id: u64) -> (Session, OutboxReceiver) {
     let (outbox, rx) = Outbox::bounded(1024);

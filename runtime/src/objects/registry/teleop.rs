@@ -16,7 +16,7 @@ use crate::objects::clock::ClockMode;
 pub(super) fn link_relations(
     name: &str,
     t: &TeleopObj,
-    bridged: &crate::zenoh_bridge::BridgedChannels,
+    bridged: &crate::objects::bridged::BridgedChannels,
 ) -> Vec<(String, String)> {
     if t.config.zenoh_reference.is_some()
         && let Some(c) = bridged.counts(name)

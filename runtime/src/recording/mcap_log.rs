@@ -52,7 +52,7 @@ use penelope_rt_core::safety::{FaultCause, SafetyEvent, SafetyState};
 use serde::Serialize;
 use serde_json::json;
 
-use super::recording::RecordingError;
+use super::RecordingError;
 use crate::objects::runtime::TickRecord;
 use penelope_protocol::proto::LinkRecord;
 
@@ -648,7 +648,7 @@ pub fn summarize(path: &Path) -> Result<McapSummary, RecordingError> {
         path: path.to_path_buf(),
         source,
     };
-    super::recording::check_record_lengths(&bytes).map_err(err)?;
+    super::check_record_lengths(&bytes).map_err(err)?;
     let mut profile = String::new();
     let mut metadata = BTreeMap::new();
     let mut channels: BTreeMap<u16, ChannelSummary> = BTreeMap::new();
@@ -721,41 +721,4 @@ pub fn summarize(path: &Path) -> Result<McapSummary, RecordingError> {
         end_ns: end,
         metadata,
     })
-}
-
-/// Writes run `output` to `path`: both controllers' ticks (what the pump's recorder streams
-/// gave the run, cut to the run's duration as its CSV files are), their safety events, and
-/// what the streams lost; with `recipe`, a `run` metadata record saying how to run it again
-/// ([`RunRecipe`](super::rerun::RunRecipe)). (`penelope demo`'s `run.mcap`.)
-///
-/// # Errors
-/// [`RecordingError`] when the file cannot be written.
-pub fn write_run(
-    path: &Path,
-    output: &super::RunOutput,
-    recipe: Option<&super::rerun::RunRecipe>,
-) -> Result<McapTotals, RecordingError> {
-    let mut log = McapLog::create(path, &output.info.system)?;
-    if let Some(r) = recipe {
-        log.metadata(super::rerun::RECIPE, r.to_metadata())?;
-    }
-    let (master, slave) = &output.info.controllers;
-    let m = log.add_controller(master)?;
-    let s = log.add_controller(slave)?;
-    // In time order, as a reader plays them.
-    let (mut a, mut b) = (
-        output.master.iter().peekable(),
-        output.slave.iter().peekable(),
-    );
-    loop {
-        let next = match (a.peek(), b.peek()) {
-            (Some(x), Some(y)) if x.sample.time <= y.sample.time => a.next().map(|t| (m, t)),
-            (Some(_), Some(_)) | (None, Some(_)) => b.next().map(|t| (s, t)),
-            (Some(_), None) => a.next().map(|t| (m, t)),
-            (None, None) => None,
-        };
-        let Some((index, tick)) = next else { break };
-        log.tick(index, tick)?;
-    }
-    log.finish(&[output.dropped.0, output.dropped.1])
 }

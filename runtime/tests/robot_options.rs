@@ -8,7 +8,7 @@ use penelope_protocol::proto::{
     ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod, WireError,
 };
 use penelope_rt_core::safety::SafetyState;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_runtime::objects::{Creator, CreatorConfig};
 
 fn creator() -> Creator {
     let mut config = CreatorConfig::new("options");

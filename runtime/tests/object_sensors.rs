@@ -13,9 +13,9 @@ use penelope_protocol::proto::{
     ControllerMethod, Method, Reply, RobotMethod, SensorMethod, WireError,
 };
 use penelope_protocol::service::Remote;
-use penelope_supervisor::dataplane::endpoint::Endpoint;
-use penelope_supervisor::dataplane::sensor_stream::{Probe, SensorPublisher};
-use penelope_supervisor::objects::Creator;
+use penelope_runtime::dataplane::endpoint::Endpoint;
+use penelope_runtime::dataplane::sensor_stream::{Probe, SensorPublisher};
+use penelope_runtime::objects::Creator;
 
 mod common;
 

@@ -235,7 +235,7 @@ impl Object {
 
     /// What `list` and `describe` show; `bridged`: the node's channels fed from Zenoh (their
     /// counters are shown with them).
-    pub fn info(&self, bridged: &crate::zenoh_bridge::BridgedChannels) -> ObjectInfo {
+    pub fn info(&self, bridged: &crate::objects::bridged::BridgedChannels) -> ObjectInfo {
         let mut relations = Vec::new();
         match &self.body {
             Body::Robot(r) => {
@@ -487,7 +487,7 @@ pub(crate) struct Registry {
     /// real time, tick times on a simulated clock).
     pub clock: crate::objects::clock::ClockMode,
     /// The channels whose master is an operator station behind the Zenoh bridge.
-    pub bridged: crate::zenoh_bridge::BridgedChannels,
+    pub bridged: crate::objects::bridged::BridgedChannels,
 }
 
 /// What activating a controller needs from the creator.

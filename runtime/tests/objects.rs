@@ -8,7 +8,7 @@ use penelope_protocol::proto::{
     RobotMethod, TrajectoryMethod, WireError,
 };
 use penelope_protocol::service::Service;
-use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_runtime::objects::{Creator, CreatorConfig};
 
 mod common;
 

@@ -155,7 +155,7 @@ impl TeleopConfig {
         }
         let plane = self.data_plane(kind)?;
         if let Some(key) = &self.zenoh_reference {
-            crate::zenoh_bridge::check_key(key)
+            crate::objects::bridged::check_key(key)
                 .map_err(|why| bad(format!("`zenoh_reference` = {key:?}: {why}")))?;
             if plane.is_some() || self.faults.is_some() {
                 return Err(bad(

@@ -8,7 +8,7 @@ use penelope_hal::{Timestamp, Transition};
 use penelope_protocol::proto::{
     ControllerMethod, JointAxis, Method, Reply, RobotMethod, WireError,
 };
-use penelope_supervisor::objects::{Creator, CreatorConfig};
+use penelope_runtime::objects::{Creator, CreatorConfig};
 
 fn urdf(file: &str) -> String {
     format!("{}/../drivers/robots/{file}", env!("CARGO_MANIFEST_DIR"))
@@ -65,7 +65,7 @@ fn bad_config(e: WireError) -> String {
 
 #[test]
 fn robot_urdf_is_listed_with_its_keys() {
-    let kinds = penelope_supervisor::objects::kinds::all_kinds();
+    let kinds = penelope_runtime::objects::kinds::all_kinds();
     let info = kinds.iter().find(|k| k.kind == "robot/urdf").unwrap();
     for key in ["file =", "tip =", "base =", "poses =", "start =", "role ="] {
         assert!(

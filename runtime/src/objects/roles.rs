@@ -14,7 +14,6 @@
 
 use penelope_hal::Transition;
 
-use crate::naming::role_name;
 use penelope_protocol::proto::{
     BoardMethod, Call, ControllerMethod, CreatorCall, Method, RobotMethod, Role, SensorMethod,
     TrajectoryMethod, WireError,
@@ -144,7 +143,7 @@ pub fn authorize_call(identity: Identity, call: &Call) -> Result<(), WireError> 
     };
     Err(WireError::Forbidden(format!(
         "a {} may not {what}: {how}",
-        role_name(identity.role)
+        identity.role.name()
     )))
 }
 
