@@ -1,13 +1,19 @@
 #!/usr/bin/env python3
-"""Finds import cycles between the modules (files) of each workspace crate.
+"""Finds import cycles between the modules of each workspace crate.
 
 A file depends on another when it names an item of that file's module: `crate::a::b::X`,
-`super::x::Y`, `self::x`, or a child module in a `use` (`use child::X`). A parent's `mod child;`
-declaration is not a dependency, and test modules (`#[cfg(test)] mod tests`) and `tests.rs`
-files are left out: they may look at every layer. Prints every strongly connected component of
-more than one file, per crate; exits 1 if there is one.
+`super::x::Y`, `self::x`, or a child module in a `use` (`use child::X`). Test modules
+(`#[cfg(test)] mod tests`) and `tests.rs` files are left out: they may look at every layer.
 
-Usage: scripts/module_cycles.py [CRATE_DIR ...]   (default: every crate with a src/lib.rs)
+Modules are compared as units: under every module, each child module together with its own
+submodules is one unit, and the units under one parent must depend on each other one way (a
+cycle among siblings is printed). A parent's own file is the container of its children, not a
+sibling of them: `objects/mod.rs` may re-export `objects::kinds` while `kinds` uses the
+`Creator` that `objects/mod.rs` defines. With `--files`, every file is its own unit instead
+(the strict view, parent files included).
+
+Usage: scripts/module_cycles.py [--files] [CRATE_DIR ...]   (default: every crate with a
+src/lib.rs). Exits 1 if a crate has a cycle.
 """
 import os
 import re
@@ -119,8 +125,7 @@ def sccs(graph):
     return out
 
 
-def crate_cycles(crate):
-    mods = modules(os.path.join(crate, 'src'))
+def file_graph(mods):
     graph = {}
     for here, f in mods.items():
         deps = set()
@@ -129,17 +134,49 @@ def crate_cycles(crate):
             if t is not None and t != here:
                 deps.add(t)
         graph[here] = deps
-    return [sorted(c) for c in sccs(graph) if len(c) > 1], len(mods)
+    return graph
+
+
+def sibling_cycles(mods, graph):
+    """Cycles among the child units of every module."""
+    out = []
+    for parent in sorted(mods):
+        children = sorted({m[:len(parent) + 1] for m in mods
+                           if len(m) > len(parent) and m[:len(parent)] == parent})
+        if len(children) < 2:
+            continue
+        unit_graph = {c: set() for c in children}
+        for v, ws in graph.items():
+            cv = v[:len(parent) + 1]
+            if cv not in unit_graph or v[:len(parent)] != parent:
+                continue
+            for w in ws:
+                cw = w[:len(parent) + 1]
+                if cw in unit_graph and cw != cv and w[:len(parent)] == parent:
+                    unit_graph[cv].add(cw)
+        out += [sorted(c) for c in sccs(unit_graph) if len(c) > 1]
+    return out
+
+
+def crate_cycles(crate, files=False):
+    mods = modules(os.path.join(crate, 'src'))
+    graph = file_graph(mods)
+    if files:
+        return [sorted(c) for c in sccs(graph) if len(c) > 1], len(mods)
+    return sibling_cycles(mods, graph), len(mods)
 
 
 def main():
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    crates = sys.argv[1:] or sorted(
+    args = sys.argv[1:]
+    files = '--files' in args
+    args = [a for a in args if a != '--files']
+    crates = args or sorted(
         os.path.join(root, d) for d in os.listdir(root)
         if os.path.exists(os.path.join(root, d, 'src', 'lib.rs')))
     bad = 0
     for c in crates:
-        cycles, n = crate_cycles(c)
+        cycles, n = crate_cycles(c, files)
         name = os.path.basename(c.rstrip('/'))
         print(f'{name}: {n} modules, {len(cycles)} cycles')
         for comp in cycles:

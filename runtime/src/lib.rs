@@ -19,11 +19,10 @@
 //! - [`dataplane`]: authenticated UDP streams of samples between nodes, with fault injection
 //!   and each link's clock estimate.
 //! - [`common_clock`]: the system's one time line, which every node's recordings are on.
-//! - [`recording`]: every tick, event and link statistic of a node to an MCAP file, and read
-//!   back.
+//! - [`objects::recording`]: every tick, event and link statistic of a node to an MCAP file
+//!   (the creator's `record` call, `penelope node --record`), and read back.
 #![warn(missing_docs)]
 
 pub mod common_clock;
 pub mod dataplane;
 pub mod objects;
-pub mod recording;

@@ -170,7 +170,7 @@ fn a_recording_under_a_flood_of_slow_readers_loses_nothing_uncounted_and_no_loop
     }
 
     // The recording: every tick is there or counted as dropped, and the count is exact.
-    let r = penelope_runtime::recording::read_recording(&file).unwrap();
+    let r = penelope_runtime::objects::recording::read_recording(&file).unwrap();
     let mut written = 0;
     for c in ["display", "follow"] {
         let ticks = &r.controllers[c];

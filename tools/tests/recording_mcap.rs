@@ -300,7 +300,7 @@ fn a_node_records_every_tick_from_the_first_to_mcap_and_it_reads_back() {
     // Readable while the node still writes it (what `penelope bench layout` does).
     let deadline = Instant::now() + Duration::from_secs(10);
     loop {
-        let r = penelope_runtime::recording::read_recording(&file).unwrap();
+        let r = penelope_runtime::objects::recording::read_recording(&file).unwrap();
         if r.controllers.get("follow").is_some_and(|t| t.len() >= 1000) {
             break;
         }
@@ -315,7 +315,7 @@ fn a_node_records_every_tick_from_the_first_to_mcap_and_it_reads_back() {
     let status = node.0.wait().unwrap();
     assert!(status.success(), "the node stops cleanly on SIGINT");
 
-    let r = penelope_runtime::recording::read_recording(&file).unwrap();
+    let r = penelope_runtime::objects::recording::read_recording(&file).unwrap();
     assert_eq!(r.node, "lab");
     for name in ["display", "follow"] {
         let ticks = &r.controllers[name];
@@ -401,7 +401,7 @@ fn ctl_record_starts_and_stops_a_recording_and_refuses_bad_input_with_the_reason
     let stopped: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let ticks = stopped["ticks"].as_u64().unwrap();
     assert_eq!(ticks, 1000, "500 ms of both controllers at 1 kHz");
-    let r = penelope_runtime::recording::read_recording(&file).unwrap();
+    let r = penelope_runtime::objects::recording::read_recording(&file).unwrap();
     for name in ["display", "follow"] {
         let t = &r.controllers[name];
         assert_eq!(t.len(), 500, "{name}");
@@ -496,7 +496,7 @@ fn the_system_files_record_key_records_a_node_from_its_first_tick() {
     )
     .unwrap();
     assert!(node.0.wait().unwrap().success());
-    let r = penelope_runtime::recording::read_recording(&file).unwrap();
+    let r = penelope_runtime::objects::recording::read_recording(&file).unwrap();
     let follow = &r.controllers["follow"];
     assert!(follow.len() >= 300, "{}", follow.len());
     assert_eq!(follow[0].sample.seq, 1, "from the first tick");

@@ -9,6 +9,7 @@
 //!   communication task (trajectory to reference cell), the sensor feed and the telemetry pump.
 //! - [`teleop`]: the teleoperation channel, its ends, the operator's hand and the halves of
 //!   the bilateral laws.
+//! - [`recording`]: the node's ticks, events and links to an MCAP file, and read back.
 //! - [`replay`]: `sensor/replay` and `sensor/operator-replay`, a recording played back in place
 //!   of a force sensor or of the operator's hand.
 //! - [`bridged`]: the channels whose master end a bridge feeds from outside the node, and the
@@ -50,6 +51,7 @@ pub mod lifecycle_feed;
 pub mod link_source;
 mod loops;
 pub mod operator_hand;
+pub mod recording;
 mod registry;
 pub mod replay;
 pub mod roles;
@@ -191,7 +193,7 @@ pub struct Creator {
     /// The loops and the clock, on a simulated clock.
     sim: Option<Arc<Mutex<SimWorld>>>,
     /// The recording `ctl record start` began (its file and writer thread).
-    recording: Mutex<Option<(String, crate::recording::Recorder)>>,
+    recording: Mutex<Option<(String, crate::objects::recording::Recorder)>>,
     /// The transitions, for recorders.
     lifecycle: lifecycle_feed::LifecycleFeed,
     /// The stop latches of the running loops, reached by an e-stop without the registry lock.
@@ -437,13 +439,13 @@ impl Creator {
         let (path, file) =
             files::create_in(dir, name).map_err(|e| WireError::BadArgument(e.to_string()))?;
         let path = path.display().to_string();
-        let recorder = crate::recording::Recorder::start_in(
+        let recorder = crate::objects::recording::Recorder::start_in(
             file,
             std::path::Path::new(&path),
             &self.config.node,
             streams,
             links,
-            Some(self.lifecycle_events(crate::recording::LIFECYCLE_CAPACITY)),
+            Some(self.lifecycle_events(crate::objects::recording::LIFECYCLE_CAPACITY)),
             &self.config.common_clock,
             self.node_time(),
         )

@@ -37,9 +37,9 @@ use penelope_hal::{Error, ErrorKind, ForceSensor, Pose, Sensor, Timestamp, Wrenc
 use penelope_rt_core::safety::SafetyEvent;
 use serde::Deserialize;
 
+use crate::objects::recording::mcap_log::CONTROLLER_TOPIC;
+use crate::objects::recording::{RecordingError, read_recording};
 use crate::objects::runtime::TickRecord;
-use crate::recording::mcap_log::CONTROLLER_TOPIC;
-use crate::recording::{RecordingError, read_recording};
 use penelope_protocol::proto::WireError;
 
 /// The keys of `sensor/replay`, as `penelope ctl kinds` lists them.
@@ -609,7 +609,8 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let write = |name: &str, nan: bool| {
             let path = dir.join(name);
-            let mut log = crate::recording::mcap_log::McapLog::create(&path, "lab").unwrap();
+            let mut log =
+                crate::objects::recording::mcap_log::McapLog::create(&path, "lab").unwrap();
             let i = log.add_controller("follow").unwrap();
             let mut tick = TickRecord::default();
             for seq in 1..=3u64 {
@@ -656,7 +657,11 @@ mod tests {
             "penelope-replay-crafted-{}.mcap",
             std::process::id()
         ));
-        std::fs::write(&path, crate::recording::crafted_mcap_with_a_huge_record()).unwrap();
+        std::fs::write(
+            &path,
+            crate::objects::recording::crafted_mcap_with_a_huge_record(),
+        )
+        .unwrap();
         let k = "sensor/replay";
         let config = format!("file = {:?}", path.to_str().unwrap());
         let c: ReplaySensorConfig = crate::objects::kinds::parse(k, &config).unwrap();

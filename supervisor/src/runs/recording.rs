@@ -2,15 +2,17 @@
 //! first tick ([`apply_recorded`]), the report's input taken from the recordings of a task run
 //! by separate processes ([`from_recordings`]), and a run written as one recording
 //! ([`write_run`]). The recordings themselves are the runtime's
-//! ([`penelope_runtime::recording`]).
+//! ([`penelope_runtime::objects::recording`]).
 
 use std::path::Path;
 
 use penelope_hal::{Timestamp, Transition};
 use penelope_protocol::proto::{Call, Method};
+use penelope_runtime::objects::recording::mcap_log::{McapLog, McapTotals};
+use penelope_runtime::objects::recording::{
+    LIFECYCLE_CAPACITY, Recorder, Recording, RecordingError,
+};
 use penelope_runtime::objects::runtime::TickRecord;
-use penelope_runtime::recording::mcap_log::{McapLog, McapTotals};
-use penelope_runtime::recording::{LIFECYCLE_CAPACITY, Recorder, Recording, RecordingError};
 
 use super::{RECORD_CAPACITY, RunError, RunOptions, RunOutput, find_task};
 use crate::node::Node;

@@ -27,10 +27,10 @@ use serde::Serialize;
 use super::{MasterKinematics, RunError, RunOptions, find_task, task, with_master_kinematics};
 use crate::system::{SystemFile, SystemFileError};
 use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::recording::mcap_log::{CONTROLLER_TOPIC, summarize};
+use penelope_runtime::objects::recording::{RecordingError, read_recording};
 use penelope_runtime::objects::replay::OperatorReplayConfig;
 use penelope_runtime::objects::runtime::TickRecord;
-use penelope_runtime::recording::mcap_log::{CONTROLLER_TOPIC, summarize};
-use penelope_runtime::recording::{RecordingError, read_recording};
 
 /// The name of the metadata record that holds a run's [`RunRecipe`].
 pub const RECIPE: &str = "run";

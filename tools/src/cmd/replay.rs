@@ -10,7 +10,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use penelope_runtime::recording::mcap_log::summarize;
+use penelope_runtime::objects::recording::mcap_log::summarize;
 use penelope_supervisor::runs::rerun::{Rerun, rerun};
 
 use super::usage;

@@ -17,7 +17,7 @@ use std::time::Duration;
 
 use anyhow::Context as _;
 use penelope_protocol::proto::{Call, ControllerMethod, CreatorCall, Method, Reply};
-use penelope_runtime::recording::read_recording;
+use penelope_runtime::objects::recording::read_recording;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::runs::DEMO_SYSTEM;
 use penelope_supervisor::system::SystemFile;

@@ -26,7 +26,7 @@ use anyhow::{Context, bail};
 use penelope_protocol::proto::LinkRecord;
 use penelope_runtime::objects::clock::ClockMode;
 use penelope_runtime::objects::link_source::{StreamDatagram, StreamName};
-use penelope_runtime::recording::{Recording, read_recording};
+use penelope_runtime::objects::recording::{Recording, read_recording};
 use penelope_supervisor::runs::recording::from_recordings;
 use penelope_supervisor::runs::report::{LoopTiming, report};
 use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, RunOutput};
