@@ -83,4 +83,4 @@ def test_the_demos_mcap_file_opens_with_the_official_reader(
     for name in ("display", "follow"):
         assert int(recorder[f"written.{name}"]) == counts[f"/controllers/{name}"]
         assert int(recorder[f"dropped.{name}"]) == 0
-    assert "system" in metadata["run"], "the run record (for `penelope replay --rerun`)"
+    assert "system" in metadata["run"], "the run record (for `penelope recording rerun`)"

@@ -42,8 +42,10 @@ enum Command {
     Node(cmd::node::Args),
     /// Run the naming service alone.
     Naming(cmd::naming::Args),
-    /// What a recording (MCAP) holds: channels, schemas, message counts, start, end, duration.
-    Replay(cmd::replay::Args),
+    /// Recordings (MCAP): `info FILE` says what one holds, `rerun FILE` runs a recorded
+    /// simulated-clock demo again and compares.
+    #[command(subcommand)]
+    Recording(cmd::recording::RecordingCommand),
     /// Talk to the nodes: list, create, configure, activate, call methods, watch telemetry.
     Ctl(cmd::ctl::Args),
     /// Shared secrets: `new FILE` writes a strong one (mode 600, never over an existing file).
@@ -72,7 +74,7 @@ fn main() -> ExitCode {
         Command::Ctl(args) => cmd::ctl::run(args),
         Command::Web(args) => cmd::web::run(args),
         Command::Secret(c) => cmd::secret::run(c),
-        Command::Replay(args) => cmd::replay::run(args),
+        Command::Recording(c) => cmd::recording::run(c),
     };
     match result {
         Ok(code) => code,

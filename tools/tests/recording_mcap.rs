@@ -1,5 +1,5 @@
 //! `penelope demo`'s `run.mcap` read back with the `mcap` crate against the run's CSV files,
-//! and `penelope replay` on it; `penelope node --record FILE` on the simulated clock, read back.
+//! and `penelope recording info` on it; `penelope node --record FILE` on the simulated clock, read back.
 
 use penelope_testkit::process::Penelope;
 use std::collections::BTreeMap;
@@ -163,10 +163,10 @@ fn the_demo_writes_run_mcap_with_every_tick_of_its_csv_files_and_replay_lists_it
     // The first ticks' safety state is an event.
     assert!(by_topic["/safety"].len() >= 2);
 
-    // `penelope replay` says the same.
+    // `penelope recording info` says the same.
     let replay = PENELOPE
         .command()
-        .arg("replay")
+        .args(["recording", "info"])
         .arg(out.join("run.mcap"))
         .arg("--json")
         .output()
@@ -198,7 +198,7 @@ fn the_demo_writes_run_mcap_with_every_tick_of_its_csv_files_and_replay_lists_it
     assert_eq!(listed["duration_ns"].as_u64(), Some(end - start));
     let text = PENELOPE
         .command()
-        .arg("replay")
+        .args(["recording", "info"])
         .arg(out.join("run.mcap"))
         .output()
         .unwrap();
@@ -219,7 +219,7 @@ fn replay_of_a_missing_or_foreign_file_exits_with_code_two() {
     for file in [dir.join("missing.mcap"), foreign] {
         let out = PENELOPE
             .command()
-            .arg("replay")
+            .args(["recording", "info"])
             .arg(&file)
             .output()
             .unwrap();
@@ -332,7 +332,7 @@ fn a_node_records_every_tick_from_the_first_to_mcap_and_it_reads_back() {
     }
     let replay = PENELOPE
         .command()
-        .arg("replay")
+        .args(["recording", "info"])
         .arg(&file)
         .arg("--json")
         .output()

@@ -1,4 +1,4 @@
-//! Running a recorded run again: `penelope replay FILE --rerun`.
+//! Running a recorded run again: `penelope recording rerun FILE`.
 //!
 //! `penelope demo` writes, beside the ticks in `run.mcap`, a `run` metadata record
 //! ([`RunRecipe`]): the system file's text and the run's options (duration, seed, law, scale,

@@ -157,7 +157,7 @@ pub fn run_demo(args: Args) -> anyhow::Result<ExitCode> {
 
     let report = report(&output);
     std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
-    // What `penelope replay --rerun` needs to run it again.
+    // What `penelope recording rerun` needs to run it again.
     let duration = options
         .duration
         .unwrap_or_else(|| output.info.script.duration());

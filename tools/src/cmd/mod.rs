@@ -14,7 +14,8 @@ pub mod naming;
 pub mod netft;
 pub mod netft_sim;
 pub mod node;
-pub mod replay;
+pub mod recording;
+
 pub mod secret;
 pub mod web;
 

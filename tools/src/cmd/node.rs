@@ -76,7 +76,7 @@ pub struct Args {
     pub sim_clock: bool,
     /// Record every control tick of the controllers the system file activates on this node,
     /// their safety events and the statistics of its channels' links to the MCAP file FILE,
-    /// from their first tick until the node stops (`penelope replay FILE` lists it; `penelope
+    /// from their first tick until the node stops (`penelope recording info FILE` lists it; `penelope
     /// bench layout` reads it back for its report). Overrides the system file's `record` for
     /// this node.
     #[arg(long, value_name = "FILE", requires = "config")]

@@ -41,7 +41,7 @@
 //!
 //! [`McapLog`] is the writer (not thread-safe, not real-time: it allocates and writes files;
 //! it is fed by the telemetry pump's recorder streams, never by a loop). [`summarize`] reads a
-//! file's channels, counts and times back (`penelope replay`).
+//! file's channels, counts and times back (`penelope recording info`).
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -520,7 +520,7 @@ impl McapLog {
         })
     }
 
-    /// Writes a metadata record `name` (for example `run`: what `penelope replay --rerun` needs
+    /// Writes a metadata record `name` (for example `run`: what `penelope recording rerun` needs
     /// to run a recorded demo again).
     ///
     /// # Errors

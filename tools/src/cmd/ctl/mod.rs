@@ -232,7 +232,7 @@ pub enum Verb {
 #[derive(clap::Subcommand, Debug)]
 pub enum RecordVerb {
     /// Start recording every tick of controllers, their safety events and channels' link
-    /// statistics to a new MCAP file on the node's host (`penelope replay FILE` lists it).
+    /// statistics to a new MCAP file on the node's host (`penelope recording info FILE` lists it).
     Start {
         /// The node (its name in the naming tree).
         node: String,

@@ -1,8 +1,8 @@
-//! `penelope replay FILE`: what a recording holds — its channels (topic, schema, message
-//! count), its first and last message's times and its duration, and its metadata (the node,
-//! what the recorder lost).
+//! `penelope recording info FILE`: what a recording holds — its channels (topic, schema,
+//! message count), its first and last message's times and its duration, and its metadata (the
+//! node, what the recorder lost).
 //!
-//! `penelope replay FILE --rerun [--config SYSTEM.toml]`: runs a recorded simulated-clock demo
+//! `penelope recording rerun FILE [--config SYSTEM.toml]`: runs a recorded simulated-clock demo
 //! again against its recorded operator and contact forces
 //! ([`rerun`](penelope_supervisor::runs::rerun)) and reports, per controller and signal, the
 //! ticks that differ and by how much. Exit code 0: bit for bit the same; 1: different.
@@ -15,32 +15,54 @@ use penelope_supervisor::runs::rerun::{Rerun, rerun};
 
 use super::usage;
 
-/// Options of `penelope replay`.
+/// `penelope recording`: what a recording holds, or the recorded run run again.
+#[derive(clap::Subcommand, Debug)]
+pub enum RecordingCommand {
+    /// What a recording (MCAP) holds: channels, schemas, message counts, start, end, duration,
+    /// metadata.
+    Info(InfoArgs),
+    /// Run a recorded simulated-clock demo again against its recorded operator and contact
+    /// forces, and report what differs (exit code 1 if anything does).
+    Rerun(RerunArgs),
+}
+
+/// Options of `penelope recording info`.
 #[derive(clap::Args, Debug)]
-pub struct Args {
+pub struct InfoArgs {
     /// The recording (an MCAP file: `run.mcap` of `penelope demo`, or `penelope node --record`).
     pub file: PathBuf,
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
-    /// Run the recorded demo again (simulated clock) against its recorded operator and contact
-    /// forces, and report what differs (exit code 1 if anything does).
+}
+
+/// Options of `penelope recording rerun`.
+#[derive(clap::Args, Debug)]
+pub struct RerunArgs {
+    /// The recording of a simulated-clock demo (`run.mcap` of `penelope demo --sim-clock`).
+    pub file: PathBuf,
+    /// Print one JSON object instead of text.
     #[arg(long)]
-    pub rerun: bool,
-    /// With --rerun: this system file instead of the one recorded (for example with another
-    /// gain); the recorded run's options (duration, seed, law, kinematics) still apply.
-    #[arg(long, value_name = "SYSTEM.toml", requires = "rerun")]
+    pub json: bool,
+    /// This system file instead of the one recorded (for example with another gain); the
+    /// recorded run's options (duration, seed, law, kinematics) still apply.
+    #[arg(long, value_name = "SYSTEM.toml")]
     pub config: Option<PathBuf>,
 }
 
-/// Runs `penelope replay`.
+/// Runs `penelope recording`.
 ///
 /// # Errors
-/// A usage error (exit code 2) when the file cannot be read or is not MCAP.
-pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    if args.rerun {
-        return run_again(&args);
+/// A usage error (exit code 2) when the file cannot be read or is not a recording.
+pub fn run(command: RecordingCommand) -> anyhow::Result<ExitCode> {
+    match command {
+        RecordingCommand::Info(args) => info(&args),
+        RecordingCommand::Rerun(args) => run_again(&args),
     }
+}
+
+/// `penelope recording info`.
+fn info(args: &InfoArgs) -> anyhow::Result<ExitCode> {
     let summary = summarize(&args.file).map_err(|e| usage(e.to_string()))?;
     if args.json {
         let mut value = serde_json::to_value(&summary)?;
@@ -95,8 +117,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// `--rerun`.
-fn run_again(args: &Args) -> anyhow::Result<ExitCode> {
+/// `penelope recording rerun`.
+fn run_again(args: &RerunArgs) -> anyhow::Result<ExitCode> {
     let config = match &args.config {
         Some(p) => Some((
             std::fs::read_to_string(p)

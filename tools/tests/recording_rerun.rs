@@ -1,4 +1,4 @@
-//! `penelope replay FILE --rerun`: a simulated-clock demo run again against its recorded
+//! `penelope recording rerun FILE`: a simulated-clock demo run again against its recorded
 //! operator and contact forces gives its telemetry back bit for bit; a changed gain is found
 //! and reported; the replay kinds' inputs are the recording's (a changed sensor model changes
 //! nothing), their errors are typed, and a recording shorter than the run ends as documented.
@@ -37,10 +37,10 @@ fn ok(o: &Output) {
     );
 }
 
-/// `replay --rerun --json` on `file` (with `config`): its exit code and report.
+/// `recording rerun --json` on `file` (with `config`): its exit code and report.
 fn rerun(file: &Path, config: Option<&Path>) -> (i32, serde_json::Value) {
     let mut c = PENELOPE.command();
-    c.args(["replay", "--rerun", "--json"]).arg(file);
+    c.args(["recording", "rerun", "--json"]).arg(file);
     if let Some(config) = config {
         c.arg("--config").arg(config);
     }
@@ -290,7 +290,7 @@ fn replay_kinds_refuse_a_missing_recording_or_channel_with_the_reason() {
     // Not a recording: typed, exit code 2.
     let o = PENELOPE
         .command()
-        .args(["replay", "--rerun"])
+        .args(["recording", "rerun"])
         .arg(&missing)
         .output()
         .unwrap();

@@ -1,4 +1,4 @@
-//! `penelope replay` of a crafted MCAP file: an error exit that says why, never an abort
+//! `penelope recording` of a crafted MCAP file: an error exit that says why, never an abort
 //! (it was "memory allocation of 4702111234474983754 bytes failed", exit 134).
 
 use std::process::{Command, Stdio};
@@ -38,19 +38,23 @@ fn crafted() -> Vec<u8> {
 }
 
 #[test]
-fn a_crafted_mcap_is_an_error_exit_of_penelope_replay_not_an_abort() {
+fn a_crafted_mcap_is_an_error_exit_of_penelope_recording_not_an_abort() {
     let path = std::env::temp_dir().join(format!("penelope-crafted-{}.mcap", std::process::id()));
     std::fs::write(&path, crafted()).unwrap();
-    for extra in [&[][..], &["--json"][..], &["--rerun"][..]] {
+    for (command, extra) in [
+        ("info", &[][..]),
+        ("info", &["--json"][..]),
+        ("rerun", &[][..]),
+    ] {
         let out = Command::new(env!("CARGO_BIN_EXE_penelope"))
-            .arg("replay")
+            .args(["recording", command])
             .arg(&path)
             .args(extra)
             .stdin(Stdio::null())
             .output()
             .unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr);
-        println!("replay {extra:?}: {:?}, {stderr}", out.status);
+        println!("recording {command} {extra:?}: {:?}, {stderr}", out.status);
         // Exited (not killed by SIGABRT), with an error code, saying what is wrong.
         assert!(
             out.status.code().is_some_and(|c| c != 0),
