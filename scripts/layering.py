@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
-"""Finds import cycles between the modules of each workspace crate.
+"""Checks the layering inside each workspace crate: no import cycle between its modules, and no
+`use super::*` outside tests.
 
 A file depends on another when it names an item of that file's module: `crate::a::b::X`,
 `super::x::Y`, `self::x`, or a child module in a `use` (`use child::X`). Test modules
-(`#[cfg(test)] mod tests`) and `tests.rs` files are left out: they may look at every layer.
+(`#[cfg(test)] mod tests`) and `tests.rs` or `*_tests.rs` files are left out: they may look at every layer.
 
 Modules are compared as units: under every module, each child module together with its own
 submodules is one unit, and the units under one parent must depend on each other one way (a
@@ -12,8 +13,11 @@ sibling of them: `objects/mod.rs` may re-export `objects::kinds` while `kinds` u
 `Creator` that `objects/mod.rs` defines. With `--files`, every file is its own unit instead
 (the strict view, parent files included).
 
-Usage: scripts/module_cycles.py [--files] [CRATE_DIR ...]   (default: every crate with a
-src/lib.rs). Exits 1 if a crate has a cycle.
+A glob import of the parent (`use super::*`) hides which items a module takes from where; only
+test modules may use it.
+
+Usage: scripts/layering.py [--files] [CRATE_DIR ...]   (default: every crate with a
+src/lib.rs). Exits 1 if a crate has a cycle or a glob import of its parent outside tests.
 """
 import os
 import re
@@ -30,15 +34,25 @@ def modules(src):
             rel = os.path.relpath(os.path.join(root, f), src)[:-3].split(os.sep)
             if rel[-1] in ('lib', 'main', 'mod'):
                 rel = rel[:-1]
-            if rel and rel[-1] == 'tests':
+            if rel and (rel[-1] == 'tests' or rel[-1].endswith('_tests')):
                 continue
             out[tuple(rel)] = os.path.join(root, f)
     return out
 
 
 def strip_tests(text):
-    m = re.search(r'#\[cfg\(test\)\]\s*(pub(\(\w+\))? )?mod \w+ \{', text)
-    return text[:m.start()] if m else text
+    """The text without its test modules (each `#[cfg(test)] mod x { ... }` block)."""
+    pattern = re.compile(
+        r'#\[cfg\((all\()?test\b[^\]]*\]\s*(#\[[^\]]*\]\s*)*(pub(\(\w+\))? )?mod \w+ \{')
+    while True:
+        m = pattern.search(text)
+        if not m:
+            return text
+        depth, i = 1, m.end()
+        while i < len(text) and depth:
+            depth += {'{': 1, '}': -1}.get(text[i], 0)
+            i += 1
+        text = text[:m.start()] + text[i:]
 
 
 def expand(tree):
@@ -166,6 +180,15 @@ def crate_cycles(crate, files=False):
     return sibling_cycles(mods, graph), len(mods)
 
 
+def parent_globs(crate):
+    """Files that glob-import their parent outside test modules."""
+    out = []
+    for f in modules(os.path.join(crate, 'src')).values():
+        if re.search(r'\buse\s+super::\*\s*;', strip_tests(open(f).read())):
+            out.append(os.path.relpath(f, crate))
+    return out
+
+
 def main():
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     args = sys.argv[1:]
@@ -182,6 +205,9 @@ def main():
         for comp in cycles:
             bad += 1
             print('  cycle: ' + ' <-> '.join('::'.join(m) or 'lib' for m in comp))
+        for f in parent_globs(c):
+            bad += 1
+            print(f'  `use super::*` outside tests: {f}')
     sys.exit(1 if bad else 0)
 
 
