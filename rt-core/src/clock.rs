@@ -96,6 +96,29 @@ pub(crate) fn timestamp_to_timespec(t: Timestamp) -> libc::timespec {
     }
 }
 
+#[cfg(feature = "std")]
+/// Sleeps until `deadline` on `CLOCK_MONOTONIC` (absolute), resuming after signals.
+///
+/// # Real-time
+/// One `clock_nanosleep` call (more only after a signal); no allocation.
+pub fn sleep_until(deadline: Timestamp) {
+    let ts = timestamp_to_timespec(deadline);
+    loop {
+        // SAFETY: `ts` is a valid timespec; the remainder pointer may be null with TIMER_ABSTIME.
+        let rc = unsafe {
+            libc::clock_nanosleep(
+                libc::CLOCK_MONOTONIC,
+                libc::TIMER_ABSTIME,
+                &ts,
+                std::ptr::null_mut(),
+            )
+        };
+        if rc != libc::EINTR {
+            return;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

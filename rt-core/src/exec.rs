@@ -37,7 +37,7 @@ use std::time::Duration;
 use penelope_hal::Timestamp;
 
 use crate::cell::{ArcLatestReader, ArcLatestWriter, latest};
-use crate::clock::{MonotonicClock, timestamp_to_timespec};
+use crate::clock::{MonotonicClock, sleep_until};
 pub use crate::sim::Flow;
 use crate::stats::{DurationStats, LatencyHistogram};
 use crate::wake::{MAX_EARLY_WAKES, WakeOn, Woken};
@@ -457,28 +457,6 @@ where
         rt,
         started,
         stopped: MonotonicClock::read(),
-    }
-}
-
-/// Sleeps until `deadline` on `CLOCK_MONOTONIC` (absolute), resuming after signals.
-///
-/// # Real-time
-/// One `clock_nanosleep` call (more only after a signal); no allocation.
-pub fn sleep_until(deadline: Timestamp) {
-    let ts = timestamp_to_timespec(deadline);
-    loop {
-        // SAFETY: `ts` is a valid timespec; the remainder pointer may be null with TIMER_ABSTIME.
-        let rc = unsafe {
-            libc::clock_nanosleep(
-                libc::CLOCK_MONOTONIC,
-                libc::TIMER_ABSTIME,
-                &ts,
-                std::ptr::null_mut(),
-            )
-        };
-        if rc != libc::EINTR {
-            return;
-        }
     }
 }
 

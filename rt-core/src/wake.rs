@@ -113,7 +113,7 @@ impl Doorbell {
                 // Not expected (the descriptors are valid while the thread waits): sleep out
                 // the period rather than spin.
                 Err(_) => {
-                    crate::exec::sleep_until(deadline);
+                    crate::clock::sleep_until(deadline);
                     return Woken::Deadline;
                 }
             }
