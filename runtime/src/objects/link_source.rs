@@ -10,8 +10,88 @@ use penelope_rt_core::ring::{ArcConsumer, ArcProducer};
 use penelope_rt_core::teleop::{PortEnergy, WaveSample};
 use serde::{Deserialize, Serialize};
 
-use super::teleop_end::{LinkStats, MASTER_TO_SLAVE, SLAVE_TO_MASTER};
+use crate::dataplane::endpoint::EndpointStats;
+use crate::dataplane::faults::FaultCounters;
 use crate::dataplane::frame::StreamId;
+use crate::dataplane::histogram::LatencyHistogram;
+use crate::dataplane::stream::StreamStats;
+
+/// The stream of the master's samples to the slave.
+pub const MASTER_TO_SLAVE: StreamId = StreamId(1);
+/// The stream of the slave's samples to the master.
+pub const SLAVE_TO_MASTER: StreamId = StreamId(2);
+
+/// What an end's data-plane link counted.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LinkStats {
+    /// The link is lost.
+    pub down: bool,
+    /// Times it was lost.
+    pub losses: u64,
+    /// Times it came back.
+    pub restorations: u64,
+    /// The socket's counters.
+    pub endpoint: EndpointStats,
+    /// The incoming stream's counters.
+    pub stream: StreamStats,
+    /// Datagrams from another address than the peer's.
+    pub strangers: u64,
+    /// The other node's clock minus this node's, ns, as heartbeats estimate it.
+    pub clock_offset_ns: Option<i64>,
+    /// The heartbeats' round trip, ns, of the exchange the offset comes from (the other
+    /// side's turnaround excluded).
+    pub round_trip_ns: Option<i64>,
+    /// The one-way delay estimate, ns: half the round trip.
+    pub one_way_delay_ns: Option<i64>,
+    /// The jitter of the offset estimate, ns (RMS of the kept exchanges' offsets around it).
+    pub jitter_ns: Option<i64>,
+    /// How long before this end last looked for datagrams the other side's last one arrived,
+    /// ns (`None` before the first).
+    pub last_heard_ns: Option<i64>,
+    /// The share of heartbeats not answered.
+    pub heartbeat_loss: f64,
+    /// The samples' one-way trips, ns: arrival (the kernel's stamp on real time) less the
+    /// sender's send time on the common clock (before the offset is known, as sent: right
+    /// when both nodes share a clock, as on one machine).
+    pub one_way: LatencyHistogram,
+    /// What the injected faults did to what this end sent, if faults are configured.
+    pub faults: Option<FaultCounters>,
+}
+
+impl LinkStats {
+    /// As a client sees it, read at `time_ns` (the node's clock).
+    pub fn record(&self, time_ns: u64) -> penelope_protocol::proto::LinkRecord {
+        let s = &self.stream;
+        let trips = self.one_way.count();
+        penelope_protocol::proto::LinkRecord {
+            time_ns,
+            down: self.down,
+            losses: self.losses,
+            restorations: self.restorations,
+            samples_taken: s.accepted,
+            samples_dropped: s.duplicate + s.late + s.stale_session,
+            samples_missed: s.missed,
+            refused: self.refused(),
+            clock_offset_ns: self.clock_offset_ns,
+            round_trip_ns: self.round_trip_ns,
+            one_way_delay_ns: self.one_way_delay_ns,
+            jitter_ns: self.jitter_ns,
+            last_heard_ns: self.last_heard_ns,
+            heartbeat_loss: self.heartbeat_loss,
+            trips,
+            trip_p50_ns: self.one_way.quantile(0.5),
+            trip_p99_ns: self.one_way.quantile(0.99),
+            trip_max_ns: (trips > 0).then(|| self.one_way.max_ns()),
+        }
+    }
+
+    /// Datagrams refused: bad tag, wrong authentication, another data-plane version,
+    /// malformed, or from a stranger.
+    pub fn refused(&self) -> u64 {
+        let e = self.endpoint;
+        e.bad_tag + e.wrong_authentication + e.wrong_version + e.malformed + self.strangers
+    }
+}
 
 /// Datagrams the ring between a communication thread and a recorder holds: two a
 /// communication tick (one sent, one taken) at 500 Hz make 1,000 a second, and a recorder
