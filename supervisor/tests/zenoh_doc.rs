@@ -14,7 +14,7 @@ use penelope_protocol::proto::LinkRecord;
 use penelope_rt_core::safety::{EventSet, SafetyEvent, SafetyState};
 use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_rt_core::teleop::TeleopSample;
-use penelope_runtime::objects::runtime::TickRecord;
+use penelope_runtime::objects::tick::TickRecord;
 use penelope_supervisor::zenoh_bridge::encoding::{
     self, EVENTS, FEEDBACK, LINK, OperatorPose, PoseError, TELEMETRY, objects_key, stream_key,
 };

@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 
 use penelope_drivers::sim::scripts;
 use penelope_runtime::objects::clock::ClockMode;
-use penelope_runtime::objects::runtime::TickRecord;
+use penelope_runtime::objects::tick::TickRecord;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions};
 use penelope_supervisor::system::SystemFile;

@@ -52,6 +52,7 @@ pub mod link_source;
 mod loops;
 pub mod operator_hand;
 pub mod recording;
+pub mod reference;
 mod registry;
 pub mod replay;
 pub mod roles;
@@ -62,6 +63,7 @@ pub mod teleop_end;
 pub mod teleop_laws;
 pub mod teleop_passivity;
 pub mod teleop_wave;
+pub mod tick;
 
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
@@ -218,7 +220,7 @@ pub struct DetachedLoop {
     pub comm: CommTask,
     /// The telemetry ring's consumer end.
     pub telemetry:
-        penelope_rt_core::ring::ArcConsumer<runtime::TickRecord, { runtime::TELEMETRY_CAPACITY }>,
+        penelope_rt_core::ring::ArcConsumer<tick::TickRecord, { runtime::TELEMETRY_CAPACITY }>,
     /// The newest sample for a sensor feed.
     pub probe:
         penelope_rt_core::cell::ArcLatestReader<penelope_rt_core::telemetry::TelemetrySample>,

@@ -39,7 +39,7 @@ use serde::Deserialize;
 
 use crate::objects::recording::mcap_log::CONTROLLER_TOPIC;
 use crate::objects::recording::{RecordingError, read_recording};
-use crate::objects::runtime::TickRecord;
+use crate::objects::tick::TickRecord;
 use penelope_protocol::proto::WireError;
 
 /// The keys of `sensor/replay`, as `penelope ctl kinds` lists them.

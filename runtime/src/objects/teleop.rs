@@ -31,7 +31,7 @@ use penelope_rt_core::teleop::{
 use serde::Deserialize;
 
 use super::kinematics::RobotKinematics;
-use super::runtime::ReferenceOut;
+use super::reference::ReferenceOut;
 use super::teleop_passivity::{PortLaw, TwoPortEnd};
 use super::teleop_wave::WaveEnd;
 use penelope_protocol::proto::WireError;

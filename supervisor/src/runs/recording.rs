@@ -12,7 +12,7 @@ use penelope_runtime::objects::recording::mcap_log::{McapLog, McapTotals};
 use penelope_runtime::objects::recording::{
     LIFECYCLE_CAPACITY, Recorder, Recording, RecordingError,
 };
-use penelope_runtime::objects::runtime::TickRecord;
+use penelope_runtime::objects::tick::TickRecord;
 
 use super::{RECORD_CAPACITY, RunError, RunOptions, RunOutput, find_task};
 use crate::node::Node;

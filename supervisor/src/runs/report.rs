@@ -15,8 +15,8 @@ use super::{RunInfo, RunOutput};
 use penelope_drivers::sim::scripts::{CONTACT_PHASE, FREE_MOTION_PHASES, INDEX_PHASE, TAP_PHASE};
 use penelope_rt_core::teleop::WorkspaceMapping;
 use penelope_runtime::objects::clock::ClockMode;
-use penelope_runtime::objects::runtime::TickRecord;
 use penelope_runtime::objects::teleop::sensor_to_base;
+use penelope_runtime::objects::tick::TickRecord;
 
 /// Position tracking in free motion.
 #[derive(Clone, Debug, Serialize, PartialEq)]

@@ -30,7 +30,7 @@ use penelope_runtime::objects::clock::ClockMode;
 use penelope_runtime::objects::recording::mcap_log::{CONTROLLER_TOPIC, summarize};
 use penelope_runtime::objects::recording::{RecordingError, read_recording};
 use penelope_runtime::objects::replay::OperatorReplayConfig;
-use penelope_runtime::objects::runtime::TickRecord;
+use penelope_runtime::objects::tick::TickRecord;
 
 /// The name of the metadata record that holds a run's [`RunRecipe`].
 pub const RECIPE: &str = "run";

@@ -15,7 +15,7 @@ use penelope_rt_core::safety::{FaultCause, SafetyState};
 use penelope_rt_core::teleop::TeleopSample;
 use serde_json::json;
 
-use penelope_runtime::objects::runtime::TickRecord;
+use penelope_runtime::objects::tick::TickRecord;
 
 /// The first chunk of every key expression the bridge uses.
 pub const KEY_ROOT: &str = "penelope";

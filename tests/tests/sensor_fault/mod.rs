@@ -25,7 +25,7 @@ pub fn assert_master_let_go(
     what: &str,
 ) {
     let commanded =
-        |s: &penelope_runtime::objects::runtime::TickRecord| s.sample.commanded_wrench.force.norm();
+        |s: &penelope_runtime::objects::tick::TickRecord| s.sample.commanded_wrench.force.norm();
     let before: Vec<f64> = out
         .master
         .iter()

@@ -53,7 +53,7 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::RecordingError;
-use crate::objects::runtime::TickRecord;
+use crate::objects::tick::TickRecord;
 use penelope_protocol::proto::LinkRecord;
 
 /// The MCAP profile written in the header (none of the well-known ones fits: JSON messages

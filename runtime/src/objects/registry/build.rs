@@ -322,7 +322,7 @@ impl Registry {
         // Ports.
         use penelope_rt_core::cell::latest;
         use penelope_rt_core::ring::ring;
-        let (ref_w, ref_r) = crate::objects::runtime::reference_port();
+        let (ref_w, ref_r) = crate::objects::reference::reference_port();
         let (tel_w, tel_r) = ring();
         let (comm_w, comm_r) = latest();
         let (probe_w, probe_r) = latest();
@@ -678,7 +678,7 @@ pub(crate) struct Built {
     pub control: ControlTask,
     pub comm: crate::objects::runtime::CommTask,
     pub telemetry: penelope_rt_core::ring::ArcConsumer<
-        crate::objects::runtime::TickRecord,
+        crate::objects::tick::TickRecord,
         { crate::objects::runtime::TELEMETRY_CAPACITY },
     >,
     pub commands: penelope_rt_core::ring::ArcProducer<

@@ -1,7 +1,8 @@
 //! The trajectories a node runs and the communication task that publishes their references.
 
 use super::{GOTO_CAPACITY, SPLINE_CAPACITY};
-use crate::objects::runtime::{RefWriter, RobotKinematics};
+use crate::objects::reference::ReferenceOut;
+use crate::objects::runtime::RobotKinematics;
 use crate::objects::teleop::TeleopComm;
 use penelope_hal::{
     Frame, InverseKinematics, JacobianFrame, JointReference, JointSet, JointVector, Kinematics,
@@ -258,7 +259,7 @@ impl TrajectoryFeed {
 /// `J qd`), and publishes the stamped reference. Like rt-core's `CommLoop`, plus the conversion.
 pub struct CommTask {
     source: ReferenceSource,
-    writer: RefWriter,
+    writer: ReferenceOut,
     state: ArcLatestReader<TelemetrySample>,
     goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
     model: RobotKinematics,
@@ -274,7 +275,7 @@ impl CommTask {
     /// A task publishing `trajectory` into `writer`; `cartesian` for a law that follows poses.
     pub fn new(
         trajectory: TrajectoryFeed,
-        writer: RefWriter,
+        writer: ReferenceOut,
         state: ArcLatestReader<TelemetrySample>,
         goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
         model: RobotKinematics,
@@ -286,7 +287,7 @@ impl CommTask {
 
     fn with_source(
         source: ReferenceSource,
-        writer: RefWriter,
+        writer: ReferenceOut,
         state: ArcLatestReader<TelemetrySample>,
         goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
         model: RobotKinematics,
@@ -312,7 +313,7 @@ impl CommTask {
     /// [`WireError::BadArgument`] for more than [`MAX_JOINTS`] groups.
     pub fn groups(
         feeds: Vec<(JointSet, TrajectoryFeed)>,
-        writer: RefWriter,
+        writer: ReferenceOut,
         state: ArcLatestReader<TelemetrySample>,
         goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
         model: RobotKinematics,
@@ -341,7 +342,7 @@ impl CommTask {
     /// requests are refused by the creator before they reach it).
     pub fn teleop(
         teleop: TeleopComm,
-        writer: RefWriter,
+        writer: ReferenceOut,
         state: ArcLatestReader<TelemetrySample>,
         goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
         model: RobotKinematics,

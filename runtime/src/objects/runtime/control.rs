@@ -1,9 +1,11 @@
 //! The control laws a node runs, the loop's ports and the control task.
 
-use crate::objects::runtime::{Commands, LoopBoard, RefReader, RobotKinematics};
+use crate::objects::reference::ReferencePort;
+use crate::objects::runtime::{Commands, LoopBoard, RobotKinematics};
 use crate::objects::runtime::{GAINS_CAPACITY, TELEMETRY_CAPACITY};
+use crate::objects::tick::TickRecord;
 use penelope_drivers::sim::force_sensor::VirtualForceSensor;
-use penelope_drivers::sim::tap::{TapReader, TapSample};
+use penelope_drivers::sim::tap::TapReader;
 use penelope_hal::{
     ControlInput, Controller, ControllerError, Error, ErrorKind, JointCommand, JointState, Pose,
     RobotModel, Sensor, Timestamp, Wrench,
@@ -182,20 +184,6 @@ pub struct RoutedGains {
     pub update: GainsUpdate,
 }
 
-/// One control tick as the telemetry ring carries it: what the loop reported, and the simulated
-/// plant's true state at that instant (robots on simulated boards).
-#[derive(Clone, Copy, Debug, PartialEq, Default, serde::Serialize, serde::Deserialize)]
-pub struct TickRecord {
-    /// What the control loop reported.
-    pub sample: TelemetrySample,
-    /// The plant's ground truth (`None` on real boards).
-    pub truth: Option<TapSample>,
-    /// Whether the operator's hand held the clutch at this tick (`None` for a robot no hand
-    /// holds): what a replayed hand presses again.
-    #[serde(default)]
-    pub clutch: Option<bool>,
-}
-
 /// The control loop's telemetry port: every sample (with the plant's truth, if a plant is
 /// behind the board) into the ring for the pump, and into latest-value cells for the
 /// communication task and the sensor feed.
@@ -314,8 +302,15 @@ impl Sensor for CellSensor {
     }
 }
 
-type Loop<F> =
-    ControlLoop<LoopBoard, RobotKinematics, [NodeController; 1], RefReader, NodeSink, Commands, F>;
+type Loop<F> = ControlLoop<
+    LoopBoard,
+    RobotKinematics,
+    [NodeController; 1],
+    ReferencePort,
+    NodeSink,
+    Commands,
+    F,
+>;
 
 /// A node's control loop, with or without a force sensor.
 pub enum NodeLoop {

@@ -44,8 +44,6 @@ pub const SPLINE_CAPACITY: usize = crate::objects::kinds::MAX_WAYPOINTS;
 /// joints are spread over several simulated boards is still one plant).
 pub type SimBody = SimBoard<DhRobotModel, ToolContact>;
 
-type RefWriter = ReferenceOut;
-type RefReader = ReferencePort;
 /// The command ring behind the loop's stop latch (an e-stop needs no room in the ring).
 type Commands = penelope_rt_core::stop::StopAwareCommands<
     ArcConsumer<penelope_rt_core::control::ControlCommand, COMMAND_CAPACITY>,
@@ -56,16 +54,21 @@ mod board;
 mod comm;
 mod control;
 mod link_telemetry;
-mod reference;
 mod sensors;
 mod telemetry;
 mod threads;
 
-pub use board::*;
-pub use comm::*;
-pub use control::*;
-pub use link_telemetry::*;
-pub use reference::*;
-pub use sensors::*;
-pub use telemetry::*;
-pub use threads::*;
+pub use board::{GalilSet, LoopBoard, LoopBoardError, MAX_PLANT_STEP_NS, SimDrive, SimObserver};
+pub use comm::{CommTask, GoToCommand, NodeTrajectory, TrajectoryFeed};
+pub use control::{
+    CellSensor, CellSensorError, ControlTask, GainsUpdate, NodeController, NodeLoop, NodeSink,
+    RoutedGains,
+};
+pub use link_telemetry::{LINK_PERIOD, LinkPump, LinkSubscriptions};
+pub use sensors::{FeedStats, SensorFeed, SensorSource, VirtualSensor, run_sensor_feed};
+pub use telemetry::{
+    LoopShared, MAX_BATCH_RECORDS, Newest, Pump, Subscriptions, TickStream, record, run_pump,
+};
+pub use threads::{
+    LoopFault, LoopThread, Running, StopMode, StoppedLoop, comm_body, control_body, guarded,
+};

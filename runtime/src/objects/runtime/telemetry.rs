@@ -2,7 +2,8 @@
 //! `link_telemetry`).
 
 use crate::objects::link_source::LinkSource;
-use crate::objects::runtime::{LinkSubscriptions, TELEMETRY_CAPACITY, TickRecord};
+use crate::objects::runtime::{LinkSubscriptions, TELEMETRY_CAPACITY};
+use crate::objects::tick::TickRecord;
 use penelope_hal::JointVector;
 use penelope_protocol::proto::{
     ServerMsg, TelemetryBatch, TelemetryRecord, WireError, WrenchMsg, joints_from_vector,

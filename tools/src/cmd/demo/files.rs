@@ -4,7 +4,7 @@ use std::path::Path;
 
 use penelope_drivers::sim::operator::OperatorScript;
 use penelope_hal::Timestamp;
-use penelope_runtime::objects::runtime::TickRecord;
+use penelope_runtime::objects::tick::TickRecord;
 
 /// Writes one robot's ticks: time since `start` (the run's first tick), the phase of the
 /// operator's `script`, safety state, joints, references, wrenches, the plant's ground truth and

@@ -18,7 +18,7 @@ use penelope_hal::Timestamp;
 use penelope_runtime::dataplane::endpoint::{
     ControlBuffer, enable_kernel_stamps, receive_with_stamp,
 };
-use penelope_runtime::objects::runtime::TickRecord;
+use penelope_runtime::objects::tick::TickRecord;
 use penelope_supervisor::runs::RunOutput;
 use serde::Serialize;
 
