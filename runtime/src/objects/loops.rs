@@ -11,9 +11,10 @@ use penelope_rt_core::control::ControlCommand;
 use penelope_rt_core::exec::{self, PeriodicConfig, Setting};
 use penelope_rt_core::safety::Role;
 
-use super::clock::{SteppedLoop, TickBody};
 use super::registry::{self, Body, Launch};
-use super::runtime::{self, LoopFault, LoopShared, Running, StopMode, StoppedLoop, TickStream};
+use super::runtime::{self, LoopFault, LoopShared, Running, StopMode, StoppedLoop};
+use super::sim_world::{SteppedLoop, TickBody};
+use super::tick::TickStream;
 use super::{Creator, DetachedLoop, RtPolicy};
 use penelope_protocol::proto::{Class, Method, Reply, WireError};
 

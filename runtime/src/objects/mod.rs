@@ -5,6 +5,8 @@
 //! - [`kinematics`]: the model a robot's loops compute with (float, or the FPGA board's).
 //! - [`fpga_board`]: `board/fpga`, the FRHC's FPGA board: its latency model and what it accepts.
 //! - [`kinds`]: every kind and its TOML configuration (keys, units, defaults, ranges).
+//! - [`clock`]: real time or the simulated clock, and the node's time as a recorder reads it;
+//!   [`sim_world`]: the simulated clock's world, which steps the loops.
 //! - [`runtime`]: what runs while a controller is active: the control task (SCHED_FIFO), the
 //!   communication task (trajectory to reference cell), the sensor feed and the telemetry pump.
 //! - [`teleop`]: the teleoperation channel, its ends, the operator's hand and the halves of
@@ -57,6 +59,7 @@ mod registry;
 pub mod replay;
 pub mod roles;
 pub mod runtime;
+pub mod sim_world;
 pub mod stop_board;
 pub mod teleop;
 pub mod teleop_end;
@@ -69,7 +72,7 @@ use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 use penelope_hal::{LifecycleState, Timestamp, Transition};
 
-use clock::{ClockMode, SimWorld};
+use clock::ClockMode;
 use penelope_protocol::proto::{
     Call, Class, ControllerMethod, CreatorCall, KindInfo, Method, NodeInfo, ObjectInfo, Reply,
     WireError, check_name,
@@ -77,6 +80,7 @@ use penelope_protocol::proto::{
 use penelope_protocol::service::{Remote, Service, Session};
 use registry::{Body, Registry};
 use runtime::{CommTask, ControlTask, LinkPump, Subscriptions};
+use sim_world::SimWorld;
 
 /// Real-time settings of the control threads a creator starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

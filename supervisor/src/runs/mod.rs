@@ -35,9 +35,9 @@ use penelope_runtime::objects::clock::ClockMode;
 use penelope_runtime::objects::fpga_board;
 use penelope_runtime::objects::kinds::{self, RobotConfig, SensorConfig, SimBoardConfig};
 use penelope_runtime::objects::kinematics::RobotKinematics;
-use penelope_runtime::objects::runtime::TickStream;
 use penelope_runtime::objects::teleop::{HandConfig, TeleopConfig};
 use penelope_runtime::objects::tick::TickRecord;
+use penelope_runtime::objects::tick::TickStream;
 
 /// The demo's system file (`config/demo.toml`), built in.
 pub const DEMO_SYSTEM: &str = include_str!("../../../config/demo.toml");

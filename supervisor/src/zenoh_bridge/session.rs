@@ -23,7 +23,7 @@ use penelope_protocol::proto::Class;
 use penelope_runtime::objects::Creator;
 use penelope_runtime::objects::bridged::BridgedChannels;
 use penelope_runtime::objects::link_source::LinkSource;
-use penelope_runtime::objects::runtime::TickStream;
+use penelope_runtime::objects::tick::TickStream;
 
 /// How often the bridge drains the tick streams and publishes.
 const DRAIN_EVERY: Duration = Duration::from_millis(5);

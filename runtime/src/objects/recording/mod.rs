@@ -21,8 +21,8 @@ use crate::common_clock::CommonClock;
 use crate::objects::clock::NodeTime;
 use crate::objects::lifecycle_feed::LifecycleEvent;
 use crate::objects::link_source::{LinkSource, StreamDatagram};
-use crate::objects::runtime::TickStream;
 use crate::objects::tick::TickRecord;
+use crate::objects::tick::TickStream;
 use mcap_log::{CLOCK_TOPIC, CONTROLLER_TOPIC, LINK_TOPIC, McapLog, RECORDER_TOPIC, STREAM_TOPIC};
 use penelope_protocol::proto::LinkRecord;
 

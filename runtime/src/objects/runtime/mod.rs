@@ -66,9 +66,7 @@ pub use control::{
 };
 pub use link_telemetry::{LINK_PERIOD, LinkPump, LinkSubscriptions};
 pub use sensors::{FeedStats, SensorFeed, SensorSource, VirtualSensor, run_sensor_feed};
-pub use telemetry::{
-    LoopShared, MAX_BATCH_RECORDS, Newest, Pump, Subscriptions, TickStream, record, run_pump,
-};
+pub use telemetry::{LoopShared, MAX_BATCH_RECORDS, Newest, Pump, Subscriptions, record, run_pump};
 pub use threads::{
     LoopFault, LoopThread, Running, StopMode, StoppedLoop, comm_body, control_body, guarded,
 };

@@ -3,7 +3,7 @@
 
 use crate::objects::link_source::LinkSource;
 use crate::objects::runtime::{LinkSubscriptions, TELEMETRY_CAPACITY};
-use crate::objects::tick::TickRecord;
+use crate::objects::tick::{TickRecord, TickStream};
 use penelope_hal::JointVector;
 use penelope_protocol::proto::{
     ServerMsg, TelemetryBatch, TelemetryRecord, WireError, WrenchMsg, joints_from_vector,
@@ -12,7 +12,7 @@ use penelope_protocol::service::Outbox;
 use penelope_rt_core::ring::ArcConsumer;
 use penelope_rt_core::telemetry::TelemetrySample;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{Receiver, SyncSender};
+use std::sync::mpsc::SyncSender;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -77,24 +77,6 @@ struct Recorder {
     controller: String,
     to: SyncSender<TickRecord>,
     dropped: Arc<AtomicU64>,
-}
-
-/// The receiving end of [`Subscriptions::record`].
-#[derive(Debug)]
-pub struct TickStream {
-    /// Every tick, in order.
-    pub ticks: Receiver<TickRecord>,
-    /// Ticks lost because the stream was full (its reader fell behind).
-    pub dropped: Arc<AtomicU64>,
-}
-
-impl TickStream {
-    /// Moves every tick received so far into `into`.
-    pub fn drain_into(&self, into: &mut Vec<TickRecord>) {
-        while let Ok(t) = self.ticks.try_recv() {
-            into.push(t);
-        }
-    }
 }
 
 impl Subscriptions {
