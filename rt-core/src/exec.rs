@@ -418,29 +418,8 @@ where
         exec.record(previous_exec);
         index += 1;
 
-        let mut next = deadline + period;
-        if end >= next {
-            // Overrun: skip every deadline already passed; resume at the first one ahead.
-            let behind = end.saturating_since(next).as_nanos();
-            let missed = u64::try_from(behind / period.as_nanos()).unwrap_or(u64::MAX) + 1;
-            stats.overruns += 1;
-            stats.skipped += missed;
-            let jump = u64::try_from(period.as_nanos())
-                .unwrap_or(u64::MAX)
-                .saturating_mul(missed);
-            next = Timestamp::from_nanos(next.as_nanos().saturating_add(jump));
-        }
-        deadline = next;
-
-        stats.ticks = index;
-        stats.last_latency = late;
-        stats.max_latency = stats.max_latency.max(late);
-        latency_sum += late.as_nanos();
-        stats.mean_latency = Duration::from_nanos(
-            u64::try_from(latency_sum / u128::from(index)).unwrap_or(u64::MAX),
-        );
-        stats.last_exec = previous_exec;
-        stats.max_exec = stats.max_exec.max(previous_exec);
+        deadline = next_deadline(deadline, period, end, &mut stats);
+        note_tick(&mut stats, index, late, previous_exec, &mut latency_sum);
         if let Some(w) = live.as_mut() {
             w.write(stats);
         }
@@ -458,6 +437,51 @@ where
         started,
         stopped: MonotonicClock::read(),
     }
+}
+
+/// The deadline after `deadline` for a tick that ended at `end`: one period on, or on an
+/// overrun the first deadline still ahead (every one already passed is skipped and counted in
+/// `stats`).
+#[inline]
+fn next_deadline(
+    deadline: Timestamp,
+    period: Duration,
+    end: Timestamp,
+    stats: &mut LiveStats,
+) -> Timestamp {
+    let mut next = deadline + period;
+    if end >= next {
+        // Overrun: skip every deadline already passed; resume at the first one ahead.
+        let behind = end.saturating_since(next).as_nanos();
+        let missed = u64::try_from(behind / period.as_nanos()).unwrap_or(u64::MAX) + 1;
+        stats.overruns += 1;
+        stats.skipped += missed;
+        let jump = u64::try_from(period.as_nanos())
+            .unwrap_or(u64::MAX)
+            .saturating_mul(missed);
+        next = Timestamp::from_nanos(next.as_nanos().saturating_add(jump));
+    }
+    next
+}
+
+/// Notes tick number `index` (from 1) in the live figures: its wake-up latency `late` (summed
+/// into `latency_sum` for the mean) and its execution time `exec`.
+#[inline]
+fn note_tick(
+    stats: &mut LiveStats,
+    index: u64,
+    late: Duration,
+    exec: Duration,
+    latency_sum: &mut u128,
+) {
+    stats.ticks = index;
+    stats.last_latency = late;
+    stats.max_latency = stats.max_latency.max(late);
+    *latency_sum += late.as_nanos();
+    stats.mean_latency =
+        Duration::from_nanos(u64::try_from(*latency_sum / u128::from(index)).unwrap_or(u64::MAX));
+    stats.last_exec = exec;
+    stats.max_exec = stats.max_exec.max(exec);
 }
 
 /// Sleeps until `deadline` on `CLOCK_MONOTONIC` (absolute), resuming after signals.
