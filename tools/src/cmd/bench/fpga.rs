@@ -197,7 +197,7 @@ fn print_json(ms: &Measures) {
         })
     };
     let out = json!({
-        "model": [m(&float_fk), m(&fixed_fk), m(&trait_fk), m(&float_force), m(&fixed_force)],
+        "model": [m(float_fk), m(fixed_fk), m(trait_fk), m(float_force), m(fixed_force)],
         "fk_time_ratio_bit_exact_over_float": fk_ratio,
         "force_time_ratio_bit_exact_over_float": force_ratio,
         "hardware": {
