@@ -360,104 +360,22 @@ impl Netlist {
     /// [`NetlistError::UnknownCell`] for a primitive without figures, [`NetlistError::Loop`]
     /// for a combinational loop.
     pub fn critical_path(&self, m: &DelayModel) -> Result<CriticalPath, NetlistError> {
-        // The driver of each net: (cell index, output pin).
-        let mut driver: HashMap<&str, usize> = HashMap::new();
-        let mut roles = Vec::with_capacity(self.cells.len());
-        for (i, c) in self.cells.iter().enumerate() {
-            roles.push(Self::role(&c.kind, m)?);
-            for (p, net) in &c.pins {
-                if is_output(&c.kind, p) {
-                    driver.insert(net.as_str(), i);
-                }
-            }
-        }
-        let is_clock = |kind: &str, pin: &str| -> bool {
-            let p = base(pin);
-            (p == "C" || p == "CLKA" || p == "CLKB")
-                && (kind.starts_with("FD") || kind.starts_with("RAMB16"))
-        };
-        // Arrival time at each net, and the cell that set it (for the path report).
-        let mut arrival: HashMap<&str, (f64, Option<usize>)> = HashMap::new();
-        for i in &self.inputs {
-            arrival.insert(i.as_str(), (m.ff_clk_to_out, None));
-        }
-        let mut visiting: HashMap<&str, bool> = HashMap::new();
-
-        // Iterative depth-first evaluation of arrival(net).
-        fn eval<'a>(
-            net: &'a str,
-            nl: &'a Netlist,
-            m: &DelayModel,
-            driver: &HashMap<&'a str, usize>,
-            roles: &[Role],
-            arrival: &mut HashMap<&'a str, (f64, Option<usize>)>,
-            visiting: &mut HashMap<&'a str, bool>,
-        ) -> Result<f64, NetlistError> {
-            let mut stack: Vec<&'a str> = vec![net];
-            while let Some(&n) = stack.last() {
-                if arrival.contains_key(n) {
-                    stack.pop();
-                    continue;
-                }
-                let Some(&ci) = driver.get(n) else {
-                    arrival.insert(n, (f64::NEG_INFINITY, None)); // undriven: no path
-                    stack.pop();
-                    continue;
-                };
-                let cell = &nl.cells[ci];
-                match roles[ci] {
-                    Role::Sequential { clk_to_out, .. } => {
-                        arrival.insert(n, (clk_to_out, Some(ci)));
-                        stack.pop();
-                        continue;
-                    }
-                    Role::Constant => {
-                        arrival.insert(n, (f64::NEG_INFINITY, None));
-                        stack.pop();
-                        continue;
-                    }
-                    Role::Logic => {}
-                }
-                let mut pending = false;
-                let mut worst = f64::NEG_INFINITY;
-                for (p, inet) in &cell.pins {
-                    if is_output(&cell.kind, p) {
-                        continue;
-                    }
-                    match arrival.get(inet.as_str()) {
-                        Some(&(t, _)) => {
-                            let (d, routed) = Netlist::arc(&cell.kind, p, m);
-                            let t = t + d + if routed { m.net } else { 0.0 };
-                            worst = worst.max(t);
-                        }
-                        None => {
-                            if visiting.get(inet.as_str()) == Some(&true) {
-                                return Err(NetlistError::Loop(inet.clone()));
-                            }
-                            pending = true;
-                            stack.push(inet.as_str());
-                        }
-                    }
-                }
-                if pending {
-                    visiting.insert(n, true);
-                    continue;
-                }
-                visiting.insert(n, false);
-                // Every output of the cell gets the same arrival.
-                for (p, onet) in &cell.pins {
-                    if is_output(&cell.kind, p) {
-                        arrival.insert(onet.as_str(), (worst, Some(ci)));
-                    }
-                }
-                arrival.entry(n).or_insert((worst, Some(ci)));
-                stack.pop();
-            }
-            Ok(arrival[net].0)
-        }
-
-        // Endpoints: sequential inputs (not clocks) and primary outputs.
+        let mut timing = Arrivals::new(self, m)?;
+        // The endpoint reached latest, its setup included.
         let mut best: (f64, &str) = (f64::NEG_INFINITY, "");
+        for (net, setup) in self.endpoints(&timing.roles, m) {
+            let t = timing.eval(net)?;
+            let total = t + m.net + setup;
+            if total > best.0 {
+                best = (total, net);
+            }
+        }
+        Ok(timing.walk_back(best))
+    }
+
+    /// Where paths end, each with its setup time: sequential inputs (not clocks), then primary
+    /// outputs.
+    fn endpoints(&self, roles: &[Role], m: &DelayModel) -> Vec<(&str, f64)> {
         let mut endpoints: Vec<(&str, f64)> = Vec::new();
         for (i, c) in self.cells.iter().enumerate() {
             if let Role::Sequential { setup, .. } = roles[i] {
@@ -471,26 +389,144 @@ impl Netlist {
         for o in &self.outputs {
             endpoints.push((o.as_str(), m.ff_setup));
         }
-        for (net, setup) in endpoints {
-            let t = eval(net, self, m, &driver, &roles, &mut arrival, &mut visiting)?;
-            let total = t + m.net + setup;
-            if total > best.0 {
-                best = (total, net);
+        endpoints
+    }
+}
+
+/// Whether `pin` of a `kind` cell is a clock input (not a timing arc).
+fn is_clock(kind: &str, pin: &str) -> bool {
+    let p = base(pin);
+    (p == "C" || p == "CLKA" || p == "CLKB")
+        && (kind.starts_with("FD") || kind.starts_with("RAMB16"))
+}
+
+/// When a signal arriving at `t` on input `pin` of a `kind` cell reaches its outputs (the
+/// arc's delay, and the net's when the arc is routed).
+fn through(kind: &str, pin: &str, t: f64, m: &DelayModel) -> f64 {
+    let (d, routed) = Netlist::arc(kind, pin, m);
+    t + d + if routed { m.net } else { 0.0 }
+}
+
+/// The arrival times of a netlist's nets under a delay model, evaluated on demand.
+struct Arrivals<'a> {
+    nl: &'a Netlist,
+    m: &'a DelayModel,
+    /// The cell driving each net.
+    driver: HashMap<&'a str, usize>,
+    /// Each cell's timing role.
+    roles: Vec<Role>,
+    /// The arrival time at each net evaluated so far, and the cell that set it (for the path
+    /// report).
+    arrival: HashMap<&'a str, (f64, Option<usize>)>,
+    /// Nets whose inputs are being evaluated (`true`) or were (`false`): one met again while
+    /// its inputs are being evaluated closes a combinational loop.
+    visiting: HashMap<&'a str, bool>,
+}
+
+impl<'a> Arrivals<'a> {
+    /// Each net's driver and each cell's role; the primary inputs arrive as register outputs.
+    fn new(nl: &'a Netlist, m: &'a DelayModel) -> Result<Self, NetlistError> {
+        let mut driver: HashMap<&str, usize> = HashMap::new();
+        let mut roles = Vec::with_capacity(nl.cells.len());
+        for (i, c) in nl.cells.iter().enumerate() {
+            roles.push(Netlist::role(&c.kind, m)?);
+            for (p, net) in &c.pins {
+                if is_output(&c.kind, p) {
+                    driver.insert(net.as_str(), i);
+                }
             }
         }
+        let mut arrival: HashMap<&str, (f64, Option<usize>)> = HashMap::new();
+        for i in &nl.inputs {
+            arrival.insert(i.as_str(), (m.ff_clk_to_out, None));
+        }
+        Ok(Arrivals {
+            nl,
+            m,
+            driver,
+            roles,
+            arrival,
+            visiting: HashMap::new(),
+        })
+    }
 
-        // Walk back along the worst arrivals.
+    /// The arrival time at `net`: iterative depth-first evaluation of its drivers' inputs.
+    fn eval(&mut self, net: &'a str) -> Result<f64, NetlistError> {
+        let (nl, m) = (self.nl, self.m);
+        let mut stack: Vec<&'a str> = vec![net];
+        while let Some(&n) = stack.last() {
+            if self.arrival.contains_key(n) {
+                stack.pop();
+                continue;
+            }
+            let Some(&ci) = self.driver.get(n) else {
+                self.arrival.insert(n, (f64::NEG_INFINITY, None)); // undriven: no path
+                stack.pop();
+                continue;
+            };
+            let cell = &nl.cells[ci];
+            match self.roles[ci] {
+                Role::Sequential { clk_to_out, .. } => {
+                    self.arrival.insert(n, (clk_to_out, Some(ci)));
+                    stack.pop();
+                    continue;
+                }
+                Role::Constant => {
+                    self.arrival.insert(n, (f64::NEG_INFINITY, None));
+                    stack.pop();
+                    continue;
+                }
+                Role::Logic => {}
+            }
+            let mut pending = false;
+            let mut worst = f64::NEG_INFINITY;
+            for (p, inet) in &cell.pins {
+                if is_output(&cell.kind, p) {
+                    continue;
+                }
+                match self.arrival.get(inet.as_str()) {
+                    Some(&(t, _)) => worst = worst.max(through(&cell.kind, p, t, m)),
+                    None => {
+                        if self.visiting.get(inet.as_str()) == Some(&true) {
+                            return Err(NetlistError::Loop(inet.clone()));
+                        }
+                        pending = true;
+                        stack.push(inet.as_str());
+                    }
+                }
+            }
+            if pending {
+                self.visiting.insert(n, true);
+                continue;
+            }
+            self.visiting.insert(n, false);
+            // Every output of the cell gets the same arrival.
+            for (p, onet) in &cell.pins {
+                if is_output(&cell.kind, p) {
+                    self.arrival.insert(onet.as_str(), (worst, Some(ci)));
+                }
+            }
+            self.arrival.entry(n).or_insert((worst, Some(ci)));
+            stack.pop();
+        }
+        Ok(self.arrival[net].0)
+    }
+
+    /// The path that ends at `end` (delay, net), walked back along the latest arrivals
+    /// (delays included) to the register or input it starts from.
+    fn walk_back(&self, end: (f64, &'a str)) -> CriticalPath {
+        let m = self.m;
         let mut path = CriticalPath {
-            delay: best.0,
+            delay: end.0,
             cells: Vec::new(),
             lut_levels: 0,
             mults: 0,
             carry_cells: 0,
             muxf: 0,
         };
-        let mut net = best.1;
-        while let Some(&(_, Some(ci))) = arrival.get(net) {
-            let cell = &self.cells[ci];
+        let mut net = end.1;
+        while let Some(&(_, Some(ci))) = self.arrival.get(net) {
+            let cell = &self.nl.cells[ci];
             path.cells.push((cell.kind.clone(), net.to_string()));
             match cell.kind.as_str() {
                 "INV" | "LUT1" | "LUT2" | "LUT3" | "LUT4" => path.lut_levels += 1,
@@ -499,7 +535,7 @@ impl Netlist {
                 k if k.starts_with("MUXF") => path.muxf += 1,
                 _ => {}
             }
-            if !matches!(roles[ci], Role::Logic) {
+            if !matches!(self.roles[ci], Role::Logic) {
                 break;
             }
             // The input with the latest arrival (delays included).
@@ -508,9 +544,8 @@ impl Netlist {
                 if is_output(&cell.kind, p) {
                     continue;
                 }
-                if let Some(&(t, _)) = arrival.get(inet.as_str()) {
-                    let (d, routed) = Self::arc(&cell.kind, p, m);
-                    let t = t + d + if routed { m.net } else { 0.0 };
+                if let Some(&(t, _)) = self.arrival.get(inet.as_str()) {
+                    let t = through(&cell.kind, p, t, m);
                     if t > worst.0 {
                         worst = (t, Some(inet.as_str()));
                     }
@@ -522,7 +557,7 @@ impl Netlist {
             }
         }
         path.cells.reverse();
-        Ok(path)
+        path
     }
 }
 

@@ -45,4 +45,6 @@ pub mod trajectory;
 #[cfg(all(feature = "std", not(loom)))]
 pub mod exec;
 #[cfg(all(feature = "std", not(loom)))]
+mod rt_settings;
+#[cfg(all(feature = "std", not(loom)))]
 pub mod wake;

@@ -368,38 +368,8 @@ impl Command<'_> {
                 .push_str(if motion_only { "AB 1" } else { "AB" })
                 .map_err(too_long),
             Command::Tell(tell, axes) => with_axes(line, tell.mnemonic(), axes),
-            Command::Set(setting, values) => {
-                if values.len() > MAX_GALIL_AXES {
-                    return Err(GalilError::InvalidArgument("more values than axes"));
-                }
-                line.push_str(setting.mnemonic()).map_err(too_long)?;
-                line.push(' ').map_err(too_long)?;
-                // Trailing unchanged axes are simply left off.
-                let last = values
-                    .iter()
-                    .rposition(Option::is_some)
-                    .map_or(0, |i| i + 1);
-                for (i, v) in values[..last].iter().enumerate() {
-                    if i > 0 {
-                        line.push(',').map_err(too_long)?;
-                    }
-                    if let Some(v) = v {
-                        write_number(line, *v, setting.is_integer())?;
-                    }
-                }
-                Ok(())
-            }
-            Command::Query(setting, n) => {
-                if n == 0 || n > MAX_GALIL_AXES {
-                    return Err(GalilError::InvalidArgument("axis count out of 1..=8"));
-                }
-                line.push_str(setting.mnemonic()).map_err(too_long)?;
-                line.push_str(" ?").map_err(too_long)?;
-                for _ in 1..n {
-                    line.push_str(",?").map_err(too_long)?;
-                }
-                Ok(())
-            }
+            Command::Set(setting, values) => encode_set(line, setting, values),
+            Command::Query(setting, n) => encode_query(line, setting, n),
             Command::SetServoPeriod(n) => write!(line, "TM {n}").map_err(too_long),
             Command::QueryServoPeriod => line.push_str("TM ?").map_err(too_long),
             Command::Reset => line.push_str("RS").map_err(too_long),
@@ -451,6 +421,43 @@ impl Command<'_> {
             }
         }
     }
+}
+
+/// `setting` for each axis with a value; axes without one left unchanged (empty between
+/// commas, trailing ones left off).
+fn encode_set(line: &mut Line, setting: Setting, values: &[Option<f64>]) -> Result<(), GalilError> {
+    if values.len() > MAX_GALIL_AXES {
+        return Err(GalilError::InvalidArgument("more values than axes"));
+    }
+    line.push_str(setting.mnemonic()).map_err(too_long)?;
+    line.push(' ').map_err(too_long)?;
+    // Trailing unchanged axes are simply left off.
+    let last = values
+        .iter()
+        .rposition(Option::is_some)
+        .map_or(0, |i| i + 1);
+    for (i, v) in values[..last].iter().enumerate() {
+        if i > 0 {
+            line.push(',').map_err(too_long)?;
+        }
+        if let Some(v) = v {
+            write_number(line, *v, setting.is_integer())?;
+        }
+    }
+    Ok(())
+}
+
+/// A query of `setting` on the first `n` axes.
+fn encode_query(line: &mut Line, setting: Setting, n: usize) -> Result<(), GalilError> {
+    if n == 0 || n > MAX_GALIL_AXES {
+        return Err(GalilError::InvalidArgument("axis count out of 1..=8"));
+    }
+    line.push_str(setting.mnemonic()).map_err(too_long)?;
+    line.push_str(" ?").map_err(too_long)?;
+    for _ in 1..n {
+        line.push_str(",?").map_err(too_long)?;
+    }
+    Ok(())
 }
 
 /// Encodes several commands into one line separated by `;` (each gets its own `:` or `?`).

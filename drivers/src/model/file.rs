@@ -328,31 +328,37 @@ impl RobotFile {
             let gear = e.gear_ratio.unwrap_or(1.0);
             let cpr = e.encoder_counts_per_rev.unwrap_or(core::f64::consts::TAU);
             counts.push(cpr * gear / core::f64::consts::TAU);
-            let d = e.dynamics.clone().unwrap_or_default();
-            let inertia = match d.inertia.as_slice() {
-                [] => Matrix3::zeros(),
-                [xx, yy, zz] => Matrix3::from_diagonal(&Vector3::new(*xx, *yy, *zz)),
-                [xx, yy, zz, xy, yz, xz] => {
-                    Matrix3::new(*xx, *xy, *xz, *xy, *yy, *yz, *xz, *yz, *zz)
-                }
-                other => {
-                    return Err(ModelError::Invalid(format!(
-                        "joint {}: inertia needs 3 or 6 values, got {}",
-                        j + 1,
-                        other.len()
-                    )));
-                }
-            };
-            dynamics.push(LinkDynamics {
-                mass: d.mass,
-                com: Vector3::new(d.com[0], d.com[1], d.com[2]) * len,
-                inertia,
-                motor_inertia: d.motor_inertia,
-                gear_ratio: gear,
-                viscous: d.viscous,
-                coulomb: d.coulomb,
-            });
+            dynamics.push(link_dynamics(j, e, gear, len)?);
         }
+        let poses = self.poses_in_si(&var)?;
+        let g = self.gravity.unwrap_or([0.0, 0.0, -9.81]);
+        Ok(ModelSpec {
+            name: self.name.clone(),
+            description: self.description.clone(),
+            assumptions: self.assumptions.clone(),
+            joint_names: names,
+            joints: links,
+            dynamics,
+            base: transform(&self.base),
+            tool: transform(&self.tool),
+            gravity: Vector3::new(g[0], g[1], g[2]),
+            limits,
+            counts_per_radian: counts,
+            poses,
+            ik: match self.inverse_kinematics {
+                IkEntry::Auto => IkMethod::Auto,
+                IkEntry::Numerical => IkMethod::Numerical,
+            },
+        })
+    }
+
+    /// The named poses in SI units (each with one value per joint): the standard poses first,
+    /// then the others in name order.
+    fn poses_in_si(
+        &self,
+        var: &dyn Fn(usize, f64) -> f64,
+    ) -> Result<Vec<(String, JointVector)>, ModelError> {
+        let n = self.joints.len();
         let mut poses = Vec::with_capacity(self.poses.len());
         // Standard poses first, then the others in name order.
         let mut ordered: Vec<(&String, &Vec<f64>)> = self.poses.iter().collect();
@@ -375,26 +381,40 @@ impl RobotFile {
             }
             poses.push((name.clone(), q));
         }
-        let g = self.gravity.unwrap_or([0.0, 0.0, -9.81]);
-        Ok(ModelSpec {
-            name: self.name.clone(),
-            description: self.description.clone(),
-            assumptions: self.assumptions.clone(),
-            joint_names: names,
-            joints: links,
-            dynamics,
-            base: transform(&self.base),
-            tool: transform(&self.tool),
-            gravity: Vector3::new(g[0], g[1], g[2]),
-            limits,
-            counts_per_radian: counts,
-            poses,
-            ik: match self.inverse_kinematics {
-                IkEntry::Auto => IkMethod::Auto,
-                IkEntry::Numerical => IkMethod::Numerical,
-            },
-        })
+        Ok(poses)
     }
+}
+
+/// Joint `j`'s link dynamics from its entry `e` (lengths scaled by `len`); the inertia is
+/// the diagonal (3 values) or the full symmetric matrix (6 values).
+fn link_dynamics(
+    j: usize,
+    e: &JointEntry,
+    gear: f64,
+    len: f64,
+) -> Result<LinkDynamics, ModelError> {
+    let d = e.dynamics.clone().unwrap_or_default();
+    let inertia = match d.inertia.as_slice() {
+        [] => Matrix3::zeros(),
+        [xx, yy, zz] => Matrix3::from_diagonal(&Vector3::new(*xx, *yy, *zz)),
+        [xx, yy, zz, xy, yz, xz] => Matrix3::new(*xx, *xy, *xz, *xy, *yy, *yz, *xz, *yz, *zz),
+        other => {
+            return Err(ModelError::Invalid(format!(
+                "joint {}: inertia needs 3 or 6 values, got {}",
+                j + 1,
+                other.len()
+            )));
+        }
+    };
+    Ok(LinkDynamics {
+        mass: d.mass,
+        com: Vector3::new(d.com[0], d.com[1], d.com[2]) * len,
+        inertia,
+        motor_inertia: d.motor_inertia,
+        gear_ratio: gear,
+        viscous: d.viscous,
+        coulomb: d.coulomb,
+    })
 }
 
 /// Parses a DH file's text into a model whose [`kind`](DhRobotModel::kind) is `kind`.

@@ -147,104 +147,18 @@ impl DhRobotModel {
         if !spec.joint_names.is_empty() {
             check_len("joint_names", spec.joint_names.len())?;
         }
-        let mut dynamics = [LinkDynamics::massless(); MAX_JOINTS];
-        for (j, d) in spec.dynamics.iter().enumerate() {
-            if !d.is_finite() || d.mass < 0.0 || d.motor_inertia < 0.0 || d.viscous < 0.0 {
-                return Err(ModelError::Invalid(format!(
-                    "joint {}: dynamics must be finite, mass, motor inertia and viscous friction non-negative",
-                    j + 1
-                )));
-            }
-            let sym = (d.inertia - d.inertia.transpose()).abs().max();
-            let eig = d.inertia.symmetric_eigenvalues();
-            if sym > 1e-12 || eig.iter().any(|&e| e < -1e-12) {
-                return Err(ModelError::Invalid(format!(
-                    "joint {}: link inertia must be symmetric positive semi-definite",
-                    j + 1
-                )));
-            }
-            dynamics[j] = *d;
-        }
+        let dynamics = checked_dynamics(&spec.dynamics)?;
         if !spec.gravity.iter().all(|g| g.is_finite()) {
             return Err(ModelError::Invalid("gravity must be finite".into()));
         }
-        let mut counts = [1.0; MAX_JOINTS];
-        for (j, c) in spec.counts_per_radian.iter().enumerate() {
-            if !c.is_finite() || *c == 0.0 {
-                return Err(ModelError::Invalid(format!(
-                    "joint {}: counts per radian must be finite and non-zero",
-                    j + 1
-                )));
-            }
-            counts[j] = *c;
-        }
-        let lim = &spec.limits;
-        for j in 0..n {
-            if lim.position_min[j].is_nan()
-                || lim.position_max[j].is_nan()
-                || lim.position_min[j] > lim.position_max[j]
-                || lim.velocity_max[j].is_nan()
-                || lim.velocity_max[j] <= 0.0
-                || lim.effort_max[j].is_nan()
-                || lim.effort_max[j] <= 0.0
-            {
-                return Err(ModelError::Invalid(format!(
-                    "joint {}: limits need min <= max and positive speed and effort limits",
-                    j + 1
-                )));
-            }
-        }
-        let mut limits = JointLimits::unbounded();
-        for j in 0..n {
-            limits.position_min[j] = lim.position_min[j];
-            limits.position_max[j] = lim.position_max[j];
-            limits.velocity_max[j] = lim.velocity_max[j];
-            limits.effort_max[j] = lim.effort_max[j];
-        }
-        for (name, q) in &spec.poses {
-            if !q.iter().all(|x| x.is_finite()) {
-                return Err(ModelError::Invalid(format!("pose `{name}` is not finite")));
-            }
-        }
-        let find = |p: NamedPose| {
-            spec.poses
-                .iter()
-                .find(|(name, _)| name == p.as_str())
-                .map(|(_, q)| *q)
-                .ok_or(ModelError::MissingPose(p.as_str()))
-        };
-        let named = [
-            find(NamedPose::Nest)?,
-            find(NamedPose::Start)?,
-            find(NamedPose::Work)?,
-        ];
+        let counts = checked_counts(&spec.counts_per_radian)?;
+        let limits = checked_limits(&spec.limits, n)?;
+        let named = named_poses(&spec.poses)?;
         let closed_form = match spec.ik {
             IkMethod::Auto => PumaIk::detect(&chain),
             IkMethod::Numerical => None,
         };
-        // Seeds for the numerical solver: the named poses, zero, the middle of the envelope and a
-        // few fixed spread-out configurations.
-        let mut seeds = [JointVector::zeros(); NUM_SEEDS];
-        seeds[0] = named[1];
-        seeds[1] = named[2];
-        seeds[2] = named[0];
-        for (k, seed) in seeds.iter_mut().enumerate().skip(4) {
-            for j in 0..n {
-                let (lo, hi) = (limits.position_min[j], limits.position_max[j]);
-                let (lo, hi) = if lo.is_finite() && hi.is_finite() {
-                    (lo, hi)
-                } else {
-                    (-core::f64::consts::PI, core::f64::consts::PI)
-                };
-                // Seed 4: the middle of the envelope; then fixed, irregular fractions of it.
-                let f = if k == 4 {
-                    0.5
-                } else {
-                    0.1 + 0.8 * ((j as f64 + 1.0) * 0.618_033_988_749_895 * (k - 3) as f64).fract()
-                };
-                seed[j] = lo + f * (hi - lo);
-            }
-        }
+        let seeds = ik_seeds(&named, &limits, n);
         let base_inv = Rt::from_pose(&spec.base).inverse();
         let tool_inv = Rt::from_pose(&spec.tool).inverse();
         Ok(DhRobotModel {
@@ -701,4 +615,119 @@ impl Robot for DhRobot {
     fn named_pose(&self, pose: NamedPose) -> JointVector {
         self.model.named_pose(pose)
     }
+}
+
+/// Each joint's dynamics, checked: finite, mass, motor inertia and viscous friction
+/// non-negative, link inertia symmetric positive semi-definite (massless past the joints).
+fn checked_dynamics(given: &[LinkDynamics]) -> Result<[LinkDynamics; MAX_JOINTS], ModelError> {
+    let mut dynamics = [LinkDynamics::massless(); MAX_JOINTS];
+    for (j, d) in given.iter().enumerate() {
+        if !d.is_finite() || d.mass < 0.0 || d.motor_inertia < 0.0 || d.viscous < 0.0 {
+            return Err(ModelError::Invalid(format!(
+                "joint {}: dynamics must be finite, mass, motor inertia and viscous friction non-negative",
+                j + 1
+            )));
+        }
+        let sym = (d.inertia - d.inertia.transpose()).abs().max();
+        let eig = d.inertia.symmetric_eigenvalues();
+        if sym > 1e-12 || eig.iter().any(|&e| e < -1e-12) {
+            return Err(ModelError::Invalid(format!(
+                "joint {}: link inertia must be symmetric positive semi-definite",
+                j + 1
+            )));
+        }
+        dynamics[j] = *d;
+    }
+    Ok(dynamics)
+}
+
+/// Each joint's encoder counts per radian, checked finite and non-zero (1 past the joints).
+fn checked_counts(given: &[f64]) -> Result<[f64; MAX_JOINTS], ModelError> {
+    let mut counts = [1.0; MAX_JOINTS];
+    for (j, c) in given.iter().enumerate() {
+        if !c.is_finite() || *c == 0.0 {
+            return Err(ModelError::Invalid(format!(
+                "joint {}: counts per radian must be finite and non-zero",
+                j + 1
+            )));
+        }
+        counts[j] = *c;
+    }
+    Ok(counts)
+}
+
+/// The first `n` joints' limits, checked: min <= max, positive speed and effort limits
+/// (unbounded past the joints).
+fn checked_limits(lim: &JointLimits, n: usize) -> Result<JointLimits, ModelError> {
+    for j in 0..n {
+        if lim.position_min[j].is_nan()
+            || lim.position_max[j].is_nan()
+            || lim.position_min[j] > lim.position_max[j]
+            || lim.velocity_max[j].is_nan()
+            || lim.velocity_max[j] <= 0.0
+            || lim.effort_max[j].is_nan()
+            || lim.effort_max[j] <= 0.0
+        {
+            return Err(ModelError::Invalid(format!(
+                "joint {}: limits need min <= max and positive speed and effort limits",
+                j + 1
+            )));
+        }
+    }
+    let mut limits = JointLimits::unbounded();
+    for j in 0..n {
+        limits.position_min[j] = lim.position_min[j];
+        limits.position_max[j] = lim.position_max[j];
+        limits.velocity_max[j] = lim.velocity_max[j];
+        limits.effort_max[j] = lim.effort_max[j];
+    }
+    Ok(limits)
+}
+
+/// The named poses nest, start and work, each required; every pose given checked finite.
+fn named_poses(poses: &[(String, JointVector)]) -> Result<[JointVector; 3], ModelError> {
+    for (name, q) in poses {
+        if !q.iter().all(|x| x.is_finite()) {
+            return Err(ModelError::Invalid(format!("pose `{name}` is not finite")));
+        }
+    }
+    let find = |p: NamedPose| {
+        poses
+            .iter()
+            .find(|(name, _)| name == p.as_str())
+            .map(|(_, q)| *q)
+            .ok_or(ModelError::MissingPose(p.as_str()))
+    };
+    Ok([
+        find(NamedPose::Nest)?,
+        find(NamedPose::Start)?,
+        find(NamedPose::Work)?,
+    ])
+}
+
+/// Seeds for the numerical solver: the named poses, zero, the middle of the envelope and a
+/// few fixed spread-out configurations.
+fn ik_seeds(named: &[JointVector; 3], limits: &JointLimits, n: usize) -> [JointVector; NUM_SEEDS] {
+    let mut seeds = [JointVector::zeros(); NUM_SEEDS];
+    seeds[0] = named[1];
+    seeds[1] = named[2];
+    seeds[2] = named[0];
+    for (k, seed) in seeds.iter_mut().enumerate().skip(4) {
+        for j in 0..n {
+            let (lo, hi) = (limits.position_min[j], limits.position_max[j]);
+            let (lo, hi) = if lo.is_finite() && hi.is_finite() {
+                (lo, hi)
+            } else {
+                (-core::f64::consts::PI, core::f64::consts::PI)
+            };
+            // Seed 4: the middle of the envelope; then fixed, irregular fractions of it.
+            let f = if k == 4 {
+                0.5
+            } else {
+                0.1 + 0.8 * ((j as f64 + 1.0) * 0.618_033_988_749_895 * (k - 3) as f64).fract()
+            };
+            seed[j] = lo + f * (hi - lo);
+        }
+    }
+    seeds
 }

@@ -4,8 +4,8 @@
 //! # What becomes what
 //!
 //! - Every `revolute`, `continuous` and `prismatic` joint on the path from the base link to the
-//!   tip link becomes one [`AxisJoint`]: its `<origin xyz rpy>`, then motion about (along) its
-//!   `<axis>` (normalised; default `1 0 0` as in URDF).
+//!   tip link becomes one [`AxisJoint`](super::axis_joint::AxisJoint): its `<origin xyz rpy>`,
+//!   then motion about (along) its `<axis>` (normalised; default `1 0 0` as in URDF).
 //! - `fixed` joints are folded: into the next moving joint's origin, or, after the last one, into
 //!   the tool transform (so a fixed tool or flange link is the tool frame).
 //! - `<limit lower upper velocity effort>` become the joint limits; a `continuous` joint has no
@@ -33,17 +33,14 @@
 //! gives is a [`DhRobotModel`] like any other: every kinematics and dynamics call is
 //! allocation-free.
 
-use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
-use nalgebra::{Matrix3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use penelope_hal::{JointLimits, JointVector, MAX_JOINTS, Pose};
 
-use super::axis_joint::AxisJoint;
-use super::chain::ChainJoint;
 use super::dh::{JointKind, Rt};
-use super::dynamics::LinkDynamics;
 use super::robot::{DhRobotModel, IkMethod, ModelError, ModelSpec};
+use super::urdf_tree::{ChainWalk, Tree};
 
 /// Encoder counts per joint radian a URDF robot is given (URDF has no encoders): a 19-bit
 /// absolute encoder on the joint, `2^19 / 2π`.
@@ -263,7 +260,7 @@ pub fn spec_from_file(path: impl AsRef<Path>, chain: &UrdfChain) -> Result<Model
     spec_from_robot(&parse(&text)?, chain)
 }
 
-fn pose_of(origin: &urdf_rs::Pose) -> Pose {
+pub(super) fn pose_of(origin: &urdf_rs::Pose) -> Pose {
     let [x, y, z] = origin.xyz.0;
     let [r, p, yaw] = origin.rpy.0;
     Pose::from_parts(
@@ -272,7 +269,7 @@ fn pose_of(origin: &urdf_rs::Pose) -> Pose {
     )
 }
 
-fn rt_of(origin: &urdf_rs::Pose) -> Rt {
+pub(super) fn rt_of(origin: &urdf_rs::Pose) -> Rt {
     let [x, y, z] = origin.xyz.0;
     let [r, p, yaw] = origin.rpy.0;
     Rt {
@@ -281,263 +278,13 @@ fn rt_of(origin: &urdf_rs::Pose) -> Rt {
     }
 }
 
-fn finite(origin: &urdf_rs::Pose) -> bool {
+pub(super) fn finite(origin: &urdf_rs::Pose) -> bool {
     origin
         .xyz
         .0
         .iter()
         .chain(&origin.rpy.0)
         .all(|v| v.is_finite())
-}
-
-/// A link body's mass properties accumulated about its frame's origin.
-#[derive(Clone, Copy, Debug)]
-struct Body {
-    mass: f64,
-    /// First moment `Σ m c`.
-    moment: Vector3<f64>,
-    /// Rotational inertia about the frame's origin.
-    inertia_origin: Matrix3<f64>,
-}
-
-impl Body {
-    fn empty() -> Self {
-        Body {
-            mass: 0.0,
-            moment: Vector3::zeros(),
-            inertia_origin: Matrix3::zeros(),
-        }
-    }
-
-    /// Adds `link`'s inertial, the link's frame at `at` in the body's frame.
-    fn add(&mut self, link: &urdf_rs::Link, at: &Rt) -> Result<(), UrdfError> {
-        let i = &link.inertial;
-        let bad = |message: &str| UrdfError::BadLink {
-            link: link.name.clone(),
-            message: message.into(),
-        };
-        let t = &i.inertia;
-        let tensor = Matrix3::new(
-            t.ixx, t.ixy, t.ixz, t.ixy, t.iyy, t.iyz, t.ixz, t.iyz, t.izz,
-        );
-        let m = i.mass.value;
-        if !m.is_finite() || m < 0.0 || !finite(&i.origin) || !tensor.iter().all(|v| v.is_finite())
-        {
-            return Err(bad("<inertial> must be finite with a non-negative mass"));
-        }
-        let scale = tensor.abs().max().max(1.0);
-        if tensor
-            .symmetric_eigenvalues()
-            .iter()
-            .any(|&e| e < -1e-12 * scale)
-        {
-            return Err(bad("<inertia> is not positive semi-definite"));
-        }
-        let frame = at.mul(&rt_of(&i.origin));
-        let c = frame.p;
-        self.mass += m;
-        self.moment += c * m;
-        self.inertia_origin += frame.r * tensor * frame.r.transpose()
-            + (Matrix3::identity() * c.dot(&c) - c * c.transpose()) * m;
-        Ok(())
-    }
-
-    /// Mass, centre of mass and inertia about it, in the body's frame.
-    fn dynamics(&self, joint: &urdf_rs::Joint) -> LinkDynamics {
-        let com = if self.mass > 0.0 {
-            self.moment / self.mass
-        } else {
-            Vector3::zeros()
-        };
-        let about_com = self.inertia_origin
-            - (Matrix3::identity() * com.dot(&com) - com * com.transpose()) * self.mass;
-        let (damping, friction) = joint
-            .dynamics
-            .as_ref()
-            .map_or((0.0, 0.0), |d| (d.damping, d.friction));
-        LinkDynamics {
-            mass: self.mass,
-            com,
-            // Symmetrise: the parallel-axis sums leave rounding-level asymmetry.
-            inertia: (about_com + about_com.transpose()) * 0.5,
-            motor_inertia: 0.0,
-            gear_ratio: 1.0,
-            viscous: damping,
-            coulomb: [friction, -friction],
-        }
-    }
-}
-
-/// The tree of a URDF: links and joints by name, and who hangs below whom.
-struct Tree<'a> {
-    links: BTreeMap<&'a str, &'a urdf_rs::Link>,
-    parent: BTreeMap<&'a str, &'a urdf_rs::Joint>,
-    children: BTreeMap<&'a str, Vec<&'a urdf_rs::Joint>>,
-    root: &'a str,
-}
-
-impl<'a> Tree<'a> {
-    fn new(robot: &'a urdf_rs::Robot) -> Result<Self, UrdfError> {
-        let mut links = BTreeMap::new();
-        for l in &robot.links {
-            if links.insert(l.name.as_str(), l).is_some() {
-                return Err(UrdfError::Duplicate {
-                    what: "link",
-                    name: l.name.clone(),
-                });
-            }
-        }
-        let mut names = BTreeSet::new();
-        let mut parent: BTreeMap<&str, &urdf_rs::Joint> = BTreeMap::new();
-        let mut children: BTreeMap<&str, Vec<&urdf_rs::Joint>> = BTreeMap::new();
-        for j in &robot.joints {
-            if !names.insert(j.name.as_str()) {
-                return Err(UrdfError::Duplicate {
-                    what: "joint",
-                    name: j.name.clone(),
-                });
-            }
-            let unsupported = match j.joint_type {
-                urdf_rs::JointType::Floating => Some("floating"),
-                urdf_rs::JointType::Planar => Some("planar"),
-                urdf_rs::JointType::Spherical => Some("spherical"),
-                _ => None,
-            };
-            if let Some(kind) = unsupported {
-                return Err(UrdfError::UnsupportedJoint {
-                    joint: j.name.clone(),
-                    kind,
-                });
-            }
-            if let Some(m) = &j.mimic {
-                return Err(UrdfError::Mimic {
-                    joint: j.name.clone(),
-                    mimics: m.joint.clone(),
-                });
-            }
-            for (role, link) in [("parent", &j.parent.link), ("child", &j.child.link)] {
-                if !links.contains_key(link.as_str()) {
-                    return Err(UrdfError::MissingLink {
-                        joint: j.name.clone(),
-                        role,
-                        link: link.clone(),
-                    });
-                }
-            }
-            if let Some(first) = parent.insert(j.child.link.as_str(), j) {
-                return Err(UrdfError::TwoParents {
-                    link: j.child.link.clone(),
-                    first: first.name.clone(),
-                    second: j.name.clone(),
-                });
-            }
-            children.entry(j.parent.link.as_str()).or_default().push(j);
-        }
-        let roots: Vec<&str> = links
-            .keys()
-            .copied()
-            .filter(|l| !parent.contains_key(l))
-            .collect();
-        let root = match roots.as_slice() {
-            [] if links.is_empty() => return Err(UrdfError::NoRoot),
-            [] => {
-                return Err(UrdfError::Loop(
-                    links.keys().map(|l| l.to_string()).collect(),
-                ));
-            }
-            [root] => *root,
-            _ => {
-                return Err(UrdfError::SeveralRoots(
-                    roots.iter().map(|l| l.to_string()).collect(),
-                ));
-            }
-        };
-        let tree = Tree {
-            links,
-            parent,
-            children,
-            root,
-        };
-        // With one parent per link, links the root does not reach form a loop.
-        let reached = tree.below(root);
-        if reached.len() < tree.links.len() {
-            return Err(UrdfError::Loop(
-                tree.links
-                    .keys()
-                    .filter(|l| !reached.contains(*l))
-                    .map(|l| l.to_string())
-                    .collect(),
-            ));
-        }
-        Ok(tree)
-    }
-
-    /// Every link at or below `link`.
-    fn below(&self, link: &'a str) -> BTreeSet<&'a str> {
-        let mut seen = BTreeSet::new();
-        let mut stack = vec![link];
-        while let Some(l) = stack.pop() {
-            if seen.insert(l) {
-                for j in self.children.get(l).into_iter().flatten() {
-                    stack.push(j.child.link.as_str());
-                }
-            }
-        }
-        seen
-    }
-
-    fn link(&self, role: &'static str, name: &str) -> Result<&'a str, UrdfError> {
-        self.links
-            .get_key_value(name)
-            .map(|(k, _)| *k)
-            .ok_or_else(|| UrdfError::UnknownLink {
-                role,
-                link: name.to_string(),
-            })
-    }
-
-    /// The joints from `base` down to `tip`, in order.
-    fn path(&self, base: &'a str, tip: &'a str) -> Result<Vec<&'a urdf_rs::Joint>, UrdfError> {
-        let mut path = Vec::new();
-        let mut at = tip;
-        while at != base {
-            let Some(j) = self.parent.get(at) else {
-                return Err(UrdfError::NotBelow {
-                    base: base.to_string(),
-                    tip: tip.to_string(),
-                });
-            };
-            path.push(*j);
-            at = j.parent.link.as_str();
-        }
-        path.reverse();
-        Ok(path)
-    }
-
-    /// Adds to `body` every link fixed below `link` (whose frame is at `at` in the body's frame)
-    /// through joints other than `skip`; names the moving joints met (left out) in `left_out`.
-    fn merge_fixed(
-        &self,
-        link: &str,
-        at: &Rt,
-        skip: Option<&str>,
-        body: &mut Body,
-        left_out: &mut Vec<String>,
-    ) -> Result<(), UrdfError> {
-        for j in self.children.get(link).into_iter().flatten() {
-            if Some(j.name.as_str()) == skip {
-                continue;
-            }
-            if j.joint_type != urdf_rs::JointType::Fixed {
-                left_out.push(j.name.clone());
-                continue;
-            }
-            let child_at = at.mul(&rt_of(&j.origin));
-            body.add(self.links[j.child.link.as_str()], &child_at)?;
-            self.merge_fixed(&j.child.link, &child_at, None, body, left_out)?;
-        }
-        Ok(())
-    }
 }
 
 fn check_joint(j: &urdf_rs::Joint) -> Result<(), UrdfError> {
@@ -593,120 +340,20 @@ fn check_joint(j: &urdf_rs::Joint) -> Result<(), UrdfError> {
 /// [`UrdfError`] naming the element at fault.
 pub fn spec_from_robot(robot: &urdf_rs::Robot, chain: &UrdfChain) -> Result<ModelSpec, UrdfError> {
     let tree = Tree::new(robot)?;
-    let base = match &chain.base {
-        Some(b) => tree.link("base", b)?,
-        None => tree.root,
-    };
-    let tip = match &chain.tip {
-        Some(t) => tree.link("tip", t)?,
-        None => {
-            let leaves: Vec<&str> = tree
-                .below(base)
-                .into_iter()
-                .filter(|l| !tree.children.contains_key(l))
-                .collect();
-            match leaves.as_slice() {
-                [leaf] => *leaf,
-                _ => {
-                    return Err(UrdfError::AmbiguousTip(
-                        leaves.iter().map(|l| l.to_string()).collect(),
-                    ));
-                }
-            }
-        }
-    };
+    let (base, tip) = tree.chain_ends(chain)?;
     let path = tree.path(base, tip)?;
     for j in &path {
         check_joint(j)?;
     }
-    let moving: Vec<&urdf_rs::Joint> = path
-        .iter()
-        .copied()
-        .filter(|j| j.joint_type != urdf_rs::JointType::Fixed)
-        .collect();
-    if moving.is_empty() {
-        return Err(UrdfError::NoMovingJoint {
-            base: base.to_string(),
-            tip: tip.to_string(),
-        });
-    }
-    if moving.len() > MAX_JOINTS {
-        return Err(UrdfError::TooManyJoints {
-            base: base.to_string(),
-            tip: tip.to_string(),
-            joints: moving.iter().map(|j| j.name.clone()).collect(),
-        });
-    }
-
-    let mut joints = Vec::with_capacity(moving.len());
-    let mut dynamics = Vec::with_capacity(moving.len());
-    let mut limits = JointLimits::unbounded();
-    let mut left_out = Vec::new();
-    // The frame of the link reached, in the frame of the current body (or of the base).
-    let mut pending = Rt {
-        r: Matrix3::identity(),
-        p: Vector3::zeros(),
-    };
-    let mut body: Option<(Body, &urdf_rs::Joint)> = None;
-    for (k, j) in path.iter().enumerate() {
-        let origin = rt_of(&j.origin);
-        if j.joint_type == urdf_rs::JointType::Fixed {
-            pending = pending.mul(&origin);
-        } else {
-            if let Some((b, bj)) = body.take() {
-                dynamics.push(b.dynamics(bj));
-            }
-            let n = joints.len();
-            let at = if pending.is_identity() {
-                pose_of(&j.origin)
-            } else {
-                pending.mul(&origin).to_pose()
-            };
-            let axis = Vector3::from(j.axis.xyz.0);
-            joints.push(ChainJoint::Axis(match j.joint_type {
-                urdf_rs::JointType::Prismatic => AxisJoint::prismatic(at, axis),
-                _ => AxisJoint::revolute(at, axis),
-            }));
-            let l = &j.limit;
-            if j.joint_type != urdf_rs::JointType::Continuous {
-                limits.position_min[n] = l.lower;
-                limits.position_max[n] = l.upper;
-            }
-            let given = |v: f64| if v > 0.0 { v } else { f64::INFINITY };
-            limits.velocity_max[n] = given(l.velocity);
-            limits.effort_max[n] = given(l.effort);
-            pending = Rt {
-                r: Matrix3::identity(),
-                p: Vector3::zeros(),
-            };
-            body = Some((Body::empty(), j));
-        }
-        // The link just reached, and whatever is fixed to it off the path, joins the body.
-        if let Some((b, _)) = &mut body {
-            let link = j.child.link.as_str();
-            b.add(tree.links[link], &pending)?;
-            let next = path.get(k + 1).map(|n| n.name.as_str());
-            tree.merge_fixed(link, &pending, next, b, &mut left_out)?;
-        }
-    }
-    if let Some((b, bj)) = body.take() {
-        dynamics.push(b.dynamics(bj));
-    }
-
-    let n = joints.len();
-    let mut home = JointVector::zeros();
-    for j in 0..n {
-        let (lo, hi) = (limits.position_min[j], limits.position_max[j]);
-        // Zero when strictly inside the limits (a pose on a limit would trip the limit
-        // supervision at once), else the middle of the range.
-        home[j] = if lo < 0.0 && 0.0 < hi {
-            0.0
-        } else if lo.is_finite() && hi.is_finite() {
-            0.5 * (lo + hi)
-        } else {
-            0.0f64.clamp(lo, hi)
-        };
-    }
+    let moving = moving_joints(&path, base, tip)?;
+    let ChainWalk {
+        joints,
+        dynamics,
+        limits,
+        left_out,
+        tool,
+    } = tree.walk(&path)?;
+    let home = home_joints(&limits, joints.len());
     let mut assumptions = vec![
         "URDF has no rotor inertia, gear ratio or encoders: no rotor inertia, gear ratio 1, \
          a 19-bit encoder on each revolute joint and 1 µm counts on each prismatic one"
@@ -736,7 +383,7 @@ pub fn spec_from_robot(robot: &urdf_rs::Robot, chain: &UrdfChain) -> Result<Mode
         joints,
         dynamics,
         base: Pose::identity(),
-        tool: pending.to_pose(),
+        tool: tool.to_pose(),
         gravity: Vector3::new(0.0, 0.0, -9.81),
         limits,
         counts_per_radian,
@@ -746,4 +393,48 @@ pub fn spec_from_robot(robot: &urdf_rs::Robot, chain: &UrdfChain) -> Result<Mode
             .collect(),
         ik: IkMethod::Auto,
     })
+}
+
+/// The moving joints of `path`: at least one, at most [`MAX_JOINTS`].
+fn moving_joints<'a>(
+    path: &[&'a urdf_rs::Joint],
+    base: &str,
+    tip: &str,
+) -> Result<Vec<&'a urdf_rs::Joint>, UrdfError> {
+    let moving: Vec<&urdf_rs::Joint> = path
+        .iter()
+        .copied()
+        .filter(|j| j.joint_type != urdf_rs::JointType::Fixed)
+        .collect();
+    if moving.is_empty() {
+        return Err(UrdfError::NoMovingJoint {
+            base: base.to_string(),
+            tip: tip.to_string(),
+        });
+    }
+    if moving.len() > MAX_JOINTS {
+        return Err(UrdfError::TooManyJoints {
+            base: base.to_string(),
+            tip: tip.to_string(),
+            joints: moving.iter().map(|j| j.name.clone()).collect(),
+        });
+    }
+    Ok(moving)
+}
+
+/// The home joints: zero where strictly inside the limits (a pose on a limit would trip the
+/// limit supervision at once), else the middle of the range.
+fn home_joints(limits: &JointLimits, n: usize) -> JointVector {
+    let mut home = JointVector::zeros();
+    for j in 0..n {
+        let (lo, hi) = (limits.position_min[j], limits.position_max[j]);
+        home[j] = if lo < 0.0 && 0.0 < hi {
+            0.0
+        } else if lo.is_finite() && hi.is_finite() {
+            0.5 * (lo + hi)
+        } else {
+            0.0f64.clamp(lo, hi)
+        };
+    }
+    home
 }

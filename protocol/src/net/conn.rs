@@ -204,53 +204,20 @@ impl Connection {
     /// [`RpcError::Protocol`] for a peer that is not a Penelope node of this version.
     pub fn connect(addr: SocketAddr, config: &ClientConfig) -> Result<Connection, RpcError> {
         let timeout = config.timeout.max(Duration::from_millis(1));
-        let stream = TcpStream::connect_timeout(&addr, timeout)?;
-        stream.set_nodelay(true)?;
-        stream.set_read_timeout(Some(timeout))?;
-        stream.set_write_timeout(Some(timeout))?;
-        let mut conn = Connection {
-            node: String::new(),
-            stream,
-            decoder: FrameDecoder::new(config.max_frame),
-            out: Vec::with_capacity(256),
-            seal: None,
-            sealed: Vec::new(),
-            max_frame: config.max_frame,
-            timeout,
-            read_timeout: timeout,
-            next_id: 1,
-            stale_below: 0,
-            telemetry: VecDeque::new(),
-            broken: None,
-        };
+        let mut conn = Connection::open(addr, config, timeout)?;
         let hello = ClientMsg::Hello(ClientHello::new(config.name.clone(), config.role));
         let client_body = postcard::to_stdvec(&hello)
             .map_err(|e| RpcError::Frame(FrameError::Malformed(e.to_string())))?;
         conn.send(&hello)?;
         conn.write_out()?;
         let mut deadline = Deadline::after(timeout);
-        let (theirs, server_body) = conn.read_raw(&mut deadline)?;
-        let hello = match theirs {
-            ServerMsg::Hello(h) => h,
-            ServerMsg::Error(e) => return Err(RpcError::Remote(e)),
-            other => return Err(conn.protocol(format!("expected the node's hello, got {other:?}"))),
-        };
-        if hello.magic != MAGIC {
-            return Err(conn.protocol("the peer is not a Penelope node (bad magic)".into()));
-        }
-        if hello.version != PROTOCOL_VERSION {
-            return Err(RpcError::Remote(WireError::VersionMismatch {
-                ours: PROTOCOL_VERSION,
-                theirs: hello.version,
-            }));
-        }
-        conn.node = hello.node;
+        let (security, server_body) = conn.read_hello(&mut deadline)?;
         let secret = config
             .secret
             .as_ref()
             .filter(|s| !s.is_empty())
             .map(Secret::bytes);
-        match (hello.security, secret) {
+        match (security, secret) {
             (Security::Plain, None) => {}
             (Security::Plain, Some(_)) => {
                 log::warn!(
@@ -265,61 +232,137 @@ impl Connection {
                 return Err(RpcError::Remote(WireError::AuthFailed));
             }
             (Security::Noise { admin }, Some(secret)) => {
-                let admin_secret = config
-                    .admin_secret
-                    .as_ref()
-                    .filter(|a| !a.is_empty())
-                    .map(Secret::bytes);
-                let psk = match (config.role, admin, admin_secret) {
-                    (Role::Admin, true, Some(a)) => auth::admin_psk(secret, a),
-                    (Role::Admin, true, None) => {
-                        log::warn!("node `{}` wants the admin secret for admin", conn.node);
-                        return Err(RpcError::Remote(WireError::AuthFailed));
-                    }
-                    _ => auth::member_psk(secret),
-                };
+                let psk = conn.psk(config, admin, secret)?;
                 let prologue = auth::prologue(&client_body, &server_body);
-                let (handshake, first) = ClientHandshake::start(&psk, &prologue)
-                    .map_err(|e| conn.protocol(e.to_string()))?;
-                conn.send(&ClientMsg::Handshake { noise: first })?;
-                conn.write_out()?;
-                let second = match conn.read_msg(&mut deadline)? {
-                    ServerMsg::Handshake { noise } => noise,
-                    ServerMsg::Error(e) => return Err(RpcError::Remote(e)),
-                    _ => Vec::new(),
-                };
-                match handshake.finish(&second) {
-                    Ok(keys) => {
-                        conn.seal = Some(keys.split());
-                        conn.decoder.set_max(auth::sealed_len(config.max_frame));
-                    }
-                    Err(SealError::Handshake) => {
-                        log::warn!(
-                            "node `{}` at {addr} did not prove the shared secret",
-                            conn.node
-                        );
-                        conn.close_unauthenticated();
-                        return Err(RpcError::Unauthenticated(addr));
-                    }
-                    Err(e) => return Err(conn.protocol(e.to_string())),
-                }
-                // The node holds no session for us until a frame sealed with this session's
-                // keys proves the secret (the first handshake message could be a replay): a
-                // ping, whose answer says we are in (or why not).
-                match conn.call(Call::Ping {
-                    payload: Vec::new(),
-                }) {
-                    Ok(_) => {}
-                    Err(RpcError::Remote(e)) if !conn.is_usable() => {
-                        return Err(RpcError::Remote(e));
-                    }
-                    // An error reply of a service that does not serve pings: we are in.
-                    Err(RpcError::Remote(_)) => {}
-                    Err(e) => return Err(e),
-                }
+                conn.handshake(addr, config, &psk, &prologue, &mut deadline)?;
+                conn.prove_session()?;
             }
         }
         Ok(conn)
+    }
+
+    /// The TCP connection to `addr`, with no delay and `timeout` on every read and write.
+    fn open(
+        addr: SocketAddr,
+        config: &ClientConfig,
+        timeout: Duration,
+    ) -> Result<Connection, RpcError> {
+        let stream = TcpStream::connect_timeout(&addr, timeout)?;
+        stream.set_nodelay(true)?;
+        stream.set_read_timeout(Some(timeout))?;
+        stream.set_write_timeout(Some(timeout))?;
+        Ok(Connection {
+            node: String::new(),
+            stream,
+            decoder: FrameDecoder::new(config.max_frame),
+            out: Vec::with_capacity(256),
+            seal: None,
+            sealed: Vec::new(),
+            max_frame: config.max_frame,
+            timeout,
+            read_timeout: timeout,
+            next_id: 1,
+            stale_below: 0,
+            telemetry: VecDeque::new(),
+            broken: None,
+        })
+    }
+
+    /// Reads the node's hello, checks it is a Penelope node of this version and takes its name;
+    /// returns the security it offers and the hello's bytes (for the handshake's prologue).
+    fn read_hello(&mut self, deadline: &mut Deadline) -> Result<(Security, Vec<u8>), RpcError> {
+        let (theirs, server_body) = self.read_raw(deadline)?;
+        let hello = match theirs {
+            ServerMsg::Hello(h) => h,
+            ServerMsg::Error(e) => return Err(RpcError::Remote(e)),
+            other => return Err(self.protocol(format!("expected the node's hello, got {other:?}"))),
+        };
+        if hello.magic != MAGIC {
+            return Err(self.protocol("the peer is not a Penelope node (bad magic)".into()));
+        }
+        if hello.version != PROTOCOL_VERSION {
+            return Err(RpcError::Remote(WireError::VersionMismatch {
+                ours: PROTOCOL_VERSION,
+                theirs: hello.version,
+            }));
+        }
+        self.node = hello.node;
+        Ok((hello.security, server_body))
+    }
+
+    /// The pre-shared key for this client's role: an administrator of a node that wants the
+    /// admin secret mixes it in (refused without one); everyone else uses the member key.
+    fn psk(
+        &self,
+        config: &ClientConfig,
+        admin: bool,
+        secret: &[u8],
+    ) -> Result<[u8; auth::PSK_LEN], RpcError> {
+        let admin_secret = config
+            .admin_secret
+            .as_ref()
+            .filter(|a| !a.is_empty())
+            .map(Secret::bytes);
+        match (config.role, admin, admin_secret) {
+            (Role::Admin, true, Some(a)) => Ok(auth::admin_psk(secret, a)),
+            (Role::Admin, true, None) => {
+                log::warn!("node `{}` wants the admin secret for admin", self.node);
+                Err(RpcError::Remote(WireError::AuthFailed))
+            }
+            _ => Ok(auth::member_psk(secret)),
+        }
+    }
+
+    /// The Noise handshake with `psk`: on success every frame from here on is sealed; a node
+    /// that does not prove the secret is closed.
+    fn handshake(
+        &mut self,
+        addr: SocketAddr,
+        config: &ClientConfig,
+        psk: &[u8; auth::PSK_LEN],
+        prologue: &[u8],
+        deadline: &mut Deadline,
+    ) -> Result<(), RpcError> {
+        let (handshake, first) =
+            ClientHandshake::start(psk, prologue).map_err(|e| self.protocol(e.to_string()))?;
+        self.send(&ClientMsg::Handshake { noise: first })?;
+        self.write_out()?;
+        let second = match self.read_msg(deadline)? {
+            ServerMsg::Handshake { noise } => noise,
+            ServerMsg::Error(e) => return Err(RpcError::Remote(e)),
+            _ => Vec::new(),
+        };
+        match handshake.finish(&second) {
+            Ok(keys) => {
+                self.seal = Some(keys.split());
+                self.decoder.set_max(auth::sealed_len(config.max_frame));
+                Ok(())
+            }
+            Err(SealError::Handshake) => {
+                log::warn!(
+                    "node `{}` at {addr} did not prove the shared secret",
+                    self.node
+                );
+                self.close_unauthenticated();
+                Err(RpcError::Unauthenticated(addr))
+            }
+            Err(e) => Err(self.protocol(e.to_string())),
+        }
+    }
+
+    /// The node holds no session for us until a frame sealed with this session's keys proves
+    /// the secret (the first handshake message could be a replay): a ping, whose answer says
+    /// we are in (or why not).
+    fn prove_session(&mut self) -> Result<(), RpcError> {
+        match self.call(Call::Ping {
+            payload: Vec::new(),
+        }) {
+            Ok(_) => Ok(()),
+            Err(RpcError::Remote(e)) if !self.is_usable() => Err(RpcError::Remote(e)),
+            // An error reply of a service that does not serve pings: we are in.
+            Err(RpcError::Remote(_)) => Ok(()),
+            Err(e) => Err(e),
+        }
     }
 
     /// Closes a connection to a node that did not prove the secret, without sending anything.

@@ -496,37 +496,8 @@ fn serve(
     greeted: Arc<AtomicBool>,
 ) {
     let config = &shared.config;
-    let _ = stream.set_nodelay(true);
-    let _ = stream.set_write_timeout(Some(config.write_timeout.max(Duration::from_millis(1))));
-    let write_half = match stream.try_clone() {
-        Ok(w) => w,
-        Err(e) => {
-            log::warn!("connection {id} from {peer}: {e}");
-            return;
-        }
-    };
-    let wire = Arc::new(Mutex::new(Wire {
-        stream: write_half,
-        failed: false,
-        sealer: None,
-        sealed: Vec::new(),
-    }));
-    let mut conn = Conn {
-        shared,
-        id,
-        peer,
-        stream,
-        decoder: FrameDecoder::new(config.max_frame),
-        opener: None,
-        evicted,
-        greeted,
-        in_session: false,
-        first: None,
-        wire: wire.clone(),
-        out: Vec::with_capacity(4096),
-        out_frames: 0,
-        last_activity: Arc::new(AtomicU64::new(0)),
-        now: Instant::now(),
+    let Some(mut conn) = Conn::accept(shared, stream, peer, id, evicted, greeted) else {
+        return;
     };
     conn.touch();
     let (client, identity) = match conn.handshake() {
@@ -561,7 +532,11 @@ fn serve(
     };
     let closing = Arc::new(AtomicBool::new(false));
     let writer = {
-        let (wire, closing, activity) = (wire.clone(), closing.clone(), conn.last_activity.clone());
+        let (wire, closing, activity) = (
+            conn.wire.clone(),
+            closing.clone(),
+            conn.last_activity.clone(),
+        );
         let shared = shared.clone();
         std::thread::Builder::new()
             .name(format!("pnlp-wr-{id}"))
@@ -581,8 +556,62 @@ fn serve(
     if let Ok(h) = writer {
         let _ = h.join();
     }
+    close_session(shared, &session, end);
+}
+
+impl<'a> Conn<'a> {
+    /// A new connection on `stream`, its write half shared with the writer thread to come;
+    /// `None` (said in the log) when the stream cannot be split.
+    fn accept(
+        shared: &'a Shared,
+        stream: TcpStream,
+        peer: SocketAddr,
+        id: u64,
+        evicted: Arc<AtomicBool>,
+        greeted: Arc<AtomicBool>,
+    ) -> Option<Self> {
+        let config = &shared.config;
+        let _ = stream.set_nodelay(true);
+        let _ = stream.set_write_timeout(Some(config.write_timeout.max(Duration::from_millis(1))));
+        let write_half = match stream.try_clone() {
+            Ok(w) => w,
+            Err(e) => {
+                log::warn!("connection {id} from {peer}: {e}");
+                return None;
+            }
+        };
+        let wire = Arc::new(Mutex::new(Wire {
+            stream: write_half,
+            failed: false,
+            sealer: None,
+            sealed: Vec::new(),
+        }));
+        Some(Conn {
+            shared,
+            id,
+            peer,
+            stream,
+            decoder: FrameDecoder::new(config.max_frame),
+            opener: None,
+            evicted,
+            greeted,
+            in_session: false,
+            first: None,
+            wire,
+            out: Vec::with_capacity(4096),
+            out_frames: 0,
+            last_activity: Arc::new(AtomicU64::new(0)),
+            now: Instant::now(),
+        })
+    }
+}
+
+/// Ends `session` (its connection closed as `end` says): the service told (a panic there is
+/// logged, not spread), the admission slot freed.
+fn close_session(shared: &Shared, session: &Session, end: End) {
+    let (id, peer) = (session.id, session.peer);
     let service = &shared.service;
-    if catch_unwind(AssertUnwindSafe(|| service.closed(&session))).is_err() {
+    if catch_unwind(AssertUnwindSafe(|| service.closed(session))).is_err() {
         log::error!("the service panicked closing session {id}");
     }
     shared.admission.close_session(id);

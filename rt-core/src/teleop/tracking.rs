@@ -197,6 +197,97 @@ impl SlaveTracking {
         self.ik_failures
     }
 
+    /// The joint reference (position, velocity, and acceleration when given) for `reference`:
+    /// a joint reference as it is, a Cartesian or hybrid motion through IK and the damped
+    /// Jacobian inverse.
+    fn reference_in_joints(
+        &mut self,
+        model: &dyn RobotModel,
+        reference: &Reference,
+    ) -> Result<(JointVector, JointVector, Option<JointVector>), ControllerError> {
+        let c = match reference {
+            Reference::Joint(j) => return Ok((j.position, j.velocity, Some(j.acceleration))),
+            Reference::Cartesian(c) => c,
+            Reference::Hybrid(h) => &h.motion,
+            Reference::Wrench(_) => return Err(ControllerError::UnsupportedReference),
+        };
+        let (q_ref, moving) = self.solve(model, &c.pose)?;
+        let twist =
+            twist_in_base(&c.twist, &c.pose).ok_or(ControllerError::UnsupportedReference)?;
+        let qd_ref = if moving {
+            model.jacobian_damped_inverse(&q_ref, self.config.dls_lambda) * twist
+        } else {
+            JointVector::zeros()
+        };
+        Ok((q_ref, qd_ref, None))
+    }
+
+    /// The acceleration feed-forward when the reference gives none: the reference velocity's
+    /// change, low-pass filtered (zero without a cutoff).
+    #[inline]
+    fn filtered_acceleration(&mut self, qd_ref: &JointVector, dt: f64) -> JointVector {
+        if self.config.acceleration_cutoff_hz > 0.0 && dt > 0.0 {
+            if let Some(prev) = self.qd_ref_prev {
+                let raw = (qd_ref - prev) / dt;
+                self.qdd_ff +=
+                    (raw - self.qdd_ff) * lowpass_gain(self.config.acceleration_cutoff_hz, dt);
+            }
+        } else {
+            self.qdd_ff = JointVector::zeros();
+        }
+        self.qdd_ff
+    }
+
+    /// Feeds the opposite of the model's friction at `qd_ref` forward into `tau`, faded in over
+    /// the velocity band.
+    #[inline]
+    fn add_friction_feed_forward(
+        &self,
+        model: &dyn RobotModel,
+        qd_ref: &JointVector,
+        n: usize,
+        tau: &mut JointVector,
+    ) {
+        if self.config.friction_compensation > 0.0 {
+            let fr = model.friction(qd_ref);
+            for j in 0..n {
+                let band = self.config.friction_velocity_band;
+                let fade = if band > 0.0 {
+                    (qd_ref[j].abs() / band).min(1.0)
+                } else {
+                    1.0
+                };
+                // The model's friction opposes motion; feed its opposite forward.
+                tau[j] -= self.config.friction_compensation * fade * fr[j];
+            }
+        }
+    }
+
+    /// Clamps `tau` to the effort limits (zero past the `n` joints); the integrator takes the
+    /// new `integral` only on joints that are not saturated (anti-windup).
+    #[inline]
+    fn limit_effort(
+        &mut self,
+        model: &dyn RobotModel,
+        n: usize,
+        integral: &JointVector,
+        tau: &mut JointVector,
+    ) {
+        let max = &model.limits().effort_max;
+        for j in 0..MAX_JOINTS {
+            if j >= n {
+                tau[j] = 0.0;
+                continue;
+            }
+            let m = max[j];
+            if m.is_finite() && tau[j].abs() > m {
+                tau[j] = tau[j].clamp(-m, m);
+            } else {
+                self.integral[j] = integral[j];
+            }
+        }
+    }
+
     /// The joint reference for a Cartesian pose: IK from the previous solution.
     fn solve(
         &mut self,
@@ -262,47 +353,16 @@ impl Controller for SlaveTracking {
         let model = input.model;
         let n = model.joint_count().min(MAX_JOINTS);
         let dt = input.period.as_secs_f64();
-        let (q_ref, qd_ref, qdd_given) = match input.reference {
-            Reference::Joint(j) => (j.position, j.velocity, Some(j.acceleration)),
-            Reference::Cartesian(_) | Reference::Hybrid(_) => {
-                let c = match input.reference {
-                    Reference::Cartesian(c) => c,
-                    Reference::Hybrid(h) => &h.motion,
-                    _ => return Err(ControllerError::UnsupportedReference),
-                };
-                let (q_ref, moving) = self.solve(model, &c.pose)?;
-                let twist = twist_in_base(&c.twist, &c.pose)
-                    .ok_or(ControllerError::UnsupportedReference)?;
-                let qd_ref = if moving {
-                    model.jacobian_damped_inverse(&q_ref, self.config.dls_lambda) * twist
-                } else {
-                    JointVector::zeros()
-                };
-                (q_ref, qd_ref, None)
-            }
-            Reference::Wrench(_) => return Err(ControllerError::UnsupportedReference),
-        };
+        let (q_ref, qd_ref, qdd_given) = self.reference_in_joints(model, input.reference)?;
         if self.config.output == TrackingOutput::BoardServo {
             // The board's servo closes the loop: the joint reference is the command. Keep it as
             // the next IK seed, as the torque path does.
             self.q_ref = q_ref;
             return Ok(JointCommand::Position(q_ref));
         }
-        // Acceleration feed-forward.
         let qdd_ref = match qdd_given {
             Some(a) => a,
-            None => {
-                if self.config.acceleration_cutoff_hz > 0.0 && dt > 0.0 {
-                    if let Some(prev) = self.qd_ref_prev {
-                        let raw = (qd_ref - prev) / dt;
-                        self.qdd_ff += (raw - self.qdd_ff)
-                            * lowpass_gain(self.config.acceleration_cutoff_hz, dt);
-                    }
-                } else {
-                    self.qdd_ff = JointVector::zeros();
-                }
-                self.qdd_ff
-            }
+            None => self.filtered_acceleration(&qd_ref, dt),
         };
         self.qd_ref_prev = Some(qd_ref);
         self.q_ref = q_ref;
@@ -330,32 +390,8 @@ impl Controller for SlaveTracking {
         // dynamics and are left out.
         self.port
             .observe_scalar(dt, -(inertia * feedback).dot(qd), 1.0);
-        if self.config.friction_compensation > 0.0 {
-            let fr = model.friction(&qd_ref);
-            for j in 0..n {
-                let band = self.config.friction_velocity_band;
-                let fade = if band > 0.0 {
-                    (qd_ref[j].abs() / band).min(1.0)
-                } else {
-                    1.0
-                };
-                // The model's friction opposes motion; feed its opposite forward.
-                tau[j] -= self.config.friction_compensation * fade * fr[j];
-            }
-        }
-        let max = &model.limits().effort_max;
-        for j in 0..MAX_JOINTS {
-            if j >= n {
-                tau[j] = 0.0;
-                continue;
-            }
-            let m = max[j];
-            if m.is_finite() && tau[j].abs() > m {
-                tau[j] = tau[j].clamp(-m, m);
-            } else {
-                self.integral[j] = integral[j];
-            }
-        }
+        self.add_friction_feed_forward(model, &qd_ref, n, &mut tau);
+        self.limit_effort(model, n, &integral, &mut tau);
         effort(tau)
     }
 }

@@ -225,6 +225,98 @@ fn refusal_is_final(refused: &WireError) -> bool {
     )
 }
 
+/// A node's name, and its lease when it uses a naming service (within the service's limits,
+/// 10 ms to an hour at most).
+fn check_config(config: &NodeConfig) -> Result<(), NodeError> {
+    check_name(&config.name).map_err(NodeError::BadName)?;
+    let limits = config.naming_limits;
+    if config.naming != NamingChoice::None
+        && (config.lease < limits.min_lease.max(Duration::from_millis(10))
+            || config.lease > limits.max_lease.min(Duration::from_secs(3600)))
+    {
+        return Err(NodeError::BadLease(config.lease));
+    }
+    Ok(())
+}
+
+/// The node's creator, with the data plane's key from the node's secret, and the common
+/// clock it keeps.
+fn new_creator(
+    mut creator_config: CreatorConfig,
+    name: &str,
+    secret: Option<&penelope_protocol::net::auth::Secret>,
+    remote_naming: Option<SocketAddr>,
+) -> (Arc<Creator>, CommonClock) {
+    creator_config.node = name.to_string();
+    // The data plane's datagrams are authenticated with a key from the same secret.
+    if let Some(secret) = secret {
+        creator_config.datagram_key =
+            Some(penelope_runtime::dataplane::frame::DatagramKey::from_secret(secret.bytes()));
+    }
+    // The common clock: the naming service's host's, when it is another process on the
+    // real clock.
+    let common_clock = match remote_naming {
+        Some(address) if creator_config.clock == ClockMode::RealTime => {
+            CommonClock::of_naming(address)
+        }
+        _ => CommonClock::own(),
+    };
+    creator_config.common_clock = common_clock.clone();
+    (Arc::new(Creator::new(creator_config)), common_clock)
+}
+
+/// The address registered in the naming tree: `advertise`, else the bound address (loopback
+/// for an unspecified one).
+fn advertised_address(advertise: Option<String>, bound: SocketAddr) -> String {
+    advertise.unwrap_or_else(|| {
+        let mut a = bound;
+        if a.ip().is_unspecified() {
+            a.set_ip(IpAddr::V4(Ipv4Addr::LOCALHOST));
+        }
+        a.to_string()
+    })
+}
+
+/// The first registration. A silent naming service is waited for (the registration thread
+/// retries); a refusal is final.
+fn first_registration(shared: &Shared, naming_address: SocketAddr) -> Result<(), NodeError> {
+    match shared.register() {
+        Ok(()) => Ok(()),
+        Err(RpcError::Remote(refused)) if refusal_is_final(&refused) => Err(match refused {
+            WireError::NameTaken(_) | WireError::BadName { .. } => NodeError::Registration(refused),
+            other => NodeError::NamingRefused {
+                address: naming_address,
+                cause: RpcError::Remote(other),
+            },
+        }),
+        // It does not prove the secret this node holds: nothing was sent, waiting cannot fix it.
+        Err(cause @ RpcError::Unauthenticated(_)) => Err(NodeError::NamingRefused {
+            address: naming_address,
+            cause,
+        }),
+        // Silent (said once by `lost_naming`) or busy: the registration thread retries.
+        Err(_) => Ok(()),
+    }
+}
+
+/// Starts the thread that renews the node's lease every `period` (none when it cannot be
+/// spawned: said in the log).
+fn start_renewer(shared: &Arc<Shared>, period: Duration) -> Option<(Sender<()>, JoinHandle<()>)> {
+    let (stop, rx) = mpsc::channel::<()>();
+    let renewing = shared.clone();
+    let name = &shared.name;
+    let spawned = std::thread::Builder::new()
+        .name(format!("lease-{name}"))
+        .spawn(move || renewing.keep_registered(&rx, period));
+    match spawned {
+        Ok(handle) => Some((stop, handle)),
+        Err(e) => {
+            log::error!("node {name}: cannot spawn the lease renewal thread: {e}");
+            None
+        }
+    }
+}
+
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
@@ -251,38 +343,16 @@ impl Node {
     /// [`NodeError`]: a bad name or lease, the address cannot be bound (or is not loopback and
     /// there is no secret), the naming service cannot be reached or refuses the registration.
     pub fn start(config: NodeConfig) -> Result<Node, NodeError> {
-        check_name(&config.name).map_err(NodeError::BadName)?;
-        let limits = config.naming_limits;
-        if config.naming != NamingChoice::None
-            && (config.lease < limits.min_lease.max(Duration::from_millis(10))
-                || config.lease > limits.max_lease.min(Duration::from_secs(3600)))
-        {
-            return Err(NodeError::BadLease(config.lease));
-        }
+        check_config(&config)?;
         let name = config.name.clone();
         let hosted = (config.naming == NamingChoice::Host)
-            .then(|| Arc::new(NamingService::new(name.clone(), limits)));
+            .then(|| Arc::new(NamingService::new(name.clone(), config.naming_limits)));
         let remote_naming = match config.naming {
             NamingChoice::Remote(a) => Some(a),
             _ => None,
         };
-        let mut creator_config = config.creator;
-        creator_config.node = name.clone();
-        // The data plane's datagrams are authenticated with a key from the same secret.
-        if let Some(secret) = &config.secret {
-            creator_config.datagram_key =
-                Some(penelope_runtime::dataplane::frame::DatagramKey::from_secret(secret.bytes()));
-        }
-        // The common clock: the naming service's host's, when it is another process on the
-        // real clock.
-        let common_clock = match remote_naming {
-            Some(address) if creator_config.clock == ClockMode::RealTime => {
-                CommonClock::of_naming(address)
-            }
-            _ => CommonClock::own(),
-        };
-        creator_config.common_clock = common_clock.clone();
-        let creator = Arc::new(Creator::new(creator_config));
+        let (creator, common_clock) =
+            new_creator(config.creator, &name, config.secret.as_ref(), remote_naming);
         // First of what the node runs: a bridge that cannot start leaves nothing to undo.
         let zenoh = match &config.zenoh {
             Some(settings) => Some(ZenohBridge::start(
@@ -318,14 +388,9 @@ impl Node {
         });
         let server = Server::bind(config.listen, server_config, service)?;
         let address = server.local_addr();
-        let advertised = config.advertise.unwrap_or_else(|| {
-            let mut a = address;
-            if a.ip().is_unspecified() {
-                a.set_ip(IpAddr::V4(Ipv4Addr::LOCALHOST));
-            }
-            a.to_string()
-        });
-        let _ = shared.advertised.set(advertised);
+        let _ = shared
+            .advertised
+            .set(advertised_address(config.advertise, address));
 
         let mut client_config = ClientConfig::node(name.clone());
         client_config.secret = config.secret;
@@ -335,34 +400,10 @@ impl Node {
             .client
             .set(Client::lazy(naming_address, client_config));
 
-        // A silent naming service is waited for (the registration thread retries); a refusal
-        // is final.
-        match shared.register() {
-            Ok(()) => {}
-            Err(RpcError::Remote(refused)) if refusal_is_final(&refused) => {
-                creator.shutdown();
-                server.shutdown();
-                return Err(match refused {
-                    WireError::NameTaken(_) | WireError::BadName { .. } => {
-                        NodeError::Registration(refused)
-                    }
-                    other => NodeError::NamingRefused {
-                        address: naming_address,
-                        cause: RpcError::Remote(other),
-                    },
-                });
-            }
-            // It does not prove the secret this node holds: nothing was sent, waiting cannot fix it.
-            Err(cause @ RpcError::Unauthenticated(_)) => {
-                creator.shutdown();
-                server.shutdown();
-                return Err(NodeError::NamingRefused {
-                    address: naming_address,
-                    cause,
-                });
-            }
-            // Silent (said once by `lost_naming`) or busy: the registration thread retries.
-            Err(_) => {}
+        if let Err(e) = first_registration(&shared, naming_address) {
+            creator.shutdown();
+            server.shutdown();
+            return Err(e);
         }
         let reaper = hosted.as_ref().and_then(|s| {
             s.start_reaper(Duration::from_millis(100))
@@ -370,19 +411,7 @@ impl Node {
                 .ok()
         });
         let renewer = if shared.uses_naming() {
-            let (stop, rx) = mpsc::channel::<()>();
-            let period = config.lease / 3;
-            let renewing = shared.clone();
-            let spawned = std::thread::Builder::new()
-                .name(format!("lease-{name}"))
-                .spawn(move || renewing.keep_registered(&rx, period));
-            match spawned {
-                Ok(handle) => Some((stop, handle)),
-                Err(e) => {
-                    log::error!("node {name}: cannot spawn the lease renewal thread: {e}");
-                    None
-                }
-            }
+            start_renewer(&shared, config.lease / 3)
         } else {
             None
         };

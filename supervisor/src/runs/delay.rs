@@ -282,20 +282,56 @@ pub fn run_plan(
 
 /// The verdict and figures of one run (law and delay left for the caller to fill in).
 pub fn judge(out: &RunOutput, r: &Report) -> DelayRun {
-    let info = &out.info;
-    let elapsed = |t: penelope_hal::Timestamp| t.saturating_since(info.start);
-    let window = |label: &str| {
-        let mut t0 = Duration::ZERO;
-        for s in info.script.segments() {
-            if s.label == label {
-                return Some((t0, t0 + s.duration));
-            }
-            t0 += s.duration;
+    let contact_ripple = contact_ripple(out);
+    let rest_motion_mm = rest_motion_mm(out);
+    let max_contact_force_n = out
+        .slave
+        .iter()
+        .filter_map(|s| s.truth.map(|t| t.base_wrench.force.norm()))
+        .fold(0.0f64, f64::max);
+    let reasons = instability_reasons(r, contact_ripple, rest_motion_mm, max_contact_force_n);
+    DelayRun {
+        law: r.law.clone(),
+        delay_ms: 0.0,
+        one_way_ms: 0.0,
+        jitter_ms: 0.0,
+        wall_stiffness: None,
+        stable: reasons.is_empty(),
+        reasons,
+        tap_cycle_peaks_j: r.energy.tap_cycle_peaks_j.clone(),
+        energy_growth: r.energy.growth_ratio,
+        contact_ripple,
+        rest_motion_mm,
+        tracking_rms_mm: r.tracking.rms_mm,
+        tracking_max_mm: r.tracking.max_mm,
+        against_master_rms_mm: r.tracking.against_master_rms_mm,
+        force_error_pct: r.contact.display_error_pct,
+        drag_rms_n: r.drag.rms_n,
+        max_contact_force_n,
+        master_channel_min_j: r.energy.master_channel_min_j,
+        slave_channel_min_j: r.energy.slave_channel_min_j,
+        faults: r.faults.clone(),
+        wall_time_s: 0.0,
+    }
+}
+
+/// Where the script's phase `label` starts and ends, from the run's start.
+fn phase_window(out: &RunOutput, label: &str) -> Option<(Duration, Duration)> {
+    let mut t0 = Duration::ZERO;
+    for s in out.info.script.segments() {
+        if s.label == label {
+            return Some((t0, t0 + s.duration));
         }
-        None
-    };
-    // Steady contact: the second half of the contact phase, the true contact force.
-    let forces: Vec<f64> = window(CONTACT_PHASE)
+        t0 += s.duration;
+    }
+    None
+}
+
+/// Steady contact: the true contact force's spread about its mean over the second half of the
+/// contact phase, relative to the mean (at least 1 N).
+fn contact_ripple(out: &RunOutput) -> f64 {
+    let elapsed = |t: penelope_hal::Timestamp| t.saturating_since(out.info.start);
+    let forces: Vec<f64> = phase_window(out, CONTACT_PHASE)
         .map(|(a, b)| {
             let from = a + (b - a) / 2;
             out.slave
@@ -305,16 +341,20 @@ pub fn judge(out: &RunOutput, r: &Report) -> DelayRun {
                 .collect()
         })
         .unwrap_or_default();
-    let contact_ripple = if forces.is_empty() {
+    if forces.is_empty() {
         0.0
     } else {
         let n = forces.len() as f64;
         let mean = forces.iter().sum::<f64>() / n;
         let var = forces.iter().map(|f| (f - mean).powi(2)).sum::<f64>() / n;
         var.sqrt() / mean.max(1.0)
-    };
-    // Rest: the slave's true tool position about its mean.
-    let rest: Vec<nalgebra::Vector3<f64>> = window(REST_PHASE)
+    }
+}
+
+/// Rest: the slave's true tool position about its mean over the rest phase, mm RMS.
+fn rest_motion_mm(out: &RunOutput) -> f64 {
+    let elapsed = |t: penelope_hal::Timestamp| t.saturating_since(out.info.start);
+    let rest: Vec<nalgebra::Vector3<f64>> = phase_window(out, REST_PHASE)
         .map(|(a, b)| {
             out.slave
                 .iter()
@@ -323,19 +363,22 @@ pub fn judge(out: &RunOutput, r: &Report) -> DelayRun {
                 .collect()
         })
         .unwrap_or_default();
-    let rest_motion_mm = if rest.is_empty() {
+    if rest.is_empty() {
         0.0
     } else {
         let n = rest.len() as f64;
         let mean = rest.iter().sum::<nalgebra::Vector3<f64>>() / n;
         (rest.iter().map(|p| (p - mean).norm_squared()).sum::<f64>() / n).sqrt() * 1e3
-    };
-    let max_contact_force_n = out
-        .slave
-        .iter()
-        .filter_map(|s| s.truth.map(|t| t.base_wrench.force.norm()))
-        .fold(0.0f64, f64::max);
+    }
+}
 
+/// Why a run is not stable, one reason per criterion it fails; empty when it is stable.
+fn instability_reasons(
+    r: &Report,
+    contact_ripple: f64,
+    rest_motion_mm: f64,
+    max_contact_force_n: f64,
+) -> Vec<String> {
     let mut reasons = Vec::new();
     if !r.faults.is_empty() {
         reasons.push(format!("faults: {}", r.faults.join("; ")));
@@ -376,29 +419,7 @@ pub fn judge(out: &RunOutput, r: &Report) -> DelayRun {
     if figures.iter().any(|v| !v.is_finite()) {
         reasons.push("a figure is not finite".to_string());
     }
-    DelayRun {
-        law: r.law.clone(),
-        delay_ms: 0.0,
-        one_way_ms: 0.0,
-        jitter_ms: 0.0,
-        wall_stiffness: None,
-        stable: reasons.is_empty(),
-        reasons,
-        tap_cycle_peaks_j: r.energy.tap_cycle_peaks_j.clone(),
-        energy_growth: growth,
-        contact_ripple,
-        rest_motion_mm,
-        tracking_rms_mm: r.tracking.rms_mm,
-        tracking_max_mm: r.tracking.max_mm,
-        against_master_rms_mm: r.tracking.against_master_rms_mm,
-        force_error_pct: r.contact.display_error_pct,
-        drag_rms_n: r.drag.rms_n,
-        max_contact_force_n,
-        master_channel_min_j: r.energy.master_channel_min_j,
-        slave_channel_min_j: r.energy.slave_channel_min_j,
-        faults: r.faults.clone(),
-        wall_time_s: 0.0,
-    }
+    reasons
 }
 
 /// `value` is a number no larger than `limit` (NaN is not: a figure that is not a number

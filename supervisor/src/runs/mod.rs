@@ -16,6 +16,7 @@ pub mod delay;
 pub mod recording;
 pub mod report;
 pub mod rerun;
+mod task;
 
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
@@ -24,7 +25,6 @@ use nalgebra::UnitQuaternion;
 use penelope_drivers::model as models;
 use penelope_drivers::sim::environment::Environment;
 use penelope_drivers::sim::operator::OperatorScript;
-use penelope_drivers::sim::scripts;
 use penelope_hal::{Pose, Timestamp, Transition};
 use penelope_rt_core::teleop::MappingConfig;
 
@@ -32,12 +32,12 @@ use crate::node::{NamingChoice, Node, NodeConfig};
 use crate::system::{ObjectSpec, SystemFile, SystemFileError};
 use penelope_protocol::proto::{Call, Method, WireError};
 use penelope_runtime::objects::clock::ClockMode;
-use penelope_runtime::objects::fpga_board;
-use penelope_runtime::objects::kinds::{self, RobotConfig, SensorConfig, SimBoardConfig};
+use penelope_runtime::objects::kinds;
 use penelope_runtime::objects::kinematics::RobotKinematics;
-use penelope_runtime::objects::teleop::{HandConfig, TeleopConfig};
+use penelope_runtime::objects::teleop::TeleopConfig;
 use penelope_runtime::objects::tick::TickRecord;
 use penelope_runtime::objects::tick::TickStream;
+use task::{Task, find_task};
 
 /// The demo's system file (`config/demo.toml`), built in.
 pub const DEMO_SYSTEM: &str = include_str!("../../../config/demo.toml");
@@ -290,14 +290,6 @@ pub struct Progress {
     pub commanded_force: f64,
 }
 
-/// The task a system file describes, found in it.
-struct Task {
-    file: SystemFile,
-    info: RunInfo,
-    duration: Duration,
-    node_of: (String, String),
-}
-
 /// The file's teleoperation channel and its configuration.
 fn teleop_channel(file: &SystemFile) -> Result<(&ObjectSpec, TeleopConfig), RunError> {
     let channel = file
@@ -325,204 +317,6 @@ fn set_key(o: &mut ObjectSpec, key: &str, value: toml::Value) -> Result<(), RunE
     table.insert(key.to_string(), value);
     o.config = table.to_string();
     Ok(())
-}
-
-/// Finds the teleoperation task in `file` and applies the options' changes to a copy.
-fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task, RunError> {
-    let mut file = file.clone();
-    for o in &mut file.objects {
-        if o.kind == "sensor/virtual" {
-            set_key(o, "seed", toml::Value::Integer(options.seed as i64))?;
-        }
-        if let (Some(scale), "trajectory/teleop") = (options.scale, o.kind.as_str()) {
-            set_key(o, "scale", toml::Value::Float(scale))?;
-        }
-    }
-    let (channel, teleop) = teleop_channel(&file)?;
-    teleop
-        .check(&channel.kind)
-        .map_err(|e| task(format!("{}: {e}", channel.name)))?;
-    let channel_name = channel.name.clone();
-    // The law picks the master half: its kind is activated, the other master half is not.
-    let law = match options.law {
-        Some(l) => l,
-        None => {
-            file.objects
-                .iter()
-                .find(|o| o.active && o.robot.as_deref() == Some(teleop.master.as_str()))
-                .map_or(Law::ForcePosition, |o| {
-                    if o.kind == Law::PositionError.master_kind() {
-                        Law::PositionError
-                    } else if o.kind == Law::Wave.master_kind() {
-                        Law::Wave
-                    } else if o.config.parse::<toml::Table>().is_ok_and(|t| {
-                        t.get("passivity").and_then(|v| v.as_str()) == Some("impedance")
-                    }) {
-                        Law::Tdpa
-                    } else {
-                        Law::ForcePosition
-                    }
-                })
-        }
-    };
-    // The other laws share the file's slave half; the wave law has its own.
-    let slave_fallback = file
-        .objects
-        .iter()
-        .any(|o| o.active && o.kind == WAVE_SLAVE && !law.wave_slave());
-    for o in &mut file.objects {
-        if o.trajectory.as_deref() != Some(channel_name.as_str()) {
-            continue;
-        }
-        let passivity = law.passivity().filter(|_| options.law.is_some());
-        if o.robot.as_deref() == Some(teleop.master.as_str()) {
-            // Without a law asked for, the file's own master half runs (whatever its kind: a
-            // four-channel master is either classical law, as its coefficients say).
-            if options.law.is_some() {
-                o.active = o.kind == law.master_kind();
-            }
-            if let (true, Some((word, _))) = (o.active, passivity) {
-                set_key(o, "passivity", toml::Value::String(word.into()))?;
-            }
-        } else if o.robot.as_deref() == Some(teleop.slave.as_str()) {
-            if let (true, Some((_, word))) = (
-                matches!(
-                    o.kind.as_str(),
-                    "controller/slave-tracking" | "controller/slave-position"
-                ),
-                passivity,
-            ) {
-                set_key(o, "passivity", toml::Value::String(word.into()))?;
-            }
-            if law.wave_slave() {
-                o.active = o.kind == WAVE_SLAVE;
-            } else if o.kind == WAVE_SLAVE {
-                o.active = false;
-            } else if slave_fallback && o.kind == "controller/slave-tracking" {
-                o.active = true;
-            }
-        }
-    }
-    let on_channel = |robot: &str| {
-        file.objects
-            .iter()
-            .find(|o| {
-                o.active
-                    && o.trajectory.as_deref() == Some(channel_name.as_str())
-                    && o.robot.as_deref() == Some(robot)
-            })
-            .ok_or_else(|| {
-                task(format!(
-                    "no active controller drives `{robot}` on channel `{channel_name}` with the {} law",
-                    law.as_str()
-                ))
-            })
-    };
-    let master_ctl = on_channel(&teleop.master)?;
-    let slave_ctl = on_channel(&teleop.slave)?;
-    let timing: kinds::LoopTiming = kinds::loop_timing(&master_ctl.kind, &master_ctl.config)
-        .map_err(|e| task(format!("{}: {e}", master_ctl.name)))?;
-    let robot = |name: &str| {
-        file.objects
-            .iter()
-            .find(|o| o.kind.starts_with("robot/") && o.name == name)
-            .ok_or_else(|| task(format!("no robot `{name}`")))
-    };
-    // A robot computes with its boards' kinematics: an fpga board's, or the float model.
-    let model_of = |name: &str| -> Result<(RobotKinematics, models::DhRobotModel), RunError> {
-        let o = robot(name)?;
-        let cfg: RobotConfig = parse(o)?;
-        let word = o.kind.trim_start_matches("robot/");
-        let model = cfg
-            .model(&o.kind, word)
-            .map_err(|e| task(format!("{name}: {e}")))?;
-        let boards: Vec<(&str, bool)> = o
-            .joints
-            .iter()
-            .map(|m| {
-                let fpga = file
-                    .objects
-                    .iter()
-                    .any(|b| b.name == m.board && b.kind == FPGA_BOARD);
-                (m.board.as_str(), fpga)
-            })
-            .collect();
-        let on_fpga = fpga_board::robot_on_boards(name, word, &boards)
-            .map_err(|e| task(e.to_string()))?
-            .is_some();
-        let kin = match on_fpga {
-            true => RobotKinematics::on_fpga_board(model.clone())
-                .ok_or_else(|| task(format!("{name}: no fpga model")))?,
-            false => RobotKinematics::Float(model.clone()),
-        };
-        Ok((kin, model))
-    };
-    let (master_model, master_dynamics) = model_of(&teleop.master)?;
-    let (slave_model, _) = model_of(&teleop.slave)?;
-    let hand = file
-        .objects
-        .iter()
-        .filter(|o| o.kind == "sensor/operator-hand")
-        .map(parse::<HandConfig>)
-        .collect::<Result<Vec<_>, _>>()?
-        .into_iter()
-        .find(|h| h.robot == teleop.master);
-    let script = match hand {
-        Some(hand) => scripts::by_name(&hand.script)
-            .ok_or_else(|| task(format!("unknown operator script `{}`", hand.script)))?,
-        // A replayed hand: its recording is its script.
-        None => rerun::replayed_hand_script(&file, &teleop.master, options.duration)?,
-    };
-    let sensor_mount = match &slave_ctl.sensor {
-        Some(s) => match file.objects.iter().find(|o| &o.name == s) {
-            Some(o) if o.kind == "sensor/virtual" => {
-                let c: SensorConfig = parse(o)?;
-                Pose::translation(c.mount_xyz[0], c.mount_xyz[1], c.mount_xyz[2])
-            }
-            Some(o) if o.kind == "sensor/replay" => {
-                parse::<penelope_runtime::objects::replay::ReplaySensorConfig>(o)?.mount()
-            }
-            Some(o) if o.kind == "sensor/netft" => parse::<kinds::NetFtSensorConfig>(o)?.mount(),
-            _ => Pose::identity(),
-        },
-        None => Pose::identity(),
-    };
-    let slave_board = robot(&teleop.slave)?
-        .joints
-        .first()
-        .map(|m| m.board.clone())
-        .unwrap_or_default();
-    let environment = match file.objects.iter().find(|o| o.name == slave_board) {
-        Some(o) if o.kind == SIM_BOARD || o.kind == FPGA_BOARD => {
-            let c: SimBoardConfig = parse(o)?;
-            kinds::environment(&o.kind, &c.shapes).map_err(|e| task(e.to_string()))?
-        }
-        _ => Environment::new(),
-    };
-    let node_of = (master_ctl.node.clone(), slave_ctl.node.clone());
-    let info = RunInfo {
-        system: file.name.clone().unwrap_or_else(|| "system".into()),
-        law,
-        mapping: teleop.mapping(),
-        seed: options.seed,
-        clock: options.clock,
-        start: Timestamp::ZERO,
-        control_period: timing.period,
-        comm_period: timing.comm_period,
-        script: script.clone(),
-        master_model,
-        slave_model,
-        master_dynamics,
-        environment,
-        sensor_mount,
-        controllers: (master_ctl.name.clone(), slave_ctl.name.clone()),
-    };
-    Ok(Task {
-        duration: options.duration.unwrap_or(script.duration()),
-        file,
-        info,
-        node_of,
-    })
 }
 
 /// The nodes of a run, started in this process.
@@ -559,6 +353,62 @@ impl Nodes {
         self.nodes
             .iter()
             .find(|n| name.is_empty() || n.name() == name)
+    }
+
+    /// The node called `name`, or an error naming it.
+    fn node(&self, name: &str) -> Result<&Node, RunError> {
+        self.get(name).ok_or_else(|| RunError::Node {
+            what: format!("node `{name}`"),
+            error: WireError::UnknownName(name.into()),
+        })
+    }
+
+    /// Starts recording the ticks of `controller` on node `node_name`.
+    fn record(&self, node_name: &str, controller: &str) -> Result<TickStream, RunError> {
+        self.node(node_name)?
+            .creator()
+            .record_ticks(controller, RECORD_CAPACITY)
+            .map_err(|error| RunError::Node {
+                what: format!("recording `{controller}`"),
+                error,
+            })
+    }
+
+    /// Takes object `name` on node `node_name` through transition `t`.
+    fn transition(&self, node_name: &str, name: &str, t: Transition) -> Result<(), RunError> {
+        self.node(node_name)?
+            .call(Call::Object {
+                object: name.to_string(),
+                method: Method::Transition(t),
+            })
+            .map(|_| ())
+            .map_err(|error| RunError::Node {
+                what: format!("{t:?} `{name}`"),
+                error,
+            })
+    }
+
+    /// Moves every node's simulated clock on by `by`. Nodes exchange samples between their
+    /// loops' ticks (the data plane), so several nodes move on together, one millisecond at a
+    /// time.
+    fn advance(&self, by: Duration) -> Result<(), RunError> {
+        let tick = if self.nodes.len() > 1 {
+            Duration::from_millis(1)
+        } else {
+            by
+        };
+        let mut moved = Duration::ZERO;
+        while moved < by {
+            let sub = tick.min(by - moved);
+            for n in &self.nodes {
+                n.creator().advance(sub).map_err(|error| RunError::Node {
+                    what: "advancing the simulated clock".into(),
+                    error,
+                })?;
+            }
+            moved += sub;
+        }
+        Ok(())
     }
 
     fn shutdown(self) {
@@ -638,37 +488,10 @@ fn run_on(
             file.apply(n)?;
         }
     }
-    let node = |name: &str| {
-        nodes.get(name).ok_or_else(|| RunError::Node {
-            what: format!("node `{name}`"),
-            error: WireError::UnknownName(name.into()),
-        })
-    };
-    let record = |node_name: &str, controller: &str| -> Result<TickStream, RunError> {
-        node(node_name)?
-            .creator()
-            .record_ticks(controller, RECORD_CAPACITY)
-            .map_err(|error| RunError::Node {
-                what: format!("recording `{controller}`"),
-                error,
-            })
-    };
-    let master_stream = record(&node_of.0, &info.controllers.0)?;
-    let slave_stream = record(&node_of.1, &info.controllers.1)?;
-    let transition = |node_name: &str, name: &str, t: Transition| -> Result<(), RunError> {
-        node(node_name)?
-            .call(Call::Object {
-                object: name.to_string(),
-                method: Method::Transition(t),
-            })
-            .map(|_| ())
-            .map_err(|error| RunError::Node {
-                what: format!("{t:?} `{name}`"),
-                error,
-            })
-    };
+    let master_stream = nodes.record(&node_of.0, &info.controllers.0)?;
+    let slave_stream = nodes.record(&node_of.1, &info.controllers.1)?;
     for (n, name) in to_activate {
-        transition(n, name, Transition::Activate)?;
+        nodes.transition(n, name, Transition::Activate)?;
     }
     let (mut master, mut slave) = (Vec::new(), Vec::new());
     let step = Duration::from_millis(50);
@@ -678,24 +501,7 @@ fn run_on(
         let by = step.min(duration - elapsed);
         match info.clock {
             ClockMode::Simulated => {
-                // Nodes exchange samples between their loops' ticks (the data plane), so
-                // several nodes move on together, one millisecond at a time.
-                let tick = if nodes.nodes.len() > 1 {
-                    Duration::from_millis(1)
-                } else {
-                    by
-                };
-                let mut moved = Duration::ZERO;
-                while moved < by {
-                    let sub = tick.min(by - moved);
-                    for n in &nodes.nodes {
-                        n.creator().advance(sub).map_err(|error| RunError::Node {
-                            what: "advancing the simulated clock".into(),
-                            error,
-                        })?;
-                    }
-                    moved += sub;
-                }
+                nodes.advance(by)?;
                 elapsed += by;
             }
             ClockMode::RealTime => {
@@ -711,7 +517,7 @@ fn run_on(
         on_progress(&progress_of(info, &master, &slave, duration));
     }
     for (n, name) in to_activate.iter().rev() {
-        transition(n, name, Transition::Deactivate)?;
+        nodes.transition(n, name, Transition::Deactivate)?;
     }
     master_stream.drain_into(&mut master);
     slave_stream.drain_into(&mut slave);

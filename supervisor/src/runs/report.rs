@@ -352,30 +352,46 @@ fn loop_timing(name: &str, info: &RunInfo, rows: &[TickRecord]) -> LoopTiming {
     }
 }
 
-/// The run's report.
-pub fn report(out: &RunOutput) -> Report {
-    let info = &out.info;
-    let free = |s: &&TickRecord| {
-        s.sample.reference_kind != ReferenceKind::None
-            && FREE_MOTION_PHASES.contains(&phase_of(info, s.sample.time))
-    };
+/// Whether `s` is a free-motion tick with a reference to track.
+fn in_free_motion(info: &RunInfo, s: &TickRecord) -> bool {
+    s.sample.reference_kind != ReferenceKind::None
+        && FREE_MOTION_PHASES.contains(&phase_of(info, s.sample.time))
+}
 
-    // Tracking: slave tool vs its reference, free-motion phases.
+/// Tracking: the slave tool against its reference, and against the mapped master, in the
+/// free-motion phases.
+fn tracking_report(out: &RunOutput) -> TrackingReport {
+    let info = &out.info;
     let (track_rms, track_max, track_n) = rms(out
         .slave
         .iter()
-        .filter(free)
+        .filter(|s| in_free_motion(info, s))
         .map(|s| (s.sample.reference_position - s.sample.tool_position).norm()));
     let mapped = mapped_master(out);
-    let (lag_rms, lag_max, _) = rms(out.slave.iter().filter(free).filter_map(|s| {
-        let m = mapped
-            .iter()
-            .take_while(|(t, _)| *t <= s.sample.time)
-            .last()?;
-        Some((m.1 - s.sample.tool_position).norm())
-    }));
+    let (lag_rms, lag_max, _) = rms(out
+        .slave
+        .iter()
+        .filter(|s| in_free_motion(info, s))
+        .filter_map(|s| {
+            let m = mapped
+                .iter()
+                .take_while(|(t, _)| *t <= s.sample.time)
+                .last()?;
+            Some((m.1 - s.sample.tool_position).norm())
+        }));
+    TrackingReport {
+        rms_mm: track_rms * 1e3,
+        max_mm: track_max * 1e3,
+        against_master_rms_mm: lag_rms * 1e3,
+        against_master_max_mm: lag_max * 1e3,
+        samples: track_n,
+    }
+}
 
-    // Contact: the second half of the steady-contact phase.
+/// Contact: the forces of the second half of the steady-contact phase, and how far the force
+/// the master displays is from the one expected.
+fn contact_report(out: &RunOutput) -> ContactReport {
+    let info = &out.info;
     let contact_window = phase_window(info, CONTACT_PHASE)
         .map(|(a, b)| (a + (b - a) / 2, b))
         .unwrap_or_default();
@@ -432,45 +448,40 @@ pub fn report(out: &RunOutput) -> Report {
     } else {
         0.0
     };
+    ContactReport {
+        sensed_force_n: pushed.norm(),
+        expected_display_n: expected.norm(),
+        displayed_force_n: displayed.norm(),
+        commanded_force_n: commanded.norm(),
+        display_error_pct,
+        hand_force_n: hand.norm(),
+        true_contact_force_n: true_contact.norm(),
+        samples: contact_n,
+    }
+}
 
-    // Drag: hand force in free motion.
+/// Drag: the hand force in free motion.
+fn drag_report(out: &RunOutput) -> DragReport {
+    let info = &out.info;
     let (drag_rms, drag_max, _) = rms(out
         .master
         .iter()
-        .filter(free)
+        .filter(|s| in_free_motion(info, s))
         .filter_map(|s| s.truth.map(|t| t.base_wrench.force.norm())));
+    DragReport {
+        rms_n: drag_rms,
+        max_n: drag_max,
+    }
+}
 
-    // Energy per tap cycle.
+/// Energy: the coupled energy's peak per whole tap cycle the run reached, whether it builds up,
+/// the operator's work over the tap phase, and the lowest port and channel energies.
+fn energy_report(out: &RunOutput) -> EnergyReport {
+    let info = &out.info;
     let mut peaks = Vec::new();
     let mut operator_work = 0.0;
     if let Some((a, b)) = phase_window(info, TAP_PHASE) {
-        let frequency = info
-            .script
-            .segments()
-            .iter()
-            .find(|s| s.label == TAP_PHASE)
-            .and_then(|s| match s.motion {
-                penelope_drivers::sim::operator::Motion::Tap { frequency, .. } => Some(frequency),
-                _ => None,
-            });
-        let cycle = Duration::from_secs_f64(1.0 / frequency.unwrap_or(1.0));
-        let energy = coupled_energy(out);
-        let mut k = a;
-        // Only whole cycles the run reached.
-        let run_end = out
-            .slave
-            .last()
-            .map_or(Duration::ZERO, |s| s.sample.time - info.start);
-        while k + cycle <= b.min(run_end + Duration::from_millis(1)) {
-            let window = (k, k + cycle);
-            let peak = energy
-                .iter()
-                .filter(|(t, _)| *t >= window.0 && *t < window.1)
-                .map(|(_, e)| *e)
-                .fold(0.0f64, f64::max);
-            peaks.push(peak);
-            k += cycle;
-        }
+        peaks = tap_cycle_peaks(out, a, b);
         let work_at = |t: Duration| {
             out.master
                 .iter()
@@ -490,8 +501,54 @@ pub fn report(out: &RunOutput) -> Report {
         }
         _ => 1.0,
     };
+    EnergyReport {
+        tap_cycle_peaks_j: peaks,
+        growth_ratio,
+        operator_work_j: operator_work,
+        master_port_min_j: min_energy(&out.master, |t| t.sample.port_energy),
+        slave_port_min_j: min_energy(&out.slave, |t| t.sample.port_energy),
+        master_channel_min_j: min_energy(&out.master, |t| t.sample.channel_energy),
+        slave_channel_min_j: min_energy(&out.slave, |t| t.sample.channel_energy),
+    }
+}
 
-    // Clutch: reference steps.
+/// The coupled energy's peak in each whole tap cycle between `a` and `b` that the run reached.
+fn tap_cycle_peaks(out: &RunOutput, a: Duration, b: Duration) -> Vec<f64> {
+    let info = &out.info;
+    let frequency = info
+        .script
+        .segments()
+        .iter()
+        .find(|s| s.label == TAP_PHASE)
+        .and_then(|s| match s.motion {
+            penelope_drivers::sim::operator::Motion::Tap { frequency, .. } => Some(frequency),
+            _ => None,
+        });
+    let cycle = Duration::from_secs_f64(1.0 / frequency.unwrap_or(1.0));
+    let energy = coupled_energy(out);
+    let mut peaks = Vec::new();
+    let mut k = a;
+    // Only whole cycles the run reached.
+    let run_end = out
+        .slave
+        .last()
+        .map_or(Duration::ZERO, |s| s.sample.time - info.start);
+    while k + cycle <= b.min(run_end + Duration::from_millis(1)) {
+        let window = (k, k + cycle);
+        let peak = energy
+            .iter()
+            .filter(|(t, _)| *t >= window.0 && *t < window.1)
+            .map(|(_, e)| *e)
+            .fold(0.0f64, f64::max);
+        peaks.push(peak);
+        k += cycle;
+    }
+    peaks
+}
+
+/// Clutch: the largest reference step while indexing, against the largest in normal sweeps.
+fn clutch_report(out: &RunOutput) -> ClutchReport {
+    let info = &out.info;
     let steps = |pred: &dyn Fn(&TickRecord) -> bool| {
         out.slave
             .windows(2)
@@ -503,27 +560,33 @@ pub fn report(out: &RunOutput) -> Report {
     let index_window = phase_window(info, INDEX_PHASE)
         .map(|(a, b)| (a, b + Duration::from_millis(300)))
         .unwrap_or_default();
-    let clutch = ClutchReport {
+    ClutchReport {
         max_step_mm: steps(&|s| in_window(info, s, index_window)),
         normal_max_step_mm: steps(&|s| phase_of(info, s.sample.time).starts_with("sweep")),
-    };
+    }
+}
 
-    // Timing: what each control loop noted of its own wake-ups and execution.
-    let timing = if info.clock == ClockMode::RealTime {
-        let (m, s) = &info.controllers;
-        [
-            (format!("master ({m})"), &out.master),
-            (format!("slave ({s})"), &out.slave),
-        ]
-        .into_iter()
-        .filter(|(_, rows)| !rows.is_empty())
-        .map(|(name, rows)| loop_timing(&name, info, rows))
-        .collect()
-    } else {
-        Vec::new()
-    };
+/// Timing: what each control loop noted of its own wake-ups and execution (real-time runs
+/// only; the simulated clock has no timing to speak of).
+fn loop_timings(out: &RunOutput) -> Vec<LoopTiming> {
+    let info = &out.info;
+    if info.clock != ClockMode::RealTime {
+        return Vec::new();
+    }
+    let (m, s) = &info.controllers;
+    [
+        (format!("master ({m})"), &out.master),
+        (format!("slave ({s})"), &out.slave),
+    ]
+    .into_iter()
+    .filter(|(_, rows)| !rows.is_empty())
+    .map(|(name, rows)| loop_timing(&name, info, rows))
+    .collect()
+}
 
-    // Safety.
+/// Safety: the count of each safety event per robot, and each fault where it began.
+fn safety_record(out: &RunOutput) -> (BTreeMap<String, u64>, Vec<String>) {
+    let info = &out.info;
     let mut safety_events = BTreeMap::new();
     let mut faults = Vec::new();
     for (robot, rows) in [("master", &out.master), ("slave", &out.slave)] {
@@ -545,7 +608,13 @@ pub fn report(out: &RunOutput) -> Report {
             last_fault = s.sample.fault;
         }
     }
+    (safety_events, faults)
+}
 
+/// The run's report.
+pub fn report(out: &RunOutput) -> Report {
+    let info = &out.info;
+    let (safety_events, faults) = safety_record(out);
     Report {
         lab: info.system.clone(),
         law: info.law.as_str().to_string(),
@@ -562,38 +631,12 @@ pub fn report(out: &RunOutput) -> Report {
         scale: info.mapping.scale,
         force_gain: info.mapping.force_gain,
         kinematics: kinematics_report(info),
-        tracking: TrackingReport {
-            rms_mm: track_rms * 1e3,
-            max_mm: track_max * 1e3,
-            against_master_rms_mm: lag_rms * 1e3,
-            against_master_max_mm: lag_max * 1e3,
-            samples: track_n,
-        },
-        contact: ContactReport {
-            sensed_force_n: pushed.norm(),
-            expected_display_n: expected.norm(),
-            displayed_force_n: displayed.norm(),
-            commanded_force_n: commanded.norm(),
-            display_error_pct,
-            hand_force_n: hand.norm(),
-            true_contact_force_n: true_contact.norm(),
-            samples: contact_n,
-        },
-        drag: DragReport {
-            rms_n: drag_rms,
-            max_n: drag_max,
-        },
-        energy: EnergyReport {
-            tap_cycle_peaks_j: peaks,
-            growth_ratio,
-            operator_work_j: operator_work,
-            master_port_min_j: min_energy(&out.master, |t| t.sample.port_energy),
-            slave_port_min_j: min_energy(&out.slave, |t| t.sample.port_energy),
-            master_channel_min_j: min_energy(&out.master, |t| t.sample.channel_energy),
-            slave_channel_min_j: min_energy(&out.slave, |t| t.sample.channel_energy),
-        },
-        clutch,
-        timing,
+        tracking: tracking_report(out),
+        contact: contact_report(out),
+        drag: drag_report(out),
+        energy: energy_report(out),
+        clutch: clutch_report(out),
+        timing: loop_timings(out),
         safety_events,
         faults,
         dropped_samples: (out.dropped.0 + out.dropped.1) as usize,

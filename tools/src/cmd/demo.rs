@@ -210,6 +210,17 @@ fn write_outputs(
 }
 
 fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
+    print_run(r);
+    println!();
+    print_task_figures(r);
+    print_loop_timing(r);
+    print_safety(r);
+    println!();
+    print_written(dir, written);
+}
+
+/// The run: lab, law, clock, seed, duration, mapping and master kinematics.
+fn print_run(r: &Report) {
     println!(
         "Penelope teleoperation demo: {} ({} law, {} clock, seed {})",
         r.lab, r.law, r.clock, r.seed
@@ -231,7 +242,10 @@ fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
     } else {
         println!("  master kinematics: float (on the host)");
     }
-    println!();
+}
+
+/// The task's figures: tracking, contact, drag, tapping energy, clutch.
+fn print_task_figures(r: &Report) {
     println!("  free-motion tracking (slave tool)");
     println!(
         "    vs its reference: RMS {:.3} mm   max {:.3} mm   over {} ticks",
@@ -276,6 +290,10 @@ fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
         "    largest reference step {:.3} mm (normal motion: {:.3} mm per tick)",
         r.clutch.max_step_mm, r.clutch.normal_max_step_mm
     );
+}
+
+/// Each loop's wake-up latency, overruns and execution time (real clock only).
+fn print_loop_timing(r: &Report) {
     if r.timing.is_empty() {
         println!("  loop timing: simulated clock (no wake-up latency to measure)");
     } else {
@@ -299,6 +317,10 @@ fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
             );
         }
     }
+}
+
+/// Safety events, faults and dropped samples.
+fn print_safety(r: &Report) {
     println!("  safety events");
     if r.safety_events.is_empty() {
         println!("    none");
@@ -315,7 +337,10 @@ fn print_report(r: &Report, dir: &Path, written: &[PathBuf]) {
             r.dropped_samples
         );
     }
-    println!();
+}
+
+/// Where the output went, and its files.
+fn print_written(dir: &Path, written: &[PathBuf]) {
     println!("  output in {}:", dir.display());
     for f in written {
         println!(

@@ -16,14 +16,15 @@
 //! naming service.
 
 use std::net::SocketAddr;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::Context as _;
-use penelope_protocol::proto::DEFAULT_PORT;
+use penelope_protocol::proto::{DEFAULT_PORT, ObjectInfo};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::system::SystemFile;
+use penelope_supervisor::zenoh_bridge::ZenohSettings;
 
 use super::naming::{block_stop_signals, read_secret, refuse_open_listen, wait_for_stop};
 
@@ -123,17 +124,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         SocketAddr::from(([127, 0, 0, 1], port))
     });
     refuse_open_listen(listen, secret.is_some())?;
-    let file = match &args.config {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading the system file {}", path.display()))?;
-            Some(
-                SystemFile::parse(&text)
-                    .map_err(|e| crate::cmd::usage(format!("{}: {e}", path.display())))?,
-            )
-        }
-        None => None,
-    };
+    let file = read_system_file(args.config.as_deref())?;
     let naming = if args.host_naming {
         NamingChoice::Host
     } else {
@@ -141,7 +132,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     let mut config = NodeConfig::new(args.name.clone(), naming.clone());
     config.listen = listen;
-    config.advertise = args.advertise;
+    config.advertise = args.advertise.clone();
     config.secret = secret;
     config.server.admin_secret = admin_secret;
     config.lease = Duration::from_millis(args.lease_ms);
@@ -160,8 +151,69 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.sim_clock {
         config.creator.clock = penelope_runtime::objects::clock::ClockMode::Simulated;
     }
-    // Where clients' files go and come from: the command line, the system file, defaults.
-    let policy = file.as_ref().and_then(|f| f.nodes.get(&args.name));
+    set_file_dirs(&mut config, &args, file.as_ref());
+    let zenoh = zenoh_settings(&args, file.as_ref());
+    let config_zenoh = zenoh.clone();
+    config.zenoh = zenoh;
+
+    let signals = block_stop_signals()?;
+    let node = Node::start(config).map_err(|e| match e {
+        penelope_supervisor::node::NodeError::BadName(_)
+        | penelope_supervisor::node::NodeError::BadLease(_) => crate::cmd::usage(e.to_string()),
+        other => anyhow::Error::new(other).context(format!("starting node `{}`", args.name)),
+    })?;
+    announce(&node, &naming, config_zenoh.as_ref());
+    let mut recorder = None;
+    if let Some(file) = file {
+        // `--record`, else the file's `record` for this node.
+        let record = args
+            .record
+            .clone()
+            .or_else(|| file.nodes.get(node.name()).and_then(|p| p.record.clone()));
+        let applied = match &record {
+            None => file.apply(&node).map_err(anyhow::Error::new),
+            Some(path) => penelope_supervisor::runs::recording::apply_recorded(&node, &file, path)
+                .map(|(created, r)| {
+                    recorder = Some(r);
+                    created
+                })
+                .map_err(anyhow::Error::new),
+        };
+        match applied {
+            Ok(created) => print_created(&node, created),
+            Err(e) => {
+                node.shutdown();
+                return Err(e.context("applying the system file"));
+            }
+        }
+    }
+    println!("Ctrl-C stops the node");
+    let signal = wait_for_stop(&signals)?;
+    println!("{signal}: deactivating the loops and unregistering");
+    node.shutdown();
+    if let Some(r) = recorder {
+        let ticks = r.finish().context("finishing the recording")?;
+        println!("recorded {ticks} control ticks");
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The system file at `path`, read and parsed, when one is given.
+fn read_system_file(path: Option<&Path>) -> anyhow::Result<Option<SystemFile>> {
+    let Some(path) = path else {
+        return Ok(None);
+    };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("reading the system file {}", path.display()))?;
+    Ok(Some(SystemFile::parse(&text).map_err(|e| {
+        crate::cmd::usage(format!("{}: {e}", path.display()))
+    })?))
+}
+
+/// Where clients' files go and come from: the command line, the system file, defaults (the
+/// node's records directory; robot files next to the system file).
+fn set_file_dirs(config: &mut NodeConfig, args: &Args, file: Option<&SystemFile>) {
+    let policy = file.and_then(|f| f.nodes.get(&args.name));
     config.creator.records = Some(
         args.records
             .clone()
@@ -185,9 +237,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             })
             .unwrap_or_default()
     };
-    // The system file's Zenoh settings for this node, then what the command line says.
+}
+
+/// The system file's Zenoh settings for this node, then what the command line says.
+fn zenoh_settings(args: &Args, file: Option<&SystemFile>) -> Option<ZenohSettings> {
     let mut zenoh = file
-        .as_ref()
         .and_then(|f| f.nodes.get(&args.name))
         .and_then(|p| p.zenoh.clone());
     if args.zenoh.is_some() || args.zenoh_config.is_some() || !args.zenoh_operator.is_empty() {
@@ -202,15 +256,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             z.operators = args.zenoh_operator.clone();
         }
     }
-    let config_zenoh = zenoh.clone();
-    config.zenoh = zenoh;
+    zenoh
+}
 
-    let signals = block_stop_signals()?;
-    let node = Node::start(config).map_err(|e| match e {
-        penelope_supervisor::node::NodeError::BadName(_)
-        | penelope_supervisor::node::NodeError::BadLease(_) => crate::cmd::usage(e.to_string()),
-        other => anyhow::Error::new(other).context(format!("starting node `{}`", args.name)),
-    })?;
+/// Prints where the node listens, its naming service and its Zenoh bridge.
+fn announce(node: &Node, naming: &NamingChoice, zenoh: Option<&ZenohSettings>) {
     let naming_text = match naming {
         NamingChoice::Host => format!("hosted here ({})", node.advertised()),
         NamingChoice::Remote(a) if node.is_registered() => a.to_string(),
@@ -223,7 +273,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         node.advertised(),
         node.context()
     );
-    if let Some(z) = &config_zenoh {
+    if let Some(z) = zenoh {
         println!(
             "zenoh bridge: connecting to {}, publishing penelope/{}/**",
             z.connect
@@ -232,45 +282,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             node.name()
         );
     }
-    let mut recorder = None;
-    if let Some(file) = file {
-        // `--record`, else the file's `record` for this node.
-        let record = args
-            .record
-            .clone()
-            .or_else(|| file.nodes.get(node.name()).and_then(|p| p.record.clone()));
-        let applied = match &record {
-            None => file.apply(&node).map_err(anyhow::Error::new),
-            Some(path) => penelope_supervisor::runs::recording::apply_recorded(&node, &file, path)
-                .map(|(created, r)| {
-                    recorder = Some(r);
-                    created
-                })
-                .map_err(anyhow::Error::new),
-        };
-        match applied {
-            Ok(created) => {
-                for info in created {
-                    let state = node
-                        .creator()
-                        .info(&info.name)
-                        .map_or(info.state, |i| i.state);
-                    println!("  {} {} ({state:?})", info.kind, info.name);
-                }
-            }
-            Err(e) => {
-                node.shutdown();
-                return Err(e.context("applying the system file"));
-            }
-        }
+}
+
+/// Prints the objects the system file created on the node, each with its state now.
+fn print_created(node: &Node, created: Vec<ObjectInfo>) {
+    for info in created {
+        let state = node
+            .creator()
+            .info(&info.name)
+            .map_or(info.state, |i| i.state);
+        println!("  {} {} ({state:?})", info.kind, info.name);
     }
-    println!("Ctrl-C stops the node");
-    let signal = wait_for_stop(&signals)?;
-    println!("{signal}: deactivating the loops and unregistering");
-    node.shutdown();
-    if let Some(r) = recorder {
-        let ticks = r.finish().context("finishing the recording")?;
-        println!("recorded {ticks} control ticks");
-    }
-    Ok(ExitCode::SUCCESS)
 }

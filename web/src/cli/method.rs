@@ -186,17 +186,46 @@ pub fn parse(
     args: &[String],
     lookup: &mut Lookup<'_>,
 ) -> anyhow::Result<(Method, Hint)> {
-    let none = hint("", "");
-    let robot = |m: RobotMethod, h: Hint| Ok((Method::Robot(m), h));
     if let Some(t) = parse_transition(name) {
         no_args(name, args)?;
-        return Ok((Method::Transition(t), none));
+        return Ok((Method::Transition(t), hint("", "")));
     }
+    if name == "describe" {
+        no_args(name, args)?;
+        return Ok((Method::Describe, hint("", "")));
+    }
+    if let Some(parsed) = robot_state_method(name, args)? {
+        return Ok(parsed);
+    }
+    if let Some(parsed) = robot_model_method(name, args, lookup)? {
+        return Ok(parsed);
+    }
+    if let Some(parsed) = robot_joint_method(name, args, lookup)? {
+        return Ok(parsed);
+    }
+    if let Some(parsed) = board_method(name, args)? {
+        return Ok(parsed);
+    }
+    if let Some(parsed) = sensor_method(name, args)? {
+        return Ok(parsed);
+    }
+    if let Some(parsed) = controller_method(name, args)? {
+        return Ok(parsed);
+    }
+    if let Some(parsed) = trajectory_method(name, args)? {
+        return Ok(parsed);
+    }
+    Err(usage(format!(
+        "unknown method `{name}`; the methods are:\n{METHODS}"
+    )))
+}
+
+/// The robot's measured-state methods (no arguments);
+/// `None` when `name` is not one of them.
+fn robot_state_method(name: &str, args: &[String]) -> anyhow::Result<Option<(Method, Hint)>> {
+    let none = hint("", "");
+    let robot = |m: RobotMethod, h: Hint| Ok(Some((Method::Robot(m), h)));
     match name {
-        "describe" => {
-            no_args(name, args)?;
-            Ok((Method::Describe, none))
-        }
         "joint-positions" | "q" => {
             no_args(name, args)?;
             robot(RobotMethod::JointPositions, hint("joint positions", "rad"))
@@ -223,6 +252,20 @@ pub fn parse(
             no_args(name, args)?;
             robot(RobotMethod::ToolWrench, none)
         }
+        _ => Ok(None),
+    }
+}
+
+/// The robot's model methods: kinematics and dynamics at given or measured joints;
+/// `None` when `name` is not one of them.
+fn robot_model_method(
+    name: &str,
+    args: &[String],
+    lookup: &mut Lookup<'_>,
+) -> anyhow::Result<Option<(Method, Hint)>> {
+    let none = hint("", "");
+    let robot = |m: RobotMethod, h: Hint| Ok(Some((Method::Robot(m), h)));
+    match name {
         "fk" | "forward-kinematics" => {
             let q = joints(args, lookup)?;
             robot(RobotMethod::ForwardKinematics { q }, none)
@@ -272,6 +315,20 @@ pub fn parse(
             let q = joints(args, lookup)?;
             robot(RobotMethod::Inertia { q }, hint("inertia", "kg·m²"))
         }
+        _ => Ok(None),
+    }
+}
+
+/// The robot's joint-space methods: unit conversions, named poses, moves, the joint map;
+/// `None` when `name` is not one of them.
+fn robot_joint_method(
+    name: &str,
+    args: &[String],
+    lookup: &mut Lookup<'_>,
+) -> anyhow::Result<Option<(Method, Hint)>> {
+    let none = hint("", "");
+    let robot = |m: RobotMethod, h: Hint| Ok(Some((Method::Robot(m), h)));
+    match name {
         "counts-to-radians" => {
             let counts = args
                 .iter()
@@ -339,107 +396,143 @@ pub fn parse(
                 none,
             )
         }
+        _ => Ok(None),
+    }
+}
+
+/// The board methods;
+/// `None` when `name` is not one of them.
+fn board_method(name: &str, args: &[String]) -> anyhow::Result<Option<(Method, Hint)>> {
+    match name {
         "axis-count" => {
             no_args(name, args)?;
-            Ok((Method::Board(BoardMethod::AxisCount), hint("axes", "")))
+            Ok(Some((
+                Method::Board(BoardMethod::AxisCount),
+                hint("axes", ""),
+            )))
         }
         "read-encoders" | "encoders" => {
             no_args(name, args)?;
-            Ok((
+            Ok(Some((
                 Method::Board(BoardMethod::ReadEncoders),
                 hint("encoders", "counts"),
-            ))
+            )))
         }
         "amplifiers-enabled" | "amplifiers" => {
             no_args(name, args)?;
-            Ok((
+            Ok(Some((
                 Method::Board(BoardMethod::AmplifiersEnabled),
                 hint("amplifiers enabled", ""),
-            ))
+            )))
         }
+        _ => Ok(None),
+    }
+}
+
+/// The sensor methods;
+/// `None` when `name` is not one of them.
+fn sensor_method(name: &str, args: &[String]) -> anyhow::Result<Option<(Method, Hint)>> {
+    let none = hint("", "");
+    match name {
         "read" => {
             no_args(name, args)?;
-            Ok((Method::Sensor(SensorMethod::Read), none))
+            Ok(Some((Method::Sensor(SensorMethod::Read), none)))
         }
         "bias" => {
             no_args(name, args)?;
-            Ok((Method::Sensor(SensorMethod::Bias), none))
+            Ok(Some((Method::Sensor(SensorMethod::Bias), none)))
         }
         "set-probe" => {
             let (pose, velocity) = probe(args)?;
-            Ok((
+            Ok(Some((
                 Method::Sensor(SensorMethod::SetProbe { pose, velocity }),
                 none,
-            ))
+            )))
         }
         "measure" => {
             let (pose, velocity) = probe(args)?;
-            Ok((
+            Ok(Some((
                 Method::Sensor(SensorMethod::Measure { pose, velocity }),
                 none,
-            ))
+            )))
         }
         "stream" => {
             no_args(name, args)?;
-            Ok((Method::Sensor(SensorMethod::Stream), none))
+            Ok(Some((Method::Sensor(SensorMethod::Stream), none)))
         }
+        _ => Ok(None),
+    }
+}
+
+/// The controller methods;
+/// `None` when `name` is not one of them.
+fn controller_method(name: &str, args: &[String]) -> anyhow::Result<Option<(Method, Hint)>> {
+    let none = hint("", "");
+    match name {
         "set-robot" => {
             let robot = one(name, "the robot's name", args)?.to_string();
-            Ok((
+            Ok(Some((
                 Method::Controller(ControllerMethod::SetRobot { robot }),
                 none,
-            ))
+            )))
         }
         "set-trajectory" => {
             let trajectory = one(name, "the trajectory's name", args)?.to_string();
-            Ok((
+            Ok(Some((
                 Method::Controller(ControllerMethod::SetTrajectory { trajectory }),
                 none,
-            ))
+            )))
         }
         "set-sensor" => {
             let sensor = one(name, "the sensor's name or naming path", args)?.to_string();
-            Ok((
+            Ok(Some((
                 Method::Controller(ControllerMethod::SetSensor { sensor }),
                 none,
-            ))
+            )))
         }
         "set-gains" => {
             let gains = args.join(" ");
             gains
                 .parse::<toml::Table>()
                 .map_err(|e| usage(format!("set-gains: not TOML: {}", e.message())))?;
-            Ok((
+            Ok(Some((
                 Method::Controller(ControllerMethod::SetGains { gains }),
                 none,
-            ))
+            )))
         }
         "estop" | "e-stop" => {
             no_args(name, args)?;
-            Ok((Method::Controller(ControllerMethod::EStop), none))
+            Ok(Some((Method::Controller(ControllerMethod::EStop), none)))
         }
         "rearm" => {
             no_args(name, args)?;
-            Ok((Method::Controller(ControllerMethod::Rearm), none))
+            Ok(Some((Method::Controller(ControllerMethod::Rearm), none)))
         }
         "status" => {
             no_args(name, args)?;
-            Ok((Method::Controller(ControllerMethod::Status), none))
+            Ok(Some((Method::Controller(ControllerMethod::Status), none)))
         }
+        _ => Ok(None),
+    }
+}
+
+/// The trajectory methods;
+/// `None` when `name` is not one of them.
+fn trajectory_method(name: &str, args: &[String]) -> anyhow::Result<Option<(Method, Hint)>> {
+    let none = hint("", "");
+    match name {
         "reference" => {
             let t_s = number(one(name, "the time T in seconds", args)?, "time")?;
-            Ok((
+            Ok(Some((
                 Method::Trajectory(TrajectoryMethod::Reference { t_s }),
                 none,
-            ))
+            )))
         }
         "duration" => {
             no_args(name, args)?;
-            Ok((Method::Trajectory(TrajectoryMethod::Duration), none))
+            Ok(Some((Method::Trajectory(TrajectoryMethod::Duration), none)))
         }
-        _ => Err(usage(format!(
-            "unknown method `{name}`; the methods are:\n{METHODS}"
-        ))),
+        _ => Ok(None),
     }
 }
 

@@ -3,8 +3,8 @@
 use std::fmt::Write as _;
 
 use penelope_protocol::proto::{
-    ControlStatus, KindInfo, LinkRecord, MatrixMsg, NameEntry, ObjectInfo, ObjectRef, PoseMsg,
-    ReferenceMsg, Reply, TelemetryRecord, WrenchMsg,
+    ControlStatus, Joints, KindInfo, LinkRecord, MatrixMsg, NameEntry, NodeInfo, ObjectInfo,
+    ObjectRef, PoseMsg, ReferenceMsg, Reply, TelemetryRecord, WrenchMsg,
 };
 
 use super::method::Hint;
@@ -167,47 +167,19 @@ pub fn reply(reply: &Reply, hint: Hint) -> String {
     match reply {
         Reply::Unit => "ok".into(),
         Reply::Pong(p) => format!("pong ({} bytes)", p.len()),
-        Reply::Node(n) => format!(
-            "node {} (penelope {}), {} object(s){}",
-            n.node,
-            n.software,
-            n.objects,
-            if n.hosts_naming {
-                ", hosts the naming service"
-            } else {
-                ""
-            }
-        ),
+        Reply::Node(n) => node(n),
         Reply::Kinds(k) => k.iter().map(kind).collect::<Vec<_>>().join("\n"),
         Reply::Objects(o) => o.iter().map(object).collect::<Vec<_>>().join("\n"),
         Reply::Object(info) => object(info),
-        Reply::Joints(q) => {
-            let label = if hint.label.is_empty() {
-                "values"
-            } else {
-                hint.label
-            };
-            format!("{label} ({}): {}", hint.unit, row(q))
-        }
+        Reply::Joints(q) => format!("{} ({}): {}", label_or(hint, "values"), hint.unit, row(q)),
         Reply::Counts(c) => {
             let cells: Vec<String> = c.iter().map(|x| x.to_string()).collect();
             format!("counts: {}", cells.join(" "))
         }
-        Reply::Count(n) => format!(
-            "{}: {n}",
-            if hint.label.is_empty() {
-                "count"
-            } else {
-                hint.label
-            }
-        ),
+        Reply::Count(n) => format!("{}: {n}", label_or(hint, "count")),
         Reply::Flag(f) => format!(
             "{}: {}",
-            if hint.label.is_empty() {
-                "flag"
-            } else {
-                hint.label
-            },
+            label_or(hint, "flag"),
             if *f { "yes" } else { "no" }
         ),
         Reply::Duration(Some(d)) => format!("duration: {d} s"),
@@ -221,34 +193,11 @@ pub fn reply(reply: &Reply, hint: Hint) -> String {
         ),
         Reply::Wrench(w) => wrench(w),
         Reply::Matrix(m) => matrix(m, hint),
-        Reply::Solutions(list) => {
-            let mut s = format!("{} solution(s) within the joint limits (rad)", list.len());
-            for (i, q) in list.iter().enumerate() {
-                let _ = write!(s, "\n{:>3} {}", i + 1, row(q));
-            }
-            s
-        }
-        Reply::Reference(ReferenceMsg::Joint { q, qd }) => format!(
-            "joint reference\nq (rad):    {}\nqd (rad/s): {}",
-            row(q),
-            row(qd)
-        ),
-        Reply::Reference(ReferenceMsg::Cartesian { pose: p }) => {
-            format!("Cartesian reference\n{}", pose(p))
-        }
-        Reply::Reference(ReferenceMsg::Wrench { wrench: w }) => {
-            format!("wrench reference\n{}", wrench(w))
-        }
+        Reply::Solutions(list) => solutions(list),
+        Reply::Reference(r) => reference_msg(r),
         Reply::Status(st) => status(st),
         Reply::Resolved(r) => reference(r),
-        Reply::Names(names) => names
-            .iter()
-            .map(|e| match e {
-                NameEntry::Context { name } => format!("{name}/"),
-                NameEntry::Object { name, reference: r } => format!("{name}  {}", r.kind),
-            })
-            .collect::<Vec<_>>()
-            .join("\n"),
+        Reply::Names(entries) => names(entries),
         Reply::Subscribed { subscription } => format!("subscription {subscription}"),
         Reply::Address(a) => format!("address: {a}"),
         Reply::Recording {
@@ -269,4 +218,62 @@ pub fn reply(reply: &Reply, hint: Hint) -> String {
             r.pending.join(", ")
         ),
     }
+}
+
+/// The hint's label, or `default` without one.
+fn label_or(hint: Hint, default: &'static str) -> &'static str {
+    if hint.label.is_empty() {
+        default
+    } else {
+        hint.label
+    }
+}
+
+/// What a node is, in one line.
+fn node(n: &NodeInfo) -> String {
+    format!(
+        "node {} (penelope {}), {} object(s){}",
+        n.node,
+        n.software,
+        n.objects,
+        if n.hosts_naming {
+            ", hosts the naming service"
+        } else {
+            ""
+        }
+    )
+}
+
+/// IK solutions, one numbered row each.
+fn solutions(list: &[Joints]) -> String {
+    let mut s = format!("{} solution(s) within the joint limits (rad)", list.len());
+    for (i, q) in list.iter().enumerate() {
+        let _ = write!(s, "\n{:>3} {}", i + 1, row(q));
+    }
+    s
+}
+
+/// A trajectory's reference, by kind.
+fn reference_msg(r: &ReferenceMsg) -> String {
+    match r {
+        ReferenceMsg::Joint { q, qd } => format!(
+            "joint reference\nq (rad):    {}\nqd (rad/s): {}",
+            row(q),
+            row(qd)
+        ),
+        ReferenceMsg::Cartesian { pose: p } => format!("Cartesian reference\n{}", pose(p)),
+        ReferenceMsg::Wrench { wrench: w } => format!("wrench reference\n{}", wrench(w)),
+    }
+}
+
+/// A naming context's entries, one a line (contexts end in `/`).
+fn names(entries: &[NameEntry]) -> String {
+    entries
+        .iter()
+        .map(|e| match e {
+            NameEntry::Context { name } => format!("{name}/"),
+            NameEntry::Object { name, reference: r } => format!("{name}  {}", r.kind),
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
 }

@@ -374,16 +374,29 @@ impl Io {
 
     /// One exchange cycle: mode changes, targets out, positions and errors back.
     fn cycle_once(&mut self, frame: Option<CommandFrame>) -> Result<(), BoardFault> {
-        let n = self.n();
-        let report = self.report_axes;
-        let Some(client) = self.client.as_mut() else {
+        if self.client.is_none() {
             return Err(BoardFault::Closed);
-        };
-        let fault = |e: GalilError| BoardFault::from_error(&e);
-        // 1. Desired modes.
+        }
+        let desired = self.desired_commands(frame);
+        self.change_modes(&desired)?;
+        self.exchange_cycle_line(&desired)?;
+        // Status every few cycles: velocity, torque, switches.
+        self.cycle += 1;
+        if self
+            .cycle
+            .is_multiple_of(u64::from(self.config.status_every.max(1)))
+        {
+            self.read_status()?;
+        }
+        Ok(())
+    }
+
+    /// What each driven axis should do this cycle: the frame's command, or off while the frame
+    /// is disabled; nothing without a frame.
+    fn desired_commands(&self, frame: Option<CommandFrame>) -> [Option<AxisCommand>; MAX_AXES] {
         let mut desired = [None; MAX_AXES];
         if let Some(f) = frame {
-            for i in 0..n {
+            for i in 0..self.n() {
                 desired[i] = Some(if f.enabled {
                     f.commands[i]
                 } else {
@@ -391,13 +404,13 @@ impl Io {
                 });
             }
         }
-        // 2. Mode changes (rare; several exchanges).
-        let mut to_off = Axes::NONE;
-        let mut to_on = Axes::NONE;
-        let mut to_position = Axes::NONE;
-        let mut to_effort = Axes::NONE;
-        let mut restore_gains = Axes::NONE;
-        for i in 0..n {
+        desired
+    }
+
+    /// The axes whose mode must change for `desired`, grouped by what the board must do.
+    fn plan_mode_changes(&self, desired: &[Option<AxisCommand>; MAX_AXES]) -> ModeChanges {
+        let mut changes = ModeChanges::default();
+        for i in 0..self.n() {
             let want = match desired[i] {
                 None => continue,
                 Some(AxisCommand::Off) => Mode::Off,
@@ -409,87 +422,45 @@ impl Io {
             }
             let bit = Axes(1 << i);
             match want {
-                Mode::Off => to_off.0 |= bit.0,
-                Mode::Position => to_position.0 |= bit.0,
-                Mode::Effort => to_effort.0 |= bit.0,
+                Mode::Off => changes.off.0 |= bit.0,
+                Mode::Position => changes.position.0 |= bit.0,
+                Mode::Effort => changes.effort.0 |= bit.0,
                 Mode::Unknown => {}
             }
             if want != Mode::Off && matches!(self.modes[i], Mode::Off | Mode::Unknown) {
-                to_on.0 |= bit.0;
+                changes.on.0 |= bit.0;
             }
             if want == Mode::Position
                 && (matches!(self.modes[i], Mode::Effort | Mode::Unknown) || self.gains_zeroed[i])
             {
-                restore_gains.0 |= bit.0;
+                changes.restore_gains.0 |= bit.0;
             }
         }
-        if !to_off.is_empty() {
-            client.ack(&Command::MotorOff(to_off)).map_err(fault)?;
+        changes
+    }
+
+    /// Makes the board's axis modes match `desired` (rare; several exchanges) and records them.
+    fn change_modes(
+        &mut self,
+        desired: &[Option<AxisCommand>; MAX_AXES],
+    ) -> Result<(), BoardFault> {
+        let changes = self.plan_mode_changes(desired);
+        let client = self.client.as_mut().ok_or(BoardFault::Closed)?;
+        if !changes.off.is_empty() {
+            client.ack(&Command::MotorOff(changes.off)).map_err(fault)?;
         }
-        if !to_effort.is_empty() {
-            // Zero gains: OF is then the output.
-            let mut zeros = [None; MAX_AXES];
-            let mut of = [None; MAX_AXES];
-            for i in to_effort.indices() {
-                zeros[i] = Some(0.0);
-                of[i] = Some(0.0);
-            }
-            for s in [
-                Setting::PositionTracking,
-                Setting::Kp,
-                Setting::Ki,
-                Setting::Kd,
-            ] {
-                client.set(s, &zeros[..n]).map_err(fault)?;
-            }
-            client.set(Setting::Offset, &of[..n]).map_err(fault)?;
-            for i in to_effort.indices() {
-                self.gains_zeroed[i] = true;
-            }
+        if !changes.effort.is_empty() {
+            self.enter_effort(changes.effort)?;
         }
-        if !to_position.is_empty() {
-            let mut of = [None; MAX_AXES];
-            let mut g = [[None; MAX_AXES]; 3];
-            let mut pt = [None; MAX_AXES];
-            let tracking = self.config.target_mode == TargetMode::PositionTracking;
-            for i in to_position.indices() {
-                pt[i] = Some(if tracking { 1.0 } else { 0.0 });
-            }
-            for i in restore_gains.indices() {
-                of[i] = Some(0.0);
-                for (k, gk) in g.iter_mut().enumerate() {
-                    gk[i] = Some(self.gains[i][k]);
-                }
-            }
-            if !restore_gains.is_empty() {
-                client.set(Setting::Offset, &of[..n]).map_err(fault)?;
-                for (k, s) in [Setting::Kp, Setting::Ki, Setting::Kd]
-                    .into_iter()
-                    .enumerate()
-                {
-                    client.set(s, &g[k][..n]).map_err(fault)?;
-                }
-                for i in restore_gains.indices() {
-                    self.gains_zeroed[i] = false;
-                }
-            }
-            // Servo on (holding the current position) before tracking starts.
-            let on = Axes(to_on.0 & to_position.0);
-            if !on.is_empty() {
-                client.ack(&Command::ServoHere(on)).map_err(fault)?;
-            }
-            client
-                .set(Setting::PositionTracking, &pt[..n])
-                .map_err(fault)?;
-            for i in to_position.indices() {
-                self.sent_target[i] = None;
-            }
+        if !changes.position.is_empty() {
+            self.enter_position(&changes)?;
         }
-        let on_effort = Axes(to_on.0 & to_effort.0);
+        let on_effort = Axes(changes.on.0 & changes.effort.0);
         if !on_effort.is_empty() {
+            let client = self.client.as_mut().ok_or(BoardFault::Closed)?;
             client.ack(&Command::ServoHere(on_effort)).map_err(fault)?;
         }
-        for i in 0..n {
+        for i in 0..self.n() {
             match desired[i] {
                 Some(AxisCommand::Off) => self.modes[i] = Mode::Off,
                 Some(AxisCommand::Position(_)) => self.modes[i] = Mode::Position,
@@ -497,38 +468,132 @@ impl Io {
                 None => {}
             }
         }
-        // 3. The cycle line: targets, then TP and TE (and TS in relative mode).
-        let mut targets = [None; MAX_AXES];
-        let mut offsets = [None; MAX_AXES];
-        let mut relative = false;
-        let mut begin = Axes::NONE;
-        for i in 0..n {
+        Ok(())
+    }
+
+    /// Puts `axes` in effort mode: their gains zeroed, so the offset (`OF`) is the output.
+    fn enter_effort(&mut self, axes: Axes) -> Result<(), BoardFault> {
+        let n = self.n();
+        let client = self.client.as_mut().ok_or(BoardFault::Closed)?;
+        let mut zeros = [None; MAX_AXES];
+        let mut of = [None; MAX_AXES];
+        for i in axes.indices() {
+            zeros[i] = Some(0.0);
+            of[i] = Some(0.0);
+        }
+        for s in [
+            Setting::PositionTracking,
+            Setting::Kp,
+            Setting::Ki,
+            Setting::Kd,
+        ] {
+            client.set(s, &zeros[..n]).map_err(fault)?;
+        }
+        client.set(Setting::Offset, &of[..n]).map_err(fault)?;
+        for i in axes.indices() {
+            self.gains_zeroed[i] = true;
+        }
+        Ok(())
+    }
+
+    /// Puts `changes.position` in position mode: gains written back where they were zeroed,
+    /// servo on where the axis was off, then tracking set per the configured target mode.
+    fn enter_position(&mut self, changes: &ModeChanges) -> Result<(), BoardFault> {
+        let n = self.n();
+        let client = self.client.as_mut().ok_or(BoardFault::Closed)?;
+        let mut of = [None; MAX_AXES];
+        let mut g = [[None; MAX_AXES]; 3];
+        let mut pt = [None; MAX_AXES];
+        let tracking = self.config.target_mode == TargetMode::PositionTracking;
+        for i in changes.position.indices() {
+            pt[i] = Some(if tracking { 1.0 } else { 0.0 });
+        }
+        for i in changes.restore_gains.indices() {
+            of[i] = Some(0.0);
+            for (k, gk) in g.iter_mut().enumerate() {
+                gk[i] = Some(self.gains[i][k]);
+            }
+        }
+        if !changes.restore_gains.is_empty() {
+            client.set(Setting::Offset, &of[..n]).map_err(fault)?;
+            for (k, s) in [Setting::Kp, Setting::Ki, Setting::Kd]
+                .into_iter()
+                .enumerate()
+            {
+                client.set(s, &g[k][..n]).map_err(fault)?;
+            }
+            for i in changes.restore_gains.indices() {
+                self.gains_zeroed[i] = false;
+            }
+        }
+        // Servo on (holding the current position) before tracking starts.
+        let on = Axes(changes.on.0 & changes.position.0);
+        if !on.is_empty() {
+            client.ack(&Command::ServoHere(on)).map_err(fault)?;
+        }
+        client
+            .set(Setting::PositionTracking, &pt[..n])
+            .map_err(fault)?;
+        for i in changes.position.indices() {
+            self.sent_target[i] = None;
+        }
+        Ok(())
+    }
+
+    /// The per-axis values of this cycle's line: position targets (absolute, or relative moves
+    /// begun where the axis stands still) and effort offsets in volts.
+    fn cycle_targets(&mut self, desired: &[Option<AxisCommand>; MAX_AXES]) -> CycleTargets {
+        let mut out = CycleTargets {
+            targets: [None; MAX_AXES],
+            offsets: [None; MAX_AXES],
+            relative: false,
+            begin: Axes::NONE,
+        };
+        for i in 0..self.n() {
             match desired[i] {
                 Some(AxisCommand::Position(p)) => match self.config.target_mode {
-                    TargetMode::PositionTracking => targets[i] = Some(p as f64),
+                    TargetMode::PositionTracking => out.targets[i] = Some(p as f64),
                     TargetMode::Relative => {
                         let from = self.sent_target[i].unwrap_or(self.state[i].position);
                         if p != from && !self.moving[i] {
-                            targets[i] = Some(p.saturating_sub(from) as f64);
+                            out.targets[i] = Some(p.saturating_sub(from) as f64);
                             self.sent_target[i] = Some(p);
-                            begin.0 |= 1 << i;
-                            relative = true;
+                            out.begin.0 |= 1 << i;
+                            out.relative = true;
                         }
                     }
                 },
                 Some(AxisCommand::Effort(t)) => {
                     let v =
                         (t * self.config.volts_per_newton_metre[i]).clamp(-MAX_VOLTS, MAX_VOLTS);
-                    offsets[i] = Some(v);
+                    out.offsets[i] = Some(v);
                     self.state[i].effort = t;
                 }
                 _ => {}
             }
         }
+        out
+    }
+
+    /// The cycle line: heartbeat and targets out, then `TP` and `TE` (and `TS` in relative mode)
+    /// back into the axis state.
+    fn exchange_cycle_line(
+        &mut self,
+        desired: &[Option<AxisCommand>; MAX_AXES],
+    ) -> Result<(), BoardFault> {
+        let n = self.n();
+        let report = self.report_axes;
+        let CycleTargets {
+            targets,
+            offsets,
+            relative,
+            begin,
+        } = self.cycle_targets(desired);
         let watchdog = self.config.watchdog.is_some();
         if watchdog {
             self.beat = next_beat(self.beat);
         }
+        let client = self.client.as_mut().ok_or(BoardFault::Closed)?;
         let mut parts: heapless::Vec<Command<'_>, 7> = heapless::Vec::new();
         let _ = parts.push(Command::Assign(HEARTBEAT, f64::from(self.beat)));
         let target_setting = if relative {
@@ -571,56 +636,49 @@ impl Io {
             }
         }
         let mut values = [0.0; MAX_GALIL_AXES];
-        let parse = |text: &[u8], values: &mut [f64; MAX_GALIL_AXES]| -> Result<(), BoardFault> {
-            match parse_numbers(text, values) {
-                Ok(k) if k == n => Ok(()),
-                _ => Err(BoardFault::Garbled),
-            }
-        };
-        parse(&replies[reads].text, &mut values)?;
+        parse_axes(&replies[reads].text, n, &mut values)?;
         for i in 0..n {
             self.state[i].position = to_counts(values[i]).map_err(|_| BoardFault::Garbled)?;
         }
-        parse(&replies[reads + 1].text, &mut values)?;
+        parse_axes(&replies[reads + 1].text, n, &mut values)?;
         for i in 0..n {
             self.state[i].following_error =
                 to_counts(values[i]).map_err(|_| BoardFault::Garbled)?;
         }
         if relative_mode {
-            parse(&replies[reads + 2].text, &mut values)?;
-            self.apply_switches(&values)?;
-        }
-        // 4. Status every few cycles: velocity, torque, switches.
-        self.cycle += 1;
-        if self
-            .cycle
-            .is_multiple_of(u64::from(self.config.status_every.max(1)))
-        {
-            let Some(client) = self.client.as_mut() else {
-                return Err(BoardFault::Closed);
-            };
-            let status = [
-                Command::Tell(Tell::Velocity, report),
-                Command::Tell(Tell::Torque, report),
-                Command::Tell(Tell::Switches, report),
-            ];
-            let mut replies: [Reply; 3] = Default::default();
-            client.transact(&status, &mut replies).map_err(fault)?;
-            parse(&replies[0].text, &mut values)?;
-            for i in 0..n {
-                self.state[i].velocity = values[i];
-            }
-            parse(&replies[1].text, &mut values)?;
-            for i in 0..n {
-                let scale = self.config.volts_per_newton_metre[i];
-                if self.modes[i] != Mode::Effort && scale != 0.0 {
-                    self.state[i].effort = values[i] / scale;
-                }
-            }
-            parse(&replies[2].text, &mut values)?;
+            parse_axes(&replies[reads + 2].text, n, &mut values)?;
             self.apply_switches(&values)?;
         }
         Ok(())
+    }
+
+    /// The status exchange: velocity, torque (the effort of axes not in effort mode) and
+    /// switches.
+    fn read_status(&mut self) -> Result<(), BoardFault> {
+        let n = self.n();
+        let report = self.report_axes;
+        let client = self.client.as_mut().ok_or(BoardFault::Closed)?;
+        let status = [
+            Command::Tell(Tell::Velocity, report),
+            Command::Tell(Tell::Torque, report),
+            Command::Tell(Tell::Switches, report),
+        ];
+        let mut replies: [Reply; 3] = Default::default();
+        client.transact(&status, &mut replies).map_err(fault)?;
+        let mut values = [0.0; MAX_GALIL_AXES];
+        parse_axes(&replies[0].text, n, &mut values)?;
+        for i in 0..n {
+            self.state[i].velocity = values[i];
+        }
+        parse_axes(&replies[1].text, n, &mut values)?;
+        for i in 0..n {
+            let scale = self.config.volts_per_newton_metre[i];
+            if self.modes[i] != Mode::Effort && scale != 0.0 {
+                self.state[i].effort = values[i] / scale;
+            }
+        }
+        parse_axes(&replies[2].text, n, &mut values)?;
+        self.apply_switches(&values)
     }
 
     /// Reads `TS` values: amplifier state and motion; an axis the board switched off while it
@@ -636,6 +694,50 @@ impl Io {
             }
         }
         Ok(())
+    }
+}
+
+/// The mode changes one cycle asks for, as axis sets.
+#[derive(Clone, Copy, Default)]
+struct ModeChanges {
+    /// Axes to switch off.
+    off: Axes,
+    /// Axes to servo on (they were off or in an unknown mode).
+    on: Axes,
+    /// Axes to put in position mode.
+    position: Axes,
+    /// Axes to put in effort mode.
+    effort: Axes,
+    /// Position axes whose gains must be written back (zeroed for effort, or unknown).
+    restore_gains: Axes,
+}
+
+/// The per-axis values one cycle line sends.
+struct CycleTargets {
+    /// Position targets, counts (absolute, or relative moves).
+    targets: [Option<f64>; MAX_AXES],
+    /// Effort offsets, volts.
+    offsets: [Option<f64>; MAX_AXES],
+    /// Whether the targets are relative moves.
+    relative: bool,
+    /// Axes whose relative move begins this cycle.
+    begin: Axes,
+}
+
+/// A protocol error as the fault it means for the board.
+fn fault(e: GalilError) -> BoardFault {
+    BoardFault::from_error(&e)
+}
+
+/// Parses one report reply into `values`; anything but one number per driven axis is garbled.
+fn parse_axes(
+    text: &[u8],
+    axes: usize,
+    values: &mut [f64; MAX_GALIL_AXES],
+) -> Result<(), BoardFault> {
+    match parse_numbers(text, values) {
+        Ok(k) if k == axes => Ok(()),
+        _ => Err(BoardFault::Garbled),
     }
 }
 

@@ -104,6 +104,31 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.iterations == Some(0) {
         return Err(crate::cmd::usage("--iterations must be at least 1"));
     }
+    let measures = measure_models(&args);
+    if args.json {
+        print_json(&measures);
+    } else {
+        print_text(&measures);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The five model measurements: FK and FK + force, float against bit-exact.
+struct Measures {
+    /// Float FK.
+    float_fk: Measure,
+    /// Bit-exact FK on words.
+    fixed_fk: Measure,
+    /// Bit-exact FK through the kinematics trait.
+    trait_fk: Measure,
+    /// Float FK and J^T F.
+    float_force: Measure,
+    /// Bit-exact FK and J^T F on words.
+    fixed_force: Measure,
+}
+
+/// Measures each model on the same seeded configurations and wrenches.
+fn measure_models(args: &Args) -> Measures {
     let table = DhTable::frhc();
     let kin = FpgaKinematics::new(table);
     let chain = FloatChain::new(&DhTable::frhc_params());
@@ -122,58 +147,88 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .map(|w| w.map(|x| x as f64 * pipeline::WRENCH.lsb()))
         .collect();
 
-    let float_fk = measure("float FK (f64, R and p)", &args, |i| {
+    let float_fk = measure("float FK (f64, R and p)", args, |i| {
         black_box(chain.forward(black_box(&q_rad[i]), f64::sin_cos));
     });
-    let fixed_fk = measure("bit-exact FK (words in, words out)", &args, |i| {
+    let fixed_fk = measure("bit-exact FK (words in, words out)", args, |i| {
         black_box(pipeline::forward(&table, black_box(&q_raw[i])));
     });
-    let trait_fk = measure("FpgaKinematics::forward (rad in, Pose out)", &args, |i| {
+    let trait_fk = measure("FpgaKinematics::forward (rad in, Pose out)", args, |i| {
         black_box(kin.forward(black_box(&q_vec[i])));
     });
-    let float_force = measure("float FK + J^T F (f64)", &args, |i| {
+    let float_force = measure("float FK + J^T F (f64)", args, |i| {
         let fl = chain.forward_frames(black_box(&q_rad[i]), f64::sin_cos);
         black_box(fl.joint_torques(black_box(&wrench_f[i]), JOINTS));
     });
-    let fixed_force = measure("bit-exact FK + J^T F (words)", &args, |i| {
+    let fixed_force = measure("bit-exact FK + J^T F (words)", args, |i| {
         let fk: FkWords = pipeline::forward(&table, black_box(&q_raw[i]));
         black_box(pipeline::joint_torques(&fk, black_box(&wrench[i]), false));
     });
 
+    Measures {
+        float_fk,
+        fixed_fk,
+        trait_fk,
+        float_force,
+        fixed_force,
+    }
+}
+
+/// The figures as one JSON object.
+fn print_json(ms: &Measures) {
+    let Measures {
+        float_fk,
+        fixed_fk,
+        trait_fk,
+        float_force,
+        fixed_force,
+    } = ms;
     let hw_fk_s = cycles::seconds(FK_CYCLES);
     let hw_force_s = cycles::seconds(FORCE_CYCLES);
     let fk_ratio = fixed_fk.ns_per_call() / float_fk.ns_per_call();
     let force_ratio = fixed_force.ns_per_call() / float_force.ns_per_call();
 
-    if args.json {
-        let m = |m: &Measure| {
-            json!({
-                "name": m.name,
-                "calls": m.calls,
-                "ns_per_call": m.ns_per_call(),
-                "per_second": m.per_second(),
-            })
-        };
-        let out = json!({
-            "model": [m(&float_fk), m(&fixed_fk), m(&trait_fk), m(&float_force), m(&fixed_force)],
-            "fk_time_ratio_bit_exact_over_float": fk_ratio,
-            "force_time_ratio_bit_exact_over_float": force_ratio,
-            "hardware": {
-                "clock_hz": cycles::CLOCK_HZ,
-                "fk_cycles": FK_CYCLES,
-                "fk_latency_s": hw_fk_s,
-                "fk_per_second": cycles::per_second(FK_CYCLES),
-                "force_cycles": FORCE_CYCLES,
-                "force_latency_s": hw_force_s,
-                "force_per_second": cycles::per_second(FORCE_CYCLES),
-                "fk_to_host_s": FK.latency_ns() as f64 * 1e-9,
-                "force_to_host_s": FK_FORCE.latency_ns() as f64 * 1e-9,
-                "command_delay_s": fpga_board::command_delay_ns() as f64 * 1e-9,
-            },
-        });
-        println!("{out}");
-        return Ok(ExitCode::SUCCESS);
-    }
+    let m = |m: &Measure| {
+        json!({
+            "name": m.name,
+            "calls": m.calls,
+            "ns_per_call": m.ns_per_call(),
+            "per_second": m.per_second(),
+        })
+    };
+    let out = json!({
+        "model": [m(float_fk), m(fixed_fk), m(trait_fk), m(float_force), m(fixed_force)],
+        "fk_time_ratio_bit_exact_over_float": fk_ratio,
+        "force_time_ratio_bit_exact_over_float": force_ratio,
+        "hardware": {
+            "clock_hz": cycles::CLOCK_HZ,
+            "fk_cycles": FK_CYCLES,
+            "fk_latency_s": hw_fk_s,
+            "fk_per_second": cycles::per_second(FK_CYCLES),
+            "force_cycles": FORCE_CYCLES,
+            "force_latency_s": hw_force_s,
+            "force_per_second": cycles::per_second(FORCE_CYCLES),
+            "fk_to_host_s": FK.latency_ns() as f64 * 1e-9,
+            "force_to_host_s": FK_FORCE.latency_ns() as f64 * 1e-9,
+            "command_delay_s": fpga_board::command_delay_ns() as f64 * 1e-9,
+        },
+    });
+    println!("{out}");
+}
+
+/// The figures as Markdown tables.
+fn print_text(ms: &Measures) {
+    let Measures {
+        float_fk,
+        fixed_fk,
+        trait_fk,
+        float_force,
+        fixed_force,
+    } = ms;
+    let hw_fk_s = cycles::seconds(FK_CYCLES);
+    let hw_force_s = cycles::seconds(FORCE_CYCLES);
+    let fk_ratio = fixed_fk.ns_per_call() / float_fk.ns_per_call();
+    let force_ratio = fixed_force.ns_per_call() / float_force.ns_per_call();
 
     println!("FPGA kinematics model, FRHC DH table, one thread ({BATCH} seeded configurations)\n");
     println!("| implementation | calls | ns per call | calls per second | time vs float |");
@@ -229,5 +284,4 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "\nbit-exact FK takes {fk_ratio:.2}x the float FK's time per call (goal: within 3x); \
          force path {force_ratio:.2}x."
     );
-    Ok(ExitCode::SUCCESS)
 }

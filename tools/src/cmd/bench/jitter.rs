@@ -100,34 +100,9 @@ fn parse_arg(name: &str, text: &str) -> anyhow::Result<Duration> {
 
 /// Runs the benchmark.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let period = parse_arg("period", &args.period)?;
-    let duration = parse_arg("duration", &args.duration)?;
-    let slice = parse_arg("slice", &args.slice)?;
-    let rate_duration = parse_arg("rate-duration", &args.rate_duration)?;
-    if period < Duration::from_micros(20)
-        || period > Duration::from_secs(1)
-        || period.subsec_nanos() % 1000 != 0
-    {
-        return Err(usage(
-            "--period must be a whole number of microseconds between 20us and 1s",
-        ));
-    }
-    if duration < period * 10 || slice < period * 10 {
-        return Err(usage(
-            "--duration and --slice must cover at least 10 periods",
-        ));
-    }
-    if !(1..=99).contains(&args.priority) {
-        return Err(usage("--priority must be 1 to 99"));
-    }
+    let (period, duration, slice, rate_duration) = checked_durations(&args)?;
     let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let cpu = args.cpu.unwrap_or(cpus - 1);
-    if cpu >= cpus {
-        return Err(usage(format!(
-            "--cpu {cpu}: this machine has CPUs 0 to {}",
-            cpus - 1
-        )));
-    }
+    let cpu = checked_cpu(&args, cpus)?;
 
     ensure_tools(args.load)?;
     std::fs::create_dir_all(&args.out)
@@ -163,28 +138,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         eprintln!("  slice {}/{slices} done", i + 1);
     }
 
-    let mut rates = Vec::new();
-    if !rate_duration.is_zero() {
-        eprintln!(
-            "achievable rate: {:.1} s runs at 1, 2, 4, 8, 10, 20 kHz",
-            rate_duration.as_secs_f64()
-        );
-        for hz in [1_000u64, 2_000, 4_000, 8_000, 10_000, 20_000] {
-            let p = Duration::from_nanos(1_000_000_000 / hz);
-            let report = run_ours(p, rate_duration, args.priority, cpu)?;
-            let baseline = run_cyclictest(p, rate_duration, args.priority, cpu)?;
-            rates.push(RateRun {
-                hz,
-                ticks: report.ticks,
-                overruns: report.overruns,
-                late: report.latency.count_at_or_above(p),
-                p999: report.latency.summary().p999,
-                exec_mean: report.exec.mean(),
-                exec_max: report.exec.max(),
-                baseline_late: baseline.count_at_or_above(p),
-            });
-        }
-    }
+    let rates = if rate_duration.is_zero() {
+        Vec::new()
+    } else {
+        achievable_rates(rate_duration, args.priority, cpu)?
+    };
     let best = rates.iter().filter(|r| r.overruns == 0).map(|r| r.hz).max();
 
     let text = render_text(
@@ -219,6 +177,74 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     plot(&svg_path, period, &args, &ours, &theirs)?;
     println!("wrote {} and {}", json_path.display(), svg_path.display());
     Ok(ExitCode::SUCCESS)
+}
+
+/// The run's durations from the arguments: the period (whole microseconds, 20 µs to 1 s), the
+/// duration and slice (at least 10 periods each) and the rate runs' duration; and the priority
+/// checked (1 to 99).
+fn checked_durations(args: &Args) -> anyhow::Result<(Duration, Duration, Duration, Duration)> {
+    let period = parse_arg("period", &args.period)?;
+    let duration = parse_arg("duration", &args.duration)?;
+    let slice = parse_arg("slice", &args.slice)?;
+    let rate_duration = parse_arg("rate-duration", &args.rate_duration)?;
+    if period < Duration::from_micros(20)
+        || period > Duration::from_secs(1)
+        || period.subsec_nanos() % 1000 != 0
+    {
+        return Err(usage(
+            "--period must be a whole number of microseconds between 20us and 1s",
+        ));
+    }
+    if duration < period * 10 || slice < period * 10 {
+        return Err(usage(
+            "--duration and --slice must cover at least 10 periods",
+        ));
+    }
+    if !(1..=99).contains(&args.priority) {
+        return Err(usage("--priority must be 1 to 99"));
+    }
+    Ok((period, duration, slice, rate_duration))
+}
+
+/// The CPU to measure on: `--cpu`, else the last of `cpus`.
+fn checked_cpu(args: &Args, cpus: usize) -> anyhow::Result<usize> {
+    let cpu = args.cpu.unwrap_or(cpus - 1);
+    if cpu >= cpus {
+        return Err(usage(format!(
+            "--cpu {cpu}: this machine has CPUs 0 to {}",
+            cpus - 1
+        )));
+    }
+    Ok(cpu)
+}
+
+/// The achievable rate: runs of `rate_duration` at 1 to 20 kHz, each against cyclictest.
+fn achievable_rates(
+    rate_duration: Duration,
+    priority: u8,
+    cpu: usize,
+) -> anyhow::Result<Vec<RateRun>> {
+    let mut rates = Vec::new();
+    eprintln!(
+        "achievable rate: {:.1} s runs at 1, 2, 4, 8, 10, 20 kHz",
+        rate_duration.as_secs_f64()
+    );
+    for hz in [1_000u64, 2_000, 4_000, 8_000, 10_000, 20_000] {
+        let p = Duration::from_nanos(1_000_000_000 / hz);
+        let report = run_ours(p, rate_duration, priority, cpu)?;
+        let baseline = run_cyclictest(p, rate_duration, priority, cpu)?;
+        rates.push(RateRun {
+            hz,
+            ticks: report.ticks,
+            overruns: report.overruns,
+            late: report.latency.count_at_or_above(p),
+            p999: report.latency.summary().p999,
+            exec_mean: report.exec.mean(),
+            exec_max: report.exec.max(),
+            baseline_late: baseline.count_at_or_above(p),
+        });
+    }
+    Ok(rates)
 }
 
 fn us(d: Duration) -> f64 {
@@ -394,49 +420,54 @@ fn render_text(
         rt_json(rt)["cpu_dma_latency"].as_str().unwrap_or("?"),
     );
     if !rates.is_empty() {
-        let _ = writeln!(
-            o,
-            "\nAchievable control rate (our loop, same load; cyclictest at the same rate for reference):"
-        );
-        let _ = writeln!(
-            o,
-            "{:>8} {:>9} {:>9} {:>9} {:>10} {:>13} {:>12} {:>11}",
-            "rate",
-            "ticks",
-            "overruns",
-            "late>=T",
-            "p99.9 us",
-            "exec mean us",
-            "exec max us",
-            "ct late>=T"
-        );
-        for r in rates {
-            let _ = writeln!(
-                o,
-                "{:>5} kHz {:>9} {:>9} {:>9} {:>10.1} {:>13.1} {:>12.1} {:>11}",
-                r.hz / 1000,
-                r.ticks,
-                r.overruns,
-                r.late,
-                us(r.p999),
-                us(r.exec_mean),
-                us(r.exec_max),
-                r.baseline_late
-            );
-        }
-        match best {
-            Some(hz) => {
-                let _ = writeln!(o, "highest overrun-free rate: {} kHz", hz / 1000);
-            }
-            None => {
-                let _ = writeln!(
-                    o,
-                    "highest overrun-free rate: none of the tried rates ran without an overrun"
-                );
-            }
-        }
+        write_rates(&mut o, rates, best);
     }
     o
+}
+
+/// The achievable-rate table and the highest overrun-free rate.
+fn write_rates(o: &mut String, rates: &[RateRun], best: Option<u64>) {
+    let _ = writeln!(
+        o,
+        "\nAchievable control rate (our loop, same load; cyclictest at the same rate for reference):"
+    );
+    let _ = writeln!(
+        o,
+        "{:>8} {:>9} {:>9} {:>9} {:>10} {:>13} {:>12} {:>11}",
+        "rate",
+        "ticks",
+        "overruns",
+        "late>=T",
+        "p99.9 us",
+        "exec mean us",
+        "exec max us",
+        "ct late>=T"
+    );
+    for r in rates {
+        let _ = writeln!(
+            o,
+            "{:>5} kHz {:>9} {:>9} {:>9} {:>10.1} {:>13.1} {:>12.1} {:>11}",
+            r.hz / 1000,
+            r.ticks,
+            r.overruns,
+            r.late,
+            us(r.p999),
+            us(r.exec_mean),
+            us(r.exec_max),
+            r.baseline_late
+        );
+    }
+    match best {
+        Some(hz) => {
+            let _ = writeln!(o, "highest overrun-free rate: {} kHz", hz / 1000);
+        }
+        None => {
+            let _ = writeln!(
+                o,
+                "highest overrun-free rate: none of the tried rates ran without an overrun"
+            );
+        }
+    }
 }
 
 /// Runs our control loop (plus its communication thread) for `length` at `period`.

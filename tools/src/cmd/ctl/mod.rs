@@ -332,74 +332,16 @@ impl Ctl {
                 settings,
             } => {
                 let text = config_text(config, config_file.as_deref(), &settings)?;
-                let client = self.client()?;
-                let node = client.node(&node)?;
-                let info = node.create(&kind, &name, &text)?;
-                let path = node.path_of(&info);
-                if json {
-                    say!("{}", json!({ "path": path, "object": info }));
-                } else {
-                    say!("created {path} ({}): {}", info.kind, info.state);
-                }
-                Ok(())
+                self.create(&node, &kind, &name, &text, json)
             }
-            Verb::Destroy { path, force } => {
-                let client = self.client()?;
-                let r = client.locate(&path)?;
-                client.node(&r.node)?.destroy(&r.name, force)?;
-                let path = path_of(&r);
-                if json {
-                    say!("{}", json!({ "destroyed": path }));
-                } else {
-                    say!("destroyed {path}");
-                }
-                Ok(())
-            }
-            Verb::Advance { node, duration } => {
-                let now = self.client()?.node(&node)?.advance(duration)?;
-                if json {
-                    say!("{}", json!({ "node": node, "time_s": now.as_secs_f64() }));
-                } else {
-                    say!("{node}: simulated clock at {:.3} s", now.as_secs_f64());
-                }
-                Ok(())
-            }
+            Verb::Destroy { path, force } => self.destroy(&path, force, json),
+            Verb::Advance { node, duration } => self.advance(&node, duration, json),
             Verb::Record(RecordVerb::Start {
                 node,
                 path,
                 objects,
-            }) => {
-                let (path, controllers, links) = self
-                    .client()?
-                    .node(&node)?
-                    .record_start_at(&path, &objects)?;
-                if json {
-                    say!(
-                        "{}",
-                        json!({ "node": node, "path": path, "controllers": controllers, "links": links })
-                    );
-                } else {
-                    say!(
-                        "{node}: recording {} to {path}{}",
-                        controllers.join(", "),
-                        if links.is_empty() {
-                            String::new()
-                        } else {
-                            format!(" (links of {})", links.join(", "))
-                        }
-                    );
-                }
-                Ok(())
-            }
-            Verb::Record(RecordVerb::Stop { node }) => {
-                let (path, ticks) = self.client()?.node(&node)?.record_stop()?;
-                if json {
-                    say!("{}", json!({ "node": node, "path": path, "ticks": ticks }));
-                } else {
-                    say!("{node}: recorded {ticks} control ticks to {path}");
-                }
-                Ok(())
-            }
+            }) => self.record_start(&node, &path, &objects, json),
+            Verb::Record(RecordVerb::Stop { node }) => self.record_stop(&node, json),
             Verb::Configure { path } => self.method(&path, "configure", &[], json),
             Verb::Activate { path } => self.method(&path, "activate", &[], json),
             Verb::Deactivate { path } => self.method(&path, "deactivate", &[], json),
@@ -430,6 +372,97 @@ impl Ctl {
                 self.script(&script, json)
             }
         }
+    }
+
+    /// `create`: a new object on a node, configured from `text`.
+    fn create(
+        &mut self,
+        node: &str,
+        kind: &str,
+        name: &str,
+        text: &str,
+        json: bool,
+    ) -> anyhow::Result<()> {
+        let client = self.client()?;
+        let node = client.node(node)?;
+        let info = node.create(kind, name, text)?;
+        let path = node.path_of(&info);
+        if json {
+            say!("{}", json!({ "path": path, "object": info }));
+        } else {
+            say!("created {path} ({}): {}", info.kind, info.state);
+        }
+        Ok(())
+    }
+
+    /// `destroy`: an object, by its path.
+    fn destroy(&mut self, path: &str, force: bool, json: bool) -> anyhow::Result<()> {
+        let client = self.client()?;
+        let r = client.locate(path)?;
+        client.node(&r.node)?.destroy(&r.name, force)?;
+        let path = path_of(&r);
+        if json {
+            say!("{}", json!({ "destroyed": path }));
+        } else {
+            say!("destroyed {path}");
+        }
+        Ok(())
+    }
+
+    /// `advance`: a node's simulated clock, by `duration`.
+    fn advance(
+        &mut self,
+        node: &str,
+        duration: std::time::Duration,
+        json: bool,
+    ) -> anyhow::Result<()> {
+        let now = self.client()?.node(node)?.advance(duration)?;
+        if json {
+            say!("{}", json!({ "node": node, "time_s": now.as_secs_f64() }));
+        } else {
+            say!("{node}: simulated clock at {:.3} s", now.as_secs_f64());
+        }
+        Ok(())
+    }
+
+    /// `record start`: a node's recording of `objects` (all when empty) into `path`.
+    fn record_start(
+        &mut self,
+        node: &str,
+        path: &str,
+        objects: &[String],
+        json: bool,
+    ) -> anyhow::Result<()> {
+        let (path, controllers, links) =
+            self.client()?.node(node)?.record_start_at(path, objects)?;
+        if json {
+            say!(
+                "{}",
+                json!({ "node": node, "path": path, "controllers": controllers, "links": links })
+            );
+        } else {
+            say!(
+                "{node}: recording {} to {path}{}",
+                controllers.join(", "),
+                if links.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (links of {})", links.join(", "))
+                }
+            );
+        }
+        Ok(())
+    }
+
+    /// `record stop`: a node's recording, ended.
+    fn record_stop(&mut self, node: &str, json: bool) -> anyhow::Result<()> {
+        let (path, ticks) = self.client()?.node(node)?.record_stop()?;
+        if json {
+            say!("{}", json!({ "node": node, "path": path, "ticks": ticks }));
+        } else {
+            say!("{node}: recorded {ticks} control ticks to {path}");
+        }
+        Ok(())
     }
 
     /// Calls a method by its kebab-case name and prints the reply.

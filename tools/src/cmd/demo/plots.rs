@@ -80,7 +80,16 @@ fn panel(
 
 /// Writes `tracking.svg`, `forces.svg` and, for real-time runs, `timing.svg`.
 pub fn write_all(dir: &Path, out: &RunOutput) -> anyhow::Result<Vec<PathBuf>> {
-    let mut written = Vec::new();
+    let mut written = vec![write_tracking(dir, out)?, write_forces(dir, out)?];
+    // Timing: wake-up latency per tick of the control threads (real-time runs only).
+    if out.info.clock == ClockMode::RealTime {
+        written.push(write_timing(dir, out)?);
+    }
+    Ok(written)
+}
+
+/// `tracking.svg`: the slave's reference and tool position along each axis, and the error.
+fn write_tracking(dir: &Path, out: &RunOutput) -> anyhow::Result<PathBuf> {
     // Tracking: the slave's reference and tool position along each axis, and the error, from the
     // first reference on.
     let tracked = || {
@@ -142,8 +151,11 @@ pub fn write_all(dir: &Path, out: &RunOutput) -> anyhow::Result<Vec<PathBuf>> {
         )?;
         root.present()?;
     }
-    written.push(path);
+    Ok(path)
+}
 
+/// `forces.svg`: what the slave senses, what the master displays, what the hand feels.
+fn write_forces(dir: &Path, out: &RunOutput) -> anyhow::Result<PathBuf> {
     // Forces: what the slave senses (base frame), what the master displays, what the hand feels.
     let slave_model = &out.info.slave_model;
     let sensed: Series = out
@@ -193,29 +205,28 @@ pub fn write_all(dir: &Path, out: &RunOutput) -> anyhow::Result<Vec<PathBuf>> {
         )?;
         root.present()?;
     }
-    written.push(path);
+    Ok(path)
+}
 
-    // Timing: wake-up latency per tick of the control threads (real-time runs only).
-    if out.info.clock == ClockMode::RealTime {
-        let latency = |rows: &[TickRecord]| -> Series {
-            rows.iter()
-                .map(|s| (time_of(out, s), s.sample.wake_latency.as_secs_f64() * 1e6))
-                .collect()
-        };
-        let (m, s) = (latency(&out.master), latency(&out.slave));
-        let path = dir.join("timing.svg");
-        {
-            let root = SVGBackend::new(&path, SIZE).into_drawing_area();
-            root.fill(&WHITE)?;
-            panel(
-                &root,
-                "Control threads: wake-up latency per tick",
-                "latency (µs)",
-                &[("master control", &m, BLUE), ("slave control", &s, RED)],
-            )?;
-            root.present()?;
-        }
-        written.push(path);
+/// `timing.svg`: the control threads' wake-up latency per tick.
+fn write_timing(dir: &Path, out: &RunOutput) -> anyhow::Result<PathBuf> {
+    let latency = |rows: &[TickRecord]| -> Series {
+        rows.iter()
+            .map(|s| (time_of(out, s), s.sample.wake_latency.as_secs_f64() * 1e6))
+            .collect()
+    };
+    let (m, s) = (latency(&out.master), latency(&out.slave));
+    let path = dir.join("timing.svg");
+    {
+        let root = SVGBackend::new(&path, SIZE).into_drawing_area();
+        root.fill(&WHITE)?;
+        panel(
+            &root,
+            "Control threads: wake-up latency per tick",
+            "latency (µs)",
+            &[("master control", &m, BLUE), ("slave control", &s, RED)],
+        )?;
+        root.present()?;
     }
-    Ok(written)
+    Ok(path)
 }

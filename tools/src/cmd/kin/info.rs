@@ -12,52 +12,8 @@ pub(super) fn info(m: &DhRobotModel, as_json: bool) -> String {
     let n = m.joint_count();
     let chain = m.chain();
     let links: Vec<_> = (0..n).filter_map(|j| chain.joint(j)).collect();
-    let lim = penelope_hal::RobotModel::limits(m);
     if as_json {
-        let joints: Vec<_> = links
-            .iter()
-            .enumerate()
-            .map(|(j, joint)| {
-                let mut o = json!({
-                    "name": m.joint_names()[j],
-                    "type": if joint.kind() == model::JointKind::Revolute { "revolute" } else { "prismatic" },
-                    "limits": [finite_or_null(lim.position_min[j]), finite_or_null(lim.position_max[j])],
-                    "counts_per_radian": m.counts_per_radian(j),
-                });
-                let geometry = match joint {
-                    model::ChainJoint::Dh(l) => json!({
-                        "theta": l.theta, "d": l.d, "a": l.a, "alpha": l.alpha, "offset": l.offset,
-                    }),
-                    model::ChainJoint::Axis(a) => {
-                        let (r, p, y) = a.origin.rotation.euler_angles();
-                        json!({
-                            "origin_xyz": a.origin.translation.vector.as_slice(),
-                            "origin_rpy": [r, p, y],
-                            "axis": a.axis.as_slice(),
-                        })
-                    }
-                };
-                if let (Some(o), serde_json::Value::Object(g)) = (o.as_object_mut(), geometry) {
-                    o.extend(g);
-                }
-                o
-            })
-            .collect();
-        let poses: serde_json::Map<String, serde_json::Value> = m
-            .poses()
-            .iter()
-            .map(|(name, q)| (name.clone(), json!(&q.as_slice()[..n])))
-            .collect();
-        return json!({
-            "name": m.name(),
-            "kind": m.kind(),
-            "description": m.description(),
-            "assumptions": m.assumptions(),
-            "inverse_kinematics": if m.has_closed_form() { "closed-form" } else { "numerical" },
-            "joints": joints,
-            "poses": poses,
-        })
-        .to_string();
+        return info_json(m, &links);
     }
     let mut s = format!("{} — {}\n", m.name(), m.description());
     let _ = writeln!(
@@ -74,25 +30,7 @@ pub(super) fn info(m: &DhRobotModel, as_json: bool) -> String {
     if dh.len() < links.len() {
         s += &axis_joints_text(m, &links);
     } else {
-        let _ = writeln!(
-            s,
-            "{:>2} {:<14} {:>10} {:>10} {:>8} {:>8}  {:>17}",
-            "j", "name", "d (m)", "a (m)", "alpha°", "offset°", "limits (deg)"
-        );
-        for (j, l) in dh.iter().enumerate() {
-            let _ = writeln!(
-                s,
-                "{:>2} {:<14} {:>10.5} {:>10.5} {:>8.2} {:>8.2}  {:>8.1} {:>8.1}",
-                j + 1,
-                m.joint_names()[j],
-                l.d,
-                l.a,
-                l.alpha.to_degrees(),
-                l.offset.to_degrees(),
-                lim.position_min[j].to_degrees(),
-                lim.position_max[j].to_degrees()
-            );
-        }
+        s += &dh_table_text(m, &dh);
     }
     s += "named poses (deg):\n";
     for (name, q) in m.poses() {
@@ -108,6 +46,82 @@ pub(super) fn info(m: &DhRobotModel, as_json: bool) -> String {
         for a in m.assumptions() {
             let _ = writeln!(s, "  - {a}");
         }
+    }
+    s
+}
+
+/// `info` as one JSON object.
+fn info_json(m: &DhRobotModel, links: &[model::ChainJoint]) -> String {
+    let n = m.joint_count();
+    let lim = penelope_hal::RobotModel::limits(m);
+    let joints: Vec<_> = links
+        .iter()
+        .enumerate()
+        .map(|(j, joint)| {
+            let mut o = json!({
+                "name": m.joint_names()[j],
+                "type": if joint.kind() == model::JointKind::Revolute { "revolute" } else { "prismatic" },
+                "limits": [finite_or_null(lim.position_min[j]), finite_or_null(lim.position_max[j])],
+                "counts_per_radian": m.counts_per_radian(j),
+            });
+            let geometry = match joint {
+                model::ChainJoint::Dh(l) => json!({
+                    "theta": l.theta, "d": l.d, "a": l.a, "alpha": l.alpha, "offset": l.offset,
+                }),
+                model::ChainJoint::Axis(a) => {
+                    let (r, p, y) = a.origin.rotation.euler_angles();
+                    json!({
+                        "origin_xyz": a.origin.translation.vector.as_slice(),
+                        "origin_rpy": [r, p, y],
+                        "axis": a.axis.as_slice(),
+                    })
+                }
+            };
+            if let (Some(o), serde_json::Value::Object(g)) = (o.as_object_mut(), geometry) {
+                o.extend(g);
+            }
+            o
+        })
+        .collect();
+    let poses: serde_json::Map<String, serde_json::Value> = m
+        .poses()
+        .iter()
+        .map(|(name, q)| (name.clone(), json!(&q.as_slice()[..n])))
+        .collect();
+    json!({
+        "name": m.name(),
+        "kind": m.kind(),
+        "description": m.description(),
+        "assumptions": m.assumptions(),
+        "inverse_kinematics": if m.has_closed_form() { "closed-form" } else { "numerical" },
+        "joints": joints,
+        "poses": poses,
+    })
+    .to_string()
+}
+
+/// The DH table: one row per joint, with its limits.
+fn dh_table_text(m: &DhRobotModel, dh: &[model::DhLink]) -> String {
+    let lim = penelope_hal::RobotModel::limits(m);
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{:>2} {:<14} {:>10} {:>10} {:>8} {:>8}  {:>17}",
+        "j", "name", "d (m)", "a (m)", "alpha°", "offset°", "limits (deg)"
+    );
+    for (j, l) in dh.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "{:>2} {:<14} {:>10.5} {:>10.5} {:>8.2} {:>8.2}  {:>8.1} {:>8.1}",
+            j + 1,
+            m.joint_names()[j],
+            l.d,
+            l.a,
+            l.alpha.to_degrees(),
+            l.offset.to_degrees(),
+            lim.position_min[j].to_degrees(),
+            lim.position_max[j].to_degrees()
+        );
     }
     s
 }

@@ -116,98 +116,11 @@ fn output(args: &Args) -> anyhow::Result<String> {
         return fpga_output(args, &m);
     }
     let out = match &args.op {
-        Op::Fk(j) => {
-            let q = joints(&m, "--q", &j.q)?;
-            let t = m.forward_matrix(&q);
-            if args.json {
-                json!({ "T": rows(&t) }).to_string()
-            } else {
-                let p = m.forward(&q);
-                let (roll, pitch, yaw) = p.rotation.euler_angles();
-                let mut s = header(&m, "forward kinematics", &q);
-                s += &format!(
-                    "T (tool pose in the base frame; m) =\n{}",
-                    matrix_text(&t, None)
-                );
-                let v = p.translation.vector;
-                s += &format!(
-                    "position (m):   x {:.6}  y {:.6}  z {:.6}\nroll-pitch-yaw (deg): {:.4} {:.4} {:.4}\n",
-                    v.x,
-                    v.y,
-                    v.z,
-                    roll.to_degrees(),
-                    pitch.to_degrees(),
-                    yaw.to_degrees()
-                );
-                s
-            }
-        }
+        Op::Fk(j) => fk_output(&m, &joints(&m, "--q", &j.q)?, args.json),
         Op::Jacobian { joints: j, frame } => {
-            let q = joints(&m, "--q", &j.q)?;
-            let frame = match frame {
-                FrameArg::Base => JacobianFrame::Base,
-                FrameArg::Tool => JacobianFrame::Tool,
-            };
-            let jac = m.jacobian(&q, frame).columns(0, n).into_owned();
-            if args.json {
-                json!({ "J": rows(&jac) }).to_string()
-            } else {
-                let mut s = header(&m, "geometric Jacobian", &q);
-                let _ = writeln!(
-                    s,
-                    "J ({} frame; rows vx vy vz [m/s] wx wy wz [rad/s], one column per joint) =",
-                    if frame == JacobianFrame::Base {
-                        "base"
-                    } else {
-                        "tool"
-                    }
-                );
-                s += &matrix_text(&jac, Some(&["vx", "vy", "vz", "wx", "wy", "wz"]));
-                s
-            }
+            jacobian_output(&m, &joints(&m, "--q", &j.q)?, *frame, args.json)
         }
-        Op::Ik { pose } => {
-            let target = parse_pose(pose)?;
-            let mut sols = IkSolutions::new();
-            m.inverse_all(&target, &mut sols)
-                .map_err(|e| anyhow::anyhow!("inverse kinematics: {e}"))?;
-            if args.json {
-                let list: Vec<_> = sols
-                    .iter()
-                    .map(|s| {
-                        json!({
-                            "branch": s.branch,
-                            "q": &s.q.as_slice()[..n],
-                            "within_limits": s.within_limits,
-                        })
-                    })
-                    .collect();
-                json!({ "solutions": list }).to_string()
-            } else {
-                let mut s = format!(
-                    "{} inverse kinematics ({}): {} solution(s)\n",
-                    m.name(),
-                    if m.has_closed_form() {
-                        "closed form"
-                    } else {
-                        "damped least squares"
-                    },
-                    sols.len()
-                );
-                let _ = writeln!(s, "{:<18} {:<62} limits", "branch", "q (rad)");
-                for sol in &sols {
-                    let q: Vec<String> = sol.q.iter().take(n).map(|x| format!("{x:9.5}")).collect();
-                    let _ = writeln!(
-                        s,
-                        "{:<18} {:<62} {}",
-                        sol.branch,
-                        q.join(" "),
-                        if sol.within_limits { "ok" } else { "OUTSIDE" }
-                    );
-                }
-                s
-            }
-        }
+        Op::Ik { pose } => ik_output(&m, pose, args.json)?,
         Op::Gravity(j) => {
             let q = joints(&m, "--q", &j.q)?;
             let tau = m.gravity(&q);
@@ -247,6 +160,104 @@ fn output(args: &Args) -> anyhow::Result<String> {
         Op::Info => info(&m, args.json),
     };
     Ok(out)
+}
+
+/// `kin fk`: the tool pose at `q` (the matrix; as text also the position and roll-pitch-yaw).
+fn fk_output(m: &DhRobotModel, q: &JointVector, json: bool) -> String {
+    let t = m.forward_matrix(q);
+    if json {
+        json!({ "T": rows(&t) }).to_string()
+    } else {
+        let p = m.forward(q);
+        let (roll, pitch, yaw) = p.rotation.euler_angles();
+        let mut s = header(m, "forward kinematics", q);
+        s += &format!(
+            "T (tool pose in the base frame; m) =\n{}",
+            matrix_text(&t, None)
+        );
+        let v = p.translation.vector;
+        s += &format!(
+            "position (m):   x {:.6}  y {:.6}  z {:.6}\nroll-pitch-yaw (deg): {:.4} {:.4} {:.4}\n",
+            v.x,
+            v.y,
+            v.z,
+            roll.to_degrees(),
+            pitch.to_degrees(),
+            yaw.to_degrees()
+        );
+        s
+    }
+}
+
+/// `kin jacobian`: the geometric Jacobian at `q` in `frame`.
+fn jacobian_output(m: &DhRobotModel, q: &JointVector, frame: FrameArg, json: bool) -> String {
+    let n = m.joint_count();
+    let frame = match frame {
+        FrameArg::Base => JacobianFrame::Base,
+        FrameArg::Tool => JacobianFrame::Tool,
+    };
+    let jac = m.jacobian(q, frame).columns(0, n).into_owned();
+    if json {
+        json!({ "J": rows(&jac) }).to_string()
+    } else {
+        let mut s = header(m, "geometric Jacobian", q);
+        let _ = writeln!(
+            s,
+            "J ({} frame; rows vx vy vz [m/s] wx wy wz [rad/s], one column per joint) =",
+            if frame == JacobianFrame::Base {
+                "base"
+            } else {
+                "tool"
+            }
+        );
+        s += &matrix_text(&jac, Some(&["vx", "vy", "vz", "wx", "wy", "wz"]));
+        s
+    }
+}
+
+/// `kin ik`: every inverse kinematics branch for `pose`, with whether it is within the limits.
+fn ik_output(m: &DhRobotModel, pose: &str, json: bool) -> anyhow::Result<String> {
+    let n = m.joint_count();
+    let target = parse_pose(pose)?;
+    let mut sols = IkSolutions::new();
+    m.inverse_all(&target, &mut sols)
+        .map_err(|e| anyhow::anyhow!("inverse kinematics: {e}"))?;
+    Ok(if json {
+        let list: Vec<_> = sols
+            .iter()
+            .map(|s| {
+                json!({
+                    "branch": s.branch,
+                    "q": &s.q.as_slice()[..n],
+                    "within_limits": s.within_limits,
+                })
+            })
+            .collect();
+        json!({ "solutions": list }).to_string()
+    } else {
+        let mut s = format!(
+            "{} inverse kinematics ({}): {} solution(s)\n",
+            m.name(),
+            if m.has_closed_form() {
+                "closed form"
+            } else {
+                "damped least squares"
+            },
+            sols.len()
+        );
+        let _ = writeln!(s, "{:<18} {:<62} limits", "branch", "q (rad)");
+        for sol in &sols {
+            let q: Vec<String> = sol.q.iter().take(n).map(|x| format!("{x:9.5}")).collect();
+            let _ = writeln!(
+                s,
+                "{:<18} {:<62} {}",
+                sol.branch,
+                q.join(" "),
+                if sol.within_limits { "ok" } else { "OUTSIDE" }
+            );
+        }
+        s
+    })
 }
 
 /// A built-in robot or a DH file; anything else is a usage error.

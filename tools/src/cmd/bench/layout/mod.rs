@@ -438,74 +438,20 @@ pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result
     let system = SystemFile::parse(&file_text).map_err(|e| anyhow::anyhow!("{e}"))?;
     let secret = scratch.0.join("secret");
     crate::cmd::secret::write_new_secret(&secret)?;
+    let launch = Launch {
+        exe: &exe,
+        system_path: &system_path,
+        naming,
+        secret: &secret,
+        scratch: &scratch.0,
+    };
 
-    let s = |p: &Path| p.display().to_string();
-    hosts.start(
-        naming_host,
-        "naming service",
-        &exe,
-        &[
-            "naming".into(),
-            "--listen".into(),
-            naming.to_string(),
-            "--secret-file".into(),
-            s(&secret),
-        ],
-        "naming service on",
-        READY,
-    )?;
-    // The robot's side first, the joystick last: the operator starts once the slave is there
-    // (its first sample anchors the slave; the hand's script starts with the master).
-    let mut nodes: Vec<(usize, &str)> = Vec::new();
-    for (h, roles) in layout.hosts.iter().enumerate() {
-        for node in roles.iter().flatten() {
-            nodes.push((h, node));
-        }
-    }
+    launch.naming_service(&mut hosts, naming_host)?;
     let task_nodes = system_nodes_of_task(&system)?;
-    nodes.sort_by_key(|(_, n)| (*n == task_nodes.0, *n == task_nodes.1));
-    let mut recordings = Vec::new();
-    for (h, node) in &nodes {
-        let record = scratch.0.join(format!("{node}.mcap"));
-        let mut node_args = vec![
-            "node".into(),
-            "--name".into(),
-            node.to_string(),
-            "--config".into(),
-            s(&system_path),
-            "--naming".into(),
-            naming.to_string(),
-            "--listen".into(),
-            SocketAddr::new(hosts.address(*h), NODE_PORT).to_string(),
-            "--secret-file".into(),
-            s(&secret),
-        ];
-        if *node == task_nodes.0 || *node == task_nodes.1 {
-            node_args.extend(["--record".into(), s(&record)]);
-            recordings.push(record);
-        }
-        hosts.start(
-            *h,
-            &format!("node {node}"),
-            &exe,
-            &node_args,
-            "Ctrl-C stops the node",
-            READY,
-        )?;
-    }
+    let recordings = launch.nodes(&mut hosts, layout, task_nodes)?;
 
     // The raw UDP echo between the joystick's host and the robot's, alongside the task.
-    let (a, b) = layout.ends;
-    let (addr_a, addr_b) = (hosts.address(a), hosts.address(b));
-    let server = hosts
-        .spawn_in(b, move || {
-            let socket = UdpSocket::bind(SocketAddr::new(addr_b, 0))?;
-            let addr = socket.local_addr()?;
-            Ok((Echo::serve(socket)?, addr))
-        })
-        .join()
-        .map_err(|_| anyhow::anyhow!("the echo server's thread panicked"))??;
-    let (echo, echo_addr) = server;
+    let (echo, echo_addr) = start_echo(&hosts, layout.ends.1)?;
     let options = RunOptions {
         duration,
         clock: ClockMode::RealTime,
@@ -513,7 +459,8 @@ pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result
     };
     let task_length = duration.unwrap_or(Duration::from_secs(20));
     let count = (task_length.as_millis() / 2) as usize;
-    let pinger = hosts.spawn_in(a, move || {
+    let addr_a = hosts.address(layout.ends.0);
+    let pinger = hosts.spawn_in(layout.ends.0, move || {
         let socket = UdpSocket::bind(SocketAddr::new(addr_a, 0))?;
         Ok(latency::ping(
             &socket,
@@ -523,20 +470,7 @@ pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result
         )?)
     });
 
-    // Until both recordings cover the task (bounded).
-    let deadline = Instant::now() + task_length + Duration::from_secs(60);
-    let output: RunOutput = loop {
-        std::thread::sleep(Duration::from_millis(250));
-        let read: Result<Vec<_>, _> = recordings.iter().map(|p| read_recording(p)).collect();
-        if let Ok(read) = read
-            && let Some(out) = from_recordings(&system, &options, &read)?
-        {
-            break out;
-        }
-        if Instant::now() >= deadline {
-            bail!("the recordings did not cover the task within {task_length:?} + 60 s");
-        }
-    };
+    let output = wait_for_recordings(&recordings, &system, &options, task_length)?;
     let (echoes, lost) = pinger
         .join()
         .map_err(|_| anyhow::anyhow!("the echo client's thread panicked"))??;
@@ -548,8 +482,146 @@ pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result
         .map(|p| read_recording(p))
         .collect::<Result<_, _>>()?;
     let output = from_recordings(&system, &options, &read)?.unwrap_or(output);
-    let rep = report(&output);
-    let udp_echo_one_way = Percentiles::of(echoes);
+    Ok(layout_record(
+        layout,
+        &output,
+        &read,
+        task_nodes,
+        Percentiles::of(echoes),
+        lost,
+    ))
+}
+
+/// What every process of a layout run is started with.
+struct Launch<'a> {
+    /// The penelope binary.
+    exe: &'a Path,
+    /// The placed system file.
+    system_path: &'a Path,
+    /// The naming service's address.
+    naming: SocketAddr,
+    /// The shared secret's file.
+    secret: &'a Path,
+    /// Where the recordings go.
+    scratch: &'a Path,
+}
+
+impl Launch<'_> {
+    /// Starts the naming service on host `host` and waits until it listens.
+    fn naming_service(&self, hosts: &mut Hosts, host: usize) -> anyhow::Result<()> {
+        hosts.start(
+            host,
+            "naming service",
+            self.exe,
+            &[
+                "naming".into(),
+                "--listen".into(),
+                self.naming.to_string(),
+                "--secret-file".into(),
+                self.secret.display().to_string(),
+            ],
+            "naming service on",
+            READY,
+        )
+    }
+
+    /// Starts every node of `layout` on its host (the task's two recording) and returns the
+    /// recordings' paths. The robot's side first, the joystick last: the operator starts once
+    /// the slave is there (its first sample anchors the slave; the hand's script starts with
+    /// the master).
+    fn nodes(
+        &self,
+        hosts: &mut Hosts,
+        layout: &Layout,
+        task_nodes: (&str, &str),
+    ) -> anyhow::Result<Vec<PathBuf>> {
+        let s = |p: &Path| p.display().to_string();
+        let mut nodes: Vec<(usize, &str)> = Vec::new();
+        for (h, roles) in layout.hosts.iter().enumerate() {
+            for node in roles.iter().flatten() {
+                nodes.push((h, node));
+            }
+        }
+        nodes.sort_by_key(|(_, n)| (*n == task_nodes.0, *n == task_nodes.1));
+        let mut recordings = Vec::new();
+        for (h, node) in &nodes {
+            let record = self.scratch.join(format!("{node}.mcap"));
+            let mut node_args = vec![
+                "node".into(),
+                "--name".into(),
+                node.to_string(),
+                "--config".into(),
+                s(self.system_path),
+                "--naming".into(),
+                self.naming.to_string(),
+                "--listen".into(),
+                SocketAddr::new(hosts.address(*h), NODE_PORT).to_string(),
+                "--secret-file".into(),
+                s(self.secret),
+            ];
+            if *node == task_nodes.0 || *node == task_nodes.1 {
+                node_args.extend(["--record".into(), s(&record)]);
+                recordings.push(record);
+            }
+            hosts.start(
+                *h,
+                &format!("node {node}"),
+                self.exe,
+                &node_args,
+                "Ctrl-C stops the node",
+                READY,
+            )?;
+        }
+        Ok(recordings)
+    }
+}
+
+/// Starts the UDP echo server on host `host`; returns it and its address.
+fn start_echo(hosts: &Hosts, host: usize) -> anyhow::Result<(Echo, SocketAddr)> {
+    let addr = hosts.address(host);
+    hosts
+        .spawn_in(host, move || {
+            let socket = UdpSocket::bind(SocketAddr::new(addr, 0))?;
+            let addr = socket.local_addr()?;
+            Ok((Echo::serve(socket)?, addr))
+        })
+        .join()
+        .map_err(|_| anyhow::anyhow!("the echo server's thread panicked"))?
+}
+
+/// Waits until the recordings cover the task (bounded: the task's length and a minute), and
+/// returns the run they make.
+fn wait_for_recordings(
+    recordings: &[PathBuf],
+    system: &SystemFile,
+    options: &RunOptions,
+    task_length: Duration,
+) -> anyhow::Result<RunOutput> {
+    let deadline = Instant::now() + task_length + Duration::from_secs(60);
+    loop {
+        std::thread::sleep(Duration::from_millis(250));
+        let read: Result<Vec<_>, _> = recordings.iter().map(|p| read_recording(p)).collect();
+        if let Ok(read) = read
+            && let Some(out) = from_recordings(system, options, &read)?
+        {
+            return Ok(out);
+        }
+        if Instant::now() >= deadline {
+            bail!("the recordings did not cover the task within {task_length:?} + 60 s");
+        }
+    }
+}
+
+/// The layout's figures from the run, its recordings and the UDP echo's.
+fn layout_record(
+    layout: &Layout,
+    output: &RunOutput,
+    read: &[Recording],
+    task_nodes: (&str, &str),
+    udp_echo_one_way: Percentiles,
+    udp_echo_lost: usize,
+) -> LayoutRecord {
+    let rep = report(output);
     // Each end's last record within the task (the nodes stopping afterwards lose the link).
     let end_ns = output.master.last().map_or(0, |t| t.sample.time.as_nanos());
     let last_link = |node: &str| {
@@ -562,7 +634,7 @@ pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result
         (Some(m), Some(s)) => Some(summary(m, s, &udp_echo_one_way)),
         _ => None,
     };
-    Ok(LayoutRecord {
+    LayoutRecord {
         layout: layout.name.into(),
         hosts: layout.hosts.len(),
         processes: layout.hosts.iter().map(|h| h.len()).sum(),
@@ -571,16 +643,16 @@ pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result
         tracking_against_master_rms_mm: rep.tracking.against_master_rms_mm,
         sensed_force_n: rep.contact.sensed_force_n,
         display_error_pct: rep.contact.display_error_pct,
-        motion_to_command: Percentiles::of(latency::motion_to_command(&output)),
-        contact_to_force: Percentiles::of(latency::contact_to_force(&output)),
+        motion_to_command: Percentiles::of(latency::motion_to_command(output)),
+        contact_to_force: Percentiles::of(latency::contact_to_force(output)),
         udp_echo_one_way,
-        udp_echo_lost: lost,
+        udp_echo_lost,
         dropped_ticks: output.dropped,
         safety_events: rep.safety_events.clone(),
         loops: rep.timing.clone(),
         link,
-        streams: check_streams(&read, task_nodes.0, task_nodes.1),
-    })
+        streams: check_streams(read, task_nodes.0, task_nodes.1),
+    }
 }
 
 /// The nodes of the task's master and slave controllers.

@@ -145,21 +145,7 @@ impl LoadRun {
 
 /// Runs `penelope bench rpc`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    if args.samples == 0 || args.slice == 0 {
-        return Err(usage("--samples and --slice must be at least 1"));
-    }
-    if args.payload > 60_000 {
-        return Err(usage("--payload must be at most 60000 bytes"));
-    }
-    if args.batch == 0 || args.batch > 10_000 {
-        return Err(usage("--batch must be 1 to 10000"));
-    }
-    if !(args.throughput_secs.is_finite() && (0.0..=600.0).contains(&args.throughput_secs)) {
-        return Err(usage("--throughput-secs must be 0 to 600"));
-    }
-    if args.net_load() && !(1..=64).contains(&args.flood_streams) {
-        return Err(usage("--flood-streams must be 1 to 64"));
-    }
+    check_args(&args)?;
     let mut loads = args.load.clone();
     loads.dedup();
     // Fail before measuring anything when a requested load or probe cannot run.
@@ -210,6 +196,41 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     std::fs::write(&json_path, serde_json::to_string_pretty(&doc)?)
         .with_context(|| format!("writing {}", json_path.display()))?;
     let mut written = vec![json_path];
+    write_charts(&args, &runs, &mut written)?;
+
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&doc)?);
+    } else {
+        print!("{}", render(&args, &runs));
+        let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
+        println!("wrote {}", names.join(", "));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The arguments' bounds: samples, slice, payload, batch, throughput time, flood streams.
+fn check_args(args: &Args) -> anyhow::Result<()> {
+    if args.samples == 0 || args.slice == 0 {
+        return Err(usage("--samples and --slice must be at least 1"));
+    }
+    if args.payload > 60_000 {
+        return Err(usage("--payload must be at most 60000 bytes"));
+    }
+    if args.batch == 0 || args.batch > 10_000 {
+        return Err(usage("--batch must be 1 to 10000"));
+    }
+    if !(args.throughput_secs.is_finite() && (0.0..=600.0).contains(&args.throughput_secs)) {
+        return Err(usage("--throughput-secs must be 0 to 600"));
+    }
+    if args.net_load() && !(1..=64).contains(&args.flood_streams) {
+        return Err(usage("--flood-streams must be 1 to 64"));
+    }
+    Ok(())
+}
+
+/// One round-trip chart per load (`rpc-LOAD.svg`), and all loads in one when there are
+/// several (`rpc-loads.svg`); their paths go into `written`.
+fn write_charts(args: &Args, runs: &[LoadRun], written: &mut Vec<PathBuf>) -> anyhow::Result<()> {
     let charts: Vec<(String, Vec<plot::Curve<'_>>)> = runs
         .iter()
         .map(|r| {
@@ -244,15 +265,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         plot::write(&path, &charts)?;
         written.push(path);
     }
-
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&doc)?);
-    } else {
-        print!("{}", render(&args, &runs));
-        let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
-        println!("wrote {}", names.join(", "));
-    }
-    Ok(ExitCode::SUCCESS)
+    Ok(())
 }
 
 impl Args {
@@ -437,82 +450,8 @@ fn render(args: &Args, runs: &[LoadRun]) -> String {
                 rate * 8.0 / 1e9
             );
         }
-        let _ = writeln!(
-            o,
-            "  {:<17} {:>6} {:>8} {:>8} {:>10} {:>7} {:>7} {:>7} {:>8} {:>8}",
-            "probe (µs)", "n", "mean", "std", "var µs²", "p50", "p90", "p99", "p99.9", "max"
-        );
-        for (kind, s) in &r.samples {
-            let Some(s) = Summary::of(s) else { continue };
-            let _ = writeln!(
-                o,
-                "  {:<17} {:>6} {:>8.2} {:>8.2} {:>10.2} {:>7.2} {:>7.2} {:>7.2} {:>8.1} {:>8.1}",
-                kind.name(),
-                s.n,
-                s.mean / 1e3,
-                s.std() / 1e3,
-                s.variance / 1e6,
-                s.p50 / 1e3,
-                s.p90 / 1e3,
-                s.p99 / 1e3,
-                s.p999 / 1e3,
-                s.max / 1e3
-            );
-        }
-        if let Some(sock) = r.icmp_socket {
-            let _ = writeln!(
-                o,
-                "  (icmp: {sock} socket, {} echo(es) lost and resent)",
-                r.icmp_lost
-            );
-        }
-        let pairs = [
-            (ProbeKind::Rpc, ProbeKind::Tcp, "rpc/tcp"),
-            (ProbeKind::Rpc, ProbeKind::TcpHandoff, "rpc/tcp+handoff"),
-            (ProbeKind::Rpc, ProbeKind::Icmp, "rpc/icmp"),
-            (ProbeKind::SealedRpc, ProbeKind::Tcp, "sealed/tcp"),
-            (ProbeKind::SealedRpc, ProbeKind::Rpc, "sealed/rpc"),
-        ];
-        for (probe, base, name) in pairs {
-            if let (Some(a), Some(b)) = (r.summary(probe), r.summary(base)) {
-                let (p50, p99) = (ratio(a.p50, b.p50), ratio(a.p99, b.p99));
-                let goal = if base == ProbeKind::Tcp {
-                    format!(
-                        "   goal <= {GOAL_RATIO}: {}",
-                        if p50 <= GOAL_RATIO && p99 <= GOAL_RATIO {
-                            "met"
-                        } else {
-                            "NOT met"
-                        }
-                    )
-                } else {
-                    String::new()
-                };
-                let _ = writeln!(o, "  {name:<15} p50 {p50:>5.3}   p99 {p99:>5.3}{goal}");
-            }
-        }
-        let (m50, m99) = (
-            r.slice_ratio(args.slice, |s| s.p50),
-            r.slice_ratio(args.slice, |s| s.p99),
-        );
-        if m50.is_finite() && args.samples / args.slice >= 3 {
-            let _ = writeln!(
-                o,
-                "  rpc/tcp, median over the {} slice pairs: p50 {m50:.3}   p99 {m99:.3}",
-                args.samples.div_ceil(args.slice)
-            );
-        }
-        let (s50, s99) = (
-            r.slice_ratio_of(ProbeKind::SealedRpc, args.slice, |s| s.p50),
-            r.slice_ratio_of(ProbeKind::SealedRpc, args.slice, |s| s.p99),
-        );
-        if s50.is_finite() && args.samples / args.slice >= 3 {
-            let _ = writeln!(
-                o,
-                "  sealed/tcp, median over the {} slice pairs: p50 {s50:.3}   p99 {s99:.3}",
-                args.samples.div_ceil(args.slice)
-            );
-        }
+        write_probe_table(&mut o, r);
+        write_ratios(&mut o, args, r);
         for t in &r.throughput {
             let _ = writeln!(
                 o,
@@ -537,6 +476,90 @@ fn render(args: &Args, runs: &[LoadRun]) -> String {
         }
     }
     o
+}
+
+/// One load's round-trip figures per probe (µs), and the ICMP probe's losses.
+fn write_probe_table(o: &mut String, r: &LoadRun) {
+    let _ = writeln!(
+        o,
+        "  {:<17} {:>6} {:>8} {:>8} {:>10} {:>7} {:>7} {:>7} {:>8} {:>8}",
+        "probe (µs)", "n", "mean", "std", "var µs²", "p50", "p90", "p99", "p99.9", "max"
+    );
+    for (kind, s) in &r.samples {
+        let Some(s) = Summary::of(s) else { continue };
+        let _ = writeln!(
+            o,
+            "  {:<17} {:>6} {:>8.2} {:>8.2} {:>10.2} {:>7.2} {:>7.2} {:>7.2} {:>8.1} {:>8.1}",
+            kind.name(),
+            s.n,
+            s.mean / 1e3,
+            s.std() / 1e3,
+            s.variance / 1e6,
+            s.p50 / 1e3,
+            s.p90 / 1e3,
+            s.p99 / 1e3,
+            s.p999 / 1e3,
+            s.max / 1e3
+        );
+    }
+    if let Some(sock) = r.icmp_socket {
+        let _ = writeln!(
+            o,
+            "  (icmp: {sock} socket, {} echo(es) lost and resent)",
+            r.icmp_lost
+        );
+    }
+}
+
+/// One load's ratios of probes against their baselines (and the goals), whole and per slice.
+fn write_ratios(o: &mut String, args: &Args, r: &LoadRun) {
+    let pairs = [
+        (ProbeKind::Rpc, ProbeKind::Tcp, "rpc/tcp"),
+        (ProbeKind::Rpc, ProbeKind::TcpHandoff, "rpc/tcp+handoff"),
+        (ProbeKind::Rpc, ProbeKind::Icmp, "rpc/icmp"),
+        (ProbeKind::SealedRpc, ProbeKind::Tcp, "sealed/tcp"),
+        (ProbeKind::SealedRpc, ProbeKind::Rpc, "sealed/rpc"),
+    ];
+    for (probe, base, name) in pairs {
+        if let (Some(a), Some(b)) = (r.summary(probe), r.summary(base)) {
+            let (p50, p99) = (ratio(a.p50, b.p50), ratio(a.p99, b.p99));
+            let goal = if base == ProbeKind::Tcp {
+                format!(
+                    "   goal <= {GOAL_RATIO}: {}",
+                    if p50 <= GOAL_RATIO && p99 <= GOAL_RATIO {
+                        "met"
+                    } else {
+                        "NOT met"
+                    }
+                )
+            } else {
+                String::new()
+            };
+            let _ = writeln!(o, "  {name:<15} p50 {p50:>5.3}   p99 {p99:>5.3}{goal}");
+        }
+    }
+    let (m50, m99) = (
+        r.slice_ratio(args.slice, |s| s.p50),
+        r.slice_ratio(args.slice, |s| s.p99),
+    );
+    if m50.is_finite() && args.samples / args.slice >= 3 {
+        let _ = writeln!(
+            o,
+            "  rpc/tcp, median over the {} slice pairs: p50 {m50:.3}   p99 {m99:.3}",
+            args.samples.div_ceil(args.slice)
+        );
+    }
+    let (s50, s99) = (
+        r.slice_ratio_of(ProbeKind::SealedRpc, args.slice, |s| s.p50),
+        r.slice_ratio_of(ProbeKind::SealedRpc, args.slice, |s| s.p99),
+    );
+    if s50.is_finite() && args.samples / args.slice >= 3 {
+        let _ = writeln!(
+            o,
+            "  sealed/tcp, median over the {} slice pairs: p50 {s50:.3}   p99 {s99:.3}",
+            args.samples.div_ceil(args.slice)
+        );
+    }
 }
 
 #[cfg(test)]
