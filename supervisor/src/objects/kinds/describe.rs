@@ -469,6 +469,24 @@ mod tests {
         }
     }
 
+    #[test]
+    fn the_creator_parses_each_kind_with_the_type_its_entry_describes() {
+        // `make` dispatches on the kind to its own parser: the registered description must be
+        // of the type that parser takes. Every described key is known to it (its checks may
+        // still refuse the example, which sets keys that exclude each other).
+        for e in KIND_TABLE.iter() {
+            let text = (e.config.keys)();
+            if let Err(err) = crate::objects::registry::make(e.kind, "example", &text, &[]) {
+                let message = err.to_string();
+                assert!(
+                    !message.contains("unknown field"),
+                    "{}: make does not take its described keys: {message}",
+                    e.name
+                );
+            }
+        }
+    }
+
     /// A configuration whose description disagrees with its parser in every way the check
     /// looks for.
     #[derive(Default, Deserialize, Serialize, JsonSchema)]

@@ -199,3 +199,20 @@ pub fn entry_of(kind: Kind) -> &'static KindEntry {
 pub fn entry_named(name: &str) -> Option<&'static KindEntry> {
     KIND_TABLE.iter().find(|e| e.name == name)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_docs_list_every_kind_with_its_summary() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/system-files.md");
+        let docs = std::fs::read_to_string(path).unwrap();
+        let rows: Vec<&str> = docs.lines().filter(|l| l.starts_with("| `")).collect();
+        let expected: Vec<String> = KIND_TABLE
+            .iter()
+            .map(|e| format!("| `{}` | {} |", e.name, e.summary))
+            .collect();
+        assert_eq!(rows, expected, "docs/system-files.md's kind table");
+    }
+}
