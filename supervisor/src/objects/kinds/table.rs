@@ -89,7 +89,7 @@ pub struct Described {
     pub keys: fn() -> String,
     /// The fields its parser knows ([`fields_of`]).
     pub fields: fn() -> FieldTree,
-    /// Its parser ([`parse`](super::parse)), the value dropped.
+    /// Its parser ([`parse`]), the value dropped.
     pub parses: fn(&str, &str) -> Result<(), WireError>,
 }
 

@@ -105,29 +105,14 @@ pub struct StepConfig {
     pub delay_s: f64,
 }
 
-/// The goal keys set as the key lists show them (every one, though a trajectory takes one).
-fn example_goal() -> (
-    Option<Vec<f64>>,
-    Option<String>,
-    Option<[f64; 3]>,
-    Option<[f64; 3]>,
-) {
-    (
-        Some(vec![0.0; 6]),
-        Some("start".into()),
-        Some([0.6, -0.15, 0.5]),
-        Some([0.0, 90.0, 0.0]),
-    )
-}
-
 impl KindConfig for StepConfig {
+    /// Every goal key set, as the key lists show them (a trajectory takes one of them).
     fn example() -> Self {
-        let (goal, pose, position, rpy_deg) = example_goal();
         StepConfig {
-            goal,
-            pose,
-            position,
-            rpy_deg,
+            goal: Some(vec![0.0; 6]),
+            pose: Some("start".into()),
+            position: Some([0.6, -0.15, 0.5]),
+            rpy_deg: Some([0.0, 90.0, 0.0]),
             ..Self::default()
         }
     }
@@ -155,7 +140,13 @@ pub struct RampConfig {
 
 impl KindConfig for RampConfig {
     fn example() -> Self {
-        let (goal, pose, position, rpy_deg) = example_goal();
+        let StepConfig {
+            goal,
+            pose,
+            position,
+            rpy_deg,
+            ..
+        } = StepConfig::example();
         RampConfig {
             goal,
             pose,
@@ -201,7 +192,13 @@ pub struct TrapezoidalConfig {
 
 impl KindConfig for TrapezoidalConfig {
     fn example() -> Self {
-        let (goal, pose, position, rpy_deg) = example_goal();
+        let StepConfig {
+            goal,
+            pose,
+            position,
+            rpy_deg,
+            ..
+        } = StepConfig::example();
         TrapezoidalConfig {
             goal,
             pose,
@@ -256,7 +253,13 @@ pub struct SplineConfig {
 
 impl KindConfig for SplineConfig {
     fn example() -> Self {
-        let (q, pose, position, rpy_deg) = example_goal();
+        let StepConfig {
+            goal: q,
+            pose,
+            position,
+            rpy_deg,
+            ..
+        } = StepConfig::example();
         SplineConfig {
             waypoints: vec![WaypointConfig {
                 at_s: 2.0,
