@@ -461,9 +461,6 @@ mod tests {
             let text = (e.config.keys)();
             let fields = (e.config.fields)();
             assert!(fields.contains_key(""), "{}: no fields found", e.name);
-            if std::env::var_os("PENELOPE_DUMP_KINDS").is_some() {
-                println!("== {} ({})\n{text}", e.name, e.summary);
-            }
             let problems = description_problems(e.name, &text, e.config.parses, &fields);
             assert!(problems.is_empty(), "{}: {problems:#?}\n{text}", e.name);
         }

@@ -2,10 +2,19 @@
 //! [`Kind`], a one-line summary and its configuration type, from which the key list `ctl kinds`
 //! shows is derived ([`describe`](super::describe)). The class is the name's prefix.
 //!
-//! To add a kind: its configuration type (deriving `Deserialize`, `Serialize`, `JsonSchema`,
-//! with a doc comment per field, and `impl KindConfig`) in its own module, a [`Kind`] variant,
-//! its name's const and one [`KindEntry`] line below; then what the object does, in the
-//! registry's `make`.
+//! To add a kind (a sensor, say):
+//! 1. its configuration type in its own module: `#[derive(Deserialize, Serialize, JsonSchema)]`,
+//!    `#[serde(deny_unknown_fields, default)]`, a doc comment per field (units, range, what an
+//!    absent optional key means), and `impl KindConfig` (with an `example` that sets the
+//!    optional keys, so that the list shows them);
+//! 2. a [`Kind`] variant;
+//! 3. here, its name's const and one [`KindEntry`] line in [`KIND_TABLE`] (and its row in
+//!    `docs/system-files.md`, which a test keeps equal to the table);
+//! 4. what the object does: its arm in the registry's `make` (and `configure`, if it has one).
+//!
+//! `every_kind_round_trips_through_its_description` then checks the new kind's description
+//! against its parser, and `the_creator_parses_each_kind_with_the_type_its_entry_describes` that
+//! `make` parses the type the entry names.
 
 use penelope_protocol::proto::{Class, KindInfo, WireError};
 
@@ -155,7 +164,7 @@ const fn entry(
 
 /// Every kind, in listing order: one line per kind.
 #[rustfmt::skip]
-pub static KIND_TABLE: [KindEntry; 29] = [
+pub static KIND_TABLE: &[KindEntry] = &[
     entry(ROBOT_PUMA560, Kind::Robot("puma560"), "Unimation PUMA 560 (Robotics Toolbox DH model with dynamics)", described::<RobotConfig>()),
     entry(ROBOT_PUMA200, Kind::Robot("puma200"), "Unimation PUMA 200 (PUMA 260 geometry, assumed dynamics)", described::<RobotConfig>()),
     entry(ROBOT_FRHC, Kind::Robot("frhc"), "JPL Force Reflecting Hand Controller (master joystick)", described::<RobotConfig>()),
@@ -187,7 +196,8 @@ pub static KIND_TABLE: [KindEntry; 29] = [
     entry(TRAJECTORY_TELEOP, Kind::Teleop, "the channel between a master and a slave: the master's pose forward (scaled, rotated, clutched), the slave's pose and wrench back", described::<TeleopConfig>()),
 ];
 
-/// The entry of `kind`.
+/// The entry of `kind` (every [`Kind`] the creator makes comes from this table; the first entry
+/// stands in for one that does not, rather than a panic).
 pub fn entry_of(kind: Kind) -> &'static KindEntry {
     KIND_TABLE
         .iter()
