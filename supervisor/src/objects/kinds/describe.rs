@@ -192,9 +192,15 @@ const COMMENT_COLUMN: usize = 30;
 /// Comments wrap past this width.
 const WIDTH: usize = 100;
 
-/// `T`'s key list: TOML, every key at its example value with its help (units, ranges, default)
-/// in a comment; nested tables (`[[shapes]]`, `[faults]`) after the plain keys.
-pub fn key_text<T: KindConfig>() -> String {
+/// The schema extension naming the only kinds a key applies to, on a field of a type several
+/// kinds share: `#[schemars(extend("x-only-kinds" = ["robot/urdf"]))]`. Other kinds' lists leave
+/// the key out.
+pub const ONLY_KINDS: &str = "x-only-kinds";
+
+/// `T`'s key list for `kind`: TOML, every key at its example value with its help (units,
+/// ranges, default) in a comment; nested tables (`[[shapes]]`, `[faults]`) after the plain
+/// keys.
+pub fn key_text<T: KindConfig>(kind: &str) -> String {
     let schema = serde_json::to_value(schemars::schema_for!(T)).unwrap_or(Json::Null);
     let example = toml::Table::try_from(T::example()).unwrap_or_default();
     let default = toml::Table::try_from(T::default()).unwrap_or_default();
@@ -203,15 +209,40 @@ pub fn key_text<T: KindConfig>() -> String {
     Section {
         schema: &schema,
         tree: &tree,
+        kind,
     }
     .write(&mut out, "", &schema, &example, Some(&default));
     out
+}
+
+/// The top-level keys of `T` that apply to other kinds only ([`ONLY_KINDS`]): parsed, but not
+/// in `kind`'s list.
+pub fn other_kinds_keys<T: KindConfig>(kind: &str) -> BTreeSet<String> {
+    let schema = serde_json::to_value(schemars::schema_for!(T)).unwrap_or(Json::Null);
+    schema
+        .get("properties")
+        .and_then(Json::as_object)
+        .into_iter()
+        .flatten()
+        .filter(|(_, p)| !applies_to(p, kind))
+        .map(|(k, _)| k.clone())
+        .collect()
+}
+
+/// Whether a property applies to `kind` (it names no [`ONLY_KINDS`], or names `kind`).
+fn applies_to(property: &Json, kind: &str) -> bool {
+    match property.get(ONLY_KINDS).and_then(Json::as_array) {
+        Some(kinds) => kinds.iter().any(|k| k.as_str() == Some(kind)),
+        None => true,
+    }
 }
 
 struct Section<'a> {
     /// The whole schema (its `$defs`).
     schema: &'a Json,
     tree: &'a FieldTree,
+    /// The kind whose list this is.
+    kind: &'a str,
 }
 
 impl Section<'_> {
@@ -233,6 +264,9 @@ impl Section<'_> {
             };
             let child = join(path, field);
             let property = self.property(node, field);
+            if !applies_to(&property, self.kind) {
+                continue;
+            }
             let mut help = help_of(&property);
             let nested = self.tree.contains_key(&child);
             match value {
@@ -388,6 +422,7 @@ pub fn description_problems(
     text: &str,
     parses: fn(&str, &str) -> Result<(), penelope_protocol::proto::WireError>,
     fields: &FieldTree,
+    other_kinds_keys: &BTreeSet<String>,
 ) -> Vec<String> {
     let mut problems = Vec::new();
     if let Err(e) = parses(kind, text) {
@@ -399,6 +434,7 @@ pub fn description_problems(
     let known: BTreeSet<String> = fields
         .iter()
         .flat_map(|(path, fs)| fs.iter().map(move |f| join(path, f)))
+        .filter(|k| !other_kinds_keys.contains(k))
         .collect();
     let mut shown = BTreeSet::new();
     match text.parse::<toml::Table>() {
@@ -458,10 +494,11 @@ mod tests {
     #[test]
     fn every_kind_round_trips_through_its_description() {
         for e in KIND_TABLE.iter() {
-            let text = (e.config.keys)();
+            let text = (e.config.keys)(e.name);
             let fields = (e.config.fields)();
             assert!(fields.contains_key(""), "{}: no fields found", e.name);
-            let problems = description_problems(e.name, &text, e.config.parses, &fields);
+            let hidden = (e.config.other_kinds_keys)(e.name);
+            let problems = description_problems(e.name, &text, e.config.parses, &fields, &hidden);
             assert!(problems.is_empty(), "{}: {problems:#?}\n{text}", e.name);
         }
     }
@@ -472,7 +509,7 @@ mod tests {
         // of the type that parser takes. Every described key is known to it (its checks may
         // still refuse the example, which sets keys that exclude each other).
         for e in KIND_TABLE.iter() {
-            let text = (e.config.keys)();
+            let text = (e.config.keys)(e.name);
             if let Err(err) = crate::objects::registry::make(e.kind, "example", &text, &[]) {
                 let message = err.to_string();
                 assert!(
@@ -508,13 +545,14 @@ mod tests {
 
     #[test]
     fn a_field_without_a_description_fails_the_check() {
-        let text = key_text::<Undescribed>();
+        let text = key_text::<Undescribed>("test/undescribed");
         assert!(text.contains("shown = 0"), "{text}");
         let problems = description_problems(
             "test/undescribed",
             &text,
             parses_undescribed,
             &fields_of::<Undescribed>(),
+            &BTreeSet::new(),
         );
         for expected in [
             "an unknown key is not refused",
@@ -532,6 +570,7 @@ mod tests {
             &format!("{text}extra = 1 # help\n"),
             parses_undescribed,
             &fields_of::<Undescribed>(),
+            &BTreeSet::new(),
         );
         assert!(
             more.iter()

@@ -131,19 +131,23 @@ pub struct RobotConfig {
     pub max_force_n: f64,
     /// A master's largest displayed moment, N·m, > 0.
     pub max_moment_nm: f64,
-    /// robot/urdf only, required there: the URDF file, in one of the node's robot-file
+    /// The URDF file (required), in one of the node's robot-file
     /// directories (`--robot-files`), by name or absolute path; a regular file, 4 MiB at most;
     /// read when the robot is created.
+    #[schemars(extend("x-only-kinds" = [super::ROBOT_URDF]))]
     pub file: Option<String>,
-    /// robot/urdf only: the link whose frame is the tool frame (without it: the single leaf
+    /// The link whose frame is the tool frame (without it: the single leaf
     /// link).
+    #[schemars(extend("x-only-kinds" = [super::ROBOT_URDF]))]
     pub tip: Option<String>,
-    /// robot/urdf only: the link whose frame is the robot's base frame (without it: the root
+    /// The link whose frame is the robot's base frame (without it: the root
     /// link).
+    #[schemars(extend("x-only-kinds" = [super::ROBOT_URDF]))]
     pub base: Option<String>,
-    /// robot/urdf only: named poses (nest, start, work, ...), rad (m for prismatic joints), one
+    /// Named poses (nest, start, work, ...), rad (m for prismatic joints), one
     /// value per joint; without them: all at the zero configuration (mid-range for a joint
     /// whose limits exclude zero).
+    #[schemars(extend("x-only-kinds" = [super::ROBOT_URDF]))]
     pub poses: BTreeMap<String, Vec<f64>>,
 }
 

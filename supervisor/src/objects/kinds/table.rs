@@ -18,7 +18,9 @@
 
 use penelope_protocol::proto::{Class, KindInfo, WireError};
 
-use super::describe::{FieldTree, KindConfig, fields_of, key_text};
+use std::collections::BTreeSet;
+
+use super::describe::{FieldTree, KindConfig, fields_of, key_text, other_kinds_keys};
 use super::{Kind, parse};
 
 use super::devices::{GalilConfig, NetFtSensorConfig, RobotConfig, SensorConfig, SimBoardConfig};
@@ -94,8 +96,10 @@ pub const TRAJECTORY_TELEOP: &str = "trajectory/teleop";
 /// What a kind's configuration type gives the table, its type erased.
 #[derive(Clone, Copy)]
 pub struct Described {
-    /// The key list ([`key_text`]).
-    pub keys: fn() -> String,
+    /// The key list for a kind ([`key_text`]).
+    pub keys: fn(&str) -> String,
+    /// The keys that apply to other kinds only ([`other_kinds_keys`]).
+    pub other_kinds_keys: fn(&str) -> BTreeSet<String>,
     /// The fields its parser knows ([`fields_of`]).
     pub fields: fn() -> FieldTree,
     /// Its parser ([`parse`]), the value dropped.
@@ -106,6 +110,7 @@ pub struct Described {
 pub const fn described<T: KindConfig>() -> Described {
     Described {
         keys: key_text::<T>,
+        other_kinds_keys: other_kinds_keys::<T>,
         fields: fields_of::<T>,
         parses: parses::<T>,
     }
@@ -143,7 +148,7 @@ impl KindEntry {
             kind: self.name.to_string(),
             class: self.class(),
             summary: self.summary.to_string(),
-            config: (self.config.keys)().trim().to_string(),
+            config: (self.config.keys)(self.name).trim().to_string(),
         }
     }
 }
@@ -224,5 +229,19 @@ mod tests {
             .map(|e| format!("| `{}` | {} |", e.name, e.summary))
             .collect();
         assert_eq!(rows, expected, "docs/system-files.md's kind table");
+    }
+
+    #[test]
+    fn a_key_of_one_kind_is_left_out_of_the_others_lists() {
+        let urdf = entry_named(ROBOT_URDF).unwrap().info().config;
+        let puma = entry_named(ROBOT_PUMA560).unwrap().info().config;
+        for key in ["file =", "tip =", "base =", "poses ="] {
+            assert!(urdf.contains(key), "{key} missing from {urdf}");
+            assert!(!puma.contains(key), "{key} in {puma}");
+        }
+        assert!(
+            puma.contains("start =") && puma.contains("role ="),
+            "{puma}"
+        );
     }
 }
