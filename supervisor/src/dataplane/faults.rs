@@ -58,9 +58,9 @@ pub const REORDER_HOLD_LIMIT: Duration = Duration::from_millis(50);
 #[derive(Clone, Debug, Default, PartialEq, Deserialize, serde::Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct FaultConfig {
-    /// Fixed delay added to every item, ms, in `0..=MAX_DELAY_MS`.
+    /// Fixed delay added to every item, ms, 0..=60000 (`MAX_DELAY_MS`).
     pub delay_ms: f64,
-    /// Upper bound of the uniform extra delay, ms, in `0..=MAX_DELAY_MS`.
+    /// Upper bound of the uniform extra delay, ms, 0..=60000 (`MAX_DELAY_MS`).
     pub jitter_ms: f64,
     /// Probability an item is lost, in `0..=1`.
     pub loss: f64,
@@ -70,8 +70,8 @@ pub struct FaultConfig {
     pub reorder: f64,
     /// Windows in which every item sent is dropped.
     pub outages: Vec<OutageWindow>,
-    /// How far ahead the sending end's clock reads, µs, in
-    /// `-MAX_CLOCK_OFFSET_US..=MAX_CLOCK_OFFSET_US`.
+    /// How far ahead the sending end's clock reads, µs, -1e7..=1e7 (`MAX_CLOCK_OFFSET_US`, 10 s
+    /// either way).
     pub clock_offset_us: f64,
 }
 
