@@ -495,7 +495,7 @@ fn group_members<'a>(objects: &[&'a ObjectSpec]) -> Vec<&'a str> {
     let mut members = Vec::new();
     for o in objects
         .iter()
-        .filter(|o| o.kind == "controller/joint-groups")
+        .filter(|o| o.kind == penelope_runtime::objects::kinds::CONTROLLER_JOINT_GROUPS)
     {
         let Ok(table) = o.config.parse::<toml::Table>() else {
             continue;
@@ -531,7 +531,7 @@ fn split_cross_node_channels(
     let mut split = Vec::new();
     let mut crossing = 0u16;
     for (i, o) in objects.iter().enumerate() {
-        if o.kind != "trajectory/teleop" {
+        if o.kind != penelope_runtime::objects::kinds::TRAJECTORY_TELEOP {
             continue;
         }
         let Ok(config) = o.config.parse::<toml::Table>() else {

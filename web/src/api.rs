@@ -233,12 +233,17 @@ pub(crate) struct ConfigKey {
 }
 
 /// The keys of a kind's key list. An indented comment line goes on the note of the key
-/// above it (the lists wrap long notes so); other comment lines are left out.
+/// above it (the lists wrap long notes so); other comment lines are left out. The list puts
+/// nested tables (`[[shapes]]`, `[faults]`) after the plain keys: their keys are not fields of
+/// the form (a form field sets a top-level key), they go in the configuration text.
 pub(crate) fn config_keys(list: &str) -> Vec<ConfigKey> {
     let mut keys: Vec<ConfigKey> = Vec::new();
     let mut continues = false;
     for raw in list.lines() {
         let line = raw.trim();
+        if line.starts_with('[') {
+            break;
+        }
         if let Some(more) = line.strip_prefix('#') {
             if continues && raw.starts_with(char::is_whitespace) {
                 if let Some(last) = keys.last_mut() {
@@ -247,10 +252,6 @@ pub(crate) fn config_keys(list: &str) -> Vec<ConfigKey> {
             } else {
                 continues = false;
             }
-            continue;
-        }
-        continues = false;
-        if line.starts_with('[') {
             continue;
         }
         let (body, note) = match line.split_once(" #") {
@@ -504,10 +505,13 @@ mod tests {
              # the environment (none by default):\n\
              \x20                  # not a continuation\n\
              kp = [...]   # N·m/rad, one value or one per joint\n\
-             [[shapes]]\n\
              bad key = 1\n\
              device = \"/dev/ttyS0\"\n\
-             goal = [...], pose = \"start\" or position = [0.1, 0.2] (+ rpy_deg)   # as step",
+             goal = [...], pose = \"start\" or position = [0.1, 0.2] (+ rpy_deg)   # as step\n\
+             [[shapes]]                    # contact shapes\n\
+             kind = \"plane\"                # a nested key, not a form field\n\
+             [faults]\n\
+             delay_ms = 5.0",
         );
         assert_eq!(
             keys,

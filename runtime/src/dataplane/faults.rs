@@ -55,12 +55,12 @@ pub const REORDER_HOLD_LIMIT: Duration = Duration::from_millis(50);
 /// Every key is optional (zero: no fault); unknown keys are refused. `clock_offset_us` is not a
 /// fault of the link but of the end that sends: its clock reads that much ahead (negative:
 /// behind) in every time it stamps, so that heartbeats have an offset to find on one host.
-#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Deserialize, serde::Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct FaultConfig {
-    /// Fixed delay added to every item, ms, in `0..=MAX_DELAY_MS`.
+    /// Fixed delay added to every item, ms, 0..=60000 (`MAX_DELAY_MS`).
     pub delay_ms: f64,
-    /// Upper bound of the uniform extra delay, ms, in `0..=MAX_DELAY_MS`.
+    /// Upper bound of the uniform extra delay, ms, 0..=60000 (`MAX_DELAY_MS`).
     pub jitter_ms: f64,
     /// Probability an item is lost, in `0..=1`.
     pub loss: f64,
@@ -70,8 +70,8 @@ pub struct FaultConfig {
     pub reorder: f64,
     /// Windows in which every item sent is dropped.
     pub outages: Vec<OutageWindow>,
-    /// How far ahead the sending end's clock reads, µs, in
-    /// `-MAX_CLOCK_OFFSET_US..=MAX_CLOCK_OFFSET_US`.
+    /// How far ahead the sending end's clock reads, µs, -1e7..=1e7 (`MAX_CLOCK_OFFSET_US`, 10 s
+    /// either way).
     pub clock_offset_us: f64,
 }
 
@@ -80,7 +80,7 @@ pub const MAX_CLOCK_OFFSET_US: f64 = 10_000_000.0;
 
 /// A window of time in which the link carries nothing: items sent at `from_s <= t < to_s`
 /// are dropped.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize, serde::Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct OutageWindow {
     /// Start, s since the link's origin (inclusive).

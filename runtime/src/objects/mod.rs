@@ -410,7 +410,7 @@ impl Creator {
         let names: Vec<String> = if objects.is_empty() {
             self.list()
                 .into_iter()
-                .filter(|o| o.class == Class::Controller || o.kind == "trajectory/teleop")
+                .filter(|o| o.class == Class::Controller || o.kind == kinds::TRAJECTORY_TELEOP)
                 .map(|o| o.name)
                 .collect()
         } else {
@@ -424,7 +424,7 @@ impl Creator {
                 .ok_or_else(|| WireError::UnknownName(name.clone()))?;
             if info.class == Class::Controller {
                 streams.push((name.clone(), self.record_ticks(name, RECORDER_CAPACITY)?));
-            } else if info.kind == "trajectory/teleop" {
+            } else if info.kind == kinds::TRAJECTORY_TELEOP {
                 match self.link_source(name)? {
                     Some(source) => links.push((name.clone(), source)),
                     None if objects.is_empty() => {}

@@ -6,22 +6,22 @@ use std::sync::atomic::AtomicBool;
 
 use penelope_drivers::sim::operator::{HandImpedance, OperatorScript};
 use penelope_drivers::sim::scripts;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use penelope_protocol::proto::WireError;
 
 /// `sensor/operator-hand` configuration: a scripted operator's hand holding a simulated master.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct HandConfig {
-    /// The master robot whose handle it holds (a name on this node; the robot must be on a
-    /// simulated board, and configured after the hand is created).
+    /// The master whose handle it holds (required; a robot on this node on a simulated board:
+    /// create the hand, then configure the robot, whose simulated body gets the hand).
     pub robot: String,
-    /// The script it plays (`demo`).
+    /// What the hand does: `demo` (reach, sweeps, clutch, push, tap, release).
     pub script: String,
-    /// The hand's translational stiffness, N/m.
+    /// The hand's grip: an impedance towards the scripted point, N/m, 0..=1e5.
     pub stiffness_n_per_m: f64,
-    /// The hand's translational damping, N·s/m.
+    /// The grip's damping, N·s/m, 0..=1e5.
     pub damping_ns_per_m: f64,
 }
 
@@ -36,14 +36,14 @@ impl Default for HandConfig {
     }
 }
 
-/// What `ctl kinds` lists for `sensor/operator-hand`.
-pub const HAND_KEYS: &str = r#"
-robot = "frhc"                # the master whose handle it holds (create the hand, then
-                              # configure the robot: its simulated body gets the hand)
-script = "demo"               # what the hand does: reach, sweeps, clutch, push, tap, release
-stiffness_n_per_m = 400.0     # the hand's grip: an impedance towards the scripted point
-damping_ns_per_m = 12.0
-"#;
+impl crate::objects::kinds::KindConfig for HandConfig {
+    fn example() -> Self {
+        HandConfig {
+            robot: "frhc".into(),
+            ..Self::default()
+        }
+    }
+}
 
 impl HandConfig {
     /// Checks the keys and finds the script.

@@ -35,45 +35,37 @@ use std::sync::atomic::AtomicBool;
 use penelope_drivers::sim::recorded_hand::{RecordedHand, RecordedState};
 use penelope_hal::{Error, ErrorKind, ForceSensor, Pose, Sensor, Timestamp, Wrench};
 use penelope_rt_core::safety::SafetyEvent;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::objects::recording::mcap_log::CONTROLLER_TOPIC;
 use crate::objects::recording::{RecordingError, read_recording};
 use crate::objects::tick::TickRecord;
 use penelope_protocol::proto::WireError;
 
-/// The keys of `sensor/replay`, as `penelope ctl kinds` lists them.
-pub const REPLAY_SENSOR_KEYS: &str = r#"
-# A force sensor that plays back a recorded wrench stream (loaded at configure).
-file = "run.mcap"            # the recording (MCAP); required
-topic = "/controllers/follow"   # a controller channel of the recording
-field = "wrench"             # wrench (the sensed one), commanded_wrench, truth.base_wrench or
-                             # truth.tool_wrench (the plant's true contact)
-mount_xyz = [0.0, 0.0, 0.0]  # sensor frame origin in the tool frame, m (for the force's mapping)
-# Past the recording's end the sensor reports an error (the loop runs without a wrench).
-"#;
-
-/// The keys of `sensor/operator-replay`.
-pub const OPERATOR_REPLAY_KEYS: &str = r#"
-# The operator's hand played back: the master moves, and the clutch is held, as recorded.
-robot = "frhc"               # the master the hand holds (on a simulated board); required
-file = "run.mcap"            # the recording (MCAP); required
-topic = "/controllers/display"  # the master controller's channel (its ticks carry the truth)
-# Past the recording's end the hand holds the handle still at its last pose.
-"#;
-
-/// `sensor/replay`'s configuration.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+/// `sensor/replay`'s configuration: a force sensor that plays back a recorded wrench stream
+/// (loaded at configure); past the recording's end it reports an error (the loop runs without
+/// a wrench).
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct ReplaySensorConfig {
-    /// The recording.
+    /// The recording (MCAP; required).
     pub file: String,
-    /// The controller channel.
+    /// A controller channel of the recording.
     pub topic: String,
-    /// The wrench field of its ticks.
+    /// `wrench` (the sensed one), `commanded_wrench`, `truth.base_wrench` or
+    /// `truth.tool_wrench` (the plant's true contact).
     pub field: String,
-    /// Sensor frame origin in the tool frame, m.
+    /// The sensor frame's origin in the tool frame, m (for the force's mapping).
     pub mount_xyz: [f64; 3],
+}
+
+impl crate::objects::kinds::KindConfig for ReplaySensorConfig {
+    fn example() -> Self {
+        ReplaySensorConfig {
+            file: "run.mcap".into(),
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for ReplaySensorConfig {
@@ -87,16 +79,28 @@ impl Default for ReplaySensorConfig {
     }
 }
 
-/// `sensor/operator-replay`'s configuration.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+/// `sensor/operator-replay`'s configuration: the operator's hand played back, the master
+/// moving and the clutch held as recorded; past the recording's end the hand holds the handle
+/// still at its last pose.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct OperatorReplayConfig {
-    /// The master the hand holds.
+    /// The master the hand holds (on a simulated board; required).
     pub robot: String,
-    /// The recording.
+    /// The recording (MCAP; required).
     pub file: String,
-    /// The master controller's channel.
+    /// The master controller's channel (its ticks carry the truth).
     pub topic: String,
+}
+
+impl crate::objects::kinds::KindConfig for OperatorReplayConfig {
+    fn example() -> Self {
+        OperatorReplayConfig {
+            robot: "frhc".into(),
+            file: "run.mcap".into(),
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for OperatorReplayConfig {

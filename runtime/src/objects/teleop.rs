@@ -28,7 +28,7 @@ use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_rt_core::teleop::{
     ChannelConfig, ChannelDirection, MappingConfig, PortPayload, TeleopChannel, TeleopSample,
 };
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::kinematics::RobotKinematics;
 use super::reference::ReferenceOut;
@@ -37,38 +37,43 @@ use super::teleop_wave::WaveEnd;
 use penelope_protocol::proto::WireError;
 
 /// `trajectory/teleop` configuration.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct TeleopConfig {
-    /// The master robot (a name on this node).
+    /// The master robot (a name on this node; with `zenoh_reference`, the station's name).
     pub master: String,
-    /// The slave robot (a name on this node).
+    /// The slave robot.
     pub slave: String,
-    /// Slave motion = scale × master motion.
+    /// Slave motion = scale x master motion, 1e-3..=1e3.
     pub scale: f64,
-    /// Displayed force = force_gain × mapped slave force.
+    /// Displayed force = force_gain x mapped sensor force, 0..=1e3.
     pub force_gain: f64,
-    /// Displayed moment = torque_gain × mapped slave moment.
+    /// Displayed moment = torque_gain x mapped sensor moment, 0..=1e3.
     pub torque_gain: f64,
-    /// Master base frame to slave base frame, roll-pitch-yaw, degrees.
+    /// Master base frame -> slave base frame, roll, pitch, yaw, degrees.
     pub rotation_rpy_deg: [f64; 3],
-    /// When the other robot is on another node: this node's data-plane address for the
-    /// channel (`host:port`).
+    /// When the master and the slave are on different nodes, the same channel is created on
+    /// both, each node holding the end of its own robot; samples cross on the data plane (UDP,
+    /// one stream per direction, newest wins; authenticated when the nodes have a secret,
+    /// required off loopback): this node's address for the channel, host:port (with `peer`).
     pub listen: Option<String>,
-    /// When the other robot is on another node: the other node's data-plane address for it.
+    /// The other node's data-plane address for the channel (with `listen`).
     pub peer: Option<String>,
-    /// Faults injected into what this node's end sends (tests and experiments; these
-    /// machines have no netem); on a channel with both ends on this node, into both
-    /// directions of the cells that join them (a seeded delay line each way).
+    /// Faults injected (tests and experiments): on another node's channel, into what this end
+    /// sends; with both ends on this node, into each direction through a seeded delay line,
+    /// samples arriving delay + U(0, jitter) later (to within one T_com), some lost; the same
+    /// draws on the simulated clock for the same fault_seed. One-way values: the round trip is
+    /// twice delay_ms.
     pub faults: Option<crate::dataplane::faults::FaultConfig>,
     /// The seed of the injected faults (both directions draw from it).
     pub fault_seed: u64,
-    /// How long this node's end may hear nothing from the other node before the link counts
-    /// as lost and its robot goes neutral, ms (0: two communication periods).
+    /// Silence before the link to another node counts as lost and the robot goes neutral
+    /// (slave holds, master no force), ms, 0..=10000 (0: two T_com). Above the link's jitter:
+    /// each loss re-anchors the motion.
     pub link_timeout_ms: u64,
-    /// When the master is an operator station on Zenoh: the key expression its poses come
-    /// from (`docs/zenoh.md`; the node needs a Zenoh bridge, `--zenoh`). The slave is a robot
-    /// on this node, the master a name for the station.
+    /// When the master is an operator station that speaks Zenoh (docs/zenoh.md; the node runs
+    /// a Zenoh bridge, `penelope node --zenoh ENDPOINT`): the key its poses come from; the
+    /// slave is a robot here. Not with `listen`, `peer` or `faults`.
     pub zenoh_reference: Option<String>,
 }
 
@@ -91,39 +96,28 @@ impl Default for TeleopConfig {
     }
 }
 
-/// What `ctl kinds` lists for `trajectory/teleop`.
-pub const TELEOP_KEYS: &str = r#"
-master = "frhc"                     # the master robot (a name on this node)
-slave = "puma"                      # the slave robot
-scale = 1.0                         # slave motion = scale x master motion
-force_gain = 0.5                    # displayed force = force_gain x mapped sensor force
-torque_gain = 0.5                   # displayed moment = torque_gain x mapped sensor moment
-rotation_rpy_deg = [0.0, 0.0, 0.0]  # master base frame -> slave base frame
-# faults = { delay_ms = 50.0, jitter_ms = 5.0, loss = 0.01, duplicate = 0.0, reorder = 0.0,
-#            outages = [{ from_s = 10.0, to_s = 12.0 }] }
-#                                   # both ends on this node: each direction through a seeded
-#                                   # delay line, samples arriving delay + U(0, jitter) later
-#                                   # (to within one T_com), some lost; the same draws on the
-#                                   # simulated clock for the same fault_seed. One-way values:
-#                                   # the round trip is twice delay_ms
-# fault_seed = 1
-# When the master and the slave are on different nodes, the same channel is created on both,
-# each node holding the end of its own robot; samples cross on the data plane (UDP, one stream
-# per direction, newest wins; authenticated when the nodes have a secret, required off
-# loopback):
-# listen = "127.0.0.1:7410"         # this node's address for the channel
-# peer = "127.0.0.1:7411"           # the other node's
-# faults = { delay_ms = 5.0, jitter_ms = 2.0, loss = 0.01, duplicate = 0.0, reorder = 0.0,
-#            outages = [{ from_s = 10.0, to_s = 12.0 }],   # injected into what this end sends
-#            clock_offset_us = 0.0 }                       # this end's clock reads that far ahead
-# fault_seed = 1
-# link_timeout_ms = 0               # silence before the link counts as lost and the robot goes
-#                                   # neutral (slave holds, master no force); 0: two T_com.
-#                                   # Above the link's jitter: each loss re-anchors the motion
-# When the master is an operator station that speaks Zenoh (docs/zenoh.md; the node runs a
-# Zenoh bridge, `penelope node --zenoh ENDPOINT`), the slave takes its poses from a key:
-# zenoh_reference = "station/hand/pose" # master = the station's name, slave = a robot here
-"#;
+impl crate::objects::kinds::KindConfig for TeleopConfig {
+    fn example() -> Self {
+        TeleopConfig {
+            master: "frhc".into(),
+            slave: "puma".into(),
+            listen: Some("127.0.0.1:7410".into()),
+            peer: Some("127.0.0.1:7411".into()),
+            faults: Some(crate::dataplane::faults::FaultConfig {
+                delay_ms: 50.0,
+                jitter_ms: 5.0,
+                loss: 0.01,
+                outages: vec![crate::dataplane::faults::OutageWindow {
+                    from_s: 10.0,
+                    to_s: 12.0,
+                }],
+                ..Default::default()
+            }),
+            zenoh_reference: Some("station/hand/pose".into()),
+            ..Self::default()
+        }
+    }
+}
 
 impl TeleopConfig {
     /// Checks the keys.
@@ -793,10 +787,8 @@ fn neutral(side: Side, held: &Pose, now: &Pose) -> Reference {
 
 pub use penelope_rt_core::teleop::sensor_to_base;
 
-pub use super::operator_hand::{HAND_KEYS, HandConfig, HandObj};
+pub use super::operator_hand::{HandConfig, HandObj};
 
 pub use super::teleop_laws::{
-    FORCE_DISPLAY_KEYS, FOUR_CHANNEL_KEYS, FOUR_CHANNEL_SLAVE_KEYS, ForceDisplayToml,
-    FourChannelSlaveToml, FourChannelToml, POSITION_ERROR_KEYS, PositionErrorToml,
-    SLAVE_TRACKING_KEYS, SlaveTrackingToml,
+    ForceDisplayToml, FourChannelSlaveToml, FourChannelToml, PositionErrorToml, SlaveTrackingToml,
 };

@@ -1,5 +1,5 @@
-//! The halves of the classical teleoperation laws as object kinds: their configuration keys,
-//! what `ctl kinds` lists for them, and the checked laws they make (force-display and
+//! The halves of the classical teleoperation laws as object kinds: their configuration keys
+//! (what `ctl kinds` lists for them, from the doc comments), and the checked laws they make (force-display and
 //! slave-tracking for force-position; position-error-master, with the same slave half, for
 //! position-error).
 
@@ -9,32 +9,37 @@ use penelope_rt_core::teleop::{
     TrackingConfig, TrackingOutput, TwoPortConfig,
 };
 
+use super::kinds::KindConfig;
 use super::teleop_passivity::PortLaw;
 use penelope_protocol::proto::WireError;
 
 crate::objects::kinds::loop_keys!(ForceDisplayToml {
-    max_force: f64 = ForceDisplayConfig::default().max_force, #[doc = "Largest displayed force, N."]
-    max_torque: f64 = ForceDisplayConfig::default().max_torque, #[doc = "Largest displayed moment, N·m."]
+    max_force: f64 = ForceDisplayConfig::default().max_force, #[doc = "The largest displayed force, N (the robot's role caps it too)."]
+    max_torque: f64 = ForceDisplayConfig::default().max_torque, #[doc = "The largest displayed moment, N·m."]
     damping: [f64; 6] = ForceDisplayConfig::default().damping, #[doc = "Added damping on the tool twist, N·s/m then N·m·s/rad."]
-    force_deadband: f64 = ForceDisplayConfig::default().force_deadband, #[doc = "Forces below this are not displayed, N."]
+    force_deadband: f64 = ForceDisplayConfig::default().force_deadband, #[doc = "Smaller forces (sensor noise) are not displayed, N."]
     torque_deadband: f64 = ForceDisplayConfig::default().torque_deadband, #[doc = "Moments below this are not displayed, N·m."]
     filter_cutoff_hz: f64 = ForceDisplayConfig::default().filter_cutoff_hz, #[doc = "Low-pass on the displayed wrench, Hz (0: none)."]
     gravity_compensation: bool = true, #[doc = "Add g(q)."]
-    passivity: String = "off".into(), #[doc = "The channel's two-port passivity controller at the master port: `off` or `impedance`."]
+    passivity: String = "off".into(), #[doc = "The channel's two-port passivity controller at the master port, `off` or `impedance`: time-domain passivity, the two-port delayed form: the channel's end damps the displayed force by exactly the energy the master port would give out beyond what the slave put in (at most 200 N·s/m). With `admittance` on the slave half: passive under any delay. The observer always runs: telemetry's `channel_energy`."]
 });
 
+impl KindConfig for ForceDisplayToml {}
+
 crate::objects::kinds::loop_keys!(PositionErrorToml {
-    stiffness: [f64; 6] = ImpedanceConfig::master().stiffness, #[doc = "Spring to the mapped slave pose, N/m then N·m/rad."]
+    stiffness: [f64; 6] = ImpedanceConfig::master().stiffness, #[doc = "Spring to the mapped slave pose, N/m then N·m/rad (the slave half follows the master stiffly: in contact this spring is what the operator feels of the wall, capped by max_force)."]
     damping: [f64; 6] = ImpedanceConfig::master().damping, #[doc = "N·s/m then N·m·s/rad."]
     max_force: f64 = ImpedanceConfig::master().max_force, #[doc = "Force cap, N."]
     max_torque: f64 = ImpedanceConfig::master().max_torque, #[doc = "Moment cap, N·m."]
     gravity_compensation: bool = true, #[doc = "Add g(q)."]
 });
 
+impl KindConfig for PositionErrorToml {}
+
 crate::objects::kinds::loop_keys!(FourChannelToml {
-    c2: f64 = 1.0, #[doc = "C2: weight of the force channel (the slave's mapped wrench)."]
-    c4: f64 = 0.0, #[doc = "C4: weight of the position channel (the spring to the slave's pose)."]
-    c6: f64 = 0.0, #[doc = "C6: weight of the operator's wrench on the handle (a handle sensor)."]
+    c2: f64 = 1.0, #[doc = "C2, the force channel: the slave's sensed wrench x the channel's force gain."]
+    c4: f64 = 0.0, #[doc = "C4, the position channel: the spring-damper to the slave's mapped pose."]
+    c6: f64 = 0.0, #[doc = "C6: the operator's wrench on the handle, fed back (needs a handle sensor: the loop's `sensor`; without one the loop faults: zero force)."]
     damping: [f64; 6] = ForceDisplayConfig::default().damping, #[doc = "C_m: local damping on the tool twist, N·s/m then N·m·s/rad."]
     stiffness: [f64; 6] = ImpedanceConfig::master().stiffness, #[doc = "The position channel's spring, N/m then N·m/rad."]
     spring_damping: [f64; 6] = ImpedanceConfig::master().damping, #[doc = "The position channel's damper on the twist error."]
@@ -46,108 +51,30 @@ crate::objects::kinds::loop_keys!(FourChannelToml {
     gravity_compensation: bool = true, #[doc = "Add g(q)."]
 });
 
+impl KindConfig for FourChannelToml {}
+
 crate::objects::kinds::loop_keys!(FourChannelSlaveToml {
-    c1: f64 = 1.0, #[doc = "C1: weight of the position channel (the tracking's feedback gains)."]
-    c3: f64 = 0.0, #[doc = "C3: weight of the operator's wrench the master sends."]
-    c5: f64 = 0.0, #[doc = "C5: weight of the slave's own sensed contact wrench (above -1)."]
+    c1: f64 = 1.0, #[doc = "C1, the position channel: the tracking's feedback gains x c1."]
+    c3: f64 = 0.0, #[doc = "C3: the operator's wrench on the handle, sent by the master when its loop reads a handle sensor (a `sensor` on the master's controller), divided by the channel's force gain; without it the loop faults (it holds). Pushing a wall with c1 = 0 the wall gets c3 / (1 + c5) of the operator's push."]
+    c5: f64 = 0.0, #[doc = "C5: the slave's own contact (its `sensor`), fed back locally; above -1."]
     kp: [f64; 6] = TrackingConfig::default().kp, #[doc = "Position gain per joint, 1/s²."]
     kd: [f64; 6] = TrackingConfig::default().kd, #[doc = "Velocity gain per joint, 1/s."]
     ki: [f64; 6] = TrackingConfig::default().ki, #[doc = "Integral gain per joint, 1/s³."]
-    max_force: f64 = FourChannelSlaveConfig::default().max_force, #[doc = "Cap on the force channels' force, N."]
+    max_force: f64 = FourChannelSlaveConfig::default().max_force, #[doc = "Cap on c3 F_hand + c5 F_contact, N."]
     max_torque: f64 = FourChannelSlaveConfig::default().max_torque, #[doc = "Cap on the force channels' moment, N·m."]
-    passivity: String = "off".into(), #[doc = "The channel's two-port passivity controller at the slave port: `off` or `admittance`."]
+    passivity: String = "off".into(), #[doc = "The channel's two-port passivity controller at the slave port, `off` or `admittance`, as slave-tracking's."]
 });
+
+impl KindConfig for FourChannelSlaveToml {}
 
 crate::objects::kinds::loop_keys!(SlaveTrackingToml {
-    kp: [f64; 6] = TrackingConfig::default().kp, #[doc = "Position gain per joint, 1/s²."]
-    kd: [f64; 6] = TrackingConfig::default().kd, #[doc = "Velocity gain per joint, 1/s."]
+    kp: [f64; 6] = TrackingConfig::default().kp, #[doc = "Computed-torque position gain per joint, 1/s² ((80 rad/s)²)."]
+    kd: [f64; 6] = TrackingConfig::default().kd, #[doc = "Velocity gain per joint, 1/s (critically damped)."]
     ki: [f64; 6] = TrackingConfig::default().ki, #[doc = "Integral gain per joint, 1/s³."]
-    passivity: String = "off".into(), #[doc = "The channel's two-port passivity controller at the slave port: `off` or `admittance`."]
+    passivity: String = "off".into(), #[doc = "The channel's two-port passivity controller at the slave port, `off` or `admittance`: time-domain passivity, the two-port delayed form: the channel's end slows the reference motion by exactly the energy the slave port would give out (into the contact) beyond what the master put in; the slave then stops short of the master's pose (drift). Needs a force-display master (its energy counters)."]
 });
 
-/// What `ctl kinds` lists for `controller/force-display`.
-pub const FORCE_DISPLAY_KEYS: &str = r#"
-max_force = 10.0          # N, the largest displayed force (the robot's role caps it too)
-max_torque = 0.5          # N·m
-damping = [2.0, 2.0, 2.0, 0.02, 0.02, 0.02]  # added damping on the tool twist
-force_deadband = 0.2      # N: smaller forces (sensor noise) are not displayed
-torque_deadband = 0.01    # N·m
-filter_cutoff_hz = 30.0   # low-pass on the displayed wrench (0: none)
-gravity_compensation = true
-passivity = "off"         # "impedance": time-domain passivity, the two-port delayed form: the
-                          # channel's end damps the displayed force by exactly the energy the
-                          # master port would give out beyond what the slave put in (at most
-                          # 200 N·s/m). With "admittance" on the slave half: passive under any
-                          # delay. The observer always runs: telemetry's `channel_energy`
-# trajectory: a trajectory/teleop whose master is this robot; plus the loop keys:
-"#;
-
-/// What `ctl kinds` lists for `controller/position-error-master`.
-pub const POSITION_ERROR_KEYS: &str = r#"
-stiffness = [1000.0, 1000.0, 1000.0, 2.0, 2.0, 2.0]  # spring to the mapped slave pose (the slave
-                          # half follows the master stiffly: in contact this spring is what the
-                          # operator feels of the wall, capped by max_force)
-damping = [20.0, 20.0, 20.0, 0.05, 0.05, 0.05]
-max_force = 10.0          # N
-max_torque = 0.5          # N·m
-gravity_compensation = true
-# trajectory: a trajectory/teleop whose master is this robot; plus the loop keys:
-"#;
-
-/// What `ctl kinds` lists for `controller/four-channel-master`.
-pub const FOUR_CHANNEL_KEYS: &str = r#"
-# Lawrence's four channels, master side: F = c2 F_slave + c4 spring(slave pose) + c6 F_hand
-#   - C_m v, capped, tau = J^T F + g. c2 = 1, c4 = 0 is force-display (the same torques, bit for
-#   bit, with the same keys); c2 = 0, c4 = 1, damping 0 is position-error-master. The slave half
-#   is slave-tracking or four-channel-slave (C1, C3, C5)
-c2 = 1.0                  # the force channel: the slave's sensed wrench x the channel's force gain
-c4 = 0.0                  # the position channel: the spring-damper to the slave's mapped pose
-c6 = 0.0                  # the operator's wrench on the handle, fed back (needs a handle sensor:
-                          # the loop's `sensor`; without one the loop faults: zero force)
-damping = [2.0, 2.0, 2.0, 0.02, 0.02, 0.02]  # C_m, on the tool twist
-stiffness = [1000.0, 1000.0, 1000.0, 2.0, 2.0, 2.0]  # the position channel's spring
-spring_damping = [20.0, 20.0, 20.0, 0.05, 0.05, 0.05]
-max_force = 10.0          # N, on the whole wrench
-max_torque = 0.5          # N·m
-force_deadband = 0.2      # N, the force channel's
-torque_deadband = 0.01    # N·m
-filter_cutoff_hz = 30.0   # the force channel's low-pass (0: none)
-gravity_compensation = true
-# trajectory: a trajectory/teleop whose master is this robot; plus the loop keys:
-"#;
-
-/// What `ctl kinds` lists for `controller/four-channel-slave`.
-pub const FOUR_CHANNEL_SLAVE_KEYS: &str = r#"
-# Lawrence's four channels, slave side: tau = tracking(master pose; gains x c1)
-#   + J^T (c3 F_hand + c5 F_contact), both wrenches the world's on the robot, at the tool, base
-#   frame. c1 = 1, c3 = c5 = 0 is slave-tracking (the same torques, bit for bit, with the same
-#   gains). Pushing a wall with c1 = 0 the wall gets c3 / (1 + c5) of the operator's push
-c1 = 1.0                  # the position channel: the tracking's feedback gains x c1
-c3 = 0.0                  # the operator's wrench on the handle, sent by the master when its loop
-                          # reads a handle sensor (a `sensor` on the master's controller), divided
-                          # by the channel's force gain; without it the loop faults (it holds)
-c5 = 0.0                  # the slave's own contact (its `sensor`), fed back locally; above -1
-kp = [6400.0, 6400.0, 6400.0, 6400.0, 6400.0, 6400.0]  # 1/s², as slave-tracking
-kd = [160.0, 160.0, 160.0, 160.0, 160.0, 160.0]        # 1/s
-ki = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]                    # 1/s³
-max_force = 60.0          # N, cap on c3 F_hand + c5 F_contact
-max_torque = 5.0          # N·m
-passivity = "off"         # "admittance": as slave-tracking's
-# trajectory: a trajectory/teleop whose slave is this robot; plus the loop keys:
-"#;
-
-/// What `ctl kinds` lists for `controller/slave-tracking` and `controller/slave-position`.
-pub const SLAVE_TRACKING_KEYS: &str = r#"
-kp = [6400.0, 6400.0, 6400.0, 6400.0, 6400.0, 6400.0]  # 1/s², computed-torque position gain ((80 rad/s)²)
-kd = [160.0, 160.0, 160.0, 160.0, 160.0, 160.0]        # 1/s (critically damped)
-ki = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]                    # 1/s³
-passivity = "off"         # "admittance": time-domain passivity, the two-port delayed form: the
-                          # channel's end slows the reference motion by exactly the energy the
-                          # slave port would give out (into the contact) beyond what the master
-                          # put in; the slave then stops short of the master's pose (drift).
-                          # Needs a force-display master (its energy counters)
-# trajectory: a trajectory/teleop whose slave is this robot; plus the loop keys:
-"#;
+impl KindConfig for SlaveTrackingToml {}
 
 fn bad_law(kind: &str, e: impl std::fmt::Debug) -> WireError {
     WireError::BadConfig {

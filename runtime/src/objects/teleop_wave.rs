@@ -284,52 +284,27 @@ fn bad(kind: &str, e: impl std::fmt::Debug) -> WireError {
 }
 
 crate::objects::kinds::loop_keys!(WaveMasterToml {
-    impedance: f64 = WaveConfig::default().impedance, #[doc = "Wave impedance b, N·s/m."]
-    missing: String = "hold".into(), #[doc = "On a missing wave: `hold` (within the reserve) or `zero`."]
+    impedance: f64 = WaveConfig::default().impedance, #[doc = "Wave impedance b, N·s/m: the damping felt in free motion (same on both halves for transparency; any b keeps the line passive)."]
+    missing: String = "hold".into(), #[doc = "A late or lost wave: `hold` (within the energy reserve) or `zero`."]
     max_force: f64 = ForceDisplayConfig::default().max_force, #[doc = "Largest displayed force, N."]
-    angular_damping: [f64; 3] = [0.02; 3], #[doc = "Damping of the master's wrist, N·m·s/rad."]
+    angular_damping: [f64; 3] = [0.02; 3], #[doc = "Damping of the master's wrist (it has no wave force), N·m·s/rad."]
     gravity_compensation: bool = true, #[doc = "Add g(q)."]
 });
 
 crate::objects::kinds::loop_keys!(WaveSlaveToml {
     impedance: f64 = WaveConfig::default().impedance, #[doc = "Wave impedance b, N·s/m."]
     missing: String = "hold".into(), #[doc = "On a missing wave: `hold` (within the reserve) or `zero`."]
-    drift_gain: f64 = WaveConfig::default().drift_gain, #[doc = "Position drift correction toward the master, 1/s (0: none)."]
-    max_drift_speed: f64 = WaveConfig::default().max_drift_speed, #[doc = "Its largest speed, m/s."]
-    matching: bool = true, #[doc = "Terminate the line with its impedance (no reflections)."]
-    kp: [f64; 6] = TrackingConfig::default().kp, #[doc = "Position gain per joint, 1/s²."]
+    drift_gain: f64 = WaveConfig::default().drift_gain, #[doc = "The slave closes the gap to the master's position (which travels with its wave) at this rate, 1/s; a correction that pushes on the contact is paid from the energy the matching damper dissipated, so the port stays passive (0: none)."]
+    max_drift_speed: f64 = WaveConfig::default().max_drift_speed, #[doc = "The drift correction's largest speed, m/s."]
+    matching: bool = true, #[doc = "Terminate the line with b: no wave reflected in free motion."]
+    kp: [f64; 6] = TrackingConfig::default().kp, #[doc = "Computed-torque position gain to the wave pose, per joint, 1/s²."]
     kd: [f64; 6] = TrackingConfig::default().kd, #[doc = "Velocity gain per joint, 1/s."]
     ki: [f64; 6] = TrackingConfig::default().ki, #[doc = "Integral gain per joint, 1/s³."]
 });
 
-/// What `ctl kinds` lists for `controller/wave-master`.
-pub const WAVE_MASTER_KEYS: &str = r#"
-impedance = 20.0          # wave impedance b, N·s/m: the damping felt in free motion (same on
-                          # both halves for transparency; any b keeps the line passive)
-missing = "hold"          # a late or lost wave: "hold" (within the energy reserve) or "zero"
-max_force = 10.0          # N, the largest displayed force
-angular_damping = [0.02, 0.02, 0.02]  # the wrist has no wave force: N·m·s/rad
-gravity_compensation = true
-# trajectory: a trajectory/teleop on this node whose master is this robot (the waves cross
-# in its samples, through the data plane when the slave is on another node); plus the loop keys:
-"#;
+impl crate::objects::kinds::KindConfig for WaveMasterToml {}
 
-/// What `ctl kinds` lists for `controller/wave-slave`.
-pub const WAVE_SLAVE_KEYS: &str = r#"
-impedance = 20.0          # wave impedance b, N·s/m
-missing = "hold"          # "hold" (within the energy reserve) or "zero"
-drift_gain = 1.0          # 1/s: the slave closes the gap to the master's position (which
-                          # travels with its wave) at this rate; a correction that pushes on
-                          # the contact is paid from the energy the matching damper dissipated,
-                          # so the port stays passive (0: none)
-max_drift_speed = 0.005   # m/s, the correction's largest speed
-matching = true           # terminate the line with b: no wave reflected in free motion
-kp = [6400.0, 6400.0, 6400.0, 6400.0, 6400.0, 6400.0]  # computed-torque gains to the wave pose
-kd = [160.0, 160.0, 160.0, 160.0, 160.0, 160.0]
-ki = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
-# trajectory: a trajectory/teleop on this node whose slave is this robot; sensor: the wrist
-# sensor whose contact force goes into the wave; plus the loop keys:
-"#;
+impl crate::objects::kinds::KindConfig for WaveSlaveToml {}
 
 impl WaveMasterToml {
     /// The wave transform's settings, checked.

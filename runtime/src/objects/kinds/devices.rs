@@ -1,6 +1,7 @@
 //! The configurations of robots, boards and sensors, and the environment a simulated tool or a
 //! virtual sensor touches.
 
+use super::describe::KindConfig;
 use super::per_joint::PerJoint;
 use crate::objects::kinds::{bad, check_int, check_range};
 use nalgebra::{Unit, Vector3};
@@ -8,33 +9,47 @@ use penelope_drivers::sim::environment::{ContactModel, Environment, Shape};
 use penelope_hal::{JointVector, MAX_AXES, NamedPose};
 use penelope_protocol::proto::WireError;
 use penelope_rt_core::safety::Role;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 use penelope_drivers::model as models;
 use penelope_hal::{Frame, Pose, Wrench};
 
 /// One contact shape of an environment.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ShapeConfig {
-    /// `plane` or `sphere`.
+    /// `plane` or `sphere` (required).
     pub kind: String,
-    /// A point on the plane, or the sphere's centre, m (base frame).
+    /// A point on the plane, or the sphere's centre, m (the robot's base frame).
     #[serde(default)]
     pub point: [f64; 3],
-    /// Plane normal into free space.
+    /// A plane's normal into free space (normalised).
     #[serde(default = "up")]
     pub normal: [f64; 3],
-    /// Sphere radius, m.
+    /// A sphere's radius, m, > 0.
     #[serde(default = "radius")]
     pub radius: f64,
-    /// Contact stiffness, N/m.
+    /// Contact stiffness, N/m, 0..=1e7.
     #[serde(default = "stiffness")]
     pub stiffness: f64,
-    /// Contact damping, N·s/m.
+    /// Contact damping, N·s/m, 0..=1e5.
     #[serde(default = "damping")]
     pub damping: f64,
+}
+
+impl ShapeConfig {
+    /// A plane at the origin, normal up, as the key lists show one.
+    fn example() -> Self {
+        ShapeConfig {
+            kind: "plane".into(),
+            point: [0.0; 3],
+            normal: up(),
+            radius: radius(),
+            stiffness: stiffness(),
+            damping: damping(),
+        }
+    }
 }
 
 fn up() -> [f64; 3] {
@@ -103,26 +118,50 @@ pub fn environment(kind: &str, shapes: &[ShapeConfig]) -> Result<Environment, Wi
 // ---------------------------------------------------------------------------------------------
 
 /// `robot/*` configuration.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct RobotConfig {
-    /// The named pose a simulated body starts in, and where Galil encoders read zero.
+    /// The named pose (nest, start, work) where a simulated body starts and where Galil
+    /// encoders read zero (the arm is parked there at power-up).
     pub start: String,
-    /// `master` or `slave` (`None`: master for the FRHC, else slave).
+    /// `master` (a hand controller: force and moment caps, zero force on a fault) or `slave`
+    /// (holds its pose); without it: master for robot/frhc, else slave.
     pub role: Option<String>,
-    /// A master's largest displayed force, N.
+    /// A master's largest displayed force, N, > 0 (the FRHC's).
     pub max_force_n: f64,
-    /// A master's largest displayed moment, N·m.
+    /// A master's largest displayed moment, N·m, > 0.
     pub max_moment_nm: f64,
-    /// `robot/urdf`: the URDF file.
+    /// The URDF file (required), in one of the node's robot-file
+    /// directories (`--robot-files`), by name or absolute path; a regular file, 4 MiB at most;
+    /// read when the robot is created.
+    #[schemars(extend("x-only-kinds" = [super::ROBOT_URDF]))]
     pub file: Option<String>,
-    /// `robot/urdf`: the tool link (`None`: the single leaf link).
+    /// The link whose frame is the tool frame (without it: the single leaf
+    /// link).
+    #[schemars(extend("x-only-kinds" = [super::ROBOT_URDF]))]
     pub tip: Option<String>,
-    /// `robot/urdf`: the base link (`None`: the root link).
+    /// The link whose frame is the robot's base frame (without it: the root
+    /// link).
+    #[schemars(extend("x-only-kinds" = [super::ROBOT_URDF]))]
     pub base: Option<String>,
-    /// `robot/urdf`: named poses (`nest`, `start`, `work`, or others), rad (m for prismatic
-    /// joints), replacing the URDF's default (the zero configuration).
+    /// Named poses (nest, start, work, ...), rad (m for prismatic joints), one
+    /// value per joint; without them: all at the zero configuration (mid-range for a joint
+    /// whose limits exclude zero).
+    #[schemars(extend("x-only-kinds" = [super::ROBOT_URDF]))]
     pub poses: BTreeMap<String, Vec<f64>>,
+}
+
+impl KindConfig for RobotConfig {
+    fn example() -> Self {
+        RobotConfig {
+            role: Some("slave".into()),
+            file: Some("arm.urdf".into()),
+            tip: Some("tool0".into()),
+            base: Some("base_link".into()),
+            poses: BTreeMap::from([("start".into(), vec![0.0, 0.8, -3.1, 0.0, 0.8, 0.0])]),
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for RobotConfig {
@@ -231,7 +270,7 @@ impl RobotConfig {
             }
         }
         match self.role.as_deref() {
-            None if kind == "robot/frhc" => Ok(Role::Master),
+            None if kind == super::ROBOT_FRHC => Ok(Role::Master),
             None | Some("slave") => Ok(Role::Slave),
             Some("master") => Ok(Role::Master),
             Some(other) => Err(bad(
@@ -256,24 +295,35 @@ impl RobotConfig {
 }
 
 /// `board/sim` configuration, and the plant behind a `board/fpga`.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct SimBoardConfig {
-    /// Number of axes.
+    /// Number of axes, 1..=8.
     pub axes: u32,
-    /// DAC resolution, bits.
+    /// DAC resolution, bits, 8..=24.
     pub dac_bits: u32,
-    /// Plant integration sub-step, µs.
+    /// Plant integration sub-step, µs, 20..=2000.
     pub substep_us: u64,
-    /// Model friction in the plant.
+    /// Joint friction of the model in the plant.
     pub friction: bool,
-    /// The board's command-freshness watchdog, ms (0: none): with torque on, no new command
-    /// for this long turns every axis off.
+    /// With torque on, no new command from the control tick for this long turns every axis off
+    /// (the board's own check; the plant keeps moving), ms, 40..=10000 (0: off).
     pub command_timeout_ms: u64,
-    /// Power-off holding brakes in the plant: joints stand while the amplifiers are off.
+    /// Power-off holding brakes: the joints stand while the amplifiers are off (without, an arm
+    /// whose amplifiers are off falls under gravity).
     pub brake: bool,
-    /// The environment the plant's tool touches.
+    /// The environment the plant's tool touches: up to 8 contact shapes, in the robot's base
+    /// frame (none by default).
     pub shapes: Vec<ShapeConfig>,
+}
+
+impl KindConfig for SimBoardConfig {
+    fn example() -> Self {
+        SimBoardConfig {
+            shapes: vec![ShapeConfig::example()],
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for SimBoardConfig {
@@ -325,26 +375,39 @@ fn check_command_timeout(kind: &str, ms: u64) -> Result<(), WireError> {
 }
 
 /// `board/galil` configuration.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct GalilConfig {
-    /// Serial device.
+    /// The serial device; or else `address` (one of the two is required).
     pub device: Option<String>,
-    /// TCP address.
+    /// The TCP address (host:port) of a DMC or of `penelope galil-sim`; or else `device`.
     pub address: Option<String>,
-    /// Serial baud rate.
+    /// Serial baud rate, 1200..=921600.
     pub baud: u32,
-    /// Axes driven.
+    /// Axes driven, 1..=8.
     pub axes: u32,
-    /// V per N·m.
+    /// Amplifier scaling, V per N·m of joint torque: one value or one per axis (|v| <= 10); the
+    /// sign per joint comes from the robot's gear and encoder (negative flips a reversed
+    /// amplifier).
     pub volts_per_newton_metre: PerJoint,
-    /// TCP connect timeout, ms.
+    /// TCP connect timeout, ms, 10..=60000.
     pub connect_timeout_ms: u64,
-    /// The board-side watchdog time, ms (0: none).
+    /// The DMC turns its motors off when no exchange reached it for this long, ms, 5..=1000
+    /// (0: no watchdog).
     pub watchdog_ms: u64,
-    /// The I/O thread's command-freshness watchdog, ms (0: none): with torque on, no new
-    /// command from the control tick for this long turns the amplifiers off.
+    /// With torque on, no new command from the control tick for this long: OF 0, MO, heartbeat
+    /// stopped, ms, 40..=10000 (0: off).
     pub command_timeout_ms: u64,
+}
+
+impl KindConfig for GalilConfig {
+    fn example() -> Self {
+        GalilConfig {
+            device: Some("/dev/ttyUSB0".into()),
+            address: Some("127.0.0.1:7400".into()),
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for GalilConfig {
@@ -427,30 +490,46 @@ impl GalilConfig {
 }
 
 /// `sensor/virtual` configuration.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct SensorConfig {
-    /// The robot whose simulated body's contact the sensor reads (plant mode).
+    /// Plant mode: the robot whose simulated body's contact (its board's shapes, or the
+    /// operator's hand) the sensor reads at the wrist, as a real sensor would; without it
+    /// (probe mode), the `shapes` are probed at the reader's tool.
     pub robot: Option<String>,
-    /// The sensor frame's origin in the tool frame, m.
+    /// The sensor frame's origin in the tool frame, m, each -2..=2.
     pub mount_xyz: [f64; 3],
-    /// Constant offset: force (N) then torque (N·m), sensor frame.
+    /// Constant offset, N then N·m (sensor frame).
     pub bias: [f64; 6],
-    /// Noise standard deviation per force axis, N.
+    /// Noise standard deviation per force axis, N, 0..=100.
     pub force_noise: f64,
-    /// Noise standard deviation per torque axis, N·m.
+    /// Noise standard deviation per torque axis, N·m, 0..=10.
     pub torque_noise: f64,
-    /// Low-pass cut-off, Hz (0: off).
+    /// First-order low-pass, Hz, 0 (off) or 0.1..=10000.
     pub cutoff_hz: f64,
-    /// Noise seed.
+    /// Noise seed (`penelope demo --seed` sets it).
     pub seed: u64,
-    /// The contact shapes (probe mode).
+    /// Probe mode only: the environment (up to 8 contact shapes, base frame) whose wrench on
+    /// the probe (N, N·m, base frame, about the probe point), minus the bias, the sensor reads;
+    /// empty space by default.
     pub shapes: Vec<ShapeConfig>,
-    /// Where the sensor is published on the data plane (`host:port`, an IP address; port 0:
-    /// any free port), so that controllers on other nodes read it over UDP (probe mode).
+    /// Probe mode only: publish on the data plane for controllers on other nodes (read over
+    /// UDP, the same samples for every reader), host:port (an IP address; port 0: any free
+    /// port); without it, such a controller is refused at activation.
     pub publish: Option<String>,
-    /// How often the publisher measures and sends, ms.
+    /// Measure and send every this many ms, 1..=1000.
     pub publish_period_ms: u64,
+}
+
+impl KindConfig for SensorConfig {
+    fn example() -> Self {
+        SensorConfig {
+            robot: Some("puma".into()),
+            shapes: vec![ShapeConfig::example()],
+            publish: Some("127.0.0.1:7420".into()),
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for SensorConfig {
@@ -548,25 +627,37 @@ impl SensorConfig {
 }
 
 /// `sensor/netft` configuration: an ATI Net F/T box streaming RDT over UDP.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct NetFtSensorConfig {
-    /// The box's RDT address, `ip:port` (port 49152 on a real box).
+    /// The box's RDT address (required), ip:port or an IP alone for port 49152;
+    /// `penelope netft-sim` prints its own.
     pub address: String,
-    /// Counts per newton (the box's `cfgcpf`).
+    /// Counts per N, the box's cfgcpf (its /netftapi2.xml), > 0.
     pub counts_per_force: f64,
-    /// Counts per newton-metre (the box's `cfgcpt`).
+    /// Counts per N·m, the box's cfgcpt, > 0.
     pub counts_per_torque: f64,
-    /// The sensor frame's origin in the tool frame, m.
+    /// The sensor frame's origin in the tool frame, m, each -2..=2.
     pub mount_xyz: [f64; 3],
-    /// The sensor frame's orientation in the tool frame: roll, pitch, yaw, degrees.
+    /// The sensor frame's orientation in the tool frame (roll, pitch, yaw), degrees.
     pub mount_rpy_deg: [f64; 3],
-    /// A reading older than this is refused, ms.
+    /// A reading older than this is refused (the loop uses no wrench), ms, 1..=10000. Status
+    /// bit 31 (error), saturation (bits 30, 27), a silence past the timeout or a loss burst:
+    /// the loop notes a sensor error and uses no wrench, so a master displays zero force.
     pub timeout_ms: u64,
-    /// More records lost in one gap than this is a fault.
+    /// More records lost in one gap than this is a fault (held for timeout_ms).
     pub max_gap: u32,
-    /// Ask the box for a software bias when it is configured.
+    /// Ask the box for a software bias when configured (`ctl call NAME bias` any time).
     pub bias_on_start: bool,
+}
+
+impl KindConfig for NetFtSensorConfig {
+    fn example() -> Self {
+        NetFtSensorConfig {
+            address: "192.168.1.1:49152".into(),
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for NetFtSensorConfig {

@@ -1,18 +1,23 @@
 //! The kinds a creator makes, and their configurations: TOML text with documented keys, units and
 //! defaults, unknown keys refused, ranges checked. `""` means every default.
+//!
+//! Each kind is registered once, in [`table`]: its name, summary and configuration type. The key
+//! list `penelope ctl kinds`, the web page's forms and the docs show is derived from that type
+//! ([`describe`]): its fields, their doc comments and an example value.
 
 use std::time::Duration;
 
 use serde::de::DeserializeOwned;
 
+pub mod describe;
 mod devices;
-mod keys;
 mod per_joint;
+pub mod table;
 mod trajectory;
 
-use keys::*;
-
+pub use describe::KindConfig;
 pub use per_joint::PerJoint;
+pub use table::*;
 
 pub use devices::{
     GalilConfig, NetFtSensorConfig, RobotConfig, SensorConfig, ShapeConfig, SimBoardConfig,
@@ -23,47 +28,8 @@ pub use trajectory::{
     GoalConfig, MAX_WAYPOINTS, RampConfig, SplineConfig, StepConfig, TrajectorySpec,
     TrapezoidalConfig, WaypointConfig, trajectory_spec,
 };
-use trajectory::{RAMP_KEYS, SPLINE_KEYS, STEP_KEYS, TRAPEZOIDAL_KEYS};
 
-use super::teleop::{
-    FORCE_DISPLAY_KEYS, FOUR_CHANNEL_KEYS, FOUR_CHANNEL_SLAVE_KEYS, HAND_KEYS, POSITION_ERROR_KEYS,
-    SLAVE_TRACKING_KEYS, TELEOP_KEYS,
-};
-use super::teleop_wave::{WAVE_MASTER_KEYS, WAVE_SLAVE_KEYS};
 use penelope_protocol::proto::{Class, KindInfo, WireError};
-
-/// Every kind this creator makes, in listing order.
-pub const KINDS: [&str; 29] = [
-    "robot/puma560",
-    "robot/puma200",
-    "robot/frhc",
-    "robot/urdf",
-    "board/sim",
-    "board/fpga",
-    "board/galil",
-    "sensor/virtual",
-    "sensor/netft",
-    "sensor/operator-hand",
-    "sensor/replay",
-    "sensor/operator-replay",
-    "controller/joint-pid",
-    "controller/cartesian-impedance",
-    "controller/joint-position",
-    "controller/joint-groups",
-    "controller/force-display",
-    "controller/position-error-master",
-    "controller/four-channel-master",
-    "controller/four-channel-slave",
-    "controller/slave-tracking",
-    "controller/slave-position",
-    "controller/wave-master",
-    "controller/wave-slave",
-    "trajectory/step",
-    "trajectory/ramp",
-    "trajectory/trapezoidal",
-    "trajectory/spline",
-    "trajectory/teleop",
-];
 
 /// A kind, parsed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -124,248 +90,30 @@ pub enum Kind {
 }
 
 impl Kind {
-    /// Parses `class/kind`.
+    /// Parses `class/kind` (a name in [`KIND_TABLE`]).
     pub fn parse(kind: &str) -> Option<Kind> {
-        Some(match kind {
-            "robot/puma560" => Kind::Robot("puma560"),
-            "robot/puma200" => Kind::Robot("puma200"),
-            "robot/frhc" => Kind::Robot("frhc"),
-            "robot/urdf" => Kind::Robot("urdf"),
-            "board/sim" => Kind::SimBoard,
-            "board/fpga" => Kind::FpgaBoard,
-            "board/galil" => Kind::GalilBoard,
-            "sensor/virtual" => Kind::VirtualSensor,
-            "sensor/netft" => Kind::NetFtSensor,
-            "sensor/operator-hand" => Kind::OperatorHand,
-            "sensor/replay" => Kind::ReplaySensor,
-            "sensor/operator-replay" => Kind::OperatorReplay,
-            "controller/joint-pid" => Kind::JointPid,
-            "controller/cartesian-impedance" => Kind::CartesianImpedance,
-            "controller/joint-position" => Kind::JointPosition,
-            "controller/joint-groups" => Kind::JointGroups,
-            "controller/force-display" => Kind::ForceDisplay,
-            "controller/position-error-master" => Kind::PositionErrorMaster,
-            "controller/four-channel-master" => Kind::FourChannelMaster,
-            "controller/four-channel-slave" => Kind::FourChannelSlave,
-            "controller/slave-tracking" => Kind::SlaveTracking,
-            "controller/slave-position" => Kind::SlavePosition,
-            "controller/wave-master" => Kind::WaveMaster,
-            "controller/wave-slave" => Kind::WaveSlave,
-            "trajectory/step" => Kind::Step,
-            "trajectory/ramp" => Kind::Ramp,
-            "trajectory/trapezoidal" => Kind::Trapezoidal,
-            "trajectory/spline" => Kind::Spline,
-            "trajectory/teleop" => Kind::Teleop,
-            _ => return None,
-        })
+        entry_named(kind).map(|e| e.kind)
     }
 
     /// `class/kind`.
     pub fn as_str(self) -> &'static str {
-        match self {
-            Kind::Robot("puma560") => "robot/puma560",
-            Kind::Robot("puma200") => "robot/puma200",
-            Kind::Robot("urdf") => "robot/urdf",
-            Kind::Robot(_) => "robot/frhc",
-            Kind::SimBoard => "board/sim",
-            Kind::FpgaBoard => "board/fpga",
-            Kind::GalilBoard => "board/galil",
-            Kind::VirtualSensor => "sensor/virtual",
-            Kind::NetFtSensor => "sensor/netft",
-            Kind::OperatorHand => "sensor/operator-hand",
-            Kind::ReplaySensor => "sensor/replay",
-            Kind::OperatorReplay => "sensor/operator-replay",
-            Kind::JointPid => "controller/joint-pid",
-            Kind::CartesianImpedance => "controller/cartesian-impedance",
-            Kind::JointPosition => "controller/joint-position",
-            Kind::JointGroups => "controller/joint-groups",
-            Kind::ForceDisplay => "controller/force-display",
-            Kind::PositionErrorMaster => "controller/position-error-master",
-            Kind::FourChannelMaster => "controller/four-channel-master",
-            Kind::FourChannelSlave => "controller/four-channel-slave",
-            Kind::SlaveTracking => "controller/slave-tracking",
-            Kind::SlavePosition => "controller/slave-position",
-            Kind::WaveMaster => "controller/wave-master",
-            Kind::WaveSlave => "controller/wave-slave",
-            Kind::Step => "trajectory/step",
-            Kind::Ramp => "trajectory/ramp",
-            Kind::Trapezoidal => "trajectory/trapezoidal",
-            Kind::Spline => "trajectory/spline",
-            Kind::Teleop => "trajectory/teleop",
-        }
+        entry_of(self).name
     }
 
     /// Its class.
     pub fn class(self) -> Class {
-        match self {
-            Kind::Robot(_) => Class::Robot,
-            Kind::SimBoard | Kind::FpgaBoard | Kind::GalilBoard => Class::Board,
-            Kind::VirtualSensor
-            | Kind::NetFtSensor
-            | Kind::OperatorHand
-            | Kind::ReplaySensor
-            | Kind::OperatorReplay => Class::Sensor,
-            Kind::JointPid
-            | Kind::CartesianImpedance
-            | Kind::JointPosition
-            | Kind::JointGroups
-            | Kind::ForceDisplay
-            | Kind::PositionErrorMaster
-            | Kind::FourChannelMaster
-            | Kind::FourChannelSlave
-            | Kind::SlaveTracking
-            | Kind::SlavePosition
-            | Kind::WaveMaster
-            | Kind::WaveSlave => Class::Controller,
-            Kind::Step | Kind::Ramp | Kind::Trapezoidal | Kind::Spline | Kind::Teleop => {
-                Class::Trajectory
-            }
-        }
+        entry_of(self).class()
     }
 
     /// What `kinds` lists for it.
     pub fn info(self) -> KindInfo {
-        let (summary, config) = match self {
-            Kind::Robot("urdf") => (
-                "any serial robot from a URDF file: the joints from a base link to a tip link, \
-                 the links' inertials for the dynamics",
-                URDF_KEYS.to_string() + ROBOT_KEYS,
-            ),
-            Kind::Robot(m) => (
-                match m {
-                    "puma560" => "Unimation PUMA 560 (Robotics Toolbox DH model with dynamics)",
-                    "puma200" => "Unimation PUMA 200 (PUMA 260 geometry, assumed dynamics)",
-                    _ => "JPL Force Reflecting Hand Controller (master joystick)",
-                },
-                ROBOT_KEYS.to_string(),
-            ),
-            Kind::SimBoard => (
-                "simulated motion board; the rigid-body plant of the robot mapped onto it",
-                SIM_BOARD_KEYS.to_string() + SHAPE_KEYS,
-            ),
-            Kind::FpgaBoard => (
-                "NI PCI-7831R FPGA board for the FRHC: the simulated plant's encoders and motors, \
-                 bit-exact forward kinematics and tau = J^T F on the board, with their latency",
-                FPGA_BOARD_KEYS.to_string() + SIM_BOARD_KEYS + SHAPE_KEYS,
-            ),
-            Kind::GalilBoard => (
-                "Galil DMC motion board over a serial line or TCP (a DMC or `penelope galil-sim`)",
-                GALIL_KEYS.to_string(),
-            ),
-            Kind::VirtualSensor => (
-                "6-axis force sensor: a robot's plant contact at the wrist (bias, noise, low-pass), or an \
-                 environment probed at a pose",
-                SENSOR_KEYS.to_string() + SHAPE_KEYS,
-            ),
-            Kind::NetFtSensor => (
-                "6-axis force/torque sensor: an ATI Net F/T streaming RDT over UDP (or \
-                 `penelope netft-sim`), read in the loop; faults give the loop no wrench",
-                NETFT_KEYS.to_string(),
-            ),
-            Kind::OperatorHand => (
-                "the operator's hand on a simulated master: a scripted impedance that pushes the \
-                 handle and holds the clutch",
-                HAND_KEYS.to_string(),
-            ),
-            Kind::ReplaySensor => (
-                "6-axis force sensor playing back a recorded wrench stream (an MCAP recording's \
-                 controller channel, read at configure)",
-                super::replay::REPLAY_SENSOR_KEYS.to_string(),
-            ),
-            Kind::OperatorReplay => (
-                "the operator's hand played back from a recording: the master's handle moves, \
-                 and the clutch is held, as recorded",
-                super::replay::OPERATOR_REPLAY_KEYS.to_string(),
-            ),
-            Kind::ForceDisplay => (
-                "teleoperation master, position-forward / force-back: displays the mapped slave \
-                 force (tau = J^T F), capped",
-                FORCE_DISPLAY_KEYS.to_string() + LOOP_KEYS,
-            ),
-            Kind::PositionErrorMaster => (
-                "teleoperation master, position-error: a spring-damper to the mapped slave pose",
-                POSITION_ERROR_KEYS.to_string() + LOOP_KEYS,
-            ),
-            Kind::FourChannelMaster => (
-                "teleoperation master, Lawrence's four channels: force channel (C2), position \
-                 channel (C4), hand force (C6), local damping; the classical masters as cases",
-                FOUR_CHANNEL_KEYS.to_string() + LOOP_KEYS,
-            ),
-            Kind::FourChannelSlave => (
-                "teleoperation slave, Lawrence's four channels: position channel (C1, the \
-                 tracking), the operator's force (C3), local force feedback (C5)",
-                FOUR_CHANNEL_SLAVE_KEYS.to_string() + LOOP_KEYS,
-            ),
-            Kind::SlaveTracking => (
-                "teleoperation slave: follows the mapped master pose (IK, computed torque)",
-                SLAVE_TRACKING_KEYS.to_string() + LOOP_KEYS,
-            ),
-            Kind::SlavePosition => (
-                "teleoperation slave for a board with its own servo: IK, then position targets",
-                SLAVE_TRACKING_KEYS.to_string() + LOOP_KEYS,
-            ),
-            Kind::WaveMaster => (
-                "teleoperation master, wave variables: passive under any delay and loss (the \
-                 waves cross; an energy reserve on each receiver)",
-                WAVE_MASTER_KEYS.to_string() + LOOP_KEYS,
-            ),
-            Kind::WaveSlave => (
-                "teleoperation slave, wave variables: follows the wave's pose (matched line, \
-                 IK, computed torque); its contact force goes back as a wave",
-                WAVE_SLAVE_KEYS.to_string() + LOOP_KEYS,
-            ),
-            Kind::Teleop => (
-                "the channel between a master and a slave: the master's pose forward (scaled, \
-                 rotated, clutched), the slave's pose and wrench back",
-                TELEOP_KEYS.to_string(),
-            ),
-            Kind::JointPid => (
-                "joint-space PID with gravity compensation",
-                JOINT_PID_KEYS.to_string() + LOOP_KEYS,
-            ),
-            Kind::CartesianImpedance => (
-                "Cartesian impedance (spring-damper at the tool) with gravity compensation",
-                IMPEDANCE_KEYS.to_string() + LOOP_KEYS,
-            ),
-            Kind::JointPosition => (
-                "joint positions for the board's own servo (a Galil DMC closes the loop)",
-                JOINT_POSITION_KEYS.to_string() + LOOP_KEYS,
-            ),
-            Kind::JointGroups => (
-                "different laws on different joints of one robot: each group a configured \
-                 joint-pid or joint-position controller following its own trajectory",
-                JOINT_GROUPS_KEYS.to_string() + LOOP_KEYS,
-            ),
-            Kind::Step => ("joint step to a goal after a delay", STEP_KEYS.to_string()),
-            Kind::Ramp => (
-                "joint ramp at constant speed over a duration",
-                RAMP_KEYS.to_string(),
-            ),
-            Kind::Trapezoidal => (
-                "joint move with trapezoidal velocity, every joint synchronised",
-                TRAPEZOIDAL_KEYS.to_string(),
-            ),
-            Kind::Spline => (
-                "C2 cubic spline through timed joint waypoints",
-                SPLINE_KEYS.to_string(),
-            ),
-        };
-        KindInfo {
-            kind: self.as_str().to_string(),
-            class: self.class(),
-            summary: summary.to_string(),
-            config: config.trim().to_string(),
-        }
+        entry_of(self).info()
     }
 }
 
 /// Every kind, in listing order.
 pub fn all_kinds() -> Vec<KindInfo> {
-    KINDS
-        .iter()
-        .filter_map(|k| Kind::parse(k))
-        .map(Kind::info)
-        .collect()
+    KIND_TABLE.iter().map(KindEntry::info).collect()
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -430,21 +178,21 @@ pub struct LoopTiming {
 macro_rules! loop_keys {
     ($name:ident { $($field:ident : $ty:ty = $default:expr, #[$doc:meta])* }) => {
         /// A controller's configuration.
-        #[derive(Clone, Debug, PartialEq, ::serde::Deserialize)]
+        #[derive(Clone, Debug, PartialEq, ::serde::Deserialize, ::serde::Serialize, ::schemars::JsonSchema)]
         #[serde(deny_unknown_fields, default)]
         pub struct $name {
             $(#[$doc] pub $field: $ty,)*
-            /// Control period, µs.
+            /// Control period T_ctrl, µs, 250..=20000.
             pub period_us: u64,
-            /// Communication period, µs.
+            /// Communication period T_com (the reference's), µs, 250..=100000.
             pub comm_period_us: u64,
-            /// Reference watchdog, ms.
+            /// A reference older than this holds the robot, ms, 1..=10000.
             pub watchdog_ms: u64,
-            /// Sensor feed period, ms.
+            /// Force-sensor feed period, ms, 1..=1000.
             pub sensor_period_ms: u64,
-            /// Largest wrench age, ms.
+            /// An older wrench is not used, ms, 1..=10000.
             pub sensor_timeout_ms: u64,
-            /// Telemetry batch period, ms.
+            /// Telemetry batch period to subscribers, ms, 1..=1000.
             pub telemetry_period_ms: u64,
         }
 
@@ -514,22 +262,36 @@ pub fn loop_timing(kind: &str, text: &str) -> Result<LoopTiming, WireError> {
 }
 
 loop_keys!(JointPidConfig {
-    kp: Option<PerJoint> = None, #[doc = "Proportional gain, N·m/rad (default 10 × torque limit)."]
-    ki: PerJoint = PerJoint::One(0.0), #[doc = "Integral gain, N·m/(rad·s)."]
-    kd: Option<PerJoint> = None, #[doc = "Derivative gain, N·m·s/rad (default 0.5 × torque limit)."]
-    integral_limit: PerJoint = PerJoint::One(0.0), #[doc = "Integral term cap, N·m."]
+    kp: Option<PerJoint> = None, #[doc = "Proportional gain, N·m/rad, one value or one per joint, 0..=1e7 (without it: 10 × the joint's torque limit, per rad)."]
+    ki: PerJoint = PerJoint::One(0.0), #[doc = "Integral gain, N·m/(rad·s), one value or one per joint, 0..=1e7."]
+    kd: Option<PerJoint> = None, #[doc = "Derivative gain, N·m·s/rad, one value or one per joint, 0..=1e6 (without it: 0.5 × the joint's torque limit, per rad/s)."]
+    integral_limit: PerJoint = PerJoint::One(0.0), #[doc = "Cap of the integral term, N·m, 0..=1e5."]
     gravity_compensation: bool = true, #[doc = "Add g(q)."]
     acceleration_feedforward: bool = false, #[doc = "Add M(q) qdd_ref."]
 });
 
+impl KindConfig for JointPidConfig {
+    fn example() -> Self {
+        JointPidConfig {
+            kp: Some(PerJoint::Each(vec![
+                900.0, 1600.0, 900.0, 100.0, 100.0, 100.0,
+            ])),
+            kd: Some(PerJoint::One(20.0)),
+            ..Self::default()
+        }
+    }
+}
+
 loop_keys!(ImpedanceConfigToml {
-    stiffness: [f64; 6] = [2000.0, 2000.0, 2000.0, 50.0, 50.0, 50.0], #[doc = "N/m then N·m/rad."]
-    damping: [f64; 6] = [150.0, 150.0, 150.0, 3.0, 3.0, 3.0], #[doc = "N·s/m then N·m·s/rad."]
+    stiffness: [f64; 6] = [2000.0, 2000.0, 2000.0, 50.0, 50.0, 50.0], #[doc = "N/m then N·m/rad, base frame, each 0..=1e6."]
+    damping: [f64; 6] = [150.0, 150.0, 150.0, 3.0, 3.0, 3.0], #[doc = "N·s/m then N·m·s/rad, each 0..=1e5."]
     gravity_compensation: bool = true, #[doc = "Add g(q)."]
-    max_force: f64 = f64::INFINITY, #[doc = "Force cap, N."]
-    max_torque: f64 = f64::INFINITY, #[doc = "Moment cap, N·m."]
-    ramp_in_ms: u64 = 0, #[doc = "Stiffness ramp, ms."]
+    max_force: f64 = f64::INFINITY, #[doc = "Cap of the commanded force, N, > 0 (inf: none)."]
+    max_torque: f64 = f64::INFINITY, #[doc = "Cap of the commanded moment, N·m, > 0 (inf: none)."]
+    ramp_in_ms: u64 = 0, #[doc = "Stiffness ramp after activation, ms, 0..=60000."]
 });
+
+impl KindConfig for ImpedanceConfigToml {}
 
 impl JointPidConfig {
     /// Checks what does not depend on the robot.
@@ -551,22 +313,46 @@ impl JointPidConfig {
 }
 
 loop_keys!(JointPositionConfig {
-    max_velocity: PerJoint = PerJoint::One(1.0), #[doc = "Largest target speed, rad/s."]
+    max_velocity: PerJoint = PerJoint::One(1.0), #[doc = "How fast the servo's target may move, rad/s, one value or one per joint, 1e-3..=100."]
 });
 
+impl KindConfig for JointPositionConfig {}
+
 /// One group of a `controller/joint-groups`: a member controller and the joints it drives.
-#[derive(Clone, Debug, PartialEq, ::serde::Deserialize)]
+#[derive(
+    Clone, Debug, PartialEq, ::serde::Deserialize, ::serde::Serialize, ::schemars::JsonSchema,
+)]
 #[serde(deny_unknown_fields)]
 pub struct JointGroupToml {
-    /// The member controller's name (on the same node).
+    /// The member controller's name (on the same node): a configured controller/joint-pid or
+    /// controller/joint-position with the same robot, following its own trajectory (joint or
+    /// tool goals); it runs in this controller's loop, not on its own.
     pub controller: String,
     /// The joints it drives, 0-based.
     pub joints: Vec<usize>,
 }
 
 loop_keys!(JointGroupsConfig {
-    groups: Vec<JointGroupToml> = Vec::new(), #[doc = "The groups, each a member controller and its joints."]
+    groups: Vec<JointGroupToml> = Vec::new(), #[doc = "The groups (1 to 8), each a member controller and its joints; each joint of the robot in exactly one group."]
 });
+
+impl KindConfig for JointGroupsConfig {
+    fn example() -> Self {
+        JointGroupsConfig {
+            groups: vec![
+                JointGroupToml {
+                    controller: "arm".into(),
+                    joints: vec![0, 1, 2],
+                },
+                JointGroupToml {
+                    controller: "wrist".into(),
+                    joints: vec![3, 4, 5],
+                },
+            ],
+            ..Self::default()
+        }
+    }
+}
 
 impl JointGroupsConfig {
     /// Checks what does not depend on the robot or the members (those are checked when the
@@ -697,14 +483,23 @@ mod tests {
     #[test]
     fn every_kind_parses_back_and_documents_its_keys() {
         let kinds = all_kinds();
-        // Every listed name parses (a name that does not would be dropped from the list).
-        assert_eq!(kinds.len(), KINDS.len());
-        assert_eq!(kinds.len(), 29);
+        assert_eq!(kinds.len(), KIND_TABLE.len());
         for k in &kinds {
             let parsed = Kind::parse(&k.kind).unwrap();
             assert_eq!(parsed.as_str(), k.kind);
             assert_eq!(parsed.class(), k.class);
+            assert_eq!(parsed.class().as_str(), k.kind.split('/').next().unwrap());
             assert!(!k.config.is_empty());
+        }
+        // A name and a kind are registered once.
+        for (i, e) in KIND_TABLE.iter().enumerate() {
+            assert!(
+                KIND_TABLE[..i]
+                    .iter()
+                    .all(|o| o.name != e.name && o.kind != e.kind),
+                "{} registered twice",
+                e.name
+            );
         }
         assert_eq!(Kind::parse("robot/r2d2"), None);
     }

@@ -4,10 +4,10 @@
 use crate::objects::kinds::{bad, check_range};
 use penelope_hal::{JointVector, MAX_AXES, MAX_JOINTS};
 use penelope_protocol::proto::WireError;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// One value for every joint, or one per joint.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(untagged)]
 pub enum PerJoint {
     /// The same value on every joint.

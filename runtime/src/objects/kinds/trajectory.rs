@@ -1,41 +1,13 @@
 //! The trajectory kinds' configurations: goals in joint space (joints or a named pose) or in
 //! operational space (a tool position and orientation), and their checks.
 
+use super::describe::KindConfig;
 use super::per_joint::PerJoint;
 use crate::objects::kinds::{Kind, bad, check_range, parse};
 use penelope_hal::{MAX_JOINTS, NamedPose};
 use penelope_protocol::proto::WireError;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::time::Duration;
-
-pub(super) const STEP_KEYS: &str = r#"
-goal = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # rad, one per joint; or else
-pose = "start"                         # a named pose of the robot (default "start"); or else
-position = [0.6, -0.15, 0.5]           # a tool position in the base frame, m (operational space),
-rpy_deg = [0.0, 90.0, 0.0]             # with this tool orientation (default: the robot's `start`
-                                       # pose's); a joint law follows it through inverse kinematics
-delay_s = 0.0                          # 0..=3600 s
-"#;
-
-pub(super) const RAMP_KEYS: &str = r#"
-goal = [...], pose = "start" or position = [...] (+ rpy_deg)   # as trajectory/step
-duration_s = 2.0                 # 0.001..=3600 s
-"#;
-
-pub(super) const TRAPEZOIDAL_KEYS: &str = r#"
-goal = [...] or pose = "start"   # as trajectory/step (joint space only)
-max_velocity = 0.5               # rad/s, one value or one per joint, 1e-4..=20
-max_acceleration = 1.0           # rad/s², one value or one per joint, 1e-4..=200
-"#;
-
-pub(super) const SPLINE_KEYS: &str = r#"
-ends = "clamped"                 # "clamped" (arrive at rest) or "natural"
-[[waypoints]]                    # 1..=16, times strictly increasing after the start
-at_s = 2.0                       # s after the start, 0..=3600
-q = [...]                        # rad, one per joint; or pose = "work"; or position = [...]
-                                 # (+ rpy_deg), m and degrees: every waypoint in one space
-# default: one waypoint, pose "start" at 2 s
-"#;
 
 /// Where a trajectory goes: explicit joints or a named pose of the robot it moves (joint
 /// space), or a tool pose in its base frame (operational space).
@@ -114,35 +86,75 @@ fn goal_of(kind: &str, keys: GoalKeys<'_>) -> Result<GoalConfig, WireError> {
 }
 
 /// `trajectory/step`, `ramp` and `trapezoidal` configuration (keys not of the kind are refused).
-#[derive(Clone, Debug, PartialEq, Default, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Default, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct StepConfig {
-    /// Goal joints, rad.
+    /// The goal in joint space, rad, one per joint; or else `pose` or `position` (one of the
+    /// three).
     pub goal: Option<Vec<f64>>,
-    /// Goal named pose.
+    /// The goal as a named pose of the robot (nest, start, work); the default, `start`, when
+    /// neither `goal` nor `position` is given.
     pub pose: Option<String>,
-    /// Goal tool position, m.
+    /// The goal as a tool position in the base frame, m (operational space: a joint law follows
+    /// it through inverse kinematics).
     pub position: Option<[f64; 3]>,
-    /// Goal tool orientation, roll-pitch-yaw, degrees.
+    /// With `position`: the tool orientation, roll, pitch, yaw, degrees (without it: the
+    /// robot's start pose's).
     pub rpy_deg: Option<[f64; 3]>,
-    /// Delay, s.
+    /// The delay before the step, s, 0..=3600.
     pub delay_s: f64,
 }
 
+impl KindConfig for StepConfig {
+    /// Every goal key set, as the key lists show them (a trajectory takes one of them).
+    fn example() -> Self {
+        StepConfig {
+            goal: Some(vec![0.0; 6]),
+            pose: Some("start".into()),
+            position: Some([0.6, -0.15, 0.5]),
+            rpy_deg: Some([0.0, 90.0, 0.0]),
+            ..Self::default()
+        }
+    }
+}
+
 /// `trajectory/ramp` configuration.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct RampConfig {
-    /// Goal joints, rad.
+    /// The goal in joint space, rad, one per joint; or else `pose` or `position` (one of the
+    /// three).
     pub goal: Option<Vec<f64>>,
-    /// Goal named pose.
+    /// The goal as a named pose of the robot (nest, start, work); the default, `start`, when
+    /// neither `goal` nor `position` is given.
     pub pose: Option<String>,
-    /// Goal tool position, m.
+    /// The goal as a tool position in the base frame, m (operational space: a joint law follows
+    /// it through inverse kinematics).
     pub position: Option<[f64; 3]>,
-    /// Goal tool orientation, roll-pitch-yaw, degrees.
+    /// With `position`: the tool orientation, roll, pitch, yaw, degrees (without it: the
+    /// robot's start pose's).
     pub rpy_deg: Option<[f64; 3]>,
-    /// Duration, s.
+    /// The ramp's duration, s, 0.001..=3600.
     pub duration_s: f64,
+}
+
+impl KindConfig for RampConfig {
+    fn example() -> Self {
+        let StepConfig {
+            goal,
+            pose,
+            position,
+            rpy_deg,
+            ..
+        } = StepConfig::example();
+        RampConfig {
+            goal,
+            pose,
+            position,
+            rpy_deg,
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for RampConfig {
@@ -158,21 +170,43 @@ impl Default for RampConfig {
 }
 
 /// `trajectory/trapezoidal` configuration.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrapezoidalConfig {
-    /// Goal joints, rad.
+    /// The goal in joint space, rad, one per joint; or else `pose` or `position` (one of the
+    /// three).
     pub goal: Option<Vec<f64>>,
-    /// Goal named pose.
+    /// The goal as a named pose of the robot (nest, start, work); the default, `start`, when
+    /// neither `goal` nor `position` is given.
     pub pose: Option<String>,
-    /// Goal tool position, m.
+    /// Refused: a trapezoidal move takes a joint goal (`goal` or `pose`); for a tool
+    /// `position` use a step, a ramp or a spline.
     pub position: Option<[f64; 3]>,
-    /// Goal tool orientation, roll-pitch-yaw, degrees.
+    /// Refused, as `position`.
     pub rpy_deg: Option<[f64; 3]>,
-    /// Speed limit, rad/s.
+    /// Speed limit, rad/s, one value or one per joint, 1e-4..=20.
     pub max_velocity: PerJoint,
-    /// Acceleration limit, rad/s².
+    /// Acceleration limit, rad/s², one value or one per joint, 1e-4..=200.
     pub max_acceleration: PerJoint,
+}
+
+impl KindConfig for TrapezoidalConfig {
+    fn example() -> Self {
+        let StepConfig {
+            goal,
+            pose,
+            position,
+            rpy_deg,
+            ..
+        } = StepConfig::example();
+        TrapezoidalConfig {
+            goal,
+            pose,
+            position,
+            rpy_deg,
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for TrapezoidalConfig {
@@ -189,31 +223,54 @@ impl Default for TrapezoidalConfig {
 }
 
 /// One spline waypoint.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct WaypointConfig {
-    /// Time after the start, s.
+    /// Time after the start, s, 0..=3600, strictly increasing from one waypoint to the next.
     pub at_s: f64,
-    /// Joints, rad.
+    /// Joints, rad, one per joint; or else `pose` or `position` (every waypoint in one
+    /// space).
     pub q: Option<Vec<f64>>,
-    /// Or a named pose.
+    /// A named pose (nest, start, work).
     pub pose: Option<String>,
-    /// Or a tool position, m.
+    /// A tool position in the base frame, m.
     #[serde(default)]
     pub position: Option<[f64; 3]>,
-    /// With this tool orientation, roll-pitch-yaw, degrees.
+    /// With `position`: the tool orientation, roll, pitch, yaw, degrees.
     #[serde(default)]
     pub rpy_deg: Option<[f64; 3]>,
 }
 
 /// `trajectory/spline` configuration.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct SplineConfig {
-    /// `clamped` or `natural`.
+    /// `clamped` (arrive at rest) or `natural`.
     pub ends: String,
-    /// The waypoints.
+    /// The waypoints, 1..=16 (default: one, pose start at 2 s).
     pub waypoints: Vec<WaypointConfig>,
+}
+
+impl KindConfig for SplineConfig {
+    fn example() -> Self {
+        let StepConfig {
+            goal: q,
+            pose,
+            position,
+            rpy_deg,
+            ..
+        } = StepConfig::example();
+        SplineConfig {
+            waypoints: vec![WaypointConfig {
+                at_s: 2.0,
+                q,
+                pose,
+                position,
+                rpy_deg,
+            }],
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for SplineConfig {

@@ -696,7 +696,7 @@ impl Registry {
             let Body::SimBoard(s) = &self.get(first)?.body else {
                 return Err(WireError::Internal("sim body".into()));
             };
-            let env = kinds::environment("board/sim", &s.config.shapes)?;
+            let env = kinds::environment(kinds::BOARD_SIM, &s.config.shapes)?;
             let cfg = s.config.clone();
             let r = self.robot(name)?;
             let model = r.model.clone();

@@ -39,7 +39,7 @@ impl Registry {
     /// Configures a `sensor/virtual`: with `publish`, binds its data-plane endpoint (keyed with
     /// the node's datagram key) and starts its publisher.
     pub(super) fn configure_sensor(&mut self, name: &str) -> Result<(), WireError> {
-        let kind = "sensor/virtual";
+        let kind = crate::objects::kinds::SENSOR_VIRTUAL;
         let key = self.datagram_key.clone();
         let Body::Sensor(s) = &mut self.get_mut(name)?.body else {
             return Err(WireError::Internal("sensor body".into()));

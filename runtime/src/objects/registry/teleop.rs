@@ -91,7 +91,7 @@ pub(super) fn link_relations(
 
 impl Registry {
     pub(super) fn configure_teleop(&mut self, name: &str) -> Result<(), WireError> {
-        let kind = "trajectory/teleop";
+        let kind = crate::objects::kinds::TRAJECTORY_TELEOP;
         let Body::Teleop(t) = &self.get(name)?.body else {
             return Err(WireError::Internal("teleop body".into()));
         };
