@@ -42,7 +42,7 @@ use penelope_drivers::sim::scripts::CONTACT_PHASE;
 use serde::Serialize;
 
 use super::report::{Report, report};
-use super::{Law, RunError, RunOptions, RunOutput, run, set_key, task};
+use super::{Law, RunError, RunOptions, RunOutput, run, set_key, task_error};
 use crate::system::SystemFile;
 use penelope_runtime::objects::clock::ClockMode;
 
@@ -174,7 +174,7 @@ pub fn delayed_system(
             let mut table: toml::Table = o
                 .config
                 .parse()
-                .map_err(|e| task(format!("{}: {e}", o.name)))?;
+                .map_err(|e| task_error(format!("{}: {e}", o.name)))?;
             if let Some(toml::Value::Array(shapes)) = table.get_mut("shapes") {
                 for shape in shapes.iter_mut() {
                     if let toml::Value::Table(s) = shape {
@@ -186,7 +186,7 @@ pub fn delayed_system(
         }
     }
     if channels == 0 {
-        return Err(task("the system has no trajectory/teleop channel"));
+        return Err(task_error("the system has no trajectory/teleop channel"));
     }
     Ok(file)
 }
@@ -275,7 +275,7 @@ pub fn run_plan(
             slot.into_inner()
                 .ok()
                 .flatten()
-                .unwrap_or_else(|| Err(task("a run did not finish")))
+                .unwrap_or_else(|| Err(task_error("a run did not finish")))
         })
         .collect()
 }

@@ -90,7 +90,7 @@ pub fn with_master_kinematics(
         .objects
         .iter()
         .find(|o| o.kind.starts_with("robot/") && o.name == teleop.master)
-        .ok_or_else(|| task(format!("no robot `{}`", teleop.master)))?
+        .ok_or_else(|| task_error(format!("no robot `{}`", teleop.master)))?
         .joints
         .iter()
         .map(|m| m.board.clone())
@@ -101,7 +101,7 @@ pub fn with_master_kinematics(
     };
     for o in file.objects.iter_mut().filter(|o| boards.contains(&o.name)) {
         if o.kind != SIM_BOARD && o.kind != FPGA_BOARD {
-            return Err(task(format!(
+            return Err(task_error(format!(
                 "the master's board `{}` is {}: only a simulated board (board/sim) and \
                  board/fpga swap kinematics",
                 o.name, o.kind
@@ -296,7 +296,7 @@ fn teleop_channel(file: &SystemFile) -> Result<(&ObjectSpec, TeleopConfig), RunE
         .objects
         .iter()
         .find(|o| o.kind == "trajectory/teleop")
-        .ok_or_else(|| task("the system has no trajectory/teleop channel"))?;
+        .ok_or_else(|| task_error("the system has no trajectory/teleop channel"))?;
     Ok((channel, parse(channel)?))
 }
 
@@ -304,7 +304,7 @@ fn parse<T: serde::de::DeserializeOwned + Default>(o: &ObjectSpec) -> Result<T, 
     kinds::parse(&o.kind, &o.config).map_err(|e| RunError::Task(format!("{}: {e}", o.name)))
 }
 
-fn task(e: impl Into<String>) -> RunError {
+fn task_error(e: impl Into<String>) -> RunError {
     RunError::Task(e.into())
 }
 
@@ -313,7 +313,7 @@ fn set_key(o: &mut ObjectSpec, key: &str, value: toml::Value) -> Result<(), RunE
     let mut table: toml::Table = o
         .config
         .parse()
-        .map_err(|e| task(format!("{}: {e}", o.name)))?;
+        .map_err(|e| task_error(format!("{}: {e}", o.name)))?;
     table.insert(key.to_string(), value);
     o.config = table.to_string();
     Ok(())
@@ -434,7 +434,7 @@ pub fn run(
     if let Some(s) = options.scale
         && !(s.is_finite() && s > 0.0)
     {
-        return Err(task(format!("scale must be positive, got {s}")));
+        return Err(task_error(format!("scale must be positive, got {s}")));
     }
     let Task {
         mut file,

@@ -21,15 +21,15 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use penelope_drivers::sim::operator::{Motion, OperatorScript, Segment};
 use serde::Serialize;
 
-use super::{MasterKinematics, RunError, RunOptions, find_task, task, with_master_kinematics};
+use super::{
+    MasterKinematics, RunError, RunOptions, find_task, task_error, with_master_kinematics,
+};
 use crate::system::{SystemFile, SystemFileError};
 use penelope_runtime::objects::clock::ClockMode;
 use penelope_runtime::objects::recording::mcap_log::{CONTROLLER_TOPIC, summarize};
 use penelope_runtime::objects::recording::{RecordingError, read_recording};
-use penelope_runtime::objects::replay::OperatorReplayConfig;
 use penelope_runtime::objects::tick::TickRecord;
 
 /// The name of the metadata record that holds a run's [`RunRecipe`].
@@ -182,46 +182,6 @@ pub enum RerunError {
     Run(#[from] RunError),
 }
 
-/// `sensor/operator-replay`'s script, for a run's report: one segment, `replay`, as long as
-/// `duration` or the recording.
-///
-/// # Errors
-/// [`RunError::Task`] when no hand holds `master`, or its recording cannot be read.
-pub(super) fn replayed_hand_script(
-    file: &SystemFile,
-    master: &str,
-    duration: Option<Duration>,
-) -> Result<OperatorScript, RunError> {
-    let hand = file
-        .objects
-        .iter()
-        .filter(|o| o.kind == "sensor/operator-replay")
-        .map(super::parse::<OperatorReplayConfig>)
-        .collect::<Result<Vec<_>, _>>()?
-        .into_iter()
-        .find(|h| h.robot == master)
-        .ok_or_else(|| {
-            task(format!(
-                "no sensor/operator-hand or sensor/operator-replay holds `{master}`"
-            ))
-        })?;
-    let duration = match duration {
-        Some(d) => d,
-        None => {
-            let s = summarize(Path::new(&hand.file)).map_err(|e| task(e.to_string()))?;
-            // The last tick's period: ticks stand for the millisecond that follows them.
-            Duration::from_nanos(s.duration_ns()) + Duration::from_millis(1)
-        }
-    };
-    OperatorScript::new(&[Segment {
-        label: "replay",
-        motion: Motion::Hold,
-        duration,
-        clutch: false,
-    }])
-    .map_err(|_| task("operator script"))
-}
-
 /// `file` with its inputs replaced by the recording at `recording`: the hand holding `master`
 /// by a `sensor/operator-replay` of `/controllers/<master_ctl>`, and the `sensor/virtual`
 /// named `slave_sensor` by a `sensor/replay` of `/controllers/<slave_ctl>`'s `wrench`.
@@ -237,7 +197,7 @@ fn replayed_system(
         let table: toml::Table = o
             .config
             .parse()
-            .map_err(|e| task(format!("{}: {e}", o.name)))?;
+            .map_err(|e| task_error(format!("{}: {e}", o.name)))?;
         let robot = table.get("robot").and_then(toml::Value::as_str);
         if o.kind == "sensor/operator-hand" && robot == Some(master) {
             let mut t = toml::Table::new();

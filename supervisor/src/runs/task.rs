@@ -2,22 +2,25 @@
 //! activated, the robots' models, the operator's script, the sensor mount and the slave's
 //! environment, with the run options applied to a copy of the file.
 
+use std::path::Path;
 use std::time::Duration;
 
 use penelope_drivers::model as models;
 use penelope_drivers::sim::environment::Environment;
-use penelope_drivers::sim::operator::OperatorScript;
+use penelope_drivers::sim::operator::{Motion, OperatorScript, Segment};
 use penelope_drivers::sim::scripts;
 use penelope_hal::{Pose, Timestamp};
 
 use super::{
-    FPGA_BOARD, Law, RunError, RunInfo, RunOptions, SIM_BOARD, WAVE_SLAVE, parse, rerun, set_key,
-    task, teleop_channel,
+    FPGA_BOARD, Law, RunError, RunInfo, RunOptions, SIM_BOARD, WAVE_SLAVE, parse, set_key,
+    task_error, teleop_channel,
 };
 use crate::system::{ObjectSpec, SystemFile};
 use penelope_runtime::objects::fpga_board;
 use penelope_runtime::objects::kinds::{self, RobotConfig, SensorConfig, SimBoardConfig};
 use penelope_runtime::objects::kinematics::RobotKinematics;
+use penelope_runtime::objects::recording::mcap_log::summarize;
+use penelope_runtime::objects::replay::OperatorReplayConfig;
 use penelope_runtime::objects::teleop::{HandConfig, TeleopConfig};
 
 /// The task a system file describes, found in it.
@@ -39,7 +42,7 @@ pub(super) fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task,
     let (channel, teleop) = teleop_channel(&file)?;
     teleop
         .check(&channel.kind)
-        .map_err(|e| task(format!("{}: {e}", channel.name)))?;
+        .map_err(|e| task_error(format!("{}: {e}", channel.name)))?;
     let channel_name = channel.name.clone();
     let law = match options.law {
         Some(l) => l,
@@ -49,7 +52,7 @@ pub(super) fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task,
     let master_ctl = controller_on_channel(&file, &channel_name, law, &teleop.master)?;
     let slave_ctl = controller_on_channel(&file, &channel_name, law, &teleop.slave)?;
     let timing: kinds::LoopTiming = kinds::loop_timing(&master_ctl.kind, &master_ctl.config)
-        .map_err(|e| task(format!("{}: {e}", master_ctl.name)))?;
+        .map_err(|e| task_error(format!("{}: {e}", master_ctl.name)))?;
     let (master_model, master_dynamics) = robot_models(&file, &teleop.master)?;
     let (slave_model, _) = robot_models(&file, &teleop.slave)?;
     let script = operator_script(&file, &teleop, options)?;
@@ -183,7 +186,7 @@ fn controller_on_channel<'a>(
                 && o.robot.as_deref() == Some(robot)
         })
         .ok_or_else(|| {
-            task(format!(
+            task_error(format!(
                 "no active controller drives `{robot}` on channel `{channel_name}` with the {} law",
                 law.as_str()
             ))
@@ -195,7 +198,7 @@ fn robot_object<'a>(file: &'a SystemFile, name: &str) -> Result<&'a ObjectSpec, 
     file.objects
         .iter()
         .find(|o| o.kind.starts_with("robot/") && o.name == name)
-        .ok_or_else(|| task(format!("no robot `{name}`")))
+        .ok_or_else(|| task_error(format!("no robot `{name}`")))
 }
 
 /// The kinematics robot `name` computes with (its boards': an fpga board's, or the float
@@ -209,7 +212,7 @@ fn robot_models(
     let word = o.kind.trim_start_matches("robot/");
     let model = cfg
         .model(&o.kind, word)
-        .map_err(|e| task(format!("{name}: {e}")))?;
+        .map_err(|e| task_error(format!("{name}: {e}")))?;
     let boards: Vec<(&str, bool)> = o
         .joints
         .iter()
@@ -222,11 +225,11 @@ fn robot_models(
         })
         .collect();
     let on_fpga = fpga_board::robot_on_boards(name, word, &boards)
-        .map_err(|e| task(e.to_string()))?
+        .map_err(|e| task_error(e.to_string()))?
         .is_some();
     let kin = match on_fpga {
         true => RobotKinematics::on_fpga_board(model.clone())
-            .ok_or_else(|| task(format!("{name}: no fpga model")))?,
+            .ok_or_else(|| task_error(format!("{name}: no fpga model")))?,
         false => RobotKinematics::Float(model.clone()),
     };
     Ok((kin, model))
@@ -249,9 +252,9 @@ fn operator_script(
         .find(|h| h.robot == teleop.master);
     match hand {
         Some(hand) => scripts::by_name(&hand.script)
-            .ok_or_else(|| task(format!("unknown operator script `{}`", hand.script))),
+            .ok_or_else(|| task_error(format!("unknown operator script `{}`", hand.script))),
         // A replayed hand: its recording is its script.
-        None => rerun::replayed_hand_script(file, &teleop.master, options.duration),
+        None => replayed_hand_script(file, &teleop.master, options.duration),
     }
 }
 
@@ -283,8 +286,48 @@ fn slave_environment(file: &SystemFile, teleop: &TeleopConfig) -> Result<Environ
     Ok(match file.objects.iter().find(|o| o.name == slave_board) {
         Some(o) if o.kind == SIM_BOARD || o.kind == FPGA_BOARD => {
             let c: SimBoardConfig = parse(o)?;
-            kinds::environment(&o.kind, &c.shapes).map_err(|e| task(e.to_string()))?
+            kinds::environment(&o.kind, &c.shapes).map_err(|e| task_error(e.to_string()))?
         }
         _ => Environment::new(),
     })
+}
+
+/// `sensor/operator-replay`'s script, for a run's report: one segment, `replay`, as long as
+/// `duration` or the recording.
+///
+/// # Errors
+/// [`RunError::Task`] when no hand holds `master`, or its recording cannot be read.
+fn replayed_hand_script(
+    file: &SystemFile,
+    master: &str,
+    duration: Option<Duration>,
+) -> Result<OperatorScript, RunError> {
+    let hand = file
+        .objects
+        .iter()
+        .filter(|o| o.kind == "sensor/operator-replay")
+        .map(super::parse::<OperatorReplayConfig>)
+        .collect::<Result<Vec<_>, _>>()?
+        .into_iter()
+        .find(|h| h.robot == master)
+        .ok_or_else(|| {
+            task_error(format!(
+                "no sensor/operator-hand or sensor/operator-replay holds `{master}`"
+            ))
+        })?;
+    let duration = match duration {
+        Some(d) => d,
+        None => {
+            let s = summarize(Path::new(&hand.file)).map_err(|e| task_error(e.to_string()))?;
+            // The last tick's period: ticks stand for the millisecond that follows them.
+            Duration::from_nanos(s.duration_ns()) + Duration::from_millis(1)
+        }
+    };
+    OperatorScript::new(&[Segment {
+        label: "replay",
+        motion: Motion::Hold,
+        duration,
+        clutch: false,
+    }])
+    .map_err(|_| task_error("operator script"))
 }
