@@ -45,6 +45,4 @@ pub mod trajectory;
 #[cfg(all(feature = "std", not(loom)))]
 pub mod exec;
 #[cfg(all(feature = "std", not(loom)))]
-mod rt_settings;
-#[cfg(all(feature = "std", not(loom)))]
 pub mod wake;

@@ -45,7 +45,6 @@ pub mod numeric_ik;
 pub mod puma;
 pub mod robot;
 pub mod urdf;
-mod urdf_tree;
 
 pub use axis_joint::AxisJoint;
 pub use chain::{ChainError, ChainJoint, SerialChain};

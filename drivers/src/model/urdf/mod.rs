@@ -33,6 +33,8 @@
 //! gives is a [`DhRobotModel`] like any other: every kinematics and dynamics call is
 //! allocation-free.
 
+mod tree;
+
 use std::path::Path;
 
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
@@ -40,7 +42,7 @@ use penelope_hal::{JointLimits, JointVector, MAX_JOINTS, Pose};
 
 use super::dh::{JointKind, Rt};
 use super::robot::{DhRobotModel, IkMethod, ModelError, ModelSpec};
-use super::urdf_tree::{ChainWalk, Tree};
+use tree::{ChainWalk, Tree};
 
 /// Encoder counts per joint radian a URDF robot is given (URDF has no encoders): a 19-bit
 /// absolute encoder on the joint, `2^19 / 2π`.

@@ -6,7 +6,7 @@
 use std::sync::OnceLock;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::exec::{PeriodicConfig, RtStatus, Setting};
+use super::{PeriodicConfig, RtStatus, Setting};
 
 /// Asks for the real-time settings of `config` for the calling thread, warning once per process
 /// about each refusal.

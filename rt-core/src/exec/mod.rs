@@ -41,7 +41,8 @@ pub use crate::sim::Flow;
 use crate::stats::{DurationStats, LatencyHistogram};
 use crate::wake::{MAX_EARLY_WAKES, WakeOn, Woken};
 
-pub use crate::rt_settings::{apply_rt, hold_dma_latency, set_fifo};
+mod rt_settings;
+pub use rt_settings::{apply_rt, hold_dma_latency, set_fifo};
 
 /// How a periodic thread runs.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -6,11 +6,11 @@ use std::collections::{BTreeMap, BTreeSet};
 use nalgebra::{Matrix3, Vector3};
 use penelope_hal::JointLimits;
 
-use super::axis_joint::AxisJoint;
-use super::chain::ChainJoint;
-use super::dh::Rt;
-use super::dynamics::LinkDynamics;
-use super::urdf::{UrdfChain, UrdfError, finite, pose_of, rt_of};
+use super::{UrdfChain, UrdfError, finite, pose_of, rt_of};
+use crate::model::axis_joint::AxisJoint;
+use crate::model::chain::ChainJoint;
+use crate::model::dh::Rt;
+use crate::model::dynamics::LinkDynamics;
 
 /// A link body's mass properties accumulated about its frame's origin.
 #[derive(Clone, Copy, Debug)]
