@@ -495,7 +495,7 @@ fn start_threads(
         Option<runtime::SensorFeed>,
         Option<penelope_rt_core::wake::WakeOn>,
     ),
-    timing: &super::kinds::LoopTiming,
+    timing: &crate::objects::config::LoopTiming,
     rt: &RtPolicy,
     fifo: bool,
 ) -> Result<(), String> {

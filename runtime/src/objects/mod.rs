@@ -4,6 +4,7 @@
 //!
 //! - [`kinematics`]: the model a robot's loops compute with (float, or the FPGA board's).
 //! - [`fpga_board`]: `board/fpga`, the FRHC's FPGA board: its latency model and what it accepts.
+//! - [`config`]: a kind's configuration text parsed and described (keys, units, defaults).
 //! - [`kinds`]: every kind and its TOML configuration (keys, units, defaults, ranges).
 //! - [`clock`]: real time or the simulated clock, and the node's time as a recorder reads it;
 //!   [`sim_world`]: the simulated clock's world, which steps the loops.
@@ -44,6 +45,7 @@
 
 pub mod bridged;
 pub mod clock;
+pub mod config;
 pub mod delay_line;
 pub mod files;
 pub mod fpga_board;

@@ -36,7 +36,7 @@ impl Default for HandConfig {
     }
 }
 
-impl crate::objects::kinds::KindConfig for HandConfig {
+impl crate::objects::config::KindConfig for HandConfig {
     fn example() -> Self {
         HandConfig {
             robot: "frhc".into(),

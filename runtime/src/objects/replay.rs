@@ -59,7 +59,7 @@ pub struct ReplaySensorConfig {
     pub mount_xyz: [f64; 3],
 }
 
-impl crate::objects::kinds::KindConfig for ReplaySensorConfig {
+impl crate::objects::config::KindConfig for ReplaySensorConfig {
     fn example() -> Self {
         ReplaySensorConfig {
             file: "run.mcap".into(),
@@ -93,7 +93,7 @@ pub struct OperatorReplayConfig {
     pub topic: String,
 }
 
-impl crate::objects::kinds::KindConfig for OperatorReplayConfig {
+impl crate::objects::config::KindConfig for OperatorReplayConfig {
     fn example() -> Self {
         OperatorReplayConfig {
             robot: "frhc".into(),
@@ -584,7 +584,7 @@ mod tests {
     #[test]
     fn configs_need_a_file_and_a_controller_channel() {
         let k = "sensor/replay";
-        let c: ReplaySensorConfig = crate::objects::kinds::parse(k, "file = \"a.mcap\"").unwrap();
+        let c: ReplaySensorConfig = crate::objects::config::parse(k, "file = \"a.mcap\"").unwrap();
         assert!(c.check(k).is_ok());
         assert_eq!(c.topic, "/controllers/follow");
         for text in [
@@ -593,13 +593,14 @@ mod tests {
             "file = \"a.mcap\"\nfield = \"q\"",
             "file = \"a.mcap\"\nmount_xyz = [0, 0, nan]",
         ] {
-            let c: ReplaySensorConfig = crate::objects::kinds::parse(k, text).unwrap();
+            let c: ReplaySensorConfig = crate::objects::config::parse(k, text).unwrap();
             assert!(c.check(k).is_err(), "{text}");
         }
         let k = "sensor/operator-replay";
-        let c: OperatorReplayConfig = crate::objects::kinds::parse(k, "file = \"a.mcap\"").unwrap();
+        let c: OperatorReplayConfig =
+            crate::objects::config::parse(k, "file = \"a.mcap\"").unwrap();
         assert!(c.check(k).is_err(), "no robot");
-        assert!(crate::objects::kinds::parse::<OperatorReplayConfig>(k, "seed = 1").is_err());
+        assert!(crate::objects::config::parse::<OperatorReplayConfig>(k, "seed = 1").is_err());
     }
 
     #[test]
@@ -668,7 +669,7 @@ mod tests {
         .unwrap();
         let k = "sensor/replay";
         let config = format!("file = {:?}", path.to_str().unwrap());
-        let c: ReplaySensorConfig = crate::objects::kinds::parse(k, &config).unwrap();
+        let c: ReplaySensorConfig = crate::objects::config::parse(k, &config).unwrap();
         c.check(k).unwrap();
         let mut sensor = ReplaySensorObj {
             config: c,

@@ -96,7 +96,7 @@ impl Default for TeleopConfig {
     }
 }
 
-impl crate::objects::kinds::KindConfig for TeleopConfig {
+impl crate::objects::config::KindConfig for TeleopConfig {
     fn example() -> Self {
         TeleopConfig {
             master: "frhc".into(),

@@ -9,11 +9,11 @@ use penelope_rt_core::teleop::{
     TrackingConfig, TrackingOutput, TwoPortConfig,
 };
 
-use super::kinds::KindConfig;
+use super::config::KindConfig;
 use super::teleop_passivity::PortLaw;
 use penelope_protocol::proto::WireError;
 
-crate::objects::kinds::loop_keys!(ForceDisplayToml {
+crate::objects::config::loop_keys!(ForceDisplayToml {
     max_force: f64 = ForceDisplayConfig::default().max_force, #[doc = "The largest displayed force, N (the robot's role caps it too)."]
     max_torque: f64 = ForceDisplayConfig::default().max_torque, #[doc = "The largest displayed moment, N·m."]
     damping: [f64; 6] = ForceDisplayConfig::default().damping, #[doc = "Added damping on the tool twist, N·s/m then N·m·s/rad."]
@@ -26,7 +26,7 @@ crate::objects::kinds::loop_keys!(ForceDisplayToml {
 
 impl KindConfig for ForceDisplayToml {}
 
-crate::objects::kinds::loop_keys!(PositionErrorToml {
+crate::objects::config::loop_keys!(PositionErrorToml {
     stiffness: [f64; 6] = ImpedanceConfig::master().stiffness, #[doc = "Spring to the mapped slave pose, N/m then N·m/rad (the slave half follows the master stiffly: in contact this spring is what the operator feels of the wall, capped by max_force)."]
     damping: [f64; 6] = ImpedanceConfig::master().damping, #[doc = "N·s/m then N·m·s/rad."]
     max_force: f64 = ImpedanceConfig::master().max_force, #[doc = "Force cap, N."]
@@ -36,7 +36,7 @@ crate::objects::kinds::loop_keys!(PositionErrorToml {
 
 impl KindConfig for PositionErrorToml {}
 
-crate::objects::kinds::loop_keys!(FourChannelToml {
+crate::objects::config::loop_keys!(FourChannelToml {
     c2: f64 = 1.0, #[doc = "C2, the force channel: the slave's sensed wrench x the channel's force gain."]
     c4: f64 = 0.0, #[doc = "C4, the position channel: the spring-damper to the slave's mapped pose."]
     c6: f64 = 0.0, #[doc = "C6: the operator's wrench on the handle, fed back (needs a handle sensor: the loop's `sensor`; without one the loop faults: zero force)."]
@@ -53,7 +53,7 @@ crate::objects::kinds::loop_keys!(FourChannelToml {
 
 impl KindConfig for FourChannelToml {}
 
-crate::objects::kinds::loop_keys!(FourChannelSlaveToml {
+crate::objects::config::loop_keys!(FourChannelSlaveToml {
     c1: f64 = 1.0, #[doc = "C1, the position channel: the tracking's feedback gains x c1."]
     c3: f64 = 0.0, #[doc = "C3: the operator's wrench on the handle, sent by the master when its loop reads a handle sensor (a `sensor` on the master's controller), divided by the channel's force gain; without it the loop faults (it holds). Pushing a wall with c1 = 0 the wall gets c3 / (1 + c5) of the operator's push."]
     c5: f64 = 0.0, #[doc = "C5: the slave's own contact (its `sensor`), fed back locally; above -1."]
@@ -67,7 +67,7 @@ crate::objects::kinds::loop_keys!(FourChannelSlaveToml {
 
 impl KindConfig for FourChannelSlaveToml {}
 
-crate::objects::kinds::loop_keys!(SlaveTrackingToml {
+crate::objects::config::loop_keys!(SlaveTrackingToml {
     kp: [f64; 6] = TrackingConfig::default().kp, #[doc = "Computed-torque position gain per joint, 1/s² ((80 rad/s)²)."]
     kd: [f64; 6] = TrackingConfig::default().kd, #[doc = "Velocity gain per joint, 1/s (critically damped)."]
     ki: [f64; 6] = TrackingConfig::default().ki, #[doc = "Integral gain per joint, 1/s³."]

@@ -283,7 +283,7 @@ fn bad(kind: &str, e: impl std::fmt::Debug) -> WireError {
     }
 }
 
-crate::objects::kinds::loop_keys!(WaveMasterToml {
+crate::objects::config::loop_keys!(WaveMasterToml {
     impedance: f64 = WaveConfig::default().impedance, #[doc = "Wave impedance b, N·s/m: the damping felt in free motion (same on both halves for transparency; any b keeps the line passive)."]
     missing: String = "hold".into(), #[doc = "A late or lost wave: `hold` (within the energy reserve) or `zero`."]
     max_force: f64 = ForceDisplayConfig::default().max_force, #[doc = "Largest displayed force, N."]
@@ -291,7 +291,7 @@ crate::objects::kinds::loop_keys!(WaveMasterToml {
     gravity_compensation: bool = true, #[doc = "Add g(q)."]
 });
 
-crate::objects::kinds::loop_keys!(WaveSlaveToml {
+crate::objects::config::loop_keys!(WaveSlaveToml {
     impedance: f64 = WaveConfig::default().impedance, #[doc = "Wave impedance b, N·s/m."]
     missing: String = "hold".into(), #[doc = "On a missing wave: `hold` (within the reserve) or `zero`."]
     drift_gain: f64 = WaveConfig::default().drift_gain, #[doc = "The slave closes the gap to the master's position (which travels with its wave) at this rate, 1/s; a correction that pushes on the contact is paid from the energy the matching damper dissipated, so the port stays passive (0: none)."]
@@ -302,9 +302,9 @@ crate::objects::kinds::loop_keys!(WaveSlaveToml {
     ki: [f64; 6] = TrackingConfig::default().ki, #[doc = "Integral gain per joint, 1/s³."]
 });
 
-impl crate::objects::kinds::KindConfig for WaveMasterToml {}
+impl crate::objects::config::KindConfig for WaveMasterToml {}
 
-impl crate::objects::kinds::KindConfig for WaveSlaveToml {}
+impl crate::objects::config::KindConfig for WaveSlaveToml {}
 
 impl WaveMasterToml {
     /// The wave transform's settings, checked.

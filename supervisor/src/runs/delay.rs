@@ -432,7 +432,7 @@ fn within(value: f64, limit: f64) -> bool {
 mod tests {
     use super::*;
     use crate::runs::DEMO_SYSTEM;
-    use penelope_runtime::objects::kinds::{self, SimBoardConfig};
+    use penelope_runtime::objects::kinds::SimBoardConfig;
     use penelope_runtime::objects::teleop::TeleopConfig;
 
     fn object<'a>(file: &'a SystemFile, kind: &str) -> &'a crate::system::ObjectSpec {
@@ -443,7 +443,7 @@ mod tests {
     fn a_round_trip_is_split_half_each_way_and_the_wall_is_set() {
         let demo = SystemFile::parse(DEMO_SYSTEM).unwrap();
         let file = delayed_system(&demo, 200.0, 5.0, Some(1500.0), 9).unwrap();
-        let link: TeleopConfig = kinds::parse(
+        let link: TeleopConfig = penelope_runtime::objects::config::parse(
             "trajectory/teleop",
             &object(&file, "trajectory/teleop").config,
         )
@@ -455,7 +455,10 @@ mod tests {
             .objects
             .iter()
             .filter(|o| o.kind == "board/sim")
-            .map(|o| kinds::parse::<SimBoardConfig>(&o.kind, &o.config).unwrap())
+            .map(|o| {
+                penelope_runtime::objects::config::parse::<SimBoardConfig>(&o.kind, &o.config)
+                    .unwrap()
+            })
             .find(|b| !b.shapes.is_empty())
             .expect("the demo's wall");
         assert!(board.shapes.iter().all(|s| s.stiffness == 1500.0));

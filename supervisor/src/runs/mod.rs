@@ -32,7 +32,6 @@ use crate::node::{NamingChoice, Node, NodeConfig};
 use crate::system::{ObjectSpec, SystemFile, SystemFileError};
 use penelope_protocol::proto::{Call, Method, WireError};
 use penelope_runtime::objects::clock::ClockMode;
-use penelope_runtime::objects::kinds;
 use penelope_runtime::objects::kinematics::RobotKinematics;
 use penelope_runtime::objects::teleop::TeleopConfig;
 use penelope_runtime::objects::tick::TickRecord;
@@ -301,7 +300,8 @@ fn teleop_channel(file: &SystemFile) -> Result<(&ObjectSpec, TeleopConfig), RunE
 }
 
 fn parse<T: serde::de::DeserializeOwned + Default>(o: &ObjectSpec) -> Result<T, RunError> {
-    kinds::parse(&o.kind, &o.config).map_err(|e| RunError::Task(format!("{}: {e}", o.name)))
+    penelope_runtime::objects::config::parse(&o.kind, &o.config)
+        .map_err(|e| RunError::Task(format!("{}: {e}", o.name)))
 }
 
 fn task_error(e: impl Into<String>) -> RunError {

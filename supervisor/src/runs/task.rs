@@ -51,8 +51,9 @@ pub(super) fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task,
     activate_law(&mut file, options, law, &channel_name, &teleop)?;
     let master_ctl = controller_on_channel(&file, &channel_name, law, &teleop.master)?;
     let slave_ctl = controller_on_channel(&file, &channel_name, law, &teleop.slave)?;
-    let timing: kinds::LoopTiming = kinds::loop_timing(&master_ctl.kind, &master_ctl.config)
-        .map_err(|e| task_error(format!("{}: {e}", master_ctl.name)))?;
+    let timing: penelope_runtime::objects::config::LoopTiming =
+        penelope_runtime::objects::config::loop_timing(&master_ctl.kind, &master_ctl.config)
+            .map_err(|e| task_error(format!("{}: {e}", master_ctl.name)))?;
     let (master_model, master_dynamics) = robot_models(&file, &teleop.master)?;
     let (slave_model, _) = robot_models(&file, &teleop.slave)?;
     let script = operator_script(&file, &teleop, options)?;

@@ -1,9 +1,9 @@
 //! The configurations of robots, boards and sensors, and the environment a simulated tool or a
 //! virtual sensor touches.
 
-use super::describe::KindConfig;
 use super::per_joint::PerJoint;
-use crate::objects::kinds::{bad, check_int, check_range};
+use crate::objects::config::describe::KindConfig;
+use crate::objects::config::{bad, check_int, check_range};
 use nalgebra::{Unit, Vector3};
 use penelope_drivers::sim::environment::{ContactModel, Environment, Shape};
 use penelope_hal::{JointVector, MAX_AXES, NamedPose};

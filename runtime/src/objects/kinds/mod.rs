@@ -5,19 +5,22 @@
 //! list `penelope ctl kinds`, the web page's forms and the docs show is derived from that type
 //! ([`describe`]): its fields, their doc comments and an example value.
 
-use std::time::Duration;
-
-use serde::de::DeserializeOwned;
-
-pub mod describe;
 mod devices;
 mod per_joint;
 pub mod table;
 mod trajectory;
 
-pub use describe::KindConfig;
 pub use per_joint::PerJoint;
-pub use table::*;
+pub use table::{
+    BOARD_FPGA, BOARD_GALIL, BOARD_SIM, CONTROLLER_CARTESIAN_IMPEDANCE, CONTROLLER_FORCE_DISPLAY,
+    CONTROLLER_FOUR_CHANNEL_MASTER, CONTROLLER_FOUR_CHANNEL_SLAVE, CONTROLLER_JOINT_GROUPS,
+    CONTROLLER_JOINT_PID, CONTROLLER_JOINT_POSITION, CONTROLLER_POSITION_ERROR_MASTER,
+    CONTROLLER_SLAVE_POSITION, CONTROLLER_SLAVE_TRACKING, CONTROLLER_WAVE_MASTER,
+    CONTROLLER_WAVE_SLAVE, Described, KIND_TABLE, KindEntry, ROBOT_FRHC, ROBOT_PUMA200,
+    ROBOT_PUMA560, ROBOT_URDF, SENSOR_NETFT, SENSOR_OPERATOR_HAND, SENSOR_OPERATOR_REPLAY,
+    SENSOR_REPLAY, SENSOR_VIRTUAL, TRAJECTORY_RAMP, TRAJECTORY_SPLINE, TRAJECTORY_STEP,
+    TRAJECTORY_TELEOP, TRAJECTORY_TRAPEZOIDAL, described, entry_named, entry_of,
+};
 
 pub use devices::{
     GalilConfig, NetFtSensorConfig, RobotConfig, SensorConfig, ShapeConfig, SimBoardConfig,
@@ -30,6 +33,8 @@ pub use trajectory::{
 };
 
 use penelope_protocol::proto::{Class, KindInfo, WireError};
+
+use crate::objects::config::{KindConfig, LoopTiming, bad, check_int, check_range, loop_keys};
 
 /// A kind, parsed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -114,151 +119,6 @@ impl Kind {
 /// Every kind, in listing order.
 pub fn all_kinds() -> Vec<KindInfo> {
     KIND_TABLE.iter().map(KindEntry::info).collect()
-}
-
-// ---------------------------------------------------------------------------------------------
-// Parsing helpers
-// ---------------------------------------------------------------------------------------------
-
-fn bad(kind: &str, message: impl Into<String>) -> WireError {
-    WireError::BadConfig {
-        kind: kind.to_string(),
-        message: message.into(),
-    }
-}
-
-/// Parses `text` as the TOML configuration of `kind` (`""`: defaults).
-///
-/// # Errors
-/// [`WireError::BadConfig`] for bad TOML, unknown keys or wrong types.
-pub fn parse<T: DeserializeOwned + Default>(kind: &str, text: &str) -> Result<T, WireError> {
-    if text.trim().is_empty() {
-        return Ok(T::default());
-    }
-    toml::from_str(text).map_err(|e| bad(kind, e.message().to_string()))
-}
-
-fn check_range(kind: &str, key: &str, v: f64, lo: f64, hi: f64) -> Result<(), WireError> {
-    if v.is_finite() && v >= lo && v <= hi {
-        Ok(())
-    } else {
-        Err(bad(kind, format!("`{key}` = {v} is outside {lo}..={hi}")))
-    }
-}
-
-pub(crate) fn check_int(kind: &str, key: &str, v: u64, lo: u64, hi: u64) -> Result<(), WireError> {
-    if (lo..=hi).contains(&v) {
-        Ok(())
-    } else {
-        Err(bad(kind, format!("`{key}` = {v} is outside {lo}..={hi}")))
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// Controllers
-// ---------------------------------------------------------------------------------------------
-
-/// Timing keys every controller shares.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct LoopTiming {
-    /// Control period.
-    pub period: Duration,
-    /// Communication (reference) period.
-    pub comm_period: Duration,
-    /// Reference watchdog.
-    pub watchdog: Duration,
-    /// Sensor feed period.
-    pub sensor_period: Duration,
-    /// Largest wrench age used.
-    pub sensor_timeout: Duration,
-    /// Telemetry batch period.
-    pub telemetry_period: Duration,
-}
-
-macro_rules! loop_keys {
-    ($name:ident { $($field:ident : $ty:ty = $default:expr, #[$doc:meta])* }) => {
-        /// A controller's configuration.
-        #[derive(Clone, Debug, PartialEq, ::serde::Deserialize, ::serde::Serialize, ::schemars::JsonSchema)]
-        #[serde(deny_unknown_fields, default)]
-        pub struct $name {
-            $(#[$doc] pub $field: $ty,)*
-            /// Control period T_ctrl, µs, 250..=20000.
-            pub period_us: u64,
-            /// Communication period T_com (the reference's), µs, 250..=100000.
-            pub comm_period_us: u64,
-            /// A reference older than this holds the robot, ms, 1..=10000.
-            pub watchdog_ms: u64,
-            /// Force-sensor feed period, ms, 1..=1000.
-            pub sensor_period_ms: u64,
-            /// An older wrench is not used, ms, 1..=10000.
-            pub sensor_timeout_ms: u64,
-            /// Telemetry batch period to subscribers, ms, 1..=1000.
-            pub telemetry_period_ms: u64,
-        }
-
-        impl Default for $name {
-            fn default() -> Self {
-                $name {
-                    $($field: $default,)*
-                    period_us: 1000,
-                    comm_period_us: 2000,
-                    watchdog_ms: 50,
-                    sensor_period_ms: 2,
-                    sensor_timeout_ms: 20,
-                    telemetry_period_ms: 10,
-                }
-            }
-        }
-
-        impl $name {
-            /// The timing keys, checked.
-            ///
-            /// # Errors
-            /// [`WireError::BadConfig`].
-            pub fn timing(&self, kind: &str) -> Result<$crate::objects::kinds::LoopTiming, ::penelope_protocol::proto::WireError> {
-                $crate::objects::kinds::check_int(kind, "period_us", self.period_us, 250, 20_000)?;
-                $crate::objects::kinds::check_int(kind, "comm_period_us", self.comm_period_us, 250, 100_000)?;
-                $crate::objects::kinds::check_int(kind, "watchdog_ms", self.watchdog_ms, 1, 10_000)?;
-                $crate::objects::kinds::check_int(kind, "sensor_period_ms", self.sensor_period_ms, 1, 1000)?;
-                $crate::objects::kinds::check_int(kind, "sensor_timeout_ms", self.sensor_timeout_ms, 1, 10_000)?;
-                $crate::objects::kinds::check_int(kind, "telemetry_period_ms", self.telemetry_period_ms, 1, 1000)?;
-                Ok($crate::objects::kinds::LoopTiming {
-                    period: ::std::time::Duration::from_micros(self.period_us),
-                    comm_period: ::std::time::Duration::from_micros(self.comm_period_us),
-                    watchdog: ::std::time::Duration::from_millis(self.watchdog_ms),
-                    sensor_period: ::std::time::Duration::from_millis(self.sensor_period_ms),
-                    sensor_timeout: ::std::time::Duration::from_millis(self.sensor_timeout_ms),
-                    telemetry_period: ::std::time::Duration::from_millis(self.telemetry_period_ms),
-                })
-            }
-        }
-    };
-}
-
-pub(crate) use loop_keys;
-
-loop_keys!(LoopKeysOnly {});
-
-/// The timing keys of any controller's configuration text (other keys are ignored).
-///
-/// # Errors
-/// [`WireError::BadConfig`] for text that is not TOML or timing out of range.
-pub fn loop_timing(kind: &str, text: &str) -> Result<LoopTiming, WireError> {
-    let table: toml::Table = text.parse().map_err(|e| bad(kind, format!("{e}")))?;
-    let keys = [
-        "period_us",
-        "comm_period_us",
-        "watchdog_ms",
-        "sensor_period_ms",
-        "sensor_timeout_ms",
-        "telemetry_period_ms",
-    ];
-    let timing: toml::Table = table
-        .into_iter()
-        .filter(|(k, _)| keys.contains(&k.as_str()))
-        .collect();
-    let keys: LoopKeysOnly = parse(kind, &timing.to_string())?;
-    keys.timing(kind)
 }
 
 loop_keys!(JointPidConfig {
@@ -460,6 +320,7 @@ impl ImpedanceConfigToml {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::objects::config::parse;
 
     #[test]
     fn a_joint_position_law_checks_its_speed_limit() {

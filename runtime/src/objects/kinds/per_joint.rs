@@ -1,7 +1,7 @@
 //! [`PerJoint`]: one value for every joint, or one per joint, as the configurations write gains
 //! and limits.
 
-use crate::objects::kinds::{bad, check_range};
+use crate::objects::config::{bad, check_range};
 use penelope_hal::{JointVector, MAX_AXES, MAX_JOINTS};
 use penelope_protocol::proto::WireError;
 use serde::{Deserialize, Serialize};

@@ -20,8 +20,11 @@ use penelope_protocol::proto::{Class, KindInfo, WireError};
 
 use std::collections::BTreeSet;
 
-use super::describe::{FieldTree, KindConfig, fields_of, key_text, other_kinds_keys};
-use super::{Kind, parse};
+use super::Kind;
+use crate::objects::config::describe::{
+    FieldTree, KindConfig, fields_of, key_text, other_kinds_keys,
+};
+use crate::objects::config::parse;
 
 use super::devices::{GalilConfig, NetFtSensorConfig, RobotConfig, SensorConfig, SimBoardConfig};
 use super::trajectory::{RampConfig, SplineConfig, StepConfig, TrapezoidalConfig};

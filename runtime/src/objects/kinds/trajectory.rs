@@ -1,9 +1,10 @@
 //! The trajectory kinds' configurations: goals in joint space (joints or a named pose) or in
 //! operational space (a tool position and orientation), and their checks.
 
-use super::describe::KindConfig;
 use super::per_joint::PerJoint;
-use crate::objects::kinds::{Kind, bad, check_range, parse};
+use crate::objects::config::describe::KindConfig;
+use crate::objects::config::{bad, check_range, parse};
+use crate::objects::kinds::Kind;
 use penelope_hal::{MAX_JOINTS, NamedPose};
 use penelope_protocol::proto::WireError;
 use serde::{Deserialize, Serialize};

@@ -11,7 +11,7 @@ use crate::objects::teleop_laws::{
     ForceDisplayToml, FourChannelSlaveToml, FourChannelToml, PositionErrorToml, SlaveTrackingToml,
 };
 use crate::objects::teleop_wave::{WaveMasterToml, WaveSlaveToml};
-use crate::objects::{Body, Registry, kinds};
+use crate::objects::{Body, Registry};
 use penelope_drivers::galil::GalilBoard;
 use penelope_drivers::model::DhRobotModel;
 use penelope_hal::{
@@ -744,7 +744,7 @@ fn gains_from(
 ) -> Result<(ControllerConfig, Option<GainsUpdate>), WireError> {
     Ok(match current {
         ControllerConfig::Pid(_) => {
-            let cfg: JointPidConfig = kinds::parse(kind, text)?;
+            let cfg: JointPidConfig = crate::objects::config::parse(kind, text)?;
             cfg.check(kind)?;
             let update = match model {
                 Some(m) => {
@@ -757,13 +757,13 @@ fn gains_from(
             (ControllerConfig::Pid(cfg), update)
         }
         ControllerConfig::Impedance(_) => {
-            let cfg: ImpedanceConfigToml = kinds::parse(kind, text)?;
+            let cfg: ImpedanceConfigToml = crate::objects::config::parse(kind, text)?;
             cfg.check(kind)?;
             let update = GainsUpdate::Impedance(impedance(&cfg));
             (ControllerConfig::Impedance(cfg), Some(update))
         }
         ControllerConfig::ForceDisplay(_) => {
-            let cfg: ForceDisplayToml = kinds::parse(kind, text)?;
+            let cfg: ForceDisplayToml = crate::objects::config::parse(kind, text)?;
             let law = cfg.law(kind)?;
             (
                 ControllerConfig::ForceDisplay(cfg),
@@ -771,7 +771,7 @@ fn gains_from(
             )
         }
         ControllerConfig::PositionError(_) => {
-            let cfg: PositionErrorToml = kinds::parse(kind, text)?;
+            let cfg: PositionErrorToml = crate::objects::config::parse(kind, text)?;
             let law = cfg.law(kind)?;
             (
                 ControllerConfig::PositionError(cfg),
@@ -779,7 +779,7 @@ fn gains_from(
             )
         }
         ControllerConfig::FourChannel(_) => {
-            let cfg: FourChannelToml = kinds::parse(kind, text)?;
+            let cfg: FourChannelToml = crate::objects::config::parse(kind, text)?;
             let law = cfg.law(kind)?;
             (
                 ControllerConfig::FourChannel(cfg),
@@ -787,7 +787,7 @@ fn gains_from(
             )
         }
         ControllerConfig::FourChannelSlave(_) => {
-            let cfg: FourChannelSlaveToml = kinds::parse(kind, text)?;
+            let cfg: FourChannelSlaveToml = crate::objects::config::parse(kind, text)?;
             let law = cfg.law(kind)?;
             (
                 ControllerConfig::FourChannelSlave(cfg),
@@ -795,7 +795,7 @@ fn gains_from(
             )
         }
         ControllerConfig::Tracking(_, servo) => {
-            let cfg: SlaveTrackingToml = kinds::parse(kind, text)?;
+            let cfg: SlaveTrackingToml = crate::objects::config::parse(kind, text)?;
             let law = cfg.law(kind, *servo)?;
             (
                 ControllerConfig::Tracking(cfg, *servo),
@@ -805,7 +805,7 @@ fn gains_from(
         // The display and tracking gains change live; the wave keys when the loop next starts
         // (both sides' transforms must restart together).
         ControllerConfig::WaveMaster(_) => {
-            let cfg: WaveMasterToml = kinds::parse(kind, text)?;
+            let cfg: WaveMasterToml = crate::objects::config::parse(kind, text)?;
             cfg.wave(kind)?;
             let law = cfg.law(kind)?;
             (
@@ -814,7 +814,7 @@ fn gains_from(
             )
         }
         ControllerConfig::WaveSlave(_) => {
-            let cfg: WaveSlaveToml = kinds::parse(kind, text)?;
+            let cfg: WaveSlaveToml = crate::objects::config::parse(kind, text)?;
             cfg.wave(kind)?;
             let law = cfg.law(kind)?;
             (

@@ -25,9 +25,10 @@ use penelope_hal::{
 use penelope_rt_core::safety::Role;
 use penelope_rt_core::teleop::ImpedanceConfig;
 
+use super::config::LoopTiming;
 use super::kinds::{
     self, GalilConfig, GoalConfig, ImpedanceConfigToml, JointPidConfig, JointPositionConfig, Kind,
-    LoopTiming, RobotConfig, SensorConfig, SimBoardConfig, TrajectorySpec,
+    RobotConfig, SensorConfig, SimBoardConfig, TrajectorySpec,
 };
 use super::kinematics::RobotKinematics;
 use super::teleop::{
@@ -323,7 +324,7 @@ pub(crate) fn make(
     let k = kind.as_str();
     let body = match kind {
         Kind::Robot(model) => {
-            let cfg: RobotConfig = kinds::parse(k, config)?;
+            let cfg: RobotConfig = crate::objects::config::parse(k, config)?;
             let start = cfg.start_pose(k)?;
             let role = cfg.role(k)?;
             let model = cfg.model_in(k, model, robot_files)?;
@@ -338,7 +339,7 @@ pub(crate) fn make(
             }))
         }
         Kind::SimBoard | Kind::FpgaBoard => {
-            let cfg: SimBoardConfig = kinds::parse(k, config)?;
+            let cfg: SimBoardConfig = crate::objects::config::parse(k, config)?;
             cfg.check(k)?;
             Body::SimBoard(SimBoardObj {
                 config: cfg,
@@ -346,7 +347,7 @@ pub(crate) fn make(
             })
         }
         Kind::GalilBoard => {
-            let cfg: GalilConfig = kinds::parse(k, config)?;
+            let cfg: GalilConfig = crate::objects::config::parse(k, config)?;
             cfg.check(k)?;
             Body::Galil(GalilObj {
                 config: cfg,
@@ -354,7 +355,7 @@ pub(crate) fn make(
             })
         }
         Kind::VirtualSensor => {
-            let cfg: SensorConfig = kinds::parse(k, config)?;
+            let cfg: SensorConfig = crate::objects::config::parse(k, config)?;
             cfg.check(k)?;
             let env = kinds::environment(k, &cfg.shapes)?;
             Body::Sensor(SensorObj {
@@ -364,29 +365,29 @@ pub(crate) fn make(
             })
         }
         Kind::JointPid => {
-            let cfg: JointPidConfig = kinds::parse(k, config)?;
+            let cfg: JointPidConfig = crate::objects::config::parse(k, config)?;
             let timing = cfg.check(k)?;
             controller_body(ControllerConfig::Pid(cfg), timing, config)
         }
         Kind::CartesianImpedance => {
-            let cfg: ImpedanceConfigToml = kinds::parse(k, config)?;
+            let cfg: ImpedanceConfigToml = crate::objects::config::parse(k, config)?;
             let timing = cfg.check(k)?;
             controller_body(ControllerConfig::Impedance(cfg), timing, config)
         }
         Kind::JointPosition => {
-            let cfg: JointPositionConfig = kinds::parse(k, config)?;
+            let cfg: JointPositionConfig = crate::objects::config::parse(k, config)?;
             let timing = cfg.check(k)?;
             controller_body(ControllerConfig::Position(cfg), timing, config)
         }
         Kind::JointGroups => {
-            let cfg: kinds::JointGroupsConfig = kinds::parse(k, config)?;
+            let cfg: kinds::JointGroupsConfig = crate::objects::config::parse(k, config)?;
             let timing = cfg.check(k)?;
             controller_body(ControllerConfig::Groups(cfg), timing, config)
         }
         Kind::ReplaySensor | Kind::OperatorReplay => replay::replay_body(kind, config)?,
         Kind::NetFtSensor => netft_body(config)?,
         Kind::OperatorHand => {
-            let cfg: HandConfig = kinds::parse(k, config)?;
+            let cfg: HandConfig = crate::objects::config::parse(k, config)?;
             let script = cfg.check(k)?;
             Body::Hand(Box::new(HandObj {
                 config: cfg,
@@ -395,7 +396,7 @@ pub(crate) fn make(
             }))
         }
         Kind::Teleop => {
-            let cfg: TeleopConfig = kinds::parse(k, config)?;
+            let cfg: TeleopConfig = crate::objects::config::parse(k, config)?;
             cfg.check(k)?;
             Body::Teleop(Box::new(TeleopObj {
                 config: cfg,
@@ -403,45 +404,45 @@ pub(crate) fn make(
             }))
         }
         Kind::ForceDisplay => {
-            let cfg: ForceDisplayToml = kinds::parse(k, config)?;
+            let cfg: ForceDisplayToml = crate::objects::config::parse(k, config)?;
             cfg.law(k)?;
             let timing = cfg.timing(k)?;
             controller_body(ControllerConfig::ForceDisplay(cfg), timing, config)
         }
         Kind::PositionErrorMaster => {
-            let cfg: PositionErrorToml = kinds::parse(k, config)?;
+            let cfg: PositionErrorToml = crate::objects::config::parse(k, config)?;
             cfg.law(k)?;
             let timing = cfg.timing(k)?;
             controller_body(ControllerConfig::PositionError(cfg), timing, config)
         }
         Kind::FourChannelMaster => {
-            let cfg: FourChannelToml = kinds::parse(k, config)?;
+            let cfg: FourChannelToml = crate::objects::config::parse(k, config)?;
             cfg.law(k)?;
             let timing = cfg.timing(k)?;
             controller_body(ControllerConfig::FourChannel(cfg), timing, config)
         }
         Kind::FourChannelSlave => {
-            let cfg: FourChannelSlaveToml = kinds::parse(k, config)?;
+            let cfg: FourChannelSlaveToml = crate::objects::config::parse(k, config)?;
             cfg.law(k)?;
             let timing = cfg.timing(k)?;
             controller_body(ControllerConfig::FourChannelSlave(cfg), timing, config)
         }
         Kind::SlaveTracking | Kind::SlavePosition => {
-            let cfg: SlaveTrackingToml = kinds::parse(k, config)?;
+            let cfg: SlaveTrackingToml = crate::objects::config::parse(k, config)?;
             let servo = kind == Kind::SlavePosition;
             cfg.law(k, servo)?;
             let timing = cfg.timing(k)?;
             controller_body(ControllerConfig::Tracking(cfg, servo), timing, config)
         }
         Kind::WaveMaster => {
-            let cfg: WaveMasterToml = kinds::parse(k, config)?;
+            let cfg: WaveMasterToml = crate::objects::config::parse(k, config)?;
             cfg.law(k)?;
             cfg.wave(k)?;
             let timing = cfg.timing(k)?;
             controller_body(ControllerConfig::WaveMaster(cfg), timing, config)
         }
         Kind::WaveSlave => {
-            let cfg: WaveSlaveToml = kinds::parse(k, config)?;
+            let cfg: WaveSlaveToml = crate::objects::config::parse(k, config)?;
             cfg.law(k)?;
             cfg.wave(k)?;
             let timing = cfg.timing(k)?;

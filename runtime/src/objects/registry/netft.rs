@@ -20,7 +20,7 @@ pub(crate) struct NetFtObj {
 /// Makes the body of a `sensor/netft` from its configuration text.
 pub(super) fn netft_body(config: &str) -> Result<Body, WireError> {
     let k = Kind::NetFtSensor.as_str();
-    let cfg: kinds::NetFtSensorConfig = kinds::parse(k, config)?;
+    let cfg: kinds::NetFtSensorConfig = crate::objects::config::parse(k, config)?;
     let config = cfg.check(k)?;
     Ok(Body::NetFt(Box::new(NetFtObj {
         config,

@@ -11,7 +11,7 @@ use crate::objects::registry::{Kind, not_ready};
 use crate::objects::replay::{
     OperatorReplayConfig, OperatorReplayObj, ReplaySensor, ReplaySensorConfig, ReplaySensorObj,
 };
-use crate::objects::{Body, Registry, kinds};
+use crate::objects::{Body, Registry};
 use penelope_drivers::sim::ToolContact;
 use penelope_drivers::sim::operator::VirtualOperator;
 use penelope_hal::Timestamp;
@@ -23,7 +23,7 @@ pub(super) fn replay_body(kind: Kind, config: &str) -> Result<Body, WireError> {
     let k = kind.as_str();
     Ok(match kind {
         Kind::ReplaySensor => {
-            let cfg: ReplaySensorConfig = kinds::parse(k, config)?;
+            let cfg: ReplaySensorConfig = crate::objects::config::parse(k, config)?;
             cfg.check(k)?;
             Body::ReplaySensor(Box::new(ReplaySensorObj {
                 config: cfg,
@@ -31,7 +31,7 @@ pub(super) fn replay_body(kind: Kind, config: &str) -> Result<Body, WireError> {
             }))
         }
         _ => {
-            let cfg: OperatorReplayConfig = kinds::parse(k, config)?;
+            let cfg: OperatorReplayConfig = crate::objects::config::parse(k, config)?;
             cfg.check(k)?;
             Body::OperatorReplay(Box::new(OperatorReplayObj {
                 config: cfg,

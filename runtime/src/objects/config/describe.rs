@@ -488,7 +488,8 @@ fn shown_keys(table: &toml::Table, path: &str, fields: &FieldTree, out: &mut BTr
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::objects::kinds::{KIND_TABLE, parse};
+    use crate::objects::config::parse;
+    use crate::objects::kinds::KIND_TABLE;
     use serde::Deserialize;
 
     #[test]
