@@ -1,7 +1,7 @@
 //! Penelope's node runtime: what a node is made of below its server. The creator makes objects by
 //! kind and name, wires them by configuration, and runs the real-time loops of the active
 //! controllers; the data plane carries a teleoperation channel's samples between nodes on a
-//! common clock; recordings keep every tick. The node above ([`penelope_supervisor`], not a
+//! common clock; recordings keep every tick. The node above (`penelope-supervisor`, not a
 //! dependency) serves the creator over the protocol and hosts the naming service and the
 //! bridges; nothing here knows about either.
 //!

@@ -3,7 +3,7 @@
 //!
 //! Each kind is registered once, in [`table`]: its name, summary and configuration type. The key
 //! list `penelope ctl kinds`, the web page's forms and the docs show is derived from that type
-//! ([`describe`]): its fields, their doc comments and an example value.
+//! ([`describe`](crate::objects::config::describe)): its fields, their doc comments and an example value.
 
 mod devices;
 mod per_joint;

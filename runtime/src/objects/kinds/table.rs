@@ -1,6 +1,6 @@
 //! Every kind a creator makes, registered in one place: its name (written once, here), its
 //! [`Kind`], a one-line summary and its configuration type, from which the key list `ctl kinds`
-//! shows is derived ([`describe`](super::describe)). The class is the name's prefix.
+//! shows is derived ([`describe`](crate::objects::config::describe)). The class is the name's prefix.
 //!
 //! To add a kind (a sensor, say):
 //! 1. its configuration type in its own module: `#[derive(Deserialize, Serialize, JsonSchema)]`,
