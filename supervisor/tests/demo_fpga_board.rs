@@ -158,6 +158,7 @@ fn map_all(c: &Creator, robot: &str, board: &str) -> Result<Reply, WireError> {
             joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
         }),
     )
+    .map_err(WireError::from)
 }
 
 #[test]
@@ -264,7 +265,10 @@ fn a_robot_the_board_does_not_model_and_a_bad_key_are_typed_errors() {
     map_all(&c, "arm", "later").unwrap();
     c.create("board/fpga", "later", "").unwrap();
     c.transition("later", Transition::Configure).unwrap();
-    match c.transition("arm", Transition::Configure) {
+    match c
+        .transition("arm", Transition::Configure)
+        .map_err(WireError::from)
+    {
         Err(WireError::BadConfig { kind, message }) => {
             assert_eq!(kind, "board/fpga");
             assert!(message.contains("puma560"), "{message}");
@@ -272,13 +276,19 @@ fn a_robot_the_board_does_not_model_and_a_bad_key_are_typed_errors() {
         other => panic!("{other:?}"),
     }
     // The robot key is gone: the board chooses the kinematics.
-    match c.create("robot/frhc", "frhc", "kinematics = \"fpga\"") {
+    match c
+        .create("robot/frhc", "frhc", "kinematics = \"fpga\"")
+        .map_err(WireError::from)
+    {
         Err(WireError::BadConfig { message, .. }) => {
             assert!(message.contains("kinematics"), "{message}")
         }
         other => panic!("{other:?}"),
     }
-    match c.create("board/fpga", "io2", "clock_mhz = 80") {
+    match c
+        .create("board/fpga", "io2", "clock_mhz = 80")
+        .map_err(WireError::from)
+    {
         Err(WireError::BadConfig { kind, message }) => {
             assert_eq!(kind, "board/fpga");
             assert!(message.contains("clock_mhz"), "{message}");

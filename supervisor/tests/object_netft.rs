@@ -103,7 +103,7 @@ fn bad_configurations_an_absent_box_and_the_simulated_clock_are_typed_refusals()
         "address = \"127.0.0.1:49152\"\ntimeout_ms = 0",
         "address = \"127.0.0.1:49152\"\ncolour = \"red\"",
     ] {
-        let e = c.create("sensor/netft", "ft", bad).unwrap_err();
+        let e = WireError::from(c.create("sensor/netft", "ft", bad).unwrap_err());
         assert!(matches!(e, WireError::BadConfig { .. }), "{bad:?}: {e:?}");
     }
     // Nobody answers on this port: configure says so, and the object stays unconfigured.
@@ -119,9 +119,10 @@ fn bad_configurations_an_absent_box_and_the_simulated_clock_are_typed_refusals()
     let mut config = CreatorConfig::new("lab");
     config.clock = ClockMode::Simulated;
     let sim = Creator::new(config);
-    let e = sim
-        .create("sensor/netft", "ft", "address = \"127.0.0.1:49152\"")
-        .unwrap_err();
+    let e = WireError::from(
+        sim.create("sensor/netft", "ft", "address = \"127.0.0.1:49152\"")
+            .unwrap_err(),
+    );
     assert!(
         matches!(&e, WireError::Unsupported { method, .. } if method.contains("simulated clock")),
         "{e:?}"

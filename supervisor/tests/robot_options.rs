@@ -17,7 +17,7 @@ fn creator() -> Creator {
 }
 
 fn create(c: &Creator, kind: &str, name: &str, config: &str) -> Result<ObjectInfo, WireError> {
-    c.create(kind, name, config)
+    c.create(kind, name, config).map_err(WireError::from)
 }
 
 fn ok(c: &Creator, name: &str, method: Method) -> Reply {
@@ -94,6 +94,7 @@ fn the_fpga_kinematics_answer_the_robots_methods_within_the_fixed_point_error() 
             joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
         }),
     );
+    let refused = refused.map_err(WireError::from);
     assert!(
         matches!(&refused, Err(WireError::BadConfig { message, .. }) if message.contains("FRHC")),
         "{refused:?}"

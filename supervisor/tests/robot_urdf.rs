@@ -56,8 +56,8 @@ fn numbers(reply: Reply) -> Vec<f64> {
     }
 }
 
-fn bad_config(e: WireError) -> String {
-    match e {
+fn bad_config(e: impl Into<WireError>) -> String {
+    match e.into() {
         WireError::BadConfig { message, .. } => message,
         other => panic!("expected BadConfig, got {other:?}"),
     }

@@ -28,7 +28,7 @@ fn is_the_refusal(e: &WireError) -> bool {
 #[test]
 fn a_galil_board_is_refused_on_the_simulated_clock_and_made_in_real_time() {
     let sim = creator(ClockMode::Simulated);
-    let e = sim.create("board/galil", "dmc", GALIL).unwrap_err();
+    let e = WireError::from(sim.create("board/galil", "dmc", GALIL).unwrap_err());
     assert!(is_the_refusal(&e), "{e:?}");
     assert!(
         e.to_string()

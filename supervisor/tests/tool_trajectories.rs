@@ -134,7 +134,7 @@ fn a_trapezoidal_move_refuses_a_tool_goal_and_goals_do_not_mix() {
     ] {
         assert!(
             matches!(
-                c.create(kind, "t", config),
+                c.create(kind, "t", config).map_err(WireError::from),
                 Err(WireError::BadConfig { .. })
             ),
             "{kind}: {config}"

@@ -14,7 +14,7 @@ use penelope_supervisor::objects::Creator;
 use penelope_tests::papers_task::{create, ok, papers_task, relate, step_papers_task};
 
 fn call(c: &Creator, name: &str, method: Method) -> Result<Reply, WireError> {
-    c.call_object(name, method)
+    c.call_object(name, method).map_err(WireError::from)
 }
 
 fn phase(t: Timestamp) -> &'static str {

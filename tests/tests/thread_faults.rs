@@ -12,7 +12,7 @@ use penelope_supervisor::objects::{Creator, CreatorConfig};
 use penelope_testkit::wait::wait_until;
 
 fn call(c: &Creator, name: &str, method: Method) -> Result<Reply, WireError> {
-    c.call_object(name, method)
+    c.call_object(name, method).map_err(WireError::from)
 }
 
 fn ok(c: &Creator, name: &str, method: Method) -> Reply {

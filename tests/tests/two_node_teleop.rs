@@ -162,7 +162,9 @@ fn a_channel_to_another_node_is_checked_at_configure() {
     // Only one of listen and peer.
     let half = "master = \"frhc\"\nslave = \"puma\"\nlisten = \"127.0.0.1:9\"";
     assert!(matches!(
-        a.creator().create("trajectory/teleop", "half", half),
+        a.creator()
+            .create("trajectory/teleop", "half", half)
+            .map_err(WireError::from),
         Err(WireError::BadConfig { .. })
     ));
     a.shutdown();

@@ -37,10 +37,10 @@ use penelope_hal::{Error, ErrorKind, ForceSensor, Pose, Sensor, Timestamp, Wrenc
 use penelope_rt_core::safety::SafetyEvent;
 use serde::Deserialize;
 
+use crate::objects::error::ObjectError;
 use crate::objects::runtime::TickRecord;
 use crate::runs::mcap_log::CONTROLLER_TOPIC;
 use crate::runs::recording::{RecordingError, read_recording};
-use penelope_protocol::proto::WireError;
 
 /// The keys of `sensor/replay`, as `penelope ctl kinds` lists them.
 pub const REPLAY_SENSOR_KEYS: &str = r#"
@@ -117,14 +117,14 @@ pub const WRENCH_FIELDS: [&str; 4] = [
     "truth.tool_wrench",
 ];
 
-fn bad(kind: &str, message: impl Into<String>) -> WireError {
-    WireError::BadConfig {
+fn bad(kind: &str, message: impl Into<String>) -> ObjectError {
+    ObjectError::BadConfig {
         kind: kind.to_string(),
         message: message.into(),
     }
 }
 
-fn check_file_and_topic(kind: &str, file: &str, topic: &str) -> Result<(), WireError> {
+fn check_file_and_topic(kind: &str, file: &str, topic: &str) -> Result<(), ObjectError> {
     if file.trim().is_empty() {
         return Err(bad(kind, "`file` (the recording) is required"));
     }
@@ -144,8 +144,8 @@ impl ReplaySensorConfig {
     /// Checks what can be checked without the file.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn check(&self, kind: &str) -> Result<(), WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<(), ObjectError> {
         check_file_and_topic(kind, &self.file, &self.topic)?;
         if !WRENCH_FIELDS.contains(&self.field.as_str()) {
             return Err(bad(
@@ -178,8 +178,8 @@ impl OperatorReplayConfig {
     /// Checks what can be checked without the file.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn check(&self, kind: &str) -> Result<(), WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<(), ObjectError> {
         if self.robot.is_empty() {
             return Err(bad(kind, "`robot` (the master the hand holds) is required"));
         }
@@ -252,9 +252,13 @@ pub enum ReplayError {
 }
 
 impl ReplayError {
-    /// The error as the creator reports it, for `kind`.
-    pub fn into_wire(self, kind: &str) -> WireError {
-        bad(kind, self.to_string())
+    /// The error as the creator reports it: the configuration of `kind` refused, for this
+    /// reason.
+    pub fn for_kind(self, kind: &str) -> ObjectError {
+        ObjectError::Replay {
+            kind: kind.into(),
+            source: self,
+        }
     }
 }
 
@@ -682,8 +686,8 @@ mod tests {
             "{e}"
         );
         assert!(sensor.readings.is_none());
-        match e.into_wire(k) {
-            WireError::BadConfig { kind, message } => {
+        match penelope_protocol::proto::WireError::from(e.for_kind(k)) {
+            penelope_protocol::proto::WireError::BadConfig { kind, message } => {
                 assert_eq!(kind, k);
                 assert!(message.contains("exceeds limit"), "{message}");
             }

@@ -15,9 +15,10 @@
 use penelope_hal::Transition;
 
 use crate::naming::role_name;
+use crate::objects::error::ObjectError;
 use penelope_protocol::proto::{
     BoardMethod, Call, ControllerMethod, CreatorCall, Method, RobotMethod, Role, SensorMethod,
-    TrajectoryMethod, WireError,
+    TrajectoryMethod,
 };
 use penelope_protocol::service::Identity;
 
@@ -126,8 +127,8 @@ pub fn allowed(role: Role) -> Needs {
 /// Whether a session of `identity` may make `call`.
 ///
 /// # Errors
-/// [`WireError::Forbidden`] saying what the call needs and how to get it.
-pub fn authorize_call(identity: Identity, call: &Call) -> Result<(), WireError> {
+/// [`ObjectError::Forbidden`] saying what the call needs and how to get it.
+pub fn authorize_call(identity: Identity, call: &Call) -> Result<(), ObjectError> {
     let need = needs(call);
     if need <= allowed(identity.role) {
         return Ok(());
@@ -142,7 +143,7 @@ pub fn authorize_call(identity: Identity, call: &Call) -> Result<(), WireError> 
             "connect as an operator or an admin",
         ),
     };
-    Err(WireError::Forbidden(format!(
+    Err(ObjectError::Forbidden(format!(
         "a {} may not {what}: {how}",
         role_name(identity.role)
     )))

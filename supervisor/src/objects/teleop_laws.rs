@@ -10,7 +10,7 @@ use penelope_rt_core::teleop::{
 };
 
 use super::teleop_passivity::PortLaw;
-use penelope_protocol::proto::WireError;
+use crate::objects::error::ObjectError;
 
 crate::objects::kinds::loop_keys!(ForceDisplayToml {
     max_force: f64 = ForceDisplayConfig::default().max_force, #[doc = "Largest displayed force, N."]
@@ -149,8 +149,8 @@ passivity = "off"         # "admittance": time-domain passivity, the two-port de
 # trajectory: a trajectory/teleop whose slave is this robot; plus the loop keys:
 "#;
 
-fn bad_law(kind: &str, e: impl std::fmt::Debug) -> WireError {
-    WireError::BadConfig {
+fn bad_law(kind: &str, e: impl std::fmt::Debug) -> ObjectError {
+    ObjectError::BadConfig {
         kind: kind.into(),
         message: format!("{e:?}"),
     }
@@ -160,8 +160,8 @@ impl ForceDisplayToml {
     /// The law, checked.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn law(&self, kind: &str) -> Result<ForceDisplay, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<ForceDisplay, ObjectError> {
         self.port_law(kind)?;
         ForceDisplay::new(ForceDisplayConfig {
             max_force: self.max_force,
@@ -179,8 +179,8 @@ impl ForceDisplayToml {
     /// impedance-form controller when `passivity` asks for it.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for another word.
-    pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
+    /// [`ObjectError::BadConfig`] for another word.
+    pub fn port_law(&self, kind: &str) -> Result<PortLaw, ObjectError> {
         two_port(kind, &self.passivity, PassivityForm::Impedance, "impedance")
     }
 }
@@ -189,8 +189,8 @@ impl PositionErrorToml {
     /// The law, checked.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn law(&self, kind: &str) -> Result<PositionErrorMaster, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<PositionErrorMaster, ObjectError> {
         PositionErrorMaster::new(ImpedanceConfig {
             stiffness: self.stiffness,
             damping: self.damping,
@@ -207,8 +207,8 @@ impl FourChannelToml {
     /// The law, checked.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn law(&self, kind: &str) -> Result<FourChannelMaster, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<FourChannelMaster, ObjectError> {
         FourChannelMaster::new(FourChannelConfig {
             c2: self.c2,
             c4: self.c4,
@@ -237,8 +237,8 @@ impl FourChannelSlaveToml {
     /// The law, checked (its sensor mount is set when a loop runs it).
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn law(&self, kind: &str) -> Result<FourChannelSlave, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<FourChannelSlave, ObjectError> {
         self.port_law(kind)?;
         FourChannelSlave::new(FourChannelSlaveConfig {
             c1: self.c1,
@@ -260,8 +260,8 @@ impl FourChannelSlaveToml {
     /// What the channel's slave end runs for this half, as for slave-tracking.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for another word.
-    pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
+    /// [`ObjectError::BadConfig`] for another word.
+    pub fn port_law(&self, kind: &str) -> Result<PortLaw, ObjectError> {
         slave_port_law(kind, &self.passivity)
     }
 }
@@ -271,8 +271,8 @@ impl SlaveTrackingToml {
     /// servo.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn law(&self, kind: &str, board_servo: bool) -> Result<SlaveTracking, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn law(&self, kind: &str, board_servo: bool) -> Result<SlaveTracking, ObjectError> {
         self.port_law(kind)?;
         SlaveTracking::new(TrackingConfig {
             kp: self.kp,
@@ -292,8 +292,8 @@ impl SlaveTrackingToml {
     /// admittance-form controller when `passivity` asks for it.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for another word.
-    pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
+    /// [`ObjectError::BadConfig`] for another word.
+    pub fn port_law(&self, kind: &str) -> Result<PortLaw, ObjectError> {
         slave_port_law(kind, &self.passivity)
     }
 }
@@ -306,12 +306,12 @@ impl SlaveTrackingToml {
 pub const TWO_PORT_INITIAL_ENERGY: f64 = 0.01;
 
 /// A slave half's two-port observer for `passivity` = `word` (`off` or `admittance`).
-fn slave_port_law(kind: &str, word: &str) -> Result<PortLaw, WireError> {
+fn slave_port_law(kind: &str, word: &str) -> Result<PortLaw, ObjectError> {
     two_port(kind, word, PassivityForm::Admittance, "admittance")
 }
 
 /// The two-port observer for `word`: `off`, or `on` (the one form the port's causality allows).
-fn two_port(kind: &str, word: &str, form: PassivityForm, on: &str) -> Result<PortLaw, WireError> {
+fn two_port(kind: &str, word: &str, form: PassivityForm, on: &str) -> Result<PortLaw, ObjectError> {
     let form = match word {
         "off" => PassivityForm::Off,
         w if w == on => form,

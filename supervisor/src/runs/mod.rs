@@ -650,7 +650,7 @@ fn run_on(
             .record_ticks(controller, RECORD_CAPACITY)
             .map_err(|error| RunError::Node {
                 what: format!("recording `{controller}`"),
-                error,
+                error: error.into(),
             })
     };
     let master_stream = record(&node_of.0, &info.controllers.0)?;
@@ -691,7 +691,7 @@ fn run_on(
                     for n in &nodes.nodes {
                         n.creator().advance(sub).map_err(|error| RunError::Node {
                             what: "advancing the simulated clock".into(),
-                            error,
+                            error: error.into(),
                         })?;
                     }
                     moved += sub;
