@@ -5,7 +5,7 @@
 
 use penelope_hal::{JointVector, Timestamp, Transition};
 use penelope_protocol::proto::{
-    ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod, WireError,
+    CallError, ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod, WireError,
 };
 use penelope_rt_core::safety::SafetyState;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
@@ -96,7 +96,7 @@ fn the_fpga_kinematics_answer_the_robots_methods_within_the_fixed_point_error() 
     );
     let refused = refused.map_err(WireError::from);
     assert!(
-        matches!(&refused, Err(WireError::BadConfig { message, .. }) if message.contains("FRHC")),
+        matches!(&refused, Err(WireError::Call(CallError::BadConfig { message, .. })) if message.contains("FRHC")),
         "{refused:?}"
     );
     // The board chooses the kinematics: the robot has no such key.
@@ -108,7 +108,7 @@ fn the_fpga_kinematics_answer_the_robots_methods_within_the_fixed_point_error() 
         assert!(
             matches!(
                 create(&c, "robot/frhc", "bad", bad),
-                Err(WireError::BadConfig { .. })
+                Err(WireError::Call(CallError::BadConfig { .. }))
             ),
             "{bad}"
         );

@@ -3,7 +3,7 @@
 //! the board comes by a `create` or from a system file, and keeps nothing; the same board on a
 //! real-time creator, and a `board/sim` on the simulated one, are made as before.
 
-use penelope_protocol::proto::WireError;
+use penelope_protocol::proto::{CallError, WireError};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::objects::clock::ClockMode;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
@@ -21,7 +21,7 @@ fn creator(clock: ClockMode) -> Creator {
 }
 
 fn is_the_refusal(e: &WireError) -> bool {
-    matches!(e, WireError::Unsupported { kind, method }
+    matches!(e, WireError::Call(CallError::Unsupported { kind, method })
         if kind == "board/galil" && method.contains("simulated clock"))
 }
 

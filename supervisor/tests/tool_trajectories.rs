@@ -4,7 +4,7 @@
 
 use penelope_hal::{Timestamp, Transition};
 use penelope_protocol::proto::{
-    ControllerMethod, JointAxis, Method, Reply, RobotMethod, WireError,
+    CallError, ControllerMethod, JointAxis, Method, Reply, RobotMethod, WireError,
 };
 use penelope_supervisor::objects::{Creator, CreatorConfig};
 
@@ -135,7 +135,7 @@ fn a_trapezoidal_move_refuses_a_tool_goal_and_goals_do_not_mix() {
         assert!(
             matches!(
                 c.create(kind, "t", config).map_err(WireError::from),
-                Err(WireError::BadConfig { .. })
+                Err(WireError::Call(CallError::BadConfig { .. }))
             ),
             "{kind}: {config}"
         );

@@ -5,7 +5,8 @@
 
 use penelope_hal::{LifecycleState, Transition};
 use penelope_protocol::proto::{
-    BoardMethod, ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod, WireError,
+    BoardMethod, CallError, ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod,
+    WireError,
 };
 use penelope_supervisor::objects::runtime::LoopThread;
 use penelope_supervisor::objects::{Creator, CreatorConfig};
@@ -122,7 +123,7 @@ fn fails_safely(thread: LoopThread, cause: &str) {
     assert_eq!(c.list().len(), 4);
     assert!(matches!(
         call(&c, "pid", Method::Transition(Transition::Activate)),
-        Err(WireError::InvalidTransition { .. })
+        Err(WireError::Call(CallError::InvalidTransition { .. }))
     ));
 
     // Re-armed: running again, from the measured state, without a jump.

@@ -8,7 +8,7 @@
 use std::borrow::Cow;
 
 use penelope_hal::{LifecycleState, Transition};
-use penelope_protocol::proto::{Class, WireError};
+use penelope_protocol::proto::{CallError, Class, WireError};
 
 use super::files::FileRefused;
 
@@ -79,6 +79,9 @@ pub enum ObjectError {
         #[source]
         source: super::replay::ReplayError,
     },
+    /// A robot cannot be on its `board/fpga` (not the FRHC, or its chain split between boards).
+    #[error("bad configuration for `board/fpga`: {0}")]
+    FpgaBoard(#[from] super::fpga_board::FpgaBoardError),
     /// An argument is out of range or of the wrong size.
     #[error("bad argument: {0}")]
     BadArgument(String),
@@ -185,14 +188,16 @@ impl ObjectError {
     }
 }
 
-/// The one conversion of the creator's errors into the wire's: the call error a client reads.
+/// The one conversion of the creator's errors into the wire's: the call error a client reads
+/// (an error that already was a wire error passes unchanged).
 impl From<ObjectError> for WireError {
     fn from(e: ObjectError) -> WireError {
-        let call = match e {
-            ObjectError::UnknownKind(kind) => WireError::UnknownKind(kind),
-            ObjectError::UnknownName(name) => WireError::UnknownName(name),
-            ObjectError::NameTaken(name) => WireError::NameTaken(name),
-            ObjectError::LimitReached { what, limit } => WireError::LimitReached {
+        WireError::Call(match e {
+            ObjectError::Wire(wire) => return wire,
+            ObjectError::UnknownKind(kind) => CallError::UnknownKind(kind),
+            ObjectError::UnknownName(name) => CallError::UnknownName(name),
+            ObjectError::NameTaken(name) => CallError::NameTaken(name),
+            ObjectError::LimitReached { what, limit } => CallError::LimitReached {
                 what: what.into_owned(),
                 limit,
             },
@@ -200,48 +205,50 @@ impl From<ObjectError> for WireError {
                 name,
                 expected,
                 found,
-            } => WireError::WrongClass {
+            } => CallError::WrongClass {
                 name,
                 expected,
                 found,
             },
-            ObjectError::Unsupported { kind, method } => WireError::Unsupported {
+            ObjectError::Unsupported { kind, method } => CallError::Unsupported {
                 kind,
                 method: method.into_owned(),
             },
-            ObjectError::NoNamingService => WireError::NoNamingService,
-            ObjectError::Forbidden(why) => WireError::Forbidden(why),
-            ObjectError::BadConfig { kind, message } => WireError::BadConfig { kind, message },
-            ObjectError::Replay { kind, source } => WireError::BadConfig {
+            ObjectError::NoNamingService => CallError::NoNamingService,
+            ObjectError::Forbidden(why) => CallError::Forbidden(why),
+            ObjectError::BadConfig { kind, message } => CallError::BadConfig { kind, message },
+            ObjectError::Replay { kind, source } => CallError::BadConfig {
                 kind,
                 message: source.to_string(),
             },
-            ObjectError::BadArgument(why) => WireError::BadArgument(why),
-            ObjectError::File(refused) => WireError::BadArgument(refused.to_string()),
+            ObjectError::FpgaBoard(refused) => CallError::BadConfig {
+                kind: "board/fpga".into(),
+                message: refused.to_string(),
+            },
+            ObjectError::BadArgument(why) => CallError::BadArgument(why),
+            ObjectError::File(refused) => CallError::BadArgument(refused.to_string()),
+            ObjectError::RecordingRefused(source) => CallError::BadArgument(source.to_string()),
             ObjectError::InvalidTransition {
                 name,
                 state,
                 transition,
-            } => WireError::InvalidTransition {
+            } => CallError::InvalidTransition {
                 name,
                 state,
                 transition,
             },
-            ObjectError::InUse { name, dependents } => WireError::InUse { name, dependents },
-            ObjectError::NotReady(why) => WireError::NotReady(why),
-            ObjectError::NoLink(name) => WireError::NoLink(name),
-            ObjectError::Device { what, source } => WireError::Device(format!("{what}: {source}")),
-            ObjectError::DeviceRefused(why) => WireError::Device(why),
+            ObjectError::InUse { name, dependents } => CallError::InUse { name, dependents },
+            ObjectError::NotReady(why) => CallError::NotReady(why),
+            ObjectError::NoLink(name) => CallError::NoLink(name),
+            ObjectError::Device { what, source } => CallError::Device(format!("{what}: {source}")),
+            ObjectError::DeviceRefused(why) => CallError::Device(why),
+            ObjectError::Recorder(source) => CallError::Device(source.to_string()),
             ObjectError::Thread { what, source } => {
-                WireError::Internal(format!("{what}: {source}"))
+                CallError::Internal(format!("{what}: {source}"))
             }
-            ObjectError::RecordingRefused(source) => WireError::BadArgument(source.to_string()),
-            ObjectError::Recorder(source) => WireError::Device(source.to_string()),
-            ObjectError::Poisoned(what) => WireError::Internal(format!("{what} poisoned")),
-            ObjectError::Internal(what) => WireError::Internal(what.into_owned()),
-            ObjectError::RemoteAnswer(why) => WireError::Remote(why),
-            ObjectError::Wire(wire) => return wire,
-        };
-        call
+            ObjectError::Poisoned(what) => CallError::Internal(format!("{what} poisoned")),
+            ObjectError::Internal(what) => CallError::Internal(what.into_owned()),
+            ObjectError::RemoteAnswer(why) => CallError::Remote(why),
+        })
     }
 }

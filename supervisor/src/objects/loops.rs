@@ -16,7 +16,7 @@ use super::registry::{self, Body, Launch};
 use super::runtime::{self, LoopFault, LoopShared, Running, StopMode, StoppedLoop, TickStream};
 use super::{Creator, DetachedLoop, RtPolicy};
 use crate::objects::error::ObjectError;
-use penelope_protocol::proto::{Class, Method, Reply, WireError};
+use penelope_protocol::proto::{CallError, Class, Method, Reply, WireError};
 
 impl Creator {
     pub(super) fn fifo_allowed(&self) -> bool {
@@ -565,7 +565,9 @@ fn sensor_stream(
             Method::Sensor(penelope_protocol::proto::SensorMethod::Stream),
         )
         .map_err(|e| match e {
-            WireError::NotReady(why) => ObjectError::NotReady(format!("sensor `{path}`: {why}")),
+            WireError::Call(CallError::NotReady(why)) => {
+                ObjectError::NotReady(format!("sensor `{path}`: {why}"))
+            }
             other => ObjectError::Wire(other),
         })?;
     match reply {

@@ -687,7 +687,9 @@ mod tests {
         );
         assert!(sensor.readings.is_none());
         match penelope_protocol::proto::WireError::from(e.for_kind(k)) {
-            penelope_protocol::proto::WireError::BadConfig { kind, message } => {
+            penelope_protocol::proto::WireError::Call(
+                penelope_protocol::proto::CallError::BadConfig { kind, message },
+            ) => {
                 assert_eq!(kind, k);
                 assert!(message.contains("exceeds limit"), "{message}");
             }

@@ -37,7 +37,7 @@ use crate::objects::kinematics::RobotKinematics;
 use crate::objects::runtime::{TickRecord, TickStream};
 use crate::objects::teleop::{HandConfig, TeleopConfig};
 use crate::system::{ObjectSpec, SystemFile, SystemFileError};
-use penelope_protocol::proto::{Call, Method, WireError};
+use penelope_protocol::proto::{Call, CallError, Method, WireError};
 
 /// The demo's system file (`config/demo.toml`), built in.
 pub const DEMO_SYSTEM: &str = include_str!("../../../config/demo.toml");
@@ -548,7 +548,7 @@ impl Nodes {
             config.creator.clock = clock;
             let node = Node::start(config).map_err(|e| RunError::Node {
                 what: format!("starting node `{name}`"),
-                error: WireError::Internal(e.to_string()),
+                error: WireError::Call(CallError::Internal(e.to_string())),
             })?;
             nodes.push(node);
         }
@@ -641,7 +641,7 @@ fn run_on(
     let node = |name: &str| {
         nodes.get(name).ok_or_else(|| RunError::Node {
             what: format!("node `{name}`"),
-            error: WireError::UnknownName(name.into()),
+            error: WireError::Call(CallError::UnknownName(name.into())),
         })
     };
     let record = |node_name: &str, controller: &str| -> Result<TickStream, RunError> {

@@ -40,7 +40,7 @@ pub struct ServerConfig {
     /// Failed handshakes one IP address may make at once before it is throttled.
     pub auth_failure_burst: u32,
     /// Failed handshakes per second one IP address may make after its burst: beyond it, its
-    /// handshakes are refused with [`WireError::RateLimited`](crate::proto::WireError) before
+    /// handshakes are refused with [`ProtocolError::RateLimited`](crate::proto::ProtocolError::RateLimited)(crate::proto::WireError) before
     /// the secret is checked.
     pub auth_failures_per_s: f64,
     /// Requests per second per connection (token bucket; bursts up to one second's worth).

@@ -30,7 +30,7 @@ use super::teleop::{
     SLAVE_TRACKING_KEYS, TELEOP_KEYS,
 };
 use super::teleop_wave::{WAVE_MASTER_KEYS, WAVE_SLAVE_KEYS};
-use penelope_protocol::proto::{Class, KindInfo, WireError};
+use penelope_protocol::proto::{CallError, Class, KindInfo, WireError};
 
 /// Every kind this creator makes, in listing order.
 pub const KINDS: [&str; 29] = [
@@ -373,16 +373,16 @@ pub fn all_kinds() -> Vec<KindInfo> {
 // ---------------------------------------------------------------------------------------------
 
 fn bad(kind: &str, message: impl Into<String>) -> WireError {
-    WireError::BadConfig {
+    WireError::Call(CallError::BadConfig {
         kind: kind.to_string(),
         message: message.into(),
-    }
+    })
 }
 
 /// Parses `text` as the TOML configuration of `kind` (`""`: defaults).
 ///
 /// # Errors
-/// [`WireError::BadConfig`] for bad TOML, unknown keys or wrong types.
+/// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for bad TOML, unknown keys or wrong types.
 pub fn parse<T: DeserializeOwned + Default>(kind: &str, text: &str) -> Result<T, WireError> {
     if text.trim().is_empty() {
         return Ok(T::default());
@@ -466,7 +466,7 @@ macro_rules! loop_keys {
             /// The timing keys, checked.
             ///
             /// # Errors
-            /// [`WireError::BadConfig`].
+            /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
             pub fn timing(&self, kind: &str) -> Result<$crate::objects::kinds::LoopTiming, ::penelope_protocol::proto::WireError> {
                 $crate::objects::kinds::check_int(kind, "period_us", self.period_us, 250, 20_000)?;
                 $crate::objects::kinds::check_int(kind, "comm_period_us", self.comm_period_us, 250, 100_000)?;
@@ -494,7 +494,7 @@ loop_keys!(LoopKeysOnly {});
 /// The timing keys of any controller's configuration text (other keys are ignored).
 ///
 /// # Errors
-/// [`WireError::BadConfig`] for text that is not TOML or timing out of range.
+/// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for text that is not TOML or timing out of range.
 pub fn loop_timing(kind: &str, text: &str) -> Result<LoopTiming, WireError> {
     let table: toml::Table = text.parse().map_err(|e| bad(kind, format!("{e}")))?;
     let keys = [
@@ -535,7 +535,7 @@ impl JointPidConfig {
     /// Checks what does not depend on the robot.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         if let Some(kp) = &self.kp {
             kp.check(kind, "kp", 0.0, 1e7)?;
@@ -573,7 +573,7 @@ impl JointGroupsConfig {
     /// loop is built).
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         if self.groups.is_empty() || self.groups.len() > penelope_hal::MAX_JOINTS {
             return Err(bad(
@@ -639,7 +639,7 @@ impl JointPositionConfig {
     /// Checks what does not depend on the robot.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         self.max_velocity.check(kind, "max_velocity", 1e-3, 100.0)?;
         self.timing(kind)
@@ -650,7 +650,7 @@ impl ImpedanceConfigToml {
     /// Checks ranges.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         for x in self.stiffness {
             check_range(kind, "stiffness", x, 0.0, 1e6)?;
@@ -687,7 +687,10 @@ mod tests {
         ] {
             let c: JointPositionConfig = parse(k, bad).unwrap();
             assert!(
-                matches!(c.check(k), Err(WireError::BadConfig { .. })),
+                matches!(
+                    c.check(k),
+                    Err(WireError::Call(CallError::BadConfig { .. }))
+                ),
                 "{bad}"
             );
         }
@@ -713,7 +716,7 @@ mod tests {
     fn configs_refuse_unknown_keys_and_out_of_range_values() {
         assert!(matches!(
             parse::<SimBoardConfig>("board/sim", "axis = 3"),
-            Err(WireError::BadConfig { .. })
+            Err(WireError::Call(CallError::BadConfig { .. }))
         ));
         let c: SimBoardConfig = parse("board/sim", "axes = 9").unwrap();
         assert!(c.check("board/sim").is_err());

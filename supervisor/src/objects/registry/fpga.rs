@@ -2,8 +2,7 @@
 //! chain.
 
 use crate::objects::error::ObjectError;
-use crate::objects::fpga_board::{FpgaBoardError, robot_on_boards};
-use crate::objects::registry::Kind;
+use crate::objects::fpga_board::robot_on_boards;
 use crate::objects::{Body, Registry};
 
 impl Registry {
@@ -11,8 +10,8 @@ impl Registry {
     /// other boards).
     ///
     /// # Errors
-    /// [`ObjectError::BadConfig`] of `board/fpga` from an [`FpgaBoardError`]: a robot other than
-    /// the FRHC, or joints split between the fpga board and another.
+    /// [`ObjectError::FpgaBoard`]: a robot other than the FRHC, or joints split between the
+    /// fpga board and another.
     pub fn fpga_board_of(&self, name: &str) -> Result<Option<String>, ObjectError> {
         let r = self.robot(name)?;
         let boards: Vec<(&str, bool)> = r
@@ -26,11 +25,6 @@ impl Registry {
                 (b.as_str(), fpga)
             })
             .collect();
-        robot_on_boards(name, r.model.name(), &boards).map_err(|e: FpgaBoardError| {
-            ObjectError::BadConfig {
-                kind: Kind::FpgaBoard.as_str().into(),
-                message: e.to_string(),
-            }
-        })
+        Ok(robot_on_boards(name, r.model.name(), &boards)?)
     }
 }
