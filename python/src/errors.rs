@@ -19,7 +19,7 @@ impl From<RpcError> for Error {
 
 /// The kind of an error: for a node's error the name of the variant of its
 /// [`ProtocolError`](penelope_protocol::proto::ProtocolError) or
-/// [`CallError`](penelope_protocol::proto::CallError) ([`WireError::kind`]), else the transport
+/// [`CallError`] ([`WireError::kind`]), else the transport
 /// failure's (`Io`, `Frame`, `Protocol`, `Unauthenticated`, `Timeout`).
 pub fn kind(e: &RpcError) -> String {
     match e {

@@ -34,8 +34,8 @@
 //! Everything returns [`RpcError`], the error of the transport, so that the client, the nodes'
 //! own remote calls and the benchmarks share one type and one `From<RpcError> for WireError`:
 //! [`RpcError::Remote`] carries the node's typed [`WireError`] (and the errors this client finds
-//! before sending: a proxy of the wrong class is [`CallError::WrongClass`](crate::proto::CallError::WrongClass), a NaN argument
-//! [`CallError::BadArgument`](crate::proto::CallError::BadArgument), exactly what the node would have answered); a reply of another
+//! before sending: a proxy of the wrong class is [`CallError::WrongClass`], a NaN argument
+//! [`CallError::BadArgument`], exactly what the node would have answered); a reply of another
 //! variant than the method's is [`RpcError::Protocol`], never a panic; the others are transport
 //! failures.
 //!
@@ -43,7 +43,7 @@
 //! A call on a cached connection that fails in transport (the node restarted, the socket was
 //! closed) is sent once more on a new connection. A request that reached the node before the
 //! connection broke may thus run twice: harmless for queries and transitions, and a `create`
-//! that ran twice answers [`CallError::NameTaken`](crate::proto::CallError::NameTaken). A timeout is never retried.
+//! that ran twice answers [`CallError::NameTaken`]. A timeout is never retried.
 
 pub mod proxy;
 pub mod telemetry;
@@ -136,7 +136,7 @@ impl Client {
     /// The node `node` (its creator, resolved at `/<node>/creator`).
     ///
     /// # Errors
-    /// [`CallError::UnknownName`](crate::proto::CallError::UnknownName) when no such node is registered; transport errors.
+    /// [`CallError::UnknownName`] when no such node is registered; transport errors.
     pub fn node(&self, node: &str) -> Result<NodeProxy, RpcError> {
         let path = crate::proto::object_path(node, Class::Creator, "");
         let reference = self.resolve(&path)?;
@@ -191,7 +191,7 @@ impl Client {
     /// What the naming `path` names.
     ///
     /// # Errors
-    /// [`CallError::UnknownName`](crate::proto::CallError::UnknownName) when nothing is bound there; transport errors.
+    /// [`CallError::UnknownName`] when nothing is bound there; transport errors.
     pub fn resolve(&self, path: &str) -> Result<ObjectRef, RpcError> {
         self.naming().resolve(path)
     }
@@ -201,7 +201,7 @@ impl Client {
     /// so the shorthand is never ambiguous).
     ///
     /// # Errors
-    /// [`CallError::UnknownName`](crate::proto::CallError::UnknownName) when there is no such object; [`CallError::BadName`](crate::proto::CallError::BadName) for a
+    /// [`CallError::UnknownName`] when there is no such object; [`CallError::BadName`] for a
     /// spec of neither form; transport errors.
     pub fn locate(&self, spec: &str) -> Result<ObjectRef, RpcError> {
         if spec.starts_with('/') {
@@ -226,7 +226,7 @@ impl Client {
     /// Calls `method` on the object at the naming `path`.
     ///
     /// # Errors
-    /// The object's own error ([`RpcError::Remote`]), [`CallError::UnknownName`](crate::proto::CallError::UnknownName) when nothing is
+    /// The object's own error ([`RpcError::Remote`]), [`CallError::UnknownName`] when nothing is
     /// bound at `path`, or a transport error.
     pub fn call(&self, path: &str, method: Method) -> Result<Reply, RpcError> {
         let reference = self.resolve(path)?;
@@ -337,7 +337,7 @@ impl Client {
     /// as 1).
     ///
     /// # Errors
-    /// [`CallError::UnknownName`](crate::proto::CallError::UnknownName), the node's refusal (not running, too many subscriptions), or
+    /// [`CallError::UnknownName`], the node's refusal (not running, too many subscriptions), or
     /// a transport error.
     pub fn subscribe(&self, path: &str, decimation: u32) -> Result<TelemetryStream, RpcError> {
         let reference = self.locate(path)?;
@@ -349,9 +349,9 @@ impl Client {
     /// record every 100 ms times `decimation` (0 is taken as 1).
     ///
     /// # Errors
-    /// [`CallError::UnknownName`](crate::proto::CallError::UnknownName), [`CallError::WrongClass`](crate::proto::CallError::WrongClass) for an object that is not a
-    /// trajectory, [`CallError::NoLink`](crate::proto::CallError::NoLink) for a channel with both ends on one node,
-    /// [`CallError::NotReady`](crate::proto::CallError::NotReady) for a channel not configured, or a transport error.
+    /// [`CallError::UnknownName`], [`CallError::WrongClass`] for an object that is not a
+    /// trajectory, [`CallError::NoLink`] for a channel with both ends on one node,
+    /// [`CallError::NotReady`] for a channel not configured, or a transport error.
     pub fn watch_link(&self, path: &str, decimation: u32) -> Result<LinkStream, RpcError> {
         let reference = self.locate(path)?;
         LinkStream::open(&reference, &self.inner.config, decimation)
@@ -361,7 +361,7 @@ impl Client {
     /// checking its class.
     ///
     /// # Errors
-    /// [`CallError::WrongClass`](crate::proto::CallError::WrongClass) when the object is of another class, and those of
+    /// [`CallError::WrongClass`] when the object is of another class, and those of
     /// [`Client::locate`].
     pub fn proxy<P: TypedProxy>(&self, path: &str) -> Result<P, RpcError> {
         let reference = self.locate(path)?;
@@ -487,7 +487,7 @@ impl NamingProxy {
     /// `rebind`, replaces an existing binding.
     ///
     /// # Errors
-    /// [`CallError::NameTaken`](crate::proto::CallError::NameTaken) if bound and not `rebind`, [`CallError::BadName`](crate::proto::CallError::BadName), transport
+    /// [`CallError::NameTaken`] if bound and not `rebind`, [`CallError::BadName`], transport
     /// errors.
     pub fn bind(&self, path: &str, reference: ObjectRef, rebind: bool) -> Result<(), RpcError> {
         self.unit(NamingCall::Bind {
@@ -500,7 +500,7 @@ impl NamingProxy {
     /// What `path` names.
     ///
     /// # Errors
-    /// [`CallError::UnknownName`](crate::proto::CallError::UnknownName) when nothing is bound there; transport errors.
+    /// [`CallError::UnknownName`] when nothing is bound there; transport errors.
     pub fn resolve(&self, path: &str) -> Result<ObjectRef, RpcError> {
         match self.call(NamingCall::Resolve {
             path: path.to_string(),
@@ -513,7 +513,7 @@ impl NamingProxy {
     /// Removes the binding at `path` (and the contexts it leaves empty).
     ///
     /// # Errors
-    /// [`CallError::UnknownName`](crate::proto::CallError::UnknownName) when nothing is bound there; transport errors.
+    /// [`CallError::UnknownName`] when nothing is bound there; transport errors.
     pub fn unbind(&self, path: &str) -> Result<(), RpcError> {
         self.unit(NamingCall::Unbind {
             path: path.to_string(),
@@ -523,7 +523,7 @@ impl NamingProxy {
     /// The entries of the context `context` (`/` for the root).
     ///
     /// # Errors
-    /// [`CallError::UnknownName`](crate::proto::CallError::UnknownName) for no such context; transport errors.
+    /// [`CallError::UnknownName`] for no such context; transport errors.
     pub fn list(&self, context: &str) -> Result<Vec<NameEntry>, RpcError> {
         match self.call(NamingCall::List {
             context: context.to_string(),
@@ -638,8 +638,8 @@ impl NodeProxy {
     /// `/<node>/<class context>/<name>`.
     ///
     /// # Errors
-    /// [`CallError::UnknownKind`](crate::proto::CallError::UnknownKind), [`CallError::NameTaken`](crate::proto::CallError::NameTaken), [`CallError::BadName`](crate::proto::CallError::BadName),
-    /// [`CallError::BadConfig`](crate::proto::CallError::BadConfig), [`CallError::LimitReached`](crate::proto::CallError::LimitReached), transport errors.
+    /// [`CallError::UnknownKind`], [`CallError::NameTaken`], [`CallError::BadName`],
+    /// [`CallError::BadConfig`], [`CallError::LimitReached`], transport errors.
     pub fn create(&self, kind: &str, name: &str, config: &str) -> Result<ObjectInfo, RpcError> {
         match self.creator(CreatorCall::Create {
             kind: kind.to_string(),
@@ -655,7 +655,7 @@ impl NodeProxy {
     /// `node.create_as::<RobotProxy>("robot/puma560", "slave", "")`.
     ///
     /// # Errors
-    /// Those of [`NodeProxy::create`]; [`CallError::WrongClass`](crate::proto::CallError::WrongClass) when `kind` is not of `P`'s
+    /// Those of [`NodeProxy::create`]; [`CallError::WrongClass`] when `kind` is not of `P`'s
     /// class (checked before anything is created).
     pub fn create_as<P: TypedProxy>(
         &self,
@@ -683,7 +683,7 @@ impl NodeProxy {
     /// A proxy of class `P` for the object `name` of this node (no naming lookup).
     ///
     /// # Errors
-    /// [`CallError::UnknownName`](crate::proto::CallError::UnknownName), [`CallError::WrongClass`](crate::proto::CallError::WrongClass), transport errors.
+    /// [`CallError::UnknownName`], [`CallError::WrongClass`], transport errors.
     pub fn object<P: TypedProxy>(&self, name: &str) -> Result<P, RpcError> {
         let info = self
             .list()?
@@ -698,11 +698,11 @@ impl NodeProxy {
         )?)
     }
 
-    /// Removes the object `name` and its naming entry. Refused with [`CallError::InUse`](crate::proto::CallError::InUse) while
+    /// Removes the object `name` and its naming entry. Refused with [`CallError::InUse`] while
     /// an active object depends on it, unless `force`: then those are stopped safely first.
     ///
     /// # Errors
-    /// [`CallError::UnknownName`](crate::proto::CallError::UnknownName), [`CallError::InUse`](crate::proto::CallError::InUse), transport errors.
+    /// [`CallError::UnknownName`], [`CallError::InUse`], transport errors.
     pub fn destroy(&self, name: &str, force: bool) -> Result<(), RpcError> {
         match self.creator(CreatorCall::Destroy {
             name: name.to_string(),
@@ -717,7 +717,7 @@ impl NodeProxy {
     /// clock's new time.
     ///
     /// # Errors
-    /// [`CallError::NotReady`](crate::proto::CallError::NotReady) on a node clocked in real time; transport errors.
+    /// [`CallError::NotReady`] on a node clocked in real time; transport errors.
     pub fn advance(&self, by: std::time::Duration) -> Result<std::time::Duration, RpcError> {
         match self.creator(CreatorCall::Advance {
             seconds: by.as_secs_f64(),

@@ -5,7 +5,7 @@
 //! Every proxy holds the object's reference (node address and name), resolved once; its class
 //! was checked when the proxy was made. Arguments are checked before they are sent (a NaN joint
 //! value, a non-orthonormal pose or a non-positive duration is refused with
-//! [`CallError::BadArgument`](crate::proto::CallError::BadArgument) without a round trip). The joint count of a robot is learnt from
+//! [`CallError::BadArgument`] without a round trip). The joint count of a robot is learnt from
 //! the node on first use and kept.
 
 use nalgebra::{SMatrix, Vector3};
@@ -126,7 +126,7 @@ pub trait TypedProxy: Sized {
     /// The proxy of the object `handle` refers to.
     ///
     /// # Errors
-    /// [`CallError::WrongClass`](crate::proto::CallError::WrongClass) when the object is of another class.
+    /// [`CallError::WrongClass`] when the object is of another class.
     fn from_handle(handle: ObjectHandle) -> Result<Self, RpcError>;
 }
 
@@ -163,8 +163,8 @@ pub trait Lifecycle {
     /// Runs `transition`.
     ///
     /// # Errors
-    /// [`CallError::InvalidTransition`](crate::proto::CallError::InvalidTransition) from a state that does not allow it,
-    /// [`CallError::NotReady`](crate::proto::CallError::NotReady) when a relation is missing, and the node's other errors.
+    /// [`CallError::InvalidTransition`] from a state that does not allow it,
+    /// [`CallError::NotReady`] when a relation is missing, and the node's other errors.
     fn transition(&self, transition: Transition) -> Result<ObjectInfo, RpcError> {
         match self.handle().call(Method::Transition(transition))? {
             Reply::Object(info) => Ok(info),

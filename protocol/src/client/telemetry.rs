@@ -90,7 +90,7 @@ impl<R: Streamed> Subscription<R> {
     /// in `decimation`.
     ///
     /// # Errors
-    /// [`CallError::WrongClass`](crate::proto::CallError::WrongClass) for an object that does not stream `R` (nothing is sent), the
+    /// [`CallError::WrongClass`] for an object that does not stream `R` (nothing is sent), the
     /// node's refusal or a transport error.
     pub(crate) fn open(
         reference: &ObjectRef,

@@ -198,7 +198,7 @@ impl Connection {
     ///
     /// # Errors
     /// [`RpcError::Io`] if the node cannot be reached, [`RpcError::Timeout`] if it does not
-    /// answer in time, [`RpcError::Remote`] with [`ProtocolError::AuthFailed`](crate::proto::ProtocolError::AuthFailed) if the node wants a
+    /// answer in time, [`RpcError::Remote`] with [`ProtocolError::AuthFailed`] if the node wants a
     /// secret and none or a wrong one was given (or another error the node sent),
     /// [`RpcError::Unauthenticated`] if this client has a secret and the node did not prove it,
     /// [`RpcError::Protocol`] for a peer that is not a Penelope node of this version.

@@ -12,7 +12,7 @@
 //!   [`GRACE`], the oldest first; a silent one younger than that, the youngest first (a flood
 //!   churns its own newest connections, while a connection that just arrived keeps [`GRACE`] to
 //!   say its hello); one that sent bytes but no valid hello, the oldest first; the oldest. The
-//!   evicted connection gets [`ProtocolError::TooManyConnections`](crate::proto::ProtocolError::TooManyConnections) and is closed. So a silent
+//!   evicted connection gets [`ProtocolError::TooManyConnections`] and is closed. So a silent
 //!   connection holds a slot only until newer ones arrive or its handshake time runs out, and an
 //!   operator's connection, which says its hello at once and finishes in a round trip, gets
 //!   through floods of silent connections from any address and through any flood of another
@@ -187,13 +187,13 @@ impl Admission {
 
     /// The pending connection `id` proved who it is as `role`: a session slot (evicting a
     /// session of an address over its quota if the pool is full, see the module's rules), or
-    /// [`ProtocolError::TooManyConnections`](crate::proto::ProtocolError::TooManyConnections) (the connection is no longer pending either way).
+    /// [`ProtocolError::TooManyConnections`] (the connection is no longer pending either way).
     /// `activity` is the session's clock of its last frame (the longest idle is evicted first).
     ///
     /// # Errors
-    /// [`ProtocolError::TooManyConnections`](crate::proto::ProtocolError::TooManyConnections) when the sessions this role may take are all in use
-    /// and none may be evicted for it; [`ProtocolError::Unexpected`](crate::proto::ProtocolError::Unexpected) if `id` was not pending (it was
-    /// evicted meanwhile).
+    /// [`ProtocolError::TooManyConnections`] when the sessions this role may take are all in use
+    /// and none may be evicted for it; [`ProtocolError::Unexpected`] if `id` was not pending (it
+    /// was evicted meanwhile).
     pub fn open_session(
         &self,
         id: u64,

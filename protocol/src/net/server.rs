@@ -22,7 +22,8 @@
 //! at most `write_timeout` and is then dropped; meanwhile the outbox drops telemetry (never the
 //! real-time side's problem). Requests are limited by a token bucket per connection
 //! (`max_requests_per_s`, bursts up to one second's worth): over it a request is answered with
-//! [`ProtocolError::RateLimited`](crate::proto::ProtocolError::RateLimited); [`ABUSE_STRIKES`] refused requests in a row close the connection.
+//! [`ProtocolError::RateLimited`]; [`ABUSE_STRIKES`] refused requests in a row close the
+//! connection.
 //! Malformed or oversized frames, a wrong hello, a failed authentication, a frame that fails to
 //! open, a silent handshake or an idle connection get a [`ServerMsg::Error`] and are closed. The
 //! whole handshake must end within `handshake_timeout` (a deadline, not an idle time: trickling

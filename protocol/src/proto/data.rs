@@ -96,7 +96,7 @@ impl PoseMsg {
     /// and right-handed within 1e-6 (then re-orthonormalized).
     ///
     /// # Errors
-    /// [`CallError::BadArgument`](crate::proto::CallError::BadArgument) saying what is wrong.
+    /// [`CallError::BadArgument`] saying what is wrong.
     pub fn to_pose(&self) -> Result<Pose, WireError> {
         let all = self
             .position
@@ -141,7 +141,7 @@ impl WrenchMsg {
     /// The wrench in `frame`, after checking every value is finite.
     ///
     /// # Errors
-    /// [`CallError::BadArgument`](crate::proto::CallError::BadArgument) for a NaN or infinite component.
+    /// [`CallError::BadArgument`] for a NaN or infinite component.
     pub fn to_wrench(&self, frame: Frame) -> Result<Wrench, WireError> {
         if !self.force.iter().chain(&self.torque).all(|x| x.is_finite()) {
             return Err(WireError::Call(CallError::BadArgument(
@@ -164,7 +164,7 @@ pub fn joints_from_vector(q: &JointVector, n: usize) -> Joints {
 /// A joint vector from exactly `n` finite wire values (the rest zero).
 ///
 /// # Errors
-/// [`CallError::BadArgument`](crate::proto::CallError::BadArgument) for a wrong count or a NaN or infinite value.
+/// [`CallError::BadArgument`] for a wrong count or a NaN or infinite value.
 pub fn joints_to_vector(q: &[f64], n: usize) -> Result<JointVector, WireError> {
     if q.len() != n || n > MAX_JOINTS {
         return Err(WireError::Call(CallError::BadArgument(format!(

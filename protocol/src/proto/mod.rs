@@ -6,8 +6,8 @@
 //! followed by `n` bytes of [postcard](https://docs.rs/postcard)-encoded message: a client sends
 //! [`ClientMsg`], a node answers [`ServerMsg`]. `n` is at most the receiver's maximum frame size
 //! ([`DEFAULT_MAX_FRAME`] unless configured); a longer length is refused with
-//! [`ProtocolError::FrameTooLarge`](crate::proto::ProtocolError::FrameTooLarge) before any byte of the body is read. `docs/wire-format.md` shows
-//! every step with bytes.
+//! [`ProtocolError::FrameTooLarge`] before any byte of the body is read. `docs/wire-format.md`
+//! shows every step with bytes.
 //!
 //! # A session
 //! 1. The client sends [`ClientMsg::Hello`] (magic, protocol version, its name and the [`Role`]

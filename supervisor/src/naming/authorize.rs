@@ -8,7 +8,7 @@ use penelope_protocol::service::Identity;
 /// module's rules).
 ///
 /// # Errors
-/// [`CallError::Forbidden`](penelope_protocol::proto::CallError::Forbidden) saying what is refused and why.
+/// [`CallError::Forbidden`] saying what is refused and why.
 pub fn authorize(identity: Identity, client: &str, call: &NamingCall) -> Result<(), WireError> {
     let own_node = |node: &str, what: &str| match identity.role {
         Role::Admin => Ok(()),

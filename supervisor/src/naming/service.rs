@@ -123,7 +123,7 @@ impl NamingService {
     /// Serves one naming call of a connection's `session`, after [`authorize`] allowed it.
     ///
     /// # Errors
-    /// [`CallError::Forbidden`](penelope_protocol::proto::CallError::Forbidden) if the session's role may not make this call, else as
+    /// [`CallError::Forbidden`] if the session's role may not make this call, else as
     /// [`handle`](Self::handle).
     pub fn handle_for(&self, session: &Session, call: NamingCall) -> Result<Reply, WireError> {
         authorize(session.identity, &session.client, &call)?;

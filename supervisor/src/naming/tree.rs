@@ -194,7 +194,7 @@ impl NamingTree {
     /// Splits an absolute path into checked components (`/` gives none).
     ///
     /// # Errors
-    /// [`CallError::BadName`](penelope_protocol::proto::CallError::BadName): not absolute, an empty component (`//`, trailing `/`), a component
+    /// [`CallError::BadName`]: not absolute, an empty component (`//`, trailing `/`), a component
     /// refused by [`check_name`], or deeper than [`NamingLimits::max_depth`].
     pub fn parse_path<'p>(&self, path: &'p str) -> Result<Vec<&'p str>, WireError> {
         let Some(rest) = path.strip_prefix('/') else {
@@ -226,9 +226,9 @@ impl NamingTree {
     /// Binds `path` to `reference`, creating the missing contexts above it.
     ///
     /// # Errors
-    /// [`CallError::BadName`](penelope_protocol::proto::CallError::BadName) for a bad path (or the root), [`CallError::BadArgument`](penelope_protocol::proto::CallError::BadArgument) for an
-    /// oversized reference, [`CallError::NameTaken`](penelope_protocol::proto::CallError::NameTaken) if `path` is bound (and not `rebind`), is a
-    /// context, or passes through an object, [`CallError::LimitReached`](penelope_protocol::proto::CallError::LimitReached) at
+    /// [`CallError::BadName`] for a bad path (or the root), [`CallError::BadArgument`] for an
+    /// oversized reference, [`CallError::NameTaken`] if `path` is bound (and not `rebind`), is a
+    /// context, or passes through an object, [`CallError::LimitReached`] at
     /// [`NamingLimits::max_bindings`]. Nothing changes on error.
     pub fn bind(
         &mut self,
@@ -295,8 +295,8 @@ impl NamingTree {
     /// What `path` names.
     ///
     /// # Errors
-    /// [`CallError::BadName`](penelope_protocol::proto::CallError::BadName) for a bad path, [`CallError::UnknownName`](penelope_protocol::proto::CallError::UnknownName) if nothing is bound
-    /// there, [`CallError::BadArgument`](penelope_protocol::proto::CallError::BadArgument) if it is a context (list it instead).
+    /// [`CallError::BadName`] for a bad path, [`CallError::UnknownName`] if nothing is bound
+    /// there, [`CallError::BadArgument`] if it is a context (list it instead).
     pub fn resolve(&self, path: &str) -> Result<ObjectRef, WireError> {
         let comps = self.parse_path(path)?;
         match self.root.get(&comps) {
@@ -315,8 +315,8 @@ impl NamingTree {
     /// registered node's own context. Returns the removed reference.
     ///
     /// # Errors
-    /// [`CallError::BadName`](penelope_protocol::proto::CallError::BadName) for a bad path, [`CallError::UnknownName`](penelope_protocol::proto::CallError::UnknownName) if nothing is bound
-    /// there, [`CallError::BadArgument`](penelope_protocol::proto::CallError::BadArgument) if it is a context (contexts go away with their last
+    /// [`CallError::BadName`] for a bad path, [`CallError::UnknownName`] if nothing is bound
+    /// there, [`CallError::BadArgument`] if it is a context (contexts go away with their last
     /// entry, a node's with its registration).
     pub fn unbind(&mut self, path: &str) -> Result<ObjectRef, WireError> {
         let comps = self.parse_path(path)?;
@@ -367,8 +367,8 @@ impl NamingTree {
     /// The entries of the context at `path` (`/` for the root), sorted by name.
     ///
     /// # Errors
-    /// [`CallError::BadName`](penelope_protocol::proto::CallError::BadName) for a bad path, [`CallError::UnknownName`](penelope_protocol::proto::CallError::UnknownName) if there is no such
-    /// context, [`CallError::BadArgument`](penelope_protocol::proto::CallError::BadArgument) if `path` is an object (resolve it instead).
+    /// [`CallError::BadName`] for a bad path, [`CallError::UnknownName`] if there is no such
+    /// context, [`CallError::BadArgument`] if `path` is an object (resolve it instead).
     pub fn list(&self, path: &str) -> Result<Vec<NameEntry>, WireError> {
         let comps = self.parse_path(path)?;
         let ctx = if comps.is_empty() {
@@ -401,10 +401,10 @@ impl NamingTree {
     /// `/<node>` is created, or emptied if it exists (a restarted node re-binds its objects).
     ///
     /// # Errors
-    /// [`CallError::BadName`](penelope_protocol::proto::CallError::BadName) for a bad node name, [`CallError::BadArgument`](penelope_protocol::proto::CallError::BadArgument) for a bad address
+    /// [`CallError::BadName`] for a bad node name, [`CallError::BadArgument`] for a bad address
     /// or a lease outside [`NamingLimits::min_lease`]..=[`NamingLimits::max_lease`],
-    /// [`CallError::NameTaken`](penelope_protocol::proto::CallError::NameTaken) if `/<node>` is an object or a live node of that name answers at
-    /// another address, [`CallError::LimitReached`](penelope_protocol::proto::CallError::LimitReached) at [`NamingLimits::max_nodes`].
+    /// [`CallError::NameTaken`] if `/<node>` is an object or a live node of that name answers at
+    /// another address, [`CallError::LimitReached`] at [`NamingLimits::max_nodes`].
     pub fn register(
         &mut self,
         node: &str,
@@ -466,7 +466,7 @@ impl NamingTree {
     /// Renews the lease of `node` at time `now`.
     ///
     /// # Errors
-    /// [`CallError::UnknownName`](penelope_protocol::proto::CallError::UnknownName) if it is not registered (never was, or expired): the node
+    /// [`CallError::UnknownName`] if it is not registered (never was, or expired): the node
     /// registers again and re-binds its objects.
     pub fn renew(&mut self, node: &str, now: Duration) -> Result<(), WireError> {
         match self.nodes.get_mut(node) {
@@ -481,7 +481,7 @@ impl NamingTree {
     /// Removes `node` and every entry of its context.
     ///
     /// # Errors
-    /// [`CallError::UnknownName`](penelope_protocol::proto::CallError::UnknownName) if it is not registered.
+    /// [`CallError::UnknownName`] if it is not registered.
     pub fn unregister(&mut self, node: &str) -> Result<(), WireError> {
         if self.nodes.remove(node).is_none() {
             return Err(WireError::Call(CallError::UnknownName(format!("/{node}"))));

@@ -2,8 +2,8 @@
 //! tree kept in step with the objects it creates and destroys, and to the hosted naming service.
 //!
 //! This is the service boundary: the creator answers with its own typed errors
-//! ([`ObjectError`](crate::objects::error::ObjectError)), which become the wire's call errors here, by the one conversion
-//! (`From<ObjectError> for WireError`, in [`crate::objects::error`]).
+//! ([`ObjectError`](crate::objects::error::ObjectError)), which become the wire's call errors
+//! here, by the one conversion (`From<ObjectError> for WireError`, in [`crate::objects::error`]).
 
 use std::sync::Arc;
 

@@ -503,9 +503,10 @@ impl Creator {
     /// Makes an object.
     ///
     /// # Errors
-    /// [`ObjectError::BadName`], [`ObjectError::UnknownKind`], [`ObjectError::NameTaken`],
-    /// [`ObjectError::LimitReached`], [`ObjectError::BadConfig`]; [`ObjectError::Unsupported`] for
-    /// a real device (`board/galil`, `sensor/netft`) on a creator clocked by the simulated clock.
+    /// A bad name ([`ObjectError::Wire`] of a `BadName`), [`ObjectError::UnknownKind`],
+    /// [`ObjectError::NameTaken`], [`ObjectError::LimitReached`], [`ObjectError::BadConfig`];
+    /// [`ObjectError::Unsupported`] for a real device (`board/galil`, `sensor/netft`) on a
+    /// creator clocked by the simulated clock.
     pub fn create(&self, kind: &str, name: &str, config: &str) -> Result<ObjectInfo, ObjectError> {
         check_name(name)?;
         let k = kinds::Kind::parse(kind)

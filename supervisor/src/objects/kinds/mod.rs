@@ -382,7 +382,7 @@ fn bad(kind: &str, message: impl Into<String>) -> WireError {
 /// Parses `text` as the TOML configuration of `kind` (`""`: defaults).
 ///
 /// # Errors
-/// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for bad TOML, unknown keys or wrong types.
+/// [`CallError::BadConfig`] for bad TOML, unknown keys or wrong types.
 pub fn parse<T: DeserializeOwned + Default>(kind: &str, text: &str) -> Result<T, WireError> {
     if text.trim().is_empty() {
         return Ok(T::default());
@@ -494,7 +494,7 @@ loop_keys!(LoopKeysOnly {});
 /// The timing keys of any controller's configuration text (other keys are ignored).
 ///
 /// # Errors
-/// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for text that is not TOML or timing out of range.
+/// [`CallError::BadConfig`] for text that is not TOML or timing out of range.
 pub fn loop_timing(kind: &str, text: &str) -> Result<LoopTiming, WireError> {
     let table: toml::Table = text.parse().map_err(|e| bad(kind, format!("{e}")))?;
     let keys = [
@@ -535,7 +535,7 @@ impl JointPidConfig {
     /// Checks what does not depend on the robot.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
+    /// [`CallError::BadConfig`].
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         if let Some(kp) = &self.kp {
             kp.check(kind, "kp", 0.0, 1e7)?;
@@ -573,7 +573,7 @@ impl JointGroupsConfig {
     /// loop is built).
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
+    /// [`CallError::BadConfig`].
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         if self.groups.is_empty() || self.groups.len() > penelope_hal::MAX_JOINTS {
             return Err(bad(
@@ -639,7 +639,7 @@ impl JointPositionConfig {
     /// Checks what does not depend on the robot.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
+    /// [`CallError::BadConfig`].
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         self.max_velocity.check(kind, "max_velocity", 1e-3, 100.0)?;
         self.timing(kind)
@@ -650,7 +650,7 @@ impl ImpedanceConfigToml {
     /// Checks ranges.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
+    /// [`CallError::BadConfig`].
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         for x in self.stiffness {
             check_range(kind, "stiffness", x, 0.0, 1e6)?;

@@ -4,6 +4,8 @@
 use super::per_joint::PerJoint;
 use crate::objects::kinds::{Kind, bad, check_range, parse};
 use penelope_hal::{MAX_JOINTS, NamedPose};
+#[cfg(doc)]
+use penelope_protocol::proto::CallError;
 use penelope_protocol::proto::WireError;
 use serde::Deserialize;
 use std::time::Duration;
@@ -272,7 +274,7 @@ pub enum TrajectorySpec {
 /// Parses and checks a trajectory kind's configuration.
 ///
 /// # Errors
-/// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
+/// [`CallError::BadConfig`].
 pub fn trajectory_spec(kind: Kind, text: &str) -> Result<TrajectorySpec, WireError> {
     let k = kind.as_str();
     Ok(match kind {
