@@ -93,7 +93,7 @@ impl ApiError {
                 };
                 ApiError {
                     status,
-                    kind: kebab(&variant_name(wire)),
+                    kind: kebab(wire.kind()),
                     message: wire.to_string(),
                 }
             }
@@ -133,15 +133,6 @@ impl From<RpcError> for ApiError {
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         (self.status, Json(json!({ "error": self.to_json() }))).into_response()
-    }
-}
-
-/// The variant's name of a serializable enum value (`UnknownName`).
-fn variant_name(wire: &WireError) -> String {
-    match serde_json::to_value(wire) {
-        Ok(Value::String(s)) => s,
-        Ok(Value::Object(m)) => m.keys().next().cloned().unwrap_or_default(),
-        _ => "remote".into(),
     }
 }
 
