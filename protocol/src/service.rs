@@ -5,6 +5,8 @@
 //! (telemetry) go back to the connection through the session's [`Outbox`], which never blocks
 //! the producer: when the connection is slow, frames are dropped and counted.
 
+#[cfg(doc)]
+use crate::proto::CallError;
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -35,7 +37,7 @@ pub trait Remote: Send + Sync + 'static {
     /// Calls `method` on the object bound at the naming `path` (`/node/sensors/ft`).
     ///
     /// # Errors
-    /// [`WireError::UnknownName`] if nothing is bound there, [`WireError::Remote`] if its node
+    /// [`CallError::UnknownName`] if nothing is bound there, [`CallError::Remote`] if its node
     /// cannot be reached, or the remote object's own error.
     fn call(&self, path: &str, method: Method) -> Result<Reply, WireError>;
 }
@@ -176,7 +178,11 @@ mod tests {
     #[test]
     fn a_full_outbox_drops_and_counts_and_a_closed_one_says_so() {
         let (outbox, receiver) = Outbox::bounded(2);
-        let msg = || ServerMsg::Error(WireError::Internal("test".into()));
+        let msg = || {
+            ServerMsg::Error(WireError::Call(crate::proto::CallError::Internal(
+                "test".into(),
+            )))
+        };
         assert!(outbox.try_push(msg()));
         assert!(outbox.try_push(msg()));
         assert!(!outbox.try_push(msg()));

@@ -5,8 +5,8 @@
 
 use penelope_protocol::net::frame::{FrameDecoder, FrameError, encode, encode_into, read_frame};
 use penelope_protocol::proto::{
-    Call, ClientHello, ClientMsg, CreatorCall, FRAME_HEADER_LEN, Method, Reply, RobotMethod, Role,
-    Security, ServerHello, ServerMsg, TelemetryBatch, WireError,
+    Call, CallError, ClientHello, ClientMsg, CreatorCall, FRAME_HEADER_LEN, Method, ProtocolError,
+    Reply, RobotMethod, Role, Security, ServerHello, ServerMsg, TelemetryBatch, WireError,
 };
 use proptest::prelude::*;
 
@@ -69,16 +69,18 @@ fn client_msg() -> impl Strategy<Value = ClientMsg> {
 
 fn wire_error() -> impl Strategy<Value = WireError> {
     prop_oneof![
-        ".{0,40}".prop_map(WireError::Malformed),
-        (any::<u64>(), any::<u64>()).prop_map(|(len, max)| WireError::FrameTooLarge { len, max }),
-        Just(WireError::BadMagic),
-        Just(WireError::AuthFailed),
-        ".{0,40}".prop_map(WireError::Forbidden),
-        any::<u32>().prop_map(|limit| WireError::RateLimited { limit }),
-        any::<u32>().prop_map(|limit| WireError::TooManyConnections { limit }),
-        ".{0,40}".prop_map(WireError::UnknownName),
+        ".{0,40}".prop_map(|m| WireError::Protocol(ProtocolError::Malformed(m))),
+        (any::<u64>(), any::<u64>())
+            .prop_map(|(len, max)| WireError::Protocol(ProtocolError::FrameTooLarge { len, max })),
+        Just(WireError::Protocol(ProtocolError::BadMagic)),
+        Just(WireError::Protocol(ProtocolError::AuthFailed)),
+        ".{0,40}".prop_map(|m| WireError::Call(CallError::Forbidden(m))),
+        any::<u32>().prop_map(|limit| WireError::Protocol(ProtocolError::RateLimited { limit })),
+        any::<u32>()
+            .prop_map(|limit| WireError::Protocol(ProtocolError::TooManyConnections { limit })),
+        ".{0,40}".prop_map(|m| WireError::Call(CallError::UnknownName(m))),
         (".{0,20}", proptest::collection::vec(".{0,10}", 0..4))
-            .prop_map(|(name, dependents)| WireError::InUse { name, dependents }),
+            .prop_map(|(name, dependents)| WireError::Call(CallError::InUse { name, dependents })),
     ]
 }
 

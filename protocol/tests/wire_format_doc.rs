@@ -13,9 +13,9 @@ use std::collections::BTreeMap;
 use penelope_protocol::net::auth::{self, ClientHandshake};
 use penelope_protocol::net::frame;
 use penelope_protocol::proto::{
-    Call, ClientHello, ClientMsg, CreatorCall, DEFAULT_MAX_FRAME, LinkBatch, LinkRecord, MAGIC,
-    Method, PROTOCOL_VERSION, PoseMsg, Reply, RobotMethod, Role, Security, ServerHello, ServerMsg,
-    StopReport, TelemetryBatch, TelemetryRecord, WireError, WrenchMsg,
+    Call, CallError, ClientHello, ClientMsg, CreatorCall, DEFAULT_MAX_FRAME, LinkBatch, LinkRecord,
+    MAGIC, Method, PROTOCOL_VERSION, PoseMsg, ProtocolError, Reply, RobotMethod, Role, Security,
+    ServerHello, ServerMsg, StopReport, TelemetryBatch, TelemetryRecord, WireError, WrenchMsg,
 };
 use serde::Serialize;
 
@@ -160,15 +160,17 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
     m.insert("sealed-request-ping", sealed);
     m.insert(
         "server-auth-failed",
-        framed(&ServerMsg::Error(WireError::AuthFailed)),
+        framed(&ServerMsg::Error(WireError::Protocol(
+            ProtocolError::AuthFailed,
+        ))),
     );
     m.insert(
         "response-forbidden",
         framed(&ServerMsg::Response {
             id: 3,
-            result: Err(WireError::Forbidden(
+            result: Err(WireError::Call(CallError::Forbidden(
                 "node `lab-a` may unbind only under `/lab-a/`, not `/lab-b/sensors/ft`".into(),
-            )),
+            ))),
         }),
     );
     m.insert(
@@ -192,7 +194,7 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
         "response-unknown-name",
         framed(&ServerMsg::Response {
             id: 2,
-            result: Err(WireError::UnknownName("slave2".into())),
+            result: Err(WireError::Call(CallError::UnknownName("slave2".into()))),
         }),
     );
     m.insert("request-ping", framed(&ping));
@@ -216,15 +218,17 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
         "response-no-link",
         framed(&ServerMsg::Response {
             id: 3,
-            result: Err(WireError::NoLink("link".into())),
+            result: Err(WireError::Call(CallError::NoLink("link".into()))),
         }),
     );
     m.insert(
         "error-frame-too-large",
-        framed(&ServerMsg::Error(WireError::FrameTooLarge {
-            len: u64::from(u32::MAX),
-            max: DEFAULT_MAX_FRAME as u64,
-        })),
+        framed(&ServerMsg::Error(WireError::Protocol(
+            ProtocolError::FrameTooLarge {
+                len: u64::from(u32::MAX),
+                max: DEFAULT_MAX_FRAME as u64,
+            },
+        ))),
     );
     m.insert(
         "request-record-start",

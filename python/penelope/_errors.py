@@ -1,9 +1,12 @@
 """Exceptions: one class per kind of error, all subclasses of :class:`PenelopeError`.
 
-A node's error carries the kind of the wire error it answered (``WireError`` in
-``penelope_protocol::proto``): ``UnknownName``, ``BadConfig``, ``AuthFailed``, ... The
-client's own transport failures have the kinds ``Io``, ``Frame``, ``Protocol``,
-``Unauthenticated`` and ``Timeout``. The class is named as the kind, and ``.kind`` holds it.
+A node's error carries the kind of the wire error it answered: the variant of its
+``ProtocolError`` (a failure of the protocol: ``AuthFailed``, ``RateLimited``, ...) or of its
+``CallError`` (a refused call: ``UnknownName``, ``BadConfig``, ...), both in
+``penelope_protocol::proto``. The client's own transport failures have the kinds ``Io``,
+``Frame``, ``Protocol``, ``Unauthenticated`` and ``Timeout``. The class is named as the kind,
+and ``.kind`` holds it. The tests check these classes against the Rust enums
+(``penelope._native.error_kinds()``).
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ class PenelopeError(Exception):
             self.kind = kind
 
 
-# --- the node's errors (the variants of WireError) -------------------------------------------
+# --- the node's protocol failures (the variants of ProtocolError, in their Rust order) ------------
 
 
 class Malformed(PenelopeError):
@@ -78,6 +81,9 @@ class Timeout(PenelopeError, TimeoutError):
     """No answer in time (the node's notice, or this client's own deadline)."""
 
     kind = "Timeout"
+
+
+# --- the node's refusals of a call (the variants of CallError, in their Rust order) ---------------
 
 
 class LimitReached(PenelopeError):
@@ -209,15 +215,18 @@ class Unauthenticated(PenelopeError):
     kind = "Unauthenticated"
 
 
+_PROTOCOL_ERRORS = (
+    Malformed, FrameTooLarge, BadMagic, VersionMismatch, Unexpected, AuthFailed, RateLimited,
+    TooManyConnections, Timeout,
+)
+_CALL_ERRORS = (
+    LimitReached, UnknownKind, UnknownName, NameTaken, BadName, BadConfig, BadArgument,
+    WrongClass, InvalidTransition, InUse, NotReady, Unsupported, Device, NoNamingService, Remote,
+    Internal, Forbidden, NoLink,
+)
 _BY_KIND: Dict[str, Type[PenelopeError]] = {
     cls.kind: cls
-    for cls in (
-        Malformed, FrameTooLarge, BadMagic, VersionMismatch, Unexpected, AuthFailed,
-        RateLimited, TooManyConnections, Timeout, LimitReached, UnknownKind, UnknownName,
-        NameTaken, BadName, BadConfig, BadArgument, WrongClass, InvalidTransition, InUse,
-        NotReady, Unsupported, Device, NoNamingService, Remote, Internal, Forbidden, NoLink,
-        TransportError, ProtocolError, Unauthenticated,
-    )
+    for cls in (*_PROTOCOL_ERRORS, *_CALL_ERRORS, TransportError, ProtocolError, Unauthenticated)
 }
 _BY_KIND["Frame"] = TransportError
 for _cls in set(_BY_KIND.values()) | {PenelopeError}:

@@ -3,6 +3,7 @@
 //! `penelope.PenelopeError`, with a `.kind` attribute).
 
 use penelope_protocol::net::conn::RpcError;
+use penelope_protocol::proto::{CallError, WireError};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 
@@ -16,17 +17,13 @@ impl From<RpcError> for Error {
     }
 }
 
-/// The kind of an error: the [`WireError`](penelope_protocol::proto::WireError) variant's
-/// name for a node's error, else the transport failure's (`Io`, `Frame`, `Protocol`,
-/// `Unauthenticated`, `Timeout`).
+/// The kind of an error: for a node's error the name of the variant of its
+/// [`ProtocolError`](penelope_protocol::proto::ProtocolError) or
+/// [`CallError`] ([`WireError::kind`]), else the transport
+/// failure's (`Io`, `Frame`, `Protocol`, `Unauthenticated`, `Timeout`).
 pub fn kind(e: &RpcError) -> String {
     match e {
-        RpcError::Remote(w) => {
-            let text = format!("{w:?}");
-            text.chars()
-                .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
-                .collect()
-        }
+        RpcError::Remote(w) => w.kind().into(),
         RpcError::Io(_) => "Io".into(),
         RpcError::Frame(_) => "Frame".into(),
         RpcError::Protocol(_) => "Protocol".into(),
@@ -55,11 +52,22 @@ impl From<Error> for PyErr {
     }
 }
 
+/// The kinds of the node's errors, from the Rust enums themselves: the variants of
+/// `ProtocolError` and of `CallError`, in wire order. `penelope._errors` has one class per kind
+/// (its tests check it against this).
+#[pyfunction]
+pub fn error_kinds() -> (Vec<&'static str>, Vec<&'static str>) {
+    (
+        penelope_protocol::proto::protocol_error_kinds().to_vec(),
+        penelope_protocol::proto::call_error_kinds().to_vec(),
+    )
+}
+
 /// A bad argument found on this side, as the node would have answered it.
 pub fn bad_argument(message: impl Into<String>) -> Error {
-    Error(RpcError::Remote(
-        penelope_protocol::proto::WireError::BadArgument(message.into()),
-    ))
+    Error(RpcError::Remote(WireError::Call(CallError::BadArgument(
+        message.into(),
+    ))))
 }
 
 /// The result of a call that may fail with an [`Error`].

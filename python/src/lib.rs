@@ -34,6 +34,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<proxies::Controller>()?;
     m.add_class::<proxies::Object>()?;
     m.add_class::<watch::Watch>()?;
+    m.add_function(wrap_pyfunction!(errors::error_kinds, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

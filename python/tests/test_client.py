@@ -5,7 +5,6 @@ errors of the right kind, and authentication with a secret file."""
 from __future__ import annotations
 
 import json
-import re
 import subprocess
 import time
 from pathlib import Path
@@ -245,13 +244,14 @@ def test_the_secret_file_authenticates_and_its_absence_is_refused(secure_node, s
 
 
 def test_every_wire_error_kind_has_its_class() -> None:
-    # The variants of WireError, read from the Rust source: a new one needs its class here.
-    source = (Path(__file__).resolve().parents[2] / "protocol/src/proto/errors.rs").read_text()
-    body = source[source.index("pub enum WireError {"):]
-    body = body[: body.index("\n}\n")]
-    variants = re.findall(r"^    ([A-Z][A-Za-z]*)\b", body, re.MULTILINE)
-    assert "UnknownName" in variants and "NoLink" in variants, variants
-    for v in variants:
+    # The variants of ProtocolError and CallError, as the Rust enums list them (read from their
+    # own Deserialize by the extension): one class per variant, in the same two groups and
+    # order, and no class for a variant that is gone.
+    protocol, call = penelope._native.error_kinds()
+    assert "AuthFailed" in protocol and "UnknownName" in call and "NoLink" in call
+    assert [c.kind for c in penelope._errors._PROTOCOL_ERRORS] == list(protocol)
+    assert [c.kind for c in penelope._errors._CALL_ERRORS] == list(call)
+    for v in (*protocol, *call):
         cls = getattr(penelope, v, None)
         assert isinstance(cls, type) and issubclass(cls, penelope.PenelopeError), v
         assert cls.kind == v

@@ -6,8 +6,8 @@ use std::time::Duration;
 
 use penelope_hal::{NamedPose, Transition};
 use penelope_protocol::proto::{
-    BoardMethod, Call, ControllerMethod, CreatorCall, Method, Reply, RobotMethod, ServerMsg,
-    WireError,
+    BoardMethod, Call, CallError, ControllerMethod, CreatorCall, Method, Reply, RobotMethod,
+    ServerMsg, WireError,
 };
 use penelope_protocol::service::Service;
 use penelope_runtime::objects::{Creator, CreatorConfig};
@@ -150,7 +150,9 @@ fn a_puma_on_two_boards_follows_its_trajectory_streams_telemetry_and_goes_to_wor
             force: false,
         }),
     ) {
-        Err(WireError::InUse { dependents, .. }) => assert_eq!(dependents, vec!["pid".to_string()]),
+        Err(WireError::Call(CallError::InUse { dependents, .. })) => {
+            assert_eq!(dependents, vec!["pid".to_string()])
+        }
         other => panic!("expected InUse, got {other:?}"),
     }
     c.call(

@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use penelope_drivers::netft::emulator::{EmulatorConfig, NetFtEmulator};
 use penelope_hal::Transition;
-use penelope_protocol::proto::{Method, PoseMsg, Reply, SensorMethod, WireError};
+use penelope_protocol::proto::{CallError, Method, PoseMsg, Reply, SensorMethod, WireError};
 use penelope_runtime::objects::clock::ClockMode;
 use penelope_runtime::objects::{Creator, CreatorConfig};
 
@@ -35,7 +35,7 @@ fn a_net_ft_object_streams_reads_biases_and_stops() {
     // Not configured: nothing to read.
     assert!(matches!(
         call(&c, &s, ("ft", Method::Sensor(SensorMethod::Read))),
-        Err(WireError::NotReady(_))
+        Err(WireError::Call(CallError::NotReady(_)))
     ));
     lifecycle(&c, &s, "ft", Transition::Configure).expect("the emulator answers");
     assert!(emu.counters().streaming);
@@ -81,7 +81,7 @@ fn a_net_ft_object_streams_reads_biases_and_stops() {
     };
     assert!(matches!(
         call(&c, &s, ("ft", Method::Sensor(probe))),
-        Err(WireError::Unsupported { .. })
+        Err(WireError::Call(CallError::Unsupported { .. }))
     ));
 
     // Cleanup stops the stream (a stop request to the box).
@@ -103,8 +103,11 @@ fn bad_configurations_an_absent_box_and_the_simulated_clock_are_typed_refusals()
         "address = \"127.0.0.1:49152\"\ntimeout_ms = 0",
         "address = \"127.0.0.1:49152\"\ncolour = \"red\"",
     ] {
-        let e = c.create("sensor/netft", "ft", bad).unwrap_err();
-        assert!(matches!(e, WireError::BadConfig { .. }), "{bad:?}: {e:?}");
+        let e = WireError::from(c.create("sensor/netft", "ft", bad).unwrap_err());
+        assert!(
+            matches!(e, WireError::Call(CallError::BadConfig { .. })),
+            "{bad:?}: {e:?}"
+        );
     }
     // Nobody answers on this port: configure says so, and the object stays unconfigured.
     let silent = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
@@ -112,18 +115,19 @@ fn bad_configurations_an_absent_box_and_the_simulated_clock_are_typed_refusals()
     create(&c, &s, "sensor/netft", "ft", &config);
     let e = lifecycle(&c, &s, "ft", Transition::Configure).unwrap_err();
     assert!(
-        matches!(&e, WireError::Device(m) if m.contains("no RDT record")),
+        matches!(&e, WireError::Call(CallError::Device(m)) if m.contains("no RDT record")),
         "{e:?}"
     );
 
     let mut config = CreatorConfig::new("lab");
     config.clock = ClockMode::Simulated;
     let sim = Creator::new(config);
-    let e = sim
-        .create("sensor/netft", "ft", "address = \"127.0.0.1:49152\"")
-        .unwrap_err();
+    let e = WireError::from(
+        sim.create("sensor/netft", "ft", "address = \"127.0.0.1:49152\"")
+            .unwrap_err(),
+    );
     assert!(
-        matches!(&e, WireError::Unsupported { method, .. } if method.contains("simulated clock")),
+        matches!(&e, WireError::Call(CallError::Unsupported { method, .. }) if method.contains("simulated clock")),
         "{e:?}"
     );
 }

@@ -10,7 +10,7 @@ use std::time::Duration;
 use nalgebra::Vector3;
 use penelope_hal::{Frame, Transition, Wrench};
 use penelope_protocol::proto::{
-    ControllerMethod, Method, Reply, RobotMethod, SensorMethod, WireError,
+    CallError, ControllerMethod, Method, Reply, RobotMethod, SensorMethod, WireError,
 };
 use penelope_protocol::service::Remote;
 use penelope_runtime::dataplane::endpoint::Endpoint;
@@ -34,10 +34,15 @@ impl Remote for FakeRemote {
         self.calls.fetch_add(1, Ordering::Relaxed);
         match (method, *self.published.lock().unwrap()) {
             (Method::Sensor(SensorMethod::Stream), Some(a)) => Ok(Reply::Address(a.to_string())),
-            (Method::Sensor(SensorMethod::Stream), None) => Err(WireError::NotReady(
-                "sensor `ft` is not published on the data plane: it has no `publish` key".into(),
-            )),
-            (other, _) => Err(WireError::BadArgument(format!("{other:?}"))),
+            (Method::Sensor(SensorMethod::Stream), None) => {
+                Err(WireError::Call(CallError::NotReady(
+                    "sensor `ft` is not published on the data plane: it has no `publish` key"
+                        .into(),
+                )))
+            }
+            (other, _) => Err(WireError::Call(CallError::BadArgument(format!(
+                "{other:?}"
+            )))),
         }
     }
 }
@@ -76,12 +81,12 @@ fn a_remote_sensor_is_read_over_the_data_plane_and_goes_stale_when_its_publisher
     // Without a remote the activation is refused, typed.
     assert!(matches!(
         lifecycle(&c, &s, "pid", Transition::Activate),
-        Err(WireError::NotReady(_))
+        Err(WireError::Call(CallError::NotReady(_)))
     ));
     // A sensor that does not publish is refused, naming its path and the missing key.
     c.set_remote(remote.clone());
     match lifecycle(&c, &s, "pid", Transition::Activate) {
-        Err(WireError::NotReady(why)) => {
+        Err(WireError::Call(CallError::NotReady(why))) => {
             assert!(
                 why.contains("/other/sensors/ft") && why.contains("publish"),
                 "{why}"
@@ -136,7 +141,7 @@ fn a_local_virtual_sensor_measures_its_environment() {
     );
     assert!(matches!(
         call(&c, &s, ("ft", Method::Sensor(SensorMethod::Read))),
-        Err(WireError::NotReady(_))
+        Err(WireError::Call(CallError::NotReady(_)))
     ));
     lifecycle(&c, &s, "ft", Transition::Configure).unwrap();
     let pose = |z: f64| penelope_protocol::proto::PoseMsg {
@@ -179,6 +184,6 @@ fn a_local_virtual_sensor_measures_its_environment() {
                 })
             )
         ),
-        Err(WireError::BadArgument(_))
+        Err(WireError::Call(CallError::BadArgument(_)))
     ));
 }

@@ -4,8 +4,8 @@
 
 use penelope_hal::{NamedPose, Transition};
 use penelope_protocol::proto::{
-    BoardMethod, Call, Class, ControllerMethod, CreatorCall, JointAxis, Method, NamingCall, Reply,
-    RobotMethod, TrajectoryMethod, WireError,
+    BoardMethod, Call, CallError, Class, ControllerMethod, CreatorCall, JointAxis, Method,
+    NamingCall, Reply, RobotMethod, TrajectoryMethod, WireError,
 };
 use penelope_protocol::service::Service;
 use penelope_runtime::objects::{Creator, CreatorConfig};
@@ -78,7 +78,7 @@ fn two_robots_may_map_one_board_but_only_one_loop_drives_an_axis() {
 
     lifecycle(&c, &s, "pid", Transition::Activate).unwrap();
     match lifecycle(&c, &s, "pid2", Transition::Activate) {
-        Err(WireError::InUse { name, dependents }) => {
+        Err(WireError::Call(CallError::InUse { name, dependents })) => {
             assert_eq!(name, "b1");
             assert_eq!(dependents, vec!["pid".to_string()]);
         }
@@ -107,7 +107,7 @@ fn two_robots_may_map_one_board_but_only_one_loop_drives_an_axis() {
     lifecycle(&c, &s, "pid3", Transition::Configure).unwrap();
     assert!(matches!(
         lifecycle(&c, &s, "pid3", Transition::Activate),
-        Err(WireError::InUse { .. })
+        Err(WireError::Call(CallError::InUse { .. }))
     ));
     // Once the first stops, the second may run.
     lifecycle(&c, &s, "pid", Transition::Deactivate).unwrap();
@@ -132,28 +132,28 @@ fn every_bad_input_gets_a_typed_error() {
     };
     assert!(matches!(
         mk("robot/r2d2", "x", ""),
-        Err(WireError::UnknownKind(_))
+        Err(WireError::Call(CallError::UnknownKind(_)))
     ));
     assert!(matches!(
         mk("robot/puma560", "a/b", ""),
-        Err(WireError::BadName { .. })
+        Err(WireError::Call(CallError::BadName { .. }))
     ));
     assert!(matches!(
         mk("robot/puma560", "x", "colour = \"red\""),
-        Err(WireError::BadConfig { .. })
+        Err(WireError::Call(CallError::BadConfig { .. }))
     ));
     assert!(matches!(
         mk("trajectory/ramp", "x", "duration_s = -2"),
-        Err(WireError::BadConfig { .. })
+        Err(WireError::Call(CallError::BadConfig { .. }))
     ));
     assert!(matches!(
         mk("controller/joint-pid", "x", "period_us = 5"),
-        Err(WireError::BadConfig { .. })
+        Err(WireError::Call(CallError::BadConfig { .. }))
     ));
     mk("robot/puma560", "arm", "").unwrap();
     assert!(matches!(
         mk("robot/puma560", "arm", ""),
-        Err(WireError::NameTaken(_))
+        Err(WireError::Call(CallError::NameTaken(_)))
     ));
     mk(
         "board/galil",
@@ -163,7 +163,7 @@ fn every_bad_input_gets_a_typed_error() {
     .unwrap();
     assert!(matches!(
         lifecycle(&c, &s, "dmc", Transition::Configure),
-        Err(WireError::Device(_))
+        Err(WireError::Call(CallError::Device(_)))
     ));
     assert_eq!(
         c.info("dmc").unwrap().state,
@@ -195,12 +195,12 @@ fn every_bad_input_gets_a_typed_error() {
                 Method::Trajectory(TrajectoryMethod::Reference { t_s: f64::NAN })
             )
         ),
-        Err(WireError::BadArgument(_))
+        Err(WireError::Call(CallError::BadArgument(_)))
     ));
     mk("controller/joint-pid", "pid", "").unwrap();
     assert!(matches!(
         mk("robot/puma200", "one-too-many", ""),
-        Err(WireError::LimitReached { limit: 4, .. })
+        Err(WireError::Call(CallError::LimitReached { limit: 4, .. }))
     ));
 
     // Methods.
@@ -217,24 +217,27 @@ fn every_bad_input_gets_a_typed_error() {
     assert!(matches!(fk(vec![0.0; 6]), Ok(Reply::Pose(_))));
     assert!(matches!(
         fk(vec![0.0, f64::NAN, 0.0, 0.0, 0.0, 0.0]),
-        Err(WireError::BadArgument(_))
+        Err(WireError::Call(CallError::BadArgument(_)))
     ));
-    assert!(matches!(fk(vec![0.0; 5]), Err(WireError::BadArgument(_))));
+    assert!(matches!(
+        fk(vec![0.0; 5]),
+        Err(WireError::Call(CallError::BadArgument(_)))
+    ));
     assert!(matches!(
         call(&c, &s, ("arm", Method::Robot(RobotMethod::JointPositions))),
-        Err(WireError::NotReady(_))
+        Err(WireError::Call(CallError::NotReady(_)))
     ));
     assert!(matches!(
         call(&c, &s, ("arm", Method::Board(BoardMethod::AxisCount))),
-        Err(WireError::WrongClass {
+        Err(WireError::Call(CallError::WrongClass {
             expected: Class::Board,
             found: Class::Robot,
             ..
-        })
+        }))
     ));
     assert!(matches!(
         call(&c, &s, ("ghost", Method::Describe)),
-        Err(WireError::UnknownName(_))
+        Err(WireError::Call(CallError::UnknownName(_)))
     ));
     assert!(matches!(
         call(
@@ -248,7 +251,7 @@ fn every_bad_input_gets_a_typed_error() {
                 })
             )
         ),
-        Err(WireError::NotReady(_))
+        Err(WireError::Call(CallError::NotReady(_)))
     ));
     assert!(matches!(
         call(
@@ -262,7 +265,7 @@ fn every_bad_input_gets_a_typed_error() {
                 })
             )
         ),
-        Err(WireError::BadArgument(_))
+        Err(WireError::Call(CallError::BadArgument(_)))
     ));
     assert!(matches!(
         call(
@@ -276,7 +279,7 @@ fn every_bad_input_gets_a_typed_error() {
                 })
             )
         ),
-        Err(WireError::BadArgument(_))
+        Err(WireError::Call(CallError::BadArgument(_)))
     ));
     assert!(matches!(
         call(
@@ -287,7 +290,7 @@ fn every_bad_input_gets_a_typed_error() {
                 Method::Robot(RobotMethod::CountsToRadians { counts: vec![1, 2] })
             )
         ),
-        Err(WireError::BadArgument(_))
+        Err(WireError::Call(CallError::BadArgument(_)))
     ));
     assert!(matches!(
         call(
@@ -301,24 +304,24 @@ fn every_bad_input_gets_a_typed_error() {
                 })
             )
         ),
-        Err(WireError::BadArgument(_))
+        Err(WireError::Call(CallError::BadArgument(_)))
     ));
     // Lifecycle refusals.
     assert!(matches!(
         lifecycle(&c, &s, "arm", Transition::Configure),
-        Err(WireError::NotReady(_))
+        Err(WireError::Call(CallError::NotReady(_)))
     ));
     assert!(matches!(
         lifecycle(&c, &s, "pid", Transition::Activate),
-        Err(WireError::InvalidTransition { .. })
+        Err(WireError::Call(CallError::InvalidTransition { .. }))
     ));
     assert!(matches!(
         lifecycle(&c, &s, "pid", Transition::Configure),
-        Err(WireError::NotReady(_))
+        Err(WireError::Call(CallError::NotReady(_)))
     ));
     assert!(matches!(
         lifecycle(&c, &s, "arm", Transition::Activate),
-        Err(WireError::Unsupported { .. })
+        Err(WireError::Call(CallError::Unsupported { .. }))
     ));
     assert!(matches!(
         ctl(
@@ -329,11 +332,11 @@ fn every_bad_input_gets_a_typed_error() {
                 gains: "kp = \"x\"".into()
             }
         ),
-        Err(WireError::BadConfig { .. })
+        Err(WireError::Call(CallError::BadConfig { .. }))
     ));
     assert!(matches!(
         ctl(&c, &s, "pid", ControllerMethod::EStop),
-        Err(WireError::NotReady(_))
+        Err(WireError::Call(CallError::NotReady(_)))
     ));
     assert!(matches!(
         c.call(
@@ -342,7 +345,7 @@ fn every_bad_input_gets_a_typed_error() {
                 context: "/".into()
             })
         ),
-        Err(WireError::NoNamingService)
+        Err(WireError::Call(CallError::NoNamingService))
     ));
     assert!(matches!(
         c.call(
@@ -352,11 +355,11 @@ fn every_bad_input_gets_a_typed_error() {
                 decimation: 1
             }
         ),
-        Err(WireError::WrongClass { .. })
+        Err(WireError::Call(CallError::WrongClass { .. }))
     ));
     assert!(matches!(
         c.call(&s, Call::Unsubscribe { subscription: 99 }),
-        Err(WireError::UnknownName(_))
+        Err(WireError::Call(CallError::UnknownName(_)))
     ));
     assert!(
         matches!(c.call(&s, Call::Ping { payload: vec![1, 2] }), Ok(Reply::Pong(p)) if p == [1, 2])

@@ -5,7 +5,7 @@
 
 use penelope_hal::{JointVector, Timestamp, Transition};
 use penelope_protocol::proto::{
-    ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod, WireError,
+    CallError, ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod, WireError,
 };
 use penelope_rt_core::safety::SafetyState;
 use penelope_runtime::objects::{Creator, CreatorConfig};
@@ -17,7 +17,7 @@ fn creator() -> Creator {
 }
 
 fn create(c: &Creator, kind: &str, name: &str, config: &str) -> Result<ObjectInfo, WireError> {
-    c.create(kind, name, config)
+    c.create(kind, name, config).map_err(WireError::from)
 }
 
 fn ok(c: &Creator, name: &str, method: Method) -> Reply {
@@ -94,8 +94,9 @@ fn the_fpga_kinematics_answer_the_robots_methods_within_the_fixed_point_error() 
             joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
         }),
     );
+    let refused = refused.map_err(WireError::from);
     assert!(
-        matches!(&refused, Err(WireError::BadConfig { message, .. }) if message.contains("FRHC")),
+        matches!(&refused, Err(WireError::Call(CallError::BadConfig { message, .. })) if message.contains("FRHC")),
         "{refused:?}"
     );
     // The board chooses the kinematics: the robot has no such key.
@@ -107,7 +108,7 @@ fn the_fpga_kinematics_answer_the_robots_methods_within_the_fixed_point_error() 
         assert!(
             matches!(
                 create(&c, "robot/frhc", "bad", bad),
-                Err(WireError::BadConfig { .. })
+                Err(WireError::Call(CallError::BadConfig { .. }))
             ),
             "{bad}"
         );

@@ -6,7 +6,7 @@
 
 use penelope_hal::{Timestamp, Transition};
 use penelope_protocol::proto::{
-    ControllerMethod, JointAxis, Method, Reply, RobotMethod, WireError,
+    CallError, ControllerMethod, JointAxis, Method, Reply, RobotMethod, WireError,
 };
 use penelope_runtime::objects::{Creator, CreatorConfig};
 
@@ -56,9 +56,9 @@ fn numbers(reply: Reply) -> Vec<f64> {
     }
 }
 
-fn bad_config(e: WireError) -> String {
-    match e {
-        WireError::BadConfig { message, .. } => message,
+fn bad_config(e: impl Into<WireError>) -> String {
+    match e.into() {
+        WireError::Call(CallError::BadConfig { message, .. }) => message,
         other => panic!("expected BadConfig, got {other:?}"),
     }
 }

@@ -4,7 +4,7 @@
 
 use penelope_hal::{Timestamp, Transition};
 use penelope_protocol::proto::{
-    ControllerMethod, JointAxis, Method, Reply, RobotMethod, WireError,
+    CallError, ControllerMethod, JointAxis, Method, Reply, RobotMethod, WireError,
 };
 use penelope_runtime::objects::{Creator, CreatorConfig};
 
@@ -134,8 +134,8 @@ fn a_trapezoidal_move_refuses_a_tool_goal_and_goals_do_not_mix() {
     ] {
         assert!(
             matches!(
-                c.create(kind, "t", config),
-                Err(WireError::BadConfig { .. })
+                c.create(kind, "t", config).map_err(WireError::from),
+                Err(WireError::Call(CallError::BadConfig { .. }))
             ),
             "{kind}: {config}"
         );

@@ -19,7 +19,7 @@ use penelope_protocol::client::{
 use penelope_protocol::net::conn::{ClientConfig, RpcError};
 use penelope_protocol::net::server::{Server, ServerConfig};
 use penelope_protocol::proto::{
-    Class, Method, NameEntry, ObjectRef, Reply, RobotMethod, WireError, object_path,
+    CallError, Class, Method, NameEntry, ObjectRef, Reply, RobotMethod, WireError, object_path,
 };
 use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
@@ -293,24 +293,24 @@ fn bad_paths_classes_and_arguments_are_typed_errors() {
 
     assert!(matches!(
         remote(client.robot("/lab/robots/nobody").unwrap_err()),
-        WireError::UnknownName(_)
+        WireError::Call(CallError::UnknownName(_))
     ));
     assert!(matches!(
         remote(client.robot("lab/nobody").unwrap_err()),
-        WireError::UnknownName(_)
+        WireError::Call(CallError::UnknownName(_))
     ));
     assert!(matches!(
         remote(client.robot("nobody").unwrap_err()),
-        WireError::BadName { .. }
+        WireError::Call(CallError::BadName { .. })
     ));
     assert!(matches!(
         remote(client.node("elsewhere").unwrap_err()),
-        WireError::UnknownName(_)
+        WireError::Call(CallError::UnknownName(_))
     ));
     match remote(client.sensor("/lab/robots/slave").unwrap_err()) {
-        WireError::WrongClass {
+        WireError::Call(CallError::WrongClass {
             expected, found, ..
-        } => assert_eq!((expected, found), (Class::Sensor, Class::Robot)),
+        }) => assert_eq!((expected, found), (Class::Sensor, Class::Robot)),
         other => panic!("{other:?}"),
     }
 
@@ -334,13 +334,16 @@ fn bad_paths_classes_and_arguments_are_typed_errors() {
             .unwrap_err(),
         robot.map_joints("sim0", &[(300, 0)]).unwrap_err(),
     ] {
-        assert!(matches!(remote(e), WireError::BadArgument(_)));
+        assert!(matches!(
+            remote(e),
+            WireError::Call(CallError::BadArgument(_))
+        ));
     }
     let mut pose = Pose::identity();
     pose.translation.vector.x = f64::NAN;
     assert!(matches!(
         remote(robot.inverse_kinematics(&pose).unwrap_err()),
-        WireError::BadArgument(_)
+        WireError::Call(CallError::BadArgument(_))
     ));
     // ... and by the node when sent anyway.
     let e = client
@@ -351,7 +354,10 @@ fn bad_paths_classes_and_arguments_are_typed_errors() {
             }),
         )
         .unwrap_err();
-    assert!(matches!(remote(e), WireError::BadArgument(_)));
+    assert!(matches!(
+        remote(e),
+        WireError::Call(CallError::BadArgument(_))
+    ));
     let e = client
         .call(
             "/lab/robots/slave",
@@ -360,29 +366,32 @@ fn bad_paths_classes_and_arguments_are_typed_errors() {
             }),
         )
         .unwrap_err();
-    assert!(matches!(remote(e), WireError::BadArgument(_)));
+    assert!(matches!(
+        remote(e),
+        WireError::Call(CallError::BadArgument(_))
+    ));
 
     // The node's own refusals.
     assert!(matches!(
         remote(robot.go_to(NamedPose::Work, 1.0).unwrap_err()),
-        WireError::NotReady(_)
+        WireError::Call(CallError::NotReady(_))
     ));
     assert!(matches!(
         remote(robot.configure().unwrap_err()),
-        WireError::InvalidTransition { .. }
+        WireError::Call(CallError::InvalidTransition { .. })
     ));
     let node = client.node(NODE).unwrap();
     assert!(matches!(
         remote(node.create("robot/abb", "x", "").unwrap_err()),
-        WireError::UnknownKind(_)
+        WireError::Call(CallError::UnknownKind(_))
     ));
     assert!(matches!(
         remote(node.create("robot/puma560", "slave", "").unwrap_err()),
-        WireError::NameTaken(_)
+        WireError::Call(CallError::NameTaken(_))
     ));
     assert!(matches!(
         remote(node.create("board/sim", "b2", "axes = 99").unwrap_err()),
-        WireError::BadConfig { .. }
+        WireError::Call(CallError::BadConfig { .. })
     ));
     // A proxy of the wrong class is refused before anything is created.
     assert!(matches!(
@@ -390,7 +399,7 @@ fn bad_paths_classes_and_arguments_are_typed_errors() {
             node.create_as::<SensorProxy>("robot/puma560", "twin", "")
                 .unwrap_err()
         ),
-        WireError::WrongClass { .. }
+        WireError::Call(CallError::WrongClass { .. })
     ));
     assert!(node.list().unwrap().iter().all(|o| o.name != "twin"));
     // Displays a user understands.
@@ -418,7 +427,7 @@ fn a_controller_runs_streams_telemetry_and_everything_is_destroyed() {
     }
     assert!(matches!(
         remote(hold.reference(f64::NAN).unwrap_err()),
-        WireError::BadArgument(_)
+        WireError::Call(CallError::BadArgument(_))
     ));
     let _ = hold.duration().unwrap();
 
@@ -429,7 +438,7 @@ fn a_controller_runs_streams_telemetry_and_everything_is_destroyed() {
     );
     assert!(matches!(
         remote(pid.configure().unwrap_err()),
-        WireError::NotReady(_)
+        WireError::Call(CallError::NotReady(_))
     ));
     pid.set_robot("slave").unwrap();
     pid.set_trajectory("hold").unwrap();
@@ -451,13 +460,15 @@ fn a_controller_runs_streams_telemetry_and_everything_is_destroyed() {
     pid.set_gains("kd = 20.0").unwrap();
     assert!(matches!(
         remote(pid.set_gains("no_such_gain = 1").unwrap_err()),
-        WireError::BadConfig { .. }
+        WireError::Call(CallError::BadConfig { .. })
     ));
 
     // An active controller holds its robot.
     let node = lab.client.node(NODE).unwrap();
     match remote(node.destroy("slave", false).unwrap_err()) {
-        WireError::InUse { dependents, .. } => assert_eq!(dependents, vec!["pid".to_string()]),
+        WireError::Call(CallError::InUse { dependents, .. }) => {
+            assert_eq!(dependents, vec!["pid".to_string()])
+        }
         other => panic!("{other:?}"),
     }
     pid.estop().unwrap();
@@ -509,7 +520,7 @@ fn a_virtual_sensor_measures_the_probe_and_the_naming_proxy_lists() {
             wall.measure(&pressed, &Vector3::new(f64::NAN, 0.0, 0.0))
                 .unwrap_err()
         ),
-        WireError::BadArgument(_)
+        WireError::Call(CallError::BadArgument(_))
     ));
 
     let naming = lab.client.naming();
@@ -537,12 +548,12 @@ fn a_virtual_sensor_measures_the_probe_and_the_naming_proxy_lists() {
                 .bind("/elsewhere/alias", r.clone(), false)
                 .unwrap_err()
         ),
-        WireError::Forbidden(_)
+        WireError::Call(CallError::Forbidden(_))
     ));
     naming.bind("/lab/aliases/wall", r.clone(), false).unwrap();
     assert!(matches!(
         remote(naming.bind("/lab/aliases/wall", r, false).unwrap_err()),
-        WireError::NameTaken(_)
+        WireError::Call(CallError::NameTaken(_))
     ));
     let alias = lab.client.sensor("/lab/aliases/wall").unwrap();
     let deeper = Pose::translation(0.0, 0.0, 0.52);
@@ -550,7 +561,7 @@ fn a_virtual_sensor_measures_the_probe_and_the_naming_proxy_lists() {
     naming.unbind("/lab/aliases/wall").unwrap();
     assert!(matches!(
         remote(naming.resolve("/lab/aliases/wall").unwrap_err()),
-        WireError::UnknownName(_)
+        WireError::Call(CallError::UnknownName(_))
     ));
     assert_eq!(lab.client.nodes().unwrap().len(), 1);
     assert!(!lab.client.node(NODE).unwrap().kinds().unwrap().is_empty());

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use penelope_protocol::client::Client;
 use penelope_protocol::net::conn::{ClientConfig, RpcError};
-use penelope_protocol::proto::WireError;
+use penelope_protocol::proto::{CallError, WireError};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_testkit::scratch::scratch_dir;
 
@@ -23,7 +23,7 @@ fn node(name: &str, dir: &std::path::Path) -> Node {
 
 fn refusal(e: RpcError) -> String {
     match e {
-        RpcError::Remote(WireError::BadConfig { message, .. }) => message,
+        RpcError::Remote(WireError::Call(CallError::BadConfig { message, .. })) => message,
         other => panic!("not a BadConfig refusal: {other:?}"),
     }
 }

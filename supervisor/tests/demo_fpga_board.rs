@@ -6,14 +6,18 @@
 use penelope_fpga::FpgaKinematics;
 use penelope_hal::{Frame, JointVector, Kinematics, RobotModel, Transition, Wrench};
 use penelope_protocol::proto::{
-    JointAxis, Method, PoseMsg, Reply, RobotMethod, WireError, WrenchMsg, joints_to_vector,
+    CallError, JointAxis, Method, PoseMsg, Reply, RobotMethod, WireError, WrenchMsg,
+    joints_to_vector,
 };
 use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::error::ObjectError;
+use penelope_runtime::objects::fpga_board::FpgaBoardError;
 use penelope_runtime::objects::kinematics::RobotKinematics;
 use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_supervisor::runs::report::{Report, report};
 use penelope_supervisor::runs::{
-    DEMO_SYSTEM, Law, MasterKinematics, RunOptions, RunOutput, run, with_master_kinematics,
+    DEMO_SYSTEM, Law, MasterKinematics, RunError, RunOptions, RunOutput, run,
+    with_master_kinematics,
 };
 use penelope_supervisor::system::SystemFile;
 
@@ -141,7 +145,10 @@ fn the_demos_kinematics_option_is_the_one_word() {
     ))
     .unwrap();
     let err = with_master_kinematics(&galil, MasterKinematics::Fpga).unwrap_err();
-    assert!(err.to_string().contains("board/galil"), "{err}");
+    assert!(
+        matches!(&err, RunError::Task(why) if why.contains("board/galil")),
+        "{err}"
+    );
 }
 
 fn creator() -> Creator {
@@ -158,6 +165,7 @@ fn map_all(c: &Creator, robot: &str, board: &str) -> Result<Reply, WireError> {
             joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
         }),
     )
+    .map_err(WireError::from)
 }
 
 #[test]
@@ -250,7 +258,7 @@ fn a_robot_the_board_does_not_model_and_a_bad_key_are_typed_errors() {
     c.create("robot/puma200", "puma", "").unwrap();
     c.create("board/fpga", "io", "").unwrap();
     match map_all(&c, "puma", "io") {
-        Err(WireError::BadConfig { kind, message }) => {
+        Err(WireError::Call(CallError::BadConfig { kind, message })) => {
             assert_eq!(kind, "board/fpga");
             assert!(
                 message.contains("FRHC") && message.contains("puma200"),
@@ -264,22 +272,31 @@ fn a_robot_the_board_does_not_model_and_a_bad_key_are_typed_errors() {
     map_all(&c, "arm", "later").unwrap();
     c.create("board/fpga", "later", "").unwrap();
     c.transition("later", Transition::Configure).unwrap();
-    match c.transition("arm", Transition::Configure) {
-        Err(WireError::BadConfig { kind, message }) => {
+    match c
+        .transition("arm", Transition::Configure)
+        .map_err(WireError::from)
+    {
+        Err(WireError::Call(CallError::BadConfig { kind, message })) => {
             assert_eq!(kind, "board/fpga");
             assert!(message.contains("puma560"), "{message}");
         }
         other => panic!("{other:?}"),
     }
     // The robot key is gone: the board chooses the kinematics.
-    match c.create("robot/frhc", "frhc", "kinematics = \"fpga\"") {
-        Err(WireError::BadConfig { message, .. }) => {
+    match c
+        .create("robot/frhc", "frhc", "kinematics = \"fpga\"")
+        .map_err(WireError::from)
+    {
+        Err(WireError::Call(CallError::BadConfig { message, .. })) => {
             assert!(message.contains("kinematics"), "{message}")
         }
         other => panic!("{other:?}"),
     }
-    match c.create("board/fpga", "io2", "clock_mhz = 80") {
-        Err(WireError::BadConfig { kind, message }) => {
+    match c
+        .create("board/fpga", "io2", "clock_mhz = 80")
+        .map_err(WireError::from)
+    {
+        Err(WireError::Call(CallError::BadConfig { kind, message })) => {
             assert_eq!(kind, "board/fpga");
             assert!(message.contains("clock_mhz"), "{message}");
         }
@@ -305,5 +322,9 @@ fn a_robot_the_board_does_not_model_and_a_bad_key_are_typed_errors() {
             }),
         )
         .unwrap_err();
-    assert!(err.to_string().contains("whole chain"), "{err}");
+    assert!(
+        matches!(&err, ObjectError::FpgaBoard(FpgaBoardError::SplitChain { robot, board, other })
+            if robot == "frhc" && board == "io" && other == "sim"),
+        "{err}"
+    );
 }

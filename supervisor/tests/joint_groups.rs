@@ -6,7 +6,9 @@
 use std::time::Duration;
 
 use penelope_hal::{LifecycleState, Transition};
-use penelope_protocol::proto::{Call, ControllerMethod, Method, Reply, RobotMethod, WireError};
+use penelope_protocol::proto::{
+    Call, CallError, ControllerMethod, Method, Reply, RobotMethod, WireError,
+};
 use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::system::{SystemFile, SystemFileError};
@@ -157,7 +159,7 @@ fn a_pid_on_the_arm_and_a_servo_on_the_wrist_reach_their_own_goals() {
                 gains: "kp = 1.0".into()
             })
         ),
-        Err(WireError::Unsupported { .. })
+        Err(WireError::Call(CallError::Unsupported { .. }))
     ));
 
     // Deactivated, the group hands everything back; a member can then run alone.
@@ -178,7 +180,8 @@ fn overlapping_or_missing_joints_are_refused_naming_the_joint() {
         Err(SystemFileError::Step { key, error, .. }) => {
             assert_eq!(key, "controllers.split");
             assert!(
-                error.to_string().contains("joint 3 is in groups 0 and 1"),
+                matches!(&error, WireError::Call(CallError::BadConfig { message, .. })
+                    if message.contains("joint 3 is in groups 0 and 1")),
                 "{error}"
             );
         }
@@ -194,7 +197,8 @@ fn overlapping_or_missing_joints_are_refused_naming_the_joint() {
                 ("controllers.split", "activate")
             );
             assert!(
-                error.to_string().contains("no group drives joint 5"),
+                matches!(&error, WireError::Call(CallError::BadConfig { message, .. })
+                    if message.contains("no group drives joint 5")),
                 "{error}"
             );
         }
@@ -204,7 +208,7 @@ fn overlapping_or_missing_joints_are_refused_naming_the_joint() {
     match SystemFile::parse(&system(stranger)).unwrap().apply(&node) {
         Err(SystemFileError::Step { error, .. }) => {
             assert!(
-                matches!(error, WireError::UnknownName(ref n) if n == "nobody"),
+                matches!(error, WireError::Call(CallError::UnknownName(ref n)) if n == "nobody"),
                 "{error:?}"
             );
         }

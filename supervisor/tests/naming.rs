@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use penelope_protocol::net::conn::{ClientConfig, Connection, RpcError};
 use penelope_protocol::net::server::{Server, ServerConfig};
 use penelope_protocol::proto::{
-    Call, Class, CreatorCall, NameEntry, NamingCall, ObjectRef, Reply, WireError,
+    Call, CallError, Class, CreatorCall, NameEntry, NamingCall, ObjectRef, Reply, WireError,
 };
 use penelope_supervisor::naming::{NamingLimits, NamingService};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
@@ -67,7 +67,7 @@ fn bind_resolve_list_unbind_over_the_wire() {
     );
     assert!(matches!(
         naming(&mut c, bind("/lab-b/sensors/ft", false)),
-        Err(WireError::NameTaken(_))
+        Err(WireError::Call(CallError::NameTaken(_)))
     ));
     assert_eq!(
         naming(&mut c, bind("/lab-b/sensors/ft", true)),
@@ -111,7 +111,7 @@ fn bind_resolve_list_unbind_over_the_wire() {
                 path: "no-slash".into()
             }
         ),
-        Err(WireError::BadName { .. })
+        Err(WireError::Call(CallError::BadName { .. }))
     ));
     assert!(matches!(
         naming(
@@ -120,11 +120,13 @@ fn bind_resolve_list_unbind_over_the_wire() {
                 path: "/lab-b/sensors/nope".into()
             }
         ),
-        Err(WireError::UnknownName(_))
+        Err(WireError::Call(CallError::UnknownName(_)))
     ));
     assert!(matches!(
         c.call(Call::Creator(CreatorCall::Kinds)),
-        Err(RpcError::Remote(WireError::Unsupported { .. }))
+        Err(RpcError::Remote(WireError::Call(
+            CallError::Unsupported { .. }
+        )))
     ));
     assert!(matches!(c.call(Call::NodeInfo), Ok(Reply::Node(info)) if info.hosts_naming));
     // Pipelined calls come back in order.
@@ -142,7 +144,10 @@ fn bind_resolve_list_unbind_over_the_wire() {
         ])
         .unwrap();
     assert_eq!(answers[0], Ok(Reply::Unit));
-    assert!(matches!(answers[1], Err(WireError::UnknownName(_))));
+    assert!(matches!(
+        answers[1],
+        Err(WireError::Call(CallError::UnknownName(_)))
+    ));
     // The unregistered contexts went with their last entry.
     assert_eq!(answers[2], Ok(Reply::Names(vec![])));
     server.shutdown();
@@ -208,7 +213,7 @@ fn a_node_that_stops_renewing_expires() {
                 node: "dying".into()
             }
         ),
-        Err(WireError::UnknownName(_))
+        Err(WireError::Call(CallError::UnknownName(_)))
     ));
     assert!(service.snapshot().check_invariants().is_ok());
     // Registering again starts afresh.

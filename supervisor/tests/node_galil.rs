@@ -18,7 +18,7 @@ use penelope_drivers::galil::emulator::{ArmConfig, DmcConfig, PtyEmulator, PtyOp
 use penelope_hal::NamedPose;
 use penelope_protocol::client::{BoardProxy, Client, ControllerProxy, Lifecycle, RobotProxy};
 use penelope_protocol::net::conn::{ClientConfig, RpcError};
-use penelope_protocol::proto::WireError;
+use penelope_protocol::proto::{CallError, WireError};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 
 /// Polls `done` every 10 ms until it holds; fails with `what` after `limit` (a bound on a
@@ -48,7 +48,7 @@ fn a_node_drives_a_puma200_through_the_emulated_galil() {
         .unwrap();
     assert!(matches!(
         missing.configure(),
-        Err(RpcError::Remote(WireError::Device(_)))
+        Err(RpcError::Remote(WireError::Call(CallError::Device(_))))
     ));
     lab.destroy("nowhere", false).unwrap();
 

@@ -19,8 +19,8 @@ use penelope_protocol::net::conn::{ClientConfig, Connection, RpcError};
 use penelope_protocol::net::frame::{FrameError, encode, encode_into, read_frame};
 use penelope_protocol::net::server::{ABUSE_STRIKES, NetError, Server, ServerConfig};
 use penelope_protocol::proto::{
-    Call, ClientHello, ClientMsg, Reply, Role, ServerMsg, TelemetryBatch, TelemetryRecord,
-    WireError, WrenchMsg,
+    Call, CallError, ClientHello, ClientMsg, ProtocolError, Reply, Role, ServerMsg, TelemetryBatch,
+    TelemetryRecord, WireError, WrenchMsg,
 };
 use penelope_protocol::service::{Outbox, Service, Session};
 use penelope_rt_core::exec::{Flow, PeriodicConfig, RunReport, spawn};
@@ -50,7 +50,7 @@ impl Service for TestService {
                 subs.push((session.id, session.outbox.clone()));
                 Ok(Reply::Unit)
             }
-            _ => Err(WireError::NotReady("test service".into())),
+            _ => Err(WireError::Call(CallError::NotReady("test service".into()))),
         }
     }
 
@@ -145,7 +145,12 @@ fn final_error(s: &mut TcpStream) -> Option<WireError> {
 }
 
 fn refused(e: &Option<WireError>) -> bool {
-    matches!(e, Some(WireError::TooManyConnections { .. }))
+    matches!(
+        e,
+        Some(WireError::Protocol(
+            ProtocolError::TooManyConnections { .. }
+        ))
+    )
 }
 
 /// What the attacks saw.
@@ -171,7 +176,7 @@ fn garbage(addr: SocketAddr, seen: &Seen) {
     // A 5-byte body that is no message.
     let _ = s.write_all(&[5, 0, 0, 0, 0xff, 0xfe, 0xfd, 0xfc, 0xfb]);
     match final_error(&mut s) {
-        Some(WireError::Malformed(_)) => note(&seen.malformed),
+        Some(WireError::Protocol(ProtocolError::Malformed(_))) => note(&seen.malformed),
         e => assert!(refused(&e), "garbage got {e:?}"),
     }
 }
@@ -183,7 +188,7 @@ fn oversized(addr: SocketAddr, seen: &Seen) {
     bytes.extend([0u8; 1000]);
     let _ = s.write_all(&bytes);
     match final_error(&mut s) {
-        Some(WireError::FrameTooLarge { len, max }) => {
+        Some(WireError::Protocol(ProtocolError::FrameTooLarge { len, max })) => {
             assert_eq!((len, max), (0xffff_fff0, MAX_FRAME as u64));
             note(&seen.too_large);
         }
@@ -208,7 +213,7 @@ fn half_frames(addr: SocketAddr) {
 fn stalled_hello(addr: SocketAddr, seen: &Seen) {
     let Some(mut s) = raw(addr) else { return };
     match final_error(&mut s) {
-        Some(WireError::Timeout(_)) => note(&seen.handshake_timeouts),
+        Some(WireError::Protocol(ProtocolError::Timeout(_))) => note(&seen.handshake_timeouts),
         e => assert!(refused(&e), "stalled hello got {e:?}"),
     }
 }
@@ -220,8 +225,9 @@ fn connection_flood(addr: SocketAddr, seen: &Seen) {
         let mut b = [0u8; 64];
         if let Ok(n) = s.read(&mut b)
             && n > 4
-            && let Ok(ServerMsg::Error(WireError::TooManyConnections { .. })) =
-                read_frame::<_, ServerMsg>(&mut &b[..n], 1024)
+            && let Ok(ServerMsg::Error(WireError::Protocol(ProtocolError::TooManyConnections {
+                ..
+            }))) = read_frame::<_, ServerMsg>(&mut &b[..n], 1024)
         {
             note(&seen.too_many);
         }
@@ -250,13 +256,13 @@ fn request_flood(addr: SocketAddr, seen: &Seen) {
     loop {
         match read_frame::<_, ServerMsg>(&mut s, 1 << 20) {
             Ok(ServerMsg::Response {
-                result: Err(WireError::RateLimited { limit }),
+                result: Err(WireError::Protocol(ProtocolError::RateLimited { limit })),
                 ..
             }) => {
                 assert_eq!(limit, RATE);
                 note(&seen.rate_limited_replies);
             }
-            Ok(ServerMsg::Error(WireError::RateLimited { .. })) => {
+            Ok(ServerMsg::Error(WireError::Protocol(ProtocolError::RateLimited { .. }))) => {
                 note(&seen.rate_limit_drops);
                 break;
             }
@@ -276,10 +282,13 @@ fn wrong_secret(addr: SocketAddr, seen: &Seen) {
     let mut cfg = ClientConfig::new("intruder");
     cfg.secret = Some(b"not the secret".into());
     match Connection::connect(addr, &cfg) {
-        Err(RpcError::Remote(WireError::AuthFailed)) => note(&seen.auth_failed),
+        Err(RpcError::Remote(WireError::Protocol(ProtocolError::AuthFailed))) => {
+            note(&seen.auth_failed)
+        }
         // Failed handshakes from one address are throttled: refused before the check.
         Err(RpcError::Remote(
-            WireError::TooManyConnections { .. } | WireError::RateLimited { .. },
+            WireError::Protocol(ProtocolError::TooManyConnections { .. })
+            | WireError::Protocol(ProtocolError::RateLimited { .. }),
         )) => {}
         other => panic!("a wrong secret got {other:?}"),
     }
@@ -476,7 +485,9 @@ fn attacks_while_a_control_loop_runs() {
     let mut friend = loop {
         match Connection::connect(secured_addr, &ok_cfg) {
             Ok(c) => break c,
-            Err(RpcError::Remote(WireError::RateLimited { .. })) if Instant::now() < deadline => {
+            Err(RpcError::Remote(WireError::Protocol(ProtocolError::RateLimited { .. })))
+                if Instant::now() < deadline =>
+            {
                 std::thread::sleep(Duration::from_millis(100));
             }
             Err(e) => panic!("the friend was refused: {e}"),
@@ -611,7 +622,9 @@ fn a_non_loopback_bind_without_a_secret_is_refused() {
     let local = SocketAddr::from(([127, 0, 0, 1], s.local_addr().port()));
     assert!(matches!(
         Connection::connect(local, &ClientConfig::new("x")),
-        Err(RpcError::Remote(WireError::AuthFailed))
+        Err(RpcError::Remote(WireError::Protocol(
+            ProtocolError::AuthFailed
+        )))
     ));
     s.shutdown();
 }

@@ -15,8 +15,9 @@ use penelope_protocol::net::conn::{ClientConfig, Connection, RpcError};
 use penelope_protocol::net::frame::{FrameDecoder, decode_body, encode, read_frame};
 use penelope_protocol::net::server::{Server, ServerConfig};
 use penelope_protocol::proto::{
-    Call, Class, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, MAGIC, NamingCall, ObjectRef,
-    PROTOCOL_VERSION, Reply, Role, Security, ServerHello, ServerMsg, WireError,
+    Call, CallError, Class, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, MAGIC, NamingCall,
+    ObjectRef, PROTOCOL_VERSION, ProtocolError, Reply, Role, Security, ServerHello, ServerMsg,
+    WireError,
 };
 use penelope_protocol::service::{Service, Session};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
@@ -37,7 +38,7 @@ impl Service for Counting {
         self.calls.fetch_add(1, Ordering::SeqCst);
         match call {
             Call::Ping { payload } => Ok(Reply::Pong(payload)),
-            _ => Err(WireError::NotReady("echo only".into())),
+            _ => Err(WireError::Call(CallError::NotReady("echo only".into()))),
         }
     }
 }
@@ -145,13 +146,17 @@ fn a_client_without_the_secret_is_refused_and_serves_nothing() {
     let addr = server.local_addr();
     assert!(matches!(
         Connection::connect(addr, &ClientConfig::new("guest")),
-        Err(RpcError::Remote(WireError::AuthFailed))
+        Err(RpcError::Remote(WireError::Protocol(
+            ProtocolError::AuthFailed
+        )))
     ));
     let mut wrong = ClientConfig::new("guest");
     wrong.secret = Some(b"password".into());
     assert!(matches!(
         Connection::connect(addr, &wrong),
-        Err(RpcError::Remote(WireError::AuthFailed))
+        Err(RpcError::Remote(WireError::Protocol(
+            ProtocolError::AuthFailed
+        )))
     ));
     // A raw client that skips the handshake and sends a request: refused, never served.
     let mut s = TcpStream::connect(addr).unwrap();
@@ -172,7 +177,9 @@ fn a_client_without_the_secret_is_refused_and_serves_nothing() {
     ));
     assert!(matches!(
         read_frame::<_, ServerMsg>(&mut s, MAX),
-        Ok(ServerMsg::Error(WireError::AuthFailed))
+        Ok(ServerMsg::Error(WireError::Protocol(
+            ProtocolError::AuthFailed
+        )))
     ));
     assert_eq!(server.stats().auth_failures, 3);
     assert_eq!(service.calls.load(Ordering::SeqCst), 0);
@@ -267,7 +274,9 @@ impl Raw {
     fn expect_closed(&mut self) {
         assert!(matches!(
             self.next(),
-            Some(ServerMsg::Error(WireError::Malformed(_)))
+            Some(ServerMsg::Error(WireError::Protocol(
+                ProtocolError::Malformed(_)
+            )))
         ));
         assert!(self.next().is_none(), "the node must close the connection");
     }
@@ -444,7 +453,7 @@ fn bind(path: &str, node: &str, rebind: bool) -> NamingCall {
 }
 
 fn forbidden(r: Result<Reply, WireError>) -> bool {
-    matches!(r, Err(WireError::Forbidden(_)))
+    matches!(r, Err(WireError::Call(CallError::Forbidden(_))))
 }
 
 #[test]
@@ -530,7 +539,9 @@ fn a_node_writes_only_its_own_context_and_only_an_admin_writes_anywhere() {
     // An admin claim without the admin secret is refused; with it, it may unregister B.
     assert!(matches!(
         Connection::connect(addr, &with_secret(ClientConfig::admin("ops"))),
-        Err(RpcError::Remote(WireError::AuthFailed))
+        Err(RpcError::Remote(WireError::Protocol(
+            ProtocolError::AuthFailed
+        )))
     ));
     let mut wrong = with_secret(ClientConfig::admin("ops"));
     wrong.admin_secret = Some(b"guess".into());
@@ -622,7 +633,9 @@ fn two_hundred_silent_connections_do_not_keep_the_operator_out() {
             {
                 assert!(matches!(
                     read_frame::<_, ServerMsg>(&mut &buf[..n], MAX),
-                    Ok(ServerMsg::Error(WireError::TooManyConnections { .. }))
+                    Ok(ServerMsg::Error(WireError::Protocol(
+                        ProtocolError::TooManyConnections { .. }
+                    )))
                 ));
                 *t = true;
             }

@@ -19,8 +19,8 @@ use nalgebra::Vector3;
 use penelope_hal::{Pose, Transition};
 use penelope_protocol::net::server::{Server, ServerConfig};
 use penelope_protocol::proto::{
-    Call, ControllerMethod, CreatorCall, JointAxis, Method, Reply, RobotMethod, SensorMethod,
-    WireError,
+    Call, CallError, ControllerMethod, CreatorCall, JointAxis, Method, Reply, RobotMethod,
+    SensorMethod, WireError,
 };
 use penelope_runtime::dataplane::endpoint::Endpoint;
 use penelope_runtime::dataplane::frame::{DATAPLANE_VERSION, DatagramKey, Header, StreamId};
@@ -433,7 +433,7 @@ fn a_controller_reads_its_sensor_on_another_node_over_the_data_plane() {
     };
     object(arm, "pid", Method::Controller(set)).unwrap();
     match object(arm, "pid", Method::Transition(Transition::Activate)) {
-        Err(WireError::NotReady(why)) => {
+        Err(WireError::Call(CallError::NotReady(why))) => {
             assert!(
                 why.contains("/wrist/sensors/bare") && why.contains("`publish`"),
                 "{why}"
@@ -468,7 +468,7 @@ fn a_sensor_on_another_node_is_refused_to_a_loop_on_a_simulated_clock() {
         Err(SystemFileError::Step { step, error, .. }) => {
             assert!(step.contains("activ"), "{step}");
             assert!(
-                matches!(&error, WireError::NotReady(m) if m.contains("simulated clock")),
+                matches!(&error, WireError::Call(CallError::NotReady(m)) if m.contains("simulated clock")),
                 "{error:?}"
             );
         }

@@ -17,14 +17,15 @@ use nix::sys::socket::{
 use penelope_protocol::net::auth::{self, ClientHandshake, Secret};
 use penelope_protocol::net::conn::{ClientConfig, Connection, RpcError};
 use penelope_protocol::net::frame::{encode, read_frame};
-use penelope_protocol::net::server::{Server, ServerConfig};
+use penelope_protocol::net::server::{NetError, Server, ServerConfig};
 use penelope_protocol::proto::{
-    BoardMethod, Call, ClientHello, ClientMsg, ControllerMethod, CreatorCall, DEFAULT_MAX_FRAME,
-    JointAxis, Method, NamingCall, Reply, RobotMethod, Role, ServerMsg, WireError,
+    BoardMethod, Call, CallError, ClientHello, ClientMsg, ControllerMethod, CreatorCall,
+    DEFAULT_MAX_FRAME, JointAxis, Method, NamingCall, ProtocolError, Reply, RobotMethod, Role,
+    ServerMsg, WireError,
 };
 use penelope_protocol::service::{Service, Session};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
-use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
+use penelope_supervisor::node::{NamingChoice, Node, NodeConfig, NodeError};
 use penelope_testkit::wait::wait_until;
 
 const SECRET: &[u8] = b"5f0c2d9e8b7a61403f2e1d0c9b8a7f6e";
@@ -37,7 +38,7 @@ impl Service for Echo {
     fn call(&self, _: &Session, call: Call) -> Result<Reply, WireError> {
         match call {
             Call::Ping { payload } => Ok(Reply::Pong(payload)),
-            _ => Err(WireError::NotReady("echo only".into())),
+            _ => Err(WireError::Call(CallError::NotReady("echo only".into()))),
         }
     }
 }
@@ -195,7 +196,9 @@ fn sixty_four_idle_sessions_from_one_address_do_not_lock_out_another() {
         s.set_read_timeout(Some(Duration::from_millis(20))).unwrap();
         matches!(
             read_frame::<_, ServerMsg>(s, MAX),
-            Ok(ServerMsg::Error(WireError::TooManyConnections { .. }))
+            Ok(ServerMsg::Error(WireError::Protocol(
+                ProtocolError::TooManyConnections { .. }
+            )))
         )
     });
     assert!(told, "the evicted session gets TooManyConnections");
@@ -240,7 +243,10 @@ fn failed_handshakes_are_slowed_per_address_while_another_address_connects_at_on
     // Before: the burst is checked as fast as the node answers.
     let start = Instant::now();
     for _ in 0..burst {
-        assert_eq!(guess([127, 0, 0, 2], addr), WireError::AuthFailed);
+        assert_eq!(
+            guess([127, 0, 0, 2], addr),
+            WireError::Protocol(ProtocolError::AuthFailed)
+        );
     }
     let before = f64::from(burst) / start.elapsed().as_secs_f64();
     // After: for two seconds, guesses as fast as they go; only about `per_s` a second are
@@ -249,8 +255,8 @@ fn failed_handshakes_are_slowed_per_address_while_another_address_connects_at_on
     let (mut checked, mut refused) = (0u32, 0u32);
     while window.elapsed() < Duration::from_secs(2) && checked + refused < 5000 {
         match guess([127, 0, 0, 2], addr) {
-            WireError::AuthFailed => checked += 1,
-            WireError::RateLimited { .. } => refused += 1,
+            WireError::Protocol(ProtocolError::AuthFailed) => checked += 1,
+            WireError::Protocol(ProtocolError::RateLimited { .. }) => refused += 1,
             other => panic!("unexpected {other:?}"),
         }
     }
@@ -291,6 +297,10 @@ fn a_short_secret_is_refused_at_start_with_how_to_make_one() {
         panic!("a 2-character secret was accepted")
     };
     println!("{e}");
+    assert!(
+        matches!(&e, NodeError::Listen(NetError::WeakSecret(_))),
+        "{e:?}"
+    );
     assert!(e.to_string().contains("penelope secret new"), "{e}");
     // The naming service alone: the same.
     let naming = Arc::new(NamingService::new("naming", NamingLimits::default()));
@@ -299,6 +309,7 @@ fn a_short_secret_is_refused_at_start_with_how_to_make_one() {
     let Err(e) = Server::bind(local(), c, naming) else {
         panic!("a weak secret was accepted")
     };
+    assert!(matches!(&e, NetError::WeakSecret(_)), "{e:?}");
     assert!(e.to_string().contains("too weak"), "{e}");
     // And secrets never show in a configuration's debug output.
     let mut c = ServerConfig::new("n");
@@ -368,7 +379,10 @@ fn node_with_a_running_controller() -> Node {
 }
 
 fn forbidden(r: Result<Reply, RpcError>) -> bool {
-    matches!(r, Err(RpcError::Remote(WireError::Forbidden(_))))
+    matches!(
+        r,
+        Err(RpcError::Remote(WireError::Call(CallError::Forbidden(_))))
+    )
 }
 
 fn status(c: &mut Connection) -> String {
@@ -514,7 +528,7 @@ fn a_reader_cannot_apply_a_system_file_an_admin_can_and_a_bad_one_is_a_typed_err
     let mut admin = Connection::connect(addr, &admin_cfg).unwrap();
     // Malformed: a typed error naming the line, and nothing created.
     match admin.call(apply("[boards.x]\nkind = \"sim\"\n[[[")) {
-        Err(RpcError::Remote(WireError::BadConfig { kind, message })) => {
+        Err(RpcError::Remote(WireError::Call(CallError::BadConfig { kind, message }))) => {
             assert_eq!(kind, "system file");
             assert!(message.starts_with("line 3"), "{message}");
         }
@@ -523,7 +537,7 @@ fn a_reader_cannot_apply_a_system_file_an_admin_can_and_a_bad_one_is_a_typed_err
     // A refused step (an unknown key of the robot's kind): typed, and nothing kept.
     let refused = SMALL_SYSTEM.replace("start = \"start\"", "speed = 3");
     match admin.call(apply(&refused)) {
-        Err(RpcError::Remote(WireError::BadConfig { kind, message })) => {
+        Err(RpcError::Remote(WireError::Call(CallError::BadConfig { kind, message }))) => {
             assert_eq!(kind, "system file");
             assert!(message.contains("robots.arm2"), "{message}");
             assert!(
@@ -591,7 +605,7 @@ fn one_address_cannot_take_every_subscription() {
     println!("one address held {held} subscriptions, then: {refusal}");
     assert!(matches!(
         refusal,
-        RpcError::Remote(WireError::LimitReached { .. })
+        RpcError::Remote(WireError::Call(CallError::LimitReached { .. }))
     ));
     assert!(held < 64, "one address took the whole pool");
     // Another host still subscribes (its hello and handshake by hand, bound to 127.0.0.2).

@@ -3,7 +3,7 @@
 //! the board comes by a `create` or from a system file, and keeps nothing; the same board on a
 //! real-time creator, and a `board/sim` on the simulated one, are made as before.
 
-use penelope_protocol::proto::WireError;
+use penelope_protocol::proto::{CallError, WireError};
 use penelope_runtime::objects::clock::ClockMode;
 use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
@@ -21,14 +21,14 @@ fn creator(clock: ClockMode) -> Creator {
 }
 
 fn is_the_refusal(e: &WireError) -> bool {
-    matches!(e, WireError::Unsupported { kind, method }
+    matches!(e, WireError::Call(CallError::Unsupported { kind, method })
         if kind == "board/galil" && method.contains("simulated clock"))
 }
 
 #[test]
 fn a_galil_board_is_refused_on_the_simulated_clock_and_made_in_real_time() {
     let sim = creator(ClockMode::Simulated);
-    let e = sim.create("board/galil", "dmc", GALIL).unwrap_err();
+    let e = WireError::from(sim.create("board/galil", "dmc", GALIL).unwrap_err());
     assert!(is_the_refusal(&e), "{e:?}");
     assert!(
         e.to_string()

@@ -5,7 +5,9 @@
 use std::time::{Duration, Instant};
 
 use penelope_hal::LifecycleState;
-use penelope_protocol::proto::{Call, ControllerMethod, CreatorCall, Method, Reply, WireError};
+use penelope_protocol::proto::{
+    Call, CallError, ControllerMethod, CreatorCall, Method, Reply, WireError,
+};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::system::{SystemFile, SystemFileError};
 
@@ -163,7 +165,10 @@ fn a_file_that_cannot_be_applied_whole_leaves_nothing_behind() {
             assert_eq!(step, "activate");
             assert_eq!(text.lines().nth(line - 1), Some("[controllers.follow]"));
             // The FRHC is already driven by `display`.
-            assert!(matches!(error, WireError::InUse { .. }), "{error:?}");
+            assert!(
+                matches!(error, WireError::Call(CallError::InUse { .. })),
+                "{error:?}"
+            );
         }
         other => panic!("{other:?}"),
     }

@@ -15,7 +15,9 @@ use penelope_protocol::client::{
 };
 use penelope_protocol::net::conn::{ClientConfig, RpcError};
 use penelope_protocol::net::server::{NetError, Server, ServerConfig};
-use penelope_protocol::proto::{Method, NameEntry, PoseMsg, Reply, SensorMethod, WireError};
+use penelope_protocol::proto::{
+    CallError, Method, NameEntry, PoseMsg, ProtocolError, Reply, SensorMethod, WireError,
+};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig, NodeError};
 
@@ -174,7 +176,7 @@ fn two_nodes_a_client_and_the_naming_tree() {
     // Destroying what an active object depends on is refused; then everything goes.
     assert!(matches!(
         a.destroy("slave", false),
-        Err(RpcError::Remote(WireError::InUse { .. }))
+        Err(RpcError::Remote(WireError::Call(CallError::InUse { .. })))
     ));
     pid.deactivate().unwrap();
     for name in ["pid", "hold", "slave", "sim0"] {
@@ -188,7 +190,7 @@ fn two_nodes_a_client_and_the_naming_tree() {
     assert_eq!(entries(&client, "/B"), ["creator"]);
     assert!(matches!(
         client.resolve("/B/sensors/ft"),
-        Err(RpcError::Remote(WireError::UnknownName(_)))
+        Err(RpcError::Remote(WireError::Call(CallError::UnknownName(_))))
     ));
 
     // A node killed mid-run (with an object bound) expires after its lease.
@@ -200,7 +202,7 @@ fn two_nodes_a_client_and_the_naming_tree() {
     assert_eq!(entries(&client, "/"), ["A/"]);
     assert!(matches!(
         client.resolve("/B/sensors/ft2"),
-        Err(RpcError::Remote(WireError::UnknownName(_)))
+        Err(RpcError::Remote(WireError::Call(CallError::UnknownName(_))))
     ));
     naming.snapshot().check_invariants().unwrap();
 
@@ -229,7 +231,7 @@ fn a_system_behind_a_shared_secret() {
     assert!(matches!(
         Node::start(no_secret),
         Err(NodeError::NamingRefused {
-            cause: RpcError::Remote(WireError::AuthFailed),
+            cause: RpcError::Remote(WireError::Protocol(ProtocolError::AuthFailed)),
             ..
         })
     ));
@@ -255,13 +257,17 @@ fn a_system_behind_a_shared_secret() {
     // Clients: none, a wrong and the right secret.
     assert!(matches!(
         Client::connect(naming_addr, ClientConfig::new("anonymous")),
-        Err(RpcError::Remote(WireError::AuthFailed))
+        Err(RpcError::Remote(WireError::Protocol(
+            ProtocolError::AuthFailed
+        )))
     ));
     let mut wrong = ClientConfig::new("guess");
     wrong.secret = Some(b"password".into());
     assert!(matches!(
         Client::connect(naming_addr, wrong),
-        Err(RpcError::Remote(WireError::AuthFailed))
+        Err(RpcError::Remote(WireError::Protocol(
+            ProtocolError::AuthFailed
+        )))
     ));
     let mut right = ClientConfig::admin("operator");
     right.secret = Some(secret.as_slice().into());

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use penelope_protocol::client::Client;
 use penelope_protocol::net::conn::{ClientConfig, Connection, Pushed, RpcError};
-use penelope_protocol::proto::{Call, CreatorCall, LinkRecord, Reply, WireError};
+use penelope_protocol::proto::{Call, CallError, CreatorCall, LinkRecord, Reply, WireError};
 use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::runs::DEMO_SYSTEM;
@@ -163,13 +163,15 @@ fn a_channel_with_both_ends_on_one_node_has_no_link_to_watch() {
         .expect("the demo on one node");
     let mut conn = connect(&lab);
     match subscribe(&mut conn, "link") {
-        Err(RpcError::Remote(WireError::NoLink(channel))) => assert_eq!(channel, "link"),
+        Err(RpcError::Remote(WireError::Call(CallError::NoLink(channel)))) => {
+            assert_eq!(channel, "link")
+        }
         other => panic!("{other:?}"),
     }
     // Other trajectories are no channels at all.
     assert!(matches!(
         subscribe(&mut conn, "nope"),
-        Err(RpcError::Remote(WireError::UnknownName(_)))
+        Err(RpcError::Remote(WireError::Call(CallError::UnknownName(_))))
     ));
     assert_eq!(lab.creator().subscription_count(), 0);
     lab.shutdown();
@@ -211,7 +213,9 @@ fn a_link_stream_through_the_naming_service_on_real_clocks() {
     // A controller's ticks are no link records: refused before anything is sent.
     assert!(matches!(
         client.watch_link("slave/follow", 1),
-        Err(RpcError::Remote(WireError::WrongClass { .. }))
+        Err(RpcError::Remote(WireError::Call(
+            CallError::WrongClass { .. }
+        )))
     ));
     drop(stream);
     for n in [a, b, naming] {

@@ -10,7 +10,7 @@ use std::time::Duration;
 use penelope_protocol::client::Client;
 use penelope_protocol::net::conn::{ClientConfig, RpcError};
 use penelope_protocol::net::server::{Server, ServerConfig};
-use penelope_protocol::proto::{Call, CreatorCall, Reply, WireError};
+use penelope_protocol::proto::{Call, CallError, CreatorCall, Reply, WireError};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_testkit::wait::wait_until;
@@ -65,7 +65,7 @@ fn a_node_started_before_its_naming_service_registers_when_it_starts_and_after_a
     let client = Client::connect(naming_addr, ClientConfig::admin("test")).unwrap();
     assert!(matches!(
         client.resolve("/early/creator"),
-        Err(RpcError::Remote(WireError::UnknownName(_)))
+        Err(RpcError::Remote(WireError::Call(CallError::UnknownName(_))))
     ));
     wait_until("the node registers again after the restart", || {
         resolves(&client, "/early/creator") && resolves(&client, "/early/sensors/ft")

@@ -8,13 +8,15 @@
 
 use penelope_drivers::sim::scripts::{self, CONTACT_PHASE, FREE_MOTION_PHASES, INDEX_PHASE};
 use penelope_hal::{Timestamp, Transition};
-use penelope_protocol::proto::{ControllerMethod, Method, Reply, RobotMethod, WireError};
+use penelope_protocol::proto::{
+    CallError, ControllerMethod, Method, Reply, RobotMethod, WireError,
+};
 use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_runtime::objects::Creator;
 use penelope_tests::papers_task::{create, ok, papers_task, relate, step_papers_task};
 
 fn call(c: &Creator, name: &str, method: Method) -> Result<Reply, WireError> {
-    c.call_object(name, method)
+    c.call_object(name, method).map_err(WireError::from)
 }
 
 fn phase(t: Timestamp) -> &'static str {
@@ -117,7 +119,7 @@ fn the_task_runs_the_same_twice_and_its_channel_is_guarded() {
     ok(&c, "wrong-side", Method::Transition(Transition::Configure));
     let refused = call(&c, "wrong-side", Method::Transition(Transition::Activate));
     assert!(
-        matches!(&refused, Err(WireError::BadArgument(m)) if m.contains("slave of `link` is `puma`")),
+        matches!(&refused, Err(WireError::Call(CallError::BadArgument(m))) if m.contains("slave of `link` is `puma`")),
         "{refused:?}"
     );
     create(&c, "controller/joint-pid", "pid", "");
@@ -125,7 +127,7 @@ fn the_task_runs_the_same_twice_and_its_channel_is_guarded() {
     ok(&c, "pid", Method::Transition(Transition::Configure));
     assert!(matches!(
         call(&c, "pid", Method::Transition(Transition::Activate)),
-        Err(WireError::BadArgument(_))
+        Err(WireError::Call(CallError::BadArgument(_)))
     ));
 }
 
@@ -144,15 +146,15 @@ fn set_gains_changes_a_teleoperation_laws_gains_and_keeps_the_rest() {
     // Unknown keys and loop timing are refused; a gain is taken, the other keys kept.
     assert!(matches!(
         set("stiffness = 3"),
-        Err(WireError::BadConfig { .. })
+        Err(WireError::Call(CallError::BadConfig { .. }))
     ));
     assert!(matches!(
         set("period_us = 500"),
-        Err(WireError::BadConfig { .. })
+        Err(WireError::Call(CallError::BadConfig { .. }))
     ));
     assert!(matches!(
         set("max_force = -1.0"),
-        Err(WireError::BadConfig { .. })
+        Err(WireError::Call(CallError::BadConfig { .. }))
     ));
     set("max_force = 3.0").unwrap();
     // In steady contact the motors now display 3 N (7.9 N uncapped): the force the FRHC's

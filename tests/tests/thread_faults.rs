@@ -5,14 +5,15 @@
 
 use penelope_hal::{LifecycleState, Transition};
 use penelope_protocol::proto::{
-    BoardMethod, ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod, WireError,
+    BoardMethod, CallError, ControllerMethod, JointAxis, Method, ObjectInfo, Reply, RobotMethod,
+    WireError,
 };
 use penelope_runtime::objects::runtime::LoopThread;
 use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_testkit::wait::wait_until;
 
 fn call(c: &Creator, name: &str, method: Method) -> Result<Reply, WireError> {
-    c.call_object(name, method)
+    c.call_object(name, method).map_err(WireError::from)
 }
 
 fn ok(c: &Creator, name: &str, method: Method) -> Reply {
@@ -122,7 +123,7 @@ fn fails_safely(thread: LoopThread, cause: &str) {
     assert_eq!(c.list().len(), 4);
     assert!(matches!(
         call(&c, "pid", Method::Transition(Transition::Activate)),
-        Err(WireError::InvalidTransition { .. })
+        Err(WireError::Call(CallError::InvalidTransition { .. }))
     ));
 
     // Re-armed: running again, from the measured state, without a jump.

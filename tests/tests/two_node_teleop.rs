@@ -7,7 +7,7 @@
 use std::time::Duration;
 
 use penelope_protocol::proto::{
-    Call, ControllerMethod, Method, Reply, RobotMethod, TelemetryRecord, WireError,
+    Call, CallError, ControllerMethod, Method, Reply, RobotMethod, TelemetryRecord, WireError,
 };
 use penelope_rt_core::safety::SafetyEvent;
 use penelope_runtime::objects::clock::ClockMode;
@@ -154,7 +154,10 @@ fn a_channel_to_another_node_is_checked_at_configure() {
     match SystemFile::parse(&text).unwrap().apply(&a) {
         Err(SystemFileError::Step { key, error, .. }) => {
             assert_eq!(key, "trajectories.link");
-            assert!(error.to_string().contains("secret"), "{error}");
+            assert!(
+                matches!(&error, WireError::Call(CallError::BadArgument(why)) if why.contains("secret")),
+                "{error}"
+            );
         }
         other => panic!("{other:?}"),
     }
@@ -162,8 +165,10 @@ fn a_channel_to_another_node_is_checked_at_configure() {
     // Only one of listen and peer.
     let half = "master = \"frhc\"\nslave = \"puma\"\nlisten = \"127.0.0.1:9\"";
     assert!(matches!(
-        a.creator().create("trajectory/teleop", "half", half),
-        Err(WireError::BadConfig { .. })
+        a.creator()
+            .create("trajectory/teleop", "half", half)
+            .map_err(WireError::from),
+        Err(WireError::Call(CallError::BadConfig { .. }))
     ));
     a.shutdown();
 }

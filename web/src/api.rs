@@ -11,8 +11,8 @@ use axum::response::{IntoResponse, Response};
 use penelope_protocol::client::Client;
 use penelope_protocol::net::conn::RpcError;
 use penelope_protocol::proto::{
-    BoardMethod, Class, ControllerMethod, Method, NameEntry, ObjectRef, Reply, RobotMethod,
-    WireError, object_path,
+    BoardMethod, CallError, Class, ControllerMethod, Method, NameEntry, ObjectRef, Reply,
+    RobotMethod, WireError, object_path,
 };
 use serde::Deserialize;
 use serde_json::{Value, json};
@@ -78,21 +78,22 @@ impl ApiError {
         match e {
             RpcError::Remote(wire) => {
                 let status = match wire {
-                    WireError::UnknownName(_) | WireError::UnknownKind(_) => StatusCode::NOT_FOUND,
-                    WireError::NameTaken(_)
-                    | WireError::InUse { .. }
-                    | WireError::InvalidTransition { .. }
-                    | WireError::NotReady(_) => StatusCode::CONFLICT,
-                    WireError::BadName { .. }
-                    | WireError::BadConfig { .. }
-                    | WireError::BadArgument(_)
-                    | WireError::WrongClass { .. }
-                    | WireError::Unsupported { .. } => StatusCode::BAD_REQUEST,
+                    WireError::Call(CallError::UnknownName(_))
+                    | WireError::Call(CallError::UnknownKind(_)) => StatusCode::NOT_FOUND,
+                    WireError::Call(CallError::NameTaken(_))
+                    | WireError::Call(CallError::InUse { .. })
+                    | WireError::Call(CallError::InvalidTransition { .. })
+                    | WireError::Call(CallError::NotReady(_)) => StatusCode::CONFLICT,
+                    WireError::Call(CallError::BadName { .. })
+                    | WireError::Call(CallError::BadConfig { .. })
+                    | WireError::Call(CallError::BadArgument(_))
+                    | WireError::Call(CallError::WrongClass { .. })
+                    | WireError::Call(CallError::Unsupported { .. }) => StatusCode::BAD_REQUEST,
                     _ => StatusCode::BAD_GATEWAY,
                 };
                 ApiError {
                     status,
-                    kind: kebab(&variant_name(wire)),
+                    kind: kebab(wire.kind()),
                     message: wire.to_string(),
                 }
             }
@@ -132,15 +133,6 @@ impl From<RpcError> for ApiError {
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         (self.status, Json(json!({ "error": self.to_json() }))).into_response()
-    }
-}
-
-/// The variant's name of a serializable enum value (`UnknownName`).
-fn variant_name(wire: &WireError) -> String {
-    match serde_json::to_value(wire) {
-        Ok(Value::String(s)) => s,
-        Ok(Value::Object(m)) => m.keys().next().cloned().unwrap_or_default(),
-        _ => "remote".into(),
     }
 }
 
@@ -552,7 +544,9 @@ mod tests {
 
     #[test]
     fn node_errors_keep_their_kind() {
-        let e = ApiError::from(RpcError::Remote(WireError::UnknownName("/x".into())));
+        let e = ApiError::from(RpcError::Remote(WireError::Call(CallError::UnknownName(
+            "/x".into(),
+        ))));
         assert_eq!(
             (e.status, e.kind.as_str()),
             (StatusCode::NOT_FOUND, "unknown-name")

@@ -9,7 +9,7 @@ use axum::extract::{Query, State};
 use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use penelope_protocol::net::conn::RpcError;
-use penelope_protocol::proto::WireError;
+use penelope_protocol::proto::{CallError, WireError};
 use serde::Deserialize;
 use serde_json::json;
 
@@ -82,7 +82,7 @@ pub(crate) async fn load_system(
         // The node parses and applies the file itself (`CreatorCall::ApplySystem`): this
         // server needs nothing of the runtime.
         let created = node.apply_system(&text).map_err(|e| match e {
-            RpcError::Remote(WireError::BadConfig { message, .. }) => {
+            RpcError::Remote(WireError::Call(CallError::BadConfig { message, .. })) => {
                 ApiError::bad_input(format!("system file: {message}"))
             }
             other => ApiError::from(other),

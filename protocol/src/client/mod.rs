@@ -34,8 +34,8 @@
 //! Everything returns [`RpcError`], the error of the transport, so that the client, the nodes'
 //! own remote calls and the benchmarks share one type and one `From<RpcError> for WireError`:
 //! [`RpcError::Remote`] carries the node's typed [`WireError`] (and the errors this client finds
-//! before sending: a proxy of the wrong class is [`WireError::WrongClass`], a NaN argument
-//! [`WireError::BadArgument`], exactly what the node would have answered); a reply of another
+//! before sending: a proxy of the wrong class is [`CallError::WrongClass`], a NaN argument
+//! [`CallError::BadArgument`], exactly what the node would have answered); a reply of another
 //! variant than the method's is [`RpcError::Protocol`], never a panic; the others are transport
 //! failures.
 //!
@@ -43,7 +43,7 @@
 //! A call on a cached connection that fails in transport (the node restarted, the socket was
 //! closed) is sent once more on a new connection. A request that reached the node before the
 //! connection broke may thus run twice: harmless for queries and transitions, and a `create`
-//! that ran twice answers [`WireError::NameTaken`]. A timeout is never retried.
+//! that ran twice answers [`CallError::NameTaken`]. A timeout is never retried.
 
 pub mod proxy;
 pub mod telemetry;
@@ -54,8 +54,8 @@ use std::sync::{Arc, Mutex, PoisonError};
 
 use crate::net::conn::{ClientConfig, Connection, RpcError};
 use crate::proto::{
-    Call, Class, CreatorCall, KindInfo, Method, NameEntry, NamingCall, NodeInfo, ObjectInfo,
-    ObjectRef, Reply, StopReport, WireError,
+    Call, CallError, Class, CreatorCall, KindInfo, Method, NameEntry, NamingCall, NodeInfo,
+    ObjectInfo, ObjectRef, ProtocolError, Reply, StopReport, WireError,
 };
 
 pub use proxy::{
@@ -136,7 +136,7 @@ impl Client {
     /// The node `node` (its creator, resolved at `/<node>/creator`).
     ///
     /// # Errors
-    /// [`WireError::UnknownName`] when no such node is registered; transport errors.
+    /// [`CallError::UnknownName`] when no such node is registered; transport errors.
     pub fn node(&self, node: &str) -> Result<NodeProxy, RpcError> {
         let path = crate::proto::object_path(node, Class::Creator, "");
         let reference = self.resolve(&path)?;
@@ -180,7 +180,7 @@ impl Client {
             if let NameEntry::Context { name } = entry {
                 match self.node(&name) {
                     Ok(node) => nodes.push(node),
-                    Err(RpcError::Remote(WireError::UnknownName(_))) => {}
+                    Err(RpcError::Remote(WireError::Call(CallError::UnknownName(_)))) => {}
                     Err(e) => return Err(e),
                 }
             }
@@ -191,7 +191,7 @@ impl Client {
     /// What the naming `path` names.
     ///
     /// # Errors
-    /// [`WireError::UnknownName`] when nothing is bound there; transport errors.
+    /// [`CallError::UnknownName`] when nothing is bound there; transport errors.
     pub fn resolve(&self, path: &str) -> Result<ObjectRef, RpcError> {
         self.naming().resolve(path)
     }
@@ -201,30 +201,32 @@ impl Client {
     /// so the shorthand is never ambiguous).
     ///
     /// # Errors
-    /// [`WireError::UnknownName`] when there is no such object; [`WireError::BadName`] for a
+    /// [`CallError::UnknownName`] when there is no such object; [`CallError::BadName`] for a
     /// spec of neither form; transport errors.
     pub fn locate(&self, spec: &str) -> Result<ObjectRef, RpcError> {
         if spec.starts_with('/') {
             return self.resolve(spec);
         }
         let Some((node, name)) = spec.split_once('/') else {
-            return Err(RpcError::Remote(WireError::BadName {
+            return Err(RpcError::Remote(WireError::Call(CallError::BadName {
                 name: spec.chars().take(80).collect(),
                 reason: "expected a naming path such as /lab-a/robots/slave, or NODE/NAME".into(),
-            }));
+            })));
         };
         let node = self.node(node)?;
         node.list()?
             .into_iter()
             .find(|o| o.name == name)
             .map(|o| node.reference_of(&o))
-            .ok_or_else(|| RpcError::Remote(WireError::UnknownName(spec.to_string())))
+            .ok_or_else(|| {
+                RpcError::Remote(WireError::Call(CallError::UnknownName(spec.to_string())))
+            })
     }
 
     /// Calls `method` on the object at the naming `path`.
     ///
     /// # Errors
-    /// The object's own error ([`RpcError::Remote`]), [`WireError::UnknownName`] when nothing is
+    /// The object's own error ([`RpcError::Remote`]), [`CallError::UnknownName`] when nothing is
     /// bound at `path`, or a transport error.
     pub fn call(&self, path: &str, method: Method) -> Result<Reply, RpcError> {
         let reference = self.resolve(path)?;
@@ -304,7 +306,7 @@ impl Client {
             if let NameEntry::Context { name } = entry {
                 match self.node(&name) {
                     Ok(node) => nodes.push(node),
-                    Err(RpcError::Remote(WireError::UnknownName(_))) => {}
+                    Err(RpcError::Remote(WireError::Call(CallError::UnknownName(_)))) => {}
                     Err(e) => unreachable.push((name, Err(e))),
                 }
             }
@@ -318,9 +320,9 @@ impl Client {
                 .into_iter()
                 .map(|(name, t)| {
                     let answer = t.join().unwrap_or_else(|_| {
-                        Err(RpcError::Remote(WireError::Internal(
+                        Err(RpcError::Remote(WireError::Call(CallError::Internal(
                             "the e-stop thread panicked".into(),
-                        )))
+                        ))))
                     });
                     (name, answer)
                 })
@@ -335,7 +337,7 @@ impl Client {
     /// as 1).
     ///
     /// # Errors
-    /// [`WireError::UnknownName`], the node's refusal (not running, too many subscriptions), or
+    /// [`CallError::UnknownName`], the node's refusal (not running, too many subscriptions), or
     /// a transport error.
     pub fn subscribe(&self, path: &str, decimation: u32) -> Result<TelemetryStream, RpcError> {
         let reference = self.locate(path)?;
@@ -347,9 +349,9 @@ impl Client {
     /// record every 100 ms times `decimation` (0 is taken as 1).
     ///
     /// # Errors
-    /// [`WireError::UnknownName`], [`WireError::WrongClass`] for an object that is not a
-    /// trajectory, [`WireError::NoLink`] for a channel with both ends on one node,
-    /// [`WireError::NotReady`] for a channel not configured, or a transport error.
+    /// [`CallError::UnknownName`], [`CallError::WrongClass`] for an object that is not a
+    /// trajectory, [`CallError::NoLink`] for a channel with both ends on one node,
+    /// [`CallError::NotReady`] for a channel not configured, or a transport error.
     pub fn watch_link(&self, path: &str, decimation: u32) -> Result<LinkStream, RpcError> {
         let reference = self.locate(path)?;
         LinkStream::open(&reference, &self.inner.config, decimation)
@@ -359,7 +361,7 @@ impl Client {
     /// checking its class.
     ///
     /// # Errors
-    /// [`WireError::WrongClass`] when the object is of another class, and those of
+    /// [`CallError::WrongClass`] when the object is of another class, and those of
     /// [`Client::locate`].
     pub fn proxy<P: TypedProxy>(&self, path: &str) -> Result<P, RpcError> {
         let reference = self.locate(path)?;
@@ -431,7 +433,9 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 fn retryable(e: &RpcError) -> bool {
     matches!(
         e,
-        RpcError::Io(_) | RpcError::Frame(_) | RpcError::Remote(WireError::Timeout(_))
+        RpcError::Io(_)
+            | RpcError::Frame(_)
+            | RpcError::Remote(WireError::Protocol(ProtocolError::Timeout(_)))
     )
 }
 
@@ -483,7 +487,7 @@ impl NamingProxy {
     /// `rebind`, replaces an existing binding.
     ///
     /// # Errors
-    /// [`WireError::NameTaken`] if bound and not `rebind`, [`WireError::BadName`], transport
+    /// [`CallError::NameTaken`] if bound and not `rebind`, [`CallError::BadName`], transport
     /// errors.
     pub fn bind(&self, path: &str, reference: ObjectRef, rebind: bool) -> Result<(), RpcError> {
         self.unit(NamingCall::Bind {
@@ -496,7 +500,7 @@ impl NamingProxy {
     /// What `path` names.
     ///
     /// # Errors
-    /// [`WireError::UnknownName`] when nothing is bound there; transport errors.
+    /// [`CallError::UnknownName`] when nothing is bound there; transport errors.
     pub fn resolve(&self, path: &str) -> Result<ObjectRef, RpcError> {
         match self.call(NamingCall::Resolve {
             path: path.to_string(),
@@ -509,7 +513,7 @@ impl NamingProxy {
     /// Removes the binding at `path` (and the contexts it leaves empty).
     ///
     /// # Errors
-    /// [`WireError::UnknownName`] when nothing is bound there; transport errors.
+    /// [`CallError::UnknownName`] when nothing is bound there; transport errors.
     pub fn unbind(&self, path: &str) -> Result<(), RpcError> {
         self.unit(NamingCall::Unbind {
             path: path.to_string(),
@@ -519,7 +523,7 @@ impl NamingProxy {
     /// The entries of the context `context` (`/` for the root).
     ///
     /// # Errors
-    /// [`WireError::UnknownName`] for no such context; transport errors.
+    /// [`CallError::UnknownName`] for no such context; transport errors.
     pub fn list(&self, context: &str) -> Result<Vec<NameEntry>, RpcError> {
         match self.call(NamingCall::List {
             context: context.to_string(),
@@ -548,7 +552,9 @@ impl NamingProxy {
     ) -> Result<(), RpcError> {
         let entries = match self.list(context) {
             Ok(e) => e,
-            Err(RpcError::Remote(WireError::UnknownName(_))) if depth > 0 => return Ok(()),
+            Err(RpcError::Remote(WireError::Call(CallError::UnknownName(_)))) if depth > 0 => {
+                return Ok(());
+            }
             Err(e) => return Err(e),
         };
         for entry in entries {
@@ -632,8 +638,8 @@ impl NodeProxy {
     /// `/<node>/<class context>/<name>`.
     ///
     /// # Errors
-    /// [`WireError::UnknownKind`], [`WireError::NameTaken`], [`WireError::BadName`],
-    /// [`WireError::BadConfig`], [`WireError::LimitReached`], transport errors.
+    /// [`CallError::UnknownKind`], [`CallError::NameTaken`], [`CallError::BadName`],
+    /// [`CallError::BadConfig`], [`CallError::LimitReached`], transport errors.
     pub fn create(&self, kind: &str, name: &str, config: &str) -> Result<ObjectInfo, RpcError> {
         match self.creator(CreatorCall::Create {
             kind: kind.to_string(),
@@ -649,7 +655,7 @@ impl NodeProxy {
     /// `node.create_as::<RobotProxy>("robot/puma560", "slave", "")`.
     ///
     /// # Errors
-    /// Those of [`NodeProxy::create`]; [`WireError::WrongClass`] when `kind` is not of `P`'s
+    /// Those of [`NodeProxy::create`]; [`CallError::WrongClass`] when `kind` is not of `P`'s
     /// class (checked before anything is created).
     pub fn create_as<P: TypedProxy>(
         &self,
@@ -661,11 +667,11 @@ impl NodeProxy {
         if let (Some(expected), Some(found)) = (P::CLASS, class)
             && expected != found
         {
-            return Err(RpcError::Remote(WireError::WrongClass {
+            return Err(RpcError::Remote(WireError::Call(CallError::WrongClass {
                 name: name.to_string(),
                 expected,
                 found,
-            }));
+            })));
         }
         let info = self.create(kind, name, config)?;
         P::from_handle(ObjectHandle::new(
@@ -677,24 +683,26 @@ impl NodeProxy {
     /// A proxy of class `P` for the object `name` of this node (no naming lookup).
     ///
     /// # Errors
-    /// [`WireError::UnknownName`], [`WireError::WrongClass`], transport errors.
+    /// [`CallError::UnknownName`], [`CallError::WrongClass`], transport errors.
     pub fn object<P: TypedProxy>(&self, name: &str) -> Result<P, RpcError> {
         let info = self
             .list()?
             .into_iter()
             .find(|o| o.name == name)
-            .ok_or_else(|| RpcError::Remote(WireError::UnknownName(name.to_string())))?;
+            .ok_or_else(|| {
+                RpcError::Remote(WireError::Call(CallError::UnknownName(name.to_string())))
+            })?;
         P::from_handle(ObjectHandle::new(
             self.client.clone(),
             self.reference_of(&info),
         )?)
     }
 
-    /// Removes the object `name` and its naming entry. Refused with [`WireError::InUse`] while
+    /// Removes the object `name` and its naming entry. Refused with [`CallError::InUse`] while
     /// an active object depends on it, unless `force`: then those are stopped safely first.
     ///
     /// # Errors
-    /// [`WireError::UnknownName`], [`WireError::InUse`], transport errors.
+    /// [`CallError::UnknownName`], [`CallError::InUse`], transport errors.
     pub fn destroy(&self, name: &str, force: bool) -> Result<(), RpcError> {
         match self.creator(CreatorCall::Destroy {
             name: name.to_string(),
@@ -709,7 +717,7 @@ impl NodeProxy {
     /// clock's new time.
     ///
     /// # Errors
-    /// [`WireError::NotReady`] on a node clocked in real time; transport errors.
+    /// [`CallError::NotReady`] on a node clocked in real time; transport errors.
     pub fn advance(&self, by: std::time::Duration) -> Result<std::time::Duration, RpcError> {
         match self.creator(CreatorCall::Advance {
             seconds: by.as_secs_f64(),

@@ -5,7 +5,7 @@
 //! Every proxy holds the object's reference (node address and name), resolved once; its class
 //! was checked when the proxy was made. Arguments are checked before they are sent (a NaN joint
 //! value, a non-orthonormal pose or a non-positive duration is refused with
-//! [`WireError::BadArgument`] without a round trip). The joint count of a robot is learnt from
+//! [`CallError::BadArgument`] without a round trip). The joint count of a robot is learnt from
 //! the node on first use and kept.
 
 use nalgebra::{SMatrix, Vector3};
@@ -14,8 +14,8 @@ use penelope_hal::{Frame, JointVector, LifecycleState, Pose, Transition, Wrench}
 use super::{Client, parse_address, unexpected};
 use crate::net::conn::RpcError;
 use crate::proto::{
-    Class, MatrixMsg, Method, ObjectInfo, ObjectRef, PoseMsg, Reply, WireError, joints_to_vector,
-    object_path,
+    CallError, Class, MatrixMsg, Method, ObjectInfo, ObjectRef, PoseMsg, Reply, WireError,
+    joints_to_vector, object_path,
 };
 
 /// A reference to one remote object and the client that reaches it: what every proxy wraps.
@@ -109,11 +109,11 @@ impl ObjectHandle {
         if self.reference.class == expected {
             Ok(self)
         } else {
-            Err(RpcError::Remote(WireError::WrongClass {
+            Err(RpcError::Remote(WireError::Call(CallError::WrongClass {
                 name: self.path(),
                 expected,
                 found: self.reference.class,
-            }))
+            })))
         }
     }
 }
@@ -126,7 +126,7 @@ pub trait TypedProxy: Sized {
     /// The proxy of the object `handle` refers to.
     ///
     /// # Errors
-    /// [`WireError::WrongClass`] when the object is of another class.
+    /// [`CallError::WrongClass`] when the object is of another class.
     fn from_handle(handle: ObjectHandle) -> Result<Self, RpcError>;
 }
 
@@ -163,8 +163,8 @@ pub trait Lifecycle {
     /// Runs `transition`.
     ///
     /// # Errors
-    /// [`WireError::InvalidTransition`] from a state that does not allow it,
-    /// [`WireError::NotReady`] when a relation is missing, and the node's other errors.
+    /// [`CallError::InvalidTransition`] from a state that does not allow it,
+    /// [`CallError::NotReady`] when a relation is missing, and the node's other errors.
     fn transition(&self, transition: Transition) -> Result<ObjectInfo, RpcError> {
         match self.handle().call(Method::Transition(transition))? {
             Reply::Object(info) => Ok(info),
@@ -253,7 +253,7 @@ proxy_of_class!(ObjectProxy, None, {});
 
 /// A bad argument found before sending.
 fn bad(message: impl Into<String>) -> RpcError {
-    RpcError::Remote(WireError::BadArgument(message.into()))
+    RpcError::Remote(WireError::Call(CallError::BadArgument(message.into())))
 }
 
 /// A malformed value in a reply.

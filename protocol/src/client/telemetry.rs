@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 use super::{parse_address, unexpected};
 use crate::net::conn::{ClientConfig, Connection, Pushed, RpcError};
 use crate::proto::{
-    Call, Class, LinkRecord, ObjectRef, Reply, TelemetryRecord, WireError, object_path,
+    Call, CallError, Class, LinkRecord, ObjectRef, Reply, TelemetryRecord, WireError, object_path,
 };
 
 /// What a subscription streams, record by record: a control tick or a link record.
@@ -90,7 +90,7 @@ impl<R: Streamed> Subscription<R> {
     /// in `decimation`.
     ///
     /// # Errors
-    /// [`WireError::WrongClass`] for an object that does not stream `R` (nothing is sent), the
+    /// [`CallError::WrongClass`] for an object that does not stream `R` (nothing is sent), the
     /// node's refusal or a transport error.
     pub(crate) fn open(
         reference: &ObjectRef,
@@ -98,11 +98,11 @@ impl<R: Streamed> Subscription<R> {
         decimation: u32,
     ) -> Result<Self, RpcError> {
         if !R::streamed_by(reference.class) {
-            return Err(RpcError::Remote(WireError::WrongClass {
+            return Err(RpcError::Remote(WireError::Call(CallError::WrongClass {
                 name: reference.name.clone(),
                 expected: R::CLASS,
                 found: reference.class,
-            }));
+            })));
         }
         let address = parse_address(reference)?;
         let mut conn = Connection::connect(address, config)?;

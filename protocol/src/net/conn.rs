@@ -23,8 +23,8 @@ use std::time::{Duration, Instant};
 use crate::net::auth::{self, ClientHandshake, Opener, SealError, Sealer, Secret, open_message};
 use crate::net::frame::{FrameDecoder, FrameError, encode_into};
 use crate::proto::{
-    Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, LinkBatch, MAGIC, PROTOCOL_VERSION, Reply,
-    Role, Security, ServerMsg, TelemetryBatch, WireError,
+    Call, CallError, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, LinkBatch, MAGIC, PROTOCOL_VERSION,
+    ProtocolError, Reply, Role, Security, ServerMsg, TelemetryBatch, WireError,
 };
 
 /// Pushed batches (telemetry and link records) kept while nobody asks for them; older ones are
@@ -138,7 +138,7 @@ impl From<RpcError> for WireError {
     fn from(e: RpcError) -> Self {
         match e {
             RpcError::Remote(w) => w,
-            other => WireError::Remote(other.to_string()),
+            other => WireError::Call(CallError::Remote(other.to_string())),
         }
     }
 }
@@ -198,7 +198,7 @@ impl Connection {
     ///
     /// # Errors
     /// [`RpcError::Io`] if the node cannot be reached, [`RpcError::Timeout`] if it does not
-    /// answer in time, [`RpcError::Remote`] with [`WireError::AuthFailed`] if the node wants a
+    /// answer in time, [`RpcError::Remote`] with [`ProtocolError::AuthFailed`] if the node wants a
     /// secret and none or a wrong one was given (or another error the node sent),
     /// [`RpcError::Unauthenticated`] if this client has a secret and the node did not prove it,
     /// [`RpcError::Protocol`] for a peer that is not a Penelope node of this version.
@@ -229,7 +229,9 @@ impl Connection {
             }
             (Security::Noise { .. }, None) => {
                 log::warn!("node `{}` at {addr} requires a shared secret", conn.node);
-                return Err(RpcError::Remote(WireError::AuthFailed));
+                return Err(RpcError::Remote(WireError::Protocol(
+                    ProtocolError::AuthFailed,
+                )));
             }
             (Security::Noise { admin }, Some(secret)) => {
                 let psk = conn.psk(config, admin, secret)?;
@@ -281,10 +283,12 @@ impl Connection {
             return Err(self.protocol("the peer is not a Penelope node (bad magic)".into()));
         }
         if hello.version != PROTOCOL_VERSION {
-            return Err(RpcError::Remote(WireError::VersionMismatch {
-                ours: PROTOCOL_VERSION,
-                theirs: hello.version,
-            }));
+            return Err(RpcError::Remote(WireError::Protocol(
+                ProtocolError::VersionMismatch {
+                    ours: PROTOCOL_VERSION,
+                    theirs: hello.version,
+                },
+            )));
         }
         self.node = hello.node;
         Ok((hello.security, server_body))
@@ -307,7 +311,9 @@ impl Connection {
             (Role::Admin, true, Some(a)) => Ok(auth::admin_psk(secret, a)),
             (Role::Admin, true, None) => {
                 log::warn!("node `{}` wants the admin secret for admin", self.node);
-                Err(RpcError::Remote(WireError::AuthFailed))
+                Err(RpcError::Remote(WireError::Protocol(
+                    ProtocolError::AuthFailed,
+                )))
             }
             _ => Ok(auth::member_psk(secret)),
         }

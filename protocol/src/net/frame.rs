@@ -20,7 +20,7 @@ use std::io::{self, Read, Write};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
-use crate::proto::{FRAME_HEADER_LEN, WireError};
+use crate::proto::{CallError, FRAME_HEADER_LEN, ProtocolError, WireError};
 
 /// What can go wrong reading or writing a frame.
 #[derive(Debug, thiserror::Error)]
@@ -60,12 +60,14 @@ pub enum FrameError {
 impl From<&FrameError> for WireError {
     fn from(e: &FrameError) -> Self {
         match e {
-            FrameError::TooLarge { len, max } => WireError::FrameTooLarge {
-                len: *len,
-                max: *max,
-            },
-            FrameError::Malformed(m) => WireError::Malformed(m.clone()),
-            other => WireError::Remote(other.to_string()),
+            FrameError::TooLarge { len, max } => {
+                WireError::Protocol(ProtocolError::FrameTooLarge {
+                    len: *len,
+                    max: *max,
+                })
+            }
+            FrameError::Malformed(m) => WireError::Protocol(ProtocolError::Malformed(m.clone())),
+            other => WireError::Call(CallError::Remote(other.to_string())),
         }
     }
 }
@@ -440,7 +442,7 @@ mod tests {
         assert_eq!(&hello[..4], &(hello.len() as u32 - 4).to_le_bytes());
         assert_eq!(
             &hello[4..],
-            &[0, b'P', b'N', b'L', b'P', 2, 2, b'a', b'b', 1][..]
+            &[0, b'P', b'N', b'L', b'P', 3, 2, b'a', b'b', 1][..]
         );
     }
 
@@ -496,7 +498,10 @@ mod tests {
         encode_into(&ClientMsg::Bye, 50, &mut out).unwrap();
         assert_eq!(out, [9, 9, 1, 0, 0, 0, 3]);
         let w: WireError = (&FrameError::TooLarge { len: 5, max: 4 }).into();
-        assert_eq!(w, WireError::FrameTooLarge { len: 5, max: 4 });
+        assert_eq!(
+            w,
+            WireError::Protocol(ProtocolError::FrameTooLarge { len: 5, max: 4 })
+        );
     }
 
     #[test]

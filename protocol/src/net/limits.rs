@@ -12,7 +12,7 @@
 //!   [`GRACE`], the oldest first; a silent one younger than that, the youngest first (a flood
 //!   churns its own newest connections, while a connection that just arrived keeps [`GRACE`] to
 //!   say its hello); one that sent bytes but no valid hello, the oldest first; the oldest. The
-//!   evicted connection gets [`WireError::TooManyConnections`] and is closed. So a silent
+//!   evicted connection gets [`ProtocolError::TooManyConnections`] and is closed. So a silent
 //!   connection holds a slot only until newer ones arrive or its handshake time runs out, and an
 //!   operator's connection, which says its hello at once and finishes in a round trip, gets
 //!   through floods of silent connections from any address and through any flood of another
@@ -39,7 +39,7 @@ use std::time::{Duration, Instant};
 
 use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
 
-use crate::proto::{Role, WireError};
+use crate::proto::{ProtocolError, Role, WireError};
 
 /// A pending connection, as admission tracks it.
 struct Pending {
@@ -187,13 +187,13 @@ impl Admission {
 
     /// The pending connection `id` proved who it is as `role`: a session slot (evicting a
     /// session of an address over its quota if the pool is full, see the module's rules), or
-    /// [`WireError::TooManyConnections`] (the connection is no longer pending either way).
+    /// [`ProtocolError::TooManyConnections`] (the connection is no longer pending either way).
     /// `activity` is the session's clock of its last frame (the longest idle is evicted first).
     ///
     /// # Errors
-    /// [`WireError::TooManyConnections`] when the sessions this role may take are all in use
-    /// and none may be evicted for it; [`WireError::Unexpected`] if `id` was not pending (it was
-    /// evicted meanwhile).
+    /// [`ProtocolError::TooManyConnections`] when the sessions this role may take are all in use
+    /// and none may be evicted for it; [`ProtocolError::Unexpected`] if `id` was not pending (it
+    /// was evicted meanwhile).
     pub fn open_session(
         &self,
         id: u64,
@@ -202,14 +202,14 @@ impl Admission {
     ) -> Result<(), WireError> {
         let mut s = self.lock();
         let Some(at) = s.pending.iter().position(|p| p.id == id) else {
-            return Err(WireError::TooManyConnections {
+            return Err(WireError::Protocol(ProtocolError::TooManyConnections {
                 limit: self.max_pending,
-            });
+            }));
         };
         let Some(p) = s.pending.remove(at) else {
-            return Err(WireError::TooManyConnections {
+            return Err(WireError::Protocol(ProtocolError::TooManyConnections {
                 limit: self.max_pending,
-            });
+            }));
         };
         let limit = if role == Role::Admin {
             self.max_sessions
@@ -240,7 +240,11 @@ impl Admission {
                         p.peer
                     );
                 }
-                None => return Err(WireError::TooManyConnections { limit }),
+                None => {
+                    return Err(WireError::Protocol(ProtocolError::TooManyConnections {
+                        limit,
+                    }));
+                }
             }
         }
         s.sessions.push(SessionSlot {
@@ -476,7 +480,9 @@ mod tests {
         // `b` holds its quota of two: nothing is evicted for it.
         assert_eq!(
             adm.open_session(7, Role::Reader, clock()),
-            Err(WireError::TooManyConnections { limit: 3 })
+            Err(WireError::Protocol(ProtocolError::TooManyConnections {
+                limit: 3
+            }))
         );
         adm.open_session(8, Role::Admin, clock()).unwrap();
         assert!(adm.open_session(9, Role::Admin, clock()).is_err());

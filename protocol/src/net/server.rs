@@ -22,7 +22,8 @@
 //! at most `write_timeout` and is then dropped; meanwhile the outbox drops telemetry (never the
 //! real-time side's problem). Requests are limited by a token bucket per connection
 //! (`max_requests_per_s`, bursts up to one second's worth): over it a request is answered with
-//! [`WireError::RateLimited`]; [`ABUSE_STRIKES`] refused requests in a row close the connection.
+//! [`ProtocolError::RateLimited`]; [`ABUSE_STRIKES`] refused requests in a row close the
+//! connection.
 //! Malformed or oversized frames, a wrong hello, a failed authentication, a frame that fails to
 //! open, a silent handshake or an idle connection get a [`ServerMsg::Error`] and are closed. The
 //! whole handshake must end within `handshake_timeout` (a deadline, not an idle time: trickling
@@ -57,7 +58,7 @@ use std::time::{Duration, Instant};
 use crate::net::auth::{Opener, PSK_LEN, Sealer, open_message};
 use crate::net::frame::{FrameDecoder, FrameError, encode_into};
 use crate::net::limits::{Admission, AuthThrottle, TokenBucket};
-use crate::proto::{ClientMsg, ServerMsg, WireError};
+use crate::proto::{CallError, ClientMsg, ProtocolError, ServerMsg, WireError};
 use crate::service::{Outbox, OutboxReceiver, Service, Session};
 
 mod config;
@@ -305,7 +306,9 @@ impl Conn<'_> {
                     End::Client
                 }
             }
-            FrameError::Overflow { .. } => self.fail(WireError::Remote("input overflow".into())),
+            FrameError::Overflow { .. } => {
+                self.fail(WireError::Call(CallError::Remote("input overflow".into())))
+            }
         }
     }
 
@@ -380,7 +383,9 @@ impl Conn<'_> {
                         } else {
                             "idle connection"
                         };
-                        return Err(self.fail(WireError::Timeout(what.into())));
+                        return Err(
+                            self.fail(WireError::Protocol(ProtocolError::Timeout(what.into())))
+                        );
                     }
                 }
                 Err(e) => return Err(self.frame_error(e)),
@@ -397,7 +402,9 @@ impl Conn<'_> {
         } else {
             config.max_handshakes
         };
-        self.fail(WireError::TooManyConnections { limit })
+        self.fail(WireError::Protocol(ProtocolError::TooManyConnections {
+            limit,
+        }))
     }
 
     fn dropped_writer(&self) -> End {
@@ -442,7 +449,9 @@ impl Conn<'_> {
                         let result = catch_unwind(AssertUnwindSafe(|| service.call(session, call)))
                             .unwrap_or_else(|_| {
                                 log::error!("the service panicked serving request {id}");
-                                Err(WireError::Remote("internal error in the node".into()))
+                                Err(WireError::Call(CallError::Remote(
+                                    "internal error in the node".into(),
+                                )))
                             });
                         self.queue(&ServerMsg::Response { id, result });
                     } else {
@@ -450,11 +459,12 @@ impl Conn<'_> {
                         strikes += 1;
                         let limit = bucket.rate;
                         if strikes >= ABUSE_STRIKES {
-                            return self.fail(WireError::RateLimited { limit });
+                            return self
+                                .fail(WireError::Protocol(ProtocolError::RateLimited { limit }));
                         }
                         self.queue(&ServerMsg::Response {
                             id,
-                            result: Err(WireError::RateLimited { limit }),
+                            result: Err(WireError::Protocol(ProtocolError::RateLimited { limit })),
                         });
                     }
                     if self.out.len() >= OUT_FLUSH_AT && !self.flush() {
@@ -467,10 +477,10 @@ impl Conn<'_> {
                 }
                 other => {
                     bump(&self.shared.counters.malformed);
-                    return self.fail(WireError::Unexpected(format!(
+                    return self.fail(WireError::Protocol(ProtocolError::Unexpected(format!(
                         "{} after the handshake",
                         msg_name(&other)
-                    )));
+                    ))));
                 }
             }
         }
@@ -551,7 +561,9 @@ fn serve(
     };
     closing.store(true, Ordering::Release);
     // Wake the writer (it ignores everything once closing is set).
-    let _ = outbox.try_push(ServerMsg::Error(WireError::Timeout("closing".into())));
+    let _ = outbox.try_push(ServerMsg::Error(WireError::Protocol(
+        ProtocolError::Timeout("closing".into()),
+    )));
     let _ = conn.stream.shutdown(Shutdown::Both);
     if let Ok(h) = writer {
         let _ = h.join();

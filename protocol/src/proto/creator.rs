@@ -1,5 +1,7 @@
 //! The creator's calls: objects come and go by name.
 
+#[cfg(doc)]
+use crate::proto::CallError;
 use serde::{Deserialize, Serialize};
 
 #[cfg(doc)]
@@ -25,7 +27,7 @@ pub enum CreatorCall {
         /// TOML text with the kind's settings.
         config: String,
     },
-    /// Removes an object and its naming entry. Refused with [`WireError::InUse`] while an active
+    /// Removes an object and its naming entry. Refused with [`CallError::InUse`] while an active
     /// object depends on it, unless `force`: then the dependents are deactivated (amplifiers off,
     /// loops stopped) first.
     Destroy {
@@ -35,7 +37,7 @@ pub enum CreatorCall {
         force: bool,
     },
     /// Moves a node's simulated clock on by `seconds` (0 to 3600), stepping every active loop:
-    /// [`Reply::Duration`] with the clock's new time, s. Refused with [`WireError::NotReady`]
+    /// [`Reply::Duration`] with the clock's new time, s. Refused with [`CallError::NotReady`]
     /// on a node clocked in real time.
     Advance {
         /// How far, s.
@@ -44,21 +46,21 @@ pub enum CreatorCall {
     /// Starts recording to the new MCAP file `path`, a plain file name `*.mcap` (no `/`, no
     /// `..`) in the node's recordings directory (`penelope node --records DIR`), created
     /// exclusively without following a link (an existing file or link of that name is
-    /// [`WireError::BadArgument`], left as it was); [`Reply::Recording`]'s `path` says where
+    /// [`CallError::BadArgument`], left as it was); [`Reply::Recording`]'s `path` says where
     /// it is on the node's host. Every tick of the controllers among
     /// `objects`, their safety events, and the link statistics of the `trajectory/teleop`
     /// channels among them; no `objects` records every controller and linked channel of the
     /// node. [`Reply::Recording`] with the path and what is recorded. One recording per node
-    /// at a time ([`WireError::NotReady`] for a second); an object that is neither a
-    /// controller nor a channel is [`WireError::BadArgument`], a missing one
-    /// [`WireError::UnknownName`]. (Appended last: every earlier variant keeps its encoding.)
+    /// at a time ([`CallError::NotReady`] for a second); an object that is neither a
+    /// controller nor a channel is [`CallError::BadArgument`], a missing one
+    /// [`CallError::UnknownName`]. (Appended last: every earlier variant keeps its encoding.)
     RecordStart {
         /// The file's plain name in the node's recordings directory.
         path: String,
         /// The objects' names on the node (none: all of them).
         objects: Vec<String>,
     },
-    /// Ends the recording and closes its file: [`Reply::Recorded`]. [`WireError::NotReady`]
+    /// Ends the recording and closes its file: [`Reply::Recorded`]. [`CallError::NotReady`]
     /// when there is none.
     RecordStop,
     /// Latches the e-stop of every loop running on this node: [`Reply::Stopped`]. Served
@@ -71,7 +73,7 @@ pub enum CreatorCall {
     /// activated through the node's own creator, and on any refusal everything created from
     /// the file is destroyed again. [`Reply::Objects`] with the objects created, in creation
     /// order. A file that cannot be read, places nothing on this node while naming other
-    /// nodes, or has a step refused is [`WireError::BadConfig`] with `kind` `system file` and
+    /// nodes, or has a step refused is [`CallError::BadConfig`] with `kind` `system file` and
     /// a message naming the line, the object and the step. Needs the create role, like
     /// [`CreatorCall::Create`]. (Appended last.)
     ApplySystem {

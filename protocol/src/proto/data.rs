@@ -5,7 +5,7 @@ use nalgebra::{Matrix3, SMatrix, Translation3, UnitQuaternion, Vector3};
 use penelope_hal::{Frame, JointVector, MAX_JOINTS, Pose, Wrench};
 use serde::{Deserialize, Serialize};
 
-use super::WireError;
+use super::{CallError, WireError};
 
 /// Joint values, one per joint (rad, rad/s or N·m as the method says); at most 6.
 pub type Joints = Vec<f64>;
@@ -96,7 +96,7 @@ impl PoseMsg {
     /// and right-handed within 1e-6 (then re-orthonormalized).
     ///
     /// # Errors
-    /// [`WireError::BadArgument`] saying what is wrong.
+    /// [`CallError::BadArgument`] saying what is wrong.
     pub fn to_pose(&self) -> Result<Pose, WireError> {
         let all = self
             .position
@@ -105,9 +105,9 @@ impl PoseMsg {
             .chain(&self.o)
             .chain(&self.a);
         if !all.into_iter().all(|x| x.is_finite()) {
-            return Err(WireError::BadArgument(
+            return Err(WireError::Call(CallError::BadArgument(
                 "pose has a NaN or infinite value".into(),
-            ));
+            )));
         }
         let m = Matrix3::from_columns(&[
             Vector3::from(self.n),
@@ -116,9 +116,9 @@ impl PoseMsg {
         ]);
         let off = (m.transpose() * m - Matrix3::identity()).abs().max();
         if off > 1e-6 || m.determinant() < 0.0 {
-            return Err(WireError::BadArgument(
+            return Err(WireError::Call(CallError::BadArgument(
                 "pose versors n, o, a are not orthonormal and right-handed".into(),
-            ));
+            )));
         }
         let rotation = UnitQuaternion::from_matrix(&m);
         Ok(Pose::from_parts(
@@ -141,12 +141,12 @@ impl WrenchMsg {
     /// The wrench in `frame`, after checking every value is finite.
     ///
     /// # Errors
-    /// [`WireError::BadArgument`] for a NaN or infinite component.
+    /// [`CallError::BadArgument`] for a NaN or infinite component.
     pub fn to_wrench(&self, frame: Frame) -> Result<Wrench, WireError> {
         if !self.force.iter().chain(&self.torque).all(|x| x.is_finite()) {
-            return Err(WireError::BadArgument(
+            return Err(WireError::Call(CallError::BadArgument(
                 "wrench has a NaN or infinite value".into(),
-            ));
+            )));
         }
         Ok(Wrench {
             force: Vector3::from(self.force),
@@ -164,18 +164,18 @@ pub fn joints_from_vector(q: &JointVector, n: usize) -> Joints {
 /// A joint vector from exactly `n` finite wire values (the rest zero).
 ///
 /// # Errors
-/// [`WireError::BadArgument`] for a wrong count or a NaN or infinite value.
+/// [`CallError::BadArgument`] for a wrong count or a NaN or infinite value.
 pub fn joints_to_vector(q: &[f64], n: usize) -> Result<JointVector, WireError> {
     if q.len() != n || n > MAX_JOINTS {
-        return Err(WireError::BadArgument(format!(
+        return Err(WireError::Call(CallError::BadArgument(format!(
             "expected {n} joint values, got {}",
             q.len()
-        )));
+        ))));
     }
     if !q.iter().all(|x| x.is_finite()) {
-        return Err(WireError::BadArgument(
+        return Err(WireError::Call(CallError::BadArgument(
             "a joint value is NaN or infinite".into(),
-        ));
+        )));
     }
     let mut v = JointVector::zeros();
     v.as_mut_slice()[..n].copy_from_slice(q);

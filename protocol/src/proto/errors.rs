@@ -7,9 +7,26 @@ use super::Class;
 #[cfg(doc)]
 use super::MAGIC;
 
-/// Every error that crosses the wire.
+/// Every error that crosses the wire: a failure of the protocol itself (framing, handshake,
+/// limits of the connection), or the refusal of one call by what the node serves.
+///
+/// Encoded as postcard encodes an enum: the index of [`WireError::Protocol`] (0) or
+/// [`WireError::Call`] (1), then the inner error's variant index and fields. New variants of
+/// either inner enum are appended last, so every earlier one keeps its encoding.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, thiserror::Error)]
 pub enum WireError {
+    /// The connection or a frame broke the protocol.
+    #[error(transparent)]
+    Protocol(#[from] ProtocolError),
+    /// The call was refused (unknown name, bad configuration, not ready, ...).
+    #[error(transparent)]
+    Call(#[from] CallError),
+}
+
+/// A failure of the protocol: framing, handshake, the connection's limits and timing. The
+/// connection usually closes after one.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, thiserror::Error)]
+pub enum ProtocolError {
     /// A frame's body did not decode as the expected message.
     #[error("malformed message: {0}")]
     Malformed(String),
@@ -53,6 +70,12 @@ pub enum WireError {
     /// The peer was silent for too long.
     #[error("timed out: {0}")]
     Timeout(String),
+}
+
+/// The refusal of one call by what the node serves (the creator, its objects, the naming
+/// service): the connection stays open.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, thiserror::Error)]
+pub enum CallError {
     /// A limit on objects, subscriptions or bindings was reached.
     #[error("limit reached: {what} (at most {limit})")]
     LimitReached {
@@ -145,9 +168,99 @@ pub enum WireError {
     #[error("forbidden: {0}")]
     Forbidden(String),
     /// The channel has both ends on this node: no data-plane link, so no link statistics to
-    /// stream (appended last, so every earlier variant keeps its encoding).
+    /// stream.
     #[error("`{0}` has both ends on this node: it has no data-plane link to watch")]
     NoLink(String),
+}
+
+impl WireError {
+    /// The name of the variant of the inner error (`UnknownName`, `AuthFailed`, ...): the
+    /// kind a client (the Python package's exception classes) tells errors apart by.
+    pub fn kind(&self) -> &'static str {
+        let (names, index) = match self {
+            WireError::Protocol(p) => (protocol_error_kinds(), variant_index(p)),
+            WireError::Call(c) => (call_error_kinds(), variant_index(c)),
+        };
+        names.get(index).copied().unwrap_or("Unknown")
+    }
+}
+
+/// The names of the variants of [`ProtocolError`], in their wire order (read from the enum's
+/// own `Deserialize`, so never out of step with it).
+pub fn protocol_error_kinds() -> &'static [&'static str] {
+    variants::of::<ProtocolError>()
+}
+
+/// The names of the variants of [`CallError`], in their wire order (read from the enum's own
+/// `Deserialize`, so never out of step with it).
+pub fn call_error_kinds() -> &'static [&'static str] {
+    variants::of::<CallError>()
+}
+
+/// The postcard variant index of an enum value: its first byte (a varint below 128).
+fn variant_index<T: Serialize>(value: &T) -> usize {
+    postcard::to_allocvec(value)
+        .ok()
+        .and_then(|bytes| bytes.first().copied())
+        .map_or(usize::MAX, usize::from)
+}
+
+/// The variant names a derived `Deserialize` of an enum hands to its deserializer.
+mod variants {
+    use serde::Deserialize;
+    use serde::de::{self, Deserializer, Visitor};
+
+    /// What the probing deserializer stops with: the names, or that it was not an enum.
+    #[derive(Debug)]
+    struct Found(Option<&'static [&'static str]>);
+
+    impl std::fmt::Display for Found {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str("variant names probed")
+        }
+    }
+
+    impl std::error::Error for Found {}
+
+    impl de::Error for Found {
+        fn custom<T: std::fmt::Display>(_: T) -> Self {
+            Found(None)
+        }
+    }
+
+    /// A deserializer that reads nothing: asked for an enum, it fails with the enum's names.
+    struct Probe;
+
+    impl<'de> Deserializer<'de> for Probe {
+        type Error = Found;
+
+        fn deserialize_any<V: Visitor<'de>>(self, _: V) -> Result<V::Value, Found> {
+            Err(Found(None))
+        }
+
+        fn deserialize_enum<V: Visitor<'de>>(
+            self,
+            _name: &'static str,
+            variants: &'static [&'static str],
+            _visitor: V,
+        ) -> Result<V::Value, Found> {
+            Err(Found(Some(variants)))
+        }
+
+        serde::forward_to_deserialize_any! {
+            bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string bytes
+            byte_buf option unit unit_struct newtype_struct seq tuple tuple_struct map struct
+            identifier ignored_any
+        }
+    }
+
+    /// The variant names of enum `T` (empty for a type that is not an enum).
+    pub(super) fn of<T: for<'de> Deserialize<'de>>() -> &'static [&'static str] {
+        match T::deserialize(Probe) {
+            Err(Found(Some(names))) => names,
+            _ => &[],
+        }
+    }
 }
 
 /// Short names of the lifecycle transitions a user types (`configure`, ...).
@@ -166,13 +279,13 @@ pub fn parse_transition(word: &str) -> Option<Transition> {
 /// Checks one name component: 1-64 characters of `[A-Za-z0-9_.-]`, not `.` or `..`.
 ///
 /// # Errors
-/// [`WireError::BadName`] saying what is wrong.
+/// [`CallError::BadName`] saying what is wrong.
 pub fn check_name(name: &str) -> Result<(), WireError> {
     let bad = |reason: &str| {
-        Err(WireError::BadName {
+        Err(WireError::Call(CallError::BadName {
             name: name.chars().take(80).collect(),
             reason: reason.to_string(),
-        })
+        }))
     };
     if name.is_empty() {
         return bad("empty");

@@ -1,6 +1,8 @@
 //! The top-level messages: the hellos of both sides, the envelopes of requests, responses,
 //! telemetry and errors, and [`Call`], every request a node serves.
 
+#[cfg(doc)]
+use crate::proto::CallError;
 use serde::{Deserialize, Serialize};
 
 #[cfg(doc)]
@@ -169,13 +171,13 @@ pub enum Call {
         /// The method and its arguments.
         method: Method,
     },
-    /// The naming service, if this node hosts it (else [`WireError::NoNamingService`]).
+    /// The naming service, if this node hosts it (else [`CallError::NoNamingService`]).
     Naming(NamingCall),
     /// Stream the telemetry of `object` to this connection: [`Reply::Subscribed`], then, for a
     /// controller (or a robot driven by an active controller), [`ServerMsg::Telemetry`]; for a
     /// `trajectory/teleop` channel whose end here is linked to another node,
     /// [`ServerMsg::Link`] every 100 ms (a channel with both ends on one node has no link:
-    /// [`WireError::NoLink`]).
+    /// [`CallError::NoLink`]).
     Subscribe {
         /// The object's name on the node.
         object: String,

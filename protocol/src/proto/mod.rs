@@ -6,8 +6,8 @@
 //! followed by `n` bytes of [postcard](https://docs.rs/postcard)-encoded message: a client sends
 //! [`ClientMsg`], a node answers [`ServerMsg`]. `n` is at most the receiver's maximum frame size
 //! ([`DEFAULT_MAX_FRAME`] unless configured); a longer length is refused with
-//! [`WireError::FrameTooLarge`] before any byte of the body is read. `docs/wire-format.md` shows
-//! every step with bytes.
+//! [`ProtocolError::FrameTooLarge`] before any byte of the body is read. `docs/wire-format.md`
+//! shows every step with bytes.
 //!
 //! # A session
 //! 1. The client sends [`ClientMsg::Hello`] (magic, protocol version, its name and the [`Role`]
@@ -55,7 +55,10 @@ pub use data::{
     Joints, MatrixMsg, OperationalMsg, PoseMsg, ReferenceMsg, WrenchMsg, joints_from_vector,
     joints_to_vector,
 };
-pub use errors::{WireError, check_name, parse_transition};
+pub use errors::{
+    CallError, ProtocolError, WireError, call_error_kinds, check_name, parse_transition,
+    protocol_error_kinds,
+};
 pub use messages::{Call, ClientHello, ClientMsg, Role, Security, ServerHello, ServerMsg};
 pub use naming::{Class, NameEntry, NamingCall, ObjectRef, object_path};
 pub use object::{
@@ -70,7 +73,7 @@ pub use replies::{
 pub const MAGIC: [u8; 4] = *b"PNLP";
 
 /// The version of this protocol; a hello with another version is refused.
-pub const PROTOCOL_VERSION: u16 = 2;
+pub const PROTOCOL_VERSION: u16 = 3;
 
 /// The default maximum frame body, bytes (256 KiB).
 pub const DEFAULT_MAX_FRAME: usize = 256 * 1024;

@@ -1,5 +1,7 @@
 //! The naming service's calls and what it binds: classes, object references and entries.
 
+#[cfg(doc)]
+use crate::proto::CallError;
 use std::fmt;
 
 use serde::{Deserialize, Serialize};
@@ -21,7 +23,7 @@ pub enum NamingCall {
         /// The lease, ms: without a renewal for this long, the node's entries are removed.
         lease_ms: u32,
     },
-    /// Renews a node's lease: [`Reply::Unit`] ([`WireError::UnknownName`] after it expired: the
+    /// Renews a node's lease: [`Reply::Unit`] ([`CallError::UnknownName`] after it expired: the
     /// node registers again and re-binds).
     Renew {
         /// The node's name.
@@ -33,7 +35,7 @@ pub enum NamingCall {
         node: String,
     },
     /// Binds `path` to an object reference (intermediate contexts are created):
-    /// [`Reply::Unit`]. Refused with [`WireError::NameTaken`] if bound, unless `rebind`.
+    /// [`Reply::Unit`]. Refused with [`CallError::NameTaken`] if bound, unless `rebind`.
     Bind {
         /// The absolute path.
         path: String,

@@ -1,6 +1,8 @@
 //! The object calls: the methods of each class of object (robot, board, sensor, controller,
 //! trajectory).
 
+#[cfg(doc)]
+use crate::proto::CallError;
 use penelope_hal::{NamedPose, Transition};
 use serde::{Deserialize, Serialize};
 
@@ -9,7 +11,7 @@ use super::{Joints, PoseMsg, WrenchMsg};
 use super::{Reply, WireError};
 
 /// A method of an object. Methods of a class the object is not are refused with
-/// [`WireError::WrongClass`].
+/// [`CallError::WrongClass`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Method {
     /// What the object is: [`Reply::Object`].
@@ -166,7 +168,7 @@ pub enum SensorMethod {
     },
     /// Where the sensor is published on the data plane (its `publish` key), asked once when a
     /// controller on another node is activated: [`Reply::Address`]. Refused with
-    /// [`WireError::NotReady`](super::WireError::NotReady) for a sensor without `publish`.
+    /// [`CallError::NotReady`] for a sensor without `publish`.
     Stream,
 }
 

@@ -4,6 +4,7 @@ use nalgebra::{Translation3, UnitQuaternion};
 use penelope_hal::{Frame, Pose};
 
 use super::*;
+use crate::proto::{CallError, ProtocolError, call_error_kinds, protocol_error_kinds};
 
 #[test]
 fn poses_wrenches_and_joints_cross_the_wire_intact() {
@@ -16,7 +17,10 @@ fn poses_wrenches_and_joints_cross_the_wire_intact() {
     assert!(back.rotation.angle_to(&pose.rotation) < 1e-9);
     let mut skew = PoseMsg::from(&pose);
     skew.n = [1.0, 1.0, 0.0];
-    assert!(matches!(skew.to_pose(), Err(WireError::BadArgument(_))));
+    assert!(matches!(
+        skew.to_pose(),
+        Err(WireError::Call(CallError::BadArgument(_)))
+    ));
     let mut nan = PoseMsg::from(&pose);
     nan.position[1] = f64::NAN;
     assert!(nan.to_pose().is_err());
@@ -47,7 +51,10 @@ fn names_are_checked() {
     assert!(check_name("slave-1.a_b").is_ok());
     for bad in ["", ".", "..", "a/b", "a b", "é", &"x".repeat(65)] {
         assert!(
-            matches!(check_name(bad), Err(WireError::BadName { .. })),
+            matches!(
+                check_name(bad),
+                Err(WireError::Call(CallError::BadName { .. }))
+            ),
             "{bad:?}"
         );
     }
@@ -87,10 +94,10 @@ fn every_message_round_trips_through_postcard() {
     }
     let reply = ServerMsg::Response {
         id: 7,
-        result: Err(WireError::InUse {
+        result: Err(WireError::Call(CallError::InUse {
             name: "slave".into(),
             dependents: vec!["pid".into()],
-        }),
+        })),
     };
     let bytes = postcard::to_stdvec(&reply).unwrap();
     assert_eq!(postcard::from_bytes::<ServerMsg>(&bytes).unwrap(), reply);
@@ -125,10 +132,55 @@ fn the_link_telemetry_variants_were_appended_and_moved_no_index() {
     let bytes = postcard::to_stdvec(&batch).unwrap();
     assert_eq!(bytes, [5, 1, 0, 0]);
     assert_eq!(postcard::from_bytes::<ServerMsg>(&bytes).unwrap(), batch);
-    let forbidden = WireError::Forbidden(String::new());
-    assert_eq!(postcard::to_stdvec(&forbidden).unwrap()[0], 25);
-    let no_link = WireError::NoLink("link".into());
+    let forbidden = WireError::Call(CallError::Forbidden(String::new()));
+    assert_eq!(postcard::to_stdvec(&forbidden).unwrap()[..2], [1, 16]);
+    let no_link = WireError::Call(CallError::NoLink("link".into()));
     let bytes = postcard::to_stdvec(&no_link).unwrap();
-    assert_eq!(bytes[0], 26);
+    assert_eq!(bytes[..2], [1, 17]);
     assert_eq!(postcard::from_bytes::<WireError>(&bytes).unwrap(), no_link);
+}
+
+#[test]
+fn protocol_failures_and_call_refusals_are_apart_on_the_wire() {
+    // Protocol first (index 0), calls second (index 1): the outer byte says which.
+    let auth = WireError::Protocol(ProtocolError::AuthFailed);
+    assert_eq!(postcard::to_stdvec(&auth).unwrap(), [0, 5]);
+    let unknown = WireError::Call(CallError::UnknownName("x".into()));
+    assert_eq!(postcard::to_stdvec(&unknown).unwrap(), [1, 2, 1, b'x']);
+    // Display is the inner error's, unchanged by the wrapping.
+    assert_eq!(unknown.to_string(), "unknown name `x`");
+    assert_eq!(auth.to_string(), "authentication failed");
+}
+
+#[test]
+fn the_error_kinds_are_the_variants_in_wire_order() {
+    let protocol = protocol_error_kinds();
+    let call = call_error_kinds();
+    assert_eq!(protocol.first(), Some(&"Malformed"));
+    assert_eq!(protocol.last(), Some(&"Timeout"));
+    assert_eq!(call.first(), Some(&"LimitReached"));
+    assert_eq!(call.last(), Some(&"NoLink"));
+    assert_eq!((protocol.len(), call.len()), (9, 18));
+    // A value's kind is the name at its variant's index.
+    let samples = [
+        WireError::Protocol(ProtocolError::BadMagic),
+        WireError::Protocol(ProtocolError::Timeout("idle".into())),
+        WireError::Call(CallError::UnknownName("x".into())),
+        WireError::Call(CallError::NoNamingService),
+        WireError::Call(CallError::NoLink("link".into())),
+    ];
+    let kinds: Vec<&str> = samples.iter().map(WireError::kind).collect();
+    assert_eq!(
+        kinds,
+        [
+            "BadMagic",
+            "Timeout",
+            "UnknownName",
+            "NoNamingService",
+            "NoLink"
+        ]
+    );
+    for e in &samples {
+        assert!(format!("{e:?}").contains(e.kind()), "{e:?}");
+    }
 }

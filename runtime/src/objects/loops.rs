@@ -16,7 +16,8 @@ use super::runtime::{self, LoopFault, LoopShared, Running, StopMode, StoppedLoop
 use super::sim_world::{SteppedLoop, TickBody};
 use super::tick::TickStream;
 use super::{Creator, DetachedLoop, RtPolicy};
-use penelope_protocol::proto::{Class, Method, Reply, WireError};
+use crate::objects::error::ObjectError;
+use penelope_protocol::proto::{CallError, Class, Method, Reply, WireError};
 
 impl Creator {
     pub(super) fn fifo_allowed(&self) -> bool {
@@ -34,7 +35,7 @@ impl Creator {
     /// and, for a sensor on another node, where that sensor is published on the data plane
     /// (asked of the sensor once, here, without the registry's lock: the only TCP call a
     /// remote sensor costs).
-    fn launch(&self, name: &str) -> Result<Launch<'_>, WireError> {
+    fn launch(&self, name: &str) -> Result<Launch<'_>, ObjectError> {
         let remote = self.remote.lock().ok().and_then(|r| r.clone());
         let path = match &self.lock()?.get(name)?.body {
             Body::Controller(c) => c.sensor.clone().filter(|s| s.starts_with('/')),
@@ -43,7 +44,7 @@ impl Creator {
         // A published sensor measures on its own node's time, not in step with a simulated
         // clock: the wrench would be stale to the stepped loop, tick after tick.
         if let (Some(path), Some(_)) = (&path, &self.sim) {
-            return Err(WireError::NotReady(format!(
+            return Err(ObjectError::NotReady(format!(
                 "sensor `{path}` is on another node, read over the data plane in real time; on a \
                  simulated clock put the sensor on this node (or run the nodes in real time)"
             )));
@@ -59,7 +60,7 @@ impl Creator {
         })
     }
 
-    pub(super) fn activate(&self, name: &str) -> Result<(), WireError> {
+    pub(super) fn activate(&self, name: &str) -> Result<(), ObjectError> {
         let fifo = self.fifo_allowed();
         let launch = self.launch(name)?;
         let mut reg = self.lock()?;
@@ -154,7 +155,7 @@ impl Creator {
         let scheduling = if let Some(world) = &self.sim {
             let mut world = world
                 .lock()
-                .map_err(|_| WireError::Internal("simulated clock poisoned".into()))?;
+                .map_err(|_| ObjectError::Poisoned("simulated clock"))?;
             let now = world.now();
             world.add(
                 name,
@@ -175,7 +176,7 @@ impl Creator {
                 // Stop what did start, give the board back, and say why.
                 let stopped = running.stop(StopMode::Deactivate);
                 reg.take_back(stopped, name, false);
-                return Err(WireError::Internal(why));
+                return Err(why);
             }
             scheduling
         };
@@ -248,7 +249,7 @@ impl Creator {
     ///
     /// # Errors
     /// The object's typed error.
-    pub fn call_object(&self, object: &str, method: Method) -> Result<Reply, WireError> {
+    pub fn call_object(&self, object: &str, method: Method) -> Result<Reply, ObjectError> {
         self.reap_failed();
         self.object_call(object, method)
     }
@@ -257,13 +258,13 @@ impl Creator {
     /// would (fault-injection tests of the failure path).
     ///
     /// # Errors
-    /// [`WireError::UnknownName`], or [`WireError::NotReady`] when it is not running.
+    /// [`ObjectError::UnknownName`], or [`ObjectError::NotReady`] when it is not running.
     #[cfg(feature = "fault-injection")]
     pub fn inject_thread_panic(
         &self,
         name: &str,
         thread: runtime::LoopThread,
-    ) -> Result<(), WireError> {
+    ) -> Result<(), ObjectError> {
         let reg = self.lock()?;
         match &reg.get(name)?.body {
             Body::Controller(c) => match &c.running {
@@ -271,21 +272,23 @@ impl Creator {
                     r.fault.inject_panic(thread);
                     Ok(())
                 }
-                None => Err(WireError::NotReady(format!("`{name}` is not running"))),
+                None => Err(ObjectError::NotReady(format!("`{name}` is not running"))),
             },
-            _ => Err(WireError::NotReady(format!("`{name}` is not a controller"))),
+            _ => Err(ObjectError::NotReady(format!(
+                "`{name}` is not a controller"
+            ))),
         }
     }
 
     /// Re-arms controller `name`: a running loop clears its latched fault or e-stop (and its
     /// boards' own latches) and activates again from the measured state; a loop whose threads
     /// failed (`error`) is built and started anew, from the measured state.
-    pub(super) fn rearm(&self, name: &str) -> Result<Reply, WireError> {
+    pub(super) fn rearm(&self, name: &str) -> Result<Reply, ObjectError> {
         let failed = {
             let mut reg = self.lock()?;
             let o = reg.get_mut(name)?;
             if o.kind.class() != Class::Controller {
-                return Err(WireError::WrongClass {
+                return Err(ObjectError::WrongClass {
                     name: name.into(),
                     expected: Class::Controller,
                     found: o.kind.class(),
@@ -306,16 +309,16 @@ impl Creator {
         }
         let mut reg = self.lock()?;
         let Body::Controller(c) = &mut reg.get_mut(name)?.body else {
-            return Err(WireError::Internal("controller body".into()));
+            return Err(ObjectError::internal("controller body"));
         };
         let run = c
             .running
             .as_mut()
-            .ok_or_else(|| WireError::NotReady(format!("controller `{name}` is not running")))?;
+            .ok_or_else(|| ObjectError::NotReady(format!("controller `{name}` is not running")))?;
         for cmd in [ControlCommand::Rearm, ControlCommand::Activate] {
             run.commands
                 .push(cmd)
-                .map_err(|_| WireError::NotReady("command queue full; retry".into()))?;
+                .map_err(|_| ObjectError::NotReady("command queue full; retry".into()))?;
         }
         Ok(Reply::Unit)
     }
@@ -324,14 +327,14 @@ impl Creator {
     /// held where it is by its board's servo, a master with zero torque and amplifiers off.
     /// The registry lock is not held while threads are joined (a sensor feed may be calling back
     /// into this node).
-    pub(super) fn deactivate(&self, name: &str) -> Result<(), WireError> {
+    pub(super) fn deactivate(&self, name: &str) -> Result<(), ObjectError> {
         self.stop_controller(name, true)
     }
 
     /// Stops controller `name`'s loop as [`deactivate`](Self::deactivate) does, a slave held by
     /// its board's servo when `hold_slave`, otherwise every robot with zero torque and its
     /// amplifiers off (a forced destroy, the node's shutdown).
-    pub(super) fn stop_controller(&self, name: &str, hold_slave: bool) -> Result<(), WireError> {
+    pub(super) fn stop_controller(&self, name: &str, hold_slave: bool) -> Result<(), ObjectError> {
         let (running, mode) = {
             let mut reg = self.lock()?;
             let mode = match reg.role_of(name) {
@@ -342,7 +345,7 @@ impl Creator {
             self.stops.remove(name);
             match &mut o.body {
                 Body::Controller(c) => (c.running.take(), mode),
-                _ => return Err(WireError::Internal("not a controller".into())),
+                _ => return Err(ObjectError::internal("not a controller")),
             }
         };
         let mut last = None;
@@ -373,7 +376,7 @@ impl Creator {
     ///
     /// # Errors
     /// As activating the controller.
-    pub fn detach_loop(&self, name: &str) -> Result<DetachedLoop, WireError> {
+    pub fn detach_loop(&self, name: &str) -> Result<DetachedLoop, ObjectError> {
         let launch = self.launch(name)?;
         let built = self.lock()?.build_loop(name, &launch)?;
         Ok(DetachedLoop {
@@ -409,16 +412,16 @@ impl Creator {
     /// its new time.
     ///
     /// # Errors
-    /// [`WireError::NotReady`] on a creator clocked in real time.
-    pub fn advance(&self, by: Duration) -> Result<Timestamp, WireError> {
+    /// [`ObjectError::NotReady`] on a creator clocked in real time.
+    pub fn advance(&self, by: Duration) -> Result<Timestamp, ObjectError> {
         let world = self.sim.as_ref().ok_or_else(|| {
-            WireError::NotReady(
+            ObjectError::NotReady(
                 "this node runs in real time; only a simulated clock advances".into(),
             )
         })?;
         let now = world
             .lock()
-            .map_err(|_| WireError::Internal("simulated clock poisoned".into()))?
+            .map_err(|_| ObjectError::Poisoned("simulated clock"))?
             .advance(by);
         // Link records follow the simulated clock that moves the links.
         self.subscriptions.links().publish(now.as_nanos());
@@ -438,12 +441,12 @@ impl Creator {
     /// A reader that falls behind loses ticks (counted), never the loop.
     ///
     /// # Errors
-    /// [`WireError::UnknownName`], or [`WireError::WrongClass`] for an object that is not a
+    /// [`ObjectError::UnknownName`], or [`ObjectError::WrongClass`] for an object that is not a
     /// controller.
-    pub fn record_ticks(&self, name: &str, capacity: usize) -> Result<TickStream, WireError> {
+    pub fn record_ticks(&self, name: &str, capacity: usize) -> Result<TickStream, ObjectError> {
         let class = self.lock()?.get(name)?.kind.class();
         if class != Class::Controller {
-            return Err(WireError::WrongClass {
+            return Err(ObjectError::WrongClass {
                 name: name.into(),
                 expected: Class::Controller,
                 found: class,
@@ -498,7 +501,7 @@ fn start_threads(
     timing: &crate::objects::config::LoopTiming,
     rt: &RtPolicy,
     fifo: bool,
-) -> Result<(), String> {
+) -> Result<(), ObjectError> {
     let thread_name =
         |prefix: &str| -> String { format!("{prefix}{name}").chars().take(15).collect() };
     let mut control_cfg = PeriodicConfig::new(thread_name("ctl-"), timing.period);
@@ -521,19 +524,20 @@ fn start_threads(
     // never ran went down with its task and board: the robot must be configured again.)
     running.control = Some(
         exec::spawn(control_cfg, control)
-            .map_err(|e| format!("cannot start the control thread: {e}"))?,
+            .map_err(|e| ObjectError::thread("cannot start the control thread", e))?,
     );
     let comm = match comm_wake {
         Some(wake) => exec::spawn_woken(comm_cfg, wake, comm),
         None => exec::spawn(comm_cfg, comm),
     };
-    running.comm = Some(comm.map_err(|e| format!("cannot start the communication thread: {e}"))?);
+    running.comm =
+        Some(comm.map_err(|e| ObjectError::thread("cannot start the communication thread", e))?);
     let (stop, period) = (running.aux_stop.clone(), timing.telemetry_period);
     running.pump = Some(
         std::thread::Builder::new()
             .name(thread_name("tel-"))
             .spawn(move || runtime::run_pump(&mut pump, period, &stop))
-            .map_err(|e| format!("cannot start the telemetry thread: {e}"))?,
+            .map_err(|e| ObjectError::thread("cannot start the telemetry thread", e))?,
     );
     if let Some(mut feed) = feed {
         let (stop, period) = (running.aux_stop.clone(), timing.sensor_period);
@@ -541,7 +545,7 @@ fn start_threads(
             std::thread::Builder::new()
                 .name(thread_name("sen-"))
                 .spawn(move || runtime::run_sensor_feed(&mut feed, period, &stop))
-                .map_err(|e| format!("cannot start the sensor feed thread: {e}"))?,
+                .map_err(|e| ObjectError::thread("cannot start the sensor feed thread", e))?,
         );
     }
     Ok(())
@@ -550,28 +554,30 @@ fn start_threads(
 /// Asks the sensor at naming `path` (on another node) where it is published on the data plane.
 ///
 /// # Errors
-/// The remote's error; a sensor without `publish` is refused with [`WireError::NotReady`]
+/// The remote's error; a sensor without `publish` is refused with [`ObjectError::NotReady`]
 /// naming the path and the key.
 fn sensor_stream(
     remote: &dyn penelope_protocol::service::Remote,
     path: &str,
-) -> Result<std::net::SocketAddr, WireError> {
+) -> Result<std::net::SocketAddr, ObjectError> {
     let reply = remote
         .call(
             path,
             Method::Sensor(penelope_protocol::proto::SensorMethod::Stream),
         )
         .map_err(|e| match e {
-            WireError::NotReady(why) => WireError::NotReady(format!("sensor `{path}`: {why}")),
-            other => other,
+            WireError::Call(CallError::NotReady(why)) => {
+                ObjectError::NotReady(format!("sensor `{path}`: {why}"))
+            }
+            other => ObjectError::Wire(other),
         })?;
     match reply {
         Reply::Address(a) => a.parse().map_err(|e| {
-            WireError::Remote(format!(
+            ObjectError::RemoteAnswer(format!(
                 "sensor `{path}` answered the address {a:?}, which does not parse: {e}"
             ))
         }),
-        other => Err(WireError::Remote(format!(
+        other => Err(ObjectError::RemoteAnswer(format!(
             "sensor `{path}` answered {other:?}, not its data-plane address"
         ))),
     }

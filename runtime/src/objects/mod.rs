@@ -26,7 +26,7 @@
 //! board axes (`MapJoints`, one call per board). Names are checked at `configure` and
 //! `activate`. A robot's joints may be spread over several boards; a board may be mapped by
 //! several robots, but an axis is driven by at most one running loop (a second activation is
-//! refused with [`WireError::InUse`]).
+//! refused with [`ObjectError::InUse`]).
 //!
 //! # Simulated boards
 //! A `board/sim` is the electrical side; the mechanism behind it is the robot mapped onto it. The
@@ -47,6 +47,7 @@ pub mod bridged;
 pub mod clock;
 pub mod config;
 pub mod delay_line;
+pub mod error;
 pub mod files;
 pub mod fpga_board;
 pub mod kinds;
@@ -74,6 +75,7 @@ use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 use penelope_hal::{LifecycleState, Timestamp, Transition};
 
+use crate::objects::error::ObjectError;
 use clock::ClockMode;
 use penelope_protocol::proto::{
     Call, Class, ControllerMethod, CreatorCall, KindInfo, Method, NodeInfo, ObjectInfo, Reply,
@@ -291,9 +293,9 @@ impl Creator {
     /// wait for it. `release` runs with the lock held.
     ///
     /// # Errors
-    /// [`WireError::Internal`] when the registry is poisoned.
+    /// [`ObjectError::Internal`] when the registry is poisoned.
     #[cfg(feature = "fault-injection")]
-    pub fn hold_registry_lock<T>(&self, release: impl FnOnce() -> T) -> Result<T, WireError> {
+    pub fn hold_registry_lock<T>(&self, release: impl FnOnce() -> T) -> Result<T, ObjectError> {
         let _registry = self.lock()?;
         Ok(release())
     }
@@ -332,10 +334,10 @@ impl Creator {
         });
     }
 
-    fn lock(&self) -> Result<MutexGuard<'_, Registry>, WireError> {
+    fn lock(&self) -> Result<MutexGuard<'_, Registry>, ObjectError> {
         self.registry
             .lock()
-            .map_err(|_| WireError::Internal("object registry poisoned".into()))
+            .map_err(|_| ObjectError::Poisoned("object registry"))
     }
 
     /// The kinds it makes.
@@ -368,8 +370,8 @@ impl Creator {
     /// (`None` for a channel with both ends on this node, or not configured yet).
     ///
     /// # Errors
-    /// [`WireError::UnknownName`] for no such object.
-    pub fn link_source(&self, name: &str) -> Result<Option<link_source::LinkSource>, WireError> {
+    /// [`ObjectError::UnknownName`] for no such object.
+    pub fn link_source(&self, name: &str) -> Result<Option<link_source::LinkSource>, ObjectError> {
         let registry = self.lock()?;
         Ok(match &registry.get(name)?.body {
             registry::Body::Teleop(t) => t.link.as_ref().and_then(|l| l.stats_source()),
@@ -383,32 +385,33 @@ impl Creator {
     /// telemetry pump through bounded streams; no loop waits for it.
     ///
     /// # Errors
-    /// [`WireError::NotReady`] while recording; [`WireError::BadArgument`] for a name not
+    /// [`ObjectError::NotReady`] while recording; [`ObjectError::BadArgument`] for a name not
     /// ending `.mcap` or not a plain file name (`/`, `..`), an existing file or link of that
     /// name (created exclusively, links not followed: [`files::create_in`]), no recordings
-    /// directory, an object neither a controller nor a channel; [`WireError::UnknownName`].
-    pub fn record_start(&self, name: &str, objects: &[String]) -> Result<Reply, WireError> {
+    /// directory, an object neither a controller nor a channel; [`ObjectError::UnknownName`].
+    pub fn record_start(&self, name: &str, objects: &[String]) -> Result<Reply, ObjectError> {
         let mut recording = self
             .recording
             .lock()
-            .map_err(|_| WireError::Internal("recording poisoned".into()))?;
+            .map_err(|_| ObjectError::Poisoned("recording"))?;
         if let Some((current, _)) = recording.as_ref() {
-            return Err(WireError::NotReady(format!(
+            return Err(ObjectError::NotReady(format!(
                 "already recording to {current}"
             )));
         }
         if !name.ends_with(".mcap") {
-            return Err(WireError::BadArgument(format!(
+            return Err(ObjectError::BadArgument(format!(
                 "a recording is an MCAP file named *.mcap, not `{}`",
                 name.chars().take(200).collect::<String>()
             )));
         }
         let dir = self.config.records.as_deref().ok_or_else(|| {
-            WireError::BadArgument(
-                files::FileRefused::NoDirectory("recordings", "--records DIR").to_string(),
-            )
+            ObjectError::File(files::FileRefused::NoDirectory(
+                "recordings",
+                "--records DIR",
+            ))
         })?;
-        files::plain_name(name).map_err(|e| WireError::BadArgument(e.to_string()))?;
+        files::plain_name(name)?;
         let names: Vec<String> = if objects.is_empty() {
             self.list()
                 .into_iter()
@@ -423,7 +426,7 @@ impl Creator {
         for name in &names {
             let info = self
                 .info(name)
-                .ok_or_else(|| WireError::UnknownName(name.clone()))?;
+                .ok_or_else(|| ObjectError::UnknownName(name.clone()))?;
             if info.class == Class::Controller {
                 streams.push((name.clone(), self.record_ticks(name, RECORDER_CAPACITY)?));
             } else if info.kind == kinds::TRAJECTORY_TELEOP {
@@ -431,11 +434,11 @@ impl Creator {
                     Some(source) => links.push((name.clone(), source)),
                     None if objects.is_empty() => {}
                     None => {
-                        return Err(WireError::NoLink(name.clone()));
+                        return Err(ObjectError::NoLink(name.clone()));
                     }
                 }
             } else {
-                return Err(WireError::BadArgument(format!(
+                return Err(ObjectError::BadArgument(format!(
                     "`{name}` is a {}: only controllers and channels are recorded",
                     info.kind
                 )));
@@ -444,8 +447,7 @@ impl Creator {
         let controllers: Vec<String> = streams.iter().map(|(n, _)| n.clone()).collect();
         let linked: Vec<String> = links.iter().map(|(n, _)| n.clone()).collect();
         // Created last, once everything else is checked: a refused call leaves no file.
-        let (path, file) =
-            files::create_in(dir, name).map_err(|e| WireError::BadArgument(e.to_string()))?;
+        let (path, file) = files::create_in(dir, name)?;
         let path = path.display().to_string();
         let recorder = crate::objects::recording::Recorder::start_in(
             file,
@@ -459,7 +461,7 @@ impl Creator {
         )
         .map_err(|e| {
             let _ = std::fs::remove_file(&path);
-            WireError::BadArgument(e.to_string())
+            ObjectError::RecordingRefused(e.into())
         })?;
         *recording = Some((path.to_string(), recorder));
         Ok(Reply::Recording {
@@ -472,20 +474,20 @@ impl Creator {
     /// Ends the recording [`record_start`](Self::record_start) began.
     ///
     /// # Errors
-    /// [`WireError::NotReady`] when there is none; [`WireError::Device`] when its file could
+    /// [`ObjectError::NotReady`] when there is none; [`ObjectError::Device`] when its file could
     /// not be finished.
-    pub fn record_stop(&self) -> Result<Reply, WireError> {
+    pub fn record_stop(&self) -> Result<Reply, ObjectError> {
         let taken = self
             .recording
             .lock()
-            .map_err(|_| WireError::Internal("recording poisoned".into()))?
+            .map_err(|_| ObjectError::Poisoned("recording"))?
             .take();
         let Some((path, recorder)) = taken else {
-            return Err(WireError::NotReady("not recording".into()));
+            return Err(ObjectError::NotReady("not recording".into()));
         };
         let ticks = recorder
             .finish()
-            .map_err(|e| WireError::Device(e.to_string()))?;
+            .map_err(|e| ObjectError::Recorder(e.into()))?;
         Ok(Reply::Recorded { path, ticks })
     }
 
@@ -514,16 +516,17 @@ impl Creator {
     /// Makes an object.
     ///
     /// # Errors
-    /// [`WireError::BadName`], [`WireError::UnknownKind`], [`WireError::NameTaken`],
-    /// [`WireError::LimitReached`], [`WireError::BadConfig`]; [`WireError::Unsupported`] for
-    /// a real device (`board/galil`, `sensor/netft`) on a creator clocked by the simulated clock.
-    pub fn create(&self, kind: &str, name: &str, config: &str) -> Result<ObjectInfo, WireError> {
+    /// A bad name ([`ObjectError::Wire`] of a `BadName`), [`ObjectError::UnknownKind`],
+    /// [`ObjectError::NameTaken`], [`ObjectError::LimitReached`], [`ObjectError::BadConfig`];
+    /// [`ObjectError::Unsupported`] for a real device (`board/galil`, `sensor/netft`) on a
+    /// creator clocked by the simulated clock.
+    pub fn create(&self, kind: &str, name: &str, config: &str) -> Result<ObjectInfo, ObjectError> {
         check_name(name)?;
         let k = kinds::Kind::parse(kind)
-            .ok_or_else(|| WireError::UnknownKind(kind.chars().take(80).collect()))?;
+            .ok_or_else(|| ObjectError::UnknownKind(kind.chars().take(80).collect()))?;
         // A real board or sensor moves with real time: a simulated clock cannot step it.
         if matches!(k, kinds::Kind::GalilBoard | kinds::Kind::NetFtSensor) && self.sim.is_some() {
-            return Err(WireError::Unsupported {
+            return Err(ObjectError::Unsupported {
                 kind: kind.into(),
                 method: "a node on the simulated clock (a real device cannot be stepped by it: \
                          use board/sim, board/fpga or sensor/virtual, or start the node without \
@@ -532,7 +535,7 @@ impl Creator {
             });
         }
         if config.len() > 64 * 1024 {
-            return Err(WireError::BadConfig {
+            return Err(ObjectError::BadConfig {
                 kind: kind.into(),
                 message: "configuration longer than 64 KiB".into(),
             });
@@ -542,10 +545,10 @@ impl Creator {
         let o = registry::make(k, name, config, &self.config.robot_files)?;
         let mut reg = self.lock()?;
         if reg.objects.contains_key(name) {
-            return Err(WireError::NameTaken(name.into()));
+            return Err(ObjectError::NameTaken(name.into()));
         }
         if reg.objects.len() >= self.config.max_objects as usize {
-            return Err(WireError::LimitReached {
+            return Err(ObjectError::LimitReached {
                 what: "objects".into(),
                 limit: self.config.max_objects,
             });
@@ -560,8 +563,8 @@ impl Creator {
     /// Removes an object; with `force`, stops the active controllers that use it first.
     ///
     /// # Errors
-    /// [`WireError::UnknownName`], [`WireError::InUse`].
-    pub fn destroy(&self, name: &str, force: bool) -> Result<(), WireError> {
+    /// [`ObjectError::UnknownName`], [`ObjectError::InUse`].
+    pub fn destroy(&self, name: &str, force: bool) -> Result<(), ObjectError> {
         let dependents: Vec<String> = {
             let reg = self.lock()?;
             let o = reg.get(name)?;
@@ -573,7 +576,7 @@ impl Creator {
         };
         if !dependents.is_empty() {
             if !force {
-                return Err(WireError::InUse {
+                return Err(ObjectError::InUse {
                     name: name.to_string(),
                     dependents,
                 });
@@ -602,16 +605,16 @@ impl Creator {
     /// Runs a lifecycle transition on an object.
     ///
     /// # Errors
-    /// [`WireError::InvalidTransition`], [`WireError::NotReady`], [`WireError::InUse`],
-    /// [`WireError::Device`] and the configuration's errors.
-    pub fn transition(&self, name: &str, t: Transition) -> Result<ObjectInfo, WireError> {
+    /// [`ObjectError::InvalidTransition`], [`ObjectError::NotReady`], [`ObjectError::InUse`],
+    /// [`ObjectError::Device`] and the configuration's errors.
+    pub fn transition(&self, name: &str, t: Transition) -> Result<ObjectInfo, ObjectError> {
         let class = self.lock()?.get(name)?.kind.class();
         match (class, t) {
             (Class::Controller, Transition::Activate) => self.activate(name)?,
             (Class::Controller, Transition::Deactivate) => {
                 let state = self.lock()?.get(name)?.shown_state();
                 if state != LifecycleState::Active {
-                    return Err(WireError::InvalidTransition {
+                    return Err(ObjectError::InvalidTransition {
                         name: name.into(),
                         state,
                         transition: t,
@@ -634,7 +637,7 @@ impl Creator {
         }
         let info = self
             .info(name)
-            .ok_or_else(|| WireError::UnknownName(name.into()))?;
+            .ok_or_else(|| ObjectError::UnknownName(name.into()))?;
         self.note_lifecycle(name, &info.kind, t.as_str(), info.state.as_str());
         Ok(info)
     }
@@ -644,31 +647,31 @@ impl Creator {
         session: &Session,
         object: &str,
         decimation: u32,
-    ) -> Result<Reply, WireError> {
+    ) -> Result<Reply, ObjectError> {
         let controller = {
             let reg = self.lock()?;
             let o = reg.get(object)?;
             match (o.kind.class(), &o.body) {
                 (_, Body::Teleop(t)) => {
                     let link = t.link.as_ref().ok_or_else(|| {
-                        WireError::NotReady(format!(
+                        ObjectError::NotReady(format!(
                             "channel `{object}` is not configured: its link exists from `configure`"
                         ))
                     })?;
                     let source = link
                         .stats_source()
-                        .ok_or_else(|| WireError::NoLink(object.into()))?;
+                        .ok_or_else(|| ObjectError::NoLink(object.into()))?;
                     drop(reg);
                     return self.subscribe_link(session, object, source, decimation);
                 }
                 (Class::Controller, _) => object.to_string(),
                 (Class::Robot, _) => reg.driver_of(object).ok_or_else(|| {
-                    WireError::NotReady(format!(
+                    ObjectError::NotReady(format!(
                         "robot `{object}` is not driven by an active controller; subscribe to a controller"
                     ))
                 })?,
                 (found, _) => {
-                    return Err(WireError::WrongClass {
+                    return Err(ObjectError::WrongClass {
                         name: object.into(),
                         expected: Class::Controller,
                         found,
@@ -688,7 +691,7 @@ impl Creator {
     }
 
     /// The quota of subscriptions per client address (in-process sessions have none).
-    fn check_subscription_quota(&self, session: &Session) -> Result<(), WireError> {
+    fn check_subscription_quota(&self, session: &Session) -> Result<(), ObjectError> {
         if session.id == u64::MAX {
             return Ok(());
         }
@@ -708,15 +711,15 @@ impl Creator {
         channel: &str,
         source: link_source::LinkSource,
         decimation: u32,
-    ) -> Result<Reply, WireError> {
+    ) -> Result<Reply, ObjectError> {
         if self.sim.is_none() {
             let mut pump = self
                 .link_pump
                 .lock()
-                .map_err(|_| WireError::Internal("link pump poisoned".into()))?;
+                .map_err(|_| ObjectError::Poisoned("link pump"))?;
             if pump.is_none() {
                 let started = LinkPump::start(self.subscriptions.clone()).map_err(|e| {
-                    WireError::Internal(format!("cannot start the link telemetry thread: {e}"))
+                    ObjectError::thread("cannot start the link telemetry thread", e)
                 })?;
                 *pump = Some(started);
             }
@@ -733,13 +736,13 @@ impl Creator {
         Ok(Reply::Subscribed { subscription: id })
     }
 
-    fn object_call(&self, object: &str, method: Method) -> Result<Reply, WireError> {
+    fn object_call(&self, object: &str, method: Method) -> Result<Reply, ObjectError> {
         match method {
             Method::Controller(ControllerMethod::Rearm) => self.rearm(object),
             Method::Describe => self
                 .info(object)
                 .map(Reply::Object)
-                .ok_or_else(|| WireError::UnknownName(object.into())),
+                .ok_or_else(|| ObjectError::UnknownName(object.into())),
             Method::Transition(t) => self.transition(object, t).map(Reply::Object),
             Method::Robot(m) => self.lock()?.robot_method(object, m),
             Method::Board(m) => self.lock()?.board_method(object, m),
@@ -756,8 +759,26 @@ impl Drop for Creator {
     }
 }
 
+/// The creator served alone (without its node): its errors become wire errors here, by the
+/// one conversion ([`error`]).
 impl Service for Creator {
     fn call(&self, session: &Session, call: Call) -> Result<Reply, WireError> {
+        self.serve(session, call).map_err(WireError::from)
+    }
+
+    fn closed(&self, session: &Session) {
+        self.subscriptions.remove_session(session.id);
+    }
+}
+
+impl Creator {
+    /// Serves one call of `session` (what [`Service::call`] answers, before its error becomes
+    /// the wire's).
+    ///
+    /// # Errors
+    /// The [`ObjectError`] of the call: refused by the session's role, or the creator's or the
+    /// object's own.
+    pub fn serve(&self, session: &Session, call: Call) -> Result<Reply, ObjectError> {
         // Every call, remote or in-process, is checked against the session's role (a stop is
         // allowed to every role).
         roles::authorize_call(session.identity, &call)?;
@@ -791,7 +812,7 @@ impl Service for Creator {
             }
             Call::Creator(CreatorCall::Advance { seconds }) => {
                 if !(seconds.is_finite() && (0.0..=3600.0).contains(&seconds)) {
-                    return Err(WireError::BadArgument(format!(
+                    return Err(ObjectError::BadArgument(format!(
                         "advance by 0 to 3600 s, not {seconds}"
                     )));
                 }
@@ -803,28 +824,24 @@ impl Service for Creator {
             }
             Call::Creator(CreatorCall::RecordStop) => self.record_stop(),
             // The node serves it: it binds what it creates in the naming tree.
-            Call::Creator(CreatorCall::ApplySystem { .. }) => Err(WireError::Unsupported {
+            Call::Creator(CreatorCall::ApplySystem { .. }) => Err(ObjectError::Unsupported {
                 kind: "creator".into(),
                 method: "apply-system without its node".into(),
             }),
             Call::Object { object, method } => self.object_call(&object, method),
-            Call::Naming(_) => Err(WireError::NoNamingService),
+            Call::Naming(_) => Err(ObjectError::NoNamingService),
             Call::Time => Ok(crate::common_clock::time_reply()),
             Call::Subscribe { object, decimation } => self.subscribe(session, &object, decimation),
             Call::Unsubscribe { subscription } => {
                 if self.subscriptions.remove(session.id, subscription) {
                     Ok(Reply::Unit)
                 } else {
-                    Err(WireError::UnknownName(format!(
+                    Err(ObjectError::UnknownName(format!(
                         "subscription {subscription}"
                     )))
                 }
             }
         }
-    }
-
-    fn closed(&self, session: &Session) {
-        self.subscriptions.remove_session(session.id);
     }
 }
 

@@ -8,7 +8,7 @@ use penelope_drivers::sim::operator::{HandImpedance, OperatorScript};
 use penelope_drivers::sim::scripts;
 use serde::{Deserialize, Serialize};
 
-use penelope_protocol::proto::WireError;
+use crate::objects::error::ObjectError;
 
 /// `sensor/operator-hand` configuration: a scripted operator's hand holding a simulated master.
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
@@ -49,9 +49,9 @@ impl HandConfig {
     /// Checks the keys and finds the script.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn check(&self, kind: &str) -> Result<OperatorScript, WireError> {
-        let bad = |message: String| WireError::BadConfig {
+    /// [`ObjectError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<OperatorScript, ObjectError> {
+        let bad = |message: String| ObjectError::BadConfig {
             kind: kind.into(),
             message,
         };

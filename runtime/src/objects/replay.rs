@@ -37,10 +37,10 @@ use penelope_hal::{Error, ErrorKind, ForceSensor, Pose, Sensor, Timestamp, Wrenc
 use penelope_rt_core::safety::SafetyEvent;
 use serde::{Deserialize, Serialize};
 
+use crate::objects::error::ObjectError;
 use crate::objects::recording::mcap_log::CONTROLLER_TOPIC;
 use crate::objects::recording::{RecordingError, read_recording};
 use crate::objects::tick::TickRecord;
-use penelope_protocol::proto::WireError;
 
 /// `sensor/replay`'s configuration: a force sensor that plays back a recorded wrench stream
 /// (loaded at configure); past the recording's end it reports an error (the loop runs without
@@ -121,14 +121,14 @@ pub const WRENCH_FIELDS: [&str; 4] = [
     "truth.tool_wrench",
 ];
 
-fn bad(kind: &str, message: impl Into<String>) -> WireError {
-    WireError::BadConfig {
+fn bad(kind: &str, message: impl Into<String>) -> ObjectError {
+    ObjectError::BadConfig {
         kind: kind.to_string(),
         message: message.into(),
     }
 }
 
-fn check_file_and_topic(kind: &str, file: &str, topic: &str) -> Result<(), WireError> {
+fn check_file_and_topic(kind: &str, file: &str, topic: &str) -> Result<(), ObjectError> {
     if file.trim().is_empty() {
         return Err(bad(kind, "`file` (the recording) is required"));
     }
@@ -148,8 +148,8 @@ impl ReplaySensorConfig {
     /// Checks what can be checked without the file.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn check(&self, kind: &str) -> Result<(), WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<(), ObjectError> {
         check_file_and_topic(kind, &self.file, &self.topic)?;
         if !WRENCH_FIELDS.contains(&self.field.as_str()) {
             return Err(bad(
@@ -182,8 +182,8 @@ impl OperatorReplayConfig {
     /// Checks what can be checked without the file.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn check(&self, kind: &str) -> Result<(), WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<(), ObjectError> {
         if self.robot.is_empty() {
             return Err(bad(kind, "`robot` (the master the hand holds) is required"));
         }
@@ -256,9 +256,13 @@ pub enum ReplayError {
 }
 
 impl ReplayError {
-    /// The error as the creator reports it, for `kind`.
-    pub fn into_wire(self, kind: &str) -> WireError {
-        bad(kind, self.to_string())
+    /// The error as the creator reports it: the configuration of `kind` refused, for this
+    /// reason.
+    pub fn for_kind(self, kind: &str) -> ObjectError {
+        ObjectError::Replay {
+            kind: kind.into(),
+            source: self,
+        }
     }
 }
 
@@ -688,8 +692,10 @@ mod tests {
             "{e}"
         );
         assert!(sensor.readings.is_none());
-        match e.into_wire(k) {
-            WireError::BadConfig { kind, message } => {
+        match penelope_protocol::proto::WireError::from(e.for_kind(k)) {
+            penelope_protocol::proto::WireError::Call(
+                penelope_protocol::proto::CallError::BadConfig { kind, message },
+            ) => {
                 assert_eq!(kind, k);
                 assert!(message.contains("exceeds limit"), "{message}");
             }

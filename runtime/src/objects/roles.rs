@@ -14,9 +14,10 @@
 
 use penelope_hal::Transition;
 
+use crate::objects::error::ObjectError;
 use penelope_protocol::proto::{
     BoardMethod, Call, ControllerMethod, CreatorCall, Method, RobotMethod, Role, SensorMethod,
-    TrajectoryMethod, WireError,
+    TrajectoryMethod,
 };
 use penelope_protocol::service::Identity;
 
@@ -125,8 +126,8 @@ pub fn allowed(role: Role) -> Needs {
 /// Whether a session of `identity` may make `call`.
 ///
 /// # Errors
-/// [`WireError::Forbidden`] saying what the call needs and how to get it.
-pub fn authorize_call(identity: Identity, call: &Call) -> Result<(), WireError> {
+/// [`ObjectError::Forbidden`] saying what the call needs and how to get it.
+pub fn authorize_call(identity: Identity, call: &Call) -> Result<(), ObjectError> {
     let need = needs(call);
     if need <= allowed(identity.role) {
         return Ok(());
@@ -141,7 +142,7 @@ pub fn authorize_call(identity: Identity, call: &Call) -> Result<(), WireError> 
             "connect as an operator or an admin",
         ),
     };
-    Err(WireError::Forbidden(format!(
+    Err(ObjectError::Forbidden(format!(
         "a {} may not {what}: {how}",
         identity.role.name()
     )))
@@ -210,6 +211,9 @@ mod tests {
             assert!(authorize_call(id(role), &list).is_ok(), "{role:?}");
         }
         let e = authorize_call(id(Role::Reader), &create).unwrap_err();
-        assert!(e.to_string().contains("admin"), "{e}");
+        assert!(
+            matches!(&e, ObjectError::Forbidden(why) if why.contains("admin")),
+            "{e}"
+        );
     }
 }

@@ -34,7 +34,7 @@ use super::kinematics::RobotKinematics;
 use super::reference::ReferenceOut;
 use super::teleop_passivity::{PortLaw, TwoPortEnd};
 use super::teleop_wave::WaveEnd;
-use penelope_protocol::proto::WireError;
+use crate::objects::error::ObjectError;
 
 /// `trajectory/teleop` configuration.
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
@@ -123,9 +123,9 @@ impl TeleopConfig {
     /// Checks the keys.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn check(&self, kind: &str) -> Result<(), WireError> {
-        let bad = |message: String| WireError::BadConfig {
+    /// [`ObjectError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<(), ObjectError> {
+        let bad = |message: String| ObjectError::BadConfig {
             kind: kind.into(),
             message,
         };
@@ -183,12 +183,12 @@ impl TeleopConfig {
     /// `None` for a channel on this node.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for only one of the two, or an address that does not parse.
+    /// [`ObjectError::BadConfig`] for only one of the two, or an address that does not parse.
     pub fn data_plane(
         &self,
         kind: &str,
-    ) -> Result<Option<(std::net::SocketAddr, std::net::SocketAddr)>, WireError> {
-        let bad = |message: String| WireError::BadConfig {
+    ) -> Result<Option<(std::net::SocketAddr, std::net::SocketAddr)>, ObjectError> {
+        let bad = |message: String| ObjectError::BadConfig {
             kind: kind.into(),
             message,
         };
@@ -276,12 +276,12 @@ impl TeleopComm {
     /// The end `end` with the channel's `mapping`, for a robot computed with `model`.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for a mapping the channel refuses.
+    /// [`ObjectError::BadConfig`] for a mapping the channel refuses.
     pub fn new(
         end: TeleopEnd,
         mapping: MappingConfig,
         model: RobotKinematics,
-    ) -> Result<Self, WireError> {
+    ) -> Result<Self, ObjectError> {
         let direction = match end.side {
             Side::Master => ChannelDirection::SlaveToMaster,
             Side::Slave => ChannelDirection::MasterToSlave,
@@ -291,7 +291,7 @@ impl TeleopComm {
             mapping,
             ..ChannelConfig::default()
         })
-        .map_err(|e| WireError::BadConfig {
+        .map_err(|e| ObjectError::BadConfig {
             kind: "trajectory/teleop".into(),
             message: format!("{e:?}"),
         })?;
@@ -320,14 +320,14 @@ impl TeleopComm {
     /// force-position half).
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for settings the transform or the controller refuses. An end
+    /// [`ObjectError::BadConfig`] for settings the transform or the controller refuses. An end
     /// linked to another node is fine: the data plane's sample carries the wave and the energy
     /// counters.
     pub fn with_port_law(
         mut self,
         law: PortLaw,
         mapping: &MappingConfig,
-    ) -> Result<Self, WireError> {
+    ) -> Result<Self, ObjectError> {
         match law {
             PortLaw::Plain => {}
             PortLaw::Wave(config) => {

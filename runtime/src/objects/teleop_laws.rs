@@ -11,7 +11,7 @@ use penelope_rt_core::teleop::{
 
 use super::config::KindConfig;
 use super::teleop_passivity::PortLaw;
-use penelope_protocol::proto::WireError;
+use crate::objects::error::ObjectError;
 
 crate::objects::config::loop_keys!(ForceDisplayToml {
     max_force: f64 = ForceDisplayConfig::default().max_force, #[doc = "The largest displayed force, N (the robot's role caps it too)."]
@@ -76,8 +76,8 @@ crate::objects::config::loop_keys!(SlaveTrackingToml {
 
 impl KindConfig for SlaveTrackingToml {}
 
-fn bad_law(kind: &str, e: impl std::fmt::Debug) -> WireError {
-    WireError::BadConfig {
+fn bad_law(kind: &str, e: impl std::fmt::Debug) -> ObjectError {
+    ObjectError::BadConfig {
         kind: kind.into(),
         message: format!("{e:?}"),
     }
@@ -87,8 +87,8 @@ impl ForceDisplayToml {
     /// The law, checked.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn law(&self, kind: &str) -> Result<ForceDisplay, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<ForceDisplay, ObjectError> {
         self.port_law(kind)?;
         ForceDisplay::new(ForceDisplayConfig {
             max_force: self.max_force,
@@ -106,8 +106,8 @@ impl ForceDisplayToml {
     /// impedance-form controller when `passivity` asks for it.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for another word.
-    pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
+    /// [`ObjectError::BadConfig`] for another word.
+    pub fn port_law(&self, kind: &str) -> Result<PortLaw, ObjectError> {
         two_port(kind, &self.passivity, PassivityForm::Impedance, "impedance")
     }
 }
@@ -116,8 +116,8 @@ impl PositionErrorToml {
     /// The law, checked.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn law(&self, kind: &str) -> Result<PositionErrorMaster, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<PositionErrorMaster, ObjectError> {
         PositionErrorMaster::new(ImpedanceConfig {
             stiffness: self.stiffness,
             damping: self.damping,
@@ -134,8 +134,8 @@ impl FourChannelToml {
     /// The law, checked.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn law(&self, kind: &str) -> Result<FourChannelMaster, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<FourChannelMaster, ObjectError> {
         FourChannelMaster::new(FourChannelConfig {
             c2: self.c2,
             c4: self.c4,
@@ -164,8 +164,8 @@ impl FourChannelSlaveToml {
     /// The law, checked (its sensor mount is set when a loop runs it).
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn law(&self, kind: &str) -> Result<FourChannelSlave, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<FourChannelSlave, ObjectError> {
         self.port_law(kind)?;
         FourChannelSlave::new(FourChannelSlaveConfig {
             c1: self.c1,
@@ -187,8 +187,8 @@ impl FourChannelSlaveToml {
     /// What the channel's slave end runs for this half, as for slave-tracking.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for another word.
-    pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
+    /// [`ObjectError::BadConfig`] for another word.
+    pub fn port_law(&self, kind: &str) -> Result<PortLaw, ObjectError> {
         slave_port_law(kind, &self.passivity)
     }
 }
@@ -198,8 +198,8 @@ impl SlaveTrackingToml {
     /// servo.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn law(&self, kind: &str, board_servo: bool) -> Result<SlaveTracking, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn law(&self, kind: &str, board_servo: bool) -> Result<SlaveTracking, ObjectError> {
         self.port_law(kind)?;
         SlaveTracking::new(TrackingConfig {
             kp: self.kp,
@@ -219,8 +219,8 @@ impl SlaveTrackingToml {
     /// admittance-form controller when `passivity` asks for it.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for another word.
-    pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
+    /// [`ObjectError::BadConfig`] for another word.
+    pub fn port_law(&self, kind: &str) -> Result<PortLaw, ObjectError> {
         slave_port_law(kind, &self.passivity)
     }
 }
@@ -233,12 +233,12 @@ impl SlaveTrackingToml {
 pub const TWO_PORT_INITIAL_ENERGY: f64 = 0.01;
 
 /// A slave half's two-port observer for `passivity` = `word` (`off` or `admittance`).
-fn slave_port_law(kind: &str, word: &str) -> Result<PortLaw, WireError> {
+fn slave_port_law(kind: &str, word: &str) -> Result<PortLaw, ObjectError> {
     two_port(kind, word, PassivityForm::Admittance, "admittance")
 }
 
 /// The two-port observer for `word`: `off`, or `on` (the one form the port's causality allows).
-fn two_port(kind: &str, word: &str, form: PassivityForm, on: &str) -> Result<PortLaw, WireError> {
+fn two_port(kind: &str, word: &str, form: PassivityForm, on: &str) -> Result<PortLaw, ObjectError> {
     let form = match word {
         "off" => PassivityForm::Off,
         w if w == on => form,

@@ -37,7 +37,7 @@ use penelope_rt_core::teleop::{
 };
 
 use super::teleop_end::Side;
-use penelope_protocol::proto::WireError;
+use crate::objects::error::ObjectError;
 
 /// What a law's half runs in its channel end, besides the channel's mapping.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -78,14 +78,14 @@ impl TwoPortEnd {
     /// The `side` end with `config`, for a channel mapped by `mapping`.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for values the controller refuses, or a form that does not fit
+    /// [`ObjectError::BadConfig`] for values the controller refuses, or a form that does not fit
     /// the side's causality (impedance at the master, admittance at the slave).
     pub fn new(
         side: Side,
         config: TwoPortConfig,
         mapping: &MappingConfig,
-    ) -> Result<Self, WireError> {
-        let bad = |message: String| WireError::BadConfig {
+    ) -> Result<Self, ObjectError> {
+        let bad = |message: String| ObjectError::BadConfig {
             kind: "trajectory/teleop".into(),
             message,
         };
@@ -128,7 +128,7 @@ impl TwoPortEnd {
     ///
     /// # Errors
     /// As [`TwoPortEnd::new`].
-    pub fn observer(side: Side, mapping: &MappingConfig) -> Result<Self, WireError> {
+    pub fn observer(side: Side, mapping: &MappingConfig) -> Result<Self, ObjectError> {
         let config = TwoPortConfig {
             form: PassivityForm::Off,
             ..TwoPortConfig::default()
@@ -418,7 +418,7 @@ mod tests {
             };
             assert!(matches!(
                 TwoPortEnd::new(side, config, &mapping),
-                Err(WireError::BadConfig { .. })
+                Err(ObjectError::BadConfig { .. })
             ));
         }
     }

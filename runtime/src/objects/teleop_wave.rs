@@ -38,7 +38,7 @@ use penelope_rt_core::teleop::{
 
 use super::kinematics::RobotKinematics;
 use super::teleop_end::Side;
-use penelope_protocol::proto::WireError;
+use crate::objects::error::ObjectError;
 
 /// Seconds from `*last` to `now` (0 when there is no `last`), and `now` becomes `last`: the
 /// period of a communication-thread transform's tick, as the clock measured it.
@@ -78,9 +78,13 @@ impl WaveEnd {
     /// The `side` transform with `config`, mapped by the channel's `mapping`.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for a configuration the transform refuses.
-    pub fn new(side: Side, config: WaveConfig, mapping: &MappingConfig) -> Result<Self, WireError> {
-        let bad = |e| WireError::BadConfig {
+    /// [`ObjectError::BadConfig`] for a configuration the transform refuses.
+    pub fn new(
+        side: Side,
+        config: WaveConfig,
+        mapping: &MappingConfig,
+    ) -> Result<Self, ObjectError> {
+        let bad = |e| ObjectError::BadConfig {
             kind: "controller/wave".into(),
             message: format!("{e:?}"),
         };
@@ -263,11 +267,11 @@ fn cartesian(pose: Pose, velocity: Vector3<f64>) -> Reference {
     })
 }
 
-fn missing(kind: &str, word: &str) -> Result<MissingWave, WireError> {
+fn missing(kind: &str, word: &str) -> Result<MissingWave, ObjectError> {
     match word {
         "hold" => Ok(MissingWave::HoldWithinReserve),
         "zero" => Ok(MissingWave::Zero),
-        other => Err(WireError::BadConfig {
+        other => Err(ObjectError::BadConfig {
             kind: kind.into(),
             message: format!(
                 "`missing` = {other:?}: \"hold\" (within the energy reserve) or \"zero\""
@@ -276,8 +280,8 @@ fn missing(kind: &str, word: &str) -> Result<MissingWave, WireError> {
     }
 }
 
-fn bad(kind: &str, e: impl std::fmt::Debug) -> WireError {
-    WireError::BadConfig {
+fn bad(kind: &str, e: impl std::fmt::Debug) -> ObjectError {
+    ObjectError::BadConfig {
         kind: kind.into(),
         message: format!("{e:?}"),
     }
@@ -310,8 +314,8 @@ impl WaveMasterToml {
     /// The wave transform's settings, checked.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn wave(&self, kind: &str) -> Result<WaveConfig, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn wave(&self, kind: &str) -> Result<WaveConfig, ObjectError> {
         let c = WaveConfig {
             impedance: self.impedance,
             missing: missing(kind, &self.missing)?,
@@ -326,8 +330,8 @@ impl WaveMasterToml {
     /// (the wave's `b` is the damping).
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn law(&self, kind: &str) -> Result<ForceDisplay, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<ForceDisplay, ObjectError> {
         let [a, b, c] = self.angular_damping;
         ForceDisplay::new(ForceDisplayConfig {
             force_deadband: 0.0,
@@ -346,8 +350,8 @@ impl WaveSlaveToml {
     /// The wave transform's settings, checked.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn wave(&self, kind: &str) -> Result<WaveConfig, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn wave(&self, kind: &str) -> Result<WaveConfig, ObjectError> {
         let c = WaveConfig {
             impedance: self.impedance,
             drift_gain: self.drift_gain,
@@ -362,8 +366,8 @@ impl WaveSlaveToml {
     /// The tracking law the control thread runs.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn law(&self, kind: &str) -> Result<SlaveTracking, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn law(&self, kind: &str) -> Result<SlaveTracking, ObjectError> {
         SlaveTracking::new(TrackingConfig {
             kp: self.kp,
             kd: self.kd,

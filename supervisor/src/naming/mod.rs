@@ -27,7 +27,7 @@
 //! - Paths are absolute: `/` (the root) or `/c1/c2/...`, each component checked by
 //!   [`check_name`], at most [`NamingLimits::max_depth`] components.
 //! - [`NamingTree::bind`] creates the missing intermediate contexts; an existing binding is
-//!   [`WireError::NameTaken`] unless `rebind`; a context is never replaced by an object.
+//!   [`CallError::NameTaken`] unless `rebind`; a context is never replaced by an object.
 //! - [`NamingTree::unbind`] removes one object and then every context above it that became empty,
 //!   except a registered node's own context `/<node>` (and the root). So an empty context exists
 //!   only as the root or as a registered node's context.
@@ -47,9 +47,11 @@
 //! - a [`Role::Admin`] session may do everything;
 //! - a [`Role::Reader`] session may not write the tree.
 //!
-//! Refusals are [`WireError::Forbidden`]. A node's own calls to the naming service it hosts do
+//! Refusals are [`CallError::Forbidden`]. A node's own calls to the naming service it hosts do
 //! not cross a connection and are not checked (it is the node).
 
+#[cfg(doc)]
+use penelope_protocol::proto::CallError;
 #[cfg(doc)]
 use std::time::Duration;
 

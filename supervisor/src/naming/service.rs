@@ -7,7 +7,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use super::{NamingLimits, NamingTree, authorize};
-use penelope_protocol::proto::{Call, NamingCall, NodeInfo, Reply, WireError};
+use penelope_protocol::proto::{Call, CallError, NamingCall, NodeInfo, Reply, WireError};
 use penelope_protocol::service::{Service, Session};
 
 /// How long the naming service waits for a node's previous address to accept a connection
@@ -101,7 +101,9 @@ impl NamingService {
             }
         };
         let NamingCall::Register { node, address, .. } = &call else {
-            return Err(WireError::Internal("naming: register expected".into()));
+            return Err(WireError::Call(CallError::Internal(
+                "naming: register expected".into(),
+            )));
         };
         if answers(&holder) {
             return self.lock().apply(call, self.now());
@@ -121,7 +123,7 @@ impl NamingService {
     /// Serves one naming call of a connection's `session`, after [`authorize`] allowed it.
     ///
     /// # Errors
-    /// [`WireError::Forbidden`] if the session's role may not make this call, else as
+    /// [`CallError::Forbidden`] if the session's role may not make this call, else as
     /// [`handle`](Self::handle).
     pub fn handle_for(&self, session: &Session, call: NamingCall) -> Result<Reply, WireError> {
         authorize(session.identity, &session.client, &call)?;
@@ -229,8 +231,8 @@ impl Service for NamingService {
 }
 
 fn unsupported(method: &str) -> WireError {
-    WireError::Unsupported {
+    WireError::Call(CallError::Unsupported {
         kind: "naming service (run alone: it hosts no objects)".into(),
         method: method.into(),
-    }
+    })
 }

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use super::tree::join;
 use super::*;
 use penelope_protocol::proto::{
-    Call, Class, NameEntry, NamingCall, NodeInfo, ObjectRef, Reply, Role, WireError,
+    Call, CallError, Class, NameEntry, NamingCall, NodeInfo, ObjectRef, Reply, Role, WireError,
 };
 use penelope_protocol::service::{Identity, Service, Session};
 use proptest::prelude::*;
@@ -42,7 +42,7 @@ fn bind_resolve_list_unbind() {
     );
     assert!(matches!(
         t.bind("/lab/robots/slave", r("lab", "x"), false),
-        Err(WireError::NameTaken(_))
+        Err(WireError::Call(CallError::NameTaken(_)))
     ));
     t.bind("/lab/robots/slave", r("lab", "x"), true).unwrap();
     assert_eq!(t.resolve("/lab/robots/slave").unwrap().name, "x");
@@ -58,19 +58,28 @@ fn bind_resolve_list_unbind() {
     // Contexts and objects do not replace each other.
     assert!(matches!(
         t.bind("/lab/robots", r("lab", "x"), true),
-        Err(WireError::NameTaken(_))
+        Err(WireError::Call(CallError::NameTaken(_)))
     ));
     assert!(matches!(
         t.bind("/lab/robots/slave/deeper", r("lab", "x"), true),
-        Err(WireError::NameTaken(p)) if p == "/lab/robots/slave"
+        Err(WireError::Call(CallError::NameTaken(p))) if p == "/lab/robots/slave"
     ));
-    assert!(matches!(t.resolve("/lab"), Err(WireError::BadArgument(_))));
+    assert!(matches!(
+        t.resolve("/lab"),
+        Err(WireError::Call(CallError::BadArgument(_)))
+    ));
     assert!(matches!(
         t.list("/lab/robots/slave"),
-        Err(WireError::BadArgument(_))
+        Err(WireError::Call(CallError::BadArgument(_)))
     ));
-    assert!(matches!(t.resolve("/nope"), Err(WireError::UnknownName(_))));
-    assert!(matches!(t.unbind("/lab"), Err(WireError::BadArgument(_))));
+    assert!(matches!(
+        t.resolve("/nope"),
+        Err(WireError::Call(CallError::UnknownName(_)))
+    ));
+    assert!(matches!(
+        t.unbind("/lab"),
+        Err(WireError::Call(CallError::BadArgument(_)))
+    ));
     t.unbind("/lab/robots/slave").unwrap();
     assert!(t.list("/lab/robots").is_ok());
     t.unbind("/lab/robots/master").unwrap();
@@ -79,7 +88,7 @@ fn bind_resolve_list_unbind() {
     assert_eq!(t.binding_count(), 0);
     assert!(matches!(
         t.unbind("/lab/robots/master"),
-        Err(WireError::UnknownName(_))
+        Err(WireError::Call(CallError::UnknownName(_)))
     ));
     t.check_invariants().unwrap();
 }
@@ -91,23 +100,29 @@ fn paths_are_checked() {
         "", "lab", "/lab/", "//lab", "/lab//x", "/a b", "/../x", "/a/./b",
     ] {
         assert!(
-            matches!(t.resolve(bad), Err(WireError::BadName { .. })),
+            matches!(
+                t.resolve(bad),
+                Err(WireError::Call(CallError::BadName { .. }))
+            ),
             "{bad:?}"
         );
     }
     let deep = "/a".repeat(9);
-    assert!(matches!(t.list(&deep), Err(WireError::BadName { .. })));
+    assert!(matches!(
+        t.list(&deep),
+        Err(WireError::Call(CallError::BadName { .. }))
+    ));
     assert!(t.parse_path(&"/a".repeat(8)).is_ok());
     let mut t = t;
     assert!(matches!(
         t.bind("/", r("a", "b"), true),
-        Err(WireError::BadName { .. })
+        Err(WireError::Call(CallError::BadName { .. }))
     ));
     let mut bad_ref = r("lab", "x");
     bad_ref.address = "x".repeat(MAX_ADDRESS_LEN + 1);
     assert!(matches!(
         t.bind("/a/b", bad_ref, false),
-        Err(WireError::BadArgument(_))
+        Err(WireError::Call(CallError::BadArgument(_)))
     ));
     t.check_invariants().unwrap();
 }
@@ -123,7 +138,7 @@ fn limits_refuse_without_changing_anything() {
     t.bind("/a/y", r("a", "y"), false).unwrap();
     assert!(matches!(
         t.bind("/b/c/z", r("a", "z"), false),
-        Err(WireError::LimitReached { limit: 2, .. })
+        Err(WireError::Call(CallError::LimitReached { limit: 2, .. }))
     ));
     // A rebind is not a new binding.
     t.bind("/a/y", r("a", "y2"), true).unwrap();
@@ -131,11 +146,11 @@ fn limits_refuse_without_changing_anything() {
     t.register("n1", "h:1", S(1), S(0)).unwrap();
     assert!(matches!(
         t.register("n2", "h:2", S(1), S(0)),
-        Err(WireError::LimitReached { .. })
+        Err(WireError::Call(CallError::LimitReached { .. }))
     ));
     assert!(matches!(
         t.register("n1", "h:1", Duration::from_millis(1), S(0)),
-        Err(WireError::BadArgument(_))
+        Err(WireError::Call(CallError::BadArgument(_)))
     ));
     t.check_invariants().unwrap();
 }
@@ -160,9 +175,12 @@ fn a_node_context_lives_with_its_lease() {
     assert_eq!(t.expire(S(3)), vec!["b".to_string()]);
     assert!(matches!(
         t.resolve("/b/sensors/ft"),
-        Err(WireError::UnknownName(_))
+        Err(WireError::Call(CallError::UnknownName(_)))
     ));
-    assert!(matches!(t.renew("b", S(3)), Err(WireError::UnknownName(_))));
+    assert!(matches!(
+        t.renew("b", S(3)),
+        Err(WireError::Call(CallError::UnknownName(_)))
+    ));
     // Bindings outside a node context belong to nobody.
     assert!(t.resolve("/shared/thing").is_ok());
     assert_eq!(t.expire(S(5)), vec!["a".to_string()]);
@@ -183,7 +201,7 @@ fn registering_again_starts_afresh_and_names_are_not_stolen() {
     t.bind("/a/robots/slave", r("a", "slave"), false).unwrap();
     assert!(matches!(
         t.register("a", "h:2", S(3), S(1)),
-        Err(WireError::NameTaken(_))
+        Err(WireError::Call(CallError::NameTaken(_)))
     ));
     t.register("a", "h:1", S(3), S(1)).unwrap();
     assert_eq!(t.list("/a").unwrap(), vec![]);
@@ -194,10 +212,13 @@ fn registering_again_starts_afresh_and_names_are_not_stolen() {
     t.bind("/c", r("a", "c"), false).unwrap();
     assert!(matches!(
         t.register("c", "h:3", S(3), S(4)),
-        Err(WireError::NameTaken(_))
+        Err(WireError::Call(CallError::NameTaken(_)))
     ));
     t.unregister("a").unwrap();
-    assert!(matches!(t.unregister("a"), Err(WireError::UnknownName(_))));
+    assert!(matches!(
+        t.unregister("a"),
+        Err(WireError::Call(CallError::UnknownName(_)))
+    ));
     t.check_invariants().unwrap();
 }
 
@@ -227,7 +248,7 @@ fn the_service_serves_naming_calls_and_refuses_the_rest() {
         s.handle(NamingCall::Resolve {
             path: "/a/creator".into()
         }),
-        Err(WireError::UnknownName(_))
+        Err(WireError::Call(CallError::UnknownName(_)))
     ));
     let (outbox, _rx) = penelope_protocol::service::Outbox::bounded(1);
     let session = Session {
@@ -249,7 +270,7 @@ fn the_service_serves_naming_calls_and_refuses_the_rest() {
             &session,
             Call::Creator(penelope_protocol::proto::CreatorCall::Kinds)
         ),
-        Err(WireError::Unsupported { .. })
+        Err(WireError::Call(CallError::Unsupported { .. }))
     ));
 }
 
@@ -293,12 +314,15 @@ fn authorization_follows_the_role_and_the_own_context() {
         unregister("b"),
     ] {
         assert!(
-            matches!(authorize(node, "a", &call), Err(WireError::Forbidden(_))),
+            matches!(
+                authorize(node, "a", &call),
+                Err(WireError::Call(CallError::Forbidden(_)))
+            ),
             "{call:?}"
         );
         assert!(matches!(
             authorize(reader, "a", &call),
-            Err(WireError::Forbidden(_))
+            Err(WireError::Call(CallError::Forbidden(_)))
         ));
         assert!(authorize(admin, "a", &call).is_ok());
     }
@@ -453,7 +477,7 @@ fn a_node_takes_its_name_back_from_a_registration_nobody_answers_at() {
     // A live holder keeps its name: a second node of that name is refused.
     assert!(matches!(
         s.handle(register(&second_address)),
-        Err(WireError::NameTaken(_))
+        Err(WireError::Call(CallError::NameTaken(_)))
     ));
     // The first run dies (nothing listens there any more): the restarted node, at another
     // address, takes the name back at once, with a fresh context, long before the lease ends.
@@ -478,6 +502,6 @@ fn a_node_takes_its_name_back_from_a_registration_nobody_answers_at() {
             address: second_address.clone(),
             lease_ms: 60_000,
         }),
-        Err(WireError::NameTaken(_))
+        Err(WireError::Call(CallError::NameTaken(_)))
     ));
 }

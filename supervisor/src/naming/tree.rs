@@ -6,7 +6,9 @@ use std::time::Duration;
 
 #[cfg(doc)]
 use super::NamingService;
-use penelope_protocol::proto::{NameEntry, NamingCall, ObjectRef, Reply, WireError, check_name};
+use penelope_protocol::proto::{
+    CallError, NameEntry, NamingCall, ObjectRef, Reply, WireError, check_name,
+};
 
 /// Longest `address` of a node or of an [`ObjectRef`], bytes.
 pub const MAX_ADDRESS_LEN: usize = 256;
@@ -119,10 +121,10 @@ impl Default for NamingTree {
 }
 
 fn bad_name(path: &str, reason: impl Into<String>) -> WireError {
-    WireError::BadName {
+    WireError::Call(CallError::BadName {
         name: path.chars().take(80).collect(),
         reason: reason.into(),
-    }
+    })
 }
 
 pub(super) fn join(comps: &[&str]) -> String {
@@ -139,9 +141,9 @@ pub(super) fn join(comps: &[&str]) -> String {
 
 fn check_address(address: &str) -> Result<(), WireError> {
     if address.is_empty() || address.len() > MAX_ADDRESS_LEN {
-        return Err(WireError::BadArgument(format!(
+        return Err(WireError::Call(CallError::BadArgument(format!(
             "an address must have 1 to {MAX_ADDRESS_LEN} bytes"
-        )));
+        ))));
     }
     Ok(())
 }
@@ -151,9 +153,9 @@ fn check_reference(reference: &ObjectRef) -> Result<(), WireError> {
     check_name(&reference.name)?;
     check_address(&reference.address)?;
     if reference.kind.len() > MAX_KIND_LEN {
-        return Err(WireError::BadArgument(format!(
+        return Err(WireError::Call(CallError::BadArgument(format!(
             "a kind has at most {MAX_KIND_LEN} bytes"
-        )));
+        ))));
     }
     Ok(())
 }
@@ -192,7 +194,7 @@ impl NamingTree {
     /// Splits an absolute path into checked components (`/` gives none).
     ///
     /// # Errors
-    /// [`WireError::BadName`]: not absolute, an empty component (`//`, trailing `/`), a component
+    /// [`CallError::BadName`]: not absolute, an empty component (`//`, trailing `/`), a component
     /// refused by [`check_name`], or deeper than [`NamingLimits::max_depth`].
     pub fn parse_path<'p>(&self, path: &'p str) -> Result<Vec<&'p str>, WireError> {
         let Some(rest) = path.strip_prefix('/') else {
@@ -211,7 +213,7 @@ impl NamingTree {
                 return Err(bad_name(path, "empty component (`//` or a trailing `/`)"));
             }
             check_name(comp).map_err(|e| match e {
-                WireError::BadName { reason, .. } => {
+                WireError::Call(CallError::BadName { reason, .. }) => {
                     bad_name(path, format!("component `{comp}`: {reason}"))
                 }
                 other => other,
@@ -224,9 +226,9 @@ impl NamingTree {
     /// Binds `path` to `reference`, creating the missing contexts above it.
     ///
     /// # Errors
-    /// [`WireError::BadName`] for a bad path (or the root), [`WireError::BadArgument`] for an
-    /// oversized reference, [`WireError::NameTaken`] if `path` is bound (and not `rebind`), is a
-    /// context, or passes through an object, [`WireError::LimitReached`] at
+    /// [`CallError::BadName`] for a bad path (or the root), [`CallError::BadArgument`] for an
+    /// oversized reference, [`CallError::NameTaken`] if `path` is bound (and not `rebind`), is a
+    /// context, or passes through an object, [`CallError::LimitReached`] at
     /// [`NamingLimits::max_bindings`]. Nothing changes on error.
     pub fn bind(
         &mut self,
@@ -244,23 +246,27 @@ impl NamingTree {
         for (i, comp) in parents.iter().enumerate() {
             match ctx.and_then(|c| c.entries.get(*comp)) {
                 Some(Entry::Context(c)) => ctx = Some(c),
-                Some(Entry::Object(_)) => return Err(WireError::NameTaken(join(&comps[..=i]))),
+                Some(Entry::Object(_)) => {
+                    return Err(WireError::Call(CallError::NameTaken(join(&comps[..=i]))));
+                }
                 None => ctx = None,
             }
         }
         let replacing = match ctx.and_then(|c| c.entries.get(*last)) {
-            Some(Entry::Context(_)) => return Err(WireError::NameTaken(path.to_string())),
+            Some(Entry::Context(_)) => {
+                return Err(WireError::Call(CallError::NameTaken(path.to_string())));
+            }
             Some(Entry::Object(_)) if !rebind => {
-                return Err(WireError::NameTaken(path.to_string()));
+                return Err(WireError::Call(CallError::NameTaken(path.to_string())));
             }
             Some(Entry::Object(_)) => true,
             None => false,
         };
         if !replacing && self.bindings >= self.limits.max_bindings {
-            return Err(WireError::LimitReached {
+            return Err(WireError::Call(CallError::LimitReached {
                 what: "naming bindings".into(),
                 limit: self.limits.max_bindings,
-            });
+            }));
         }
         let mut ctx = &mut self.root;
         for comp in parents {
@@ -271,7 +277,11 @@ impl NamingTree {
             ctx = match entry {
                 Entry::Context(c) => c,
                 // Checked above: no object on the way.
-                Entry::Object(_) => return Err(WireError::Internal("naming tree changed".into())),
+                Entry::Object(_) => {
+                    return Err(WireError::Call(CallError::Internal(
+                        "naming tree changed".into(),
+                    )));
+                }
             };
         }
         ctx.entries
@@ -285,19 +295,19 @@ impl NamingTree {
     /// What `path` names.
     ///
     /// # Errors
-    /// [`WireError::BadName`] for a bad path, [`WireError::UnknownName`] if nothing is bound
-    /// there, [`WireError::BadArgument`] if it is a context (list it instead).
+    /// [`CallError::BadName`] for a bad path, [`CallError::UnknownName`] if nothing is bound
+    /// there, [`CallError::BadArgument`] if it is a context (list it instead).
     pub fn resolve(&self, path: &str) -> Result<ObjectRef, WireError> {
         let comps = self.parse_path(path)?;
         match self.root.get(&comps) {
             Some(Entry::Object(r)) => Ok(r.clone()),
-            Some(Entry::Context(_)) => Err(WireError::BadArgument(format!(
+            Some(Entry::Context(_)) => Err(WireError::Call(CallError::BadArgument(format!(
                 "`{path}` is a context, not an object (list it)"
-            ))),
-            None if comps.is_empty() => Err(WireError::BadArgument(
+            )))),
+            None if comps.is_empty() => Err(WireError::Call(CallError::BadArgument(
                 "`/` is the root context, not an object (list it)".into(),
-            )),
-            None => Err(WireError::UnknownName(path.to_string())),
+            ))),
+            None => Err(WireError::Call(CallError::UnknownName(path.to_string()))),
         }
     }
 
@@ -305,30 +315,34 @@ impl NamingTree {
     /// registered node's own context. Returns the removed reference.
     ///
     /// # Errors
-    /// [`WireError::BadName`] for a bad path, [`WireError::UnknownName`] if nothing is bound
-    /// there, [`WireError::BadArgument`] if it is a context (contexts go away with their last
+    /// [`CallError::BadName`] for a bad path, [`CallError::UnknownName`] if nothing is bound
+    /// there, [`CallError::BadArgument`] if it is a context (contexts go away with their last
     /// entry, a node's with its registration).
     pub fn unbind(&mut self, path: &str) -> Result<ObjectRef, WireError> {
         let comps = self.parse_path(path)?;
         let Some((last, parents)) = comps.split_last() else {
-            return Err(WireError::BadArgument("the root cannot be unbound".into()));
+            return Err(WireError::Call(CallError::BadArgument(
+                "the root cannot be unbound".into(),
+            )));
         };
         match self.root.get(&comps) {
             Some(Entry::Object(_)) => {}
             Some(Entry::Context(_)) => {
-                return Err(WireError::BadArgument(format!(
+                return Err(WireError::Call(CallError::BadArgument(format!(
                     "`{path}` is a context: it goes away with its last entry \
                      (or, for a node, when the node unregisters)"
-                )));
+                ))));
             }
-            None => return Err(WireError::UnknownName(path.to_string())),
+            None => return Err(WireError::Call(CallError::UnknownName(path.to_string()))),
         }
         let removed = self
             .root
             .context_mut(parents)
             .and_then(|c| c.entries.remove(*last));
         let Some(Entry::Object(reference)) = removed else {
-            return Err(WireError::Internal("naming tree changed".into()));
+            return Err(WireError::Call(CallError::Internal(
+                "naming tree changed".into(),
+            )));
         };
         self.bindings -= 1;
         // Prune the contexts left empty, deepest first.
@@ -353,8 +367,8 @@ impl NamingTree {
     /// The entries of the context at `path` (`/` for the root), sorted by name.
     ///
     /// # Errors
-    /// [`WireError::BadName`] for a bad path, [`WireError::UnknownName`] if there is no such
-    /// context, [`WireError::BadArgument`] if `path` is an object (resolve it instead).
+    /// [`CallError::BadName`] for a bad path, [`CallError::UnknownName`] if there is no such
+    /// context, [`CallError::BadArgument`] if `path` is an object (resolve it instead).
     pub fn list(&self, path: &str) -> Result<Vec<NameEntry>, WireError> {
         let comps = self.parse_path(path)?;
         let ctx = if comps.is_empty() {
@@ -363,11 +377,11 @@ impl NamingTree {
             match self.root.get(&comps) {
                 Some(Entry::Context(c)) => c,
                 Some(Entry::Object(_)) => {
-                    return Err(WireError::BadArgument(format!(
+                    return Err(WireError::Call(CallError::BadArgument(format!(
                         "`{path}` is an object, not a context (resolve it)"
-                    )));
+                    ))));
                 }
-                None => return Err(WireError::UnknownName(path.to_string())),
+                None => return Err(WireError::Call(CallError::UnknownName(path.to_string()))),
             }
         };
         Ok(ctx
@@ -387,10 +401,10 @@ impl NamingTree {
     /// `/<node>` is created, or emptied if it exists (a restarted node re-binds its objects).
     ///
     /// # Errors
-    /// [`WireError::BadName`] for a bad node name, [`WireError::BadArgument`] for a bad address
+    /// [`CallError::BadName`] for a bad node name, [`CallError::BadArgument`] for a bad address
     /// or a lease outside [`NamingLimits::min_lease`]..=[`NamingLimits::max_lease`],
-    /// [`WireError::NameTaken`] if `/<node>` is an object or a live node of that name answers at
-    /// another address, [`WireError::LimitReached`] at [`NamingLimits::max_nodes`].
+    /// [`CallError::NameTaken`] if `/<node>` is an object or a live node of that name answers at
+    /// another address, [`CallError::LimitReached`] at [`NamingLimits::max_nodes`].
     pub fn register(
         &mut self,
         node: &str,
@@ -401,30 +415,32 @@ impl NamingTree {
         check_name(node)?;
         check_address(address)?;
         if lease < self.limits.min_lease || lease > self.limits.max_lease {
-            return Err(WireError::BadArgument(format!(
+            return Err(WireError::Call(CallError::BadArgument(format!(
                 "a lease must be within {:?} and {:?}, not {lease:?}",
                 self.limits.min_lease, self.limits.max_lease
-            )));
+            ))));
         }
         match self.nodes.get(node) {
             Some(live) if live.address != address && live.deadline > now => {
-                return Err(WireError::NameTaken(format!(
+                return Err(WireError::Call(CallError::NameTaken(format!(
                     "/{node} (registered by {} whose lease runs {:?} more)",
                     live.address,
                     live.deadline.saturating_sub(now)
-                )));
+                ))));
             }
             Some(_) => {}
             None if self.nodes.len() >= self.limits.max_nodes as usize => {
-                return Err(WireError::LimitReached {
+                return Err(WireError::Call(CallError::LimitReached {
                     what: "naming nodes".into(),
                     limit: self.limits.max_nodes,
-                });
+                }));
             }
             None => {}
         }
         match self.root.entries.get_mut(node) {
-            Some(Entry::Object(_)) => return Err(WireError::NameTaken(format!("/{node}"))),
+            Some(Entry::Object(_)) => {
+                return Err(WireError::Call(CallError::NameTaken(format!("/{node}"))));
+            }
             Some(Entry::Context(c)) => {
                 self.bindings -= c.count();
                 c.entries.clear();
@@ -450,7 +466,7 @@ impl NamingTree {
     /// Renews the lease of `node` at time `now`.
     ///
     /// # Errors
-    /// [`WireError::UnknownName`] if it is not registered (never was, or expired): the node
+    /// [`CallError::UnknownName`] if it is not registered (never was, or expired): the node
     /// registers again and re-binds its objects.
     pub fn renew(&mut self, node: &str, now: Duration) -> Result<(), WireError> {
         match self.nodes.get_mut(node) {
@@ -458,17 +474,17 @@ impl NamingTree {
                 lease.deadline = now.saturating_add(lease.lease);
                 Ok(())
             }
-            None => Err(WireError::UnknownName(format!("/{node}"))),
+            None => Err(WireError::Call(CallError::UnknownName(format!("/{node}")))),
         }
     }
 
     /// Removes `node` and every entry of its context.
     ///
     /// # Errors
-    /// [`WireError::UnknownName`] if it is not registered.
+    /// [`CallError::UnknownName`] if it is not registered.
     pub fn unregister(&mut self, node: &str) -> Result<(), WireError> {
         if self.nodes.remove(node).is_none() {
-            return Err(WireError::UnknownName(format!("/{node}")));
+            return Err(WireError::Call(CallError::UnknownName(format!("/{node}"))));
         }
         self.drop_context(node);
         Ok(())

@@ -46,7 +46,9 @@ use penelope_protocol::net::conn::{ClientConfig, RpcError};
 use penelope_protocol::net::server::{NetError, Server, ServerConfig, ServerStats};
 #[cfg(doc)]
 use penelope_protocol::proto::object_path;
-use penelope_protocol::proto::{Call, NamingCall, ObjectRef, Reply, WireError, check_name};
+use penelope_protocol::proto::{
+    Call, CallError, NamingCall, ObjectRef, ProtocolError, Reply, WireError, check_name,
+};
 use penelope_protocol::service::{Remote, Service, Session};
 use penelope_runtime::common_clock::CommonClock;
 use penelope_runtime::objects::clock::ClockMode;
@@ -216,12 +218,12 @@ struct Shared {
 fn refusal_is_final(refused: &WireError) -> bool {
     matches!(
         refused,
-        WireError::AuthFailed
-            | WireError::BadMagic
-            | WireError::VersionMismatch { .. }
-            | WireError::NameTaken(_)
-            | WireError::BadName { .. }
-            | WireError::Forbidden(_)
+        WireError::Protocol(ProtocolError::AuthFailed)
+            | WireError::Protocol(ProtocolError::BadMagic)
+            | WireError::Protocol(ProtocolError::VersionMismatch { .. })
+            | WireError::Call(CallError::NameTaken(_))
+            | WireError::Call(CallError::BadName { .. })
+            | WireError::Call(CallError::Forbidden(_))
     )
 }
 
@@ -283,7 +285,8 @@ fn first_registration(shared: &Shared, naming_address: SocketAddr) -> Result<(),
     match shared.register() {
         Ok(()) => Ok(()),
         Err(RpcError::Remote(refused)) if refusal_is_final(&refused) => Err(match refused {
-            WireError::NameTaken(_) | WireError::BadName { .. } => NodeError::Registration(refused),
+            WireError::Call(CallError::NameTaken(_))
+            | WireError::Call(CallError::BadName { .. }) => NodeError::Registration(refused),
             other => NodeError::NamingRefused {
                 address: naming_address,
                 cause: RpcError::Remote(other),
@@ -525,7 +528,7 @@ impl Node {
             match self.shared.naming(NamingCall::Unregister {
                 node: self.shared.name.clone(),
             }) {
-                Ok(_) | Err(WireError::UnknownName(_)) => {}
+                Ok(_) | Err(WireError::Call(CallError::UnknownName(_))) => {}
                 Err(e) => log::warn!("node {}: cannot unregister: {e}", self.shared.name),
             }
         }

@@ -10,7 +10,8 @@ use std::time::{Duration, Instant};
 use super::{REGISTER_RETRY_FIRST, REGISTER_RETRY_MAX, Shared, local_session, lock};
 use penelope_protocol::net::conn::RpcError;
 use penelope_protocol::proto::{
-    Call, Class, Method, NamingCall, ObjectInfo, ObjectRef, Reply, WireError, object_path,
+    Call, CallError, Class, Method, NamingCall, ObjectInfo, ObjectRef, Reply, WireError,
+    object_path,
 };
 use penelope_protocol::service::{Remote, Service};
 use penelope_runtime::common_clock::EXCHANGES_AT_REGISTRATION;
@@ -39,10 +40,12 @@ impl Shared {
         }
         match (self.remote_naming, self.client.get()) {
             (Some(address), Some(client)) => client.call_at(address, Call::Naming(call)),
-            (Some(_), None) => Err(RpcError::Remote(WireError::NotReady(
+            (Some(_), None) => Err(RpcError::Remote(WireError::Call(CallError::NotReady(
                 "the node is starting".into(),
+            )))),
+            (None, _) => Err(RpcError::Remote(WireError::Call(
+                CallError::NoNamingService,
             ))),
-            (None, _) => Err(RpcError::Remote(WireError::NoNamingService)),
         }
     }
 
@@ -118,7 +121,7 @@ impl Shared {
         let path = object_path(&self.name, info.class, &info.name);
         lock(&self.resolved).remove(&path);
         match self.naming(NamingCall::Unbind { path: path.clone() }) {
-            Ok(_) | Err(WireError::UnknownName(_)) => {}
+            Ok(_) | Err(WireError::Call(CallError::UnknownName(_))) => {}
             Err(e) => log::warn!("node {}: cannot unbind {path}: {e}", self.name),
         }
     }
@@ -181,7 +184,7 @@ impl Shared {
             node: self.name.clone(),
         }) {
             Ok(_) => self.exchange_time(),
-            Err(RpcError::Remote(WireError::UnknownName(_))) => {
+            Err(RpcError::Remote(WireError::Call(CallError::UnknownName(_)))) => {
                 log::warn!(
                     "node {}: the naming service forgot this node (lease lapsed or restart); \
                      registering again",
@@ -211,9 +214,9 @@ impl Shared {
                     received_ns,
                     sent_ns,
                 } => Ok((received_ns, sent_ns)),
-                other => Err(WireError::Internal(format!(
+                other => Err(WireError::Call(CallError::Internal(format!(
                     "the naming service answered a time call with {other:?}"
-                ))),
+                )))),
             });
         if let Err(e) = result {
             log::debug!("node {}: no time exchange with {address}: {e}", self.name);
@@ -254,9 +257,9 @@ impl Shared {
         })? {
             Reply::Resolved(r) => r,
             other => {
-                return Err(WireError::Internal(format!(
+                return Err(WireError::Call(CallError::Internal(format!(
                     "the naming service answered a resolve with {other:?}"
-                )));
+                ))));
             }
         };
         let mut cache = lock(&self.resolved);
@@ -273,21 +276,20 @@ impl Shared {
             method,
         };
         if reference.node == self.name {
-            let creator = self
-                .creator
-                .upgrade()
-                .ok_or_else(|| WireError::NotReady("the node is shutting down".into()))?;
+            let creator = self.creator.upgrade().ok_or_else(|| {
+                WireError::Call(CallError::NotReady("the node is shutting down".into()))
+            })?;
             return creator.call(&local_session(&self.name), call);
         }
         let client = self
             .client
             .get()
-            .ok_or_else(|| WireError::NotReady("the node is starting".into()))?;
+            .ok_or_else(|| WireError::Call(CallError::NotReady("the node is starting".into())))?;
         let address = reference.address.parse::<SocketAddr>().map_err(|_| {
-            WireError::Remote(format!(
+            WireError::Call(CallError::Remote(format!(
                 "`{}` has an unusable address `{}`",
                 reference.name, reference.address
-            ))
+            )))
         })?;
         client.call_at(address, call).map_err(WireError::from)
     }
@@ -298,12 +300,17 @@ impl Remote for Shared {
         let (reference, cached) = self.resolve(path)?;
         match self.call_object(&reference, method.clone()) {
             // A cached entry may be stale (the object moved or went): resolve again, once.
-            Err(WireError::UnknownName(_) | WireError::Remote(_)) if cached => {
+            Err(
+                WireError::Call(CallError::UnknownName(_)) | WireError::Call(CallError::Remote(_)),
+            ) if cached => {
                 lock(&self.resolved).remove(path);
                 let (reference, _) = self.resolve(path)?;
                 self.call_object(&reference, method)
             }
-            Err(e @ (WireError::UnknownName(_) | WireError::Remote(_))) => {
+            Err(
+                e @ (WireError::Call(CallError::UnknownName(_))
+                | WireError::Call(CallError::Remote(_))),
+            ) => {
                 lock(&self.resolved).remove(path);
                 Err(e)
             }

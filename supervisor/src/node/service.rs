@@ -1,11 +1,15 @@
 //! What the node's server serves ([`NodeService`]): calls go to the creator, with the naming
 //! tree kept in step with the objects it creates and destroys, and to the hosted naming service.
+//!
+//! This is the service boundary: the creator answers with its own typed errors
+//! ([`ObjectError`](crate::objects::error::ObjectError)), which become the wire's call errors
+//! here, by the one conversion (`From<ObjectError> for WireError`, in [`crate::objects::error`]).
 
 use std::sync::Arc;
 
 use super::{Shared, lock};
 use crate::system::{SystemFile, SystemFileError};
-use penelope_protocol::proto::{Call, CreatorCall, NodeInfo, Reply, WireError};
+use penelope_protocol::proto::{Call, CallError, CreatorCall, NodeInfo, Reply, WireError};
 use penelope_protocol::service::{Service, Session};
 use penelope_runtime::objects::Creator;
 use penelope_runtime::objects::roles::authorize_call;
@@ -20,10 +24,10 @@ pub(super) struct NodeService {
 /// A system file that cannot be applied, as the wire says it: the message names the line, the
 /// object and the step.
 fn system_file_error(e: SystemFileError) -> WireError {
-    WireError::BadConfig {
+    WireError::Call(CallError::BadConfig {
         kind: "system file".into(),
         message: e.to_string(),
-    }
+    })
 }
 
 impl Service for NodeService {
@@ -32,7 +36,7 @@ impl Service for NodeService {
         match call {
             Call::Naming(c) => match &shared.hosted {
                 Some(service) => service.handle_for(session, c),
-                None => Err(WireError::NoNamingService),
+                None => Err(WireError::Call(CallError::NoNamingService)),
             },
             Call::NodeInfo => Ok(Reply::Node(NodeInfo {
                 node: shared.name.clone(),
@@ -42,7 +46,7 @@ impl Service for NodeService {
             })),
             Call::Creator(CreatorCall::Create { .. }) => {
                 let _ops = lock(&shared.ops);
-                let reply = self.creator.call(session, call)?;
+                let reply = self.creator.serve(session, call)?;
                 if let Reply::Object(info) = &reply
                     && let Err(e) = shared.bind(info)
                 {
@@ -51,7 +55,7 @@ impl Service for NodeService {
                         name: info.name.clone(),
                         force: true,
                     });
-                    if let Err(u) = self.creator.call(session, undo) {
+                    if let Err(u) = self.creator.serve(session, undo) {
                         log::error!("node {}: cannot undo `{}`: {u}", shared.name, info.name);
                     }
                     return Err(e);
@@ -61,7 +65,7 @@ impl Service for NodeService {
             Call::Creator(CreatorCall::Destroy { ref name, .. }) => {
                 let _ops = lock(&shared.ops);
                 let info = self.creator.info(name);
-                let reply = self.creator.call(session, call)?;
+                let reply = self.creator.serve(session, call)?;
                 if let Some(info) = info {
                     shared.unbind(&info);
                 }
@@ -77,7 +81,7 @@ impl Service for NodeService {
                     .map_err(system_file_error)?;
                 Ok(Reply::Objects(created))
             }
-            other => self.creator.call(session, other),
+            other => Ok(self.creator.serve(session, other)?),
         }
     }
 

@@ -1,7 +1,7 @@
 //! Unit tests of a node: its objects' naming bindings and the names and leases it refuses.
 
 use super::*;
-use penelope_protocol::proto::{Class, CreatorCall, Method, NodeInfo};
+use penelope_protocol::proto::{CallError, Class, CreatorCall, Method, NodeInfo};
 
 fn names(node: &Node, context: &str) -> Vec<String> {
     let tree = node.hosted_naming().unwrap().snapshot();
@@ -22,7 +22,10 @@ fn created_objects_are_bound_and_destroyed_ones_unbound() {
         config: String::new(),
     });
     assert!(matches!(node.call(create.clone()), Ok(Reply::Object(_))));
-    assert!(matches!(node.call(create), Err(WireError::NameTaken(_))));
+    assert!(matches!(
+        node.call(create),
+        Err(WireError::Call(CallError::NameTaken(_)))
+    ));
     let tree = node.hosted_naming().unwrap().snapshot();
     let r = tree.resolve("/lab-a/sensors/ft").unwrap();
     assert_eq!(
@@ -36,7 +39,7 @@ fn created_objects_are_bound_and_destroyed_ones_unbound() {
     ));
     assert!(matches!(
         node.remote().call("/lab-a/sensors/nope", Method::Describe),
-        Err(WireError::UnknownName(_))
+        Err(WireError::Call(CallError::UnknownName(_)))
     ));
     let destroy = Call::Creator(CreatorCall::Destroy {
         name: "ft".into(),

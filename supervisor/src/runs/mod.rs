@@ -30,7 +30,7 @@ use penelope_rt_core::teleop::MappingConfig;
 
 use crate::node::{NamingChoice, Node, NodeConfig};
 use crate::system::{ObjectSpec, SystemFile, SystemFileError};
-use penelope_protocol::proto::{Call, Method, WireError};
+use penelope_protocol::proto::{Call, CallError, Method, WireError};
 use penelope_runtime::objects::clock::ClockMode;
 use penelope_runtime::objects::kinematics::RobotKinematics;
 use penelope_runtime::objects::teleop::TeleopConfig;
@@ -342,7 +342,7 @@ impl Nodes {
             config.creator.clock = clock;
             let node = Node::start(config).map_err(|e| RunError::Node {
                 what: format!("starting node `{name}`"),
-                error: WireError::Internal(e.to_string()),
+                error: WireError::Call(CallError::Internal(e.to_string())),
             })?;
             nodes.push(node);
         }
@@ -359,7 +359,7 @@ impl Nodes {
     fn node(&self, name: &str) -> Result<&Node, RunError> {
         self.get(name).ok_or_else(|| RunError::Node {
             what: format!("node `{name}`"),
-            error: WireError::UnknownName(name.into()),
+            error: WireError::Call(CallError::UnknownName(name.into())),
         })
     }
 
@@ -370,7 +370,7 @@ impl Nodes {
             .record_ticks(controller, RECORD_CAPACITY)
             .map_err(|error| RunError::Node {
                 what: format!("recording `{controller}`"),
-                error,
+                error: error.into(),
             })
     }
 
@@ -403,7 +403,7 @@ impl Nodes {
             for n in &self.nodes {
                 n.creator().advance(sub).map_err(|error| RunError::Node {
                     what: "advancing the simulated clock".into(),
-                    error,
+                    error: error.into(),
                 })?;
             }
             moved += sub;

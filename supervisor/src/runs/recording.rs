@@ -48,7 +48,7 @@ pub fn apply_recorded(
         let stream = node
             .creator()
             .record_ticks(name, RECORD_CAPACITY)
-            .map_err(node_error(format!("recording `{name}`")))?;
+            .map_err(|e| node_error(format!("recording `{name}`"))(e.into()))?;
         streams.push((name.clone(), stream));
     }
     // The links of this node's channels to other nodes.

@@ -1,6 +1,8 @@
 //! The proxies of the control side: a controller ([`ControllerProxy`]) and a trajectory
 //! ([`TrajectoryProxy`]), with [`reference_of`] to read a trajectory's references.
 
+#[cfg(doc)]
+use crate::proto::CallError;
 use penelope_hal::{CartesianReference, Frame, JointReference, JointVector, Reference, Twist};
 
 use super::{Lifecycle, ObjectHandle, TypedProxy, bad, bad_reply};
@@ -28,7 +30,7 @@ impl ControllerProxy {
     /// Binds the robot it drives (a name on the controller's node).
     ///
     /// # Errors
-    /// [`WireError::UnknownName`], [`WireError::WrongClass`], [`WireError::InvalidTransition`]
+    /// [`CallError::UnknownName`], [`CallError::WrongClass`], [`CallError::InvalidTransition`]
     /// while active; transport errors.
     pub fn set_robot(&self, robot: &str) -> Result<(), RpcError> {
         self.controller(ControllerMethod::SetRobot {
@@ -62,7 +64,7 @@ impl ControllerProxy {
     /// `kp = [100, 100, 100, 10, 10, 10]`.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for unknown keys or bad values; transport errors.
+    /// [`CallError::BadConfig`] for unknown keys or bad values; transport errors.
     pub fn set_gains(&self, gains: &str) -> Result<(), RpcError> {
         self.controller(ControllerMethod::SetGains {
             gains: gains.to_string(),
@@ -73,7 +75,7 @@ impl ControllerProxy {
     /// behind another call of this client).
     ///
     /// # Errors
-    /// [`WireError::NotReady`] when no loop runs; transport errors.
+    /// [`CallError::NotReady`] when no loop runs; transport errors.
     pub fn estop(&self) -> Result<(), RpcError> {
         self.handle
             .unit_alone(Method::Controller(ControllerMethod::EStop))
@@ -117,7 +119,7 @@ impl TrajectoryProxy {
     /// (twist zero); a wrench one is in the base frame.
     ///
     /// # Errors
-    /// [`WireError::BadArgument`] for a NaN time; [`WireError::NotReady`] before configure.
+    /// [`CallError::BadArgument`] for a NaN time; [`CallError::NotReady`] before configure.
     pub fn reference(&self, t_s: f64) -> Result<Reference, RpcError> {
         if !t_s.is_finite() {
             return Err(bad(format!("time must be finite, got {t_s}")));

@@ -1,6 +1,8 @@
 //! The proxies of remote devices: a board's encoders and amplifiers ([`BoardProxy`]) and a force
 //! sensor ([`SensorProxy`]).
 
+#[cfg(doc)]
+use crate::proto::CallError;
 use nalgebra::Vector3;
 use penelope_hal::{Frame, Pose, Wrench};
 
@@ -38,7 +40,7 @@ impl BoardProxy {
     /// Encoder positions of every axis, counts.
     ///
     /// # Errors
-    /// [`WireError::NotReady`] before configure; [`WireError::Device`]; transport errors.
+    /// [`CallError::NotReady`] before configure; [`CallError::Device`]; transport errors.
     pub fn read_encoders(&self) -> Result<Vec<i64>, RpcError> {
         match self.board(BoardMethod::ReadEncoders)? {
             Reply::Counts(c) => Ok(c),
@@ -62,7 +64,7 @@ impl BoardProxy {
     /// gone. A board driven by a running loop is re-armed through its controller instead.
     ///
     /// # Errors
-    /// As [`BoardProxy::read_encoders`]; [`WireError::NotReady`] while a loop drives it.
+    /// As [`BoardProxy::read_encoders`]; [`CallError::NotReady`] while a loop drives it.
     pub fn rearm(&self) -> Result<(), RpcError> {
         match self.board(BoardMethod::Rearm)? {
             Reply::Unit => Ok(()),
@@ -82,7 +84,7 @@ impl SensorProxy {
     /// The newest reading: the wrench in the sensor frame, N and N·m.
     ///
     /// # Errors
-    /// [`WireError::NotReady`] before configure; [`WireError::Device`]; transport errors.
+    /// [`CallError::NotReady`] before configure; [`CallError::Device`]; transport errors.
     pub fn read(&self) -> Result<Wrench, RpcError> {
         wrench_of(
             self.handle.call(Method::Sensor(SensorMethod::Read))?,
@@ -102,7 +104,7 @@ impl SensorProxy {
     /// linear velocity (m/s) the environment model pushes against.
     ///
     /// # Errors
-    /// [`WireError::BadArgument`] for a NaN or non-orthonormal pose or a NaN velocity.
+    /// [`CallError::BadArgument`] for a NaN or non-orthonormal pose or a NaN velocity.
     pub fn set_probe(&self, pose: &Pose, velocity: &Vector3<f64>) -> Result<(), RpcError> {
         let (pose, velocity) = (pose_msg(pose)?, velocity_msg(velocity)?);
         self.handle

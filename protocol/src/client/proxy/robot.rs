@@ -1,6 +1,8 @@
 //! The proxy of a remote robot ([`RobotProxy`]): joint state, kinematics, dynamics, encoder
 //! conversions and named poses, with the math types of `hal` at the edges.
 
+#[cfg(doc)]
+use crate::proto::CallError;
 use std::sync::OnceLock;
 
 use nalgebra::{SMatrix, Vector3};
@@ -75,7 +77,7 @@ impl RobotProxy {
     /// Measured joint positions, rad.
     ///
     /// # Errors
-    /// [`WireError::NotReady`] before the robot is configured; transport errors.
+    /// [`CallError::NotReady`] before the robot is configured; transport errors.
     pub fn joint_positions(&self) -> Result<JointVector, RpcError> {
         joints_of(self.robot(RobotMethod::JointPositions)?)
     }
@@ -119,7 +121,7 @@ impl RobotProxy {
     /// The wrench at the tool from the bound force sensor, N and N·m, base frame.
     ///
     /// # Errors
-    /// [`WireError::NotReady`] without a sensor; transport errors.
+    /// [`CallError::NotReady`] without a sensor; transport errors.
     pub fn tool_wrench(&self) -> Result<Wrench, RpcError> {
         wrench_of(self.robot(RobotMethod::ToolWrench)?, Frame::Base)
     }
@@ -128,7 +130,7 @@ impl RobotProxy {
     /// rotation's columns are the three orientation versors `n, o, a`.
     ///
     /// # Errors
-    /// [`WireError::BadArgument`] for a NaN joint value; the node's errors; transport errors.
+    /// [`CallError::BadArgument`] for a NaN joint value; the node's errors; transport errors.
     pub fn forward_kinematics(&self, q: Option<&JointVector>) -> Result<Pose, RpcError> {
         let q = self.q_msg(q)?;
         match self.robot(RobotMethod::ForwardKinematics { q })? {
@@ -176,7 +178,7 @@ impl RobotProxy {
     /// Inverse kinematics: every branch reaching `pose` within the joint limits (possibly none).
     ///
     /// # Errors
-    /// [`WireError::BadArgument`] for a NaN or non-orthonormal pose; the node's errors.
+    /// [`CallError::BadArgument`] for a NaN or non-orthonormal pose; the node's errors.
     pub fn inverse_kinematics(&self, pose: &Pose) -> Result<Vec<JointVector>, RpcError> {
         let pose = pose_msg(pose)?;
         match self.robot(RobotMethod::InverseKinematics { pose })? {
@@ -194,7 +196,7 @@ impl RobotProxy {
     /// in the tool frame (rotated to the base frame here, with the tool orientation at `q`).
     ///
     /// # Errors
-    /// [`WireError::BadArgument`] for a NaN wrench or joint value; the node's errors.
+    /// [`CallError::BadArgument`] for a NaN wrench or joint value; the node's errors.
     pub fn wrench_to_torques(
         &self,
         wrench: &Wrench,
@@ -249,7 +251,7 @@ impl RobotProxy {
     /// Encoder counts (one per joint) to joint positions, rad.
     ///
     /// # Errors
-    /// [`WireError::BadArgument`] for a wrong count; the node's errors.
+    /// [`CallError::BadArgument`] for a wrong count; the node's errors.
     pub fn counts_to_radians(&self, counts: &[i64]) -> Result<JointVector, RpcError> {
         joints_of(self.robot(RobotMethod::CountsToRadians {
             counts: counts.to_vec(),
@@ -259,7 +261,7 @@ impl RobotProxy {
     /// Joint positions (rad) to the nearest encoder counts.
     ///
     /// # Errors
-    /// [`WireError::BadArgument`] for a NaN value; the node's errors.
+    /// [`CallError::BadArgument`] for a NaN value; the node's errors.
     pub fn radians_to_counts(&self, q: &JointVector) -> Result<Vec<i64>, RpcError> {
         let q = self.q_msg(Some(q))?.unwrap_or_default();
         match self.robot(RobotMethod::RadiansToCounts { q })? {
@@ -280,8 +282,8 @@ impl RobotProxy {
     /// robot's active controller (goNested, goStart, goWork). Returns once the motion started.
     ///
     /// # Errors
-    /// [`WireError::BadArgument`] for a duration that is not finite and positive;
-    /// [`WireError::NotReady`] when no active controller drives the robot.
+    /// [`CallError::BadArgument`] for a duration that is not finite and positive;
+    /// [`CallError::NotReady`] when no active controller drives the robot.
     pub fn go_to(&self, pose: NamedPose, duration_s: f64) -> Result<(), RpcError> {
         if !(duration_s.is_finite() && duration_s > 0.0) {
             return Err(bad(format!(
@@ -296,8 +298,8 @@ impl RobotProxy {
     /// `(joint, axis)` pairs, both 0-based. A robot may use several boards.
     ///
     /// # Errors
-    /// [`WireError::BadArgument`] for an index past 255 (and the node's own range checks),
-    /// [`WireError::UnknownName`] for no such board.
+    /// [`CallError::BadArgument`] for an index past 255 (and the node's own range checks),
+    /// [`CallError::UnknownName`] for no such board.
     pub fn map_joints(&self, board: &str, joints: &[(usize, usize)]) -> Result<(), RpcError> {
         let joints = joints
             .iter()

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use super::*;
 use crate::net::frame::{read_frame, write_frame};
 use crate::net::server::{Server, ServerConfig};
-use crate::proto::{ServerHello, TelemetryRecord};
+use crate::proto::{CallError, ProtocolError, ServerHello, TelemetryRecord};
 use crate::service::{Service, Session};
 
 struct Echo;
@@ -35,7 +35,7 @@ impl Service for Echo {
                 }
                 Ok(Reply::Unit)
             }
-            _ => Err(WireError::NotReady("echo only".into())),
+            _ => Err(WireError::Call(CallError::NotReady("echo only".into()))),
         }
     }
 }
@@ -60,7 +60,7 @@ fn calls_pipelines_and_telemetry_over_a_real_server() {
     );
     assert!(matches!(
         c.call(Call::NodeInfo),
-        Err(RpcError::Remote(WireError::NotReady(_)))
+        Err(RpcError::Remote(WireError::Call(CallError::NotReady(_))))
     ));
     let calls = (0..2000u32)
         .map(|i| Call::Ping {
@@ -93,12 +93,16 @@ fn the_secret_is_required_and_checked() {
     let mut cfg = ClientConfig::new("t");
     assert!(matches!(
         Connection::connect(s.local_addr(), &cfg),
-        Err(RpcError::Remote(WireError::AuthFailed))
+        Err(RpcError::Remote(WireError::Protocol(
+            ProtocolError::AuthFailed
+        )))
     ));
     cfg.secret = Some(b"wrong".into());
     assert!(matches!(
         Connection::connect(s.local_addr(), &cfg),
-        Err(RpcError::Remote(WireError::AuthFailed))
+        Err(RpcError::Remote(WireError::Protocol(
+            ProtocolError::AuthFailed
+        )))
     ));
     cfg.secret = Some(b"0123456789abcdef0123456789abcdef".into());
     let mut c = Connection::connect(s.local_addr(), &cfg).unwrap();
@@ -149,13 +153,15 @@ fn wrong_ids_errors_garbage_and_silence_are_typed_errors() {
     assert!(matches!(c.call(Call::NodeInfo), Err(RpcError::Protocol(_))));
 
     let addr = fake_node(|s| {
-        let e = ServerMsg::Error(WireError::RateLimited { limit: 1 });
+        let e = ServerMsg::Error(WireError::Protocol(ProtocolError::RateLimited { limit: 1 }));
         write_frame(s, &e, 1000).unwrap();
     });
     let mut c = Connection::connect(addr, &cfg).unwrap();
     assert!(matches!(
         c.call(Call::NodeInfo),
-        Err(RpcError::Remote(WireError::RateLimited { limit: 1 }))
+        Err(RpcError::Remote(WireError::Protocol(
+            ProtocolError::RateLimited { limit: 1 }
+        )))
     ));
 
     let addr = fake_node(|s| s.write_all(&[3, 0, 0, 0, 0xff, 0xff, 0xff]).unwrap());

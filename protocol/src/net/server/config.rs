@@ -1,6 +1,8 @@
 //! How a server is configured ([`ServerConfig`]), how it fails to start ([`NetError`]) and what
 //! it counts ([`ServerStats`]).
 
+#[cfg(doc)]
+use crate::proto::ProtocolError;
 use std::net::SocketAddr;
 use std::time::Duration;
 
@@ -40,7 +42,7 @@ pub struct ServerConfig {
     /// Failed handshakes one IP address may make at once before it is throttled.
     pub auth_failure_burst: u32,
     /// Failed handshakes per second one IP address may make after its burst: beyond it, its
-    /// handshakes are refused with [`WireError::RateLimited`](crate::proto::WireError) before
+    /// handshakes are refused with [`ProtocolError::RateLimited`] before
     /// the secret is checked.
     pub auth_failures_per_s: f64,
     /// Requests per second per connection (token bucket; bursts up to one second's worth).

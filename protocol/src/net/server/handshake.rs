@@ -7,7 +7,8 @@ use std::time::{Duration, Instant};
 use super::{Conn, End, POLL_EVERY, bump, lock, msg_name};
 use crate::net::auth::{self, PSK_LEN, SealError};
 use crate::proto::{
-    ClientMsg, MAGIC, PROTOCOL_VERSION, Role, Security, ServerHello, ServerMsg, WireError,
+    CallError, ClientMsg, MAGIC, PROTOCOL_VERSION, ProtocolError, Role, Security, ServerHello,
+    ServerMsg, WireError,
 };
 use crate::service::Identity;
 
@@ -22,26 +23,28 @@ impl Conn<'_> {
                 .handshake_timeout
                 .clamp(Duration::from_millis(1), POLL_EVERY),
         ));
-        let (hello, client_body) = match self.next_frame(Some(deadline), true)? {
-            (ClientMsg::Hello(h), body) => (h, body),
-            (other, _) => {
-                bump(&self.shared.counters.malformed);
-                return Err(self.fail(WireError::Unexpected(format!(
-                    "{} before the hello",
-                    msg_name(&other)
-                ))));
-            }
-        };
+        let (hello, client_body) =
+            match self.next_frame(Some(deadline), true)? {
+                (ClientMsg::Hello(h), body) => (h, body),
+                (other, _) => {
+                    bump(&self.shared.counters.malformed);
+                    return Err(self.fail(WireError::Protocol(ProtocolError::Unexpected(
+                        format!("{} before the hello", msg_name(&other)),
+                    ))));
+                }
+            };
         if hello.magic != MAGIC {
             bump(&self.shared.counters.malformed);
-            return Err(self.fail(WireError::BadMagic));
+            return Err(self.fail(WireError::Protocol(ProtocolError::BadMagic)));
         }
         if hello.version != PROTOCOL_VERSION {
             bump(&self.shared.counters.malformed);
-            return Err(self.fail(WireError::VersionMismatch {
-                ours: PROTOCOL_VERSION,
-                theirs: hello.version,
-            }));
+            return Err(
+                self.fail(WireError::Protocol(ProtocolError::VersionMismatch {
+                    ours: PROTOCOL_VERSION,
+                    theirs: hello.version,
+                })),
+            );
         }
         self.greeted.store(true, Ordering::Release);
         let psk = self.shared.psk;
@@ -71,7 +74,9 @@ impl Conn<'_> {
                 if !self.shared.throttle.allows(self.peer.ip(), Instant::now()) {
                     bump(&self.shared.counters.rate_limited);
                     let limit = self.shared.config.auth_failures_per_s.ceil() as u32;
-                    return Err(self.fail(WireError::RateLimited { limit }));
+                    return Err(
+                        self.fail(WireError::Protocol(ProtocolError::RateLimited { limit }))
+                    );
                 }
                 self.queue(&ours);
                 // An admin claim nobody can prove here is served as an operator.
@@ -160,11 +165,13 @@ impl Conn<'_> {
             }
             Err(SealError::Handshake) => {
                 self.failed_authentication();
-                return Err(self.fail(WireError::AuthFailed));
+                return Err(self.fail(WireError::Protocol(ProtocolError::AuthFailed)));
             }
             Err(e) => {
                 log::error!("noise handshake failed: {e}");
-                return Err(self.fail(WireError::Internal("handshake failed".into())));
+                return Err(self.fail(WireError::Call(CallError::Internal(
+                    "handshake failed".into(),
+                ))));
             }
         };
         let (sealer, opener) = keys.split();
@@ -188,10 +195,12 @@ impl Conn<'_> {
             ClientMsg::Request { .. } | ClientMsg::Bye => {}
             other => {
                 bump(&self.shared.counters.malformed);
-                return Err(self.fail(WireError::Unexpected(format!(
-                    "{} after the handshake",
-                    msg_name(&other)
-                ))));
+                return Err(
+                    self.fail(WireError::Protocol(ProtocolError::Unexpected(format!(
+                        "{} after the handshake",
+                        msg_name(&other)
+                    )))),
+                );
             }
         }
         self.open_session(role)?;

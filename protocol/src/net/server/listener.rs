@@ -18,7 +18,7 @@ use super::{
 use crate::net::auth;
 use crate::net::frame::encode_into;
 use crate::net::limits::{Admission, AuthThrottle};
-use crate::proto::{ServerMsg, WireError};
+use crate::proto::{ProtocolError, ServerMsg, WireError};
 use crate::service::Service;
 
 /// A running server.
@@ -254,9 +254,9 @@ fn admit(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr) {
             if let Some(s) = lock(&shared.streams).remove(&id) {
                 refuse(
                     s,
-                    &WireError::TooManyConnections {
+                    &WireError::Protocol(ProtocolError::TooManyConnections {
                         limit: shared.config.max_connections,
-                    },
+                    }),
                     shared.config.max_frame,
                 );
             }

@@ -2,7 +2,9 @@
 
 use super::*;
 use crate::net::frame::{read_frame, write_frame};
-use crate::proto::{Call, ClientHello, DEFAULT_MAX_FRAME, Reply, Role, Security, ServerHello};
+use crate::proto::{
+    Call, CallError, ClientHello, DEFAULT_MAX_FRAME, Reply, Role, Security, ServerHello,
+};
 
 struct Echo;
 
@@ -10,7 +12,7 @@ impl Service for Echo {
     fn call(&self, _: &Session, call: Call) -> Result<Reply, WireError> {
         match call {
             Call::Ping { payload } => Ok(Reply::Pong(payload)),
-            _ => Err(WireError::NotReady("echo only".into())),
+            _ => Err(WireError::Call(CallError::NotReady("echo only".into()))),
         }
     }
 }
@@ -46,6 +48,7 @@ fn a_non_loopback_bind_needs_a_secret() {
     c.secret = Some(b"0123456789abcdef0123456789abcdef".into());
     c.admin_secret = Some(b"admin".into());
     let e = Server::bind(local(), c, Arc::new(Echo)).unwrap_err();
+    assert!(matches!(e, NetError::WeakSecret(_)), "{e}");
     assert!(e.to_string().contains("admin secret is too weak"), "{e}");
 }
 

@@ -7,7 +7,7 @@
 
 use std::time::Duration;
 
-use penelope_protocol::proto::WireError;
+use penelope_protocol::proto::{CallError, WireError};
 use serde::de::DeserializeOwned;
 
 pub mod describe;
@@ -19,16 +19,16 @@ pub use describe::KindConfig;
 // ---------------------------------------------------------------------------------------------
 
 pub(crate) fn bad(kind: &str, message: impl Into<String>) -> WireError {
-    WireError::BadConfig {
+    WireError::Call(CallError::BadConfig {
         kind: kind.to_string(),
         message: message.into(),
-    }
+    })
 }
 
 /// Parses `text` as the TOML configuration of `kind` (`""`: defaults).
 ///
 /// # Errors
-/// [`WireError::BadConfig`] for bad TOML, unknown keys or wrong types.
+/// [`CallError::BadConfig`] for bad TOML, unknown keys or wrong types.
 pub fn parse<T: DeserializeOwned + Default>(kind: &str, text: &str) -> Result<T, WireError> {
     if text.trim().is_empty() {
         return Ok(T::default());
@@ -118,7 +118,7 @@ macro_rules! loop_keys {
             /// The timing keys, checked.
             ///
             /// # Errors
-            /// [`WireError::BadConfig`].
+            /// [`CallError::BadConfig`].
             pub fn timing(&self, kind: &str) -> Result<$crate::objects::config::LoopTiming, ::penelope_protocol::proto::WireError> {
                 $crate::objects::config::check_int(kind, "period_us", self.period_us, 250, 20_000)?;
                 $crate::objects::config::check_int(kind, "comm_period_us", self.comm_period_us, 250, 100_000)?;
@@ -146,7 +146,7 @@ loop_keys!(LoopKeysOnly {});
 /// The timing keys of any controller's configuration text (other keys are ignored).
 ///
 /// # Errors
-/// [`WireError::BadConfig`] for text that is not TOML or timing out of range.
+/// [`CallError::BadConfig`] for text that is not TOML or timing out of range.
 pub fn loop_timing(kind: &str, text: &str) -> Result<LoopTiming, WireError> {
     let table: toml::Table = text.parse().map_err(|e| bad(kind, format!("{e}")))?;
     let keys = [

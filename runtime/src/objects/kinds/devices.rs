@@ -7,7 +7,7 @@ use crate::objects::config::{bad, check_int, check_range};
 use nalgebra::{Unit, Vector3};
 use penelope_drivers::sim::environment::{ContactModel, Environment, Shape};
 use penelope_hal::{JointVector, MAX_AXES, NamedPose};
-use penelope_protocol::proto::WireError;
+use penelope_protocol::proto::{CallError, WireError};
 use penelope_rt_core::safety::Role;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -68,7 +68,7 @@ fn damping() -> f64 {
 /// Builds an environment from shapes.
 ///
 /// # Errors
-/// [`WireError::BadConfig`] for an unknown shape kind, a value out of range or too many shapes.
+/// [`CallError::BadConfig`] for an unknown shape kind, a value out of range or too many shapes.
 pub fn environment(kind: &str, shapes: &[ShapeConfig]) -> Result<Environment, WireError> {
     let mut env = Environment::new();
     for s in shapes {
@@ -184,9 +184,9 @@ impl RobotConfig {
     /// URDF file `file` from `base` to `tip`.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for a missing `file`, a URDF that does not make a model (the
+    /// [`CallError::BadConfig`] for a missing `file`, a URDF that does not make a model (the
     /// message names the element), or `file`, `tip` or `base` given to a built-in robot;
-    /// [`WireError::UnknownKind`] for an unknown model.
+    /// [`CallError::UnknownKind`] for an unknown model.
     pub fn model(&self, kind: &str, model: &str) -> Result<models::DhRobotModel, WireError> {
         self.model_with(kind, model, |file| {
             std::fs::read_to_string(file).map_err(|e| format!("{file}: {e}"))
@@ -200,7 +200,7 @@ impl RobotConfig {
     ///
     /// # Errors
     /// As [`model`](Self::model); a file outside `dirs`, not regular or too large is
-    /// [`WireError::BadConfig`].
+    /// [`CallError::BadConfig`].
     pub fn model_in(
         &self,
         kind: &str,
@@ -225,7 +225,8 @@ impl RobotConfig {
                     "`file`, `tip` and `base` apply to robot/urdf only",
                 ));
             }
-            return models::by_name(model).ok_or_else(|| WireError::UnknownKind(kind.into()));
+            return models::by_name(model)
+                .ok_or_else(|| WireError::Call(CallError::UnknownKind(kind.into())));
         }
         let Some(file) = &self.file else {
             return Err(bad(kind, "`file` (the URDF file) is required"));
@@ -258,7 +259,7 @@ impl RobotConfig {
     /// The robot's role, defaulting by model (`frhc` is a master), and its checked caps.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for a word other than master or slave, or caps that are not
+    /// [`CallError::BadConfig`] for a word other than master or slave, or caps that are not
     /// positive.
     pub fn role(&self, kind: &str) -> Result<Role, WireError> {
         for (key, v) in [
@@ -283,7 +284,7 @@ impl RobotConfig {
     /// The start pose.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for a name other than nest, start, work.
+    /// [`CallError::BadConfig`] for a name other than nest, start, work.
     pub fn start_pose(&self, kind: &str) -> Result<NamedPose, WireError> {
         NamedPose::parse(&self.start).ok_or_else(|| {
             bad(
@@ -345,7 +346,7 @@ impl SimBoardConfig {
     /// Checks ranges.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
+    /// [`CallError::BadConfig`].
     pub fn check(&self, kind: &str) -> Result<Environment, WireError> {
         check_int(kind, "axes", self.axes.into(), 1, MAX_AXES as u64)?;
         check_int(kind, "dac_bits", self.dac_bits.into(), 8, 24)?;
@@ -429,7 +430,7 @@ impl GalilConfig {
     /// Checks ranges and that exactly one of `device` and `address` is given.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
+    /// [`CallError::BadConfig`].
     pub fn check(&self, kind: &str) -> Result<(), WireError> {
         match (&self.device, &self.address) {
             (Some(_), Some(_)) => return Err(bad(kind, "give `device` or `address`, not both")),
@@ -554,7 +555,7 @@ impl SensorConfig {
     /// environment is its board's).
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] naming the key.
+    /// [`CallError::BadConfig`] naming the key.
     pub fn check(&self, kind: &str) -> Result<(), WireError> {
         for x in &self.mount_xyz {
             check_range(kind, "mount_xyz", *x, -2.0, 2.0)?;
@@ -593,7 +594,7 @@ impl SensorConfig {
     /// The address of `publish`, if set.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for one that is not `host:port` with an IP address.
+    /// [`CallError::BadConfig`] for one that is not `host:port` with an IP address.
     pub fn publish_address(&self, kind: &str) -> Result<Option<std::net::SocketAddr>, WireError> {
         self.publish
             .as_deref()
@@ -679,7 +680,7 @@ impl NetFtSensorConfig {
     /// Checks ranges and the address, and gives the driver's settings.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] naming the key.
+    /// [`CallError::BadConfig`] naming the key.
     pub fn check(&self, kind: &str) -> Result<penelope_drivers::netft::NetFtConfig, WireError> {
         let address = penelope_drivers::netft::parse_address(&self.address)
             .map_err(|e| bad(kind, format!("`address`: {e}")))?;

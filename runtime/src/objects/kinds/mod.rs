@@ -157,7 +157,7 @@ impl JointPidConfig {
     /// Checks what does not depend on the robot.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
+    /// [`CallError::BadConfig`].
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         if let Some(kp) = &self.kp {
             kp.check(kind, "kp", 0.0, 1e7)?;
@@ -219,7 +219,7 @@ impl JointGroupsConfig {
     /// loop is built).
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
+    /// [`CallError::BadConfig`].
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         if self.groups.is_empty() || self.groups.len() > penelope_hal::MAX_JOINTS {
             return Err(bad(
@@ -285,7 +285,7 @@ impl JointPositionConfig {
     /// Checks what does not depend on the robot.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
+    /// [`CallError::BadConfig`].
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         self.max_velocity.check(kind, "max_velocity", 1e-3, 100.0)?;
         self.timing(kind)
@@ -296,7 +296,7 @@ impl ImpedanceConfigToml {
     /// Checks ranges.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
+    /// [`CallError::BadConfig`].
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         for x in self.stiffness {
             check_range(kind, "stiffness", x, 0.0, 1e6)?;
@@ -321,6 +321,7 @@ impl ImpedanceConfigToml {
 mod tests {
     use super::*;
     use crate::objects::config::parse;
+    use penelope_protocol::proto::CallError;
 
     #[test]
     fn a_joint_position_law_checks_its_speed_limit() {
@@ -334,7 +335,10 @@ mod tests {
         ] {
             let c: JointPositionConfig = parse(k, bad).unwrap();
             assert!(
-                matches!(c.check(k), Err(WireError::BadConfig { .. })),
+                matches!(
+                    c.check(k),
+                    Err(WireError::Call(CallError::BadConfig { .. }))
+                ),
                 "{bad}"
             );
         }
@@ -369,7 +373,7 @@ mod tests {
     fn configs_refuse_unknown_keys_and_out_of_range_values() {
         assert!(matches!(
             parse::<SimBoardConfig>("board/sim", "axis = 3"),
-            Err(WireError::BadConfig { .. })
+            Err(WireError::Call(CallError::BadConfig { .. }))
         ));
         let c: SimBoardConfig = parse("board/sim", "axes = 9").unwrap();
         assert!(c.check("board/sim").is_err());

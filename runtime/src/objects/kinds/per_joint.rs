@@ -3,6 +3,8 @@
 
 use crate::objects::config::{bad, check_range};
 use penelope_hal::{JointVector, MAX_AXES, MAX_JOINTS};
+#[cfg(doc)]
+use penelope_protocol::proto::CallError;
 use penelope_protocol::proto::WireError;
 use serde::{Deserialize, Serialize};
 
@@ -20,7 +22,7 @@ impl PerJoint {
     /// The values for `n` joints, each checked in `lo..=hi`.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] for a wrong count or a value out of range.
+    /// [`CallError::BadConfig`] for a wrong count or a value out of range.
     pub fn resolve(
         &self,
         kind: &str,

@@ -6,6 +6,8 @@ use crate::objects::config::describe::KindConfig;
 use crate::objects::config::{bad, check_range, parse};
 use crate::objects::kinds::Kind;
 use penelope_hal::{MAX_JOINTS, NamedPose};
+#[cfg(doc)]
+use penelope_protocol::proto::CallError;
 use penelope_protocol::proto::WireError;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
@@ -330,7 +332,7 @@ pub enum TrajectorySpec {
 /// Parses and checks a trajectory kind's configuration.
 ///
 /// # Errors
-/// [`WireError::BadConfig`].
+/// [`CallError::BadConfig`].
 pub fn trajectory_spec(kind: Kind, text: &str) -> Result<TrajectorySpec, WireError> {
     let k = kind.as_str();
     Ok(match kind {

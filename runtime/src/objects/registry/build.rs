@@ -2,6 +2,7 @@
 
 use super::trajectories::{build_trajectory, spec_is_tool};
 use crate::dataplane::sensor_stream::SensorSubscriber;
+use crate::objects::error::ObjectError;
 use crate::objects::registry::{
     ControllerConfig, JointPidConfig, Launch, LoopTiming, Object, RobotKinematics, TeleopObj,
     bad_arg, finite_effort, impedance, not_ready, unsupported,
@@ -20,7 +21,7 @@ use penelope_drivers::sim::tap::TapWriter;
 use penelope_hal::{
     Board, JointSet, JointVector, Kinematics, LifecycleState, MAX_JOINTS, RobotModel, Transition,
 };
-use penelope_protocol::proto::{Class, WireError};
+use penelope_protocol::proto::Class;
 use penelope_rt_core::control::{
     AxisBinding, ControlCommand, ControlConfig, ControlLoop, ControlPorts,
 };
@@ -31,13 +32,13 @@ use penelope_rt_core::teleop::CartesianImpedance;
 impl Registry {
     /// Builds the loop of controller `name` (configured, inactive) without starting threads.
     /// Takes the robot's board(s) and marks every object it uses.
-    pub fn build_loop(&mut self, name: &str, launch: &Launch<'_>) -> Result<Built, WireError> {
+    pub fn build_loop(&mut self, name: &str, launch: &Launch<'_>) -> Result<Built, ObjectError> {
         let o = self.get(name)?;
         if o.kind.class() != Class::Controller {
             return Err(unsupported(o.kind, "activate"));
         }
         if o.state != LifecycleState::Inactive {
-            return Err(WireError::InvalidTransition {
+            return Err(ObjectError::InvalidTransition {
                 name: name.to_string(),
                 state: o.shown_state(),
                 transition: Transition::Activate,
@@ -58,7 +59,7 @@ impl Registry {
             return Err(not_ready(format!("robot `{robot_name}` is not configured")));
         }
         if let Some(d) = robot_obj.users.iter().next() {
-            return Err(WireError::InUse {
+            return Err(ObjectError::InUse {
                 name: robot_name.clone(),
                 dependents: vec![d.clone()],
             });
@@ -74,7 +75,7 @@ impl Registry {
                 }
                 for (ob, oj) in &or.maps {
                     if ob == board && oj.iter().any(|x| joints.iter().any(|y| x.axis == y.axis)) {
-                        return Err(WireError::InUse {
+                        return Err(ObjectError::InUse {
                             name: board.clone(),
                             dependents: other.users.iter().cloned().collect(),
                         });
@@ -85,7 +86,7 @@ impl Registry {
                 && g.board.is_none()
             {
                 let b = self.get(board)?;
-                return Err(WireError::InUse {
+                return Err(ObjectError::InUse {
                     name: board.clone(),
                     dependents: b.users.iter().cloned().collect(),
                 });
@@ -179,7 +180,7 @@ impl Registry {
                     used.push(m.name);
                     used.push(m.trajectory);
                 }
-                let groups = JointGroups::new(n, laws).map_err(|e| WireError::BadConfig {
+                let groups = JointGroups::new(n, laws).map_err(|e| ObjectError::BadConfig {
                     kind: kind.into(),
                     message: e.to_string(),
                 })?;
@@ -218,7 +219,7 @@ impl Registry {
                             "{kind} follows a trajectory/teleop channel; `{traj_name}` is not one"
                         )));
                     }
-                    _ => return Err(WireError::Internal("trajectory body".into())),
+                    _ => return Err(ObjectError::internal("trajectory body")),
                 };
                 (source, node_law(&law, kind, &model, hold)?)
             }
@@ -259,7 +260,7 @@ impl Registry {
         } else {
             HoldMode::BoardServo
         };
-        config.validate(n).map_err(|e| WireError::BadConfig {
+        config.validate(n).map_err(|e| ObjectError::BadConfig {
             kind: kind.into(),
             message: e.to_string(),
         })?;
@@ -269,16 +270,16 @@ impl Registry {
         let (mut truth, mut contact) = (None, None);
         let board = if on_sim {
             let Body::Robot(r) = &mut self.get_mut(&robot_name)?.body else {
-                return Err(WireError::Internal("robot body".into()));
+                return Err(ObjectError::internal("robot body"));
             };
             let mut body = r
                 .body
                 .take()
-                .ok_or_else(|| WireError::Internal("sim body".into()))?;
+                .ok_or_else(|| ObjectError::internal("sim body"))?;
             // A fresh tap per loop: the plant's truth for telemetry, and its contact for a
             // wrist sensor.
             let mut tap = TapWriter::new();
-            let tap_failed = |_| WireError::Internal("plant tap".into());
+            let tap_failed = |_| ObjectError::internal("plant tap");
             truth = Some(tap.reader().map_err(tap_failed)?);
             if plant_sensor.is_some() {
                 contact = Some(tap.reader().map_err(tap_failed)?);
@@ -295,7 +296,7 @@ impl Registry {
             for (board, joints) in &maps {
                 let index = boards.len() as u8;
                 let Body::Galil(g) = &mut self.get_mut(board)?.body else {
-                    return Err(WireError::Internal("galil body".into()));
+                    return Err(ObjectError::internal("galil body"));
                 };
                 let Some(mut b) = g.board.take() else {
                     // Put back what was taken before refusing.
@@ -349,7 +350,7 @@ impl Registry {
         let cartesian = controller.is_cartesian();
         let lp = match ControlLoop::new(config, board, kinematics.clone(), [controller], ports) {
             Ok(l) => l,
-            Err(e) => return Err(WireError::Internal(format!("control loop: {e}"))),
+            Err(e) => return Err(ObjectError::Internal(format!("control loop: {e}").into())),
         };
         let (lp, wrench_w) = if let (Some(cfg), Some(contact)) = (plant_sensor, contact) {
             let sensor = VirtualForceSensor::new(cfg, contact);
@@ -394,15 +395,15 @@ impl Registry {
                 };
                 let Some(Body::Teleop(t)) = self.objects.get_mut(&traj_name).map(|o| &mut o.body)
                 else {
-                    return Err(WireError::Internal("teleop body".into()));
+                    return Err(ObjectError::internal("teleop body"));
                 };
                 let link = t
                     .link
                     .as_mut()
-                    .ok_or_else(|| WireError::Internal("teleop link".into()))?;
+                    .ok_or_else(|| ObjectError::internal("teleop link"))?;
                 let end = link
                     .take(side)
-                    .ok_or_else(|| WireError::Internal("teleop end".into()))?;
+                    .ok_or_else(|| ObjectError::internal("teleop end"))?;
                 crate::objects::runtime::CommTask::teleop(
                     TeleopComm::new(end, mapping, kinematics.clone())?
                         .with_port_law(port_law, &mapping)?
@@ -605,7 +606,7 @@ pub(super) fn node_law(
     kind: &str,
     model: &DhRobotModel,
     hold: (JointVector, JointVector),
-) -> Result<NodeController, WireError> {
+) -> Result<NodeController, ObjectError> {
     let n = model.joint_count();
     Ok(match law {
         ControllerConfig::Pid(p) => {
@@ -613,7 +614,7 @@ pub(super) fn node_law(
         }
         ControllerConfig::Impedance(i) => {
             NodeController::Impedance(CartesianImpedance::new(impedance(i)).map_err(|e| {
-                WireError::BadConfig {
+                ObjectError::BadConfig {
                     kind: kind.into(),
                     message: format!("{e:?}"),
                 }
@@ -633,7 +634,7 @@ pub(super) fn node_law(
         ControllerConfig::WaveMaster(c) => NodeController::ForceDisplay(c.law(kind)?),
         ControllerConfig::WaveSlave(c) => NodeController::SlaveTracking(c.law(kind)?),
         ControllerConfig::Groups(_) => {
-            return Err(WireError::Internal(
+            return Err(ObjectError::Internal(
                 "a joint group inside a joint group".into(),
             ));
         }
@@ -642,7 +643,7 @@ pub(super) fn node_law(
 
 /// Checks that the controller on `robot` may run `side` of channel `name`, and that the end is
 /// free.
-fn check_teleop_end(name: &str, t: &TeleopObj, side: Side, robot: &str) -> Result<(), WireError> {
+fn check_teleop_end(name: &str, t: &TeleopObj, side: Side, robot: &str) -> Result<(), ObjectError> {
     let (expected, word) = match side {
         Side::Master => (&t.config.master, "master"),
         Side::Slave => (&t.config.slave, "slave"),
@@ -714,7 +715,7 @@ pub(super) fn pid_gains(
     n: usize,
     kp_default: JointVector,
     kd_default: JointVector,
-) -> Result<JointPidGains, WireError> {
+) -> Result<JointPidGains, ObjectError> {
     let kp = match &p.kp {
         Some(k) => k.resolve(kind, "kp", n, 0.0, 1e7)?,
         None => kp_default,
@@ -739,13 +740,13 @@ impl Registry {
     /// The reader of the sensor at naming `path` on another node, published at `address`.
     ///
     /// # Errors
-    /// [`WireError::NotReady`] without an address, [`WireError::BadArgument`] for a stream off
-    /// loopback on a node without a secret, [`WireError::Device`] when no socket can be bound.
+    /// [`ObjectError::NotReady`] without an address, [`ObjectError::BadArgument`] for a stream off
+    /// loopback on a node without a secret, [`ObjectError::Device`] when no socket can be bound.
     fn sensor_subscriber(
         &self,
         path: &str,
         address: Option<std::net::SocketAddr>,
-    ) -> Result<crate::objects::runtime::SensorSource, WireError> {
+    ) -> Result<crate::objects::runtime::SensorSource, ObjectError> {
         let address = address.ok_or_else(|| {
             not_ready(format!(
                 "sensor `{path}`: its data-plane address is not known (SensorMethod::Stream)"
@@ -762,7 +763,7 @@ impl Registry {
             .as_ref()
             .map(|k| crate::dataplane::sensor_stream::sensor_reader_keys(k, path));
         let subscriber = SensorSubscriber::connect_directed(address, keys)
-            .map_err(|e| WireError::Device(format!("data plane: reader of `{path}`: {e}")))?;
+            .map_err(|e| ObjectError::device(format!("data plane: reader of `{path}`"), e))?;
         Ok(crate::objects::runtime::SensorSource::Stream(Box::new(
             subscriber,
         )))

@@ -1,19 +1,18 @@
 //! Which `board/fpga` a robot's joints are on, checked: the board computes the FRHC's whole
 //! chain.
 
-use crate::objects::fpga_board::{FpgaBoardError, robot_on_boards};
-use crate::objects::registry::Kind;
+use crate::objects::error::ObjectError;
+use crate::objects::fpga_board::robot_on_boards;
 use crate::objects::{Body, Registry};
-use penelope_protocol::proto::WireError;
 
 impl Registry {
     /// The `board/fpga` robot `name`'s joints are on, if any (boards not yet created count as
     /// other boards).
     ///
     /// # Errors
-    /// [`WireError::BadConfig`] of `board/fpga` from an [`FpgaBoardError`]: a robot other than
-    /// the FRHC, or joints split between the fpga board and another.
-    pub fn fpga_board_of(&self, name: &str) -> Result<Option<String>, WireError> {
+    /// [`ObjectError::FpgaBoard`]: a robot other than the FRHC, or joints split between the
+    /// fpga board and another.
+    pub fn fpga_board_of(&self, name: &str) -> Result<Option<String>, ObjectError> {
         let r = self.robot(name)?;
         let boards: Vec<(&str, bool)> = r
             .maps
@@ -26,11 +25,6 @@ impl Registry {
                 (b.as_str(), fpga)
             })
             .collect();
-        robot_on_boards(name, r.model.name(), &boards).map_err(|e: FpgaBoardError| {
-            WireError::BadConfig {
-                kind: Kind::FpgaBoard.as_str().into(),
-                message: e.to_string(),
-            }
-        })
+        Ok(robot_on_boards(name, r.model.name(), &boards)?)
     }
 }

@@ -1,13 +1,13 @@
 //! Opening a Galil board when it is configured.
 
+use crate::objects::error::ObjectError;
 use crate::objects::registry::GalilConfig;
 use penelope_drivers::galil::board::LinkFactory;
 use penelope_drivers::galil::{GalilBoard, GalilBoardConfig, Link, TcpLink};
-use penelope_protocol::proto::WireError;
 use std::time::Duration;
 
 /// Opens a Galil board.
-pub(super) fn open_galil(cfg: &GalilConfig) -> Result<GalilBoard, WireError> {
+pub(super) fn open_galil(cfg: &GalilConfig) -> Result<GalilBoard, ObjectError> {
     let volts = cfg.volts();
     let path = cfg.device.clone().unwrap_or_else(|| "tcp".into());
     let mut board_cfg = GalilBoardConfig::new(path.clone(), cfg.axes as usize, &volts);
@@ -40,13 +40,13 @@ pub(super) fn open_galil(cfg: &GalilConfig) -> Result<GalilBoard, WireError> {
         .or(cfg.device.as_deref())
         .unwrap_or("?")
         .to_string();
-    let board = result.map_err(|e| WireError::Device(format!("galil board at {place}: {e}")))?;
+    let board = result.map_err(|e| ObjectError::device(format!("galil board at {place}"), e))?;
     // Configured means ready: wait for the I/O thread's first exchange, so the encoders can be
     // read as soon as `configure` returns.
     let deadline = std::time::Instant::now() + FIRST_EXCHANGE_TIMEOUT;
     while board.cycles() == 0 {
         if board.is_faulted() || std::time::Instant::now() >= deadline {
-            return Err(WireError::Device(format!(
+            return Err(ObjectError::DeviceRefused(format!(
                 "galil board at {place}: no answer within {} ms",
                 FIRST_EXCHANGE_TIMEOUT.as_millis()
             )));

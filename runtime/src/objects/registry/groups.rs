@@ -4,12 +4,13 @@
 //! their commands and references joint by joint.
 
 use super::trajectories::{build_trajectory, spec_is_tool};
+use crate::objects::error::ObjectError;
 use crate::objects::registry::{ControllerConfig, Kind, bad_arg, build, not_ready};
 use crate::objects::runtime::{NodeController, TrajectoryFeed};
 use crate::objects::{Body, Registry, kinds};
 use penelope_drivers::model::DhRobotModel;
 use penelope_hal::{JointSet, JointVector, LifecycleState};
-use penelope_protocol::proto::{Class, WireError};
+use penelope_protocol::proto::Class;
 
 /// A group member, ready for the group's loop.
 pub(super) struct Member {
@@ -32,7 +33,7 @@ impl Registry {
         &mut self,
         name: &str,
         groups: &kinds::JointGroupsConfig,
-    ) -> Result<(), WireError> {
+    ) -> Result<(), ObjectError> {
         let c = self.controller_mut(name)?;
         if let Some(t) = &c.trajectory {
             return Err(bad_arg(format!(
@@ -88,7 +89,7 @@ impl Registry {
         robot: &str,
         model: &DhRobotModel,
         hold: (JointVector, JointVector),
-    ) -> Result<Vec<Member>, WireError> {
+    ) -> Result<Vec<Member>, ObjectError> {
         let mut members = Vec::new();
         for g in &groups.groups {
             let member = &g.controller;
@@ -101,7 +102,7 @@ impl Registry {
             }
             let kind = o.kind.as_str();
             let Body::Controller(c) = &o.body else {
-                return Err(WireError::Internal("controller body".into()));
+                return Err(ObjectError::internal("controller body"));
             };
             if c.robot.as_deref() != Some(robot) {
                 return Err(bad_arg(format!(

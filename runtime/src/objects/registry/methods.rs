@@ -2,6 +2,7 @@
 
 use super::build::{default_joint_gains, pid_gains};
 use super::trajectories::{build_standalone, build_trajectory, spec_joints};
+use crate::objects::error::ObjectError;
 use crate::objects::registry::{
     ControllerConfig, ImpedanceConfigToml, JointPidConfig, Object, TrajectorySpec, bad_arg,
     finite3, impedance, not_ready, unreachable_body,
@@ -21,14 +22,14 @@ use penelope_hal::{
 use penelope_protocol::proto::{
     BoardMethod, Class, ControlStatus, ControllerMethod, JointAxis, Joints, MatrixMsg,
     OperationalMsg, PoseMsg, ReferenceMsg, Reply, RobotMethod, SensorMethod, TrajectoryMethod,
-    WireError, WrenchMsg, joints_from_vector, joints_to_vector,
+    WrenchMsg, joints_from_vector, joints_to_vector,
 };
 use std::time::Duration;
 
 impl Registry {
     /// The measured joint state of `robot`: from its running loop, its simulated body, or its
     /// Galil boards.
-    fn measured(&mut self, robot: &str) -> Result<(JointState, JointVector), WireError> {
+    fn measured(&mut self, robot: &str) -> Result<(JointState, JointVector), ObjectError> {
         if let Some(c) = self.driver_of(robot)
             && let Ok(ctrl) = self.controller_mut(&c)
             && let Some(run) = &ctrl.running
@@ -72,7 +73,7 @@ impl Registry {
                 penelope_rt_core::clock::MonotonicClock::read(),
                 &mut axes[..count],
             )
-            .map_err(|e| WireError::Device(format!("board `{board}`: {e}")))?;
+            .map_err(|e| ObjectError::device(format!("board `{board}`"), e))?;
             for ja in joints {
                 let j = usize::from(ja.joint);
                 let cpr = model.counts_per_radian(j);
@@ -90,15 +91,19 @@ impl Registry {
         }
     }
 
-    fn q_or_measured(&mut self, robot: &str, q: &Option<Joints>) -> Result<JointVector, WireError> {
+    fn q_or_measured(
+        &mut self,
+        robot: &str,
+        q: &Option<Joints>,
+    ) -> Result<JointVector, ObjectError> {
         let n = self.robot(robot)?.model.joint_count();
         match q {
-            Some(q) => joints_to_vector(q, n),
+            Some(q) => Ok(joints_to_vector(q, n)?),
             None => Ok(self.measured(robot)?.0.position),
         }
     }
 
-    pub fn robot_method(&mut self, name: &str, m: RobotMethod) -> Result<Reply, WireError> {
+    pub fn robot_method(&mut self, name: &str, m: RobotMethod) -> Result<Reply, ObjectError> {
         let n = self.robot(name)?.model.joint_count();
         match m {
             RobotMethod::JointPositions => Ok(Reply::Joints(joints_from_vector(
@@ -285,7 +290,7 @@ impl Registry {
                     }
                 }
                 let Body::Robot(r) = &mut self.get_mut(name)?.body else {
-                    return Err(WireError::Internal("robot body".into()));
+                    return Err(ObjectError::internal("robot body"));
                 };
                 // Replaces this board's mapping; joints mapped elsewhere move here.
                 r.maps.retain(|(b, _)| b != &board);
@@ -309,7 +314,7 @@ impl Registry {
         }
     }
 
-    pub fn board_method(&mut self, name: &str, m: BoardMethod) -> Result<Reply, WireError> {
+    pub fn board_method(&mut self, name: &str, m: BoardMethod) -> Result<Reply, ObjectError> {
         let o = self.expect_class(name, Class::Board)?;
         let active = !o.users.is_empty();
         match (&o.body, m) {
@@ -385,7 +390,7 @@ impl Registry {
                         penelope_rt_core::clock::MonotonicClock::read(),
                         &mut st[..count],
                     )
-                    .map_err(|e| WireError::Device(format!("board `{name}`: {e}")))?;
+                    .map_err(|e| ObjectError::device(format!("board `{name}`"), e))?;
                     for (c, s) in counts.iter_mut().zip(st.iter()) {
                         *c = s.position;
                     }
@@ -427,11 +432,11 @@ impl Registry {
                 }
                 Ok(Reply::Counts(counts))
             }
-            _ => Err(WireError::Internal("board body".into())),
+            _ => Err(ObjectError::internal("board body")),
         }
     }
 
-    pub fn sensor_method(&mut self, name: &str, m: SensorMethod) -> Result<Reply, WireError> {
+    pub fn sensor_method(&mut self, name: &str, m: SensorMethod) -> Result<Reply, ObjectError> {
         let o = self.expect_class(name, Class::Sensor)?;
         if o.state == LifecycleState::Unconfigured {
             return Err(not_ready(format!("sensor `{name}` is not configured")));
@@ -439,25 +444,26 @@ impl Registry {
         let s = match &o.body {
             Body::Sensor(s) => s,
             Body::Hand(h) => {
-                return Err(WireError::Unsupported {
+                return Err(ObjectError::Unsupported {
                     kind: o.kind.as_str().into(),
                     method: format!(
                         "{m:?} (the hand pushes `{}`'s simulated handle; what it feels is in \
                          that robot's telemetry)",
                         h.config.robot
-                    ),
+                    )
+                    .into(),
                 });
             }
             Body::NetFt(s) => return Registry::netft_method(s, o.kind.as_str(), m),
             Body::ReplaySensor(_) | Body::OperatorReplay(_) => {
-                return Err(WireError::Unsupported {
+                return Err(ObjectError::Unsupported {
                     kind: o.kind.as_str().into(),
                     method: format!(
                         "{m:?} (a replay plays its recording to the loop that uses it; the                          readings are in that loop's telemetry)"
-                    ),
+                    ).into(),
                 });
             }
-            _ => return Err(WireError::Internal("sensor body".into())),
+            _ => return Err(ObjectError::internal("sensor body")),
         };
         if m == SensorMethod::Stream {
             return self.sensor_stream(name, s);
@@ -465,7 +471,7 @@ impl Registry {
         let state = s.state.clone();
         let mut st = state
             .lock()
-            .map_err(|_| WireError::Internal("sensor state poisoned".into()))?;
+            .map_err(|_| ObjectError::Poisoned("sensor state"))?;
         match m {
             SensorMethod::Read => Ok(Reply::Wrench(WrenchMsg::from(&st.read()))),
             SensorMethod::Bias => {
@@ -491,19 +497,20 @@ impl Registry {
         &mut self,
         name: &str,
         m: TrajectoryMethod,
-    ) -> Result<Reply, WireError> {
+    ) -> Result<Reply, ObjectError> {
         let o = self.expect_class(name, Class::Trajectory)?;
         let t = match &o.body {
             Body::Trajectory(t) => t,
             Body::Teleop(_) => {
-                return Err(WireError::Unsupported {
+                return Err(ObjectError::Unsupported {
                     kind: o.kind.as_str().into(),
                     method: format!(
                         "{m:?} (a teleoperation channel's reference is what the other side sends)"
-                    ),
+                    )
+                    .into(),
                 });
             }
-            _ => return Err(WireError::Internal("trajectory body".into())),
+            _ => return Err(ObjectError::internal("trajectory body")),
         };
         let spec = t.spec.clone();
         let kind = o.kind.as_str();
@@ -566,11 +573,11 @@ impl Registry {
         &mut self,
         name: &str,
         m: ControllerMethod,
-    ) -> Result<Reply, WireError> {
+    ) -> Result<Reply, ObjectError> {
         let o = self.expect_class(name, Class::Controller)?;
         let state = o.shown_state();
         let kind = o.kind;
-        let set_guard = |what: &str| -> Result<(), WireError> {
+        let set_guard = |what: &str| -> Result<(), ObjectError> {
             if state == LifecycleState::Active {
                 Err(not_ready(format!(
                     "deactivate `{name}` before changing its {what}"
@@ -613,14 +620,14 @@ impl Registry {
                     .and_then(|r| self.robot(&r).ok().map(|r| r.model.clone()));
                 let c = self.controller_mut(name)?;
                 if matches!(c.config, ControllerConfig::Position(_)) {
-                    return Err(WireError::Unsupported {
+                    return Err(ObjectError::Unsupported {
                         kind: k.to_string(),
                         method: "set-gains (its only setting, max_velocity, is fixed at creation)"
                             .into(),
                     });
                 }
                 if matches!(c.config, ControllerConfig::Groups(_)) {
-                    return Err(WireError::Unsupported {
+                    return Err(ObjectError::Unsupported {
                         kind: k.to_string(),
                         method: "set-gains (set its members' gains: they reach the running group)"
                             .into(),
@@ -662,9 +669,7 @@ impl Registry {
                 Ok(Reply::Unit)
             }
             // Re-arming may start threads: the creator's job (`Creator::rearm`).
-            ControllerMethod::Rearm => {
-                Err(WireError::Internal("rearm is served by the creator".into()))
-            }
+            ControllerMethod::Rearm => Err(ObjectError::internal("rearm is served by the creator")),
             ControllerMethod::Status => {
                 let joints = self
                     .controller_mut(name)?
@@ -714,8 +719,8 @@ const LOOP_TIMING_KEYS: [&str; 6] = [
 
 /// `current` (a configuration's TOML text) with the keys of `gains` replaced: refused for loop
 /// timing keys (set at creation) and for text that is not a TOML table.
-fn merged_gains(kind: &str, current: &str, gains: &str) -> Result<String, WireError> {
-    let bad = |message: String| WireError::BadConfig {
+fn merged_gains(kind: &str, current: &str, gains: &str) -> Result<String, ObjectError> {
+    let bad = |message: String| ObjectError::BadConfig {
         kind: kind.into(),
         message,
     };
@@ -741,7 +746,7 @@ fn gains_from(
     current: &ControllerConfig,
     text: &str,
     model: Option<&DhRobotModel>,
-) -> Result<(ControllerConfig, Option<GainsUpdate>), WireError> {
+) -> Result<(ControllerConfig, Option<GainsUpdate>), ObjectError> {
     Ok(match current {
         ControllerConfig::Pid(_) => {
             let cfg: JointPidConfig = crate::objects::config::parse(kind, text)?;
@@ -823,7 +828,7 @@ fn gains_from(
             )
         }
         ControllerConfig::Position(_) | ControllerConfig::Groups(_) => {
-            return Err(WireError::Internal(format!("{kind} has no gains")));
+            return Err(ObjectError::Internal(format!("{kind} has no gains").into()));
         }
     })
 }

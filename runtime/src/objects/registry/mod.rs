@@ -38,8 +38,9 @@ use super::teleop::{
 use super::teleop_wave::{WaveMasterToml, WaveSlaveToml};
 use crate::dataplane::frame::DatagramKey;
 use crate::dataplane::sensor_stream::SensorPublisher;
+use crate::objects::error::ObjectError;
 use crate::objects::runtime::{SimBody, VirtualSensor};
-use penelope_protocol::proto::{Class, JointAxis, ObjectInfo, WireError};
+use penelope_protocol::proto::{Class, JointAxis, ObjectInfo};
 
 mod build;
 mod fpga;
@@ -166,8 +167,8 @@ impl ControllerConfig {
     /// two-port passivity observer (and controller), or nothing more.
     ///
     /// # Errors
-    /// [`WireError::BadConfig`].
-    pub fn port_law(&self, kind: &str) -> Result<PortLaw, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn port_law(&self, kind: &str) -> Result<PortLaw, ObjectError> {
         match self {
             ControllerConfig::WaveMaster(c) => c.wave(kind).map(PortLaw::Wave),
             ControllerConfig::WaveSlave(c) => c.wave(kind).map(PortLaw::Wave),
@@ -204,18 +205,18 @@ pub(crate) struct TrajectoryObj {
     pub spec: TrajectorySpec,
 }
 
-fn bad_arg(m: impl Into<String>) -> WireError {
-    WireError::BadArgument(m.into())
+fn bad_arg(m: impl Into<String>) -> ObjectError {
+    ObjectError::BadArgument(m.into())
 }
 
-fn not_ready(m: impl Into<String>) -> WireError {
-    WireError::NotReady(m.into())
+fn not_ready(m: impl Into<String>) -> ObjectError {
+    ObjectError::NotReady(m.into())
 }
 
-fn unsupported(kind: Kind, method: &str) -> WireError {
-    WireError::Unsupported {
+fn unsupported(kind: Kind, method: &str) -> ObjectError {
+    ObjectError::Unsupported {
         kind: kind.as_str().to_string(),
-        method: method.to_string(),
+        method: method.to_string().into(),
     }
 }
 
@@ -320,7 +321,7 @@ pub(crate) fn make(
     name: &str,
     config: &str,
     robot_files: &[std::path::PathBuf],
-) -> Result<Object, WireError> {
+) -> Result<Object, ObjectError> {
     let k = kind.as_str();
     let body = match kind {
         Kind::Robot(model) => {
@@ -500,22 +501,22 @@ pub(crate) struct Launch<'a> {
 }
 
 impl Registry {
-    pub fn get(&self, name: &str) -> Result<&Object, WireError> {
+    pub fn get(&self, name: &str) -> Result<&Object, ObjectError> {
         self.objects
             .get(name)
-            .ok_or_else(|| WireError::UnknownName(name.to_string()))
+            .ok_or_else(|| ObjectError::UnknownName(name.to_string()))
     }
 
-    pub fn get_mut(&mut self, name: &str) -> Result<&mut Object, WireError> {
+    pub fn get_mut(&mut self, name: &str) -> Result<&mut Object, ObjectError> {
         self.objects
             .get_mut(name)
-            .ok_or_else(|| WireError::UnknownName(name.to_string()))
+            .ok_or_else(|| ObjectError::UnknownName(name.to_string()))
     }
 
-    fn expect_class(&self, name: &str, class: Class) -> Result<&Object, WireError> {
+    fn expect_class(&self, name: &str, class: Class) -> Result<&Object, ObjectError> {
         let o = self.get(name)?;
         if o.kind.class() != class {
-            return Err(WireError::WrongClass {
+            return Err(ObjectError::WrongClass {
                 name: name.to_string(),
                 expected: class,
                 found: o.kind.class(),
@@ -524,17 +525,17 @@ impl Registry {
         Ok(o)
     }
 
-    fn robot(&self, name: &str) -> Result<&RobotObj, WireError> {
+    fn robot(&self, name: &str) -> Result<&RobotObj, ObjectError> {
         match &self.expect_class(name, Class::Robot)?.body {
             Body::Robot(r) => Ok(r),
-            _ => Err(WireError::Internal("robot body".into())),
+            _ => Err(ObjectError::internal("robot body")),
         }
     }
 
-    fn controller_mut(&mut self, name: &str) -> Result<&mut ControllerObj, WireError> {
+    fn controller_mut(&mut self, name: &str) -> Result<&mut ControllerObj, ObjectError> {
         match &mut self.get_mut(name)?.body {
             Body::Controller(c) => Ok(c),
-            _ => Err(WireError::Internal("controller body".into())),
+            _ => Err(ObjectError::internal("controller body")),
         }
     }
 
@@ -553,17 +554,17 @@ impl Registry {
 
     /// Runs a transition other than a controller's activate/deactivate (the creator handles
     /// those, since they start and stop threads).
-    pub fn transition(&mut self, name: &str, t: Transition) -> Result<(), WireError> {
+    pub fn transition(&mut self, name: &str, t: Transition) -> Result<(), ObjectError> {
         let o = self.get(name)?;
         let kind = o.kind;
         let shown = o.shown_state();
-        let refuse = || WireError::InvalidTransition {
+        let refuse = || ObjectError::InvalidTransition {
             name: name.to_string(),
             state: shown,
             transition: t,
         };
         if !o.users.is_empty() && matches!(t, Transition::Cleanup | Transition::Shutdown) {
-            return Err(WireError::InUse {
+            return Err(ObjectError::InUse {
                 name: name.to_string(),
                 dependents: o.users.iter().cloned().collect(),
             });
@@ -612,13 +613,13 @@ impl Registry {
         }
     }
 
-    fn configure(&mut self, name: &str) -> Result<(), WireError> {
+    fn configure(&mut self, name: &str) -> Result<(), ObjectError> {
         let kind = self.get(name)?.kind;
         match kind {
             Kind::Robot(_) => self.configure_robot(name),
             Kind::GalilBoard => {
                 let Body::Galil(g) = &mut self.get_mut(name)?.body else {
-                    return Err(WireError::Internal("galil body".into()));
+                    return Err(ObjectError::internal("galil body"));
                 };
                 g.board = Some(open_galil(&g.config)?);
                 Ok(())
@@ -632,7 +633,7 @@ impl Registry {
         }
     }
 
-    fn configure_robot(&mut self, name: &str) -> Result<(), WireError> {
+    fn configure_robot(&mut self, name: &str) -> Result<(), ObjectError> {
         let r = self.robot(name)?;
         let n = r.model.joint_count();
         if r.maps.is_empty() {
@@ -687,7 +688,7 @@ impl Registry {
         }
         let kinematics = match self.fpga_board_of(name)? {
             Some(_) => RobotKinematics::on_fpga_board(r.model.clone())
-                .ok_or_else(|| WireError::Internal("fpga model".into()))?,
+                .ok_or_else(|| ObjectError::internal("fpga model"))?,
             None => RobotKinematics::Float(r.model.clone()),
         };
         if let Body::Robot(r) = &mut self.get_mut(name)?.body {
@@ -695,7 +696,7 @@ impl Registry {
         }
         if let Some(first) = sim_boards.first() {
             let Body::SimBoard(s) = &self.get(first)?.body else {
-                return Err(WireError::Internal("sim body".into()));
+                return Err(ObjectError::internal("sim body"));
             };
             let env = kinds::environment(kinds::BOARD_SIM, &s.config.shapes)?;
             let cfg = s.config.clone();
@@ -735,7 +736,7 @@ impl Registry {
         Ok(())
     }
 
-    fn configure_controller(&mut self, name: &str) -> Result<(), WireError> {
+    fn configure_controller(&mut self, name: &str) -> Result<(), ObjectError> {
         let c = self.controller_mut(name)?;
         if let ControllerConfig::Groups(groups) = &c.config {
             let groups = groups.clone();
@@ -760,11 +761,11 @@ impl Registry {
     }
 }
 
-fn unreachable_body<T>() -> Result<T, WireError> {
-    Err(WireError::Internal("object body changed".into()))
+fn unreachable_body<T>() -> Result<T, ObjectError> {
+    Err(ObjectError::internal("object body changed"))
 }
 
-fn finite3(v: [f64; 3]) -> Result<Vector3<f64>, WireError> {
+fn finite3(v: [f64; 3]) -> Result<Vector3<f64>, ObjectError> {
     if v.iter().all(|x| x.is_finite()) {
         Ok(Vector3::from(v))
     } else {

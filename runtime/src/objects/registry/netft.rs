@@ -2,10 +2,11 @@
 //! for the first record; cleanup stops it; `describe` shows the driver's counters; `read` and
 //! `bias` reach the driver from the non-real-time side.
 
+use crate::objects::error::ObjectError;
 use crate::objects::registry::{Kind, not_ready};
 use crate::objects::{Body, Registry, kinds};
 use penelope_drivers::netft::{NetFt, NetFtConfig, NetFtReader};
-use penelope_protocol::proto::{Reply, SensorMethod, WireError, WrenchMsg};
+use penelope_protocol::proto::{Reply, SensorMethod, WrenchMsg};
 use std::time::Duration;
 
 /// How long `configure` of a Net F/T waits for its first record.
@@ -18,7 +19,7 @@ pub(crate) struct NetFtObj {
 }
 
 /// Makes the body of a `sensor/netft` from its configuration text.
-pub(super) fn netft_body(config: &str) -> Result<Body, WireError> {
+pub(super) fn netft_body(config: &str) -> Result<Body, ObjectError> {
     let k = Kind::NetFtSensor.as_str();
     let cfg: kinds::NetFtSensorConfig = crate::objects::config::parse(k, config)?;
     let config = cfg.check(k)?;
@@ -56,15 +57,15 @@ pub(super) fn netft_relations(s: &NetFtObj) -> Vec<(String, String)> {
 
 impl Registry {
     /// Opens the stream of Net F/T `name` and waits (bounded) for its first record.
-    pub(super) fn configure_netft(&mut self, name: &str) -> Result<(), WireError> {
+    pub(super) fn configure_netft(&mut self, name: &str) -> Result<(), ObjectError> {
         let Body::NetFt(s) = &mut self.get_mut(name)?.body else {
-            return Err(WireError::Internal("netft body".into()));
+            return Err(ObjectError::internal("netft body"));
         };
         let address = s.config.address;
         let ft = NetFt::open(s.config)
-            .map_err(|e| WireError::Device(format!("net f/t at {address}: {e}")))?;
+            .map_err(|e| ObjectError::device(format!("net f/t at {address}"), e))?;
         if !ft.wait_for_records(1, FIRST_RECORD_TIMEOUT) {
-            return Err(WireError::Device(format!(
+            return Err(ObjectError::DeviceRefused(format!(
                 "net f/t at {address}: no RDT record within {} ms (is the box, or `penelope \
                  netft-sim`, there?)",
                 FIRST_RECORD_TIMEOUT.as_millis()
@@ -75,7 +76,7 @@ impl Registry {
     }
 
     /// A loop's reader of Net F/T `name`, if `name` is one, with the sensor's mount.
-    pub(super) fn netft_reader(&self, name: &str) -> Result<Option<NetFtReader>, WireError> {
+    pub(super) fn netft_reader(&self, name: &str) -> Result<Option<NetFtReader>, ObjectError> {
         let Some(Body::NetFt(s)) = self.objects.get(name).map(|o| &o.body) else {
             return Ok(None);
         };
@@ -90,7 +91,7 @@ impl Registry {
         s: &NetFtObj,
         kind: &str,
         m: SensorMethod,
-    ) -> Result<Reply, WireError> {
+    ) -> Result<Reply, ObjectError> {
         let Some(ft) = &s.sensor else {
             return Err(not_ready("the sensor is not configured"));
         };
@@ -98,17 +99,18 @@ impl Registry {
             SensorMethod::Read => ft
                 .read(penelope_rt_core::clock::MonotonicClock::read())
                 .map(|w| Reply::Wrench(WrenchMsg::from(&w)))
-                .map_err(|e| WireError::Device(format!("net f/t at {}: {e}", s.config.address))),
+                .map_err(|e| ObjectError::device(format!("net f/t at {}", s.config.address), e)),
             SensorMethod::Bias => {
                 ft.request_bias();
                 Ok(Reply::Unit)
             }
-            other => Err(WireError::Unsupported {
+            other => Err(ObjectError::Unsupported {
                 kind: kind.into(),
                 method: format!(
                     "{other:?} (a Net F/T measures the world; it takes no probe and is read in \
                      the loop of the controller bound to it)"
-                ),
+                )
+                .into(),
             }),
         }
     }

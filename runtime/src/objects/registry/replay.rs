@@ -7,6 +7,7 @@ use std::sync::atomic::AtomicBool;
 use penelope_drivers::sim::environment::Environment;
 use penelope_hal::Pose;
 
+use crate::objects::error::ObjectError;
 use crate::objects::registry::{Kind, not_ready};
 use crate::objects::replay::{
     OperatorReplayConfig, OperatorReplayObj, ReplaySensor, ReplaySensorConfig, ReplaySensorObj,
@@ -15,11 +16,10 @@ use crate::objects::{Body, Registry};
 use penelope_drivers::sim::ToolContact;
 use penelope_drivers::sim::operator::VirtualOperator;
 use penelope_hal::Timestamp;
-use penelope_protocol::proto::WireError;
 use std::sync::Arc;
 
 /// The body of a new replay object of `kind` (configuration checked; nothing read yet).
-pub(super) fn replay_body(kind: Kind, config: &str) -> Result<Body, WireError> {
+pub(super) fn replay_body(kind: Kind, config: &str) -> Result<Body, ObjectError> {
     let k = kind.as_str();
     Ok(match kind {
         Kind::ReplaySensor => {
@@ -45,13 +45,13 @@ pub(super) fn replay_body(kind: Kind, config: &str) -> Result<Body, WireError> {
 impl Registry {
     /// Configures a replay object: reads its recording (typed errors: missing file, missing
     /// channel, no ticks, a NaN, no truth for a hand).
-    pub(super) fn configure_replay(&mut self, name: &str) -> Result<(), WireError> {
+    pub(super) fn configure_replay(&mut self, name: &str) -> Result<(), ObjectError> {
         let o = self.get_mut(name)?;
         let kind = o.kind.as_str();
         match &mut o.body {
-            Body::ReplaySensor(s) => s.load().map_err(|e| e.into_wire(kind)),
-            Body::OperatorReplay(h) => h.load().map_err(|e| e.into_wire(kind)),
-            _ => Err(WireError::Internal("replay body".into())),
+            Body::ReplaySensor(s) => s.load().map_err(|e| e.for_kind(kind)),
+            Body::OperatorReplay(h) => h.load().map_err(|e| e.for_kind(kind)),
+            _ => Err(ObjectError::internal("replay body")),
         }
     }
 
@@ -69,14 +69,14 @@ impl Registry {
     /// hand's script is anchored at `anchor`, the tool's start pose.
     ///
     /// # Errors
-    /// [`WireError::NotReady`] for a replayed hand that is not configured (its recording not
+    /// [`ObjectError::NotReady`] for a replayed hand that is not configured (its recording not
     /// read).
     pub(super) fn tool_contact(
         &self,
         robot: &str,
         anchor: Pose,
         env: Environment,
-    ) -> Result<ToolContact, WireError> {
+    ) -> Result<ToolContact, ObjectError> {
         for (name, o) in &self.objects {
             match &o.body {
                 Body::Hand(h) if h.config.robot == robot => {
@@ -117,8 +117,8 @@ impl Registry {
     /// The loop's side of `sensor/replay` `name`, if `name` is one (configured).
     ///
     /// # Errors
-    /// [`WireError::NotReady`] when it is not configured.
-    pub(super) fn replay_sensor(&self, name: &str) -> Result<Option<ReplaySensor>, WireError> {
+    /// [`ObjectError::NotReady`] when it is not configured.
+    pub(super) fn replay_sensor(&self, name: &str) -> Result<Option<ReplaySensor>, ObjectError> {
         let Some(Body::ReplaySensor(s)) = self.objects.get(name).map(|o| &o.body) else {
             return Ok(None);
         };

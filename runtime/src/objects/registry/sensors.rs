@@ -4,9 +4,10 @@
 
 use crate::dataplane::endpoint::Endpoint;
 use crate::dataplane::sensor_stream::SensorPublisher;
+use crate::objects::error::ObjectError;
 use crate::objects::registry::{SensorObj, bad_arg, not_ready};
 use crate::objects::{Body, Registry};
-use penelope_protocol::proto::{Reply, WireError};
+use penelope_protocol::proto::Reply;
 use std::time::Duration;
 
 /// `describe`'s lines about a sensor's publisher (none for a sensor that does not publish, or
@@ -38,11 +39,11 @@ pub(super) fn publisher_relations(s: &SensorObj) -> Vec<(String, String)> {
 impl Registry {
     /// Configures a `sensor/virtual`: with `publish`, binds its data-plane endpoint (keyed with
     /// the node's datagram key) and starts its publisher.
-    pub(super) fn configure_sensor(&mut self, name: &str) -> Result<(), WireError> {
+    pub(super) fn configure_sensor(&mut self, name: &str) -> Result<(), ObjectError> {
         let kind = crate::objects::kinds::SENSOR_VIRTUAL;
         let key = self.datagram_key.clone();
         let Body::Sensor(s) = &mut self.get_mut(name)?.body else {
-            return Err(WireError::Internal("sensor body".into()));
+            return Err(ObjectError::internal("sensor body"));
         };
         let Some(address) = s.config.publish_address(kind)? else {
             return Ok(());
@@ -56,7 +57,7 @@ impl Registry {
         // Keys of this sensor's two directions (name-bound): not another stream's.
         let keys = key.map(|k| crate::dataplane::sensor_stream::sensor_publisher_keys(&k, name));
         let endpoint = Endpoint::bind_directed(address, keys)
-            .map_err(|e| WireError::Device(format!("data plane: cannot bind {address}: {e}")))?;
+            .map_err(|e| ObjectError::device(format!("data plane: cannot bind {address}"), e))?;
         let state = s.state.clone();
         let measure = Box::new(
             move |probe: Option<&crate::dataplane::sensor_stream::Probe>| {
@@ -69,7 +70,7 @@ impl Registry {
         );
         let period = Duration::from_millis(s.config.publish_period_ms);
         let publisher = SensorPublisher::start(name, endpoint, period, measure)
-            .map_err(|e| WireError::Internal(format!("sensor `{name}`: publisher thread: {e}")))?;
+            .map_err(|e| ObjectError::thread(format!("sensor `{name}`: publisher thread"), e))?;
         s.publisher = Some(publisher);
         Ok(())
     }
@@ -77,9 +78,9 @@ impl Registry {
     /// The address sensor `name` publishes at.
     ///
     /// # Errors
-    /// [`WireError::NotReady`] naming the sensor and the `publish` key when it does not
+    /// [`ObjectError::NotReady`] naming the sensor and the `publish` key when it does not
     /// publish.
-    pub(super) fn sensor_stream(&self, name: &str, s: &SensorObj) -> Result<Reply, WireError> {
+    pub(super) fn sensor_stream(&self, name: &str, s: &SensorObj) -> Result<Reply, ObjectError> {
         match &s.publisher {
             Some(p) => Ok(Reply::Address(p.address().to_string())),
             None => Err(not_ready(format!(

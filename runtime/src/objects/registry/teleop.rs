@@ -3,10 +3,11 @@
 //! its link.
 
 use crate::dataplane::endpoint::Endpoint;
+use crate::objects::error::ObjectError;
 use crate::objects::registry::{TeleopObj, bad_arg};
 use crate::objects::teleop_end::{Side, TeleopLink};
 use crate::objects::{Body, Registry};
-use penelope_protocol::proto::{Class, WireError};
+use penelope_protocol::proto::Class;
 
 use crate::dataplane::end_clock::LinkTime;
 use crate::objects::clock::ClockMode;
@@ -90,10 +91,10 @@ pub(super) fn link_relations(
 }
 
 impl Registry {
-    pub(super) fn configure_teleop(&mut self, name: &str) -> Result<(), WireError> {
+    pub(super) fn configure_teleop(&mut self, name: &str) -> Result<(), ObjectError> {
         let kind = crate::objects::kinds::TRAJECTORY_TELEOP;
         let Body::Teleop(t) = &self.get(name)?.body else {
-            return Err(WireError::Internal("teleop body".into()));
+            return Err(ObjectError::internal("teleop body"));
         };
         let (master, slave, mapping) = (
             t.config.master.clone(),
@@ -103,7 +104,7 @@ impl Registry {
         let data_plane = t.config.data_plane(kind)?;
         let faults = t.config.faults.clone().map(|f| (f, t.config.fault_seed));
         penelope_rt_core::teleop::WorkspaceMapping::new(mapping).map_err(|e| {
-            WireError::BadConfig {
+            ObjectError::BadConfig {
                 kind: kind.into(),
                 message: format!("{e:?}"),
             }
@@ -131,7 +132,7 @@ impl Registry {
                 match &faults {
                     None => TeleopLink::new(),
                     Some((f, seed)) => {
-                        TeleopLink::delayed(f, *seed).map_err(|e| WireError::BadConfig {
+                        TeleopLink::delayed(f, *seed).map_err(|e| ObjectError::BadConfig {
                             kind: kind.into(),
                             message: format!("`faults`: {e}"),
                         })?
@@ -173,7 +174,7 @@ impl Registry {
                     .as_ref()
                     .map(|k| k.directed("teleop", here, there));
                 let endpoint = Endpoint::bind_directed(listen, keys).map_err(|e| {
-                    WireError::Device(format!("data plane: cannot bind {listen}: {e}"))
+                    ObjectError::device(format!("data plane: cannot bind {listen}"), e)
                 })?;
                 // Real times and kernel receive stamps on real time; the tick's on a
                 // simulated clock, so that simulated runs stay reproducible.
@@ -188,7 +189,7 @@ impl Registry {
                     time,
                     faults.as_ref().map(|(f, seed)| (f, *seed)),
                 )
-                .map_err(|e| WireError::BadConfig {
+                .map_err(|e| ObjectError::BadConfig {
                     kind: kind.into(),
                     message: format!("`faults`: {e}"),
                 })?

@@ -1,11 +1,12 @@
 //! Trajectories from their specifications: for a robot, or standalone (for `reference`).
 
+use crate::objects::error::ObjectError;
 use crate::objects::kinds;
 use crate::objects::registry::{GoalConfig, TrajectorySpec, not_ready};
 use crate::objects::runtime::NodeTrajectory;
 use penelope_drivers::model::{self as models, DhRobotModel};
 use penelope_hal::{JointVector, Kinematics, MAX_JOINTS, NamedPose};
-use penelope_protocol::proto::{WireError, joints_to_vector};
+use penelope_protocol::proto::joints_to_vector;
 use penelope_rt_core::trajectory::{
     CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
 };
@@ -14,12 +15,12 @@ pub(super) fn goal_vector(
     g: &GoalConfig,
     model: &DhRobotModel,
     kind: &str,
-) -> Result<JointVector, WireError> {
+) -> Result<JointVector, ObjectError> {
     match g {
         GoalConfig::Pose(p) => Ok(model.named_pose(*p)),
-        GoalConfig::Tool { .. } => Err(WireError::Internal("a tool goal in joint space".into())),
+        GoalConfig::Tool { .. } => Err(ObjectError::internal("a tool goal in joint space")),
         GoalConfig::Joints(q) => {
-            joints_to_vector(q, model.joint_count()).map_err(|_| WireError::BadConfig {
+            joints_to_vector(q, model.joint_count()).map_err(|_| ObjectError::BadConfig {
                 kind: kind.into(),
                 message: format!(
                     "goal has {} values, the robot has {} joints",
@@ -49,7 +50,7 @@ pub(super) fn spec_joints(spec: &TrajectorySpec) -> usize {
 pub(super) fn build_standalone(
     spec: &TrajectorySpec,
     kind: &str,
-) -> Result<NodeTrajectory, WireError> {
+) -> Result<NodeTrajectory, ObjectError> {
     // A named pose, or a tool goal whose orientation is the robot's start pose's.
     let uses_pose = |g: &GoalConfig| {
         matches!(
@@ -132,7 +133,7 @@ pub(super) fn spec_is_tool(spec: &TrajectorySpec) -> bool {
 
 /// The goal `g` for `model`: joints for a joint or named-pose goal, a tool pose for a tool goal
 /// (its orientation, when not given, that of the robot's `start` pose).
-fn goal_for(g: &GoalConfig, model: &DhRobotModel, kind: &str) -> Result<Goal, WireError> {
+fn goal_for(g: &GoalConfig, model: &DhRobotModel, kind: &str) -> Result<Goal, ObjectError> {
     match g {
         GoalConfig::Tool { position, rpy_deg } => {
             let rotation = match rpy_deg {
@@ -156,9 +157,9 @@ pub(super) fn build_trajectory(
     spec: &TrajectorySpec,
     model: &DhRobotModel,
     kind: &str,
-) -> Result<NodeTrajectory, WireError> {
+) -> Result<NodeTrajectory, ObjectError> {
     let n = model.joint_count();
-    let cfg_err = |e: penelope_rt_core::trajectory::TrajectoryConfigError| WireError::BadConfig {
+    let cfg_err = |e: penelope_rt_core::trajectory::TrajectoryConfigError| ObjectError::BadConfig {
         kind: kind.into(),
         message: e.to_string(),
     };

@@ -1,6 +1,7 @@
 //! The trajectories a node runs and the communication task that publishes their references.
 
 use super::{GOTO_CAPACITY, SPLINE_CAPACITY};
+use crate::objects::error::ObjectError;
 use crate::objects::reference::ReferenceOut;
 use crate::objects::runtime::RobotKinematics;
 use crate::objects::teleop::TeleopComm;
@@ -8,7 +9,6 @@ use penelope_hal::{
     Frame, InverseKinematics, JacobianFrame, JointReference, JointSet, JointVector, Kinematics,
     MAX_JOINTS, Reference, Timestamp, Trajectory, TrajectoryError, Twist,
 };
-use penelope_protocol::proto::WireError;
 use penelope_rt_core::cell::{ArcLatestReader, Stamped};
 use penelope_rt_core::ring::ArcConsumer;
 use penelope_rt_core::telemetry::TelemetrySample;
@@ -58,8 +58,8 @@ impl NodeTrajectory {
     /// A GoTo motion to `goal` lasting `duration`.
     ///
     /// # Errors
-    /// [`WireError::BadArgument`] for a non-finite goal or a zero duration.
-    pub fn go_to(goal: JointVector, duration: Duration) -> Result<Self, WireError> {
+    /// [`ObjectError::BadArgument`] for a non-finite goal or a zero duration.
+    pub fn go_to(goal: JointVector, duration: Duration) -> Result<Self, ObjectError> {
         CubicSpline::<1>::new(
             &[Waypoint {
                 at: duration,
@@ -68,7 +68,7 @@ impl NodeTrajectory {
             SplineEnds::Clamped,
         )
         .map(NodeTrajectory::GoTo)
-        .map_err(|e| WireError::BadArgument(format!("go-to motion: {e}")))
+        .map_err(|e| ObjectError::BadArgument(format!("go-to motion: {e}")))
     }
 }
 
@@ -310,18 +310,18 @@ impl CommTask {
     /// group's joints from its own trajectory), for a `controller/joint-groups` loop.
     ///
     /// # Errors
-    /// [`WireError::BadArgument`] for more than [`MAX_JOINTS`] groups.
+    /// [`ObjectError::BadArgument`] for more than [`MAX_JOINTS`] groups.
     pub fn groups(
         feeds: Vec<(JointSet, TrajectoryFeed)>,
         writer: ReferenceOut,
         state: ArcLatestReader<TelemetrySample>,
         goto: ArcConsumer<GoToCommand, GOTO_CAPACITY>,
         model: RobotKinematics,
-    ) -> Result<Self, WireError> {
+    ) -> Result<Self, ObjectError> {
         let mut set = heapless::Vec::new();
         for feed in feeds {
             set.push(feed)
-                .map_err(|_| WireError::BadArgument(format!("more than {MAX_JOINTS} groups")))?;
+                .map_err(|_| ObjectError::BadArgument(format!("more than {MAX_JOINTS} groups")))?;
         }
         let source = ReferenceSource::Groups(Box::new(set));
         Ok(CommTask::with_source(

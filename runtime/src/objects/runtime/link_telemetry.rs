@@ -11,8 +11,9 @@ use std::sync::mpsc::{RecvTimeoutError, SyncSender};
 use std::thread::JoinHandle;
 
 use crate::objects::Subscriptions;
+use crate::objects::error::ObjectError;
 use crate::objects::link_source::LinkSource;
-use penelope_protocol::proto::{LinkBatch, ServerMsg, WireError};
+use penelope_protocol::proto::{LinkBatch, ServerMsg};
 use penelope_protocol::service::Outbox;
 use penelope_rt_core::clock::MonotonicClock;
 use std::sync::{Arc, Mutex};
@@ -78,12 +79,12 @@ impl LinkSubscriptions {
         source: LinkSource,
         decimation: u32,
         outbox: Outbox,
-    ) -> Result<(), WireError> {
+    ) -> Result<(), ObjectError> {
         let every = LINK_PERIOD.saturating_mul(decimation.max(1));
         let mut list = self
             .list
             .lock()
-            .map_err(|_| WireError::Internal("link subscriptions poisoned".into()))?;
+            .map_err(|_| ObjectError::Poisoned("link subscriptions"))?;
         list.push(LinkSubscription {
             id,
             session,

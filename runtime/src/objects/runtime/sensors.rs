@@ -2,11 +2,11 @@
 //! sensor feed.
 
 use crate::dataplane::sensor_stream::{Probe, SensorSubscriber};
+use crate::objects::error::ObjectError;
 use crate::objects::runtime::RobotKinematics;
 use nalgebra::Vector3;
 use penelope_drivers::sim::environment::Environment;
 use penelope_hal::{Frame, JacobianFrame, Kinematics, Pose, Timestamp, Twist, Wrench};
-use penelope_protocol::proto::WireError;
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Stamped};
 use penelope_rt_core::clock::MonotonicClock;
 use penelope_rt_core::telemetry::TelemetrySample;
@@ -85,13 +85,13 @@ impl SensorSource {
     /// since the last call (`None`: nothing new).
     ///
     /// # Errors
-    /// [`WireError::Internal`] for a local sensor whose state is poisoned.
+    /// [`ObjectError::Internal`] for a local sensor whose state is poisoned.
     pub fn measure(
         &mut self,
         pose: &Pose,
         velocity: Vector3<f64>,
         now_ns: i64,
-    ) -> Result<Option<Wrench>, WireError> {
+    ) -> Result<Option<Wrench>, ObjectError> {
         match self {
             SensorSource::Stream(subscriber) => {
                 let probe = Probe {
@@ -103,7 +103,7 @@ impl SensorSource {
             SensorSource::Local(s) => {
                 let mut s = s
                     .lock()
-                    .map_err(|_| WireError::Internal("sensor state poisoned".into()))?;
+                    .map_err(|_| ObjectError::Poisoned("sensor state"))?;
                 Ok(Some(s.measure(pose, velocity)))
             }
         }

@@ -1,12 +1,13 @@
 //! Telemetry: the pump and the subscriptions (of controllers here; of channels' links in
 //! `link_telemetry`).
 
+use crate::objects::error::ObjectError;
 use crate::objects::link_source::LinkSource;
 use crate::objects::runtime::{LinkSubscriptions, TELEMETRY_CAPACITY};
 use crate::objects::tick::{TickRecord, TickStream};
 use penelope_hal::JointVector;
 use penelope_protocol::proto::{
-    ServerMsg, TelemetryBatch, TelemetryRecord, WireError, WrenchMsg, joints_from_vector,
+    ServerMsg, TelemetryBatch, TelemetryRecord, WrenchMsg, joints_from_vector,
 };
 use penelope_protocol::service::Outbox;
 use penelope_rt_core::ring::ArcConsumer;
@@ -99,7 +100,7 @@ impl Subscriptions {
     /// id.
     ///
     /// # Errors
-    /// [`WireError::LimitReached`].
+    /// [`ObjectError::LimitReached`].
     pub fn add(
         &self,
         session: u64,
@@ -107,15 +108,15 @@ impl Subscriptions {
         decimation: u32,
         outbox: Outbox,
         limit: u32,
-    ) -> Result<u64, WireError> {
+    ) -> Result<u64, ObjectError> {
         let mut list = self
             .list
             .lock()
-            .map_err(|_| WireError::Internal("subscriptions poisoned".into()))?;
+            .map_err(|_| ObjectError::Poisoned("subscriptions"))?;
         list.retain(|s| !s.outbox.is_closed());
         self.links.retain_open();
         if list.len() + self.links.len() >= limit as usize {
-            return Err(WireError::LimitReached {
+            return Err(ObjectError::LimitReached {
                 what: "subscriptions".into(),
                 limit,
             });
@@ -136,7 +137,7 @@ impl Subscriptions {
     /// all), returning its id: a record every [`LINK_PERIOD`](crate::objects::runtime::LINK_PERIOD) times `decimation`.
     ///
     /// # Errors
-    /// [`WireError::LimitReached`].
+    /// [`ObjectError::LimitReached`].
     pub fn add_link(
         &self,
         session: u64,
@@ -145,16 +146,16 @@ impl Subscriptions {
         decimation: u32,
         outbox: Outbox,
         limit: u32,
-    ) -> Result<u64, WireError> {
+    ) -> Result<u64, ObjectError> {
         // The controllers' list is held while counting, so two adds cannot both pass the limit.
         let mut list = self
             .list
             .lock()
-            .map_err(|_| WireError::Internal("subscriptions poisoned".into()))?;
+            .map_err(|_| ObjectError::Poisoned("subscriptions"))?;
         list.retain(|s| !s.outbox.is_closed());
         self.links.retain_open();
         if list.len() + self.links.len() >= limit as usize {
-            return Err(WireError::LimitReached {
+            return Err(ObjectError::LimitReached {
                 what: "subscriptions".into(),
                 limit,
             });
@@ -191,18 +192,18 @@ impl Subscriptions {
     /// limit is checked by the add).
     ///
     /// # Errors
-    /// [`WireError::LimitReached`] at the quota.
+    /// [`ObjectError::LimitReached`] at the quota.
     pub fn check_peer_quota(
         &self,
         session: u64,
         peer: std::net::IpAddr,
         quota: u32,
-    ) -> Result<(), WireError> {
+    ) -> Result<(), ObjectError> {
         let same: Vec<u64> = {
             let mut peers = self
                 .peers
                 .lock()
-                .map_err(|_| WireError::Internal("subscriptions poisoned".into()))?;
+                .map_err(|_| ObjectError::Poisoned("subscriptions"))?;
             peers.insert(session, peer);
             peers
                 .iter()
@@ -221,8 +222,8 @@ impl Subscriptions {
             .unwrap_or(0)
             + self.links.count_of(|s| same.contains(&s));
         if held >= quota as usize {
-            return Err(WireError::LimitReached {
-                what: format!("subscriptions of one address ({peer})"),
+            return Err(ObjectError::LimitReached {
+                what: format!("subscriptions of one address ({peer})").into(),
                 limit: quota,
             });
         }

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, bail};
 use penelope_protocol::net::conn::{ClientConfig, Connection};
 use penelope_protocol::net::server::{Server, ServerConfig};
-use penelope_protocol::proto::{Call, Reply, WireError};
+use penelope_protocol::proto::{Call, CallError, Reply, WireError};
 use penelope_protocol::service::{Service, Session};
 use socket2::{Domain, Protocol, SockAddr, Socket, Type};
 
@@ -87,10 +87,10 @@ impl Service for PingService {
     fn call(&self, _session: &Session, call: Call) -> Result<Reply, WireError> {
         match call {
             Call::Ping { payload } => Ok(Reply::Pong(payload)),
-            other => Err(WireError::Unsupported {
+            other => Err(WireError::Call(CallError::Unsupported {
                 kind: "bench/ping".into(),
                 method: format!("{other:?}").chars().take(40).collect(),
-            }),
+            })),
         }
     }
 }
