@@ -6,6 +6,7 @@
 //! file's, a thread's); the text a client reads is made from them only at that boundary.
 
 use std::borrow::Cow;
+use std::path::PathBuf;
 
 use penelope_hal::{LifecycleState, Transition};
 use penelope_protocol::proto::{CallError, Class, WireError};
@@ -77,7 +78,7 @@ pub enum ObjectError {
         kind: String,
         /// Why its recording cannot be played.
         #[source]
-        source: super::replay::ReplayError,
+        source: ReplayError,
     },
     /// A robot cannot be on its `board/fpga` (not the FRHC, or its chain split between boards).
     #[error("bad configuration for `board/fpga`: {0}")]
@@ -250,5 +251,80 @@ impl From<ObjectError> for WireError {
             ObjectError::Internal(what) => CallError::Internal(what.into_owned()),
             ObjectError::RemoteAnswer(why) => CallError::Remote(why),
         })
+    }
+}
+
+/// Why a recording cannot be replayed.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    /// No file at the path.
+    #[error("{path}: no such recording")]
+    MissingFile {
+        /// The path.
+        path: PathBuf,
+    },
+    /// The file is not a readable recording.
+    #[error(transparent)]
+    Unreadable(#[from] super::recording::RecordingError),
+    /// The recording has no such channel.
+    #[error("{path}: no channel {topic} (it has: {available})")]
+    MissingTopic {
+        /// The file.
+        path: PathBuf,
+        /// The channel asked for.
+        topic: String,
+        /// The controller channels it has, comma-separated.
+        available: String,
+    },
+    /// The channel has no ticks.
+    #[error("{path}: channel {topic} holds no ticks")]
+    Empty {
+        /// The file.
+        path: PathBuf,
+        /// The channel.
+        topic: String,
+    },
+    /// A tick has no plant truth (a real board's recording): no motion to replay.
+    #[error("{path}: tick {seq} of {topic} has no plant truth (recorded on a real board?)")]
+    NoTruth {
+        /// The file.
+        path: PathBuf,
+        /// The channel.
+        topic: String,
+        /// The tick's sequence number.
+        seq: u64,
+    },
+    /// A value to replay is NaN or infinite.
+    #[error("{path}: tick {seq} of {topic} has a NaN or infinite {field}")]
+    NonFinite {
+        /// The file.
+        path: PathBuf,
+        /// The channel.
+        topic: String,
+        /// The tick's sequence number.
+        seq: u64,
+        /// The field.
+        field: String,
+    },
+    /// Ticks out of time order.
+    #[error("{path}: tick {seq} of {topic} is earlier than the tick before it")]
+    OutOfOrder {
+        /// The file.
+        path: PathBuf,
+        /// The channel.
+        topic: String,
+        /// The tick's sequence number.
+        seq: u64,
+    },
+}
+
+impl ReplayError {
+    /// The error as the creator reports it: the configuration of `kind` refused, for this
+    /// reason.
+    pub fn for_kind(self, kind: &str) -> ObjectError {
+        ObjectError::Replay {
+            kind: kind.into(),
+            source: self,
+        }
     }
 }

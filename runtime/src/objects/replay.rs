@@ -28,7 +28,7 @@
 //! A recorded tick whose sample raised `sensor-error` replays as a sensor error, so that a
 //! replay meets what the recording met.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
@@ -37,9 +37,9 @@ use penelope_hal::{Error, ErrorKind, ForceSensor, Pose, Sensor, Timestamp, Wrenc
 use penelope_rt_core::safety::SafetyEvent;
 use serde::{Deserialize, Serialize};
 
-use crate::objects::error::ObjectError;
+use crate::objects::error::{ObjectError, ReplayError};
 use crate::objects::recording::mcap_log::CONTROLLER_TOPIC;
-use crate::objects::recording::{RecordingError, read_recording};
+use crate::objects::recording::read_recording;
 use crate::objects::tick::TickRecord;
 
 /// `sensor/replay`'s configuration: a force sensor that plays back a recorded wrench stream
@@ -188,81 +188,6 @@ impl OperatorReplayConfig {
             return Err(bad(kind, "`robot` (the master the hand holds) is required"));
         }
         check_file_and_topic(kind, &self.file, &self.topic)
-    }
-}
-
-/// Why a recording cannot be replayed.
-#[derive(Debug, thiserror::Error)]
-pub enum ReplayError {
-    /// No file at the path.
-    #[error("{path}: no such recording")]
-    MissingFile {
-        /// The path.
-        path: PathBuf,
-    },
-    /// The file is not a readable recording.
-    #[error(transparent)]
-    Unreadable(#[from] RecordingError),
-    /// The recording has no such channel.
-    #[error("{path}: no channel {topic} (it has: {available})")]
-    MissingTopic {
-        /// The file.
-        path: PathBuf,
-        /// The channel asked for.
-        topic: String,
-        /// The controller channels it has, comma-separated.
-        available: String,
-    },
-    /// The channel has no ticks.
-    #[error("{path}: channel {topic} holds no ticks")]
-    Empty {
-        /// The file.
-        path: PathBuf,
-        /// The channel.
-        topic: String,
-    },
-    /// A tick has no plant truth (a real board's recording): no motion to replay.
-    #[error("{path}: tick {seq} of {topic} has no plant truth (recorded on a real board?)")]
-    NoTruth {
-        /// The file.
-        path: PathBuf,
-        /// The channel.
-        topic: String,
-        /// The tick's sequence number.
-        seq: u64,
-    },
-    /// A value to replay is NaN or infinite.
-    #[error("{path}: tick {seq} of {topic} has a NaN or infinite {field}")]
-    NonFinite {
-        /// The file.
-        path: PathBuf,
-        /// The channel.
-        topic: String,
-        /// The tick's sequence number.
-        seq: u64,
-        /// The field.
-        field: String,
-    },
-    /// Ticks out of time order.
-    #[error("{path}: tick {seq} of {topic} is earlier than the tick before it")]
-    OutOfOrder {
-        /// The file.
-        path: PathBuf,
-        /// The channel.
-        topic: String,
-        /// The tick's sequence number.
-        seq: u64,
-    },
-}
-
-impl ReplayError {
-    /// The error as the creator reports it: the configuration of `kind` refused, for this
-    /// reason.
-    pub fn for_kind(self, kind: &str) -> ObjectError {
-        ObjectError::Replay {
-            kind: kind.into(),
-            source: self,
-        }
     }
 }
 
