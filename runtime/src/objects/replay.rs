@@ -484,6 +484,7 @@ impl ForceSensor for ReplaySensor {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::objects::recording::RecordingError;
     use penelope_hal::Frame;
 
     fn reading(ms: u64, fx: f64) -> ReplayedWrench {
