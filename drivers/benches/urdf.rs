@@ -9,13 +9,13 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use penelope_drivers::model::{self, DhRobotModel, UrdfChain};
+use penelope_drivers::model::{self, SerialRobotModel, UrdfChain};
 use penelope_hal::{Dynamics, JacobianFrame, JointVector, Kinematics};
 
 fn calls(
     g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
     side: &str,
-    m: &DhRobotModel,
+    m: &SerialRobotModel,
 ) {
     // The generic configuration of the kinematics bench.
     let q = JointVector::from_column_slice(&[0.3, -0.4, 0.7, -1.1, 0.9, 0.5]);

@@ -10,8 +10,8 @@ use penelope_drivers::galil::client::parse_tell_code;
 use penelope_drivers::galil::emulator::{Dmc, DmcConfig};
 use penelope_drivers::galil::number::parse_numbers;
 use penelope_drivers::galil::{
-    Axes, Client, ClientConfig, DataRecord, Frame, Framer, GalilError, Identity, Link,
-    RecordLayout, Tell, UnsolicitedMode,
+    Axes, Client, ClientConfig, DataRecord, Framer, GalilError, Identity, Link, RecordLayout,
+    ReplyFrame, Tell, UnsolicitedMode,
 };
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -68,7 +68,7 @@ fn reply_parser_never_panics_nor_desyncs() {
         }
         for &b in &bytes {
             match f.feed(b) {
-                Some(Frame::Accepted | Frame::Rejected) => {
+                Some(ReplyFrame::Accepted | ReplyFrame::Rejected) => {
                     let p = f.payload();
                     let mut out = [0.0; 8];
                     let _ = parse_numbers(p, &mut out);
@@ -76,7 +76,7 @@ fn reply_parser_never_panics_nor_desyncs() {
                     let _ = Identity::parse(p);
                     let _ = parse_tell_code(p);
                 }
-                Some(Frame::Record) => {
+                Some(ReplyFrame::Record) => {
                     let _ = DataRecord::decode(f.record(), &layout);
                 }
                 _ => {}
@@ -90,7 +90,7 @@ fn reply_parser_never_panics_nor_desyncs() {
                 last = Some(fr);
             }
         }
-        assert_eq!(last, Some(Frame::Accepted), "seed {seed}");
+        assert_eq!(last, Some(ReplyFrame::Accepted), "seed {seed}");
         assert_eq!(f.payload(), b" 5, 6\r\n", "seed {seed}");
         // Arbitrary bytes as a record are refused, never a panic.
         let _ = DataRecord::decode(&bytes, &layout);

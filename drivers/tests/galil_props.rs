@@ -2,7 +2,7 @@
 
 use penelope_drivers::galil::command::{Command, Setting, encode_line};
 use penelope_drivers::galil::number::{parse_number, parse_numbers};
-use penelope_drivers::galil::{Frame, Framer, UnsolicitedMode};
+use penelope_drivers::galil::{Framer, ReplyFrame, UnsolicitedMode};
 use proptest::prelude::*;
 
 /// A stream of well-formed replies: acknowledgements, data, rejections.
@@ -23,12 +23,12 @@ fn reply() -> impl Strategy<Value = Vec<u8>> {
     ]
 }
 
-fn frames(f: &mut Framer, bytes: &[u8]) -> Vec<(Frame, Vec<u8>)> {
+fn frames(f: &mut Framer, bytes: &[u8]) -> Vec<(ReplyFrame, Vec<u8>)> {
     let mut out = Vec::new();
     for &b in bytes {
         if let Some(frame) = f.feed(b) {
             let payload = match frame {
-                Frame::Accepted | Frame::Rejected => f.payload().to_vec(),
+                ReplyFrame::Accepted | ReplyFrame::Rejected => f.payload().to_vec(),
                 _ => Vec::new(),
             };
             out.push((frame, payload));
@@ -58,7 +58,7 @@ proptest! {
         let mut f = Framer::new(UnsolicitedMode::Marked);
         let got: Vec<_> = frames(&mut f, &noisy)
             .into_iter()
-            .filter(|(fr, _)| !matches!(fr, Frame::Unsolicited(_)))
+            .filter(|(fr, _)| !matches!(fr, ReplyFrame::Unsolicited(_)))
             .collect();
         prop_assert_eq!(got, expected);
     }
@@ -72,7 +72,7 @@ proptest! {
         }
         let _ = f.feed(b':');
         let got = frames(&mut f, b" 42, -7\r\n:");
-        prop_assert_eq!(got, vec![(Frame::Accepted, b" 42, -7\r\n".to_vec())]);
+        prop_assert_eq!(got, vec![(ReplyFrame::Accepted, b" 42, -7\r\n".to_vec())]);
     }
 
     /// The number parser never panics and accepts exactly Galil's formats.

@@ -4,7 +4,7 @@
 //! skew-symmetry of `Mdot - 2C` (energy conservation) for the velocity terms.
 
 use nalgebra::Vector3;
-use penelope_drivers::model::{self, DhRobotModel};
+use penelope_drivers::model::{self, SerialRobotModel};
 use penelope_hal::{Dynamics, JointVector, Kinematics, RobotModel};
 use proptest::prelude::*;
 
@@ -72,11 +72,11 @@ start = [0.0, 45.0, 0.5, 0.0, 30.0, 0.0]
 work = [20.0, 60.0, 0.6, 10.0, 40.0, 20.0]
 "#;
 
-fn stanford() -> DhRobotModel {
+fn stanford() -> SerialRobotModel {
     model::from_toml_str(STANFORD).unwrap()
 }
 
-fn models() -> Vec<DhRobotModel> {
+fn models() -> Vec<SerialRobotModel> {
     vec![
         model::puma560(),
         model::puma200(),
@@ -85,7 +85,7 @@ fn models() -> Vec<DhRobotModel> {
     ]
 }
 
-fn config(m: &DhRobotModel, u: &[f64; 6]) -> JointVector {
+fn config(m: &SerialRobotModel, u: &[f64; 6]) -> JointVector {
     let l = m.limits();
     let mut q = JointVector::zeros();
     for j in 0..m.joint_count() {

@@ -145,7 +145,7 @@ fn a_spec_with_mismatched_lists_is_rejected() {
     let mut spec = model::RobotFile::parse(SMALL).unwrap().to_spec().unwrap();
     spec.dynamics.pop();
     assert!(matches!(
-        model::DhRobotModel::new("dh", spec),
+        model::SerialRobotModel::new("dh", spec),
         Err(ModelError::Length {
             what: "dynamics",
             expected: 2,

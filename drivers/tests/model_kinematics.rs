@@ -3,7 +3,7 @@
 //! continuity, and the numerical solver on chains without a closed form.
 
 use nalgebra::{Matrix3, Vector3};
-use penelope_drivers::model::{self, DhRobotModel};
+use penelope_drivers::model::{self, SerialRobotModel};
 use penelope_hal::{
     IkSolutions, InverseKinematics, JacobianFrame, JointVector, Kinematics, KinematicsError,
     NamedPose, Pose, RobotModel,
@@ -81,7 +81,7 @@ start = [0.0, 45.0, 0.5, 0.0, 30.0, 0.0]
 work = [20.0, 60.0, 0.6, 10.0, 40.0, 20.0]
 "#;
 
-fn models() -> Vec<DhRobotModel> {
+fn models() -> Vec<SerialRobotModel> {
     vec![
         model::puma560(),
         model::puma200(),
@@ -92,7 +92,7 @@ fn models() -> Vec<DhRobotModel> {
 }
 
 /// A configuration inside the limits from unit fractions.
-fn config_in_limits(m: &DhRobotModel, u: &[f64; 6]) -> JointVector {
+fn config_in_limits(m: &SerialRobotModel, u: &[f64; 6]) -> JointVector {
     let l = m.limits();
     let mut q = JointVector::zeros();
     for j in 0..m.joint_count() {
@@ -117,7 +117,7 @@ fn skew_vector(m: &Matrix3<f64>) -> Vector3<f64> {
 }
 
 /// The Jacobian by central differences of `forward`, rows [v; w] in the world frame.
-fn numeric_jacobian(m: &DhRobotModel, q: &JointVector) -> nalgebra::SMatrix<f64, 6, 6> {
+fn numeric_jacobian(m: &SerialRobotModel, q: &JointVector) -> nalgebra::SMatrix<f64, 6, 6> {
     let h = 1e-6;
     let mut jac = nalgebra::SMatrix::<f64, 6, 6>::zeros();
     let r0 = m.forward(q).rotation.to_rotation_matrix().into_inner();
@@ -393,7 +393,7 @@ fn the_pedestal_is_a_parameter() {
     assert!(model::puma560_with_pedestal(f64::NAN).is_err());
 }
 
-fn puma_branch_reaches(m: &DhRobotModel, target: &Pose, sols: &IkSolutions) -> bool {
+fn puma_branch_reaches(m: &SerialRobotModel, target: &Pose, sols: &IkSolutions) -> bool {
     sols.iter()
         .all(|s| pose_distance(&m.forward(&s.q), target) < 1e-9)
 }

@@ -4,14 +4,14 @@
 //! message that names the element.
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
-use penelope_drivers::model::{self, DhRobotModel, UrdfChain, UrdfError, urdf};
+use penelope_drivers::model::{self, SerialRobotModel, UrdfChain, UrdfError, urdf};
 use penelope_hal::{Dynamics, JacobianFrame, JointVector, Kinematics, RobotModel};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 const SCARA: &str = include_str!("../robots/scara.urdf");
 
-fn scara() -> DhRobotModel {
+fn scara() -> SerialRobotModel {
     urdf::model_from_str(SCARA, &UrdfChain::to_tip("tool")).unwrap()
 }
 

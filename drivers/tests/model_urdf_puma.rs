@@ -16,7 +16,7 @@
 //! link.
 
 use nalgebra::{Rotation3, Vector3};
-use penelope_drivers::model::{self, ChainJoint, DhRobotModel, RobotFile, UrdfChain};
+use penelope_drivers::model::{self, ChainJoint, RobotFile, SerialRobotModel, UrdfChain};
 use penelope_hal::{Dynamics, JacobianFrame, JointVector, Kinematics, RobotModel};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -39,7 +39,7 @@ fn triple(v: [f64; 3]) -> String {
 }
 
 /// The URDF of a DH model with zero joint offsets, revolute joints and an identity base.
-fn puma560_urdf(m: &DhRobotModel) -> String {
+fn puma560_urdf(m: &SerialRobotModel) -> String {
     let chain = m.chain();
     let n = chain.joint_count();
     let mut out = String::new();
@@ -137,12 +137,12 @@ fn the_committed_urdf_is_the_generated_one() {
     );
 }
 
-fn urdf_puma() -> DhRobotModel {
+fn urdf_puma() -> SerialRobotModel {
     model::urdf::model_from_str(COMMITTED, &UrdfChain::whole()).unwrap()
 }
 
 /// The DH model without rotor inertia (URDF has none).
-fn dh_puma_without_rotors() -> DhRobotModel {
+fn dh_puma_without_rotors() -> SerialRobotModel {
     let mut spec = RobotFile::parse(model::PUMA560_TOML)
         .unwrap()
         .to_spec()
@@ -150,7 +150,7 @@ fn dh_puma_without_rotors() -> DhRobotModel {
     for d in &mut spec.dynamics {
         d.motor_inertia = 0.0;
     }
-    DhRobotModel::new("puma560", spec).unwrap()
+    SerialRobotModel::new("puma560", spec).unwrap()
 }
 
 fn configurations(count: usize) -> Vec<JointVector> {

@@ -325,7 +325,7 @@ fn injected_faults_become_typed_errors_and_clear() {
 }
 
 mod decoder_props {
-    use penelope_drivers::netft::{Record, Request, WireError};
+    use penelope_drivers::netft::{RdtError, Record, Request};
     use proptest::prelude::*;
 
     proptest! {
@@ -335,7 +335,7 @@ mod decoder_props {
         fn any_datagram_is_a_record_or_a_typed_error(bytes in proptest::collection::vec(any::<u8>(), 0..80)) {
             match Record::decode(&bytes) {
                 Ok(r) => prop_assert_eq!(r.encode().to_vec(), bytes.clone()),
-                Err(WireError::Length { got, expected }) => {
+                Err(RdtError::Length { got, expected }) => {
                     prop_assert_eq!(got, bytes.len());
                     prop_assert_ne!(got, expected);
                 }

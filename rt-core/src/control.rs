@@ -57,7 +57,8 @@ use crate::cell::{Fresh, LatestCell, LatestReader, Stamped};
 use crate::controller::ControllerSet;
 use crate::ring::{Consumer, Ring};
 use crate::safety::{
-    Action, EventSet, FaultAction, FaultCause, HoldMode, Role, Safety, SafetyEvent, SafetyState,
+    Action, EventSet, FaultAction, FaultCause, HoldMode, Safety, SafetyEvent, SafetyState,
+    TeleopRole,
 };
 use crate::telemetry::{ReferenceKind, TelemetrySample, TelemetrySink};
 
@@ -479,7 +480,7 @@ where
                 None => break,
             }
         }
-        if self.config.safety.role == Role::Slave && self.hold_with_board_servo(now) {
+        if self.config.safety.role == TeleopRole::Slave && self.hold_with_board_servo(now) {
             return;
         }
         self.write(now, None);

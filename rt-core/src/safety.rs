@@ -37,7 +37,7 @@ use penelope_hal::{
 
 /// Which side of a teleoperation pair a robot is on: it decides what a stale reference does.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Role {
+pub enum TeleopRole {
     /// The operator's hand controller: a stale reference means zero force.
     Master,
     /// The remote arm: a stale reference means hold position.
@@ -73,7 +73,7 @@ pub enum FaultAction {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SafetyConfig {
     /// Master or slave.
-    pub role: Role,
+    pub role: TeleopRole,
     /// Joints in use (1 to [`MAX_JOINTS`]); entries past it are ignored and commanded zero.
     pub joint_count: usize,
     /// Position, velocity and torque limits. Measured positions or speeds outside them fault;
@@ -98,7 +98,7 @@ impl SafetyConfig {
     /// hold on fault. Force limits are not applied to a slave.
     pub fn slave(joint_count: usize, limits: JointLimits) -> Self {
         SafetyConfig {
-            role: Role::Slave,
+            role: TeleopRole::Slave,
             joint_count,
             limits,
             watchdog: Duration::from_millis(50),
@@ -114,7 +114,7 @@ impl SafetyConfig {
     /// 500 ms more, amplifiers off on fault.
     pub fn master(joint_count: usize, limits: JointLimits) -> Self {
         SafetyConfig {
-            role: Role::Master,
+            role: TeleopRole::Master,
             max_force: 10.0,
             max_moment: 0.5,
             fault_action: FaultAction::Off,
@@ -642,8 +642,8 @@ impl Safety {
             SafetyState::Inactive | SafetyState::EStop => Action::Off,
             SafetyState::Running => Action::Run,
             SafetyState::Holding => match self.config.role {
-                Role::Slave => Action::Hold(self.hold_at),
-                Role::Master => Action::ZeroForce,
+                TeleopRole::Slave => Action::Hold(self.hold_at),
+                TeleopRole::Master => Action::ZeroForce,
             },
             SafetyState::Fault => match self.config.fault_action {
                 FaultAction::Hold => Action::Hold(self.hold_at),
@@ -707,7 +707,7 @@ impl Safety {
 
     /// Caps a master's reference wrench at the force limits (slaves: unchanged).
     pub fn limit_reference(&mut self, reference: Reference) -> Reference {
-        if self.config.role != Role::Master {
+        if self.config.role != TeleopRole::Master {
             return reference;
         }
         match reference {

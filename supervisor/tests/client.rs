@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use nalgebra::{Matrix3, Vector3};
-use penelope_drivers::model::{self, DhRobotModel};
+use penelope_drivers::model::{self, SerialRobotModel};
 use penelope_hal::{
     Dynamics, Frame, JacobianFrame, JointVector, Kinematics, LifecycleState, NamedPose, Pose,
     Reference, RobotModel, Wrench,
@@ -152,7 +152,7 @@ fn pose_close(a: &Pose, b: &Pose, tol: f64) -> bool {
 fn a_remote_puma_computes_what_the_local_model_does() {
     let lab = Lab::start();
     let robot = lab.puma();
-    let local: DhRobotModel = model::puma560();
+    let local: SerialRobotModel = model::puma560();
     let n = local.joint_count();
     assert_eq!(robot.joint_count().unwrap(), n);
 

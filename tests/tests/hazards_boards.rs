@@ -19,7 +19,7 @@ use penelope_rt_core::control::{
     ControlCommand, ControlConfig, ControlLoop, ControlPorts, NoCommands,
 };
 use penelope_rt_core::safety::{SafetyConfig, SafetyState};
-use penelope_runtime::objects::runtime::{LoopBoard, LoopBoardError, SimDrive};
+use penelope_runtime::objects::runtime::{JointBoard, JointBoardError, SimDrive};
 use penelope_testkit::wait::wait_until;
 use penelope_tests::fixtures::{ConstantTorque, Discard, HangableThread};
 
@@ -49,13 +49,13 @@ fn body() -> Box<penelope_runtime::objects::runtime::SimBody> {
 /// Runs a torque law on `board` in a thread of its own on the real clock (as a node's control
 /// thread does, with the plant keeper started), makes the thread hang in torque mode, and
 /// returns the wall time from the hang to zero torque.
-fn hang_in_torque_mode(mut board: LoopBoard, what: &str) -> Duration {
+fn hang_in_torque_mode(mut board: JointBoard, what: &str) -> Duration {
     let observer = match &mut board {
-        LoopBoard::Sim(d) | LoopBoard::Fpga(d) => {
+        JointBoard::Sim(d) | JointBoard::Fpga(d) => {
             d.start_keeper();
             d.observer()
         }
-        LoopBoard::Galil(_) => unreachable!("a simulated body"),
+        JointBoard::Galil(_) => unreachable!("a simulated body"),
     };
     let model = puma560();
     let safety = SafetyConfig::slave(6, *model.limits());
@@ -131,7 +131,7 @@ fn hang_in_torque_mode(mut board: LoopBoard, what: &str) -> Duration {
     let mut out = [AxisState::default(); 6];
     assert_eq!(
         ctl.board_mut().read_axes(now, &mut out),
-        Err(LoopBoardError::Sim(SimBoardError::CommandStale))
+        Err(JointBoardError::Sim(SimBoardError::CommandStale))
     );
     // A read or two may be tolerated (`board_read_tolerance`); then the loop faults.
     let faulted = (1..=20).any(|k| {
@@ -140,7 +140,7 @@ fn hang_in_torque_mode(mut board: LoopBoard, what: &str) -> Duration {
     });
     assert!(faulted, "{what}: the loop runs on");
     let (board, ..) = ctl.into_parts();
-    let (LoopBoard::Sim(d) | LoopBoard::Fpga(d)) = board else {
+    let (JointBoard::Sim(d) | JointBoard::Fpga(d)) = board else {
         unreachable!("a simulated body")
     };
     // The keeper is stopped and the body handed back whole, still off (the loop's fault path
@@ -172,12 +172,12 @@ fn check(delay: Duration, what: &str) {
 
 #[test]
 fn a_hung_control_thread_in_torque_mode_leaves_the_simulated_board_with_zero_torque() {
-    let delay = hang_in_torque_mode(LoopBoard::Sim(SimDrive::new(body())), "board/sim");
+    let delay = hang_in_torque_mode(JointBoard::Sim(SimDrive::new(body())), "board/sim");
     check(delay, "board/sim");
 }
 
 #[test]
 fn a_hung_control_thread_in_torque_mode_leaves_the_fpga_board_with_zero_torque() {
-    let delay = hang_in_torque_mode(LoopBoard::Fpga(SimDrive::new(body())), "board/fpga");
+    let delay = hang_in_torque_mode(JointBoard::Fpga(SimDrive::new(body())), "board/fpga");
     check(delay, "board/fpga");
 }

@@ -38,7 +38,7 @@ use penelope_rt_core::exec::{Flow, Tick};
 use penelope_rt_core::safety::SafetyEvent;
 use penelope_rt_core::safety::{FaultCause, HoldMode, SafetyConfig, SafetyState};
 use penelope_runtime::objects::clock::ClockMode;
-use penelope_runtime::objects::runtime::{self, LoopBoard, LoopFault};
+use penelope_runtime::objects::runtime::{self, JointBoard, LoopFault};
 use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::system::SystemFile;
@@ -402,7 +402,7 @@ fn deactivating_a_torque_driven_slave_ends_its_torque_one_period_after_its_last_
     stop.store(true, Ordering::Release);
     assert_eq!(control(tick(k)), Flow::Stop);
     let task = handed_back.try_recv().expect("the task is handed back");
-    let LoopBoard::Sim(drive) = task.into_loop().into_board() else {
+    let JointBoard::Sim(drive) = task.into_loop().into_board() else {
         panic!("a simulated board");
     };
     let board = drive.into_body();

@@ -8,7 +8,7 @@
 use libfuzzer_sys::fuzz_target;
 use penelope_drivers::galil::client::parse_tell_code;
 use penelope_drivers::galil::number::parse_numbers;
-use penelope_drivers::galil::{DataRecord, Frame, Framer, Identity, RecordLayout, UnsolicitedMode};
+use penelope_drivers::galil::{DataRecord, ReplyFrame, Framer, Identity, RecordLayout, UnsolicitedMode};
 
 fuzz_target!(|data: &[u8]| {
     let Some((&mode, bytes)) = data.split_first() else {
@@ -29,7 +29,7 @@ fuzz_target!(|data: &[u8]| {
     }
     for &b in bytes {
         match f.feed(b) {
-            Some(Frame::Accepted | Frame::Rejected) => {
+            Some(ReplyFrame::Accepted | ReplyFrame::Rejected) => {
                 let p = f.payload();
                 let mut out = [0.0; 8];
                 let _ = parse_numbers(p, &mut out);
@@ -37,7 +37,7 @@ fuzz_target!(|data: &[u8]| {
                 let _ = Identity::parse(p);
                 let _ = parse_tell_code(p);
             }
-            Some(Frame::Record) => {
+            Some(ReplyFrame::Record) => {
                 let _ = DataRecord::decode(f.record(), &layout);
             }
             _ => {}
@@ -51,6 +51,6 @@ fuzz_target!(|data: &[u8]| {
             last = Some(fr);
         }
     }
-    assert_eq!(last, Some(Frame::Accepted));
+    assert_eq!(last, Some(ReplyFrame::Accepted));
     assert_eq!(f.payload(), b" 5, 6\r\n");
 });

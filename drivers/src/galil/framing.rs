@@ -26,7 +26,7 @@ const HEADER: usize = 4;
 
 /// What one input byte completed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Frame {
+pub enum ReplyFrame {
     /// A reply ended with `:`; its text is in [`Framer::payload`].
     Accepted,
     /// A reply ended with `?`; any text before it is in [`Framer::payload`].
@@ -129,7 +129,7 @@ impl Framer {
     }
 
     /// Feeds one byte; returns what it completed, if anything.
-    pub fn feed(&mut self, byte: u8) -> Option<Frame> {
+    pub fn feed(&mut self, byte: u8) -> Option<ReplyFrame> {
         match self.state {
             State::Text => self.feed_text(byte),
             State::RecordHeader { expected } => self.feed_header(byte, expected),
@@ -143,27 +143,27 @@ impl Framer {
             }
             State::RecordEnd => {
                 if self.mode == UnsolicitedMode::Marked && byte & 0x80 != 0 {
-                    return Some(Frame::Unsolicited(byte & 0x7F));
+                    return Some(ReplyFrame::Unsolicited(byte & 0x7F));
                 }
                 self.state = State::Text;
                 if byte == b':' {
-                    Some(Frame::Record)
+                    Some(ReplyFrame::Record)
                 } else {
                     // Not the expected terminator: keep the byte as the start of text.
                     self.feed_text(byte);
-                    Some(Frame::BadRecord)
+                    Some(ReplyFrame::BadRecord)
                 }
             }
         }
     }
 
-    fn feed_text(&mut self, byte: u8) -> Option<Frame> {
+    fn feed_text(&mut self, byte: u8) -> Option<ReplyFrame> {
         if self.mode == UnsolicitedMode::Marked && byte & 0x80 != 0 {
-            return Some(Frame::Unsolicited(byte & 0x7F));
+            return Some(ReplyFrame::Unsolicited(byte & 0x7F));
         }
         match byte {
-            b':' => Some(self.finish(Frame::Accepted)),
-            b'?' => Some(self.finish(Frame::Rejected)),
+            b':' => Some(self.finish(ReplyFrame::Accepted)),
+            b'?' => Some(self.finish(ReplyFrame::Rejected)),
             _ => {
                 if self.text.push(byte).is_err() {
                     self.text_overflowed = true;
@@ -173,7 +173,7 @@ impl Framer {
         }
     }
 
-    fn finish(&mut self, frame: Frame) -> Frame {
+    fn finish(&mut self, frame: ReplyFrame) -> ReplyFrame {
         core::mem::swap(&mut self.done, &mut self.text);
         self.text.clear();
         self.done_overflowed = self.text_overflowed;
@@ -182,13 +182,13 @@ impl Framer {
         frame
     }
 
-    fn feed_header(&mut self, byte: u8, expected: usize) -> Option<Frame> {
+    fn feed_header(&mut self, byte: u8, expected: usize) -> Option<ReplyFrame> {
         if self.record.is_empty() {
             // Before any header byte a plain terminator means the board answered in text (a
             // rejection, or an empty acceptance).
             match byte {
-                b'?' => return Some(self.finish(Frame::Rejected)),
-                b':' => return Some(self.finish(Frame::Accepted)),
+                b'?' => return Some(self.finish(ReplyFrame::Rejected)),
+                b':' => return Some(self.finish(ReplyFrame::Accepted)),
                 _ => {}
             }
             if byte & 0x80 == 0 {
@@ -230,7 +230,7 @@ impl Framer {
             }
         }
         if self.mode == UnsolicitedMode::Marked {
-            Some(Frame::Unsolicited(first & 0x7F))
+            Some(ReplyFrame::Unsolicited(first & 0x7F))
         } else {
             None
         }
@@ -241,21 +241,25 @@ impl Framer {
 mod tests {
     use super::*;
 
-    fn run(f: &mut Framer, bytes: &[u8]) -> Vec<Frame> {
+    fn run(f: &mut Framer, bytes: &[u8]) -> Vec<ReplyFrame> {
         bytes.iter().filter_map(|&b| f.feed(b)).collect()
     }
 
     #[test]
     fn acks_data_and_rejections() {
         let mut f = Framer::new(UnsolicitedMode::Marked);
-        assert_eq!(run(&mut f, b":"), vec![Frame::Accepted]);
+        assert_eq!(run(&mut f, b":"), vec![ReplyFrame::Accepted]);
         assert_eq!(f.payload(), b"");
-        assert_eq!(run(&mut f, b" 1, 2\r\n:"), vec![Frame::Accepted]);
+        assert_eq!(run(&mut f, b" 1, 2\r\n:"), vec![ReplyFrame::Accepted]);
         assert_eq!(f.payload(), b" 1, 2\r\n");
-        assert_eq!(run(&mut f, b"?"), vec![Frame::Rejected]);
+        assert_eq!(run(&mut f, b"?"), vec![ReplyFrame::Rejected]);
         assert_eq!(
             run(&mut f, b"::?"),
-            vec![Frame::Accepted, Frame::Accepted, Frame::Rejected]
+            vec![
+                ReplyFrame::Accepted,
+                ReplyFrame::Accepted,
+                ReplyFrame::Rejected
+            ]
         );
     }
 
@@ -266,7 +270,7 @@ mod tests {
         input.extend(b"x:y?\r\n".iter().map(|b| b | 0x80));
         input.extend(b"0\r\n:");
         let frames = run(&mut f, &input);
-        assert_eq!(frames.last(), Some(&Frame::Accepted));
+        assert_eq!(frames.last(), Some(&ReplyFrame::Accepted));
         assert_eq!(frames.len(), 7);
         assert_eq!(f.payload(), b" 10\r\n");
     }
@@ -276,9 +280,9 @@ mod tests {
         let mut f = Framer::new(UnsolicitedMode::Marked);
         let mut input = vec![b'9'; MAX_PAYLOAD + 10];
         input.push(b':');
-        assert_eq!(run(&mut f, &input), vec![Frame::Accepted]);
+        assert_eq!(run(&mut f, &input), vec![ReplyFrame::Accepted]);
         assert!(f.payload_overflowed());
-        assert_eq!(run(&mut f, b"5:"), vec![Frame::Accepted]);
+        assert_eq!(run(&mut f, b"5:"), vec![ReplyFrame::Accepted]);
         assert!(!f.payload_overflowed());
         assert_eq!(f.payload(), b"5");
     }
@@ -294,20 +298,20 @@ mod tests {
         input.push(b':');
         assert_eq!(
             run(&mut f, &input),
-            vec![Frame::Unsolicited(b'M'), Frame::Record]
+            vec![ReplyFrame::Unsolicited(b'M'), ReplyFrame::Record]
         );
         rec.truncate(10);
         assert_eq!(f.record(), &rec[..]);
         // Back in text mode.
-        assert_eq!(run(&mut f, b"1:"), vec![Frame::Accepted]);
+        assert_eq!(run(&mut f, b"1:"), vec![ReplyFrame::Accepted]);
     }
 
     #[test]
     fn rejected_record_request() {
         let mut f = Framer::new(UnsolicitedMode::Marked);
         f.expect_record(None);
-        assert_eq!(run(&mut f, b"?"), vec![Frame::Rejected]);
-        assert_eq!(run(&mut f, b":"), vec![Frame::Accepted]);
+        assert_eq!(run(&mut f, b"?"), vec![ReplyFrame::Rejected]);
+        assert_eq!(run(&mut f, b":"), vec![ReplyFrame::Accepted]);
     }
 
     #[test]
@@ -316,7 +320,7 @@ mod tests {
         // An unsolicited "A:" ends the reply early: exactly the hazard CW1 removes.
         assert_eq!(
             run(&mut f, b"A: 5\r\n:"),
-            vec![Frame::Accepted, Frame::Accepted]
+            vec![ReplyFrame::Accepted, ReplyFrame::Accepted]
         );
         assert_eq!(f.payload(), b" 5\r\n");
     }

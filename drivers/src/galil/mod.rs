@@ -48,9 +48,9 @@ pub use board::{
     BoardFault, DEFAULT_COMMAND_TIMEOUT, DEFAULT_WATCHDOG, GalilBoard, GalilBoardConfig,
     GalilBoardError, TargetMode, axis_bindings,
 };
-pub use client::{AxisValues, BoardInfo, Client, ClientConfig, Identity, LinkStats, Reply};
+pub use client::{AxisValues, BoardInfo, Client, ClientConfig, Identity, Reply, SerialLinkStats};
 pub use command::{Axes, Command, Operand, ReplyKind, Setting, Tell, UnsolicitedMode};
 pub use error::{GalilError, Malformed};
-pub use framing::{Frame, Framer};
+pub use framing::{Framer, ReplyFrame};
 pub use link::{Link, SerialLink, SerialSettings, TcpLink};
 pub use record::{AxisRecord, DataRecord, RecordLayout};

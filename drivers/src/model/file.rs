@@ -57,7 +57,7 @@ use serde::{Deserialize, Serialize};
 use super::chain::ChainJoint;
 use super::dh::DhLink;
 use super::dynamics::LinkDynamics;
-use super::robot::{DhRobotModel, IkMethod, ModelError, ModelSpec};
+use super::robot::{IkMethod, ModelError, ModelSpec, SerialRobotModel};
 
 /// Why a DH file could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -417,20 +417,20 @@ fn link_dynamics(
     })
 }
 
-/// Parses a DH file's text into a model whose [`kind`](DhRobotModel::kind) is `kind`.
+/// Parses a DH file's text into a model whose [`kind`](SerialRobotModel::kind) is `kind`.
 ///
 /// # Errors
 /// [`FileError::Parse`] or [`FileError::Model`].
-pub fn model_from_str(kind: &'static str, text: &str) -> Result<DhRobotModel, FileError> {
+pub fn model_from_str(kind: &'static str, text: &str) -> Result<SerialRobotModel, FileError> {
     let spec = RobotFile::parse(text)?.to_spec()?;
-    Ok(DhRobotModel::new(kind, spec)?)
+    Ok(SerialRobotModel::new(kind, spec)?)
 }
 
 /// Loads a lab's DH file; the model's kind is `"dh"`.
 ///
 /// # Errors
 /// [`FileError`] when the file cannot be read, parsed or turned into a model.
-pub fn model_from_file(path: impl AsRef<Path>) -> Result<DhRobotModel, FileError> {
+pub fn model_from_file(path: impl AsRef<Path>) -> Result<SerialRobotModel, FileError> {
     let path = path.as_ref();
     let text = std::fs::read_to_string(path).map_err(|source| FileError::Io {
         path: path.display().to_string(),

@@ -10,7 +10,7 @@
 //! - [`numeric_ik`]: damped least squares for any chain.
 //! - [`dynamics`]: gravity (holding torque), inertia (composite rigid body), recursive
 //!   Newton-Euler, friction; [`LinkDynamics`] per link.
-//! - [`robot`]: [`DhRobotModel`] (implements the hal `Kinematics`, `InverseKinematics`,
+//! - [`robot`]: [`SerialRobotModel`] (implements the hal `Kinematics`, `InverseKinematics`,
 //!   `Dynamics`, `RobotModel`) and [`DhRobot`] (the hal `Robot`: model + measured state).
 //! - [`file`](mod@file): the TOML DH-file format. The built-in robots are the files in
 //!   `drivers/robots/`, embedded, so they are defined exactly as a lab's file is.
@@ -52,7 +52,7 @@ pub use dh::{DhLink, JointKind};
 pub use dynamics::LinkDynamics;
 pub use file::{FileError, RobotFile};
 pub use numeric_ik::DlsOptions;
-pub use robot::{DhRobot, DhRobotModel, IkMethod, ModelError, ModelSpec};
+pub use robot::{DhRobot, IkMethod, ModelError, ModelSpec, SerialRobotModel};
 pub use urdf::{UrdfChain, UrdfError};
 
 /// The PUMA 560 DH file (the Robotics Toolbox reference model).
@@ -65,7 +65,7 @@ pub const FRHC_TOML: &str = include_str!("../../robots/frhc.toml");
 /// The names [`by_name`] knows.
 pub const BUILT_IN: [&str; 3] = ["puma560", "puma200", "frhc"];
 
-fn built_in(kind: &'static str, text: &str) -> DhRobotModel {
+fn built_in(kind: &'static str, text: &str) -> SerialRobotModel {
     match file::model_from_str(kind, text) {
         Ok(m) => m,
         // The embedded files are checked by this crate's tests; a failure here is a build defect.
@@ -74,7 +74,7 @@ fn built_in(kind: &'static str, text: &str) -> DhRobotModel {
 }
 
 /// The PUMA 560 with its pedestal (d1 = 0.67183 m), as in the Robotics Toolbox 1.5.0.
-pub fn puma560() -> DhRobotModel {
+pub fn puma560() -> SerialRobotModel {
     built_in("puma560", PUMA560_TOML)
 }
 
@@ -83,28 +83,28 @@ pub fn puma560() -> DhRobotModel {
 ///
 /// # Errors
 /// [`ModelError`] for a non-finite `d1`.
-pub fn puma560_with_pedestal(d1: f64) -> Result<DhRobotModel, ModelError> {
+pub fn puma560_with_pedestal(d1: f64) -> Result<SerialRobotModel, ModelError> {
     let mut spec = RobotFile::parse(PUMA560_TOML)
         .map_err(|e| ModelError::Invalid(e.to_string()))?
         .to_spec()?;
     if let Some(ChainJoint::Dh(waist)) = spec.joints.first_mut() {
         waist.d = d1;
     }
-    DhRobotModel::new("puma560", spec)
+    SerialRobotModel::new("puma560", spec)
 }
 
 /// The PUMA 200 (public PUMA 260 geometry, flange as the tool transform; dynamics assumed).
-pub fn puma200() -> DhRobotModel {
+pub fn puma200() -> SerialRobotModel {
     built_in("puma200", PUMA200_TOML)
 }
 
 /// The FRHC hand controller's working model (an assumption; see its file).
-pub fn frhc() -> DhRobotModel {
+pub fn frhc() -> SerialRobotModel {
     built_in("frhc", FRHC_TOML)
 }
 
 /// A built-in model by name: `"puma560"`, `"puma200"` or `"frhc"`.
-pub fn by_name(name: &str) -> Option<DhRobotModel> {
+pub fn by_name(name: &str) -> Option<SerialRobotModel> {
     match name {
         "puma560" => Some(puma560()),
         "puma200" => Some(puma200()),
@@ -117,7 +117,7 @@ pub fn by_name(name: &str) -> Option<DhRobotModel> {
 ///
 /// # Errors
 /// [`FileError`] for bad TOML or values.
-pub fn from_toml_str(text: &str) -> Result<DhRobotModel, FileError> {
+pub fn from_toml_str(text: &str) -> Result<SerialRobotModel, FileError> {
     file::model_from_str("dh", text)
 }
 
@@ -125,7 +125,7 @@ pub fn from_toml_str(text: &str) -> Result<DhRobotModel, FileError> {
 ///
 /// # Errors
 /// [`FileError`] when the file cannot be read or is invalid.
-pub fn from_file(path: impl AsRef<std::path::Path>) -> Result<DhRobotModel, FileError> {
+pub fn from_file(path: impl AsRef<std::path::Path>) -> Result<SerialRobotModel, FileError> {
     file::model_from_file(path)
 }
 
@@ -137,7 +137,7 @@ pub fn from_file(path: impl AsRef<std::path::Path>) -> Result<DhRobotModel, File
 pub fn from_urdf_file(
     path: impl AsRef<std::path::Path>,
     tip: Option<&str>,
-) -> Result<DhRobotModel, UrdfError> {
+) -> Result<SerialRobotModel, UrdfError> {
     let chain = UrdfChain {
         base: None,
         tip: tip.map(str::to_string),
@@ -157,7 +157,7 @@ pub fn is_urdf_path(path: &str) -> bool {
 ///
 /// # Errors
 /// [`FileError`]; a name that is neither built in nor an existing file gives [`FileError::Io`].
-pub fn load(name_or_path: &str) -> Result<DhRobotModel, FileError> {
+pub fn load(name_or_path: &str) -> Result<SerialRobotModel, FileError> {
     match by_name(name_or_path) {
         Some(m) => Ok(m),
         None if is_urdf_path(name_or_path) => Ok(from_urdf_file(name_or_path, None)?),

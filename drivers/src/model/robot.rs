@@ -1,4 +1,4 @@
-//! [`DhRobotModel`]: a DH chain with dynamics, limits, inverse kinematics and named poses,
+//! [`SerialRobotModel`]: a DH chain with dynamics, limits, inverse kinematics and named poses,
 //! implementing the hal model traits; [`DhRobot`]: the model with a measured state, the hal
 //! [`Robot`].
 
@@ -27,7 +27,7 @@ pub enum IkMethod {
 }
 
 /// Everything that defines a model, in SI units (m, rad, kg). Build one by hand or from a DH
-/// file ([`super::file`]), then [`DhRobotModel::new`].
+/// file ([`super::file`]), then [`SerialRobotModel::new`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct ModelSpec {
     /// Short name, for example `"puma560"`.
@@ -91,12 +91,12 @@ pub enum ModelError {
 /// torque, [`Dynamics::inertia`] has `Jm G²` on its diagonal.
 ///
 /// # Real-time
-/// Every trait method (and [`forward_and_jacobian`](DhRobotModel::forward_and_jacobian),
-/// [`inverse_numerical`](DhRobotModel::inverse_numerical)) works on the stack: no allocation, no
+/// Every trait method (and [`forward_and_jacobian`](SerialRobotModel::forward_and_jacobian),
+/// [`inverse_numerical`](SerialRobotModel::inverse_numerical)) works on the stack: no allocation, no
 /// locks, bounded time. Numerical inverse kinematics is bounded by
 /// [`DlsOptions::max_iterations`] per seed.
 #[derive(Clone, Debug, PartialEq)]
-pub struct DhRobotModel {
+pub struct SerialRobotModel {
     kind: &'static str,
     name: String,
     description: String,
@@ -121,7 +121,7 @@ const NUM_SEEDS: usize = 8;
 /// Two numerical solutions closer than this (rad, after wrapping) are the same one.
 const SAME_SOLUTION: f64 = 1e-6;
 
-impl DhRobotModel {
+impl SerialRobotModel {
     /// Builds and checks a model. `kind` is what [`Robot::kind`] reports (`"dh"` for a lab's
     /// file).
     ///
@@ -161,7 +161,7 @@ impl DhRobotModel {
         let seeds = ik_seeds(&named, &limits, n);
         let base_inv = Rt::from_pose(&spec.base).inverse();
         let tool_inv = Rt::from_pose(&spec.tool).inverse();
-        Ok(DhRobotModel {
+        Ok(SerialRobotModel {
             kind,
             name: spec.name,
             description: spec.description,
@@ -388,7 +388,7 @@ fn wrapped_distance(
         .fold(0.0, f64::max)
 }
 
-impl Kinematics for DhRobotModel {
+impl Kinematics for SerialRobotModel {
     fn joint_count(&self) -> usize {
         self.chain.joint_count()
     }
@@ -402,7 +402,7 @@ impl Kinematics for DhRobotModel {
     }
 }
 
-impl InverseKinematics for DhRobotModel {
+impl InverseKinematics for SerialRobotModel {
     /// Closed form: all 8 branches in [`super::puma::BRANCHES`] order, each joint the
     /// 2π-equivalent inside its limits nearest zero. Numerical: the distinct solutions reached
     /// from up to 8 seeds (the named poses first), branch `"numerical"`.
@@ -489,7 +489,7 @@ impl InverseKinematics for DhRobotModel {
     }
 }
 
-impl Dynamics for DhRobotModel {
+impl Dynamics for SerialRobotModel {
     fn gravity(&self, q: &JointVector) -> JointVector {
         dynamics::gravity(&self.chain, &self.dynamics, &self.gravity, q)
     }
@@ -512,34 +512,34 @@ impl Dynamics for DhRobotModel {
     }
 }
 
-impl RobotModel for DhRobotModel {
+impl RobotModel for SerialRobotModel {
     fn limits(&self) -> &JointLimits {
         &self.limits
     }
 }
 
-/// A robot built on a [`DhRobotModel`]: the model, its latest measured joint state and its
+/// A robot built on a [`SerialRobotModel`]: the model, its latest measured joint state and its
 /// encoder scaling. Implements [`Robot`] (and, through the model, every model trait).
 #[derive(Clone, Debug, PartialEq)]
 pub struct DhRobot {
-    model: DhRobotModel,
+    model: SerialRobotModel,
     state: JointState,
 }
 
 impl DhRobot {
     /// A robot at rest at its `start` pose.
-    pub fn new(model: DhRobotModel) -> Self {
+    pub fn new(model: SerialRobotModel) -> Self {
         let state = JointState::at_rest(model.named_pose(NamedPose::Start));
         DhRobot { model, state }
     }
 
     /// The model.
-    pub fn model(&self) -> &DhRobotModel {
+    pub fn model(&self) -> &SerialRobotModel {
         &self.model
     }
 
     /// The model, mutably (for example to tune the numerical solver).
-    pub fn model_mut(&mut self) -> &mut DhRobotModel {
+    pub fn model_mut(&mut self) -> &mut SerialRobotModel {
         &mut self.model
     }
 }

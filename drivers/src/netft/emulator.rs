@@ -102,7 +102,7 @@ impl<P: FnMut() -> Option<(Pose, Vector3<f64>)> + Send + 'static> ContactSource
 /// environment the operator is shown.
 pub fn galil_tool_pose(
     observer: crate::galil::emulator::DmcObserver,
-    model: crate::model::DhRobotModel,
+    model: crate::model::SerialRobotModel,
     zero: penelope_hal::JointVector,
 ) -> impl FnMut() -> Option<(Pose, Vector3<f64>)> + Send + 'static {
     use penelope_hal::{JacobianFrame, JointVector, Kinematics};

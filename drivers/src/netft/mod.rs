@@ -52,4 +52,4 @@ pub use sensor::{
     AddressError, MAX_READERS, NetFt, NetFtConfig, NetFtCounters, NetFtError, NetFtReader,
     NetFtSample, SampleFault, parse_address,
 };
-pub use wire::{Calibration, Command, RDT_PORT, Record, Request, Status, WireError};
+pub use wire::{Calibration, Command, RDT_PORT, RdtError, Record, Request, Status};

@@ -1,6 +1,6 @@
 //! The RDT (Raw Data Transfer) wire format of an ATI Net F/T: one 8-byte request, one 36-byte
 //! record, both big-endian. Encoding and decoding never allocate and never panic on any input:
-//! a datagram of the wrong size or with a wrong header is a [`WireError`].
+//! a datagram of the wrong size or with a wrong header is a [`RdtError`].
 //!
 //! ```
 //! use penelope_drivers::netft::wire::{Command, Record, Request, Status};
@@ -91,7 +91,7 @@ pub struct Request {
 
 /// Why a datagram is not a request or a record.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum WireError {
+pub enum RdtError {
     /// The datagram's length is not the message's (`expected` bytes).
     Length {
         /// Bytes received.
@@ -105,19 +105,19 @@ pub enum WireError {
     UnknownCommand(u16),
 }
 
-impl fmt::Display for WireError {
+impl fmt::Display for RdtError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            WireError::Length { got, expected } => {
+            RdtError::Length { got, expected } => {
                 write!(f, "datagram of {got} bytes, expected {expected}")
             }
-            WireError::Header(h) => write!(f, "request header {h:#06x}, expected 0x1234"),
-            WireError::UnknownCommand(c) => write!(f, "unknown RDT command {c:#06x}"),
+            RdtError::Header(h) => write!(f, "request header {h:#06x}, expected 0x1234"),
+            RdtError::UnknownCommand(c) => write!(f, "unknown RDT command {c:#06x}"),
         }
     }
 }
 
-impl std::error::Error for WireError {}
+impl std::error::Error for RdtError {}
 
 fn be_u16(b: &[u8], at: usize) -> u16 {
     u16::from_be_bytes([b[at], b[at + 1]])
@@ -151,21 +151,21 @@ impl Request {
     /// Decodes one request datagram (what the box, or its emulator, receives).
     ///
     /// # Errors
-    /// [`WireError::Length`] unless exactly 8 bytes, [`WireError::Header`],
-    /// [`WireError::UnknownCommand`].
-    pub fn decode(datagram: &[u8]) -> Result<Request, WireError> {
+    /// [`RdtError::Length`] unless exactly 8 bytes, [`RdtError::Header`],
+    /// [`RdtError::UnknownCommand`].
+    pub fn decode(datagram: &[u8]) -> Result<Request, RdtError> {
         if datagram.len() != REQUEST_LEN {
-            return Err(WireError::Length {
+            return Err(RdtError::Length {
                 got: datagram.len(),
                 expected: REQUEST_LEN,
             });
         }
         let header = be_u16(datagram, 0);
         if header != COMMAND_HEADER {
-            return Err(WireError::Header(header));
+            return Err(RdtError::Header(header));
         }
         let code = be_u16(datagram, 2);
-        let command = Command::from_code(code).ok_or(WireError::UnknownCommand(code))?;
+        let command = Command::from_code(code).ok_or(RdtError::UnknownCommand(code))?;
         Ok(Request {
             command,
             sample_count: be_u32(datagram, 4),
@@ -235,13 +235,13 @@ impl Record {
     /// Decodes one record datagram (real-time streaming sends exactly one per datagram).
     ///
     /// # Errors
-    /// [`WireError::Length`] unless exactly 36 bytes.
+    /// [`RdtError::Length`] unless exactly 36 bytes.
     ///
     /// # Real-time
     /// No allocation, constant time.
-    pub fn decode(datagram: &[u8]) -> Result<Record, WireError> {
+    pub fn decode(datagram: &[u8]) -> Result<Record, RdtError> {
         if datagram.len() != RECORD_LEN {
-            return Err(WireError::Length {
+            return Err(RdtError::Length {
                 got: datagram.len(),
                 expected: RECORD_LEN,
             });
@@ -387,7 +387,7 @@ mod tests {
             if n != RECORD_LEN {
                 assert_eq!(
                     Record::decode(&junk),
-                    Err(WireError::Length {
+                    Err(RdtError::Length {
                         got: n,
                         expected: RECORD_LEN
                     })
@@ -396,17 +396,17 @@ mod tests {
             if n != REQUEST_LEN {
                 assert!(matches!(
                     Request::decode(&junk),
-                    Err(WireError::Length { .. })
+                    Err(RdtError::Length { .. })
                 ));
             }
         }
         assert_eq!(
             Request::decode(&[0xde, 0xad, 0, 2, 0, 0, 0, 0]),
-            Err(WireError::Header(0xdead))
+            Err(RdtError::Header(0xdead))
         );
         assert_eq!(
             Request::decode(&[0x12, 0x34, 0, 7, 0, 0, 0, 0]),
-            Err(WireError::UnknownCommand(7))
+            Err(RdtError::UnknownCommand(7))
         );
     }
 

@@ -8,7 +8,9 @@ use std::net::{SocketAddr, UdpSocket};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
-use super::frame::{DatagramKey, DirectedKeys, FrameError, Header, MAX_DATAGRAM, decode, encode};
+use super::frame::{
+    DatagramError, DatagramKey, DirectedKeys, Header, MAX_DATAGRAM, decode, encode,
+};
 
 /// At most this many queued datagrams are read by one [`Endpoint::receive`] call.
 pub const RECEIVE_BURST: usize = 64;
@@ -36,11 +38,11 @@ pub struct EndpointStats {
 }
 
 impl EndpointStats {
-    fn refuse(&mut self, e: FrameError) {
+    fn refuse(&mut self, e: DatagramError) {
         match e {
-            FrameError::BadTag => self.bad_tag += 1,
-            FrameError::Authentication(..) => self.wrong_authentication += 1,
-            FrameError::Version(v) => {
+            DatagramError::BadTag => self.bad_tag += 1,
+            DatagramError::Authentication(..) => self.wrong_authentication += 1,
+            DatagramError::Version(v) => {
                 self.wrong_version += 1;
                 self.other_version = Some(v);
             }
@@ -54,7 +56,7 @@ impl EndpointStats {
 pub enum SendError {
     /// It does not fit a datagram.
     #[error(transparent)]
-    Frame(#[from] FrameError),
+    Frame(#[from] DatagramError),
     /// The operating system refused it.
     #[error("send: {0}")]
     Io(#[from] io::Error),

@@ -31,7 +31,7 @@ use sha2::Sha256;
 type HmacSha256 = hmac::Hmac<Sha256>;
 
 /// Version of the data-plane header and payloads (in every header); a datagram of another
-/// version is refused ([`FrameError::Version`]), so two builds whose payloads differ never
+/// version is refused ([`DatagramError::Version`]), so two builds whose payloads differ never
 /// misread each other. 2: a channel's sample carries the passivity payload (wave, energy
 /// counters). 3: and whether it is urgent (sent on a new safety event of the sender's loop).
 /// 4: keys per channel and direction (HKDF), sessions ordered across reboots (wall clock).
@@ -184,7 +184,7 @@ fn keyed(key: &[u8]) -> HmacSha256 {
 
 /// Why a datagram was not made or not taken.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum FrameError {
+pub enum DatagramError {
     /// The datagram would be, or is, longer than [`MAX_DATAGRAM`].
     #[error("datagram longer than {MAX_DATAGRAM} bytes")]
     TooLarge,
@@ -212,27 +212,27 @@ pub enum FrameError {
 /// returns its length.
 ///
 /// # Errors
-/// [`FrameError::TooLarge`] when it does not fit `out` or [`MAX_DATAGRAM`].
+/// [`DatagramError::TooLarge`] when it does not fit `out` or [`MAX_DATAGRAM`].
 pub fn encode<P: Serialize>(
     header: &Header,
     payload: &P,
     key: Option<&DatagramKey>,
     out: &mut [u8],
-) -> Result<usize, FrameError> {
+) -> Result<usize, DatagramError> {
     let limit = out.len().min(MAX_DATAGRAM);
     let body_limit = limit
         .checked_sub(if key.is_some() { TAG_LEN } else { 0 })
-        .ok_or(FrameError::TooLarge)?;
+        .ok_or(DatagramError::TooLarge)?;
     if body_limit == 0 {
-        return Err(FrameError::TooLarge);
+        return Err(DatagramError::TooLarge);
     }
     out[0] = if key.is_some() { TAGGED } else { PLAIN };
     let mut at = 1;
     at += postcard::to_slice(header, &mut out[at..body_limit])
-        .map_err(|_| FrameError::TooLarge)?
+        .map_err(|_| DatagramError::TooLarge)?
         .len();
     at += postcard::to_slice(payload, &mut out[at..body_limit])
-        .map_err(|_| FrameError::TooLarge)?
+        .map_err(|_| DatagramError::TooLarge)?
         .len();
     if let Some(key) = key {
         let tag = key.tag(&out[..at]);
@@ -247,40 +247,40 @@ pub fn encode<P: Serialize>(
 /// (borrowing from `datagram` where the payload borrows).
 ///
 /// # Errors
-/// [`FrameError`], for anything but a whole, authentic datagram of this version.
+/// [`DatagramError`], for anything but a whole, authentic datagram of this version.
 pub fn decode<'a, P: Deserialize<'a>>(
     datagram: &'a [u8],
     key: Option<&DatagramKey>,
-) -> Result<(Header, P), FrameError> {
+) -> Result<(Header, P), DatagramError> {
     if datagram.len() > MAX_DATAGRAM {
-        return Err(FrameError::TooLarge);
+        return Err(DatagramError::TooLarge);
     }
-    let (&kind, _) = datagram.split_first().ok_or(FrameError::Truncated)?;
+    let (&kind, _) = datagram.split_first().ok_or(DatagramError::Truncated)?;
     let body = match (kind, key) {
         (TAGGED, Some(key)) => {
             let end = datagram
                 .len()
                 .checked_sub(TAG_LEN)
                 .filter(|&e| e > 1)
-                .ok_or(FrameError::Truncated)?;
+                .ok_or(DatagramError::Truncated)?;
             if !key.verify(&datagram[..end], &datagram[end..]) {
-                return Err(FrameError::BadTag);
+                return Err(DatagramError::BadTag);
             }
             &datagram[1..end]
         }
         (PLAIN, None) => &datagram[1..],
-        (TAGGED, None) => return Err(FrameError::Authentication("tagged", "has no key")),
-        (PLAIN, Some(_)) => return Err(FrameError::Authentication("untagged", "has a key")),
-        (other, _) => return Err(FrameError::Kind(other)),
+        (TAGGED, None) => return Err(DatagramError::Authentication("tagged", "has no key")),
+        (PLAIN, Some(_)) => return Err(DatagramError::Authentication("untagged", "has a key")),
+        (other, _) => return Err(DatagramError::Kind(other)),
     };
     let (header, rest): (Header, _) =
-        postcard::take_from_bytes(body).map_err(|_| FrameError::Malformed)?;
+        postcard::take_from_bytes(body).map_err(|_| DatagramError::Malformed)?;
     if header.version != DATAPLANE_VERSION {
-        return Err(FrameError::Version(header.version));
+        return Err(DatagramError::Version(header.version));
     }
-    let (payload, rest) = postcard::take_from_bytes(rest).map_err(|_| FrameError::Malformed)?;
+    let (payload, rest) = postcard::take_from_bytes(rest).map_err(|_| DatagramError::Malformed)?;
     if !rest.is_empty() {
-        return Err(FrameError::Malformed);
+        return Err(DatagramError::Malformed);
     }
     Ok((header, payload))
 }
@@ -327,16 +327,16 @@ mod tests {
         let other = DatagramKey::from_secret(b"another lab");
         assert_eq!(
             decode::<[f64; 6]>(&buf[..n], Some(&other)),
-            Err(FrameError::BadTag)
+            Err(DatagramError::BadTag)
         );
         assert!(matches!(
             decode::<[f64; 6]>(&buf[..n], None),
-            Err(FrameError::Authentication(..))
+            Err(DatagramError::Authentication(..))
         ));
         let plain = encode(&header(9), &[1.0f64; 6], None, &mut buf).unwrap();
         assert!(matches!(
             decode::<[f64; 6]>(&buf[..plain], Some(&key)),
-            Err(FrameError::Authentication(..))
+            Err(DatagramError::Authentication(..))
         ));
     }
 
@@ -345,20 +345,23 @@ mod tests {
         let mut small = [0u8; 8];
         assert_eq!(
             encode(&header(1), &[0.0f64; 6], None, &mut small),
-            Err(FrameError::TooLarge)
+            Err(DatagramError::TooLarge)
         );
         let mut buf = [0u8; MAX_DATAGRAM];
         let mut h = header(1);
         h.version = 9;
         let n = encode(&h, &0u8, None, &mut buf).unwrap();
-        assert_eq!(decode::<u8>(&buf[..n], None), Err(FrameError::Version(9)));
+        assert_eq!(
+            decode::<u8>(&buf[..n], None),
+            Err(DatagramError::Version(9))
+        );
         let n = encode(&header(1), &(1u8, 2u8), None, &mut buf).unwrap();
-        assert_eq!(decode::<u8>(&buf[..n], None), Err(FrameError::Malformed));
-        assert_eq!(decode::<u8>(&[], None), Err(FrameError::Truncated));
-        assert_eq!(decode::<u8>(&[7, 0, 0], None), Err(FrameError::Kind(7)));
+        assert_eq!(decode::<u8>(&buf[..n], None), Err(DatagramError::Malformed));
+        assert_eq!(decode::<u8>(&[], None), Err(DatagramError::Truncated));
+        assert_eq!(decode::<u8>(&[7, 0, 0], None), Err(DatagramError::Kind(7)));
         assert_eq!(
             decode::<u8>(&[0; MAX_DATAGRAM + 1], None),
-            Err(FrameError::TooLarge)
+            Err(DatagramError::TooLarge)
         );
     }
 
@@ -412,7 +415,7 @@ mod tests {
         assert!(decode::<[f64; 6]>(&buf[..n], Some(&b.receive)).is_ok());
         assert_eq!(
             decode::<[f64; 6]>(&buf[..n], Some(&a.receive)),
-            Err(FrameError::BadTag)
+            Err(DatagramError::BadTag)
         );
     }
 

@@ -12,7 +12,7 @@ pub const BUCKETS: usize = 200 + 180 + 180 + 1;
 
 /// Latencies, ns, counted in buckets.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LatencyHistogram {
+pub struct TripHistogram {
     counts: [u32; BUCKETS],
     /// Values below zero (a clock-offset estimate off by more than the trip).
     below_zero: u32,
@@ -20,9 +20,9 @@ pub struct LatencyHistogram {
     max_ns: i64,
 }
 
-impl Default for LatencyHistogram {
+impl Default for TripHistogram {
     fn default() -> Self {
-        LatencyHistogram {
+        TripHistogram {
             counts: [0; BUCKETS],
             below_zero: 0,
             total: 0,
@@ -60,7 +60,7 @@ fn middle(i: usize) -> i64 {
     base_ns
 }
 
-impl LatencyHistogram {
+impl TripHistogram {
     /// Counts one latency.
     ///
     /// # Real-time
@@ -128,7 +128,7 @@ mod tests {
         assert_eq!(bucket(19_999_999), 559);
         assert_eq!(bucket(20_000_000), BUCKETS - 1);
         assert_eq!(bucket(i64::MAX), BUCKETS - 1);
-        let mut h = LatencyHistogram::default();
+        let mut h = TripHistogram::default();
         assert_eq!(h.quantile(0.5), None);
         // 1..=100 µs, then one slow trip of 5 ms.
         for us in 1..=100 {

@@ -1,13 +1,13 @@
 //! What clocks a creator's loops ([`ClockMode`]): real time (each active controller's control
 //! and communication threads, SCHED_FIFO where permitted) or a simulated clock (the
 //! [`SimWorld`](super::sim_world::SimWorld) steps them); and the node's time as a thread outside
-//! the loops reads it ([`NodeTime`]: a recorder's stamps).
+//! the loops reads it ([`ClockReader`]: a recorder's stamps).
 
 use std::sync::{Arc, Mutex};
 
 use penelope_hal::Timestamp;
 
-/// A simulated clock's time, as [`NodeTime`] reads it (the simulated world's).
+/// A simulated clock's time, as [`ClockReader`] reads it (the simulated world's).
 pub trait SimulatedTime: Send {
     /// The simulated time now.
     fn now(&self) -> Timestamp;
@@ -16,19 +16,19 @@ pub trait SimulatedTime: Send {
 /// A node's clock as a thread of the node outside its loops reads it (a recorder): the real
 /// clock, or the simulated one (behind the lock its steps take).
 #[derive(Clone)]
-pub enum NodeTime {
+pub enum ClockReader {
     /// `CLOCK_MONOTONIC`.
     Real,
     /// The simulated clock of this world.
     Simulated(Arc<Mutex<dyn SimulatedTime>>),
 }
 
-impl NodeTime {
+impl ClockReader {
     /// The time now, ns.
     pub fn now_ns(&self) -> u64 {
         match self {
-            NodeTime::Real => penelope_rt_core::clock::MonotonicClock::read().as_nanos(),
-            NodeTime::Simulated(world) => world.lock().map_or(0, |w| w.now().as_nanos()),
+            ClockReader::Real => penelope_rt_core::clock::MonotonicClock::read().as_nanos(),
+            ClockReader::Simulated(world) => world.lock().map_or(0, |w| w.now().as_nanos()),
         }
     }
 }

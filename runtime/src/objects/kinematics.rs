@@ -3,7 +3,7 @@
 //! transformation with the float dynamics. Plants behind simulated boards are physics and always
 //! use the float model.
 
-use penelope_drivers::model::DhRobotModel;
+use penelope_drivers::model::SerialRobotModel;
 use penelope_fpga::FpgaKinematics;
 use penelope_hal::robot::check_finite;
 use penelope_hal::{
@@ -15,7 +15,7 @@ use penelope_hal::{
 #[derive(Clone, Debug)]
 pub enum RobotKinematics {
     /// Float kinematics and dynamics.
-    Float(DhRobotModel),
+    Float(SerialRobotModel),
     /// The FRHC on a `board/fpga`: forward kinematics, Jacobian and `tau = J^T F` from the
     /// bit-exact model of the board's pipelines; inverse kinematics and dynamics from the float
     /// model.
@@ -23,14 +23,14 @@ pub enum RobotKinematics {
         /// The board's kinematics.
         fpga: Box<FpgaKinematics>,
         /// The float model, for everything the board does not compute.
-        float: DhRobotModel,
+        float: SerialRobotModel,
     },
 }
 
 impl RobotKinematics {
     /// The board's kinematics for `float`, which must be the FRHC's model (what the board
     /// computes); `None` for any other model.
-    pub fn on_fpga_board(float: DhRobotModel) -> Option<Self> {
+    pub fn on_fpga_board(float: SerialRobotModel) -> Option<Self> {
         (float.name() == "frhc").then(|| RobotKinematics::FpgaBoard {
             fpga: Box::new(FpgaKinematics::frhc()),
             float,
@@ -38,7 +38,7 @@ impl RobotKinematics {
     }
 
     /// The underlying float model (dynamics, named poses, encoder scaling).
-    pub fn float(&self) -> &DhRobotModel {
+    pub fn float(&self) -> &SerialRobotModel {
         match self {
             RobotKinematics::Float(m) => m,
             RobotKinematics::FpgaBoard { float, .. } => float,

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 use crate::dataplane::endpoint::EndpointStats;
 use crate::dataplane::faults::FaultCounters;
 use crate::dataplane::frame::StreamId;
-use crate::dataplane::histogram::LatencyHistogram;
+use crate::dataplane::histogram::TripHistogram;
 use crate::dataplane::stream::StreamStats;
 
 /// The stream of the master's samples to the slave.
@@ -23,7 +23,7 @@ pub const SLAVE_TO_MASTER: StreamId = StreamId(2);
 
 /// What an end's data-plane link counted.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct LinkStats {
+pub struct ChannelLinkStats {
     /// The link is lost.
     pub down: bool,
     /// Times it was lost.
@@ -53,12 +53,12 @@ pub struct LinkStats {
     /// The samples' one-way trips, ns: arrival (the kernel's stamp on real time) less the
     /// sender's send time on the common clock (before the offset is known, as sent: right
     /// when both nodes share a clock, as on one machine).
-    pub one_way: LatencyHistogram,
+    pub one_way: TripHistogram,
     /// What the injected faults did to what this end sent, if faults are configured.
     pub faults: Option<FaultCounters>,
 }
 
-impl LinkStats {
+impl ChannelLinkStats {
     /// As a client sees it, read at `time_ns` (the node's clock).
     pub fn record(&self, time_ns: u64) -> penelope_protocol::proto::LinkRecord {
         let s = &self.stream;
@@ -163,14 +163,14 @@ pub struct StreamDatagram {
 /// the real-time threads (it locks): a recorder, a telemetry pump, the Zenoh bridge.
 #[derive(Clone)]
 pub struct LinkSource {
-    stats: Arc<Mutex<ArcLatestReader<LinkStats>>>,
+    stats: Arc<Mutex<ArcLatestReader<ChannelLinkStats>>>,
     datagrams: Arc<Mutex<ArcConsumer<StreamDatagram, DATAGRAM_RING_LEN>>>,
 }
 
 impl LinkSource {
     /// The reading halves of a link's counters cell and datagram ring.
     pub(crate) fn new(
-        stats: ArcLatestReader<LinkStats>,
+        stats: ArcLatestReader<ChannelLinkStats>,
         datagrams: ArcConsumer<StreamDatagram, DATAGRAM_RING_LEN>,
     ) -> Self {
         LinkSource {
@@ -180,7 +180,7 @@ impl LinkSource {
     }
 
     /// The newest counters (`None` before the link's first communication tick).
-    pub fn latest(&self) -> Option<LinkStats> {
+    pub fn latest(&self) -> Option<ChannelLinkStats> {
         self.stats.lock().ok()?.latest()
     }
 

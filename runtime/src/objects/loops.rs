@@ -9,9 +9,9 @@ use std::time::Duration;
 use penelope_hal::{LifecycleState, Timestamp};
 use penelope_rt_core::control::ControlCommand;
 use penelope_rt_core::exec::{self, PeriodicConfig, Setting};
-use penelope_rt_core::safety::Role;
+use penelope_rt_core::safety::TeleopRole;
 
-use super::registry::{self, Body, Launch};
+use super::registry::{self, KindState, Launch};
 use super::runtime::{self, LoopFault, LoopShared, Running, StopMode, StoppedLoop};
 use super::sim_world::{SteppedLoop, TickBody};
 use super::tick::TickStream;
@@ -38,7 +38,7 @@ impl Creator {
     fn launch(&self, name: &str) -> Result<Launch<'_>, ObjectError> {
         let remote = self.remote.lock().ok().and_then(|r| r.clone());
         let path = match &self.lock()?.get(name)?.body {
-            Body::Controller(c) => c.sensor.clone().filter(|s| s.starts_with('/')),
+            KindState::Controller(c) => c.sensor.clone().filter(|s| s.starts_with('/')),
             _ => None,
         };
         // A published sensor measures on its own node's time, not in step with a simulated
@@ -182,7 +182,7 @@ impl Creator {
         };
         let o = reg.get_mut(name)?;
         o.state = LifecycleState::Active;
-        if let Body::Controller(c) = &mut o.body {
+        if let KindState::Controller(c) = &mut o.body {
             c.running = Some(running);
             c.scheduling = Some(scheduling);
             c.fault = None;
@@ -203,7 +203,7 @@ impl Creator {
                 .objects
                 .values()
                 .filter(|o| {
-                    matches!(&o.body, Body::Controller(c)
+                    matches!(&o.body, KindState::Controller(c)
                         if c.running.as_ref().is_some_and(|r| r.failure().is_some()))
                 })
                 .map(|o| o.name.clone())
@@ -212,7 +212,7 @@ impl Creator {
                 .into_iter()
                 .filter_map(|name| {
                     let o = reg.objects.get_mut(&name)?;
-                    let Body::Controller(c) = &mut o.body else {
+                    let KindState::Controller(c) = &mut o.body else {
                         return None;
                     };
                     let robot = c.robot.clone().unwrap_or_default();
@@ -235,7 +235,7 @@ impl Creator {
             );
             if let Ok(o) = reg.get_mut(&name) {
                 o.state = LifecycleState::Error;
-                if let Body::Controller(c) = &mut o.body {
+                if let KindState::Controller(c) = &mut o.body {
                     c.fault = Some(cause);
                     c.last = last.or(c.last);
                     c.scheduling = None;
@@ -267,7 +267,7 @@ impl Creator {
     ) -> Result<(), ObjectError> {
         let reg = self.lock()?;
         match &reg.get(name)?.body {
-            Body::Controller(c) => match &c.running {
+            KindState::Controller(c) => match &c.running {
                 Some(r) => {
                     r.fault.inject_panic(thread);
                     Ok(())
@@ -297,7 +297,7 @@ impl Creator {
             let failed = o.state == LifecycleState::Error;
             if failed {
                 o.state = LifecycleState::Inactive;
-                if let Body::Controller(c) = &mut o.body {
+                if let KindState::Controller(c) = &mut o.body {
                     c.fault = None;
                 }
             }
@@ -308,7 +308,7 @@ impl Creator {
             return Ok(Reply::Unit);
         }
         let mut reg = self.lock()?;
-        let Body::Controller(c) = &mut reg.get_mut(name)?.body else {
+        let KindState::Controller(c) = &mut reg.get_mut(name)?.body else {
             return Err(ObjectError::internal("controller body"));
         };
         let run = c
@@ -338,13 +338,13 @@ impl Creator {
         let (running, mode) = {
             let mut reg = self.lock()?;
             let mode = match reg.role_of(name) {
-                Some(Role::Slave) if hold_slave => StopMode::Hold,
+                Some(TeleopRole::Slave) if hold_slave => StopMode::Hold,
                 _ => StopMode::Deactivate,
             };
             let o = reg.get_mut(name)?;
             self.stops.remove(name);
             match &mut o.body {
-                Body::Controller(c) => (c.running.take(), mode),
+                KindState::Controller(c) => (c.running.take(), mode),
                 _ => return Err(ObjectError::internal("not a controller")),
             }
         };
@@ -362,7 +362,7 @@ impl Creator {
         reg.release_users(name);
         let o = reg.get_mut(name)?;
         o.state = LifecycleState::Inactive;
-        if let Body::Controller(c) = &mut o.body {
+        if let KindState::Controller(c) = &mut o.body {
             c.last = last.or(c.last);
             c.scheduling = None;
         }
@@ -396,7 +396,7 @@ impl Creator {
             .map(|r| {
                 r.objects
                     .values()
-                    .filter(|o| matches!(&o.body, Body::Controller(c) if c.running.is_some()))
+                    .filter(|o| matches!(&o.body, KindState::Controller(c) if c.running.is_some()))
                     .map(|o| o.name.clone())
                     .collect()
             })

@@ -82,7 +82,7 @@ use penelope_protocol::proto::{
     WireError, check_name,
 };
 use penelope_protocol::service::{Remote, Service, Session};
-use registry::{Body, Registry};
+use registry::{KindState, Registry};
 use runtime::{CommTask, ControlTask, LinkPump, Subscriptions};
 use sim_world::SimWorld;
 
@@ -315,10 +315,10 @@ impl Creator {
     }
 
     /// The node's clock, for a thread of its own to read.
-    pub fn node_time(&self) -> clock::NodeTime {
+    pub fn node_time(&self) -> clock::ClockReader {
         match &self.sim {
-            Some(world) => clock::NodeTime::Simulated(world.clone()),
-            None => clock::NodeTime::Real,
+            Some(world) => clock::ClockReader::Simulated(world.clone()),
+            None => clock::ClockReader::Real,
         }
     }
 
@@ -374,7 +374,7 @@ impl Creator {
     pub fn link_source(&self, name: &str) -> Result<Option<link_source::LinkSource>, ObjectError> {
         let registry = self.lock()?;
         Ok(match &registry.get(name)?.body {
-            registry::Body::Teleop(t) => t.link.as_ref().and_then(|l| l.stats_source()),
+            registry::KindState::Teleop(t) => t.link.as_ref().and_then(|l| l.stats_source()),
             _ => None,
         })
     }
@@ -590,7 +590,7 @@ impl Creator {
         reg.bridged.remove(name);
         drop(reg);
         if let Some(mut o) = removed {
-            if let Body::Galil(g) = &mut o.body
+            if let KindState::Galil(g) = &mut o.body
                 && let Some(mut b) = g.board.take()
             {
                 use penelope_hal::Board;
@@ -652,7 +652,7 @@ impl Creator {
             let reg = self.lock()?;
             let o = reg.get(object)?;
             match (o.kind.class(), &o.body) {
-                (_, Body::Teleop(t)) => {
+                (_, KindState::Teleop(t)) => {
                     let link = t.link.as_ref().ok_or_else(|| {
                         ObjectError::NotReady(format!(
                             "channel `{object}` is not configured: its link exists from `configure`"

@@ -11,9 +11,9 @@ use penelope_hal::{Reference, Timestamp};
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, latest};
 use penelope_rt_core::wake::{Doorbell, WakeOn};
 
-/// Where an end linked to another node publishes its [`LinkStats`] (read by the channel
+/// Where an end linked to another node publishes its [`ChannelLinkStats`] (read by the channel
 /// object for `describe`).
-type StatsWriter = ArcLatestWriter<LinkStats>;
+type StatsWriter = ArcLatestWriter<ChannelLinkStats>;
 use penelope_rt_core::teleop::{PortEnergy, PortPayload, TeleopSample, WaveSample};
 
 use serde::{Deserialize, Serialize};
@@ -24,11 +24,11 @@ use crate::dataplane::endpoint::{Endpoint, RECEIVE_BURST, Received};
 use crate::dataplane::faults::{FaultConfig, FaultConfigError, FaultyLink};
 use crate::dataplane::frame::Header;
 use crate::dataplane::frame::StreamId;
-use crate::dataplane::histogram::LatencyHistogram;
+use crate::dataplane::histogram::TripHistogram;
 use crate::dataplane::stream::{StreamReceiver, StreamSender, Verdict};
 use crate::objects::delay_line::DelayLine;
 use crate::objects::link_source::{
-    DatagramTap, LinkSource, LinkStats, MASTER_TO_SLAVE, SLAVE_TO_MASTER, StreamDatagram,
+    ChannelLinkStats, DatagramTap, LinkSource, MASTER_TO_SLAVE, SLAVE_TO_MASTER, StreamDatagram,
     StreamName,
 };
 
@@ -168,7 +168,7 @@ struct RemoteLink {
     looked_at: Option<i64>,
     heard_at: Option<i64>,
     /// The samples' one-way trips on the common clock.
-    one_way: LatencyHistogram,
+    one_way: TripHistogram,
     /// Injected faults on what this end sends (tests, experiments), if configured.
     faults: Option<FaultyLink<(Header, LinkDatagram)>>,
     /// Samples taken so far: the channel's sequence numbers (newest wins there too), which stay
@@ -245,7 +245,7 @@ impl TeleopEnd {
                 stamps: EndClock::new(time, offset),
                 looked_at: None,
                 heard_at: None,
-                one_way: LatencyHistogram::default(),
+                one_way: TripHistogram::default(),
                 faults,
                 taken: 0,
                 strangers: 0,
@@ -505,10 +505,10 @@ impl TeleopEnd {
     }
 
     /// The data-plane link's counters (`None` for an end on cells).
-    pub fn link_stats(&self) -> Option<LinkStats> {
+    pub fn link_stats(&self) -> Option<ChannelLinkStats> {
         match &self.transport {
             Transport::Cells { .. } | Transport::Bridged { .. } => None,
-            Transport::DataPlane(link) => Some(LinkStats {
+            Transport::DataPlane(link) => Some(ChannelLinkStats {
                 down: link.down,
                 losses: link.losses,
                 restorations: link.restorations,
@@ -653,7 +653,7 @@ impl TeleopLink {
 
     /// The newest counters of the link to another node (`None` for a channel on this node,
     /// or before its first communication tick).
-    pub fn stats(&self) -> Option<LinkStats> {
+    pub fn stats(&self) -> Option<ChannelLinkStats> {
         self.stats.as_ref()?.latest()
     }
 

@@ -244,7 +244,7 @@ pub struct RunInfo {
     /// The slave's model.
     pub slave_model: RobotKinematics,
     /// The master's float model (dynamics: gravity for the displayed force).
-    pub master_dynamics: models::DhRobotModel,
+    pub master_dynamics: models::SerialRobotModel,
     /// The slave's environment (its simulated board's shapes).
     pub environment: Environment,
     /// The slave's wrist sensor mount in its tool frame.

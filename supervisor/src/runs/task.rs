@@ -207,7 +207,7 @@ fn robot_object<'a>(file: &'a SystemFile, name: &str) -> Result<&'a ObjectSpec, 
 fn robot_models(
     file: &SystemFile,
     name: &str,
-) -> Result<(RobotKinematics, models::DhRobotModel), RunError> {
+) -> Result<(RobotKinematics, models::SerialRobotModel), RunError> {
     let o = robot_object(file, name)?;
     let cfg: RobotConfig = parse(o)?;
     let word = o.kind.trim_start_matches("robot/");

@@ -3,7 +3,7 @@
 use std::time::Instant;
 
 use super::super::error::{GalilError, Malformed};
-use super::super::framing::Frame;
+use super::super::framing::ReplyFrame;
 use super::super::link::Link;
 use super::Client;
 
@@ -57,11 +57,11 @@ impl<L: Link> Client<L> {
         self.stats.bytes_out += bytes.len() as u64;
         let deadline = Instant::now() + self.config.slow_timeout;
         match self.next_frame(deadline)? {
-            Frame::Rejected => {
+            ReplyFrame::Rejected => {
                 self.stats.rejections += 1;
                 Err(self.explain_rejection())
             }
-            Frame::Accepted => {
+            ReplyFrame::Accepted => {
                 self.stats.exchanges += 1;
                 Ok(())
             }

@@ -20,7 +20,7 @@ use super::command::{
     encode_line,
 };
 use super::error::{GalilError, Malformed, bounded, error_text};
-use super::framing::{Frame, Framer, MAX_PAYLOAD, MAX_RECORD};
+use super::framing::{Framer, MAX_PAYLOAD, MAX_RECORD, ReplyFrame};
 use super::link::Link;
 use super::number::{parse_exact, parse_number, parse_numbers, to_counts, trim};
 use super::record::{DataRecord, RecordLayout};
@@ -126,7 +126,7 @@ pub struct BoardInfo {
 
 /// Counters of the link's health.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct LinkStats {
+pub struct SerialLinkStats {
     /// Lines sent and fully answered.
     pub exchanges: u64,
     /// Replies that did not arrive in time.
@@ -155,7 +155,7 @@ pub struct Client<L: Link> {
     layout: Option<RecordLayout>,
     needs_resync: bool,
     nonce: u32,
-    stats: LinkStats,
+    stats: SerialLinkStats,
 }
 
 impl<L: Link> Client<L> {
@@ -173,7 +173,7 @@ impl<L: Link> Client<L> {
             layout: None,
             needs_resync: false,
             nonce: 0,
-            stats: LinkStats::default(),
+            stats: SerialLinkStats::default(),
         }
     }
 
@@ -183,7 +183,7 @@ impl<L: Link> Client<L> {
     }
 
     /// The link's counters.
-    pub fn stats(&self) -> LinkStats {
+    pub fn stats(&self) -> SerialLinkStats {
         self.stats
     }
 
@@ -473,7 +473,7 @@ impl<L: Link> Client<L> {
             for i in 0..n {
                 let b = self.rx[i];
                 match self.framer.feed(b) {
-                    Some(Frame::Unsolicited(u)) => self.push_unsolicited(u),
+                    Some(ReplyFrame::Unsolicited(u)) => self.push_unsolicited(u),
                     _ => last_reply_byte = now,
                 }
             }
@@ -490,7 +490,7 @@ impl<L: Link> Client<L> {
         let deadline = Instant::now() + self.config.timeout;
         loop {
             match self.next_frame(deadline) {
-                Ok(Frame::Accepted) => {
+                Ok(ReplyFrame::Accepted) => {
                     let found = self
                         .framer
                         .payload()
@@ -537,13 +537,13 @@ impl<L: Link> Client<L> {
     }
 
     /// The next reply frame, storing unsolicited bytes on the way.
-    fn next_frame(&mut self, deadline: Instant) -> Result<Frame, GalilError> {
+    fn next_frame(&mut self, deadline: Instant) -> Result<ReplyFrame, GalilError> {
         loop {
             while self.rx_pos < self.rx_len {
                 let b = self.rx[self.rx_pos];
                 self.rx_pos += 1;
                 match self.framer.feed(b) {
-                    Some(Frame::Unsolicited(u)) => self.push_unsolicited(u),
+                    Some(ReplyFrame::Unsolicited(u)) => self.push_unsolicited(u),
                     Some(frame) => return Ok(frame),
                     None => {}
                 }
@@ -569,7 +569,7 @@ impl<L: Link> Client<L> {
         while self.rx_pos < self.rx_len {
             let b = self.rx[self.rx_pos];
             self.rx_pos += 1;
-            if let Some(Frame::Unsolicited(u)) = self.framer.feed(b) {
+            if let Some(ReplyFrame::Unsolicited(u)) = self.framer.feed(b) {
                 self.push_unsolicited(u);
             }
         }
@@ -635,19 +635,19 @@ impl<L: Link> Client<L> {
             }
             let frame = self.next_frame(deadline)?;
             match frame {
-                Frame::Accepted | Frame::Record => {
+                ReplyFrame::Accepted | ReplyFrame::Record => {
                     if let Some(r) = replies.get_mut(i) {
                         r.text.clear();
                         // Cannot fail: both buffers hold MAX_PAYLOAD bytes.
                         let _ = r.text.extend_from_slice(self.framer.payload());
                     }
                     overflow |= self.framer.payload_overflowed();
-                    if *kind == ReplyKind::Record && frame == Frame::Accepted {
+                    if *kind == ReplyKind::Record && frame == ReplyFrame::Accepted {
                         return Err(GalilError::Malformed(Malformed::BadRecord));
                     }
                 }
-                Frame::BadRecord => return Err(GalilError::Malformed(Malformed::BadRecord)),
-                Frame::Rejected => {
+                ReplyFrame::BadRecord => return Err(GalilError::Malformed(Malformed::BadRecord)),
+                ReplyFrame::Rejected => {
                     self.stats.rejections += 1;
                     if !explain {
                         return Err(GalilError::RejectedUnexplained);
@@ -659,7 +659,7 @@ impl<L: Link> Client<L> {
                     return Err(self.explain_rejection());
                 }
                 // `next_frame` never returns unsolicited bytes.
-                Frame::Unsolicited(_) => {}
+                ReplyFrame::Unsolicited(_) => {}
             }
         }
         self.stats.exchanges += 1;

@@ -15,7 +15,7 @@ use std::time::Duration;
 use penelope_hal::robot::Kinematics as _;
 use penelope_hal::{JointVector, MAX_JOINTS, Timestamp};
 
-use crate::model::DhRobotModel;
+use crate::model::SerialRobotModel;
 use crate::sim::FreeSpace;
 use crate::sim::plant::{PlantConfig, RigidBodyPlant};
 
@@ -25,7 +25,7 @@ use super::super::command::MAX_GALIL_AXES;
 #[derive(Clone, Debug, PartialEq)]
 pub struct ArmConfig {
     /// The robot (its dynamics, gravity, friction and encoder scaling are used).
-    pub model: DhRobotModel,
+    pub model: SerialRobotModel,
     /// Joint positions where the encoders read zero (the arm is there at power-up), rad.
     pub zero: JointVector,
     /// Joint torque per output volt, N·m/V (amplifier gain × motor constant × |gear ratio|);
@@ -39,7 +39,7 @@ pub struct ArmConfig {
 
 impl ArmConfig {
     /// `model` at rest in `zero`, with the same torque per volt on every axis.
-    pub fn new(model: DhRobotModel, zero: JointVector, newton_metres_per_volt: f64) -> Self {
+    pub fn new(model: SerialRobotModel, zero: JointVector, newton_metres_per_volt: f64) -> Self {
         ArmConfig {
             model,
             zero,
@@ -54,7 +54,7 @@ impl ArmConfig {
 #[derive(Clone, Debug)]
 pub(super) struct Arm {
     config: ArmConfig,
-    plant: RigidBodyPlant<DhRobotModel>,
+    plant: RigidBodyPlant<SerialRobotModel>,
     joints: usize,
     /// Where each braked joint is held.
     braked: [Option<f64>; MAX_JOINTS],

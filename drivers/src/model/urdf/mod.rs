@@ -30,7 +30,7 @@
 //! than [`MAX_JOINTS`] moving joints on the chain.
 //!
 //! Parsing uses the `urdf-rs` crate; loading allocates and belongs at start-up. The model it
-//! gives is a [`DhRobotModel`] like any other: every kinematics and dynamics call is
+//! gives is a [`SerialRobotModel`] like any other: every kinematics and dynamics call is
 //! allocation-free.
 
 mod tree;
@@ -41,7 +41,7 @@ use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use penelope_hal::{JointLimits, JointVector, MAX_JOINTS, Pose};
 
 use super::dh::{JointKind, Rt};
-use super::robot::{DhRobotModel, IkMethod, ModelError, ModelSpec};
+use super::robot::{IkMethod, ModelError, ModelSpec, SerialRobotModel};
 use tree::{ChainWalk, Tree};
 
 /// Encoder counts per joint radian a URDF robot is given (URDF has no encoders): a 19-bit
@@ -232,9 +232,9 @@ pub fn parse(text: &str) -> Result<urdf_rs::Robot, UrdfError> {
 ///
 /// # Errors
 /// [`UrdfError`] naming the element at fault.
-pub fn model_from_str(text: &str, chain: &UrdfChain) -> Result<DhRobotModel, UrdfError> {
+pub fn model_from_str(text: &str, chain: &UrdfChain) -> Result<SerialRobotModel, UrdfError> {
     let spec = spec_from_robot(&parse(text)?, chain)?;
-    Ok(DhRobotModel::new("urdf", spec)?)
+    Ok(SerialRobotModel::new("urdf", spec)?)
 }
 
 /// A model from a URDF file; its kind is `"urdf"`.
@@ -244,12 +244,12 @@ pub fn model_from_str(text: &str, chain: &UrdfChain) -> Result<DhRobotModel, Urd
 pub fn model_from_file(
     path: impl AsRef<Path>,
     chain: &UrdfChain,
-) -> Result<DhRobotModel, UrdfError> {
-    Ok(DhRobotModel::new("urdf", spec_from_file(path, chain)?)?)
+) -> Result<SerialRobotModel, UrdfError> {
+    Ok(SerialRobotModel::new("urdf", spec_from_file(path, chain)?)?)
 }
 
 /// The model definition of a URDF file's chain, to adjust (named poses, encoders, gravity)
-/// before [`DhRobotModel::new`].
+/// before [`SerialRobotModel::new`].
 ///
 /// # Errors
 /// [`UrdfError::Io`] when the file cannot be read, else as [`spec_from_robot`].

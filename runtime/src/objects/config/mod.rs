@@ -118,7 +118,7 @@ macro_rules! loop_keys {
             /// The timing keys, checked.
             ///
             /// # Errors
-            /// [`CallError::BadConfig`].
+            /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
             pub fn timing(&self, kind: &str) -> Result<$crate::objects::config::LoopTiming, ::penelope_protocol::proto::WireError> {
                 $crate::objects::config::check_int(kind, "period_us", self.period_us, 250, 20_000)?;
                 $crate::objects::config::check_int(kind, "comm_period_us", self.comm_period_us, 250, 100_000)?;

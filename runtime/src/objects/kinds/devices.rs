@@ -8,7 +8,7 @@ use nalgebra::{Unit, Vector3};
 use penelope_drivers::sim::environment::{ContactModel, Environment, Shape};
 use penelope_hal::{JointVector, MAX_AXES, NamedPose};
 use penelope_protocol::proto::{CallError, WireError};
-use penelope_rt_core::safety::Role;
+use penelope_rt_core::safety::TeleopRole;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -68,7 +68,7 @@ fn damping() -> f64 {
 /// Builds an environment from shapes.
 ///
 /// # Errors
-/// [`CallError::BadConfig`] for an unknown shape kind, a value out of range or too many shapes.
+/// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for an unknown shape kind, a value out of range or too many shapes.
 pub fn environment(kind: &str, shapes: &[ShapeConfig]) -> Result<Environment, WireError> {
     let mut env = Environment::new();
     for s in shapes {
@@ -184,10 +184,10 @@ impl RobotConfig {
     /// URDF file `file` from `base` to `tip`.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`] for a missing `file`, a URDF that does not make a model (the
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for a missing `file`, a URDF that does not make a model (the
     /// message names the element), or `file`, `tip` or `base` given to a built-in robot;
-    /// [`CallError::UnknownKind`] for an unknown model.
-    pub fn model(&self, kind: &str, model: &str) -> Result<models::DhRobotModel, WireError> {
+    /// [`CallError::UnknownKind`](penelope_protocol::proto::CallError::UnknownKind) for an unknown model.
+    pub fn model(&self, kind: &str, model: &str) -> Result<models::SerialRobotModel, WireError> {
         self.model_with(kind, model, |file| {
             std::fs::read_to_string(file).map_err(|e| format!("{file}: {e}"))
         })
@@ -200,13 +200,13 @@ impl RobotConfig {
     ///
     /// # Errors
     /// As [`model`](Self::model); a file outside `dirs`, not regular or too large is
-    /// [`CallError::BadConfig`].
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
     pub fn model_in(
         &self,
         kind: &str,
         model: &str,
         dirs: &[std::path::PathBuf],
-    ) -> Result<models::DhRobotModel, WireError> {
+    ) -> Result<models::SerialRobotModel, WireError> {
         self.model_with(kind, model, |file| {
             crate::objects::files::read_confined(dirs, file).map_err(|e| e.to_string())
         })
@@ -217,7 +217,7 @@ impl RobotConfig {
         kind: &str,
         model: &str,
         read: impl FnOnce(&str) -> Result<String, String>,
-    ) -> Result<models::DhRobotModel, WireError> {
+    ) -> Result<models::SerialRobotModel, WireError> {
         if model != "urdf" {
             if self.file.is_some() || self.tip.is_some() || self.base.is_some() {
                 return Err(bad(
@@ -253,15 +253,15 @@ impl RobotConfig {
                 None => spec.poses.push((name.clone(), q)),
             }
         }
-        models::DhRobotModel::new("urdf", spec).map_err(|e| bad(kind, e.to_string()))
+        models::SerialRobotModel::new("urdf", spec).map_err(|e| bad(kind, e.to_string()))
     }
 
     /// The robot's role, defaulting by model (`frhc` is a master), and its checked caps.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`] for a word other than master or slave, or caps that are not
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for a word other than master or slave, or caps that are not
     /// positive.
-    pub fn role(&self, kind: &str) -> Result<Role, WireError> {
+    pub fn role(&self, kind: &str) -> Result<TeleopRole, WireError> {
         for (key, v) in [
             ("max_force_n", self.max_force_n),
             ("max_moment_nm", self.max_moment_nm),
@@ -271,9 +271,9 @@ impl RobotConfig {
             }
         }
         match self.role.as_deref() {
-            None if kind == super::ROBOT_FRHC => Ok(Role::Master),
-            None | Some("slave") => Ok(Role::Slave),
-            Some("master") => Ok(Role::Master),
+            None if kind == super::ROBOT_FRHC => Ok(TeleopRole::Master),
+            None | Some("slave") => Ok(TeleopRole::Slave),
+            Some("master") => Ok(TeleopRole::Master),
             Some(other) => Err(bad(
                 kind,
                 format!("`role` = {other:?} is not \"master\" or \"slave\""),
@@ -284,7 +284,7 @@ impl RobotConfig {
     /// The start pose.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`] for a name other than nest, start, work.
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for a name other than nest, start, work.
     pub fn start_pose(&self, kind: &str) -> Result<NamedPose, WireError> {
         NamedPose::parse(&self.start).ok_or_else(|| {
             bad(
@@ -346,7 +346,7 @@ impl SimBoardConfig {
     /// Checks ranges.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`].
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
     pub fn check(&self, kind: &str) -> Result<Environment, WireError> {
         check_int(kind, "axes", self.axes.into(), 1, MAX_AXES as u64)?;
         check_int(kind, "dac_bits", self.dac_bits.into(), 8, 24)?;
@@ -430,7 +430,7 @@ impl GalilConfig {
     /// Checks ranges and that exactly one of `device` and `address` is given.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`].
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
     pub fn check(&self, kind: &str) -> Result<(), WireError> {
         match (&self.device, &self.address) {
             (Some(_), Some(_)) => return Err(bad(kind, "give `device` or `address`, not both")),
@@ -555,7 +555,7 @@ impl SensorConfig {
     /// environment is its board's).
     ///
     /// # Errors
-    /// [`CallError::BadConfig`] naming the key.
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) naming the key.
     pub fn check(&self, kind: &str) -> Result<(), WireError> {
         for x in &self.mount_xyz {
             check_range(kind, "mount_xyz", *x, -2.0, 2.0)?;
@@ -594,7 +594,7 @@ impl SensorConfig {
     /// The address of `publish`, if set.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`] for one that is not `host:port` with an IP address.
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for one that is not `host:port` with an IP address.
     pub fn publish_address(&self, kind: &str) -> Result<Option<std::net::SocketAddr>, WireError> {
         self.publish
             .as_deref()
@@ -680,7 +680,7 @@ impl NetFtSensorConfig {
     /// Checks ranges and the address, and gives the driver's settings.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`] naming the key.
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) naming the key.
     pub fn check(&self, kind: &str) -> Result<penelope_drivers::netft::NetFtConfig, WireError> {
         let address = penelope_drivers::netft::parse_address(&self.address)
             .map_err(|e| bad(kind, format!("`address`: {e}")))?;

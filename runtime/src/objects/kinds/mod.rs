@@ -157,7 +157,7 @@ impl JointPidConfig {
     /// Checks what does not depend on the robot.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`].
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         if let Some(kp) = &self.kp {
             kp.check(kind, "kp", 0.0, 1e7)?;
@@ -219,7 +219,7 @@ impl JointGroupsConfig {
     /// loop is built).
     ///
     /// # Errors
-    /// [`CallError::BadConfig`].
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         if self.groups.is_empty() || self.groups.len() > penelope_hal::MAX_JOINTS {
             return Err(bad(
@@ -285,7 +285,7 @@ impl JointPositionConfig {
     /// Checks what does not depend on the robot.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`].
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         self.max_velocity.check(kind, "max_velocity", 1e-3, 100.0)?;
         self.timing(kind)
@@ -296,7 +296,7 @@ impl ImpedanceConfigToml {
     /// Checks ranges.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`].
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
     pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
         for x in self.stiffness {
             check_range(kind, "stiffness", x, 0.0, 1e6)?;

@@ -22,7 +22,7 @@ impl PerJoint {
     /// The values for `n` joints, each checked in `lo..=hi`.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`] for a wrong count or a value out of range.
+    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for a wrong count or a value out of range.
     pub fn resolve(
         &self,
         kind: &str,

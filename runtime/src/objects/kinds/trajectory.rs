@@ -332,7 +332,7 @@ pub enum TrajectorySpec {
 /// Parses and checks a trajectory kind's configuration.
 ///
 /// # Errors
-/// [`CallError::BadConfig`].
+/// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
 pub fn trajectory_spec(kind: Kind, text: &str) -> Result<TrajectorySpec, WireError> {
     let k = kind.as_str();
     Ok(match kind {

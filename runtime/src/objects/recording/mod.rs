@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 pub mod mcap_log;
 
 use crate::common_clock::CommonClock;
-use crate::objects::clock::NodeTime;
+use crate::objects::clock::ClockReader;
 use crate::objects::lifecycle_feed::LifecycleEvent;
 use crate::objects::link_source::{LinkSource, StreamDatagram};
 use crate::objects::tick::TickRecord;
@@ -288,7 +288,7 @@ impl Recorder {
         links: Vec<(String, LinkSource)>,
         lifecycle: Option<Receiver<LifecycleEvent>>,
         clock: &CommonClock,
-        node_time: NodeTime,
+        node_time: ClockReader,
     ) -> Result<Recorder, RecordingError> {
         let log = McapLog::create(path, node)?;
         Recorder::start_with(log, path, streams, links, lifecycle, clock, node_time)
@@ -308,7 +308,7 @@ impl Recorder {
         links: Vec<(String, LinkSource)>,
         lifecycle: Option<Receiver<LifecycleEvent>>,
         clock: &CommonClock,
-        node_time: NodeTime,
+        node_time: ClockReader,
     ) -> Result<Recorder, RecordingError> {
         let log = McapLog::create_in(file, path, node)?;
         Recorder::start_with(log, path, streams, links, lifecycle, clock, node_time)
@@ -321,7 +321,7 @@ impl Recorder {
         links: Vec<(String, LinkSource)>,
         lifecycle: Option<Receiver<LifecycleEvent>>,
         clock: &CommonClock,
-        node_time: NodeTime,
+        node_time: ClockReader,
     ) -> Result<Recorder, RecordingError> {
         let clock = clock.clone();
         log.clock(node_time.now_ns(), clock.source(), &clock.estimate())?;
@@ -674,7 +674,7 @@ mod tests {
                 Vec::new(),
                 None,
                 &crate::common_clock::CommonClock::own(),
-                NodeTime::Real,
+                ClockReader::Real,
             ),
             Err(RecordingError::Io { .. })
         ));

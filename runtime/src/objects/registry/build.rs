@@ -8,14 +8,14 @@ use crate::objects::registry::{
     bad_arg, finite_effort, impedance, not_ready, unsupported,
 };
 use crate::objects::runtime::{
-    CellSensor, ControlTask, GalilSet, GoToCommand, LoopBoard, NodeController, NodeLoop, NodeSink,
-    RoutedGains, SimDrive, TrajectoryFeed,
+    CellSensor, ControlLaw, ControlTask, GalilSet, GoToCommand, JointBoard, RobotLoop, RoutedGains,
+    SimDrive, TickSink, TrajectoryFeed,
 };
 use crate::objects::teleop::TeleopComm;
 use crate::objects::teleop_end::Side;
-use crate::objects::{Body, Registry};
+use crate::objects::{KindState, Registry};
 use penelope_drivers::galil::GalilBoard;
-use penelope_drivers::model::DhRobotModel;
+use penelope_drivers::model::SerialRobotModel;
 use penelope_drivers::sim::force_sensor::VirtualForceSensor;
 use penelope_drivers::sim::tap::TapWriter;
 use penelope_hal::{
@@ -26,7 +26,7 @@ use penelope_rt_core::control::{
     AxisBinding, ControlCommand, ControlConfig, ControlLoop, ControlPorts,
 };
 use penelope_rt_core::controller::{JointGroups, JointPid, JointPidGains, JointPositionServo};
-use penelope_rt_core::safety::{HoldMode, Role, SafetyConfig};
+use penelope_rt_core::safety::{HoldMode, SafetyConfig, TeleopRole};
 use penelope_rt_core::teleop::CartesianImpedance;
 
 impl Registry {
@@ -67,7 +67,7 @@ impl Registry {
         let r = self.robot(&robot_name)?;
         for (board, joints) in &r.maps {
             for (other_name, other) in &self.objects {
-                let Body::Robot(or) = &other.body else {
+                let KindState::Robot(or) = &other.body else {
                     continue;
                 };
                 if other_name == &robot_name || other.users.is_empty() {
@@ -82,7 +82,7 @@ impl Registry {
                     }
                 }
             }
-            if let Body::Galil(g) = &self.get(board)?.body
+            if let KindState::Galil(g) = &self.get(board)?.body
                 && g.board.is_none()
             {
                 let b = self.get(board)?;
@@ -105,7 +105,7 @@ impl Registry {
                     return Err(not_ready(format!("sensor `{s}` is not configured")));
                 }
                 match &so.body {
-                    Body::Sensor(x) => Some((x.state.clone(), x.config.clone())),
+                    KindState::Sensor(x) => Some((x.state.clone(), x.config.clone())),
                     _ => None,
                 }
             }
@@ -186,17 +186,19 @@ impl Registry {
                 })?;
                 (
                     LoopSource::Groups(feeds),
-                    NodeController::Groups(Box::new(groups)),
+                    ControlLaw::Groups(Box::new(groups)),
                 )
             }
             _ => {
                 used.push(traj_name.clone());
                 let source = match (&self.get(&traj_name)?.body, law.teleop_side()) {
-                    (Body::Trajectory(t), None) => LoopSource::Trajectory(TrajectoryFeed::new(
-                        build_trajectory(&t.spec, &model, kind)?,
-                        spec_is_tool(&t.spec),
-                    )),
-                    (Body::Teleop(t), Some(side)) => {
+                    (KindState::Trajectory(t), None) => {
+                        LoopSource::Trajectory(TrajectoryFeed::new(
+                            build_trajectory(&t.spec, &model, kind)?,
+                            spec_is_tool(&t.spec),
+                        ))
+                    }
+                    (KindState::Teleop(t), Some(side)) => {
                         check_teleop_end(&traj_name, t, side, &robot_name)?;
                         LoopSource::Teleop(
                             side,
@@ -205,7 +207,7 @@ impl Registry {
                             law.port_law(kind)?,
                         )
                     }
-                    (Body::Teleop(_), None) => {
+                    (KindState::Teleop(_), None) => {
                         return Err(bad_arg(format!(
                             "`{traj_name}` is a teleoperation channel: it is followed by the \
                              halves of the teleoperation laws (force-display, \
@@ -232,12 +234,12 @@ impl Registry {
         // Safety by role (a master: display caps, zero force on a stale reference, amplifiers
         // off on a fault; a slave holds its pose), and axis bindings.
         let mut safety = match role {
-            Role::Master => {
+            TeleopRole::Master => {
                 let mut s = SafetyConfig::master(n, *model.limits());
                 (s.max_force, s.max_moment) = caps;
                 s
             }
-            Role::Slave => SafetyConfig::slave(n, *model.limits()),
+            TeleopRole::Slave => SafetyConfig::slave(n, *model.limits()),
         };
         safety.watchdog = timing.watchdog;
         let mut config = ControlConfig::new(timing.period, safety);
@@ -269,7 +271,7 @@ impl Registry {
         let maps = r.maps.clone();
         let (mut truth, mut contact) = (None, None);
         let board = if on_sim {
-            let Body::Robot(r) = &mut self.get_mut(&robot_name)?.body else {
+            let KindState::Robot(r) = &mut self.get_mut(&robot_name)?.body else {
                 return Err(ObjectError::internal("robot body"));
             };
             let mut body = r
@@ -286,22 +288,22 @@ impl Registry {
             }
             body.set_tap(tap);
             if r.kinematics.is_fpga_board() {
-                LoopBoard::Fpga(SimDrive::new(body))
+                JointBoard::Fpga(SimDrive::new(body))
             } else {
-                LoopBoard::Sim(SimDrive::new(body))
+                JointBoard::Sim(SimDrive::new(body))
             }
         } else {
             let mut boards: Vec<(String, GalilBoard)> = Vec::new();
             let mut map = [(0u8, 0u8); MAX_JOINTS];
             for (board, joints) in &maps {
                 let index = boards.len() as u8;
-                let Body::Galil(g) = &mut self.get_mut(board)?.body else {
+                let KindState::Galil(g) = &mut self.get_mut(board)?.body else {
                     return Err(ObjectError::internal("galil body"));
                 };
                 let Some(mut b) = g.board.take() else {
                     // Put back what was taken before refusing.
                     self.give_back(
-                        LoopBoard::Galil(Box::new(GalilSet::new(boards, map, n))),
+                        JointBoard::Galil(Box::new(GalilSet::new(boards, map, n))),
                         &robot_name,
                     );
                     return Err(not_ready(format!("board `{board}` is not open")));
@@ -317,7 +319,7 @@ impl Registry {
                     map[usize::from(ja.joint)] = (index, ja.axis);
                 }
             }
-            LoopBoard::Galil(Box::new(GalilSet::new(boards, map, n)))
+            JointBoard::Galil(Box::new(GalilSet::new(boards, map, n)))
         };
 
         // Ports.
@@ -334,12 +336,12 @@ impl Registry {
         // A teleoperation end's thread wakes on its loop's new safety events.
         let doorbell = match &source {
             LoopSource::Teleop(side, ..) => match self.objects.get(&traj_name).map(|o| &o.body) {
-                Some(Body::Teleop(t)) => t.link.as_ref().and_then(|l| l.doorbell(*side)),
+                Some(KindState::Teleop(t)) => t.link.as_ref().and_then(|l| l.doorbell(*side)),
                 _ => None,
             },
             _ => None,
         };
-        let sink = NodeSink::new(tel_w, comm_w, probe_w, truth)
+        let sink = TickSink::new(tel_w, comm_w, probe_w, truth)
             .with_clutch(self.clutch_of(&robot_name))
             .with_doorbell(doorbell);
         let ports = ControlPorts {
@@ -354,21 +356,21 @@ impl Registry {
         };
         let (lp, wrench_w) = if let (Some(cfg), Some(contact)) = (plant_sensor, contact) {
             let sensor = VirtualForceSensor::new(cfg, contact);
-            (NodeLoop::Plant(Box::new(lp.with_sensor(sensor))), None)
+            (RobotLoop::Plant(Box::new(lp.with_sensor(sensor))), None)
         } else if let Some(sensor) = replayed {
-            (NodeLoop::Replayed(Box::new(lp.with_sensor(sensor))), None)
+            (RobotLoop::Replayed(Box::new(lp.with_sensor(sensor))), None)
         } else if let Some(sensor) = netft {
-            (NodeLoop::NetFt(Box::new(lp.with_sensor(sensor))), None)
+            (RobotLoop::NetFt(Box::new(lp.with_sensor(sensor))), None)
         } else if sensor_name.is_some() {
             let (w, r) = latest();
             (
-                NodeLoop::Sensed(Box::new(
+                RobotLoop::Sensed(Box::new(
                     lp.with_sensor(CellSensor::new(r, timing.sensor_timeout)),
                 )),
                 Some(w),
             )
         } else {
-            (NodeLoop::Plain(Box::new(lp)), None)
+            (RobotLoop::Plain(Box::new(lp)), None)
         };
         let _ = cmd_w.push(ControlCommand::Activate);
         let comm = match source {
@@ -393,7 +395,8 @@ impl Registry {
                     Side::Master => self.clutch_of(&robot_name),
                     _ => None,
                 };
-                let Some(Body::Teleop(t)) = self.objects.get_mut(&traj_name).map(|o| &mut o.body)
+                let Some(KindState::Teleop(t)) =
+                    self.objects.get_mut(&traj_name).map(|o| &mut o.body)
                 else {
                     return Err(ObjectError::internal("teleop body"));
                 };
@@ -467,13 +470,13 @@ impl Registry {
         after_fault: bool,
     ) -> &'static str {
         let (robot, trajectory) = match self.objects.get(controller).map(|o| &o.body) {
-            Some(Body::Controller(c)) => (
+            Some(KindState::Controller(c)) => (
                 c.robot.clone().unwrap_or_default(),
                 c.trajectory.clone().unwrap_or_default(),
             ),
             _ => (String::new(), String::new()),
         };
-        let slave = self.role_of(controller) == Some(Role::Slave);
+        let slave = self.role_of(controller) == Some(TeleopRole::Slave);
         let said = match stopped.control {
             Some(mut t) => {
                 let hold = if after_fault {
@@ -497,7 +500,7 @@ impl Registry {
         };
         let end = stopped.comm.and_then(|c| c.into_teleop_end());
         if let Some(Object {
-            body: Body::Teleop(t),
+            body: KindState::Teleop(t),
             state,
             ..
         }) = self.objects.get_mut(&trajectory)
@@ -517,40 +520,40 @@ impl Registry {
     }
 
     /// The role of the robot controller `controller` drives, if it has one.
-    pub fn role_of(&self, controller: &str) -> Option<Role> {
-        let Some(Body::Controller(c)) = self.objects.get(controller).map(|o| &o.body) else {
+    pub fn role_of(&self, controller: &str) -> Option<TeleopRole> {
+        let Some(KindState::Controller(c)) = self.objects.get(controller).map(|o| &o.body) else {
             return None;
         };
         self.robot(c.robot.as_deref()?).ok().map(|r| r.role)
     }
 
     /// Gives a stopped loop's board back to the objects it came from, amplifiers off.
-    pub fn give_back(&mut self, board: LoopBoard, robot: &str) {
+    pub fn give_back(&mut self, board: JointBoard, robot: &str) {
         self.give_back_after_fault(board, robot, false);
     }
 
     /// Gives a failed loop's board back as the loop left it: still holding with its own servo
     /// when `holding` (a position board the loop stopped at its measured pose), else with its
     /// amplifiers off.
-    pub fn give_back_after_fault(&mut self, mut board: LoopBoard, robot: &str, holding: bool) {
+    pub fn give_back_after_fault(&mut self, mut board: JointBoard, robot: &str, holding: bool) {
         if !holding {
             let _ = board.set_enabled(false);
         }
         match board {
-            LoopBoard::Sim(drive) | LoopBoard::Fpga(drive) => {
+            JointBoard::Sim(drive) | JointBoard::Fpga(drive) => {
                 let body = drive.into_body();
                 if let Some(Object {
-                    body: Body::Robot(r),
+                    body: KindState::Robot(r),
                     ..
                 }) = self.objects.get_mut(robot)
                 {
                     r.body = Some(body);
                 }
             }
-            LoopBoard::Galil(set) => {
+            JointBoard::Galil(set) => {
                 for (name, b) in set.boards {
                     if let Some(Object {
-                        body: Body::Galil(g),
+                        body: KindState::Galil(g),
                         ..
                     }) = self.objects.get_mut(&name)
                     {
@@ -572,7 +575,10 @@ impl Registry {
 /// The default joint gains `(kp, kd)` of a robot: a joint PID's when its configuration leaves
 /// them out, and what a loop on a simulated body holds its pose with (10 and 0.5 times each
 /// joint's torque limit, per rad and per rad/s).
-pub(super) fn default_joint_gains(model: &DhRobotModel, n: usize) -> (JointVector, JointVector) {
+pub(super) fn default_joint_gains(
+    model: &SerialRobotModel,
+    n: usize,
+) -> (JointVector, JointVector) {
     let mut kp = JointVector::zeros();
     let mut kd = JointVector::zeros();
     for j in 0..n {
@@ -604,16 +610,16 @@ enum LoopSource {
 pub(super) fn node_law(
     law: &ControllerConfig,
     kind: &str,
-    model: &DhRobotModel,
+    model: &SerialRobotModel,
     hold: (JointVector, JointVector),
-) -> Result<NodeController, ObjectError> {
+) -> Result<ControlLaw, ObjectError> {
     let n = model.joint_count();
     Ok(match law {
         ControllerConfig::Pid(p) => {
-            NodeController::Pid(JointPid::new(pid_gains(p, kind, n, hold.0, hold.1)?))
+            ControlLaw::Pid(JointPid::new(pid_gains(p, kind, n, hold.0, hold.1)?))
         }
         ControllerConfig::Impedance(i) => {
-            NodeController::Impedance(CartesianImpedance::new(impedance(i)).map_err(|e| {
+            ControlLaw::Impedance(CartesianImpedance::new(impedance(i)).map_err(|e| {
                 ObjectError::BadConfig {
                     kind: kind.into(),
                     message: format!("{e:?}"),
@@ -624,15 +630,15 @@ pub(super) fn node_law(
             let max_velocity = p
                 .max_velocity
                 .resolve(kind, "max_velocity", n, 1e-3, 100.0)?;
-            NodeController::Position(JointPositionServo::new(max_velocity))
+            ControlLaw::Position(JointPositionServo::new(max_velocity))
         }
-        ControllerConfig::ForceDisplay(c) => NodeController::ForceDisplay(c.law(kind)?),
-        ControllerConfig::PositionError(c) => NodeController::PositionErrorMaster(c.law(kind)?),
-        ControllerConfig::FourChannel(c) => NodeController::FourChannel(c.law(kind)?),
-        ControllerConfig::Tracking(c, servo) => NodeController::SlaveTracking(c.law(kind, *servo)?),
-        ControllerConfig::FourChannelSlave(c) => NodeController::FourChannelSlave(c.law(kind)?),
-        ControllerConfig::WaveMaster(c) => NodeController::ForceDisplay(c.law(kind)?),
-        ControllerConfig::WaveSlave(c) => NodeController::SlaveTracking(c.law(kind)?),
+        ControllerConfig::ForceDisplay(c) => ControlLaw::ForceDisplay(c.law(kind)?),
+        ControllerConfig::PositionError(c) => ControlLaw::PositionErrorMaster(c.law(kind)?),
+        ControllerConfig::FourChannel(c) => ControlLaw::FourChannel(c.law(kind)?),
+        ControllerConfig::Tracking(c, servo) => ControlLaw::SlaveTracking(c.law(kind, *servo)?),
+        ControllerConfig::FourChannelSlave(c) => ControlLaw::FourChannelSlave(c.law(kind)?),
+        ControllerConfig::WaveMaster(c) => ControlLaw::ForceDisplay(c.law(kind)?),
+        ControllerConfig::WaveSlave(c) => ControlLaw::SlaveTracking(c.law(kind)?),
         ControllerConfig::Groups(_) => {
             return Err(ObjectError::Internal(
                 "a joint group inside a joint group".into(),

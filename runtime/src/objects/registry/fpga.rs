@@ -3,7 +3,7 @@
 
 use crate::objects::error::ObjectError;
 use crate::objects::fpga_board::robot_on_boards;
-use crate::objects::{Body, Registry};
+use crate::objects::{KindState, Registry};
 
 impl Registry {
     /// The `board/fpga` robot `name`'s joints are on, if any (boards not yet created count as
@@ -21,7 +21,7 @@ impl Registry {
                 let fpga = self
                     .objects
                     .get(b)
-                    .is_some_and(|o| matches!(&o.body, Body::SimBoard(s) if s.fpga));
+                    .is_some_and(|o| matches!(&o.body, KindState::SimBoard(s) if s.fpga));
                 (b.as_str(), fpga)
             })
             .collect();

@@ -6,9 +6,9 @@
 use super::trajectories::{build_trajectory, spec_is_tool};
 use crate::objects::error::ObjectError;
 use crate::objects::registry::{ControllerConfig, Kind, bad_arg, build, not_ready};
-use crate::objects::runtime::{NodeController, TrajectoryFeed};
-use crate::objects::{Body, Registry, kinds};
-use penelope_drivers::model::DhRobotModel;
+use crate::objects::runtime::{ControlLaw, TrajectoryFeed};
+use crate::objects::{KindState, Registry, kinds};
+use penelope_drivers::model::SerialRobotModel;
 use penelope_hal::{JointSet, JointVector, LifecycleState};
 use penelope_protocol::proto::Class;
 
@@ -19,7 +19,7 @@ pub(super) struct Member {
     /// Its joints.
     pub joints: JointSet,
     /// Its law.
-    pub law: NodeController,
+    pub law: ControlLaw,
     /// Its trajectory's name.
     pub trajectory: String,
     /// Its trajectory, ready to start.
@@ -87,7 +87,7 @@ impl Registry {
         &self,
         groups: &kinds::JointGroupsConfig,
         robot: &str,
-        model: &DhRobotModel,
+        model: &SerialRobotModel,
         hold: (JointVector, JointVector),
     ) -> Result<Vec<Member>, ObjectError> {
         let mut members = Vec::new();
@@ -101,7 +101,7 @@ impl Registry {
                 )));
             }
             let kind = o.kind.as_str();
-            let Body::Controller(c) = &o.body else {
+            let KindState::Controller(c) = &o.body else {
                 return Err(ObjectError::internal("controller body"));
             };
             if c.robot.as_deref() != Some(robot) {
@@ -116,7 +116,7 @@ impl Registry {
                     "trajectory `{trajectory}` of group member `{member}` is not configured"
                 )));
             }
-            let Body::Trajectory(spec) = &t.body else {
+            let KindState::Trajectory(spec) = &t.body else {
                 return Err(bad_arg(format!(
                     "group member `{member}` follows `{trajectory}`, a {}: group members follow \
                      joint or tool trajectories",
@@ -140,7 +140,7 @@ impl Registry {
     /// The running joint-groups controller that runs `member`, and the member's index in it.
     pub(super) fn running_group_of(&self, member: &str) -> Option<(String, u8)> {
         self.objects.get(member)?.users.iter().find_map(|user| {
-            let Body::Controller(c) = &self.objects.get(user)?.body else {
+            let KindState::Controller(c) = &self.objects.get(user)?.body else {
                 return None;
             };
             let ControllerConfig::Groups(g) = &c.config else {

@@ -12,9 +12,9 @@ use crate::objects::teleop_laws::{
     ForceDisplayToml, FourChannelSlaveToml, FourChannelToml, PositionErrorToml, SlaveTrackingToml,
 };
 use crate::objects::teleop_wave::{WaveMasterToml, WaveSlaveToml};
-use crate::objects::{Body, Registry};
+use crate::objects::{KindState, Registry};
 use penelope_drivers::galil::GalilBoard;
-use penelope_drivers::model::DhRobotModel;
+use penelope_drivers::model::SerialRobotModel;
 use penelope_hal::{
     AxisState, Board, Dynamics, Frame, InverseKinematics, JacobianFrame, JointState, JointVector,
     Kinematics, LifecycleState, MAX_AXES, MAX_JOINTS, RobotModel, Timestamp,
@@ -60,7 +60,7 @@ impl Registry {
         let mut any = false;
         for (board, joints) in &maps {
             let Ok(Object {
-                body: Body::Galil(g),
+                body: KindState::Galil(g),
                 ..
             }) = self.get_mut(board)
             else {
@@ -289,7 +289,7 @@ impl Registry {
                         return Err(bad_arg("a joint or an axis appears twice"));
                     }
                 }
-                let Body::Robot(r) = &mut self.get_mut(name)?.body else {
+                let KindState::Robot(r) = &mut self.get_mut(name)?.body else {
                     return Err(ObjectError::internal("robot body"));
                 };
                 // Replaces this board's mapping; joints mapped elsewhere move here.
@@ -304,7 +304,7 @@ impl Registry {
                 // An fpga board takes the FRHC only, and all of it: refused here already when
                 // the board exists (again at configure, when every board must).
                 if let Err(e) = self.fpga_board_of(name) {
-                    if let Body::Robot(r) = &mut self.get_mut(name)?.body {
+                    if let KindState::Robot(r) = &mut self.get_mut(name)?.body {
                         r.maps = previous;
                     }
                     return Err(e);
@@ -318,16 +318,16 @@ impl Registry {
         let o = self.expect_class(name, Class::Board)?;
         let active = !o.users.is_empty();
         match (&o.body, m) {
-            (Body::SimBoard(s), BoardMethod::AxisCount) => Ok(Reply::Count(s.config.axes)),
-            (Body::Galil(g), BoardMethod::AxisCount) => Ok(Reply::Count(g.config.axes)),
+            (KindState::SimBoard(s), BoardMethod::AxisCount) => Ok(Reply::Count(s.config.axes)),
+            (KindState::Galil(g), BoardMethod::AxisCount) => Ok(Reply::Count(g.config.axes)),
             (_, BoardMethod::AmplifiersEnabled) => {
                 // An idle board says what the device holds (a failed loop may leave a position
                 // board holding); a driven one, what its loop's safety state implies.
                 if !active {
                     let on = match &o.body {
-                        Body::Galil(g) => g.board.as_ref().is_some_and(GalilBoard::is_enabled),
+                        KindState::Galil(g) => g.board.as_ref().is_some_and(GalilBoard::is_enabled),
                         _ => self.objects.values().any(|r| match &r.body {
-                            Body::Robot(r) => {
+                            KindState::Robot(r) => {
                                 r.maps.iter().any(|(b, _)| b == name)
                                     && r.body.as_ref().is_some_and(|b| b.is_enabled())
                             }
@@ -356,7 +356,7 @@ impl Registry {
                  and its loop)",
                 o.users.iter().next().cloned().unwrap_or_default()
             ))),
-            (Body::Galil(g), BoardMethod::Rearm) => match &g.board {
+            (KindState::Galil(g), BoardMethod::Rearm) => match &g.board {
                 Some(b) => {
                     b.rearm();
                     Ok(Reply::Unit)
@@ -369,15 +369,15 @@ impl Registry {
             (_, BoardMethod::Rearm) => Ok(Reply::Unit),
             (_, BoardMethod::ReadEncoders) => {
                 let axes = match &o.body {
-                    Body::SimBoard(s) => s.config.axes as usize,
-                    Body::Galil(g) => g.config.axes as usize,
+                    KindState::SimBoard(s) => s.config.axes as usize,
+                    KindState::Galil(g) => g.config.axes as usize,
                     _ => 0,
                 };
                 let mut counts = vec![0i64; axes];
-                if let Body::Galil(_) = &o.body
+                if let KindState::Galil(_) = &o.body
                     && !active
                 {
-                    let Body::Galil(g) = &mut self.get_mut(name)?.body else {
+                    let KindState::Galil(g) = &mut self.get_mut(name)?.body else {
                         unreachable_body()?
                     };
                     let b = g
@@ -401,7 +401,7 @@ impl Registry {
                     .objects
                     .iter()
                     .filter_map(|(rn, ro)| match &ro.body {
-                        Body::Robot(r) => r
+                        KindState::Robot(r) => r
                             .maps
                             .iter()
                             .find(|(b, _)| b == name)
@@ -416,7 +416,7 @@ impl Registry {
                     let r = self.robot(&rn)?;
                     let zero = r.model.named_pose(r.start);
                     let on_sim =
-                        r.body.is_some() || matches!(self.get(name)?.body, Body::SimBoard(_));
+                        r.body.is_some() || matches!(self.get(name)?.body, KindState::SimBoard(_));
                     for ja in joints {
                         let j = usize::from(ja.joint);
                         let cpr = r.model.counts_per_radian(j);
@@ -442,8 +442,8 @@ impl Registry {
             return Err(not_ready(format!("sensor `{name}` is not configured")));
         }
         let s = match &o.body {
-            Body::Sensor(s) => s,
-            Body::Hand(h) => {
+            KindState::Sensor(s) => s,
+            KindState::Hand(h) => {
                 return Err(ObjectError::Unsupported {
                     kind: o.kind.as_str().into(),
                     method: format!(
@@ -454,8 +454,8 @@ impl Registry {
                     .into(),
                 });
             }
-            Body::NetFt(s) => return Registry::netft_method(s, o.kind.as_str(), m),
-            Body::ReplaySensor(_) | Body::OperatorReplay(_) => {
+            KindState::NetFt(s) => return Registry::netft_method(s, o.kind.as_str(), m),
+            KindState::ReplaySensor(_) | KindState::OperatorReplay(_) => {
                 return Err(ObjectError::Unsupported {
                     kind: o.kind.as_str().into(),
                     method: format!(
@@ -500,8 +500,8 @@ impl Registry {
     ) -> Result<Reply, ObjectError> {
         let o = self.expect_class(name, Class::Trajectory)?;
         let t = match &o.body {
-            Body::Trajectory(t) => t,
-            Body::Teleop(_) => {
+            KindState::Trajectory(t) => t,
+            KindState::Teleop(_) => {
                 return Err(ObjectError::Unsupported {
                     kind: o.kind.as_str().into(),
                     method: format!(
@@ -520,7 +520,9 @@ impl Registry {
             .objects
             .values()
             .find_map(|c| match &c.body {
-                Body::Controller(x) if x.trajectory.as_deref() == Some(name) => x.robot.clone(),
+                KindState::Controller(x) if x.trajectory.as_deref() == Some(name) => {
+                    x.robot.clone()
+                }
                 _ => None,
             })
             .and_then(|r| self.robot(&r).ok().map(|r| r.model.clone()));
@@ -745,7 +747,7 @@ fn gains_from(
     kind: &str,
     current: &ControllerConfig,
     text: &str,
-    model: Option<&DhRobotModel>,
+    model: Option<&SerialRobotModel>,
 ) -> Result<(ControllerConfig, Option<GainsUpdate>), ObjectError> {
     Ok(match current {
         ControllerConfig::Pid(_) => {

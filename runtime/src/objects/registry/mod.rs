@@ -15,14 +15,14 @@ use std::time::Duration;
 use crate::objects::teleop_passivity::PortLaw;
 use nalgebra::Vector3;
 use penelope_drivers::galil::GalilBoard;
-use penelope_drivers::model::DhRobotModel;
+use penelope_drivers::model::SerialRobotModel;
 use penelope_drivers::sim::board::{SimBoard, SimBoardConfig as DriverSimConfig};
 use penelope_drivers::sim::plant::PlantConfig;
 use penelope_hal::{
     JointVector, Kinematics, LifecycleState, MAX_JOINTS, NamedPose, RobotModel, Timestamp,
     Transition,
 };
-use penelope_rt_core::safety::Role;
+use penelope_rt_core::safety::TeleopRole;
 use penelope_rt_core::teleop::ImpedanceConfig;
 
 use super::config::LoopTiming;
@@ -66,12 +66,12 @@ pub(crate) struct Object {
     pub state: LifecycleState,
     /// Active controllers using this object (it shows `active` while there is one).
     pub users: BTreeSet<String>,
-    pub body: Body,
+    pub body: KindState,
 }
 
 // One per object, in a map: the size difference costs nothing worth a box.
 #[allow(clippy::large_enum_variant)]
-pub(crate) enum Body {
+pub(crate) enum KindState {
     Robot(Box<RobotObj>),
     SimBoard(SimBoardObj),
     Galil(GalilObj),
@@ -93,12 +93,12 @@ pub(crate) struct TeleopObj {
 
 pub(crate) struct RobotObj {
     /// The float model: dynamics, named poses, encoder scaling, and the simulated body.
-    pub model: DhRobotModel,
+    pub model: SerialRobotModel,
     /// What the robot's loops and kinematic methods compute with: the float model, or, once
     /// configured on a `board/fpga`, the board's.
     pub kinematics: RobotKinematics,
     /// Master or slave: what its loops' safety does.
-    pub role: Role,
+    pub role: TeleopRole,
     /// A master's display caps, N and N·m.
     pub caps: (f64, f64),
     pub start: NamedPose,
@@ -220,7 +220,7 @@ fn unsupported(kind: Kind, method: &str) -> ObjectError {
     }
 }
 
-fn finite_effort(model: &DhRobotModel, j: usize) -> f64 {
+fn finite_effort(model: &SerialRobotModel, j: usize) -> f64 {
     let e = model.limits().effort_max[j];
     if e.is_finite() && e > 0.0 { e } else { 100.0 }
 }
@@ -240,7 +240,7 @@ impl Object {
     pub fn info(&self, bridged: &crate::objects::bridged::BridgedChannels) -> ObjectInfo {
         let mut relations = Vec::new();
         match &self.body {
-            Body::Robot(r) => {
+            KindState::Robot(r) => {
                 for (b, joints) in &r.maps {
                     let list: Vec<String> = joints
                         .iter()
@@ -253,26 +253,26 @@ impl Object {
                     relations.extend(crate::objects::fpga_board::describe());
                 }
             }
-            Body::SimBoard(b) if b.fpga => {
+            KindState::SimBoard(b) if b.fpga => {
                 relations.push(("kinematics".to_string(), "frhc, bit-exact".into()));
                 relations.extend(crate::objects::fpga_board::describe());
             }
-            Body::Hand(h) => relations.push(("robot".to_string(), h.config.robot.clone())),
-            Body::OperatorReplay(h) => {
+            KindState::Hand(h) => relations.push(("robot".to_string(), h.config.robot.clone())),
+            KindState::OperatorReplay(h) => {
                 relations.push(("robot".to_string(), h.config.robot.clone()));
                 relations.push(("recording".to_string(), h.config.file.clone()));
             }
-            Body::ReplaySensor(s) => {
+            KindState::ReplaySensor(s) => {
                 relations.push(("recording".to_string(), s.config.file.clone()))
             }
-            Body::Sensor(s) => relations.extend(publisher_relations(s)),
-            Body::NetFt(s) => relations.extend(netft_relations(s)),
-            Body::Teleop(t) => {
+            KindState::Sensor(s) => relations.extend(publisher_relations(s)),
+            KindState::NetFt(s) => relations.extend(netft_relations(s)),
+            KindState::Teleop(t) => {
                 relations.push(("master".to_string(), t.config.master.clone()));
                 relations.push(("slave".to_string(), t.config.slave.clone()));
                 relations.extend(link_relations(&self.name, t, bridged));
             }
-            Body::Controller(c) => {
+            KindState::Controller(c) => {
                 for (k, v) in [
                     ("robot", &c.robot),
                     ("trajectory", &c.trajectory),
@@ -329,7 +329,7 @@ pub(crate) fn make(
             let start = cfg.start_pose(k)?;
             let role = cfg.role(k)?;
             let model = cfg.model_in(k, model, robot_files)?;
-            Body::Robot(Box::new(RobotObj {
+            KindState::Robot(Box::new(RobotObj {
                 kinematics: RobotKinematics::Float(model.clone()),
                 model,
                 role,
@@ -342,7 +342,7 @@ pub(crate) fn make(
         Kind::SimBoard | Kind::FpgaBoard => {
             let cfg: SimBoardConfig = crate::objects::config::parse(k, config)?;
             cfg.check(k)?;
-            Body::SimBoard(SimBoardObj {
+            KindState::SimBoard(SimBoardObj {
                 config: cfg,
                 fpga: kind == Kind::FpgaBoard,
             })
@@ -350,7 +350,7 @@ pub(crate) fn make(
         Kind::GalilBoard => {
             let cfg: GalilConfig = crate::objects::config::parse(k, config)?;
             cfg.check(k)?;
-            Body::Galil(GalilObj {
+            KindState::Galil(GalilObj {
                 config: cfg,
                 board: None,
             })
@@ -359,7 +359,7 @@ pub(crate) fn make(
             let cfg: SensorConfig = crate::objects::config::parse(k, config)?;
             cfg.check(k)?;
             let env = kinds::environment(k, &cfg.shapes)?;
-            Body::Sensor(SensorObj {
+            KindState::Sensor(SensorObj {
                 state: Arc::new(Mutex::new(VirtualSensor::new(env))),
                 config: cfg,
                 publisher: None,
@@ -390,7 +390,7 @@ pub(crate) fn make(
         Kind::OperatorHand => {
             let cfg: HandConfig = crate::objects::config::parse(k, config)?;
             let script = cfg.check(k)?;
-            Body::Hand(Box::new(HandObj {
+            KindState::Hand(Box::new(HandObj {
                 config: cfg,
                 script,
                 clutch: Arc::default(),
@@ -399,7 +399,7 @@ pub(crate) fn make(
         Kind::Teleop => {
             let cfg: TeleopConfig = crate::objects::config::parse(k, config)?;
             cfg.check(k)?;
-            Body::Teleop(Box::new(TeleopObj {
+            KindState::Teleop(Box::new(TeleopObj {
                 config: cfg,
                 link: None,
             }))
@@ -450,7 +450,7 @@ pub(crate) fn make(
             controller_body(ControllerConfig::WaveSlave(cfg), timing, config)
         }
         Kind::Step | Kind::Ramp | Kind::Trapezoidal | Kind::Spline => {
-            Body::Trajectory(TrajectoryObj {
+            KindState::Trajectory(TrajectoryObj {
                 spec: kinds::trajectory_spec(kind, config)?,
             })
         }
@@ -464,8 +464,8 @@ pub(crate) fn make(
     })
 }
 
-fn controller_body(config: ControllerConfig, timing: LoopTiming, text: &str) -> Body {
-    Body::Controller(Box::new(ControllerObj {
+fn controller_body(config: ControllerConfig, timing: LoopTiming, text: &str) -> KindState {
+    KindState::Controller(Box::new(ControllerObj {
         config,
         config_text: text.to_string(),
         timing,
@@ -527,14 +527,14 @@ impl Registry {
 
     fn robot(&self, name: &str) -> Result<&RobotObj, ObjectError> {
         match &self.expect_class(name, Class::Robot)?.body {
-            Body::Robot(r) => Ok(r),
+            KindState::Robot(r) => Ok(r),
             _ => Err(ObjectError::internal("robot body")),
         }
     }
 
     fn controller_mut(&mut self, name: &str) -> Result<&mut ControllerObj, ObjectError> {
         match &mut self.get_mut(name)?.body {
-            Body::Controller(c) => Ok(c),
+            KindState::Controller(c) => Ok(c),
             _ => Err(ObjectError::internal("controller body")),
         }
     }
@@ -590,19 +590,19 @@ impl Registry {
     fn release(&mut self, name: &str) {
         if let Some(o) = self.objects.get_mut(name) {
             match &mut o.body {
-                Body::Robot(r) => {
+                KindState::Robot(r) => {
                     r.body = None;
                     r.kinematics = RobotKinematics::Float(r.model.clone());
                 }
-                Body::Teleop(t) => t.link = None,
+                KindState::Teleop(t) => t.link = None,
                 // Its thread stops and is joined; readers fall silent and go stale.
-                Body::Sensor(s) => s.publisher = None,
+                KindState::Sensor(s) => s.publisher = None,
                 // A stop request to the box, and the I/O thread joined.
-                Body::NetFt(s) => s.sensor = None,
-                b @ (Body::ReplaySensor(_) | Body::OperatorReplay(_)) => {
+                KindState::NetFt(s) => s.sensor = None,
+                b @ (KindState::ReplaySensor(_) | KindState::OperatorReplay(_)) => {
                     Registry::release_replay(b)
                 }
-                Body::Galil(g) => {
+                KindState::Galil(g) => {
                     // The driver's release: amplifiers off, watchdog halted.
                     if let Some(b) = g.board.take() {
                         b.release();
@@ -618,7 +618,7 @@ impl Registry {
         match kind {
             Kind::Robot(_) => self.configure_robot(name),
             Kind::GalilBoard => {
-                let Body::Galil(g) = &mut self.get_mut(name)?.body else {
+                let KindState::Galil(g) = &mut self.get_mut(name)?.body else {
                     return Err(ObjectError::internal("galil body"));
                 };
                 g.board = Some(open_galil(&g.config)?);
@@ -650,11 +650,11 @@ impl Registry {
                 return Err(not_ready(format!("board `{board}` is not configured")));
             }
             let axes = match &b.body {
-                Body::SimBoard(s) => {
+                KindState::SimBoard(s) => {
                     sim_boards.push(board.clone());
                     s.config.axes as usize
                 }
-                Body::Galil(g) => {
+                KindState::Galil(g) => {
                     galil = true;
                     g.config.axes as usize
                 }
@@ -691,11 +691,11 @@ impl Registry {
                 .ok_or_else(|| ObjectError::internal("fpga model"))?,
             None => RobotKinematics::Float(r.model.clone()),
         };
-        if let Body::Robot(r) = &mut self.get_mut(name)?.body {
+        if let KindState::Robot(r) = &mut self.get_mut(name)?.body {
             r.kinematics = kinematics;
         }
         if let Some(first) = sim_boards.first() {
-            let Body::SimBoard(s) = &self.get(first)?.body else {
+            let KindState::SimBoard(s) = &self.get(first)?.body else {
                 return Err(ObjectError::internal("sim body"));
             };
             let env = kinds::environment(kinds::BOARD_SIM, &s.config.shapes)?;
@@ -729,7 +729,7 @@ impl Registry {
             // environment (free space without shapes).
             let contact = self.tool_contact(name, model.forward(&q0), env)?;
             let body = SimBoard::new(model, plant, board_cfg, contact, q0, Timestamp::ZERO);
-            if let Body::Robot(r) = &mut self.get_mut(name)?.body {
+            if let KindState::Robot(r) = &mut self.get_mut(name)?.body {
                 r.body = Some(Box::new(body));
             }
         }

@@ -4,7 +4,7 @@
 
 use crate::objects::error::ObjectError;
 use crate::objects::registry::{Kind, not_ready};
-use crate::objects::{Body, Registry, kinds};
+use crate::objects::{KindState, Registry, kinds};
 use penelope_drivers::netft::{NetFt, NetFtConfig, NetFtReader};
 use penelope_protocol::proto::{Reply, SensorMethod, WrenchMsg};
 use std::time::Duration;
@@ -19,11 +19,11 @@ pub(crate) struct NetFtObj {
 }
 
 /// Makes the body of a `sensor/netft` from its configuration text.
-pub(super) fn netft_body(config: &str) -> Result<Body, ObjectError> {
+pub(super) fn netft_body(config: &str) -> Result<KindState, ObjectError> {
     let k = Kind::NetFtSensor.as_str();
     let cfg: kinds::NetFtSensorConfig = crate::objects::config::parse(k, config)?;
     let config = cfg.check(k)?;
-    Ok(Body::NetFt(Box::new(NetFtObj {
+    Ok(KindState::NetFt(Box::new(NetFtObj {
         config,
         sensor: None,
     })))
@@ -58,7 +58,7 @@ pub(super) fn netft_relations(s: &NetFtObj) -> Vec<(String, String)> {
 impl Registry {
     /// Opens the stream of Net F/T `name` and waits (bounded) for its first record.
     pub(super) fn configure_netft(&mut self, name: &str) -> Result<(), ObjectError> {
-        let Body::NetFt(s) = &mut self.get_mut(name)?.body else {
+        let KindState::NetFt(s) = &mut self.get_mut(name)?.body else {
             return Err(ObjectError::internal("netft body"));
         };
         let address = s.config.address;
@@ -77,7 +77,7 @@ impl Registry {
 
     /// A loop's reader of Net F/T `name`, if `name` is one, with the sensor's mount.
     pub(super) fn netft_reader(&self, name: &str) -> Result<Option<NetFtReader>, ObjectError> {
-        let Some(Body::NetFt(s)) = self.objects.get(name).map(|o| &o.body) else {
+        let Some(KindState::NetFt(s)) = self.objects.get(name).map(|o| &o.body) else {
             return Ok(None);
         };
         match &s.sensor {

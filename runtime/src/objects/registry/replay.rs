@@ -12,20 +12,20 @@ use crate::objects::registry::{Kind, not_ready};
 use crate::objects::replay::{
     OperatorReplayConfig, OperatorReplayObj, ReplaySensor, ReplaySensorConfig, ReplaySensorObj,
 };
-use crate::objects::{Body, Registry};
+use crate::objects::{KindState, Registry};
 use penelope_drivers::sim::ToolContact;
 use penelope_drivers::sim::operator::VirtualOperator;
 use penelope_hal::Timestamp;
 use std::sync::Arc;
 
 /// The body of a new replay object of `kind` (configuration checked; nothing read yet).
-pub(super) fn replay_body(kind: Kind, config: &str) -> Result<Body, ObjectError> {
+pub(super) fn replay_body(kind: Kind, config: &str) -> Result<KindState, ObjectError> {
     let k = kind.as_str();
     Ok(match kind {
         Kind::ReplaySensor => {
             let cfg: ReplaySensorConfig = crate::objects::config::parse(k, config)?;
             cfg.check(k)?;
-            Body::ReplaySensor(Box::new(ReplaySensorObj {
+            KindState::ReplaySensor(Box::new(ReplaySensorObj {
                 config: cfg,
                 readings: None,
             }))
@@ -33,7 +33,7 @@ pub(super) fn replay_body(kind: Kind, config: &str) -> Result<Body, ObjectError>
         _ => {
             let cfg: OperatorReplayConfig = crate::objects::config::parse(k, config)?;
             cfg.check(k)?;
-            Body::OperatorReplay(Box::new(OperatorReplayObj {
+            KindState::OperatorReplay(Box::new(OperatorReplayObj {
                 config: cfg,
                 motion: None,
                 clutch: Arc::default(),
@@ -49,17 +49,17 @@ impl Registry {
         let o = self.get_mut(name)?;
         let kind = o.kind.as_str();
         match &mut o.body {
-            Body::ReplaySensor(s) => s.load().map_err(|e| e.for_kind(kind)),
-            Body::OperatorReplay(h) => h.load().map_err(|e| e.for_kind(kind)),
+            KindState::ReplaySensor(s) => s.load().map_err(|e| e.for_kind(kind)),
+            KindState::OperatorReplay(h) => h.load().map_err(|e| e.for_kind(kind)),
             _ => Err(ObjectError::internal("replay body")),
         }
     }
 
     /// Drops a replay object's loaded recording (`cleanup`).
-    pub(super) fn release_replay(body: &mut Body) {
+    pub(super) fn release_replay(body: &mut KindState) {
         match body {
-            Body::ReplaySensor(s) => s.readings = None,
-            Body::OperatorReplay(h) => h.motion = None,
+            KindState::ReplaySensor(s) => s.readings = None,
+            KindState::OperatorReplay(h) => h.motion = None,
             _ => {}
         }
     }
@@ -79,7 +79,7 @@ impl Registry {
     ) -> Result<ToolContact, ObjectError> {
         for (name, o) in &self.objects {
             match &o.body {
-                Body::Hand(h) if h.config.robot == robot => {
+                KindState::Hand(h) if h.config.robot == robot => {
                     return Ok(ToolContact::Hand {
                         operator: VirtualOperator::new(
                             h.script.clone(),
@@ -90,7 +90,7 @@ impl Registry {
                         clutch: h.clutch.clone(),
                     });
                 }
-                Body::OperatorReplay(h) if h.config.robot == robot => {
+                KindState::OperatorReplay(h) if h.config.robot == robot => {
                     let hand = h.hand().ok_or_else(|| {
                         not_ready(format!(
                             "hand `{name}` (holding `{robot}`) is not configured: its recording \
@@ -108,8 +108,8 @@ impl Registry {
     /// The clutch button of the hand holding `robot`, scripted or replayed, if one does.
     pub(super) fn clutch_of(&self, robot: &str) -> Option<Arc<AtomicBool>> {
         self.objects.values().find_map(|o| match &o.body {
-            Body::Hand(h) if h.config.robot == robot => Some(h.clutch.clone()),
-            Body::OperatorReplay(h) if h.config.robot == robot => Some(h.clutch.clone()),
+            KindState::Hand(h) if h.config.robot == robot => Some(h.clutch.clone()),
+            KindState::OperatorReplay(h) if h.config.robot == robot => Some(h.clutch.clone()),
             _ => None,
         })
     }
@@ -119,7 +119,7 @@ impl Registry {
     /// # Errors
     /// [`ObjectError::NotReady`] when it is not configured.
     pub(super) fn replay_sensor(&self, name: &str) -> Result<Option<ReplaySensor>, ObjectError> {
-        let Some(Body::ReplaySensor(s)) = self.objects.get(name).map(|o| &o.body) else {
+        let Some(KindState::ReplaySensor(s)) = self.objects.get(name).map(|o| &o.body) else {
             return Ok(None);
         };
         let readings = s

@@ -6,7 +6,7 @@ use crate::dataplane::endpoint::Endpoint;
 use crate::dataplane::sensor_stream::SensorPublisher;
 use crate::objects::error::ObjectError;
 use crate::objects::registry::{SensorObj, bad_arg, not_ready};
-use crate::objects::{Body, Registry};
+use crate::objects::{KindState, Registry};
 use penelope_protocol::proto::Reply;
 use std::time::Duration;
 
@@ -42,7 +42,7 @@ impl Registry {
     pub(super) fn configure_sensor(&mut self, name: &str) -> Result<(), ObjectError> {
         let kind = crate::objects::kinds::SENSOR_VIRTUAL;
         let key = self.datagram_key.clone();
-        let Body::Sensor(s) = &mut self.get_mut(name)?.body else {
+        let KindState::Sensor(s) = &mut self.get_mut(name)?.body else {
             return Err(ObjectError::internal("sensor body"));
         };
         let Some(address) = s.config.publish_address(kind)? else {

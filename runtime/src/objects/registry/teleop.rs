@@ -6,7 +6,7 @@ use crate::dataplane::endpoint::Endpoint;
 use crate::objects::error::ObjectError;
 use crate::objects::registry::{TeleopObj, bad_arg};
 use crate::objects::teleop_end::{Side, TeleopLink};
-use crate::objects::{Body, Registry};
+use crate::objects::{KindState, Registry};
 use penelope_protocol::proto::Class;
 
 use crate::dataplane::end_clock::LinkTime;
@@ -93,7 +93,7 @@ pub(super) fn link_relations(
 impl Registry {
     pub(super) fn configure_teleop(&mut self, name: &str) -> Result<(), ObjectError> {
         let kind = crate::objects::kinds::TRAJECTORY_TELEOP;
-        let Body::Teleop(t) = &self.get(name)?.body else {
+        let KindState::Teleop(t) = &self.get(name)?.body else {
             return Err(ObjectError::internal("teleop body"));
         };
         let (master, slave, mapping) = (
@@ -120,7 +120,7 @@ impl Registry {
             }
             let (link, end) = TeleopLink::bridged(Side::Slave);
             self.bridged.insert(name, &key, end);
-            if let Body::Teleop(t) = &mut self.get_mut(name)?.body {
+            if let KindState::Teleop(t) = &mut self.get_mut(name)?.body {
                 t.link = Some(link);
             }
             return Ok(());
@@ -195,7 +195,7 @@ impl Registry {
                 })?
             }
         };
-        if let Body::Teleop(t) = &mut self.get_mut(name)?.body {
+        if let KindState::Teleop(t) = &mut self.get_mut(name)?.body {
             t.link = Some(link);
         }
         Ok(())

@@ -3,8 +3,8 @@
 use crate::objects::error::ObjectError;
 use crate::objects::kinds;
 use crate::objects::registry::{GoalConfig, TrajectorySpec, not_ready};
-use crate::objects::runtime::NodeTrajectory;
-use penelope_drivers::model::{self as models, DhRobotModel};
+use crate::objects::runtime::TrajectoryGenerator;
+use penelope_drivers::model::{self as models, SerialRobotModel};
 use penelope_hal::{JointVector, Kinematics, MAX_JOINTS, NamedPose};
 use penelope_protocol::proto::joints_to_vector;
 use penelope_rt_core::trajectory::{
@@ -13,7 +13,7 @@ use penelope_rt_core::trajectory::{
 
 pub(super) fn goal_vector(
     g: &GoalConfig,
-    model: &DhRobotModel,
+    model: &SerialRobotModel,
     kind: &str,
 ) -> Result<JointVector, ObjectError> {
     match g {
@@ -50,7 +50,7 @@ pub(super) fn spec_joints(spec: &TrajectorySpec) -> usize {
 pub(super) fn build_standalone(
     spec: &TrajectorySpec,
     kind: &str,
-) -> Result<NodeTrajectory, ObjectError> {
+) -> Result<TrajectoryGenerator, ObjectError> {
     // A named pose, or a tool goal whose orientation is the robot's start pose's.
     let uses_pose = |g: &GoalConfig| {
         matches!(
@@ -133,7 +133,7 @@ pub(super) fn spec_is_tool(spec: &TrajectorySpec) -> bool {
 
 /// The goal `g` for `model`: joints for a joint or named-pose goal, a tool pose for a tool goal
 /// (its orientation, when not given, that of the robot's `start` pose).
-fn goal_for(g: &GoalConfig, model: &DhRobotModel, kind: &str) -> Result<Goal, ObjectError> {
+fn goal_for(g: &GoalConfig, model: &SerialRobotModel, kind: &str) -> Result<Goal, ObjectError> {
     match g {
         GoalConfig::Tool { position, rpy_deg } => {
             let rotation = match rpy_deg {
@@ -155,21 +155,21 @@ fn goal_for(g: &GoalConfig, model: &DhRobotModel, kind: &str) -> Result<Goal, Ob
 /// The trajectory `spec` for `model` (named poses resolved, lengths checked).
 pub(super) fn build_trajectory(
     spec: &TrajectorySpec,
-    model: &DhRobotModel,
+    model: &SerialRobotModel,
     kind: &str,
-) -> Result<NodeTrajectory, ObjectError> {
+) -> Result<TrajectoryGenerator, ObjectError> {
     let n = model.joint_count();
     let cfg_err = |e: penelope_rt_core::trajectory::TrajectoryConfigError| ObjectError::BadConfig {
         kind: kind.into(),
         message: e.to_string(),
     };
     Ok(match spec {
-        TrajectorySpec::Step { goal, delay } => NodeTrajectory::Step(
+        TrajectorySpec::Step { goal, delay } => TrajectoryGenerator::Step(
             Step::new(goal_for(goal, model, kind)?)
                 .map_err(cfg_err)?
                 .with_delay(*delay),
         ),
-        TrajectorySpec::Ramp { goal, duration } => NodeTrajectory::Ramp(
+        TrajectorySpec::Ramp { goal, duration } => TrajectoryGenerator::Ramp(
             Ramp::new(goal_for(goal, model, kind)?, *duration).map_err(cfg_err)?,
         ),
         TrajectorySpec::Trapezoidal {
@@ -183,7 +183,7 @@ pub(super) fn build_trajectory(
                 v[j] = 1.0;
                 a[j] = 1.0;
             }
-            NodeTrajectory::Trapezoidal(
+            TrajectoryGenerator::Trapezoidal(
                 Trapezoidal::joint(goal_vector(goal, model, kind)?, v, a).map_err(cfg_err)?,
             )
         }
@@ -200,7 +200,7 @@ pub(super) fn build_trajectory(
             } else {
                 SplineEnds::Natural
             };
-            NodeTrajectory::Spline(CubicSpline::new(&w, ends).map_err(cfg_err)?)
+            TrajectoryGenerator::Spline(CubicSpline::new(&w, ends).map_err(cfg_err)?)
         }
     })
 }

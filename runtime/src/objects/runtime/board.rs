@@ -13,10 +13,10 @@ use std::time::Duration;
 
 /// The board a control loop sees: one axis per robot joint, in joint order, whatever boards
 /// the joints are mapped onto.
-pub enum LoopBoard {
+pub enum JointBoard {
     /// The robot's simulated body (see [`SimDrive`] for its clock and its plant keeper).
     Sim(SimDrive),
-    /// The robot's simulated body behind a `board/fpga` (the FRHC): as [`LoopBoard::Sim`], but
+    /// The robot's simulated body behind a `board/fpga` (the FRHC): as [`JointBoard::Sim`], but
     /// a tick's command reaches the motors
     /// [`command_delay_ns`](crate::objects::fpga_board::command_delay_ns) after its encoders
     /// were latched (the board's kinematics, force transformation and DMA transfers); the
@@ -274,9 +274,9 @@ fn plant_time(body: &SimBody, offset: &mut Option<u64>, now: Timestamp) -> Times
     Timestamp::from_nanos(target)
 }
 
-/// A [`LoopBoard`] error.
+/// A [`JointBoard`] error.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LoopBoardError {
+pub enum JointBoardError {
     /// From the simulated board.
     Sim(SimBoardError),
     /// From a Galil board.
@@ -285,42 +285,42 @@ pub enum LoopBoardError {
     WrongLength,
 }
 
-impl Error for LoopBoardError {
+impl Error for JointBoardError {
     fn kind(&self) -> ErrorKind {
         match self {
-            LoopBoardError::Sim(e) => e.kind(),
-            LoopBoardError::Galil(e) => e.kind(),
-            LoopBoardError::WrongLength => ErrorKind::InvalidInput,
+            JointBoardError::Sim(e) => e.kind(),
+            JointBoardError::Galil(e) => e.kind(),
+            JointBoardError::WrongLength => ErrorKind::InvalidInput,
         }
     }
 }
 
-impl Board for LoopBoard {
-    type Error = LoopBoardError;
+impl Board for JointBoard {
+    type Error = JointBoardError;
 
     fn axis_count(&self) -> usize {
         match self {
-            LoopBoard::Sim(d) | LoopBoard::Fpga(d) => d.with_body(|b| b.axis_count()),
-            LoopBoard::Galil(g) => g.joints,
+            JointBoard::Sim(d) | JointBoard::Fpga(d) => d.with_body(|b| b.axis_count()),
+            JointBoard::Galil(g) => g.joints,
         }
     }
 
     /// # Real-time
     /// Simulated: steps the plant (bounded sub-steps). Galil: one wait-free cell read per board.
-    fn read_axes(&mut self, now: Timestamp, out: &mut [AxisState]) -> Result<(), LoopBoardError> {
+    fn read_axes(&mut self, now: Timestamp, out: &mut [AxisState]) -> Result<(), JointBoardError> {
         match self {
-            LoopBoard::Sim(d) | LoopBoard::Fpga(d) => d
+            JointBoard::Sim(d) | JointBoard::Fpga(d) => d
                 .call(now, 0, |b, now| b.read_axes(now, out))
-                .map_err(LoopBoardError::Sim),
-            LoopBoard::Galil(g) => {
+                .map_err(JointBoardError::Sim),
+            JointBoard::Galil(g) => {
                 if out.len() < g.joints {
-                    return Err(LoopBoardError::WrongLength);
+                    return Err(JointBoardError::WrongLength);
                 }
                 for (i, (_, board)) in g.boards.iter_mut().enumerate() {
                     let count = board.axis_count().min(MAX_AXES);
                     board
                         .read_axes(now, &mut g.read[i][..count])
-                        .map_err(LoopBoardError::Galil)?;
+                        .map_err(JointBoardError::Galil)?;
                 }
                 for (j, o) in out.iter_mut().enumerate().take(g.joints) {
                     let (b, a) = g.map[j];
@@ -337,19 +337,19 @@ impl Board for LoopBoard {
         &mut self,
         now: Timestamp,
         commands: &[AxisCommand],
-    ) -> Result<(), LoopBoardError> {
+    ) -> Result<(), JointBoardError> {
         match self {
-            LoopBoard::Sim(d) => d
+            JointBoard::Sim(d) => d
                 .call(now, 0, |b, now| b.write_axes(now, commands))
-                .map_err(LoopBoardError::Sim),
-            LoopBoard::Fpga(d) => {
+                .map_err(JointBoardError::Sim),
+            JointBoard::Fpga(d) => {
                 let delay = crate::objects::fpga_board::command_delay_ns();
                 d.call(now, delay, |b, now| b.write_axes(now, commands))
-                    .map_err(LoopBoardError::Sim)
+                    .map_err(JointBoardError::Sim)
             }
-            LoopBoard::Galil(g) => {
+            JointBoard::Galil(g) => {
                 if commands.len() < g.joints {
-                    return Err(LoopBoardError::WrongLength);
+                    return Err(JointBoardError::WrongLength);
                 }
                 for w in g.write.iter_mut() {
                     *w = [AxisCommand::Off; MAX_AXES];
@@ -362,7 +362,7 @@ impl Board for LoopBoard {
                     let count = board.axis_count().min(MAX_AXES);
                     board
                         .write_axes(now, &g.write[i][..count])
-                        .map_err(LoopBoardError::Galil)?;
+                        .map_err(JointBoardError::Galil)?;
                 }
                 Ok(())
             }
@@ -372,30 +372,30 @@ impl Board for LoopBoard {
     /// # Real-time
     /// Wait-free: a simulated board clears its command watchdog; each Galil board takes the
     /// request to its I/O thread.
-    fn rearm(&mut self) -> Result<(), LoopBoardError> {
+    fn rearm(&mut self) -> Result<(), JointBoardError> {
         match self {
-            LoopBoard::Sim(d) | LoopBoard::Fpga(d) => {
-                d.with_body(|b| b.rearm()).map_err(LoopBoardError::Sim)
+            JointBoard::Sim(d) | JointBoard::Fpga(d) => {
+                d.with_body(|b| b.rearm()).map_err(JointBoardError::Sim)
             }
-            LoopBoard::Galil(g) => {
+            JointBoard::Galil(g) => {
                 for (_, board) in g.boards.iter_mut() {
-                    board.rearm().map_err(LoopBoardError::Galil)?;
+                    board.rearm().map_err(JointBoardError::Galil)?;
                 }
                 Ok(())
             }
         }
     }
 
-    fn set_enabled(&mut self, enabled: bool) -> Result<(), LoopBoardError> {
+    fn set_enabled(&mut self, enabled: bool) -> Result<(), JointBoardError> {
         match self {
-            LoopBoard::Sim(d) | LoopBoard::Fpga(d) => d
+            JointBoard::Sim(d) | JointBoard::Fpga(d) => d
                 .with_body(|b| b.set_enabled(enabled))
-                .map_err(LoopBoardError::Sim),
-            LoopBoard::Galil(g) => {
+                .map_err(JointBoardError::Sim),
+            JointBoard::Galil(g) => {
                 let mut result = Ok(());
                 for (_, board) in g.boards.iter_mut() {
                     if let Err(e) = board.set_enabled(enabled) {
-                        result = Err(LoopBoardError::Galil(e));
+                        result = Err(JointBoardError::Galil(e));
                     }
                 }
                 result
@@ -435,12 +435,12 @@ mod tests {
         )
     }
 
-    fn plant_ns(b: &LoopBoard) -> u64 {
+    fn plant_ns(b: &JointBoard) -> u64 {
         match b {
-            LoopBoard::Sim(d) | LoopBoard::Fpga(d) => {
+            JointBoard::Sim(d) | JointBoard::Fpga(d) => {
                 d.with_body(|s| s.plant().snapshot().time.as_nanos())
             }
-            LoopBoard::Galil(_) => unreachable!(),
+            JointBoard::Galil(_) => unreachable!(),
         }
     }
 
@@ -451,7 +451,7 @@ mod tests {
         let now = Timestamp::from_nanos(1_000_000);
         let push = [AxisCommand::Effort(20.0); 6];
         let mut out = [AxisState::default(); MAX_AXES];
-        let mut ticked = |mut board: LoopBoard| {
+        let mut ticked = |mut board: JointBoard| {
             board.set_enabled(true).unwrap();
             board.read_axes(now, &mut out[..6]).unwrap();
             board.write_axes(now, &push).unwrap();
@@ -459,15 +459,15 @@ mod tests {
             let later = Timestamp::from_nanos(now.as_nanos() + 1_000_000);
             board.read_axes(later, &mut out[..6]).unwrap();
             let v = match &board {
-                LoopBoard::Sim(d) | LoopBoard::Fpga(d) => {
+                JointBoard::Sim(d) | JointBoard::Fpga(d) => {
                     d.with_body(|s| s.plant().snapshot().joints.velocity)
                 }
-                LoopBoard::Galil(_) => unreachable!(),
+                JointBoard::Galil(_) => unreachable!(),
             };
             (at_write, v[0])
         };
-        let (sim_write, sim_v) = ticked(LoopBoard::Sim(SimDrive::new(Box::new(body()))));
-        let (fpga_write, fpga_v) = ticked(LoopBoard::Fpga(SimDrive::new(Box::new(body()))));
+        let (sim_write, sim_v) = ticked(JointBoard::Sim(SimDrive::new(Box::new(body()))));
+        let (fpga_write, fpga_v) = ticked(JointBoard::Fpga(SimDrive::new(Box::new(body()))));
         // The plain board applies the command at once; the FPGA board holds the old one (none)
         // for the delay, so its joint has had less time to speed up.
         assert_eq!(sim_write, 0);
@@ -477,7 +477,7 @@ mod tests {
 
     #[test]
     fn a_stalled_loop_finds_the_simulated_world_paused_not_fast_forwarded() {
-        let mut board = LoopBoard::Sim(SimDrive::new(Box::new(body())));
+        let mut board = JointBoard::Sim(SimDrive::new(Box::new(body())));
         let mut out = [AxisState::default(); MAX_AXES];
         let start = 5_000_000_000_u64;
         board

@@ -21,7 +21,7 @@ use std::time::Duration;
 /// communication thread, which must not allocate or free.
 #[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
-pub enum NodeTrajectory {
+pub enum TrajectoryGenerator {
     /// A step.
     Step(Step),
     /// A ramp.
@@ -34,24 +34,24 @@ pub enum NodeTrajectory {
     GoTo(CubicSpline<1>),
 }
 
-impl NodeTrajectory {
+impl TrajectoryGenerator {
     fn inner(&mut self) -> &mut dyn Trajectory {
         match self {
-            NodeTrajectory::Step(t) => t,
-            NodeTrajectory::Ramp(t) => t,
-            NodeTrajectory::Trapezoidal(t) => t,
-            NodeTrajectory::Spline(t) => t,
-            NodeTrajectory::GoTo(t) => t,
+            TrajectoryGenerator::Step(t) => t,
+            TrajectoryGenerator::Ramp(t) => t,
+            TrajectoryGenerator::Trapezoidal(t) => t,
+            TrajectoryGenerator::Spline(t) => t,
+            TrajectoryGenerator::GoTo(t) => t,
         }
     }
 
     /// The duration once started (`None` if unknown).
     pub fn duration(&self) -> Option<Duration> {
         match self {
-            NodeTrajectory::Step(_) | NodeTrajectory::Ramp(_) => None,
-            NodeTrajectory::Trapezoidal(t) => t.duration(),
-            NodeTrajectory::Spline(t) => Some(t.duration()),
-            NodeTrajectory::GoTo(t) => Some(t.duration()),
+            TrajectoryGenerator::Step(_) | TrajectoryGenerator::Ramp(_) => None,
+            TrajectoryGenerator::Trapezoidal(t) => t.duration(),
+            TrajectoryGenerator::Spline(t) => Some(t.duration()),
+            TrajectoryGenerator::GoTo(t) => Some(t.duration()),
         }
     }
 
@@ -67,19 +67,19 @@ impl NodeTrajectory {
             }],
             SplineEnds::Clamped,
         )
-        .map(NodeTrajectory::GoTo)
+        .map(TrajectoryGenerator::GoTo)
         .map_err(|e| ObjectError::BadArgument(format!("go-to motion: {e}")))
     }
 }
 
-impl Trajectory for NodeTrajectory {
+impl Trajectory for TrajectoryGenerator {
     fn kind(&self) -> &'static str {
         match self {
-            NodeTrajectory::GoTo(_) => "go-to",
-            NodeTrajectory::Step(t) => t.kind(),
-            NodeTrajectory::Ramp(t) => t.kind(),
-            NodeTrajectory::Trapezoidal(t) => t.kind(),
-            NodeTrajectory::Spline(t) => t.kind(),
+            TrajectoryGenerator::GoTo(_) => "go-to",
+            TrajectoryGenerator::Step(t) => t.kind(),
+            TrajectoryGenerator::Ramp(t) => t.kind(),
+            TrajectoryGenerator::Trapezoidal(t) => t.kind(),
+            TrajectoryGenerator::Spline(t) => t.kind(),
         }
     }
     fn start(&mut self, now: Timestamp, from: &Reference) {
@@ -90,11 +90,11 @@ impl Trajectory for NodeTrajectory {
     }
     fn is_finished(&self, now: Timestamp) -> bool {
         match self {
-            NodeTrajectory::Step(t) => t.is_finished(now),
-            NodeTrajectory::Ramp(t) => t.is_finished(now),
-            NodeTrajectory::Trapezoidal(t) => t.is_finished(now),
-            NodeTrajectory::Spline(t) => t.is_finished(now),
-            NodeTrajectory::GoTo(t) => t.is_finished(now),
+            TrajectoryGenerator::Step(t) => t.is_finished(now),
+            TrajectoryGenerator::Ramp(t) => t.is_finished(now),
+            TrajectoryGenerator::Trapezoidal(t) => t.is_finished(now),
+            TrajectoryGenerator::Spline(t) => t.is_finished(now),
+            TrajectoryGenerator::GoTo(t) => t.is_finished(now),
         }
     }
 }
@@ -124,7 +124,7 @@ enum ReferenceSource {
 /// replaced by GoTo motions, and, when its goals are tool poses and the law is a joint law,
 /// followed through inverse kinematics.
 pub struct TrajectoryFeed {
-    trajectory: NodeTrajectory,
+    trajectory: TrajectoryGenerator,
     /// The trajectory's goals are tool poses (it starts from the measured tool pose).
     tool_goals: bool,
     started: bool,
@@ -138,7 +138,7 @@ pub struct TrajectoryFeed {
 
 impl TrajectoryFeed {
     /// A feed of `trajectory`; `tool_goals` when its goals are tool poses.
-    pub fn new(trajectory: NodeTrajectory, tool_goals: bool) -> Self {
+    pub fn new(trajectory: TrajectoryGenerator, tool_goals: bool) -> Self {
         TrajectoryFeed {
             trajectory,
             tool_goals,
@@ -178,7 +178,7 @@ impl TrajectoryFeed {
     /// Abandons the motion for a hold at `measured` (a motion interrupted by an e-stop or a
     /// fault is not resumed by the reset: only a new command moves the robot again).
     fn hold_at(&mut self, now: Timestamp, measured: JointVector) {
-        if let Ok(mut hold) = NodeTrajectory::go_to(measured, Duration::from_millis(1)) {
+        if let Ok(mut hold) = TrajectoryGenerator::go_to(measured, Duration::from_millis(1)) {
             let here = Reference::Joint(JointReference {
                 position: measured,
                 ..JointReference::default()
@@ -195,7 +195,7 @@ impl TrajectoryFeed {
     /// Replaces the trajectory by a joint-space GoTo motion from the current reference.
     fn go_to(
         &mut self,
-        mut motion: NodeTrajectory,
+        mut motion: TrajectoryGenerator,
         now: Timestamp,
         measured: JointVector,
         model: &RobotKinematics,
@@ -407,7 +407,7 @@ impl CommTask {
                 }
                 feed.start_once(now, measured, model);
                 if let Some(cmd) = goto
-                    && let Ok(motion) = NodeTrajectory::go_to(cmd.goal, cmd.duration)
+                    && let Ok(motion) = TrajectoryGenerator::go_to(cmd.goal, cmd.duration)
                 {
                     feed.go_to(motion, now, measured, model);
                 }
@@ -440,7 +440,7 @@ impl CommTask {
                     feed.start_once(now, measured, model);
                     // A GoTo moves the whole robot: every group to its joints of the goal.
                     if let Some(cmd) = goto
-                        && let Ok(motion) = NodeTrajectory::go_to(cmd.goal, cmd.duration)
+                        && let Ok(motion) = TrajectoryGenerator::go_to(cmd.goal, cmd.duration)
                     {
                         feed.go_to(motion, now, measured, model);
                     }

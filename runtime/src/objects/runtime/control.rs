@@ -1,7 +1,7 @@
 //! The control laws a node runs, the loop's ports and the control task.
 
 use crate::objects::reference::ReferencePort;
-use crate::objects::runtime::{Commands, LoopBoard, RobotKinematics};
+use crate::objects::runtime::{Commands, JointBoard, RobotKinematics};
 use crate::objects::runtime::{GAINS_CAPACITY, TELEMETRY_CAPACITY};
 use crate::objects::tick::TickRecord;
 use penelope_drivers::sim::force_sensor::VirtualForceSensor;
@@ -30,7 +30,7 @@ use std::time::Duration;
 /// starts, and the control thread must reach it without a pointer chase.
 #[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
-pub enum NodeController {
+pub enum ControlLaw {
     /// `controller/joint-pid`.
     Pid(JointPid),
     /// `controller/cartesian-impedance`.
@@ -48,21 +48,21 @@ pub enum NodeController {
     /// `controller/four-channel-slave`.
     FourChannelSlave(FourChannelSlave),
     /// `controller/joint-groups`: members on joint subsets, in one loop.
-    Groups(Box<JointGroups<NodeController>>),
+    Groups(Box<JointGroups<ControlLaw>>),
 }
 
-impl NodeController {
+impl ControlLaw {
     /// True when the law follows Cartesian references.
     pub fn is_cartesian(&self) -> bool {
-        matches!(self, NodeController::Impedance(_))
+        matches!(self, ControlLaw::Impedance(_))
     }
 
     /// Tells a law that adds a sensed wrench where the loop's force sensor sits in the tool
     /// frame (the four-channel halves; the others read no mount).
     pub fn set_sensor_mount(&mut self, mount: Option<Pose>) {
         match self {
-            NodeController::FourChannel(c) => c.set_sensor_mount(mount),
-            NodeController::FourChannelSlave(c) => c.set_sensor_mount(mount),
+            ControlLaw::FourChannel(c) => c.set_sensor_mount(mount),
+            ControlLaw::FourChannelSlave(c) => c.set_sensor_mount(mount),
             _ => {}
         }
     }
@@ -70,15 +70,15 @@ impl NodeController {
     /// The law's inner controller.
     fn inner(&mut self) -> &mut dyn Controller {
         match self {
-            NodeController::Pid(c) => c,
-            NodeController::Impedance(c) => c,
-            NodeController::Position(c) => c,
-            NodeController::ForceDisplay(c) => c,
-            NodeController::PositionErrorMaster(c) => c,
-            NodeController::FourChannel(c) => c,
-            NodeController::SlaveTracking(c) => c,
-            NodeController::FourChannelSlave(c) => c,
-            NodeController::Groups(c) => &mut **c,
+            ControlLaw::Pid(c) => c,
+            ControlLaw::Impedance(c) => c,
+            ControlLaw::Position(c) => c,
+            ControlLaw::ForceDisplay(c) => c,
+            ControlLaw::PositionErrorMaster(c) => c,
+            ControlLaw::FourChannel(c) => c,
+            ControlLaw::SlaveTracking(c) => c,
+            ControlLaw::FourChannelSlave(c) => c,
+            ControlLaw::Groups(c) => &mut **c,
         }
     }
 
@@ -88,31 +88,31 @@ impl NodeController {
     /// Constant time, no allocation.
     pub fn apply(&mut self, gains: &RoutedGains) {
         let (law, gains) = match (self, gains.member) {
-            (NodeController::Groups(g), Some(i)) => match g.group_mut(usize::from(i)) {
+            (ControlLaw::Groups(g), Some(i)) => match g.group_mut(usize::from(i)) {
                 Some((_, member)) => (member, &gains.update),
                 None => return,
             },
             (law, _) => (law, &gains.update),
         };
         match (law, gains) {
-            (NodeController::Pid(p), GainsUpdate::Pid(g)) => p.set_gains(*g),
+            (ControlLaw::Pid(p), GainsUpdate::Pid(g)) => p.set_gains(*g),
             // Checked before they were sent: a refusal keeps the old gains.
-            (NodeController::Impedance(c), GainsUpdate::Impedance(g)) => {
+            (ControlLaw::Impedance(c), GainsUpdate::Impedance(g)) => {
                 let _ = c.set_config(*g);
             }
-            (NodeController::ForceDisplay(c), GainsUpdate::ForceDisplay(g)) => {
+            (ControlLaw::ForceDisplay(c), GainsUpdate::ForceDisplay(g)) => {
                 let _ = c.set_config(*g);
             }
-            (NodeController::PositionErrorMaster(c), GainsUpdate::PositionError(g)) => {
+            (ControlLaw::PositionErrorMaster(c), GainsUpdate::PositionError(g)) => {
                 let _ = c.set_config(*g);
             }
-            (NodeController::FourChannel(c), GainsUpdate::FourChannel(g)) => {
+            (ControlLaw::FourChannel(c), GainsUpdate::FourChannel(g)) => {
                 let _ = c.set_config(*g);
             }
-            (NodeController::SlaveTracking(c), GainsUpdate::Tracking(g)) => {
+            (ControlLaw::SlaveTracking(c), GainsUpdate::Tracking(g)) => {
                 let _ = c.set_config(*g);
             }
-            (NodeController::FourChannelSlave(c), GainsUpdate::FourChannelSlave(g)) => {
+            (ControlLaw::FourChannelSlave(c), GainsUpdate::FourChannelSlave(g)) => {
                 let _ = c.set_config(*g);
             }
             _ => {}
@@ -120,18 +120,18 @@ impl NodeController {
     }
 }
 
-impl Controller for NodeController {
+impl Controller for ControlLaw {
     fn kind(&self) -> &'static str {
         match self {
-            NodeController::Pid(c) => c.kind(),
-            NodeController::Impedance(c) => c.kind(),
-            NodeController::Position(c) => c.kind(),
-            NodeController::ForceDisplay(c) => c.kind(),
-            NodeController::PositionErrorMaster(c) => c.kind(),
-            NodeController::FourChannel(c) => c.kind(),
-            NodeController::SlaveTracking(c) => c.kind(),
-            NodeController::FourChannelSlave(c) => c.kind(),
-            NodeController::Groups(c) => c.kind(),
+            ControlLaw::Pid(c) => c.kind(),
+            ControlLaw::Impedance(c) => c.kind(),
+            ControlLaw::Position(c) => c.kind(),
+            ControlLaw::ForceDisplay(c) => c.kind(),
+            ControlLaw::PositionErrorMaster(c) => c.kind(),
+            ControlLaw::FourChannel(c) => c.kind(),
+            ControlLaw::SlaveTracking(c) => c.kind(),
+            ControlLaw::FourChannelSlave(c) => c.kind(),
+            ControlLaw::Groups(c) => c.kind(),
         }
     }
     fn activate(&mut self, now: Timestamp, measured: &JointState, model: &dyn RobotModel) {
@@ -142,15 +142,15 @@ impl Controller for NodeController {
     }
     fn port_energy(&self) -> Option<f64> {
         match self {
-            NodeController::Pid(c) => c.port_energy(),
-            NodeController::Impedance(c) => c.port_energy(),
-            NodeController::Position(c) => c.port_energy(),
-            NodeController::ForceDisplay(c) => c.port_energy(),
-            NodeController::PositionErrorMaster(c) => c.port_energy(),
-            NodeController::FourChannel(c) => c.port_energy(),
-            NodeController::SlaveTracking(c) => c.port_energy(),
-            NodeController::FourChannelSlave(c) => c.port_energy(),
-            NodeController::Groups(c) => c.port_energy(),
+            ControlLaw::Pid(c) => c.port_energy(),
+            ControlLaw::Impedance(c) => c.port_energy(),
+            ControlLaw::Position(c) => c.port_energy(),
+            ControlLaw::ForceDisplay(c) => c.port_energy(),
+            ControlLaw::PositionErrorMaster(c) => c.port_energy(),
+            ControlLaw::FourChannel(c) => c.port_energy(),
+            ControlLaw::SlaveTracking(c) => c.port_energy(),
+            ControlLaw::FourChannelSlave(c) => c.port_energy(),
+            ControlLaw::Groups(c) => c.port_energy(),
         }
     }
 }
@@ -187,7 +187,7 @@ pub struct RoutedGains {
 /// The control loop's telemetry port: every sample (with the plant's truth, if a plant is
 /// behind the board) into the ring for the pump, and into latest-value cells for the
 /// communication task and the sensor feed.
-pub struct NodeSink {
+pub struct TickSink {
     ring: ArcProducer<TickRecord, TELEMETRY_CAPACITY>,
     comm: ArcLatestWriter<TelemetrySample>,
     probe: ArcLatestWriter<TelemetrySample>,
@@ -199,7 +199,7 @@ pub struct NodeSink {
     events: EventSet,
 }
 
-impl NodeSink {
+impl TickSink {
     /// A sink over these ports; `truth` reads the simulated plant, if there is one.
     pub fn new(
         ring: ArcProducer<TickRecord, TELEMETRY_CAPACITY>,
@@ -207,7 +207,7 @@ impl NodeSink {
         probe: ArcLatestWriter<TelemetrySample>,
         truth: Option<TapReader>,
     ) -> Self {
-        NodeSink {
+        TickSink {
             ring,
             comm,
             probe,
@@ -233,7 +233,7 @@ impl NodeSink {
     }
 }
 
-impl TelemetrySink for NodeSink {
+impl TelemetrySink for TickSink {
     /// # Real-time
     /// Three wait-free cell operations, an atomic load, one ring push, and on a new safety
     /// event one non-blocking `write` (the doorbell).
@@ -302,18 +302,11 @@ impl Sensor for CellSensor {
     }
 }
 
-type Loop<F> = ControlLoop<
-    LoopBoard,
-    RobotKinematics,
-    [NodeController; 1],
-    ReferencePort,
-    NodeSink,
-    Commands,
-    F,
->;
+type Loop<F> =
+    ControlLoop<JointBoard, RobotKinematics, [ControlLaw; 1], ReferencePort, TickSink, Commands, F>;
 
 /// A node's control loop, with or without a force sensor.
-pub enum NodeLoop {
+pub enum RobotLoop {
     /// No sensor bound.
     Plain(Box<Loop<NoSensor>>),
     /// A sensor bound (its wrench comes through a [`CellSensor`]).
@@ -330,18 +323,18 @@ pub enum NodeLoop {
 macro_rules! each_loop {
     ($lp:expr, $l:ident => $body:expr) => {
         match $lp {
-            NodeLoop::Plain($l) => $body,
-            NodeLoop::Sensed($l) => $body,
-            NodeLoop::Plant($l) => $body,
-            NodeLoop::Replayed($l) => $body,
-            NodeLoop::NetFt($l) => $body,
+            RobotLoop::Plain($l) => $body,
+            RobotLoop::Sensed($l) => $body,
+            RobotLoop::Plant($l) => $body,
+            RobotLoop::Replayed($l) => $body,
+            RobotLoop::NetFt($l) => $body,
         }
     };
 }
 
-impl NodeLoop {
+impl RobotLoop {
     /// The board, model and controllers back (the loop is taken apart).
-    pub fn into_board(self) -> LoopBoard {
+    pub fn into_board(self) -> JointBoard {
         each_loop!(self, l => l.into_parts().0)
     }
 
@@ -353,13 +346,13 @@ impl NodeLoop {
 
 /// The per-tick body of a control thread: new gains if any, then one [`ControlLoop::tick`].
 pub struct ControlTask {
-    lp: NodeLoop,
+    lp: RobotLoop,
     gains: ArcConsumer<RoutedGains, GAINS_CAPACITY>,
 }
 
 impl ControlTask {
     /// A task over `lp`, taking gain changes from `gains`.
-    pub fn new(lp: NodeLoop, gains: ArcConsumer<RoutedGains, GAINS_CAPACITY>) -> Self {
+    pub fn new(lp: RobotLoop, gains: ArcConsumer<RoutedGains, GAINS_CAPACITY>) -> Self {
         ControlTask { lp, gains }
     }
 
@@ -393,7 +386,7 @@ impl ControlTask {
     }
 
     /// The loop.
-    pub fn control_loop(&self) -> &NodeLoop {
+    pub fn control_loop(&self) -> &RobotLoop {
         &self.lp
     }
 
@@ -401,14 +394,14 @@ impl ControlTask {
     /// Galil boards (their I/O thread watches the commands).
     pub fn keep_plant_moving(&mut self) {
         each_loop!(&mut self.lp, l => {
-            if let LoopBoard::Sim(d) | LoopBoard::Fpga(d) = l.board_mut() {
+            if let JointBoard::Sim(d) | JointBoard::Fpga(d) = l.board_mut() {
                 d.start_keeper();
             }
         })
     }
 
     /// The loop, taken out.
-    pub fn into_loop(self) -> NodeLoop {
+    pub fn into_loop(self) -> RobotLoop {
         self.lp
     }
 

@@ -20,7 +20,7 @@
 
 use std::sync::Arc;
 
-use penelope_drivers::model::DhRobotModel;
+use penelope_drivers::model::SerialRobotModel;
 use penelope_drivers::sim::ToolContact;
 use penelope_drivers::sim::board::SimBoard;
 use penelope_rt_core::ring::ArcConsumer;
@@ -42,7 +42,7 @@ pub const SPLINE_CAPACITY: usize = crate::objects::kinds::MAX_WAYPOINTS;
 /// A robot's simulated body: the rigid-body plant of its whole chain behind a simulated board
 /// whose axes are the robot's joints in order (joints are dynamically coupled, so a robot whose
 /// joints are spread over several simulated boards is still one plant).
-pub type SimBody = SimBoard<DhRobotModel, ToolContact>;
+pub type SimBody = SimBoard<SerialRobotModel, ToolContact>;
 
 /// The command ring behind the loop's stop latch (an e-stop needs no room in the ring).
 type Commands = penelope_rt_core::stop::StopAwareCommands<
@@ -58,11 +58,11 @@ mod sensors;
 mod telemetry;
 mod threads;
 
-pub use board::{GalilSet, LoopBoard, LoopBoardError, MAX_PLANT_STEP_NS, SimDrive, SimObserver};
-pub use comm::{CommTask, GoToCommand, NodeTrajectory, TrajectoryFeed};
+pub use board::{GalilSet, JointBoard, JointBoardError, MAX_PLANT_STEP_NS, SimDrive, SimObserver};
+pub use comm::{CommTask, GoToCommand, TrajectoryFeed, TrajectoryGenerator};
 pub use control::{
-    CellSensor, CellSensorError, ControlTask, GainsUpdate, NodeController, NodeLoop, NodeSink,
-    RoutedGains,
+    CellSensor, CellSensorError, ControlLaw, ControlTask, GainsUpdate, RobotLoop, RoutedGains,
+    TickSink,
 };
 pub use link_telemetry::{LINK_PERIOD, LinkPump, LinkSubscriptions};
 pub use sensors::{FeedStats, SensorFeed, SensorSource, VirtualSensor, run_sensor_feed};

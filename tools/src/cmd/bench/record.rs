@@ -29,7 +29,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use penelope_runtime::common_clock::CommonClock;
-use penelope_runtime::objects::clock::NodeTime;
+use penelope_runtime::objects::clock::ClockReader;
 use penelope_runtime::objects::recording::Recorder;
 use penelope_runtime::objects::recording::mcap_log::McapLog;
 use penelope_runtime::objects::runtime::Subscriptions;
@@ -193,7 +193,7 @@ fn through_recorder(
         Vec::new(),
         None,
         &CommonClock::own(),
-        NodeTime::Real,
+        ClockReader::Real,
     )?;
     let stop = Arc::new(AtomicBool::new(false));
     // The pump: every 10 ms, each controller's ten new ticks (on absolute deadlines, so a

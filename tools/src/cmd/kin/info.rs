@@ -3,12 +3,12 @@
 
 use std::fmt::Write as _;
 
-use penelope_drivers::model::{self, DhRobotModel};
+use penelope_drivers::model::{self, SerialRobotModel};
 use penelope_hal::Kinematics;
 use serde_json::json;
 
 /// What `info` prints: text, or one JSON object.
-pub(super) fn info(m: &DhRobotModel, as_json: bool) -> String {
+pub(super) fn info(m: &SerialRobotModel, as_json: bool) -> String {
     let n = m.joint_count();
     let chain = m.chain();
     let links: Vec<_> = (0..n).filter_map(|j| chain.joint(j)).collect();
@@ -51,7 +51,7 @@ pub(super) fn info(m: &DhRobotModel, as_json: bool) -> String {
 }
 
 /// `info` as one JSON object.
-fn info_json(m: &DhRobotModel, links: &[model::ChainJoint]) -> String {
+fn info_json(m: &SerialRobotModel, links: &[model::ChainJoint]) -> String {
     let n = m.joint_count();
     let lim = penelope_hal::RobotModel::limits(m);
     let joints: Vec<_> = links
@@ -101,7 +101,7 @@ fn info_json(m: &DhRobotModel, links: &[model::ChainJoint]) -> String {
 }
 
 /// The DH table: one row per joint, with its limits.
-fn dh_table_text(m: &DhRobotModel, dh: &[model::DhLink]) -> String {
+fn dh_table_text(m: &SerialRobotModel, dh: &[model::DhLink]) -> String {
     let lim = penelope_hal::RobotModel::limits(m);
     let mut s = String::new();
     let _ = writeln!(
@@ -134,7 +134,7 @@ fn chain_dh(joint: &model::ChainJoint) -> Option<model::DhLink> {
 }
 
 /// The joint table of a chain with axis (URDF) joints: origin, axis, limits.
-fn axis_joints_text(m: &DhRobotModel, joints: &[model::ChainJoint]) -> String {
+fn axis_joints_text(m: &SerialRobotModel, joints: &[model::ChainJoint]) -> String {
     let lim = penelope_hal::RobotModel::limits(m);
     let mut s = format!(
         "{:>2} {:<14} {:<9} {:<26} {:<20} {:<22}  {}\n",

@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 use std::process::ExitCode;
 
 use nalgebra::{Matrix3, Matrix4, Rotation3, Translation3, UnitQuaternion};
-use penelope_drivers::model::{self, DhRobotModel};
+use penelope_drivers::model::{self, SerialRobotModel};
 use penelope_hal::{
     Dynamics, IkSolutions, InverseKinematics, JacobianFrame, JointVector, Kinematics, Pose,
 };
@@ -163,7 +163,7 @@ fn output(args: &Args) -> anyhow::Result<String> {
 }
 
 /// `kin fk`: the tool pose at `q` (the matrix; as text also the position and roll-pitch-yaw).
-fn fk_output(m: &DhRobotModel, q: &JointVector, json: bool) -> String {
+fn fk_output(m: &SerialRobotModel, q: &JointVector, json: bool) -> String {
     let t = m.forward_matrix(q);
     if json {
         json!({ "T": rows(&t) }).to_string()
@@ -190,7 +190,7 @@ fn fk_output(m: &DhRobotModel, q: &JointVector, json: bool) -> String {
 }
 
 /// `kin jacobian`: the geometric Jacobian at `q` in `frame`.
-fn jacobian_output(m: &DhRobotModel, q: &JointVector, frame: FrameArg, json: bool) -> String {
+fn jacobian_output(m: &SerialRobotModel, q: &JointVector, frame: FrameArg, json: bool) -> String {
     let n = m.joint_count();
     let frame = match frame {
         FrameArg::Base => JacobianFrame::Base,
@@ -216,7 +216,7 @@ fn jacobian_output(m: &DhRobotModel, q: &JointVector, frame: FrameArg, json: boo
 }
 
 /// `kin ik`: every inverse kinematics branch for `pose`, with whether it is within the limits.
-fn ik_output(m: &DhRobotModel, pose: &str, json: bool) -> anyhow::Result<String> {
+fn ik_output(m: &SerialRobotModel, pose: &str, json: bool) -> anyhow::Result<String> {
     let n = m.joint_count();
     let target = parse_pose(pose)?;
     let mut sols = IkSolutions::new();
@@ -262,7 +262,7 @@ fn ik_output(m: &DhRobotModel, pose: &str, json: bool) -> anyhow::Result<String>
 
 /// A built-in robot or a DH file; anything else is a usage error.
 /// `--fpga`: fk and jacobian from the bit-exact FPGA model of the FRHC.
-fn fpga_output(args: &Args, m: &DhRobotModel) -> anyhow::Result<String> {
+fn fpga_output(args: &Args, m: &SerialRobotModel) -> anyhow::Result<String> {
     use penelope_fpga::{FpgaKinematics, cycles, pipeline};
     if m.name() != "frhc" {
         return Err(usage(format!(
@@ -329,7 +329,7 @@ fn fpga_output(args: &Args, m: &DhRobotModel) -> anyhow::Result<String> {
     }
 }
 
-fn load(robot: &str, tip: Option<&str>) -> anyhow::Result<DhRobotModel> {
+fn load(robot: &str, tip: Option<&str>) -> anyhow::Result<SerialRobotModel> {
     let urdf = model::is_urdf_path(robot);
     if tip.is_some() && !urdf {
         return Err(usage(
@@ -354,7 +354,7 @@ fn load(robot: &str, tip: Option<&str>) -> anyhow::Result<DhRobotModel> {
 }
 
 /// Parses joint values: a pose name, or exactly one finite number per joint.
-fn joints(m: &DhRobotModel, flag: &str, text: &str) -> anyhow::Result<JointVector> {
+fn joints(m: &SerialRobotModel, flag: &str, text: &str) -> anyhow::Result<JointVector> {
     let n = m.joint_count();
     if let Some(q) = m.pose(text.trim()) {
         return Ok(q);
@@ -438,7 +438,7 @@ fn rows<R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f64, R, C>>(
         .collect()
 }
 
-fn header(m: &DhRobotModel, what: &str, q: &JointVector) -> String {
+fn header(m: &SerialRobotModel, what: &str, q: &JointVector) -> String {
     let n = m.joint_count();
     let q: Vec<String> = q.iter().take(n).map(|x| format!("{x:.6}")).collect();
     format!("{} {what} at q = [{}]\n", m.name(), q.join(", "))
@@ -465,7 +465,7 @@ fn matrix_text<R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f64, 
     s
 }
 
-fn per_joint(m: &DhRobotModel, tau: &JointVector, unit: &str) -> String {
+fn per_joint(m: &SerialRobotModel, tau: &JointVector, unit: &str) -> String {
     let mut s = String::new();
     for (j, name) in m.joint_names().iter().enumerate() {
         let x = tau[j];
