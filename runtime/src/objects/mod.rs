@@ -81,7 +81,7 @@ use penelope_protocol::proto::{
     Call, Class, ControllerMethod, CreatorCall, KindInfo, Method, NodeInfo, ObjectInfo, Reply,
     WireError, check_name,
 };
-use penelope_protocol::service::{Remote, Service, Session};
+use penelope_protocol::service::{Outbox, Remote, Service, Session};
 use registry::{KindState, Registry};
 use runtime::{CommTask, ControlTask, LinkPump, Subscriptions};
 use sim_world::SimWorld;
@@ -684,7 +684,7 @@ impl Creator {
             session.id,
             &controller,
             decimation,
-            session.outbox.clone(),
+            Box::new(session.outbox.clone()),
             self.config.max_subscriptions,
         )?;
         Ok(Reply::Subscribed { subscription: id })
@@ -730,7 +730,7 @@ impl Creator {
             channel,
             source,
             decimation,
-            session.outbox.clone(),
+            Box::new(session.outbox.clone()),
             self.config.max_subscriptions,
         )?;
         Ok(Reply::Subscribed { subscription: id })
@@ -768,6 +768,21 @@ impl Service for Creator {
 
     fn closed(&self, session: &Session) {
         self.subscriptions.remove_session(session.id);
+    }
+}
+
+/// A session's outbox is where a client's subscriptions go: each batch as its wire message.
+impl runtime::TickSink for Outbox {
+    fn ticks(&self, batch: penelope_protocol::proto::TelemetryBatch) -> bool {
+        self.try_push(penelope_protocol::proto::ServerMsg::Telemetry(batch))
+    }
+
+    fn links(&self, batch: penelope_protocol::proto::LinkBatch) -> bool {
+        self.try_push(penelope_protocol::proto::ServerMsg::Link(batch))
+    }
+
+    fn is_closed(&self) -> bool {
+        Outbox::is_closed(self)
     }
 }
 

@@ -9,7 +9,7 @@ use crate::objects::registry::{
 };
 use crate::objects::runtime::{
     CellSensor, ControlLaw, ControlTask, GalilSet, GoToCommand, JointBoard, RobotLoop, RoutedGains,
-    SimDrive, TickSink, TrajectoryFeed,
+    SimDrive, TelemetryPort, TrajectoryFeed,
 };
 use crate::objects::teleop::TeleopComm;
 use crate::objects::teleop_end::Side;
@@ -341,7 +341,7 @@ impl Registry {
             },
             _ => None,
         };
-        let sink = TickSink::new(tel_w, comm_w, probe_w, truth)
+        let sink = TelemetryPort::new(tel_w, comm_w, probe_w, truth)
             .with_clutch(self.clutch_of(&robot_name))
             .with_doorbell(doorbell);
         let ports = ControlPorts {

@@ -187,7 +187,7 @@ pub struct RoutedGains {
 /// The control loop's telemetry port: every sample (with the plant's truth, if a plant is
 /// behind the board) into the ring for the pump, and into latest-value cells for the
 /// communication task and the sensor feed.
-pub struct TickSink {
+pub struct TelemetryPort {
     ring: ArcProducer<TickRecord, TELEMETRY_CAPACITY>,
     comm: ArcLatestWriter<TelemetrySample>,
     probe: ArcLatestWriter<TelemetrySample>,
@@ -199,7 +199,7 @@ pub struct TickSink {
     events: EventSet,
 }
 
-impl TickSink {
+impl TelemetryPort {
     /// A sink over these ports; `truth` reads the simulated plant, if there is one.
     pub fn new(
         ring: ArcProducer<TickRecord, TELEMETRY_CAPACITY>,
@@ -207,7 +207,7 @@ impl TickSink {
         probe: ArcLatestWriter<TelemetrySample>,
         truth: Option<TapReader>,
     ) -> Self {
-        TickSink {
+        TelemetryPort {
             ring,
             comm,
             probe,
@@ -233,7 +233,7 @@ impl TickSink {
     }
 }
 
-impl TelemetrySink for TickSink {
+impl TelemetrySink for TelemetryPort {
     /// # Real-time
     /// Three wait-free cell operations, an atomic load, one ring push, and on a new safety
     /// event one non-blocking `write` (the doorbell).
@@ -303,7 +303,7 @@ impl Sensor for CellSensor {
 }
 
 type Loop<F> =
-    ControlLoop<JointBoard, RobotKinematics, [ControlLaw; 1], ReferencePort, TickSink, Commands, F>;
+    ControlLoop<JointBoard, RobotKinematics, [ControlLaw; 1], ReferencePort, TelemetryPort, Commands, F>;
 
 /// A node's control loop, with or without a force sensor.
 pub enum RobotLoop {

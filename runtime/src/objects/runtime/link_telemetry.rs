@@ -1,5 +1,5 @@
 //! Link telemetry: the statistics of a channel's data-plane link, pushed to its subscribers
-//! every [`LINK_PERIOD`] (times their decimation) as [`ServerMsg::Link`].
+//! every [`LINK_PERIOD`] (times their decimation), to each subscription's [`TickSink`].
 //!
 //! The statistics are read through the channel's [`LinkSource`] (the communication thread
 //! writes them into a wait-free cell each tick; the source locks, so it is read here, never in
@@ -13,8 +13,8 @@ use std::thread::JoinHandle;
 use crate::objects::Subscriptions;
 use crate::objects::error::ObjectError;
 use crate::objects::link_source::LinkSource;
-use penelope_protocol::proto::{LinkBatch, ServerMsg};
-use penelope_protocol::service::Outbox;
+use crate::objects::runtime::TickSink;
+use penelope_protocol::proto::LinkBatch;
 use penelope_rt_core::clock::MonotonicClock;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -32,7 +32,7 @@ struct LinkSubscription {
     every_ns: u64,
     /// When the next record is due, ns on the creator's clock (`None`: at the next round).
     next_ns: Option<u64>,
-    outbox: Outbox,
+    sink: Box<dyn TickSink>,
     dropped: u64,
 }
 
@@ -78,7 +78,7 @@ impl LinkSubscriptions {
         channel: &str,
         source: LinkSource,
         decimation: u32,
-        outbox: Outbox,
+        sink: Box<dyn TickSink>,
     ) -> Result<(), ObjectError> {
         let every = LINK_PERIOD.saturating_mul(decimation.max(1));
         let mut list = self
@@ -92,7 +92,7 @@ impl LinkSubscriptions {
             source,
             every_ns: u64::try_from(every.as_nanos()).unwrap_or(u64::MAX),
             next_ns: None,
-            outbox,
+            sink,
             dropped: 0,
         });
         Ok(())
@@ -101,7 +101,7 @@ impl LinkSubscriptions {
     /// Drops the subscriptions whose connection closed.
     pub(super) fn retain_open(&self) {
         if let Ok(mut list) = self.list.lock() {
-            list.retain(|s| !s.outbox.is_closed());
+            list.retain(|s| !s.sink.is_closed());
         }
     }
 
@@ -150,16 +150,16 @@ impl LinkSubscriptions {
                 _ => now_ns.saturating_add(s.every_ns),
             });
             let Some(stats) = s.source.latest() else {
-                return !s.outbox.is_closed();
+                return !s.sink.is_closed();
             };
             let batch = LinkBatch {
                 subscription: s.id,
                 dropped: s.dropped,
                 records: vec![stats.record(now_ns)],
             };
-            if s.outbox.try_push(ServerMsg::Link(batch)) {
+            if s.sink.links(batch) {
                 true
-            } else if s.outbox.is_closed() {
+            } else if s.sink.is_closed() {
                 false
             } else {
                 s.dropped += 1;

@@ -62,11 +62,13 @@ pub use board::{GalilSet, JointBoard, JointBoardError, MAX_PLANT_STEP_NS, SimDri
 pub use comm::{CommTask, GoToCommand, TrajectoryFeed, TrajectoryGenerator};
 pub use control::{
     CellSensor, CellSensorError, ControlLaw, ControlTask, GainsUpdate, RobotLoop, RoutedGains,
-    TickSink,
+    TelemetryPort,
 };
 pub use link_telemetry::{LINK_PERIOD, LinkPump, LinkSubscriptions};
 pub use sensors::{FeedStats, SensorFeed, SensorSource, VirtualSensor, run_sensor_feed};
-pub use telemetry::{LoopShared, MAX_BATCH_RECORDS, Newest, Pump, Subscriptions, record, run_pump};
+pub use telemetry::{
+    LoopShared, MAX_BATCH_RECORDS, Newest, Pump, Subscriptions, TickSink, record, run_pump,
+};
 pub use threads::{
     LoopFault, LoopThread, Running, StopMode, StoppedLoop, comm_body, control_body, guarded,
 };

@@ -7,9 +7,8 @@ use crate::objects::runtime::{LinkSubscriptions, TELEMETRY_CAPACITY};
 use crate::objects::tick::{TickRecord, TickStream};
 use penelope_hal::JointVector;
 use penelope_protocol::proto::{
-    ServerMsg, TelemetryBatch, TelemetryRecord, WrenchMsg, joints_from_vector,
+    LinkBatch, TelemetryBatch, TelemetryRecord, WrenchMsg, joints_from_vector,
 };
-use penelope_protocol::service::Outbox;
 use penelope_rt_core::ring::ArcConsumer;
 use penelope_rt_core::telemetry::TelemetrySample;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -44,6 +43,19 @@ impl LoopShared {
     }
 }
 
+/// Where a subscription's batches go, without waiting: the pump writes ticks (and the link pump
+/// link statistics) to it; the implementation decides what they become. A client session's
+/// `Outbox` (the service boundary, in [`objects`](crate::objects)) turns them into the protocol's `ServerMsg::Telemetry` and `ServerMsg::Link`
+/// messages; an in-process subscriber could take them as they are.
+pub trait TickSink: Send + Sync + std::fmt::Debug {
+    /// Hands over a batch of ticks; `false` when the sink is full or closed (the batch is lost).
+    fn ticks(&self, batch: TelemetryBatch) -> bool;
+    /// Hands over a batch of link statistics; `false` when full or closed (lost).
+    fn links(&self, batch: LinkBatch) -> bool;
+    /// Whether the other end has gone (its subscriptions end).
+    fn is_closed(&self) -> bool;
+}
+
 /// The most records in one telemetry batch: a record is a few hundred bytes (at most about a
 /// kilobyte with a long fault text), so a batch stays well inside the default 256 KiB frame.
 pub const MAX_BATCH_RECORDS: usize = 128;
@@ -55,7 +67,7 @@ struct Subscription {
     session: u64,
     controller: String,
     decimation: u64,
-    outbox: Outbox,
+    sink: Box<dyn TickSink>,
     dropped: u64,
 }
 
@@ -106,14 +118,14 @@ impl Subscriptions {
         session: u64,
         controller: &str,
         decimation: u32,
-        outbox: Outbox,
+        sink: Box<dyn TickSink>,
         limit: u32,
     ) -> Result<u64, ObjectError> {
         let mut list = self
             .list
             .lock()
             .map_err(|_| ObjectError::Poisoned("subscriptions"))?;
-        list.retain(|s| !s.outbox.is_closed());
+        list.retain(|s| !s.sink.is_closed());
         self.links.retain_open();
         if list.len() + self.links.len() >= limit as usize {
             return Err(ObjectError::LimitReached {
@@ -127,7 +139,7 @@ impl Subscriptions {
             session,
             controller: controller.to_string(),
             decimation: u64::from(decimation.max(1)),
-            outbox,
+            sink,
             dropped: 0,
         });
         Ok(id)
@@ -144,7 +156,7 @@ impl Subscriptions {
         channel: &str,
         source: LinkSource,
         decimation: u32,
-        outbox: Outbox,
+        sink: Box<dyn TickSink>,
         limit: u32,
     ) -> Result<u64, ObjectError> {
         // The controllers' list is held while counting, so two adds cannot both pass the limit.
@@ -152,7 +164,7 @@ impl Subscriptions {
             .list
             .lock()
             .map_err(|_| ObjectError::Poisoned("subscriptions"))?;
-        list.retain(|s| !s.outbox.is_closed());
+        list.retain(|s| !s.sink.is_closed());
         self.links.retain_open();
         if list.len() + self.links.len() >= limit as usize {
             return Err(ObjectError::LimitReached {
@@ -162,7 +174,7 @@ impl Subscriptions {
         }
         let id = self.next.fetch_add(1, Ordering::Relaxed) + 1;
         self.links
-            .add(id, session, channel, source, decimation, outbox)?;
+            .add(id, session, channel, source, decimation, sink)?;
         Ok(id)
     }
 
@@ -216,7 +228,7 @@ impl Subscriptions {
             .lock()
             .map(|l| {
                 l.iter()
-                    .filter(|s| !s.outbox.is_closed() && same.contains(&s.session))
+                    .filter(|s| !s.sink.is_closed() && same.contains(&s.session))
                     .count()
             })
             .unwrap_or(0)
@@ -289,10 +301,10 @@ impl Subscriptions {
                     dropped: s.dropped,
                     samples: samples.to_vec(),
                 };
-                if s.outbox.try_push(ServerMsg::Telemetry(batch)) {
+                if s.sink.ticks(batch) {
                     continue;
                 }
-                if s.outbox.is_closed() {
+                if s.sink.is_closed() {
                     return false;
                 }
                 s.dropped += 1;
@@ -404,12 +416,14 @@ pub fn run_pump(pump: &mut Pump, period: Duration, stop: &AtomicBool) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use penelope_protocol::proto::ServerMsg;
+    use penelope_protocol::service::Outbox;
 
     #[test]
     fn a_backlog_goes_out_in_batches_that_fit_a_frame_none_lost() {
         let subs = Subscriptions::default();
         let (outbox, rx) = Outbox::bounded(256);
-        let id = subs.add(1, "follow", 1, outbox, 8).unwrap();
+        let id = subs.add(1, "follow", 1, Box::new(outbox), 8).unwrap();
         // A held-up pump's drain: a ring's worth of ticks at once.
         let ticks: Vec<TickRecord> = (1..=4096u64)
             .map(|seq| {
