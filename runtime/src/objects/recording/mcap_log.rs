@@ -19,7 +19,7 @@
 //! - `/controllers/<name>` (schema `penelope.Tick`): every tick of controller `<name>`;
 //! - `/safety` (schema `penelope.SafetyEvent`): a message for every tick whose safety state or
 //!   fault changed, or that raised events (watchdog, limits, link lost, ...);
-//! - `/links/<channel>` (schema `penelope.ChannelLinkStats`): channel `<channel>`'s link to another
+//! - `/links/<channel>` (schema `penelope.LinkStats`): channel `<channel>`'s link to another
 //!   node, now and then;
 //! - `/streams/<channel>/<stream>` (schema `penelope.StreamSample`): every sample of channel
 //!   `<channel>`'s data-plane streams (`master-to-slave`, `slave-to-master`) that this node's
@@ -114,7 +114,7 @@ pub(crate) fn tick_schema() -> String {
 
 const SAFETY_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.SafetyEvent","description":"A tick whose safety state or fault changed, or that raised safety events.","type":"object","properties":{"time_ns":{"type":"integer"},"controller":{"type":"string","description":"the controller object's name"},"seq":{"type":"integer"},"state":{"type":"string"},"previous_state":{"type":["string","null"]},"fault":{"type":["string","null"]},"events":{"type":"array","items":{"type":"string"}}},"required":["time_ns","controller","state","events"]}"#;
 
-const LINK_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.ChannelLinkStats","description":"One end's view of a data-plane link (LinkRecord in docs/wire-format.md); times in ns.","type":"object","properties":{"time_ns":{"type":"integer"},"down":{"type":"boolean"},"losses":{"type":"integer"},"restorations":{"type":"integer"},"samples_taken":{"type":"integer"},"samples_dropped":{"type":"integer"},"samples_missed":{"type":"integer"},"refused":{"type":"integer"},"clock_offset_ns":{"type":["integer","null"]},"round_trip_ns":{"type":["integer","null"]},"one_way_delay_ns":{"type":["integer","null"]},"jitter_ns":{"type":["integer","null"]},"last_heard_ns":{"type":["integer","null"]},"heartbeat_loss":{"type":"number"},"trips":{"type":"integer"},"trip_p50_ns":{"type":["integer","null"]},"trip_p99_ns":{"type":["integer","null"]},"trip_max_ns":{"type":["integer","null"]}},"required":["time_ns","down"]}"#;
+const LINK_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.LinkStats","description":"One end's view of a data-plane link (LinkRecord in docs/wire-format.md); times in ns.","type":"object","properties":{"time_ns":{"type":"integer"},"down":{"type":"boolean"},"losses":{"type":"integer"},"restorations":{"type":"integer"},"samples_taken":{"type":"integer"},"samples_dropped":{"type":"integer"},"samples_missed":{"type":"integer"},"refused":{"type":"integer"},"clock_offset_ns":{"type":["integer","null"]},"round_trip_ns":{"type":["integer","null"]},"one_way_delay_ns":{"type":["integer","null"]},"jitter_ns":{"type":["integer","null"]},"last_heard_ns":{"type":["integer","null"]},"heartbeat_loss":{"type":"number"},"trips":{"type":"integer"},"trip_p50_ns":{"type":["integer","null"]},"trip_p99_ns":{"type":["integer","null"]},"trip_max_ns":{"type":["integer","null"]}},"required":["time_ns","down"]}"#;
 
 const LIFECYCLE_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.Lifecycle","description":"A lifecycle transition of an object of the node (create, destroy, configure, activate, deactivate, cleanup, shutdown), with its state afterwards; time in ns on the node's clock.","type":"object","properties":{"time_ns":{"type":"integer"},"object":{"type":"string"},"kind":{"type":"string"},"transition":{"type":"string"},"state":{"type":"string"}},"required":["time_ns","object","kind","transition","state"]}"#;
 
@@ -219,11 +219,7 @@ impl McapLog {
             )
             .map_err(mcap_err)?;
         let link_schema = writer
-            .add_schema(
-                "penelope.ChannelLinkStats",
-                "jsonschema",
-                LINK_SCHEMA.as_bytes(),
-            )
+            .add_schema("penelope.LinkStats", "jsonschema", LINK_SCHEMA.as_bytes())
             .map_err(mcap_err)?;
         let recorder_schema = writer
             .add_schema(

@@ -16,7 +16,7 @@ use crate::objects::teleop_end::Side;
 use crate::objects::{KindState, Registry};
 use penelope_drivers::galil::GalilBoard;
 use penelope_drivers::model::SerialRobotModel;
-use penelope_drivers::sim::force_sensor::VirtualForceSensor;
+use penelope_drivers::sim::force_sensor::{ForceSensorConfig, VirtualForceSensor};
 use penelope_drivers::sim::tap::TapWriter;
 use penelope_hal::{
     Board, JointSet, JointVector, Kinematics, LifecycleState, MAX_JOINTS, RobotModel, Transition,
@@ -33,6 +33,99 @@ impl Registry {
     /// Builds the loop of controller `name` (configured, inactive) without starting threads.
     /// Takes the robot's board(s) and marks every object it uses.
     pub fn build_loop(&mut self, name: &str, launch: &Launch<'_>) -> Result<Built, ObjectError> {
+        let plan = self.loop_plan(name)?;
+        self.check_robot_free(&plan.robot)?;
+        let inputs = self.sensor_inputs(&plan, launch)?;
+        let plant_sensor = self.plant_sensor(&plan, &inputs)?;
+        let r = self.robot(&plan.robot)?;
+        let model = r.model.clone();
+        let kinematics = r.kinematics.clone();
+        let (role, caps) = (r.role, r.caps);
+        let n = model.joint_count();
+        let start = r.start;
+        // Controller, and the gains a simulated body holds its pose with.
+        let hold = default_joint_gains(&model, n);
+        // The objects that become users.
+        let mut used = vec![plan.robot.clone()];
+        let (source, mut controller) = self.loop_source_and_law(&plan, &model, hold, &mut used)?;
+        // A law that adds the sensed wrench turns the sensor's reading into the tool's.
+        controller.set_sensor_mount(plant_sensor.map(|c| c.mount).or(inputs.mount));
+
+        let r = self.robot(&plan.robot)?;
+        let on_sim = r.body.is_some();
+        let maps = r.maps.clone();
+        let config = control_config(&plan, role, caps, &model, start, hold, on_sim)?;
+        let taken = self.take_boards(&plan.robot, &model, n, on_sim, plant_sensor.is_some())?;
+
+        // Ports.
+        use penelope_rt_core::cell::latest;
+        use penelope_rt_core::ring::ring;
+        let (ref_w, ref_r) = crate::objects::reference::reference_port();
+        let (tel_w, tel_r) = ring();
+        let (comm_w, comm_r) = latest();
+        let (probe_w, probe_r) = latest();
+        let (mut cmd_w, cmd_r) = ring();
+        let stop = std::sync::Arc::new(penelope_rt_core::stop::StopLatch::new());
+        let (goto_w, goto_r) = ring();
+        let (gains_w, gains_r) = ring();
+        let sink = TelemetryPort::new(tel_w, comm_w, probe_w, taken.truth)
+            .with_clutch(self.clutch_of(&plan.robot))
+            .with_doorbell(self.teleop_doorbell(&plan, &source));
+        let ports = ControlPorts {
+            reference: ref_r,
+            telemetry: sink,
+            commands: penelope_rt_core::stop::StopAwareCommands::new(cmd_r, stop.clone()),
+        };
+        let cartesian = controller.is_cartesian();
+        let lp =
+            match ControlLoop::new(config, taken.board, kinematics.clone(), [controller], ports) {
+                Ok(l) => l,
+                Err(e) => return Err(ObjectError::Internal(format!("control loop: {e}").into())),
+            };
+        let (lp, wrench_w) = with_sensor(
+            lp,
+            plant_sensor.zip(taken.contact),
+            inputs.replayed,
+            inputs.netft,
+            plan.sensor.is_some(),
+            plan.timing,
+        );
+        let _ = cmd_w.push(ControlCommand::Activate);
+        let feed = CommFeed {
+            reference: ref_w,
+            probe: comm_r,
+            goto: goto_r,
+            cartesian,
+            sensor_mount: plant_sensor.map(|c| c.mount).or(inputs.mount),
+        };
+        let comm = self.comm_task(&plan, source, feed, &kinematics)?;
+        let source = match (&plan.sensor, inputs.local) {
+            (Some(_), None) => inputs.stream,
+            (_, Some(_)) if plant_sensor.is_some() => None,
+            (_, Some((local, _))) => Some(crate::objects::runtime::SensorSource::Local(local)),
+            _ => None,
+        };
+        self.mark_users(name, used, &maps, plan.sensor.as_deref());
+        Ok(Built {
+            control: ControlTask::new(lp, gains_r),
+            comm,
+            telemetry: tel_r,
+            commands: cmd_w,
+            stop,
+            goto: goto_w,
+            gains: gains_w,
+            probe: probe_r,
+            wrench: wrench_w,
+            source,
+            model: kinematics,
+            joints: n,
+            timing: plan.timing,
+        })
+    }
+
+    /// Step 1: controller `name` may be activated (a controller, inactive), configured; what
+    /// its configuration names.
+    fn loop_plan(&mut self, name: &str) -> Result<LoopPlan, ObjectError> {
         let o = self.get(name)?;
         if o.kind.class() != Class::Controller {
             return Err(unsupported(o.kind, "activate"));
@@ -47,30 +140,41 @@ impl Registry {
         self.configure_controller(name)?;
         let c = self.controller_mut(name)?;
         let timing = c.timing;
-        let robot_name = c.robot.clone().unwrap_or_default();
-        let traj_name = c.trajectory.clone().unwrap_or_default();
-        let sensor_name = c.sensor.clone();
+        let robot = c.robot.clone().unwrap_or_default();
+        let trajectory = c.trajectory.clone().unwrap_or_default();
+        let sensor = c.sensor.clone();
         let law = c.config.clone();
         let kind = self.get(name)?.kind.as_str();
+        Ok(LoopPlan {
+            timing,
+            robot,
+            trajectory,
+            sensor,
+            law,
+            kind,
+        })
+    }
 
-        // The robot and its boards: configured, and no axis driven by another loop.
-        let robot_obj = self.get(&robot_name)?;
+    /// Step 2: the robot is configured, used by no loop, and none of its boards' axes is
+    /// driven by another loop; its Galil boards are open.
+    fn check_robot_free(&self, robot_name: &str) -> Result<(), ObjectError> {
+        let robot_obj = self.get(robot_name)?;
         if robot_obj.state != LifecycleState::Inactive {
             return Err(not_ready(format!("robot `{robot_name}` is not configured")));
         }
         if let Some(d) = robot_obj.users.iter().next() {
             return Err(ObjectError::InUse {
-                name: robot_name.clone(),
+                name: robot_name.to_string(),
                 dependents: vec![d.clone()],
             });
         }
-        let r = self.robot(&robot_name)?;
+        let r = self.robot(robot_name)?;
         for (board, joints) in &r.maps {
             for (other_name, other) in &self.objects {
                 let KindState::Robot(or) = &other.body else {
                     continue;
                 };
-                if other_name == &robot_name || other.users.is_empty() {
+                if other_name == robot_name || other.users.is_empty() {
                     continue;
                 }
                 for (ob, oj) in &or.maps {
@@ -92,14 +196,27 @@ impl Registry {
                 });
             }
         }
-        let grouped = matches!(law, ControllerConfig::Groups(_));
-        if !grouped && self.get(&traj_name)?.state == LifecycleState::Unconfigured {
+        Ok(())
+    }
+
+    /// Step 3: the trajectory and the sensor are configured, and what the loop reads its
+    /// wrench from: a local virtual sensor, a recorded stream, a Net F/T, or a sensor on another
+    /// node (its stream's reader, made before anything is taken).
+    fn sensor_inputs(
+        &self,
+        plan: &LoopPlan,
+        launch: &Launch<'_>,
+    ) -> Result<SensorInputs, ObjectError> {
+        let grouped = matches!(plan.law, ControllerConfig::Groups(_));
+        if !grouped && self.get(&plan.trajectory)?.state == LifecycleState::Unconfigured {
             return Err(not_ready(format!(
-                "trajectory `{traj_name}` is not configured"
+                "trajectory `{}` is not configured",
+                plan.trajectory
             )));
         }
-        let local_sensor = match &sensor_name {
-            Some(s) if !s.starts_with('/') => {
+        let on_this_node = plan.sensor.as_deref().filter(|s| !s.starts_with('/'));
+        let local = match on_this_node {
+            Some(s) => {
                 let so = self.get(s)?;
                 if so.state == LifecycleState::Unconfigured {
                     return Err(not_ready(format!("sensor `{s}` is not configured")));
@@ -109,294 +226,259 @@ impl Registry {
                     _ => None,
                 }
             }
-            _ => None,
+            None => None,
         };
-        if sensor_name.as_deref().is_some_and(|s| s.starts_with('/')) && launch.remote.is_none() {
+        if plan.sensor.as_deref().is_some_and(|s| s.starts_with('/')) && launch.remote.is_none() {
             return Err(not_ready(
                 "no remote link to other nodes on this creator (set_remote)",
             ));
         }
         // A recorded wrench stream (`sensor/replay`), played in the loop.
-        let replayed = match &sensor_name {
-            Some(s) if !s.starts_with('/') => self.replay_sensor(s)?,
-            _ => None,
+        let replayed = match on_this_node {
+            Some(s) => self.replay_sensor(s)?,
+            None => None,
         };
         // A Net F/T: a reader of its stream, read in the loop.
-        let netft = match &sensor_name {
-            Some(s) if !s.starts_with('/') => self.netft_reader(s)?,
-            _ => None,
+        let netft = match on_this_node {
+            Some(s) => self.netft_reader(s)?,
+            None => None,
         };
-        let sensed_mount = replayed
+        let mount = replayed
             .as_ref()
             .map(penelope_hal::ForceSensor::mount)
             .or(netft.as_ref().map(penelope_hal::ForceSensor::mount));
-        // A sensor on another node: its stream's reader, made before anything is taken.
-        let stream_source = match &sensor_name {
+        let stream = match &plan.sensor {
             Some(path) if path.starts_with('/') => {
                 Some(self.sensor_subscriber(path, launch.sensor_stream)?)
             }
             _ => None,
         };
+        Ok(SensorInputs {
+            local,
+            replayed,
+            netft,
+            mount,
+            stream,
+        })
+    }
 
-        // A wrist sensor reading a robot's plant is read in the loop, and only that robot's.
-        let plant_sensor = match &local_sensor {
+    /// Step 4: a wrist sensor reading a robot's plant is read in the loop, and only that
+    /// robot's.
+    fn plant_sensor(
+        &self,
+        plan: &LoopPlan,
+        inputs: &SensorInputs,
+    ) -> Result<Option<ForceSensorConfig>, ObjectError> {
+        let robot_name = &plan.robot;
+        let sensor = || plan.sensor.as_deref().unwrap_or_default();
+        Ok(match &inputs.local {
             Some((_, cfg)) => match &cfg.robot {
-                Some(r) if *r != robot_name => {
+                Some(r) if r != robot_name => {
                     return Err(bad_arg(format!(
                         "sensor `{}` reads robot `{r}`'s plant, not `{robot_name}`'s",
-                        sensor_name.as_deref().unwrap_or_default()
+                        sensor()
                     )));
                 }
-                Some(_) if self.robot(&robot_name)?.body.is_none() => {
+                Some(_) if self.robot(robot_name)?.body.is_none() => {
                     return Err(bad_arg(format!(
                         "sensor `{}` reads the simulated plant of `{robot_name}`, which is not on \
                          a simulated board",
-                        sensor_name.as_deref().unwrap_or_default()
+                        sensor()
                     )));
                 }
                 Some(_) => Some(cfg.plant_sensor()),
                 None => None,
             },
             None => None,
-        };
-        let r = self.robot(&robot_name)?;
-        let model = r.model.clone();
-        let kinematics = r.kinematics.clone();
-        let (role, caps) = (r.role, r.caps);
-        let n = model.joint_count();
-        let start = r.start;
-        // Controller, and the gains a simulated body holds its pose with.
-        let hold = default_joint_gains(&model, n);
-        // What feeds the loop: a trajectory, one end of a teleoperation channel for the halves
-        // of the laws, or one trajectory per joint group; and the objects that become users.
-        let mut used = vec![robot_name.clone()];
-        let (source, controller) = match &law {
-            ControllerConfig::Groups(groups) => {
-                let members = self.group_members(groups, &robot_name, &model, hold)?;
-                let (mut laws, mut feeds) = (Vec::new(), Vec::new());
-                for m in members {
-                    laws.push((m.joints, m.law));
-                    feeds.push((m.joints, m.feed));
-                    used.push(m.name);
-                    used.push(m.trajectory);
-                }
-                let groups = JointGroups::new(n, laws).map_err(|e| ObjectError::BadConfig {
+        })
+    }
+
+    /// Step 5: what feeds the loop (a trajectory, one end of a teleoperation channel for the
+    /// halves of the laws, or one trajectory per joint group) and the law it runs; the objects
+    /// they use are added to `used`.
+    fn loop_source_and_law(
+        &self,
+        plan: &LoopPlan,
+        model: &SerialRobotModel,
+        hold: (JointVector, JointVector),
+        used: &mut Vec<String>,
+    ) -> Result<(LoopSource, ControlLaw), ObjectError> {
+        let (kind, traj_name, law) = (plan.kind, &plan.trajectory, &plan.law);
+        if let ControllerConfig::Groups(groups) = law {
+            let members = self.group_members(groups, &plan.robot, model, hold)?;
+            let (mut laws, mut feeds) = (Vec::new(), Vec::new());
+            for m in members {
+                laws.push((m.joints, m.law));
+                feeds.push((m.joints, m.feed));
+                used.push(m.name);
+                used.push(m.trajectory);
+            }
+            let groups = JointGroups::new(model.joint_count(), laws).map_err(|e| {
+                ObjectError::BadConfig {
                     kind: kind.into(),
                     message: e.to_string(),
-                })?;
-                (
-                    LoopSource::Groups(feeds),
-                    ControlLaw::Groups(Box::new(groups)),
+                }
+            })?;
+            return Ok((
+                LoopSource::Groups(feeds),
+                ControlLaw::Groups(Box::new(groups)),
+            ));
+        }
+        used.push(traj_name.clone());
+        let source = match (&self.get(traj_name)?.body, law.teleop_side()) {
+            (KindState::Trajectory(t), None) => LoopSource::Trajectory(TrajectoryFeed::new(
+                build_trajectory(&t.spec, model, kind)?,
+                spec_is_tool(&t.spec),
+            )),
+            (KindState::Teleop(t), Some(side)) => {
+                check_teleop_end(traj_name, t, side, &plan.robot)?;
+                LoopSource::Teleop(
+                    side,
+                    t.config.mapping(),
+                    t.config.link_timeout(plan.timing.comm_period),
+                    law.port_law(kind)?,
                 )
             }
-            _ => {
-                used.push(traj_name.clone());
-                let source = match (&self.get(&traj_name)?.body, law.teleop_side()) {
-                    (KindState::Trajectory(t), None) => {
-                        LoopSource::Trajectory(TrajectoryFeed::new(
-                            build_trajectory(&t.spec, &model, kind)?,
-                            spec_is_tool(&t.spec),
-                        ))
-                    }
-                    (KindState::Teleop(t), Some(side)) => {
-                        check_teleop_end(&traj_name, t, side, &robot_name)?;
-                        LoopSource::Teleop(
-                            side,
-                            t.config.mapping(),
-                            t.config.link_timeout(timing.comm_period),
-                            law.port_law(kind)?,
-                        )
-                    }
-                    (KindState::Teleop(_), None) => {
-                        return Err(bad_arg(format!(
-                            "`{traj_name}` is a teleoperation channel: it is followed by the \
-                             halves of the teleoperation laws (force-display, \
-                             position-error-master, four-channel-master, slave-tracking, \
-                             slave-position, four-channel-slave, wave-master, wave-slave), not by \
-                             {kind}"
-                        )));
-                    }
-                    (_, Some(_)) => {
-                        return Err(bad_arg(format!(
-                            "{kind} follows a trajectory/teleop channel; `{traj_name}` is not one"
-                        )));
-                    }
-                    _ => return Err(ObjectError::internal("trajectory body")),
-                };
-                (source, node_law(&law, kind, &model, hold)?)
+            (KindState::Teleop(_), None) => {
+                return Err(bad_arg(format!(
+                    "`{traj_name}` is a teleoperation channel: it is followed by the \
+                     halves of the teleoperation laws (force-display, \
+                     position-error-master, four-channel-master, slave-tracking, \
+                     slave-position, four-channel-slave, wave-master, wave-slave), not by \
+                     {kind}"
+                )));
             }
+            (_, Some(_)) => {
+                return Err(bad_arg(format!(
+                    "{kind} follows a trajectory/teleop channel; `{traj_name}` is not one"
+                )));
+            }
+            _ => return Err(ObjectError::internal("trajectory body")),
         };
+        Ok((source, node_law(law, kind, model, hold)?))
+    }
 
-        // A law that adds the sensed wrench turns the sensor's reading into the tool's.
-        let mut controller = controller;
-        controller.set_sensor_mount(plant_sensor.map(|c| c.mount).or(sensed_mount));
-
-        // Safety by role (a master: display caps, zero force on a stale reference, amplifiers
-        // off on a fault; a slave holds its pose), and axis bindings.
-        let mut safety = match role {
-            TeleopRole::Master => {
-                let mut s = SafetyConfig::master(n, *model.limits());
-                (s.max_force, s.max_moment) = caps;
-                s
-            }
-            TeleopRole::Slave => SafetyConfig::slave(n, *model.limits()),
-        };
-        safety.watchdog = timing.watchdog;
-        let mut config = ControlConfig::new(timing.period, safety);
-        let r = self.robot(&robot_name)?;
-        let on_sim = r.body.is_some();
-        let zero = model.named_pose(start);
-        for j in 0..n {
-            let cpr = model.counts_per_radian(j);
-            let mut b = AxisBinding::new(j as u8, cpr);
-            if !on_sim {
-                b.offset_counts = -((zero[j] * cpr).round() as i64);
-            }
-            config = config.with_axis(j, b);
-        }
-        config.safety.hold = if on_sim {
-            HoldMode::Pd {
-                kp: hold.0,
-                kd: hold.1,
-            }
-        } else {
-            HoldMode::BoardServo
-        };
-        config.validate(n).map_err(|e| ObjectError::BadConfig {
-            kind: kind.into(),
-            message: e.to_string(),
-        })?;
-
-        // Take the board(s).
-        let maps = r.maps.clone();
-        let (mut truth, mut contact) = (None, None);
-        let board = if on_sim {
-            let KindState::Robot(r) = &mut self.get_mut(&robot_name)?.body else {
+    /// Step 6: takes the robot's board(s): its simulated body (with a fresh tap: the plant's
+    /// truth for telemetry, and its contact for a wrist sensor), or its Galil boards, each axis'
+    /// effort signed by the model's torque directions.
+    fn take_boards(
+        &mut self,
+        robot_name: &str,
+        model: &SerialRobotModel,
+        n: usize,
+        on_sim: bool,
+        wrist_on_plant: bool,
+    ) -> Result<TakenBoards, ObjectError> {
+        if on_sim {
+            let KindState::Robot(r) = &mut self.get_mut(robot_name)?.body else {
                 return Err(ObjectError::internal("robot body"));
             };
             let mut body = r
                 .body
                 .take()
                 .ok_or_else(|| ObjectError::internal("sim body"))?;
-            // A fresh tap per loop: the plant's truth for telemetry, and its contact for a
-            // wrist sensor.
             let mut tap = TapWriter::new();
             let tap_failed = |_| ObjectError::internal("plant tap");
-            truth = Some(tap.reader().map_err(tap_failed)?);
-            if plant_sensor.is_some() {
-                contact = Some(tap.reader().map_err(tap_failed)?);
-            }
+            let truth = Some(tap.reader().map_err(tap_failed)?);
+            let contact = if wrist_on_plant {
+                Some(tap.reader().map_err(tap_failed)?)
+            } else {
+                None
+            };
             body.set_tap(tap);
-            if r.kinematics.is_fpga_board() {
+            let board = if r.kinematics.is_fpga_board() {
                 JointBoard::Fpga(SimDrive::new(body))
             } else {
                 JointBoard::Sim(SimDrive::new(body))
+            };
+            return Ok(TakenBoards {
+                board,
+                truth,
+                contact,
+            });
+        }
+        let maps = self.robot(robot_name)?.maps.clone();
+        let mut boards: Vec<(String, GalilBoard)> = Vec::new();
+        let mut map = [(0u8, 0u8); MAX_JOINTS];
+        for (board, joints) in &maps {
+            let index = boards.len() as u8;
+            let KindState::Galil(g) = &mut self.get_mut(board)?.body else {
+                return Err(ObjectError::internal("galil body"));
+            };
+            let Some(mut b) = g.board.take() else {
+                // Put back what was taken before refusing.
+                self.give_back(
+                    JointBoard::Galil(Box::new(GalilSet::new(boards, map, n))),
+                    robot_name,
+                );
+                return Err(not_ready(format!("board `{board}` is not open")));
+            };
+            let bindings: Vec<AxisBinding> = joints
+                .iter()
+                .map(|ja| AxisBinding::new(ja.axis, model.counts_per_radian(ja.joint.into())))
+                .collect();
+            b.orient(&bindings);
+            boards.push((board.clone(), b));
+            for ja in joints {
+                map[usize::from(ja.joint)] = (index, ja.axis);
             }
-        } else {
-            let mut boards: Vec<(String, GalilBoard)> = Vec::new();
-            let mut map = [(0u8, 0u8); MAX_JOINTS];
-            for (board, joints) in &maps {
-                let index = boards.len() as u8;
-                let KindState::Galil(g) = &mut self.get_mut(board)?.body else {
-                    return Err(ObjectError::internal("galil body"));
-                };
-                let Some(mut b) = g.board.take() else {
-                    // Put back what was taken before refusing.
-                    self.give_back(
-                        JointBoard::Galil(Box::new(GalilSet::new(boards, map, n))),
-                        &robot_name,
-                    );
-                    return Err(not_ready(format!("board `{board}` is not open")));
-                };
-                // Torque directions from the model: the driver signs each axis' effort.
-                let bindings: Vec<AxisBinding> = joints
-                    .iter()
-                    .map(|ja| AxisBinding::new(ja.axis, model.counts_per_radian(ja.joint.into())))
-                    .collect();
-                b.orient(&bindings);
-                boards.push((board.clone(), b));
-                for ja in joints {
-                    map[usize::from(ja.joint)] = (index, ja.axis);
-                }
-            }
-            JointBoard::Galil(Box::new(GalilSet::new(boards, map, n)))
-        };
+        }
+        Ok(TakenBoards {
+            board: JointBoard::Galil(Box::new(GalilSet::new(boards, map, n))),
+            truth: None,
+            contact: None,
+        })
+    }
 
-        // Ports.
-        use penelope_rt_core::cell::latest;
-        use penelope_rt_core::ring::ring;
-        let (ref_w, ref_r) = crate::objects::reference::reference_port();
-        let (tel_w, tel_r) = ring();
-        let (comm_w, comm_r) = latest();
-        let (probe_w, probe_r) = latest();
-        let (mut cmd_w, cmd_r) = ring();
-        let stop = std::sync::Arc::new(penelope_rt_core::stop::StopLatch::new());
-        let (goto_w, goto_r) = ring();
-        let (gains_w, gains_r) = ring();
-        // A teleoperation end's thread wakes on its loop's new safety events.
-        let doorbell = match &source {
-            LoopSource::Teleop(side, ..) => match self.objects.get(&traj_name).map(|o| &o.body) {
-                Some(KindState::Teleop(t)) => t.link.as_ref().and_then(|l| l.doorbell(*side)),
-                _ => None,
-            },
+    /// A teleoperation end's thread wakes on its loop's new safety events: the doorbell of
+    /// the end `source` takes, if it is one.
+    fn teleop_doorbell(
+        &self,
+        plan: &LoopPlan,
+        source: &LoopSource,
+    ) -> Option<std::sync::Arc<penelope_rt_core::wake::Doorbell>> {
+        let LoopSource::Teleop(side, ..) = source else {
+            return None;
+        };
+        match self.objects.get(&plan.trajectory).map(|o| &o.body) {
+            Some(KindState::Teleop(t)) => t.link.as_ref().and_then(|l| l.doorbell(*side)),
             _ => None,
-        };
-        let sink = TelemetryPort::new(tel_w, comm_w, probe_w, truth)
-            .with_clutch(self.clutch_of(&robot_name))
-            .with_doorbell(doorbell);
-        let ports = ControlPorts {
-            reference: ref_r,
-            telemetry: sink,
-            commands: penelope_rt_core::stop::StopAwareCommands::new(cmd_r, stop.clone()),
-        };
-        let cartesian = controller.is_cartesian();
-        let lp = match ControlLoop::new(config, board, kinematics.clone(), [controller], ports) {
-            Ok(l) => l,
-            Err(e) => return Err(ObjectError::Internal(format!("control loop: {e}").into())),
-        };
-        let (lp, wrench_w) = if let (Some(cfg), Some(contact)) = (plant_sensor, contact) {
-            let sensor = VirtualForceSensor::new(cfg, contact);
-            (RobotLoop::Plant(Box::new(lp.with_sensor(sensor))), None)
-        } else if let Some(sensor) = replayed {
-            (RobotLoop::Replayed(Box::new(lp.with_sensor(sensor))), None)
-        } else if let Some(sensor) = netft {
-            (RobotLoop::NetFt(Box::new(lp.with_sensor(sensor))), None)
-        } else if sensor_name.is_some() {
-            let (w, r) = latest();
-            (
-                RobotLoop::Sensed(Box::new(
-                    lp.with_sensor(CellSensor::new(r, timing.sensor_timeout)),
-                )),
-                Some(w),
-            )
-        } else {
-            (RobotLoop::Plain(Box::new(lp)), None)
-        };
-        let _ = cmd_w.push(ControlCommand::Activate);
-        let comm = match source {
-            LoopSource::Trajectory(feed) => crate::objects::runtime::CommTask::new(
-                feed,
-                ref_w,
-                comm_r,
-                goto_r,
+        }
+    }
+
+    /// Step 7: the communication task: a trajectory's, the joint groups', or a teleoperation
+    /// end's (taken from its channel), writing the loop's references.
+    fn comm_task(
+        &mut self,
+        plan: &LoopPlan,
+        source: LoopSource,
+        feed: CommFeed,
+        kinematics: &RobotKinematics,
+    ) -> Result<crate::objects::runtime::CommTask, ObjectError> {
+        Ok(match source {
+            LoopSource::Trajectory(trajectory) => crate::objects::runtime::CommTask::new(
+                trajectory,
+                feed.reference,
+                feed.probe,
+                feed.goto,
                 kinematics.clone(),
-                cartesian,
+                feed.cartesian,
             ),
             LoopSource::Groups(feeds) => crate::objects::runtime::CommTask::groups(
                 feeds,
-                ref_w,
-                comm_r,
-                goto_r,
+                feed.reference,
+                feed.probe,
+                feed.goto,
                 kinematics.clone(),
             )?,
             LoopSource::Teleop(side, mapping, link_timeout, port_law) => {
                 // The master's clutch is its operator's hand's button, if a hand holds it.
                 let clutch = match side {
-                    Side::Master => self.clutch_of(&robot_name),
+                    Side::Master => self.clutch_of(&plan.robot),
                     _ => None,
                 };
                 let Some(KindState::Teleop(t)) =
-                    self.objects.get_mut(&traj_name).map(|o| &mut o.body)
+                    self.objects.get_mut(&plan.trajectory).map(|o| &mut o.body)
                 else {
                     return Err(ObjectError::internal("teleop body"));
                 };
@@ -411,50 +493,38 @@ impl Registry {
                     TeleopComm::new(end, mapping, kinematics.clone())?
                         .with_port_law(port_law, &mapping)?
                         .with_clutch(clutch)
-                        .with_sensor_mount(plant_sensor.map(|c| c.mount).or(sensed_mount))
-                        .with_hand_wrench(side == Side::Master && sensor_name.is_some())
+                        .with_sensor_mount(feed.sensor_mount)
+                        .with_hand_wrench(side == Side::Master && plan.sensor.is_some())
                         .with_link_timeout(link_timeout),
-                    ref_w,
-                    comm_r,
-                    goto_r,
+                    feed.reference,
+                    feed.probe,
+                    feed.goto,
                     kinematics.clone(),
                 )
             }
-        };
-        let source = match (&sensor_name, local_sensor) {
-            (Some(_), None) => stream_source,
-            (_, Some(_)) if plant_sensor.is_some() => None,
-            (_, Some((local, _))) => Some(crate::objects::runtime::SensorSource::Local(local)),
-            _ => None,
-        };
+        })
+    }
 
-        // Mark the users.
+    /// Step 8: every object the loop uses shows controller `name` as a user: the robot, the
+    /// trajectories, the boards and a sensor on this node.
+    fn mark_users(
+        &mut self,
+        name: &str,
+        mut used: Vec<String>,
+        maps: &[(String, Vec<penelope_protocol::proto::JointAxis>)],
+        sensor: Option<&str>,
+    ) {
         used.extend(maps.iter().map(|(b, _)| b.clone()));
-        if let Some(s) = &sensor_name
+        if let Some(s) = sensor
             && !s.starts_with('/')
         {
-            used.push(s.clone());
+            used.push(s.to_string());
         }
         for u in &used {
             if let Some(o) = self.objects.get_mut(u) {
                 o.users.insert(name.to_string());
             }
         }
-        Ok(Built {
-            control: ControlTask::new(lp, gains_r),
-            comm,
-            telemetry: tel_r,
-            commands: cmd_w,
-            stop,
-            goto: goto_w,
-            gains: gains_w,
-            probe: probe_r,
-            wrench: wrench_w,
-            source,
-            model: kinematics,
-            joints: n,
-            timing,
-        })
     }
 
     /// Takes a stopped loop of `controller` back: its board to the robot's objects, its
@@ -678,6 +748,138 @@ fn check_teleop_end(name: &str, t: &TeleopObj, side: Side, robot: &str) -> Resul
         )));
     }
     Ok(())
+}
+
+/// What a controller's activation works from: its settings and the names it was configured
+/// with.
+struct LoopPlan {
+    timing: LoopTiming,
+    robot: String,
+    trajectory: String,
+    sensor: Option<String>,
+    law: ControllerConfig,
+    kind: &'static str,
+}
+
+/// Where a loop's wrench comes from (at most one of them is used).
+struct SensorInputs {
+    /// A virtual sensor on this node: its probe state and configuration.
+    local: Option<(
+        std::sync::Arc<std::sync::Mutex<crate::objects::runtime::VirtualSensor>>,
+        crate::objects::kinds::SensorConfig,
+    )>,
+    /// A recorded wrench stream.
+    replayed: Option<crate::objects::replay::ReplaySensor>,
+    /// A Net F/T's reader.
+    netft: Option<penelope_drivers::netft::NetFtReader>,
+    /// The mount of the replayed or Net F/T sensor.
+    mount: Option<penelope_hal::Pose>,
+    /// A sensor on another node: its stream's reader.
+    stream: Option<crate::objects::runtime::SensorSource>,
+}
+
+/// The board a loop drives, and the simulated plant's taps (truth and contact), if any.
+struct TakenBoards {
+    board: JointBoard,
+    truth: Option<penelope_drivers::sim::tap::TapReader>,
+    contact: Option<penelope_drivers::sim::tap::TapReader>,
+}
+
+/// The communication task's ports and what it needs of the loop.
+struct CommFeed {
+    reference: crate::objects::reference::ReferenceOut,
+    probe: penelope_rt_core::cell::ArcLatestReader<penelope_rt_core::telemetry::TelemetrySample>,
+    goto: penelope_rt_core::ring::ArcConsumer<
+        GoToCommand,
+        { crate::objects::runtime::GOTO_CAPACITY },
+    >,
+    cartesian: bool,
+    sensor_mount: Option<penelope_hal::Pose>,
+}
+
+/// Step 5b: the loop's configuration: safety by role (a master: display caps, zero force on
+/// a stale reference, amplifiers off on a fault; a slave holds its pose), and axis bindings
+/// (encoder zero at the start pose on real boards).
+fn control_config(
+    plan: &LoopPlan,
+    role: TeleopRole,
+    caps: (f64, f64),
+    model: &SerialRobotModel,
+    start: penelope_hal::NamedPose,
+    hold: (JointVector, JointVector),
+    on_sim: bool,
+) -> Result<ControlConfig, ObjectError> {
+    let n = model.joint_count();
+    let mut safety = match role {
+        TeleopRole::Master => {
+            let mut s = SafetyConfig::master(n, *model.limits());
+            (s.max_force, s.max_moment) = caps;
+            s
+        }
+        TeleopRole::Slave => SafetyConfig::slave(n, *model.limits()),
+    };
+    safety.watchdog = plan.timing.watchdog;
+    let mut config = ControlConfig::new(plan.timing.period, safety);
+    let zero = model.named_pose(start);
+    for j in 0..n {
+        let cpr = model.counts_per_radian(j);
+        let mut b = AxisBinding::new(j as u8, cpr);
+        if !on_sim {
+            b.offset_counts = -((zero[j] * cpr).round() as i64);
+        }
+        config = config.with_axis(j, b);
+    }
+    config.safety.hold = if on_sim {
+        HoldMode::Pd {
+            kp: hold.0,
+            kd: hold.1,
+        }
+    } else {
+        HoldMode::BoardServo
+    };
+    config.validate(n).map_err(|e| ObjectError::BadConfig {
+        kind: plan.kind.into(),
+        message: e.to_string(),
+    })?;
+    Ok(config)
+}
+
+/// Step 6b: the loop with the sensor it reads in its own thread (the plant's wrist sensor, a
+/// replayed stream, a Net F/T), or with a cell the sensor feed writes (`sensed`: a sensor
+/// elsewhere), or none; the cell's writer when there is one.
+fn with_sensor(
+    lp: crate::objects::runtime::Loop<penelope_rt_core::control::NoSensor>,
+    plant: Option<(ForceSensorConfig, penelope_drivers::sim::tap::TapReader)>,
+    replayed: Option<crate::objects::replay::ReplaySensor>,
+    netft: Option<penelope_drivers::netft::NetFtReader>,
+    sensed: bool,
+    timing: LoopTiming,
+) -> (
+    RobotLoop,
+    Option<
+        penelope_rt_core::cell::ArcLatestWriter<
+            penelope_rt_core::cell::Stamped<penelope_hal::Wrench>,
+        >,
+    >,
+) {
+    if let Some((cfg, contact)) = plant {
+        let sensor = VirtualForceSensor::new(cfg, contact);
+        (RobotLoop::Plant(Box::new(lp.with_sensor(sensor))), None)
+    } else if let Some(sensor) = replayed {
+        (RobotLoop::Replayed(Box::new(lp.with_sensor(sensor))), None)
+    } else if let Some(sensor) = netft {
+        (RobotLoop::NetFt(Box::new(lp.with_sensor(sensor))), None)
+    } else if sensed {
+        let (w, r) = penelope_rt_core::cell::latest();
+        (
+            RobotLoop::Sensed(Box::new(
+                lp.with_sensor(CellSensor::new(r, timing.sensor_timeout)),
+            )),
+            Some(w),
+        )
+    } else {
+        (RobotLoop::Plain(Box::new(lp)), None)
+    }
 }
 
 /// Everything an activation built, before threads start.

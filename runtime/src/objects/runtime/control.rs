@@ -302,8 +302,16 @@ impl Sensor for CellSensor {
     }
 }
 
-type Loop<F> =
-    ControlLoop<JointBoard, RobotKinematics, [ControlLaw; 1], ReferencePort, TelemetryPort, Commands, F>;
+/// A robot's control loop with sensor `F` (the variants of [`RobotLoop`]).
+pub(crate) type Loop<F> = ControlLoop<
+    JointBoard,
+    RobotKinematics,
+    [ControlLaw; 1],
+    ReferencePort,
+    TelemetryPort,
+    Commands,
+    F,
+>;
 
 /// A node's control loop, with or without a force sensor.
 pub enum RobotLoop {

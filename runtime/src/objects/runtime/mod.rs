@@ -45,7 +45,7 @@ pub const SPLINE_CAPACITY: usize = crate::objects::kinds::MAX_WAYPOINTS;
 pub type SimBody = SimBoard<SerialRobotModel, ToolContact>;
 
 /// The command ring behind the loop's stop latch (an e-stop needs no room in the ring).
-type Commands = penelope_rt_core::stop::StopAwareCommands<
+pub(crate) type Commands = penelope_rt_core::stop::StopAwareCommands<
     ArcConsumer<penelope_rt_core::control::ControlCommand, COMMAND_CAPACITY>,
     Arc<penelope_rt_core::stop::StopLatch>,
 >;
@@ -60,6 +60,7 @@ mod threads;
 
 pub use board::{GalilSet, JointBoard, JointBoardError, MAX_PLANT_STEP_NS, SimDrive, SimObserver};
 pub use comm::{CommTask, GoToCommand, TrajectoryFeed, TrajectoryGenerator};
+pub(crate) use control::Loop;
 pub use control::{
     CellSensor, CellSensorError, ControlLaw, ControlTask, GainsUpdate, RobotLoop, RoutedGains,
     TelemetryPort,
