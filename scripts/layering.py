@@ -17,7 +17,7 @@ A glob import of the parent (`use super::*`) hides which items a module takes fr
 test modules may use it.
 
 Usage: scripts/layering.py [--files] [CRATE_DIR ...]   (default: every crate with a
-src/lib.rs). Exits 1 if a crate has a cycle or a glob import of its parent outside tests.
+src/lib.rs or src/main.rs). Exits 1 if a crate has a cycle or a glob import of its parent outside tests.
 """
 import os
 import re
@@ -196,7 +196,8 @@ def main():
     args = [a for a in args if a != '--files']
     crates = args or sorted(
         os.path.join(root, d) for d in os.listdir(root)
-        if os.path.exists(os.path.join(root, d, 'src', 'lib.rs')))
+        if os.path.exists(os.path.join(root, d, 'src', 'lib.rs'))
+        or os.path.exists(os.path.join(root, d, 'src', 'main.rs')))
     bad = 0
     for c in crates:
         cycles, n = crate_cycles(c, files)
