@@ -328,3 +328,125 @@ impl ReplayError {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One error of every variant; the `match` below has no wildcard, so a new variant does not
+    /// compile until it has a sample here.
+    fn one_of_each() -> Vec<ObjectError> {
+        let source = || -> SourceError { Box::new(std::io::Error::other("the cause")) };
+        let samples = vec![
+            ObjectError::UnknownKind("board/x".into()),
+            ObjectError::UnknownName("arm".into()),
+            ObjectError::NameTaken("arm".into()),
+            ObjectError::LimitReached {
+                what: "objects".into(),
+                limit: 256,
+            },
+            ObjectError::WrongClass {
+                name: "arm".into(),
+                expected: Class::Board,
+                found: Class::Robot,
+            },
+            ObjectError::Unsupported {
+                kind: "board/sim".into(),
+                method: "fk".into(),
+            },
+            ObjectError::NoNamingService,
+            ObjectError::Forbidden("a reader may not create".into()),
+            ObjectError::BadConfig {
+                kind: "board/sim".into(),
+                message: "`axes` = 9 is outside 1..=8".into(),
+            },
+            ObjectError::Replay {
+                kind: "sensor/replay".into(),
+                source: ReplayError::MissingFile {
+                    path: "run.mcap".into(),
+                },
+            },
+            ObjectError::FpgaBoard(super::super::fpga_board::FpgaBoardError::NotTheFrhc {
+                board: "fk".into(),
+                robot: "arm".into(),
+                model: "PUMA 560".into(),
+            }),
+            ObjectError::BadArgument("no such joint".into()),
+            ObjectError::File(FileRefused::NotPlainName("../x".into())),
+            ObjectError::InvalidTransition {
+                name: "arm".into(),
+                state: LifecycleState::Unconfigured,
+                transition: Transition::Activate,
+            },
+            ObjectError::InUse {
+                name: "arm".into(),
+                dependents: vec!["follow".into()],
+            },
+            ObjectError::NotReady("not configured".into()),
+            ObjectError::NoLink("teleop".into()),
+            ObjectError::Device {
+                what: "board `galil`".into(),
+                source: source(),
+            },
+            ObjectError::DeviceRefused("4 axes, not 6".into()),
+            ObjectError::Thread {
+                what: "control thread".into(),
+                source: source(),
+            },
+            ObjectError::RecordingRefused(source()),
+            ObjectError::Recorder(source()),
+            ObjectError::Poisoned("registry"),
+            ObjectError::Internal("robot body".into()),
+            ObjectError::RemoteAnswer("node b: timeout".into()),
+            ObjectError::Wire(WireError::Call(CallError::NotReady("remote".into()))),
+        ];
+        for e in &samples {
+            match e {
+                ObjectError::UnknownKind(_)
+                | ObjectError::UnknownName(_)
+                | ObjectError::NameTaken(_)
+                | ObjectError::LimitReached { .. }
+                | ObjectError::WrongClass { .. }
+                | ObjectError::Unsupported { .. }
+                | ObjectError::NoNamingService
+                | ObjectError::Forbidden(_)
+                | ObjectError::BadConfig { .. }
+                | ObjectError::Replay { .. }
+                | ObjectError::FpgaBoard(_)
+                | ObjectError::BadArgument(_)
+                | ObjectError::File(_)
+                | ObjectError::InvalidTransition { .. }
+                | ObjectError::InUse { .. }
+                | ObjectError::NotReady(_)
+                | ObjectError::NoLink(_)
+                | ObjectError::Device { .. }
+                | ObjectError::DeviceRefused(_)
+                | ObjectError::Thread { .. }
+                | ObjectError::RecordingRefused(_)
+                | ObjectError::Recorder(_)
+                | ObjectError::Poisoned(_)
+                | ObjectError::Internal(_)
+                | ObjectError::RemoteAnswer(_)
+                | ObjectError::Wire(_) => {}
+            }
+        }
+        samples
+    }
+
+    /// The text a client reads is the text the runtime's error says: the conversion to the wire
+    /// error keeps it, for every variant (the two enums' messages cannot drift apart).
+    #[test]
+    fn every_object_error_reads_the_same_on_the_wire() {
+        let samples = one_of_each();
+        assert_eq!(samples.len(), 26, "one sample per variant");
+        for e in samples {
+            let here = e.to_string();
+            let wire = WireError::from(e);
+            assert!(
+                matches!(wire, WireError::Call(_)),
+                "{here}: a call failure, not a protocol one"
+            );
+            assert_eq!(wire.to_string(), here);
+        }
+    }
+}
