@@ -55,7 +55,7 @@ impl Registry {
         let on_sim = r.body.is_some();
         let maps = r.maps.clone();
         let config = control_config(&plan, role, caps, &model, start, hold, on_sim)?;
-        let taken = self.take_boards(&plan.robot, &model, n, on_sim, plant_sensor.is_some())?;
+        let taken = self.take_boards(&plan.robot, &maps, &model, on_sim, plant_sensor.is_some())?;
 
         // Ports.
         use penelope_rt_core::cell::latest;
@@ -364,8 +364,8 @@ impl Registry {
     fn take_boards(
         &mut self,
         robot_name: &str,
+        maps: &[(String, Vec<penelope_protocol::proto::JointAxis>)],
         model: &SerialRobotModel,
-        n: usize,
         on_sim: bool,
         wrist_on_plant: bool,
     ) -> Result<TakenBoards, ObjectError> {
@@ -397,10 +397,10 @@ impl Registry {
                 contact,
             });
         }
-        let maps = self.robot(robot_name)?.maps.clone();
+        let n = model.joint_count();
         let mut boards: Vec<(String, GalilBoard)> = Vec::new();
         let mut map = [(0u8, 0u8); MAX_JOINTS];
-        for (board, joints) in &maps {
+        for (board, joints) in maps {
             let index = boards.len() as u8;
             let KindState::Galil(g) = &mut self.get_mut(board)?.body else {
                 return Err(ObjectError::internal("galil body"));

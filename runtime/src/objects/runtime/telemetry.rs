@@ -13,7 +13,7 @@ use penelope_rt_core::ring::ArcConsumer;
 use penelope_rt_core::telemetry::TelemetrySample;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::SyncSender;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 /// The newest state of a running loop, as the pump keeps it.
@@ -108,6 +108,24 @@ impl Subscriptions {
         self.len() == 0
     }
 
+    /// Room for one more subscription (at most `limit` in all, closed sessions' dropped first):
+    /// the controllers' list, held so that two adds cannot both pass the limit, and the new id.
+    fn admit(&self, limit: u32) -> Result<(MutexGuard<'_, Vec<Subscription>>, u64), ObjectError> {
+        let mut list = self
+            .list
+            .lock()
+            .map_err(|_| ObjectError::Poisoned("subscriptions"))?;
+        list.retain(|s| !s.sink.is_closed());
+        self.links.retain_open();
+        if list.len() + self.links.len() >= limit as usize {
+            return Err(ObjectError::LimitReached {
+                what: "subscriptions".into(),
+                limit,
+            });
+        }
+        Ok((list, self.next.fetch_add(1, Ordering::Relaxed) + 1))
+    }
+
     /// Adds one to `controller`'s ticks (at most `limit` subscriptions in all), returning its
     /// id.
     ///
@@ -121,19 +139,7 @@ impl Subscriptions {
         sink: Box<dyn TickSink>,
         limit: u32,
     ) -> Result<u64, ObjectError> {
-        let mut list = self
-            .list
-            .lock()
-            .map_err(|_| ObjectError::Poisoned("subscriptions"))?;
-        list.retain(|s| !s.sink.is_closed());
-        self.links.retain_open();
-        if list.len() + self.links.len() >= limit as usize {
-            return Err(ObjectError::LimitReached {
-                what: "subscriptions".into(),
-                limit,
-            });
-        }
-        let id = self.next.fetch_add(1, Ordering::Relaxed) + 1;
+        let (mut list, id) = self.admit(limit)?;
         list.push(Subscription {
             id,
             session,
@@ -159,20 +165,8 @@ impl Subscriptions {
         sink: Box<dyn TickSink>,
         limit: u32,
     ) -> Result<u64, ObjectError> {
-        // The controllers' list is held while counting, so two adds cannot both pass the limit.
-        let mut list = self
-            .list
-            .lock()
-            .map_err(|_| ObjectError::Poisoned("subscriptions"))?;
-        list.retain(|s| !s.sink.is_closed());
-        self.links.retain_open();
-        if list.len() + self.links.len() >= limit as usize {
-            return Err(ObjectError::LimitReached {
-                what: "subscriptions".into(),
-                limit,
-            });
-        }
-        let id = self.next.fetch_add(1, Ordering::Relaxed) + 1;
+        // The controllers' list stays held until the link is added (see `admit`).
+        let (_held, id) = self.admit(limit)?;
         self.links
             .add(id, session, channel, source, decimation, sink)?;
         Ok(id)
