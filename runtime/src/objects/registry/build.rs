@@ -1,11 +1,12 @@
 //! Building a controller's loop from its objects, and taking a stopped loop back.
 
+use super::laws::{default_joint_gains, node_law};
 use super::trajectories::{build_trajectory, spec_is_tool};
 use crate::dataplane::sensor_stream::SensorSubscriber;
 use crate::objects::error::ObjectError;
 use crate::objects::registry::{
-    ControllerConfig, JointPidConfig, Launch, LoopTiming, Object, RobotKinematics, TeleopObj,
-    bad_arg, finite_effort, impedance, not_ready, unsupported,
+    ControllerConfig, Launch, LoopTiming, RobotKinematics, TeleopObj, bad_arg, not_ready,
+    unsupported,
 };
 use crate::objects::runtime::{
     CellSensor, ControlLaw, ControlTask, GalilSet, GoToCommand, JointBoard, RobotLoop, RoutedGains,
@@ -19,15 +20,14 @@ use penelope_drivers::model::SerialRobotModel;
 use penelope_drivers::sim::force_sensor::{ForceSensorConfig, VirtualForceSensor};
 use penelope_drivers::sim::tap::TapWriter;
 use penelope_hal::{
-    Board, JointSet, JointVector, Kinematics, LifecycleState, MAX_JOINTS, RobotModel, Transition,
+    JointSet, JointVector, Kinematics, LifecycleState, MAX_JOINTS, RobotModel, Transition,
 };
 use penelope_protocol::proto::Class;
 use penelope_rt_core::control::{
     AxisBinding, ControlCommand, ControlConfig, ControlLoop, ControlPorts,
 };
-use penelope_rt_core::controller::{JointGroups, JointPid, JointPidGains, JointPositionServo};
+use penelope_rt_core::controller::JointGroups;
 use penelope_rt_core::safety::{HoldMode, SafetyConfig, TeleopRole};
-use penelope_rt_core::teleop::CartesianImpedance;
 
 impl Registry {
     /// Builds the loop of controller `name` (configured, inactive) without starting threads.
@@ -526,136 +526,6 @@ impl Registry {
             }
         }
     }
-
-    /// Takes a stopped loop of `controller` back: its board to the robot's objects, its
-    /// teleoperation channel's end to the channel, and clears the users. A slave stopped on
-    /// purpose stays where it is, held by its board's servo; a master, and a slave stopped by a
-    /// fault on a board without a servo of its own, gets zero torque and its amplifiers off.
-    /// What a thread took down with it is marked `unconfigured` (configure it again). Returns
-    /// how the robot was left, in words.
-    pub fn take_back(
-        &mut self,
-        stopped: crate::objects::runtime::StoppedLoop,
-        controller: &str,
-        after_fault: bool,
-    ) -> &'static str {
-        let (robot, trajectory) = match self.objects.get(controller).map(|o| &o.body) {
-            Some(KindState::Controller(c)) => (
-                c.robot.clone().unwrap_or_default(),
-                c.trajectory.clone().unwrap_or_default(),
-            ),
-            _ => (String::new(), String::new()),
-        };
-        let slave = self.role_of(controller) == Some(TeleopRole::Slave);
-        let said = match stopped.control {
-            Some(mut t) => {
-                let hold = if after_fault {
-                    t.holds_with_board_servo()
-                } else {
-                    slave && t.hand_to_board_servo()
-                };
-                self.give_back_after_fault(t.into_loop().into_board(), &robot, hold);
-                if hold {
-                    "held by its board's servo"
-                } else {
-                    "zero torque, amplifiers off"
-                }
-            }
-            None => {
-                if let Ok(o) = self.get_mut(&robot) {
-                    o.state = LifecycleState::Unconfigured;
-                }
-                "its board went down with the thread; configure the robot again"
-            }
-        };
-        let end = stopped.comm.and_then(|c| c.into_teleop_end());
-        if let Some(Object {
-            body: KindState::Teleop(t),
-            state,
-            ..
-        }) = self.objects.get_mut(&trajectory)
-            && let Some(link) = t.link.as_mut()
-        {
-            match end {
-                Some(end) => link.put_back(end),
-                None => {
-                    // The end went down with its thread: new cells at the next configure.
-                    t.link = None;
-                    *state = LifecycleState::Unconfigured;
-                }
-            }
-        }
-        self.release_users(controller);
-        said
-    }
-
-    /// The role of the robot controller `controller` drives, if it has one.
-    pub fn role_of(&self, controller: &str) -> Option<TeleopRole> {
-        let Some(KindState::Controller(c)) = self.objects.get(controller).map(|o| &o.body) else {
-            return None;
-        };
-        self.robot(c.robot.as_deref()?).ok().map(|r| r.role)
-    }
-
-    /// Gives a stopped loop's board back to the objects it came from, amplifiers off.
-    pub fn give_back(&mut self, board: JointBoard, robot: &str) {
-        self.give_back_after_fault(board, robot, false);
-    }
-
-    /// Gives a failed loop's board back as the loop left it: still holding with its own servo
-    /// when `holding` (a position board the loop stopped at its measured pose), else with its
-    /// amplifiers off.
-    pub fn give_back_after_fault(&mut self, mut board: JointBoard, robot: &str, holding: bool) {
-        if !holding {
-            let _ = board.set_enabled(false);
-        }
-        match board {
-            JointBoard::Sim(drive) | JointBoard::Fpga(drive) => {
-                let body = drive.into_body();
-                if let Some(Object {
-                    body: KindState::Robot(r),
-                    ..
-                }) = self.objects.get_mut(robot)
-                {
-                    r.body = Some(body);
-                }
-            }
-            JointBoard::Galil(set) => {
-                for (name, b) in set.boards {
-                    if let Some(Object {
-                        body: KindState::Galil(g),
-                        ..
-                    }) = self.objects.get_mut(&name)
-                    {
-                        g.board = Some(b);
-                    }
-                }
-            }
-        }
-    }
-
-    /// Clears `controller` from every object's users.
-    pub fn release_users(&mut self, controller: &str) {
-        for o in self.objects.values_mut() {
-            o.users.remove(controller);
-        }
-    }
-}
-
-/// The default joint gains `(kp, kd)` of a robot: a joint PID's when its configuration leaves
-/// them out, and what a loop on a simulated body holds its pose with (10 and 0.5 times each
-/// joint's torque limit, per rad and per rad/s).
-pub(super) fn default_joint_gains(
-    model: &SerialRobotModel,
-    n: usize,
-) -> (JointVector, JointVector) {
-    let mut kp = JointVector::zeros();
-    let mut kd = JointVector::zeros();
-    for j in 0..n {
-        kp[j] = 10.0 * finite_effort(model, j);
-        kd[j] = 0.5 * finite_effort(model, j);
-    }
-    (kp, kd)
 }
 
 /// What feeds a loop its references (built once per activation: its size costs nothing).
@@ -673,48 +543,6 @@ enum LoopSource {
     ),
     /// One trajectory per joint group.
     Groups(Vec<(JointSet, TrajectoryFeed)>),
-}
-
-/// The law of a controller configured as `law` (not a joint-groups controller) for `model`;
-/// `hold` is the robot's default joint gains `(kp, kd)`.
-pub(super) fn node_law(
-    law: &ControllerConfig,
-    kind: &str,
-    model: &SerialRobotModel,
-    hold: (JointVector, JointVector),
-) -> Result<ControlLaw, ObjectError> {
-    let n = model.joint_count();
-    Ok(match law {
-        ControllerConfig::Pid(p) => {
-            ControlLaw::Pid(JointPid::new(pid_gains(p, kind, n, hold.0, hold.1)?))
-        }
-        ControllerConfig::Impedance(i) => {
-            ControlLaw::Impedance(CartesianImpedance::new(impedance(i)).map_err(|e| {
-                ObjectError::BadConfig {
-                    kind: kind.into(),
-                    message: format!("{e:?}"),
-                }
-            })?)
-        }
-        ControllerConfig::Position(p) => {
-            let max_velocity = p
-                .max_velocity
-                .resolve(kind, "max_velocity", n, 1e-3, 100.0)?;
-            ControlLaw::Position(JointPositionServo::new(max_velocity))
-        }
-        ControllerConfig::ForceDisplay(c) => ControlLaw::ForceDisplay(c.law(kind)?),
-        ControllerConfig::PositionError(c) => ControlLaw::PositionErrorMaster(c.law(kind)?),
-        ControllerConfig::FourChannel(c) => ControlLaw::FourChannel(c.law(kind)?),
-        ControllerConfig::Tracking(c, servo) => ControlLaw::SlaveTracking(c.law(kind, *servo)?),
-        ControllerConfig::FourChannelSlave(c) => ControlLaw::FourChannelSlave(c.law(kind)?),
-        ControllerConfig::WaveMaster(c) => ControlLaw::ForceDisplay(c.law(kind)?),
-        ControllerConfig::WaveSlave(c) => ControlLaw::SlaveTracking(c.law(kind)?),
-        ControllerConfig::Groups(_) => {
-            return Err(ObjectError::Internal(
-                "a joint group inside a joint group".into(),
-            ));
-        }
-    })
 }
 
 /// Checks that the controller on `robot` may run `side` of channel `name`, and that the end is
@@ -915,33 +743,6 @@ pub(crate) struct Built {
     pub model: RobotKinematics,
     pub joints: usize,
     pub timing: LoopTiming,
-}
-
-pub(super) fn pid_gains(
-    p: &JointPidConfig,
-    kind: &str,
-    n: usize,
-    kp_default: JointVector,
-    kd_default: JointVector,
-) -> Result<JointPidGains, ObjectError> {
-    let kp = match &p.kp {
-        Some(k) => k.resolve(kind, "kp", n, 0.0, 1e7)?,
-        None => kp_default,
-    };
-    let kd = match &p.kd {
-        Some(k) => k.resolve(kind, "kd", n, 0.0, 1e6)?,
-        None => kd_default,
-    };
-    Ok(JointPidGains {
-        kp,
-        ki: p.ki.resolve(kind, "ki", n, 0.0, 1e7)?,
-        kd,
-        integral_limit: p
-            .integral_limit
-            .resolve(kind, "integral_limit", n, 0.0, 1e5)?,
-        gravity_compensation: p.gravity_compensation,
-        acceleration_feedforward: p.acceleration_feedforward,
-    })
 }
 
 impl Registry {

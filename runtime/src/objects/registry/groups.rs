@@ -5,7 +5,7 @@
 
 use super::trajectories::{build_trajectory, spec_is_tool};
 use crate::objects::error::ObjectError;
-use crate::objects::registry::{ControllerConfig, Kind, bad_arg, build, not_ready};
+use crate::objects::registry::{ControllerConfig, Kind, bad_arg, not_ready};
 use crate::objects::runtime::{ControlLaw, TrajectoryFeed};
 use crate::objects::{KindState, Registry, kinds};
 use penelope_drivers::model::SerialRobotModel;
@@ -126,7 +126,7 @@ impl Registry {
             members.push(Member {
                 name: member.clone(),
                 joints: kinds::JointGroupsConfig::joint_set(g),
-                law: build::node_law(&c.config, kind, model, hold)?,
+                law: super::laws::node_law(&c.config, kind, model, hold)?,
                 feed: TrajectoryFeed::new(
                     build_trajectory(&spec.spec, model, kind)?,
                     spec_is_tool(&spec.spec),

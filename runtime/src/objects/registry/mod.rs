@@ -43,13 +43,16 @@ use crate::objects::runtime::{SimBody, VirtualSensor};
 use penelope_protocol::proto::{Class, JointAxis, ObjectInfo};
 
 mod build;
+mod controller_methods;
 mod fpga;
 mod galil;
 mod groups;
+mod laws;
 mod methods;
 mod netft;
 mod replay;
 mod sensors;
+mod take_back;
 mod teleop;
 mod trajectories;
 
