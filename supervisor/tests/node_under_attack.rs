@@ -153,9 +153,8 @@ fn a_node_under_attack_keeps_answering_and_its_loop_keeps_time() {
     // client flooding pings beyond the rate limit.
     let stop = Arc::new(AtomicBool::new(false));
     let made = Arc::new(AtomicU64::new(0));
-    let attackers: Vec<_> = (0..5)
-        .map(|k| attack(addr, stop.clone(), made.clone(), k))
-        .collect();
+    // The deaf subscriber connects before the attackers start: they may fill every connection
+    // slot, and it is one of the attack, not its victim.
     let mut deaf = Connection::connect(addr, &ClientConfig::new("deaf")).unwrap();
     let subscribed = deaf.call(Call::Subscribe {
         object: "pid".into(),
@@ -165,6 +164,9 @@ fn a_node_under_attack_keeps_answering_and_its_loop_keeps_time() {
         matches!(subscribed, Ok(Reply::Subscribed { .. })),
         "{subscribed:?}"
     );
+    let attackers: Vec<_> = (0..5)
+        .map(|k| attack(addr, stop.clone(), made.clone(), k))
+        .collect();
     let flood_stop = stop.clone();
     let flood = thread::spawn(move || {
         let mut answered = 0u64;
