@@ -65,7 +65,7 @@ fn bad_config(e: impl Into<WireError>) -> String {
 
 #[test]
 fn robot_urdf_is_listed_with_its_keys() {
-    let kinds = penelope_runtime::objects::kinds::all_kinds();
+    let kinds = penelope_runtime::objects::catalog::all_kinds();
     let info = kinds.iter().find(|k| k.kind == "robot/urdf").unwrap();
     for key in ["file =", "tip =", "base =", "poses =", "start =", "role ="] {
         assert!(

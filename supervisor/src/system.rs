@@ -495,7 +495,7 @@ fn group_members<'a>(objects: &[&'a ObjectSpec]) -> Vec<&'a str> {
     let mut members = Vec::new();
     for o in objects
         .iter()
-        .filter(|o| o.kind == penelope_runtime::objects::kinds::CONTROLLER_JOINT_GROUPS)
+        .filter(|o| o.kind == penelope_runtime::objects::kinds::Kind::JOINT_GROUPS.as_str())
     {
         let Ok(table) = o.config.parse::<toml::Table>() else {
             continue;
@@ -531,7 +531,7 @@ fn split_cross_node_channels(
     let mut split = Vec::new();
     let mut crossing = 0u16;
     for (i, o) in objects.iter().enumerate() {
-        if o.kind != penelope_runtime::objects::kinds::TRAJECTORY_TELEOP {
+        if o.kind != penelope_runtime::objects::kinds::Kind::TELEOP.as_str() {
             continue;
         }
         let Ok(config) = o.config.parse::<toml::Table>() else {
@@ -688,7 +688,7 @@ fn object_spec(
         Some(_) => return Err(invalid(format!("{key}.kind"), "must be a string".into())),
         None => return Err(invalid(format!("{key}.kind"), "missing".into())),
     };
-    if penelope_runtime::objects::kinds::Kind::parse(&kind).is_none() {
+    if penelope_runtime::objects::catalog::parse_kind(&kind).is_none() {
         return Err(invalid(
             format!("{key}.kind"),
             format!("unknown kind `{kind}` (see `penelope ctl kinds`)"),

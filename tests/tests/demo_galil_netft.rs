@@ -21,7 +21,7 @@ use penelope_drivers::netft::emulator::{
 use penelope_drivers::sim::environment::{ContactModel, Environment, Shape};
 use penelope_hal::{NamedPose, Pose, Timestamp};
 use penelope_runtime::objects::clock::ClockMode;
-use penelope_runtime::objects::kinds::NetFtSensorConfig;
+use penelope_runtime::objects::netft::NetFtSensorConfig;
 use penelope_supervisor::runs::report::report;
 use penelope_supervisor::runs::{RunOptions, run};
 use penelope_supervisor::system::SystemFile;

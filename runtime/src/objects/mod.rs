@@ -86,6 +86,11 @@ use penelope_protocol::proto::{
 };
 use penelope_protocol::service::Remote;
 use registry::{KindState, Registry};
+
+/// The catalog of kinds: every kind a creator makes, one line each.
+pub use registry::catalog;
+/// `sensor/netft`, a kind that is one module: its configuration and its object.
+pub use registry::netft;
 use runtime::{CommTask, ControlTask, LinkPump, Subscriptions};
 use sim_world::SimWorld;
 
@@ -345,7 +350,7 @@ impl Creator {
 
     /// The kinds it makes.
     pub fn kinds(&self) -> Vec<KindInfo> {
-        kinds::all_kinds()
+        registry::catalog::all_kinds()
     }
 
     /// Its objects, by name.
@@ -418,7 +423,7 @@ impl Creator {
         let names: Vec<String> = if objects.is_empty() {
             self.list()
                 .into_iter()
-                .filter(|o| o.class == Class::Controller || o.kind == kinds::TRAJECTORY_TELEOP)
+                .filter(|o| o.class == Class::Controller || o.kind == kinds::Kind::TELEOP.as_str())
                 .map(|o| o.name)
                 .collect()
         } else {
@@ -432,7 +437,7 @@ impl Creator {
                 .ok_or_else(|| ObjectError::UnknownName(name.clone()))?;
             if info.class == Class::Controller {
                 streams.push((name.clone(), self.record_ticks(name, RECORDER_CAPACITY)?));
-            } else if info.kind == kinds::TRAJECTORY_TELEOP {
+            } else if info.kind == kinds::Kind::TELEOP.as_str() {
                 match self.link_source(name)? {
                     Some(source) => links.push((name.clone(), source)),
                     None if objects.is_empty() => {}
@@ -525,10 +530,11 @@ impl Creator {
     /// creator clocked by the simulated clock.
     pub fn create(&self, kind: &str, name: &str, config: &str) -> Result<ObjectInfo, ObjectError> {
         check_name(name)?;
-        let k = kinds::Kind::parse(kind)
+        let entry = registry::catalog::entry_named(kind)
             .ok_or_else(|| ObjectError::UnknownKind(kind.chars().take(80).collect()))?;
+        let k = entry.kind;
         // A real board or sensor moves with real time: a simulated clock cannot step it.
-        if matches!(k, kinds::Kind::GalilBoard | kinds::Kind::NetFtSensor) && self.sim.is_some() {
+        if entry.real_device && self.sim.is_some() {
             return Err(ObjectError::Unsupported {
                 kind: kind.into(),
                 method: "a node on the simulated clock (a real device cannot be stepped by it: \

@@ -270,7 +270,9 @@ fn sensor_mount(file: &SystemFile, slave_ctl: &ObjectSpec) -> Result<Pose, RunEr
             Some(o) if o.kind == "sensor/replay" => {
                 parse::<penelope_runtime::objects::replay::ReplaySensorConfig>(o)?.mount()
             }
-            Some(o) if o.kind == "sensor/netft" => parse::<kinds::NetFtSensorConfig>(o)?.mount(),
+            Some(o) if o.kind == "sensor/netft" => {
+                parse::<penelope_runtime::objects::netft::NetFtSensorConfig>(o)?.mount()
+            }
             _ => Pose::identity(),
         },
         None => Pose::identity(),

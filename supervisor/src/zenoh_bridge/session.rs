@@ -445,7 +445,7 @@ impl Worker {
                 self.counters
                     .controllers
                     .store(self.controllers.len() as u64, Ordering::Relaxed);
-            } else if info.kind == penelope_runtime::objects::kinds::TRAJECTORY_TELEOP {
+            } else if info.kind == penelope_runtime::objects::kinds::Kind::TELEOP.as_str() {
                 let source = creator.link_source(&info.name).ok().flatten();
                 let stale = match (self.links.get(&info.name), &source) {
                     (Some((old, _)), Some(new)) => !old.same_link(new),

@@ -420,7 +420,7 @@ fn line(out: &mut String, code: &str, help: &str) {
 pub fn description_problems(
     kind: &str,
     text: &str,
-    parses: fn(&str, &str) -> Result<(), penelope_protocol::proto::WireError>,
+    parses: fn(&str, &str) -> Result<(), crate::objects::error::ObjectError>,
     fields: &FieldTree,
     other_kinds_keys: &BTreeSet<String>,
 ) -> Vec<String> {
@@ -485,22 +485,49 @@ fn shown_keys(table: &toml::Table, path: &str, fields: &FieldTree, out: &mut BTr
     }
 }
 
+/// What a kind's configuration type gives the table, its type erased.
+#[derive(Clone, Copy)]
+pub struct Described {
+    /// The key list for a kind ([`key_text`]).
+    pub keys: fn(&str) -> String,
+    /// The keys that apply to other kinds only ([`other_kinds_keys`]).
+    pub other_kinds_keys: fn(&str) -> BTreeSet<String>,
+    /// The fields its parser knows ([`fields_of`]).
+    pub fields: fn() -> FieldTree,
+    /// Its parser ([`parse`](crate::objects::config::parse)), the value dropped.
+    pub parses: fn(&str, &str) -> Result<(), crate::objects::error::ObjectError>,
+}
+
+/// The description of configuration type `T`.
+pub const fn described<T: KindConfig>() -> Described {
+    Described {
+        keys: key_text::<T>,
+        other_kinds_keys: other_kinds_keys::<T>,
+        fields: fields_of::<T>,
+        parses: parses::<T>,
+    }
+}
+
+fn parses<T: KindConfig>(kind: &str, text: &str) -> Result<(), crate::objects::error::ObjectError> {
+    crate::objects::config::parse::<T>(kind, text).map(drop)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::objects::config::parse;
-    use crate::objects::kinds::KIND_TABLE;
+    use crate::objects::registry::catalog::KIND_TABLE;
     use serde::Deserialize;
 
     #[test]
     fn every_kind_round_trips_through_its_description() {
         for e in KIND_TABLE.iter() {
-            let text = (e.config.keys)(e.name);
+            let text = (e.config.keys)(e.name());
             let fields = (e.config.fields)();
-            assert!(fields.contains_key(""), "{}: no fields found", e.name);
-            let hidden = (e.config.other_kinds_keys)(e.name);
-            let problems = description_problems(e.name, &text, e.config.parses, &fields, &hidden);
-            assert!(problems.is_empty(), "{}: {problems:#?}\n{text}", e.name);
+            assert!(fields.contains_key(""), "{}: no fields found", e.name());
+            let hidden = (e.config.other_kinds_keys)(e.name());
+            let problems = description_problems(e.name(), &text, e.config.parses, &fields, &hidden);
+            assert!(problems.is_empty(), "{}: {problems:#?}\n{text}", e.name());
         }
     }
 
@@ -510,13 +537,13 @@ mod tests {
         // of the type that parser takes. Every described key is known to it (its checks may
         // still refuse the example, which sets keys that exclude each other).
         for e in KIND_TABLE.iter() {
-            let text = (e.config.keys)(e.name);
+            let text = (e.config.keys)(e.name());
             if let Err(err) = crate::objects::registry::make(e.kind, "example", &text, &[]) {
                 let message = err.to_string();
                 assert!(
                     !message.contains("unknown field"),
                     "{}: make does not take its described keys: {message}",
-                    e.name
+                    e.name()
                 );
             }
         }
@@ -540,7 +567,7 @@ mod tests {
     fn parses_undescribed(
         kind: &str,
         text: &str,
-    ) -> Result<(), penelope_protocol::proto::WireError> {
+    ) -> Result<(), crate::objects::error::ObjectError> {
         parse::<Undescribed>(kind, text).map(drop)
     }
 

@@ -7,7 +7,7 @@
 
 use std::time::Duration;
 
-use penelope_protocol::proto::{CallError, WireError};
+use crate::objects::error::ObjectError;
 use serde::de::DeserializeOwned;
 
 pub mod describe;
@@ -18,18 +18,18 @@ pub use describe::KindConfig;
 // Parsing helpers
 // ---------------------------------------------------------------------------------------------
 
-pub(crate) fn bad(kind: &str, message: impl Into<String>) -> WireError {
-    WireError::Call(CallError::BadConfig {
+pub(crate) fn bad(kind: &str, message: impl Into<String>) -> ObjectError {
+    ObjectError::BadConfig {
         kind: kind.to_string(),
         message: message.into(),
-    })
+    }
 }
 
 /// Parses `text` as the TOML configuration of `kind` (`""`: defaults).
 ///
 /// # Errors
-/// [`CallError::BadConfig`] for bad TOML, unknown keys or wrong types.
-pub fn parse<T: DeserializeOwned + Default>(kind: &str, text: &str) -> Result<T, WireError> {
+/// [`ObjectError::BadConfig`] for bad TOML, unknown keys or wrong types.
+pub fn parse<T: DeserializeOwned + Default>(kind: &str, text: &str) -> Result<T, ObjectError> {
     if text.trim().is_empty() {
         return Ok(T::default());
     }
@@ -42,7 +42,7 @@ pub(crate) fn check_range(
     v: f64,
     lo: f64,
     hi: f64,
-) -> Result<(), WireError> {
+) -> Result<(), ObjectError> {
     if v.is_finite() && v >= lo && v <= hi {
         Ok(())
     } else {
@@ -50,7 +50,13 @@ pub(crate) fn check_range(
     }
 }
 
-pub(crate) fn check_int(kind: &str, key: &str, v: u64, lo: u64, hi: u64) -> Result<(), WireError> {
+pub(crate) fn check_int(
+    kind: &str,
+    key: &str,
+    v: u64,
+    lo: u64,
+    hi: u64,
+) -> Result<(), ObjectError> {
     if (lo..=hi).contains(&v) {
         Ok(())
     } else {
@@ -118,8 +124,8 @@ macro_rules! loop_keys {
             /// The timing keys, checked.
             ///
             /// # Errors
-            /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
-            pub fn timing(&self, kind: &str) -> Result<$crate::objects::config::LoopTiming, ::penelope_protocol::proto::WireError> {
+            /// [`ObjectError::BadConfig`].
+            pub fn timing(&self, kind: &str) -> Result<$crate::objects::config::LoopTiming, $crate::objects::error::ObjectError> {
                 $crate::objects::config::check_int(kind, "period_us", self.period_us, 250, 20_000)?;
                 $crate::objects::config::check_int(kind, "comm_period_us", self.comm_period_us, 250, 100_000)?;
                 $crate::objects::config::check_int(kind, "watchdog_ms", self.watchdog_ms, 1, 10_000)?;
@@ -146,8 +152,8 @@ loop_keys!(LoopKeysOnly {});
 /// The timing keys of any controller's configuration text (other keys are ignored).
 ///
 /// # Errors
-/// [`CallError::BadConfig`] for text that is not TOML or timing out of range.
-pub fn loop_timing(kind: &str, text: &str) -> Result<LoopTiming, WireError> {
+/// [`ObjectError::BadConfig`] for text that is not TOML or timing out of range.
+pub fn loop_timing(kind: &str, text: &str) -> Result<LoopTiming, ObjectError> {
     let table: toml::Table = text.parse().map_err(|e| bad(kind, format!("{e}")))?;
     let keys = [
         "period_us",

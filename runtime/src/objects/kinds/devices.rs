@@ -4,10 +4,10 @@
 use super::per_joint::PerJoint;
 use crate::objects::config::describe::KindConfig;
 use crate::objects::config::{bad, check_int, check_range};
+use crate::objects::error::ObjectError;
 use nalgebra::{Unit, Vector3};
 use penelope_drivers::sim::environment::{ContactModel, Environment, Shape};
 use penelope_hal::{JointVector, MAX_AXES, NamedPose};
-use penelope_protocol::proto::{CallError, WireError};
 use penelope_rt_core::safety::TeleopRole;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -68,8 +68,8 @@ fn damping() -> f64 {
 /// Builds an environment from shapes.
 ///
 /// # Errors
-/// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for an unknown shape kind, a value out of range or too many shapes.
-pub fn environment(kind: &str, shapes: &[ShapeConfig]) -> Result<Environment, WireError> {
+/// [`ObjectError::BadConfig`] for an unknown shape kind, a value out of range or too many shapes.
+pub fn environment(kind: &str, shapes: &[ShapeConfig]) -> Result<Environment, ObjectError> {
     let mut env = Environment::new();
     for s in shapes {
         for x in s.point.iter().chain(&s.normal) {
@@ -134,20 +134,20 @@ pub struct RobotConfig {
     /// The URDF file (required), in one of the node's robot-file
     /// directories (`--robot-files`), by name or absolute path; a regular file, 4 MiB at most;
     /// read when the robot is created.
-    #[schemars(extend("x-only-kinds" = [super::ROBOT_URDF]))]
+    #[schemars(extend("x-only-kinds" = [super::Kind::URDF.as_str()]))]
     pub file: Option<String>,
     /// The link whose frame is the tool frame (without it: the single leaf
     /// link).
-    #[schemars(extend("x-only-kinds" = [super::ROBOT_URDF]))]
+    #[schemars(extend("x-only-kinds" = [super::Kind::URDF.as_str()]))]
     pub tip: Option<String>,
     /// The link whose frame is the robot's base frame (without it: the root
     /// link).
-    #[schemars(extend("x-only-kinds" = [super::ROBOT_URDF]))]
+    #[schemars(extend("x-only-kinds" = [super::Kind::URDF.as_str()]))]
     pub base: Option<String>,
     /// Named poses (nest, start, work, ...), rad (m for prismatic joints), one
     /// value per joint; without them: all at the zero configuration (mid-range for a joint
     /// whose limits exclude zero).
-    #[schemars(extend("x-only-kinds" = [super::ROBOT_URDF]))]
+    #[schemars(extend("x-only-kinds" = [super::Kind::URDF.as_str()]))]
     pub poses: BTreeMap<String, Vec<f64>>,
 }
 
@@ -184,10 +184,10 @@ impl RobotConfig {
     /// URDF file `file` from `base` to `tip`.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for a missing `file`, a URDF that does not make a model (the
+    /// [`ObjectError::BadConfig`] for a missing `file`, a URDF that does not make a model (the
     /// message names the element), or `file`, `tip` or `base` given to a built-in robot;
-    /// [`CallError::UnknownKind`](penelope_protocol::proto::CallError::UnknownKind) for an unknown model.
-    pub fn model(&self, kind: &str, model: &str) -> Result<models::SerialRobotModel, WireError> {
+    /// [`ObjectError::UnknownKind`] for an unknown model.
+    pub fn model(&self, kind: &str, model: &str) -> Result<models::SerialRobotModel, ObjectError> {
         self.model_with(kind, model, |file| {
             std::fs::read_to_string(file).map_err(|e| format!("{file}: {e}"))
         })
@@ -200,13 +200,13 @@ impl RobotConfig {
     ///
     /// # Errors
     /// As [`model`](Self::model); a file outside `dirs`, not regular or too large is
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
+    /// [`ObjectError::BadConfig`].
     pub fn model_in(
         &self,
         kind: &str,
         model: &str,
         dirs: &[std::path::PathBuf],
-    ) -> Result<models::SerialRobotModel, WireError> {
+    ) -> Result<models::SerialRobotModel, ObjectError> {
         self.model_with(kind, model, |file| {
             crate::objects::files::read_confined(dirs, file).map_err(|e| e.to_string())
         })
@@ -217,7 +217,7 @@ impl RobotConfig {
         kind: &str,
         model: &str,
         read: impl FnOnce(&str) -> Result<String, String>,
-    ) -> Result<models::SerialRobotModel, WireError> {
+    ) -> Result<models::SerialRobotModel, ObjectError> {
         if model != "urdf" {
             if self.file.is_some() || self.tip.is_some() || self.base.is_some() {
                 return Err(bad(
@@ -225,8 +225,7 @@ impl RobotConfig {
                     "`file`, `tip` and `base` apply to robot/urdf only",
                 ));
             }
-            return models::by_name(model)
-                .ok_or_else(|| WireError::Call(CallError::UnknownKind(kind.into())));
+            return models::by_name(model).ok_or_else(|| ObjectError::UnknownKind(kind.into()));
         }
         let Some(file) = &self.file else {
             return Err(bad(kind, "`file` (the URDF file) is required"));
@@ -259,9 +258,9 @@ impl RobotConfig {
     /// The robot's role, defaulting by model (`frhc` is a master), and its checked caps.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for a word other than master or slave, or caps that are not
+    /// [`ObjectError::BadConfig`] for a word other than master or slave, or caps that are not
     /// positive.
-    pub fn role(&self, kind: &str) -> Result<TeleopRole, WireError> {
+    pub fn role(&self, kind: &str) -> Result<TeleopRole, ObjectError> {
         for (key, v) in [
             ("max_force_n", self.max_force_n),
             ("max_moment_nm", self.max_moment_nm),
@@ -271,7 +270,7 @@ impl RobotConfig {
             }
         }
         match self.role.as_deref() {
-            None if kind == super::ROBOT_FRHC => Ok(TeleopRole::Master),
+            None if kind == super::Kind::FRHC.as_str() => Ok(TeleopRole::Master),
             None | Some("slave") => Ok(TeleopRole::Slave),
             Some("master") => Ok(TeleopRole::Master),
             Some(other) => Err(bad(
@@ -284,8 +283,8 @@ impl RobotConfig {
     /// The start pose.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for a name other than nest, start, work.
-    pub fn start_pose(&self, kind: &str) -> Result<NamedPose, WireError> {
+    /// [`ObjectError::BadConfig`] for a name other than nest, start, work.
+    pub fn start_pose(&self, kind: &str) -> Result<NamedPose, ObjectError> {
         NamedPose::parse(&self.start).ok_or_else(|| {
             bad(
                 kind,
@@ -346,8 +345,8 @@ impl SimBoardConfig {
     /// Checks ranges.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
-    pub fn check(&self, kind: &str) -> Result<Environment, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<Environment, ObjectError> {
         check_int(kind, "axes", self.axes.into(), 1, MAX_AXES as u64)?;
         check_int(kind, "dac_bits", self.dac_bits.into(), 8, 24)?;
         check_int(kind, "substep_us", self.substep_us, 20, 2000)?;
@@ -362,7 +361,7 @@ pub const MIN_COMMAND_TIMEOUT_MS: u64 = 40;
 
 /// Checks a board's `command_timeout_ms`: 0 (off), or from [`MIN_COMMAND_TIMEOUT_MS`] (two of the
 /// longest control period, so that no loop's commands can look stale) to 10 s.
-fn check_command_timeout(kind: &str, ms: u64) -> Result<(), WireError> {
+fn check_command_timeout(kind: &str, ms: u64) -> Result<(), ObjectError> {
     if ms == 0 {
         return Ok(());
     }
@@ -430,8 +429,8 @@ impl GalilConfig {
     /// Checks ranges and that exactly one of `device` and `address` is given.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
-    pub fn check(&self, kind: &str) -> Result<(), WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<(), ObjectError> {
         match (&self.device, &self.address) {
             (Some(_), Some(_)) => return Err(bad(kind, "give `device` or `address`, not both")),
             (None, None) => {
@@ -555,8 +554,8 @@ impl SensorConfig {
     /// environment is its board's).
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) naming the key.
-    pub fn check(&self, kind: &str) -> Result<(), WireError> {
+    /// [`ObjectError::BadConfig`] naming the key.
+    pub fn check(&self, kind: &str) -> Result<(), ObjectError> {
         for x in &self.mount_xyz {
             check_range(kind, "mount_xyz", *x, -2.0, 2.0)?;
         }
@@ -594,8 +593,8 @@ impl SensorConfig {
     /// The address of `publish`, if set.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for one that is not `host:port` with an IP address.
-    pub fn publish_address(&self, kind: &str) -> Result<Option<std::net::SocketAddr>, WireError> {
+    /// [`ObjectError::BadConfig`] for one that is not `host:port` with an IP address.
+    pub fn publish_address(&self, kind: &str) -> Result<Option<std::net::SocketAddr>, ObjectError> {
         self.publish
             .as_deref()
             .map(|v| {
@@ -624,101 +623,6 @@ impl SensorConfig {
             cutoff_hz: self.cutoff_hz,
             seed: self.seed,
         }
-    }
-}
-
-/// `sensor/netft` configuration: an ATI Net F/T box streaming RDT over UDP.
-#[derive(Clone, Debug, PartialEq, Deserialize, Serialize, schemars::JsonSchema)]
-#[serde(deny_unknown_fields, default)]
-pub struct NetFtSensorConfig {
-    /// The box's RDT address (required), ip:port or an IP alone for port 49152;
-    /// `penelope netft-sim` prints its own.
-    pub address: String,
-    /// Counts per N, the box's cfgcpf (its /netftapi2.xml), > 0.
-    pub counts_per_force: f64,
-    /// Counts per N·m, the box's cfgcpt, > 0.
-    pub counts_per_torque: f64,
-    /// The sensor frame's origin in the tool frame, m, each -2..=2.
-    pub mount_xyz: [f64; 3],
-    /// The sensor frame's orientation in the tool frame (roll, pitch, yaw), degrees.
-    pub mount_rpy_deg: [f64; 3],
-    /// A reading older than this is refused (the loop uses no wrench), ms, 1..=10000. Status
-    /// bit 31 (error), saturation (bits 30, 27), a silence past the timeout or a loss burst:
-    /// the loop notes a sensor error and uses no wrench, so a master displays zero force.
-    pub timeout_ms: u64,
-    /// More records lost in one gap than this is a fault (held for timeout_ms).
-    pub max_gap: u32,
-    /// Ask the box for a software bias when configured (`ctl call NAME bias` any time).
-    pub bias_on_start: bool,
-}
-
-impl KindConfig for NetFtSensorConfig {
-    fn example() -> Self {
-        NetFtSensorConfig {
-            address: "192.168.1.1:49152".into(),
-            ..Self::default()
-        }
-    }
-}
-
-impl Default for NetFtSensorConfig {
-    fn default() -> Self {
-        NetFtSensorConfig {
-            address: String::new(),
-            counts_per_force: 1_000_000.0,
-            counts_per_torque: 1_000_000.0,
-            mount_xyz: [0.0; 3],
-            mount_rpy_deg: [0.0; 3],
-            timeout_ms: 20,
-            max_gap: 4,
-            bias_on_start: false,
-        }
-    }
-}
-
-impl NetFtSensorConfig {
-    /// Checks ranges and the address, and gives the driver's settings.
-    ///
-    /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) naming the key.
-    pub fn check(&self, kind: &str) -> Result<penelope_drivers::netft::NetFtConfig, WireError> {
-        let address = penelope_drivers::netft::parse_address(&self.address)
-            .map_err(|e| bad(kind, format!("`address`: {e}")))?;
-        check_range(kind, "counts_per_force", self.counts_per_force, 1e-3, 1e12)?;
-        check_range(
-            kind,
-            "counts_per_torque",
-            self.counts_per_torque,
-            1e-3,
-            1e12,
-        )?;
-        for x in &self.mount_xyz {
-            check_range(kind, "mount_xyz", *x, -2.0, 2.0)?;
-        }
-        for x in &self.mount_rpy_deg {
-            check_range(kind, "mount_rpy_deg", *x, -360.0, 360.0)?;
-        }
-        check_int(kind, "timeout_ms", self.timeout_ms, 1, 10_000)?;
-        check_int(kind, "max_gap", self.max_gap.into(), 0, 1_000_000)?;
-        let mut c = penelope_drivers::netft::NetFtConfig::new(address);
-        c.calibration = penelope_drivers::netft::Calibration {
-            counts_per_force: self.counts_per_force,
-            counts_per_torque: self.counts_per_torque,
-        };
-        c.mount = self.mount();
-        c.timeout = std::time::Duration::from_millis(self.timeout_ms);
-        c.max_gap = self.max_gap;
-        c.bias_on_start = self.bias_on_start;
-        Ok(c)
-    }
-
-    /// The sensor frame's pose in the tool frame.
-    pub fn mount(&self) -> Pose {
-        let [r, p, y] = self.mount_rpy_deg.map(f64::to_radians);
-        Pose::from_parts(
-            nalgebra::Translation3::new(self.mount_xyz[0], self.mount_xyz[1], self.mount_xyz[2]),
-            nalgebra::UnitQuaternion::from_euler_angles(r, p, y),
-        )
     }
 }
 

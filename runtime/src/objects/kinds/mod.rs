@@ -1,30 +1,20 @@
 //! The kinds a creator makes, and their configurations: TOML text with documented keys, units and
 //! defaults, unknown keys refused, ranges checked. `""` means every default.
 //!
-//! Each kind is registered once, in [`table`]: its name, summary and configuration type. The key
-//! list `penelope ctl kinds`, the web page's forms and the docs show is derived from that type
-//! ([`describe`](crate::objects::config::describe)): its fields, their doc comments and an example value.
+//! Each kind is registered once, in the registry's catalog: its name, summary, configuration type
+//! and maker. The key list `penelope ctl kinds`, the web page's forms and the docs show is derived
+//! from that type ([`describe`](crate::objects::config::describe)): its fields, their doc comments
+//! and an example value. A kind that is a whole module of its own (`sensor/netft`) keeps its
+//! configuration there.
 
 mod devices;
 mod per_joint;
-pub mod table;
 mod trajectory;
 
 pub use per_joint::PerJoint;
-pub use table::{
-    BOARD_FPGA, BOARD_GALIL, BOARD_SIM, CONTROLLER_CARTESIAN_IMPEDANCE, CONTROLLER_FORCE_DISPLAY,
-    CONTROLLER_FOUR_CHANNEL_MASTER, CONTROLLER_FOUR_CHANNEL_SLAVE, CONTROLLER_JOINT_GROUPS,
-    CONTROLLER_JOINT_PID, CONTROLLER_JOINT_POSITION, CONTROLLER_POSITION_ERROR_MASTER,
-    CONTROLLER_SLAVE_POSITION, CONTROLLER_SLAVE_TRACKING, CONTROLLER_WAVE_MASTER,
-    CONTROLLER_WAVE_SLAVE, Described, KIND_TABLE, KindEntry, ROBOT_FRHC, ROBOT_PUMA200,
-    ROBOT_PUMA560, ROBOT_URDF, SENSOR_NETFT, SENSOR_OPERATOR_HAND, SENSOR_OPERATOR_REPLAY,
-    SENSOR_REPLAY, SENSOR_VIRTUAL, TRAJECTORY_RAMP, TRAJECTORY_SPLINE, TRAJECTORY_STEP,
-    TRAJECTORY_TELEOP, TRAJECTORY_TRAPEZOIDAL, described, entry_named, entry_of,
-};
 
 pub use devices::{
-    GalilConfig, NetFtSensorConfig, RobotConfig, SensorConfig, ShapeConfig, SimBoardConfig,
-    environment,
+    GalilConfig, RobotConfig, SensorConfig, ShapeConfig, SimBoardConfig, environment,
 };
 
 pub use trajectory::{
@@ -32,93 +22,96 @@ pub use trajectory::{
     TrapezoidalConfig, WaypointConfig, trajectory_spec,
 };
 
-use penelope_protocol::proto::{Class, KindInfo, WireError};
+use crate::objects::error::ObjectError;
+use penelope_protocol::proto::Class;
 
 use crate::objects::config::{KindConfig, LoopTiming, bad, check_int, check_range, loop_keys};
 
-/// A kind, parsed.
+/// A kind: its name, `class/kind`. The kinds a creator makes, and what each does, are
+/// registered in the registry's catalog; the names of the built-in kinds are constants here.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Kind {
-    /// `robot/<model>`: one of the built-in DH models, or `urdf` (a URDF file named in the
-    /// configuration).
-    Robot(&'static str),
-    /// `board/sim`.
-    SimBoard,
-    /// `board/fpga`: a `board/sim` plant behind the FRHC's FPGA kinematics.
-    FpgaBoard,
-    /// `board/galil`.
-    GalilBoard,
-    /// `sensor/virtual`.
-    VirtualSensor,
-    /// `sensor/netft`: an ATI Net F/T over UDP.
-    NetFtSensor,
-    /// `sensor/operator-hand`.
-    OperatorHand,
-    /// `sensor/replay`: a recorded wrench stream ([`replay`](crate::objects::replay)).
-    ReplaySensor,
-    /// `sensor/operator-replay`: the operator's hand played back from a recording.
-    OperatorReplay,
-    /// `controller/joint-pid`.
-    JointPid,
-    /// `controller/cartesian-impedance`.
-    CartesianImpedance,
-    /// `controller/joint-position`.
-    JointPosition,
-    /// `controller/joint-groups`: other controllers, each on its own joints of one robot.
-    JointGroups,
-    /// `controller/force-display`: the master half of position-forward / force-back.
-    ForceDisplay,
-    /// `controller/position-error-master`: the master half of position-error.
-    PositionErrorMaster,
-    /// `controller/four-channel-master`: the master half of Lawrence's four channels.
-    FourChannelMaster,
-    /// `controller/four-channel-slave`: the slave half of Lawrence's four channels.
-    FourChannelSlave,
-    /// `controller/slave-tracking`: the slave half (computed torque to the mapped master pose).
-    SlaveTracking,
-    /// `controller/slave-position`: the slave half for a board with its own servo.
-    SlavePosition,
-    /// `controller/wave-master`: the master half of the wave-variable law.
-    WaveMaster,
-    /// `controller/wave-slave`: the slave half of the wave-variable law.
-    WaveSlave,
-    /// `trajectory/step`.
-    Step,
-    /// `trajectory/ramp`.
-    Ramp,
-    /// `trajectory/trapezoidal`.
-    Trapezoidal,
-    /// `trajectory/spline`.
-    Spline,
-    /// `trajectory/teleop`: the channel between a master and a slave.
-    Teleop,
-}
+pub struct Kind(&'static str);
 
 impl Kind {
-    /// Parses `class/kind` (a name in [`KIND_TABLE`]).
-    pub fn parse(kind: &str) -> Option<Kind> {
-        entry_named(kind).map(|e| e.kind)
+    /// `robot/puma560`.
+    pub const PUMA560: Kind = Kind("robot/puma560");
+    /// `robot/puma200`.
+    pub const PUMA200: Kind = Kind("robot/puma200");
+    /// `robot/frhc`.
+    pub const FRHC: Kind = Kind("robot/frhc");
+    /// `robot/urdf`: any serial robot from a URDF file named in the configuration.
+    pub const URDF: Kind = Kind("robot/urdf");
+    /// `board/sim`.
+    pub const SIM_BOARD: Kind = Kind("board/sim");
+    /// `board/fpga`: a `board/sim` plant behind the FRHC's FPGA kinematics.
+    pub const FPGA_BOARD: Kind = Kind("board/fpga");
+    /// `board/galil`.
+    pub const GALIL_BOARD: Kind = Kind("board/galil");
+    /// `sensor/virtual`.
+    pub const VIRTUAL_SENSOR: Kind = Kind("sensor/virtual");
+    /// `sensor/operator-hand`.
+    pub const OPERATOR_HAND: Kind = Kind("sensor/operator-hand");
+    /// `sensor/replay`: a recorded wrench stream ([`replay`](crate::objects::replay)).
+    pub const REPLAY_SENSOR: Kind = Kind("sensor/replay");
+    /// `sensor/operator-replay`: the operator's hand played back from a recording.
+    pub const OPERATOR_REPLAY: Kind = Kind("sensor/operator-replay");
+    /// `controller/joint-pid`.
+    pub const JOINT_PID: Kind = Kind("controller/joint-pid");
+    /// `controller/cartesian-impedance`.
+    pub const CARTESIAN_IMPEDANCE: Kind = Kind("controller/cartesian-impedance");
+    /// `controller/joint-position`.
+    pub const JOINT_POSITION: Kind = Kind("controller/joint-position");
+    /// `controller/joint-groups`: other controllers, each on its own joints of one robot.
+    pub const JOINT_GROUPS: Kind = Kind("controller/joint-groups");
+    /// `controller/force-display`: the master half of position-forward / force-back.
+    pub const FORCE_DISPLAY: Kind = Kind("controller/force-display");
+    /// `controller/position-error-master`: the master half of position-error.
+    pub const POSITION_ERROR_MASTER: Kind = Kind("controller/position-error-master");
+    /// `controller/four-channel-master`: the master half of Lawrence's four channels.
+    pub const FOUR_CHANNEL_MASTER: Kind = Kind("controller/four-channel-master");
+    /// `controller/four-channel-slave`: the slave half of Lawrence's four channels.
+    pub const FOUR_CHANNEL_SLAVE: Kind = Kind("controller/four-channel-slave");
+    /// `controller/slave-tracking`: the slave half (computed torque to the mapped master pose).
+    pub const SLAVE_TRACKING: Kind = Kind("controller/slave-tracking");
+    /// `controller/slave-position`: the slave half for a board with its own servo.
+    pub const SLAVE_POSITION: Kind = Kind("controller/slave-position");
+    /// `controller/wave-master`: the master half of the wave-variable law.
+    pub const WAVE_MASTER: Kind = Kind("controller/wave-master");
+    /// `controller/wave-slave`: the slave half of the wave-variable law.
+    pub const WAVE_SLAVE: Kind = Kind("controller/wave-slave");
+    /// `trajectory/step`.
+    pub const STEP: Kind = Kind("trajectory/step");
+    /// `trajectory/ramp`.
+    pub const RAMP: Kind = Kind("trajectory/ramp");
+    /// `trajectory/trapezoidal`.
+    pub const TRAPEZOIDAL: Kind = Kind("trajectory/trapezoidal");
+    /// `trajectory/spline`.
+    pub const SPLINE: Kind = Kind("trajectory/spline");
+    /// `trajectory/teleop`: the channel between a master and a slave.
+    pub const TELEOP: Kind = Kind("trajectory/teleop");
+
+    /// The kind named `name` (`class/kind`); a kind's own module names it once, as a constant.
+    pub const fn named(name: &'static str) -> Kind {
+        Kind(name)
     }
 
     /// `class/kind`.
-    pub fn as_str(self) -> &'static str {
-        entry_of(self).name
+    pub const fn as_str(self) -> &'static str {
+        self.0
     }
 
-    /// Its class.
+    /// Its class: the name's prefix.
     pub fn class(self) -> Class {
-        entry_of(self).class()
+        self.0
+            .split_once('/')
+            .and_then(|(c, _)| Class::parse(c))
+            .unwrap_or(Class::Creator)
     }
 
-    /// What `kinds` lists for it.
-    pub fn info(self) -> KindInfo {
-        entry_of(self).info()
+    /// The name after the class (`puma560` of `robot/puma560`).
+    pub fn model(self) -> &'static str {
+        self.0.split_once('/').map_or(self.0, |(_, m)| m)
     }
-}
-
-/// Every kind, in listing order.
-pub fn all_kinds() -> Vec<KindInfo> {
-    KIND_TABLE.iter().map(KindEntry::info).collect()
 }
 
 loop_keys!(JointPidConfig {
@@ -157,8 +150,8 @@ impl JointPidConfig {
     /// Checks what does not depend on the robot.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
-    pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<LoopTiming, ObjectError> {
         if let Some(kp) = &self.kp {
             kp.check(kind, "kp", 0.0, 1e7)?;
         }
@@ -219,8 +212,8 @@ impl JointGroupsConfig {
     /// loop is built).
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
-    pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<LoopTiming, ObjectError> {
         if self.groups.is_empty() || self.groups.len() > penelope_hal::MAX_JOINTS {
             return Err(bad(
                 kind,
@@ -285,8 +278,8 @@ impl JointPositionConfig {
     /// Checks what does not depend on the robot.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
-    pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<LoopTiming, ObjectError> {
         self.max_velocity.check(kind, "max_velocity", 1e-3, 100.0)?;
         self.timing(kind)
     }
@@ -296,8 +289,8 @@ impl ImpedanceConfigToml {
     /// Checks ranges.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
-    pub fn check(&self, kind: &str) -> Result<LoopTiming, WireError> {
+    /// [`ObjectError::BadConfig`].
+    pub fn check(&self, kind: &str) -> Result<LoopTiming, ObjectError> {
         for x in self.stiffness {
             check_range(kind, "stiffness", x, 0.0, 1e6)?;
         }
@@ -321,7 +314,6 @@ impl ImpedanceConfigToml {
 mod tests {
     use super::*;
     use crate::objects::config::parse;
-    use penelope_protocol::proto::CallError;
 
     #[test]
     fn a_joint_position_law_checks_its_speed_limit() {
@@ -335,10 +327,7 @@ mod tests {
         ] {
             let c: JointPositionConfig = parse(k, bad).unwrap();
             assert!(
-                matches!(
-                    c.check(k),
-                    Err(WireError::Call(CallError::BadConfig { .. }))
-                ),
+                matches!(c.check(k), Err(ObjectError::BadConfig { .. })),
                 "{bad}"
             );
         }
@@ -346,41 +335,17 @@ mod tests {
     }
 
     #[test]
-    fn every_kind_parses_back_and_documents_its_keys() {
-        let kinds = all_kinds();
-        assert_eq!(kinds.len(), KIND_TABLE.len());
-        for k in &kinds {
-            let parsed = Kind::parse(&k.kind).unwrap();
-            assert_eq!(parsed.as_str(), k.kind);
-            assert_eq!(parsed.class(), k.class);
-            assert_eq!(parsed.class().as_str(), k.kind.split('/').next().unwrap());
-            assert!(!k.config.is_empty());
-        }
-        // A name and a kind are registered once.
-        for (i, e) in KIND_TABLE.iter().enumerate() {
-            assert!(
-                KIND_TABLE[..i]
-                    .iter()
-                    .all(|o| o.name != e.name && o.kind != e.kind),
-                "{} registered twice",
-                e.name
-            );
-        }
-        assert_eq!(Kind::parse("robot/r2d2"), None);
-    }
-
-    #[test]
     fn configs_refuse_unknown_keys_and_out_of_range_values() {
         assert!(matches!(
             parse::<SimBoardConfig>("board/sim", "axis = 3"),
-            Err(WireError::Call(CallError::BadConfig { .. }))
+            Err(ObjectError::BadConfig { .. })
         ));
         let c: SimBoardConfig = parse("board/sim", "axes = 9").unwrap();
         assert!(c.check("board/sim").is_err());
-        assert!(trajectory_spec(Kind::Ramp, "duration_s = -1").is_err());
-        assert!(trajectory_spec(Kind::Ramp, "duration_s = nan").is_err());
-        assert!(trajectory_spec(Kind::Step, "pose = \"home\"").is_err());
-        assert!(trajectory_spec(Kind::Spline, "").is_ok());
+        assert!(trajectory_spec(Kind::RAMP, "duration_s = -1").is_err());
+        assert!(trajectory_spec(Kind::RAMP, "duration_s = nan").is_err());
+        assert!(trajectory_spec(Kind::STEP, "pose = \"home\"").is_err());
+        assert!(trajectory_spec(Kind::SPLINE, "").is_ok());
         let g: GalilConfig = parse("board/galil", "").unwrap();
         assert!(
             g.check("board/galil").is_err(),

@@ -2,10 +2,8 @@
 //! and limits.
 
 use crate::objects::config::{bad, check_range};
+use crate::objects::error::ObjectError;
 use penelope_hal::{JointVector, MAX_AXES, MAX_JOINTS};
-#[cfg(doc)]
-use penelope_protocol::proto::CallError;
-use penelope_protocol::proto::WireError;
 use serde::{Deserialize, Serialize};
 
 /// One value for every joint, or one per joint.
@@ -22,7 +20,7 @@ impl PerJoint {
     /// The values for `n` joints, each checked in `lo..=hi`.
     ///
     /// # Errors
-    /// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig) for a wrong count or a value out of range.
+    /// [`ObjectError::BadConfig`] for a wrong count or a value out of range.
     pub fn resolve(
         &self,
         kind: &str,
@@ -30,7 +28,7 @@ impl PerJoint {
         n: usize,
         lo: f64,
         hi: f64,
-    ) -> Result<JointVector, WireError> {
+    ) -> Result<JointVector, ObjectError> {
         let mut v = JointVector::zeros();
         match self {
             PerJoint::One(x) => {
@@ -56,7 +54,7 @@ impl PerJoint {
     }
 
     /// Checks what can be checked without knowing the joint count.
-    pub(super) fn check(&self, kind: &str, key: &str, lo: f64, hi: f64) -> Result<(), WireError> {
+    pub(super) fn check(&self, kind: &str, key: &str, lo: f64, hi: f64) -> Result<(), ObjectError> {
         let values: &[f64] = match self {
             PerJoint::One(x) => std::slice::from_ref(x),
             PerJoint::Each(xs) => xs,

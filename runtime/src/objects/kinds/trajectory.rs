@@ -4,11 +4,9 @@
 use super::per_joint::PerJoint;
 use crate::objects::config::describe::KindConfig;
 use crate::objects::config::{bad, check_range, parse};
+use crate::objects::error::ObjectError;
 use crate::objects::kinds::Kind;
 use penelope_hal::{MAX_JOINTS, NamedPose};
-#[cfg(doc)]
-use penelope_protocol::proto::CallError;
-use penelope_protocol::proto::WireError;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
 
@@ -45,7 +43,7 @@ struct GoalKeys<'a> {
     rpy_deg: &'a Option<[f64; 3]>,
 }
 
-fn goal_of(kind: &str, keys: GoalKeys<'_>) -> Result<GoalConfig, WireError> {
+fn goal_of(kind: &str, keys: GoalKeys<'_>) -> Result<GoalConfig, ObjectError> {
     let GoalKeys {
         goal,
         pose,
@@ -332,11 +330,11 @@ pub enum TrajectorySpec {
 /// Parses and checks a trajectory kind's configuration.
 ///
 /// # Errors
-/// [`CallError::BadConfig`](penelope_protocol::proto::CallError::BadConfig).
-pub fn trajectory_spec(kind: Kind, text: &str) -> Result<TrajectorySpec, WireError> {
+/// [`ObjectError::BadConfig`].
+pub fn trajectory_spec(kind: Kind, text: &str) -> Result<TrajectorySpec, ObjectError> {
     let k = kind.as_str();
     Ok(match kind {
-        Kind::Step => {
+        Kind::STEP => {
             let c: StepConfig = parse(k, text)?;
             check_range(k, "delay_s", c.delay_s, 0.0, 3600.0)?;
             TrajectorySpec::Step {
@@ -352,7 +350,7 @@ pub fn trajectory_spec(kind: Kind, text: &str) -> Result<TrajectorySpec, WireErr
                 delay: Duration::from_secs_f64(c.delay_s),
             }
         }
-        Kind::Ramp => {
+        Kind::RAMP => {
             let c: RampConfig = parse(k, text)?;
             check_range(k, "duration_s", c.duration_s, 0.001, 3600.0)?;
             TrajectorySpec::Ramp {
@@ -368,7 +366,7 @@ pub fn trajectory_spec(kind: Kind, text: &str) -> Result<TrajectorySpec, WireErr
                 duration: Duration::from_secs_f64(c.duration_s),
             }
         }
-        Kind::Trapezoidal => {
+        Kind::TRAPEZOIDAL => {
             let c: TrapezoidalConfig = parse(k, text)?;
             c.max_velocity.check(k, "max_velocity", 1e-4, 20.0)?;
             c.max_acceleration

@@ -9,8 +9,8 @@ use crate::objects::registry::{
     unsupported,
 };
 use crate::objects::runtime::{
-    CellSensor, ControlLaw, ControlTask, GalilSet, GoToCommand, JointBoard, RobotLoop, RoutedGains,
-    SimDrive, TelemetryPort, TrajectoryFeed,
+    CellSensor, ControlLaw, ControlTask, GalilSet, GoToCommand, JointBoard, LoopSensorReader,
+    RobotLoop, RoutedGains, SimDrive, TelemetryPort, TrajectoryFeed,
 };
 use crate::objects::teleop::TeleopComm;
 use crate::objects::teleop_end::Side;
@@ -86,7 +86,7 @@ impl Registry {
             lp,
             plant_sensor.zip(taken.contact),
             inputs.replayed,
-            inputs.netft,
+            inputs.device,
             plan.sensor.is_some(),
             plan.timing,
         );
@@ -238,15 +238,15 @@ impl Registry {
             Some(s) => self.replay_sensor(s)?,
             None => None,
         };
-        // A Net F/T: a reader of its stream, read in the loop.
-        let netft = match on_this_node {
-            Some(s) => self.netft_reader(s)?,
+        // A sensor kind read in the loop's own thread (a Net F/T): its reader.
+        let device = match on_this_node {
+            Some(s) => self.loop_sensor_reader(s)?,
             None => None,
         };
         let mount = replayed
             .as_ref()
             .map(penelope_hal::ForceSensor::mount)
-            .or(netft.as_ref().map(penelope_hal::ForceSensor::mount));
+            .or(device.as_ref().map(LoopSensorReader::mount));
         let stream = match &plan.sensor {
             Some(path) if path.starts_with('/') => {
                 Some(self.sensor_subscriber(path, launch.sensor_stream)?)
@@ -256,7 +256,7 @@ impl Registry {
         Ok(SensorInputs {
             local,
             replayed,
-            netft,
+            device,
             mount,
             stream,
         })
@@ -598,9 +598,9 @@ struct SensorInputs {
     )>,
     /// A recorded wrench stream.
     replayed: Option<crate::objects::replay::ReplaySensor>,
-    /// A Net F/T's reader.
-    netft: Option<penelope_drivers::netft::NetFtReader>,
-    /// The mount of the replayed or Net F/T sensor.
+    /// The reader of a sensor kind read in the loop's own thread (a Net F/T).
+    device: Option<LoopSensorReader>,
+    /// The mount of the replayed or device sensor.
     mount: Option<penelope_hal::Pose>,
     /// A sensor on another node: its stream's reader.
     stream: Option<crate::objects::runtime::SensorSource>,
@@ -673,13 +673,13 @@ fn control_config(
 }
 
 /// Step 6b: the loop with the sensor it reads in its own thread (the plant's wrist sensor, a
-/// replayed stream, a Net F/T), or with a cell the sensor feed writes (`sensed`: a sensor
+/// replayed stream, a device such as a Net F/T), or with a cell the sensor feed writes (`sensed`: a sensor
 /// elsewhere), or none; the cell's writer when there is one.
 fn with_sensor(
     lp: crate::objects::runtime::Loop<penelope_rt_core::control::NoSensor>,
     plant: Option<(ForceSensorConfig, penelope_drivers::sim::tap::TapReader)>,
     replayed: Option<crate::objects::replay::ReplaySensor>,
-    netft: Option<penelope_drivers::netft::NetFtReader>,
+    device: Option<LoopSensorReader>,
     sensed: bool,
     timing: LoopTiming,
 ) -> (
@@ -695,8 +695,8 @@ fn with_sensor(
         (RobotLoop::Plant(Box::new(lp.with_sensor(sensor))), None)
     } else if let Some(sensor) = replayed {
         (RobotLoop::Replayed(Box::new(lp.with_sensor(sensor))), None)
-    } else if let Some(sensor) = netft {
-        (RobotLoop::NetFt(Box::new(lp.with_sensor(sensor))), None)
+    } else if let Some(sensor) = device {
+        (RobotLoop::Device(Box::new(lp.with_sensor(sensor))), None)
     } else if sensed {
         let (w, r) = penelope_rt_core::cell::latest();
         (
@@ -746,6 +746,14 @@ pub(crate) struct Built {
 }
 
 impl Registry {
+    /// The loop's reader of sensor `name`, if it is a kind read in the loop's own thread.
+    fn loop_sensor_reader(&self, name: &str) -> Result<Option<LoopSensorReader>, ObjectError> {
+        match self.objects.get(name).map(|o| &o.body) {
+            Some(KindState::LoopSensor(s)) => s.loop_reader().map(Some),
+            _ => Ok(None),
+        }
+    }
+
     /// The reader of the sensor at naming `path` on another node, published at `address`.
     ///
     /// # Errors

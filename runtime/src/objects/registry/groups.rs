@@ -54,7 +54,7 @@ impl Registry {
                 return Err(bad_arg(format!("`{name}` lists itself as a group member")));
             }
             let kind = self.expect_class(member, Class::Controller)?.kind;
-            if !matches!(kind, Kind::JointPid | Kind::JointPosition) {
+            if !matches!(kind, Kind::JOINT_PID | Kind::JOINT_POSITION) {
                 return Err(bad_arg(format!(
                     "group member `{member}` is a {}: a member is a controller/joint-pid or \
                      controller/joint-position",

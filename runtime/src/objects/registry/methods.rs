@@ -446,7 +446,7 @@ impl Registry {
                     .into(),
                 });
             }
-            KindState::NetFt(s) => return Registry::netft_method(s, o.kind.as_str(), m),
+            KindState::LoopSensor(s) => return s.method(o.kind, m),
             KindState::ReplaySensor(_) | KindState::OperatorReplay(_) => {
                 return Err(ObjectError::Unsupported {
                     kind: o.kind.as_str().into(),

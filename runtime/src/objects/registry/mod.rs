@@ -28,12 +28,12 @@ use penelope_rt_core::teleop::ImpedanceConfig;
 use super::config::LoopTiming;
 use super::kinds::{
     self, GalilConfig, GoalConfig, ImpedanceConfigToml, JointPidConfig, JointPositionConfig, Kind,
-    RobotConfig, SensorConfig, SimBoardConfig, TrajectorySpec,
+    SensorConfig, SimBoardConfig, TrajectorySpec,
 };
 use super::kinematics::RobotKinematics;
 use super::teleop::{
-    ForceDisplayToml, FourChannelSlaveToml, FourChannelToml, HandConfig, HandObj,
-    PositionErrorToml, Side, SlaveTrackingToml, TeleopConfig, TeleopLink,
+    ForceDisplayToml, FourChannelSlaveToml, FourChannelToml, HandObj, PositionErrorToml, Side,
+    SlaveTrackingToml, TeleopConfig, TeleopLink,
 };
 use super::teleop_wave::{WaveMasterToml, WaveSlaveToml};
 use crate::dataplane::frame::DatagramKey;
@@ -43,13 +43,17 @@ use crate::objects::runtime::{SimBody, VirtualSensor};
 use penelope_protocol::proto::{Class, JointAxis, ObjectInfo};
 
 mod build;
+pub mod catalog;
 mod controller_methods;
 mod fpga;
 mod galil;
 mod groups;
+mod kind_entry;
 mod laws;
+mod loop_sensor;
+mod makers;
 mod methods;
-mod netft;
+pub mod netft;
 mod replay;
 mod sensors;
 mod take_back;
@@ -58,7 +62,6 @@ mod trajectories;
 
 pub(crate) use build::Built;
 use galil::open_galil;
-use netft::{netft_body, netft_relations};
 use sensors::publisher_relations;
 use teleop::link_relations;
 
@@ -84,7 +87,8 @@ pub(crate) enum KindState {
     Hand(Box<HandObj>),
     Teleop(Box<TeleopObj>),
     ReplaySensor(Box<crate::objects::replay::ReplaySensorObj>),
-    NetFt(Box<netft::NetFtObj>),
+    /// A sensor kind read in the control loop's own thread ([`loop_sensor`]).
+    LoopSensor(Box<dyn loop_sensor::LoopSensorObject>),
     OperatorReplay(Box<crate::objects::replay::OperatorReplayObj>),
 }
 
@@ -269,7 +273,7 @@ impl Object {
                 relations.push(("recording".to_string(), s.config.file.clone()))
             }
             KindState::Sensor(s) => relations.extend(publisher_relations(s)),
-            KindState::NetFt(s) => relations.extend(netft_relations(s)),
+            KindState::LoopSensor(s) => relations.extend(s.relations()),
             KindState::Teleop(t) => {
                 relations.push(("master".to_string(), t.config.master.clone()));
                 relations.push(("slave".to_string(), t.config.slave.clone()));
@@ -317,147 +321,22 @@ impl Object {
     }
 }
 
-/// Makes the object `name` of `kind` from its configuration text (checked here).
-/// A `robot/urdf`'s file is read only from `robot_files` ([`crate::objects::files`]).
+/// Makes the object `name` of `kind` from its configuration text (checked by the kind's maker,
+/// the one its catalog entry names). A `robot/urdf`'s file is read only from `robot_files`
+/// ([`crate::objects::files`]).
 pub(crate) fn make(
     kind: Kind,
     name: &str,
     config: &str,
     robot_files: &[std::path::PathBuf],
 ) -> Result<Object, ObjectError> {
-    let k = kind.as_str();
-    let body = match kind {
-        Kind::Robot(model) => {
-            let cfg: RobotConfig = crate::objects::config::parse(k, config)?;
-            let start = cfg.start_pose(k)?;
-            let role = cfg.role(k)?;
-            let model = cfg.model_in(k, model, robot_files)?;
-            KindState::Robot(Box::new(RobotObj {
-                kinematics: RobotKinematics::Float(model.clone()),
-                model,
-                role,
-                caps: (cfg.max_force_n, cfg.max_moment_nm),
-                start,
-                maps: Vec::new(),
-                body: None,
-            }))
-        }
-        Kind::SimBoard | Kind::FpgaBoard => {
-            let cfg: SimBoardConfig = crate::objects::config::parse(k, config)?;
-            cfg.check(k)?;
-            KindState::SimBoard(SimBoardObj {
-                config: cfg,
-                fpga: kind == Kind::FpgaBoard,
-            })
-        }
-        Kind::GalilBoard => {
-            let cfg: GalilConfig = crate::objects::config::parse(k, config)?;
-            cfg.check(k)?;
-            KindState::Galil(GalilObj {
-                config: cfg,
-                board: None,
-            })
-        }
-        Kind::VirtualSensor => {
-            let cfg: SensorConfig = crate::objects::config::parse(k, config)?;
-            cfg.check(k)?;
-            let env = kinds::environment(k, &cfg.shapes)?;
-            KindState::Sensor(SensorObj {
-                state: Arc::new(Mutex::new(VirtualSensor::new(env))),
-                config: cfg,
-                publisher: None,
-            })
-        }
-        Kind::JointPid => {
-            let cfg: JointPidConfig = crate::objects::config::parse(k, config)?;
-            let timing = cfg.check(k)?;
-            controller_body(ControllerConfig::Pid(cfg), timing, config)
-        }
-        Kind::CartesianImpedance => {
-            let cfg: ImpedanceConfigToml = crate::objects::config::parse(k, config)?;
-            let timing = cfg.check(k)?;
-            controller_body(ControllerConfig::Impedance(cfg), timing, config)
-        }
-        Kind::JointPosition => {
-            let cfg: JointPositionConfig = crate::objects::config::parse(k, config)?;
-            let timing = cfg.check(k)?;
-            controller_body(ControllerConfig::Position(cfg), timing, config)
-        }
-        Kind::JointGroups => {
-            let cfg: kinds::JointGroupsConfig = crate::objects::config::parse(k, config)?;
-            let timing = cfg.check(k)?;
-            controller_body(ControllerConfig::Groups(cfg), timing, config)
-        }
-        Kind::ReplaySensor | Kind::OperatorReplay => replay::replay_body(kind, config)?,
-        Kind::NetFtSensor => netft_body(config)?,
-        Kind::OperatorHand => {
-            let cfg: HandConfig = crate::objects::config::parse(k, config)?;
-            let script = cfg.check(k)?;
-            KindState::Hand(Box::new(HandObj {
-                config: cfg,
-                script,
-                clutch: Arc::default(),
-            }))
-        }
-        Kind::Teleop => {
-            let cfg: TeleopConfig = crate::objects::config::parse(k, config)?;
-            cfg.check(k)?;
-            KindState::Teleop(Box::new(TeleopObj {
-                config: cfg,
-                link: None,
-            }))
-        }
-        Kind::ForceDisplay => {
-            let cfg: ForceDisplayToml = crate::objects::config::parse(k, config)?;
-            cfg.law(k)?;
-            let timing = cfg.timing(k)?;
-            controller_body(ControllerConfig::ForceDisplay(cfg), timing, config)
-        }
-        Kind::PositionErrorMaster => {
-            let cfg: PositionErrorToml = crate::objects::config::parse(k, config)?;
-            cfg.law(k)?;
-            let timing = cfg.timing(k)?;
-            controller_body(ControllerConfig::PositionError(cfg), timing, config)
-        }
-        Kind::FourChannelMaster => {
-            let cfg: FourChannelToml = crate::objects::config::parse(k, config)?;
-            cfg.law(k)?;
-            let timing = cfg.timing(k)?;
-            controller_body(ControllerConfig::FourChannel(cfg), timing, config)
-        }
-        Kind::FourChannelSlave => {
-            let cfg: FourChannelSlaveToml = crate::objects::config::parse(k, config)?;
-            cfg.law(k)?;
-            let timing = cfg.timing(k)?;
-            controller_body(ControllerConfig::FourChannelSlave(cfg), timing, config)
-        }
-        Kind::SlaveTracking | Kind::SlavePosition => {
-            let cfg: SlaveTrackingToml = crate::objects::config::parse(k, config)?;
-            let servo = kind == Kind::SlavePosition;
-            cfg.law(k, servo)?;
-            let timing = cfg.timing(k)?;
-            controller_body(ControllerConfig::Tracking(cfg, servo), timing, config)
-        }
-        Kind::WaveMaster => {
-            let cfg: WaveMasterToml = crate::objects::config::parse(k, config)?;
-            cfg.law(k)?;
-            cfg.wave(k)?;
-            let timing = cfg.timing(k)?;
-            controller_body(ControllerConfig::WaveMaster(cfg), timing, config)
-        }
-        Kind::WaveSlave => {
-            let cfg: WaveSlaveToml = crate::objects::config::parse(k, config)?;
-            cfg.law(k)?;
-            cfg.wave(k)?;
-            let timing = cfg.timing(k)?;
-            controller_body(ControllerConfig::WaveSlave(cfg), timing, config)
-        }
-        Kind::Step | Kind::Ramp | Kind::Trapezoidal | Kind::Spline => {
-            KindState::Trajectory(TrajectoryObj {
-                spec: kinds::trajectory_spec(kind, config)?,
-            })
-        }
-    };
+    let entry = catalog::entry_named(kind.as_str())
+        .ok_or_else(|| ObjectError::UnknownKind(kind.as_str().into()))?;
+    let body = (entry.make)(&kind_entry::MakeArgs {
+        kind,
+        config,
+        robot_files,
+    })?;
     Ok(Object {
         name: name.to_string(),
         kind,
@@ -601,7 +480,7 @@ impl Registry {
                 // Its thread stops and is joined; readers fall silent and go stale.
                 KindState::Sensor(s) => s.publisher = None,
                 // A stop request to the box, and the I/O thread joined.
-                KindState::NetFt(s) => s.sensor = None,
+                KindState::LoopSensor(s) => s.release(),
                 b @ (KindState::ReplaySensor(_) | KindState::OperatorReplay(_)) => {
                     Registry::release_replay(b)
                 }
@@ -617,22 +496,20 @@ impl Registry {
     }
 
     fn configure(&mut self, name: &str) -> Result<(), ObjectError> {
-        let kind = self.get(name)?.kind;
-        match kind {
-            Kind::Robot(_) => self.configure_robot(name),
-            Kind::GalilBoard => {
-                let KindState::Galil(g) = &mut self.get_mut(name)?.body else {
-                    return Err(ObjectError::internal("galil body"));
-                };
+        match &mut self.get_mut(name)?.body {
+            KindState::Robot(_) => self.configure_robot(name),
+            KindState::Galil(g) => {
                 g.board = Some(open_galil(&g.config)?);
                 Ok(())
             }
-            Kind::Teleop => self.configure_teleop(name),
-            Kind::VirtualSensor => self.configure_sensor(name),
-            Kind::NetFtSensor => self.configure_netft(name),
-            Kind::ReplaySensor | Kind::OperatorReplay => self.configure_replay(name),
-            _ if kind.class() == Class::Controller => self.configure_controller(name),
-            _ => Ok(()),
+            KindState::Teleop(_) => self.configure_teleop(name),
+            KindState::Sensor(_) => self.configure_sensor(name),
+            KindState::LoopSensor(s) => s.configure(),
+            KindState::ReplaySensor(_) | KindState::OperatorReplay(_) => {
+                self.configure_replay(name)
+            }
+            KindState::Controller(_) => self.configure_controller(name),
+            KindState::SimBoard(_) | KindState::Trajectory(_) | KindState::Hand(_) => Ok(()),
         }
     }
 
@@ -701,7 +578,7 @@ impl Registry {
             let KindState::SimBoard(s) = &self.get(first)?.body else {
                 return Err(ObjectError::internal("sim body"));
             };
-            let env = kinds::environment(kinds::BOARD_SIM, &s.config.shapes)?;
+            let env = kinds::environment(Kind::SIM_BOARD.as_str(), &s.config.shapes)?;
             let cfg = s.config.clone();
             let r = self.robot(name)?;
             let model = r.model.clone();

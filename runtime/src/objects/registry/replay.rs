@@ -22,7 +22,7 @@ use std::sync::Arc;
 pub(super) fn replay_body(kind: Kind, config: &str) -> Result<KindState, ObjectError> {
     let k = kind.as_str();
     Ok(match kind {
-        Kind::ReplaySensor => {
+        Kind::REPLAY_SENSOR => {
             let cfg: ReplaySensorConfig = crate::objects::config::parse(k, config)?;
             cfg.check(k)?;
             KindState::ReplaySensor(Box::new(ReplaySensorObj {

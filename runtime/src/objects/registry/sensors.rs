@@ -40,7 +40,7 @@ impl Registry {
     /// Configures a `sensor/virtual`: with `publish`, binds its data-plane endpoint (keyed with
     /// the node's datagram key) and starts its publisher.
     pub(super) fn configure_sensor(&mut self, name: &str) -> Result<(), ObjectError> {
-        let kind = crate::objects::kinds::SENSOR_VIRTUAL;
+        let kind = crate::objects::kinds::Kind::VIRTUAL_SENSOR.as_str();
         let key = self.datagram_key.clone();
         let KindState::Sensor(s) = &mut self.get_mut(name)?.body else {
             return Err(ObjectError::internal("sensor body"));

@@ -92,7 +92,7 @@ pub(super) fn link_relations(
 
 impl Registry {
     pub(super) fn configure_teleop(&mut self, name: &str) -> Result<(), ObjectError> {
-        let kind = crate::objects::kinds::TRAJECTORY_TELEOP;
+        let kind = crate::objects::kinds::Kind::TELEOP.as_str();
         let KindState::Teleop(t) = &self.get(name)?.body else {
             return Err(ObjectError::internal("teleop body"));
         };

@@ -323,8 +323,9 @@ pub enum RobotLoop {
     Plant(Box<Loop<VirtualForceSensor>>),
     /// A `sensor/replay`: a recorded wrench stream, in the loop.
     Replayed(Box<Loop<crate::objects::replay::ReplaySensor>>),
-    /// A `sensor/netft`: the Net F/T driver's cell, read in the loop.
-    NetFt(Box<Loop<penelope_drivers::netft::NetFtReader>>),
+    /// A sensor kind read in the loop's own thread (a device, such as a Net F/T), its type
+    /// erased.
+    Device(Box<Loop<crate::objects::runtime::LoopSensorReader>>),
 }
 
 /// `$body` with `$l` bound to the loop, whatever its sensor.
@@ -335,7 +336,7 @@ macro_rules! each_loop {
             RobotLoop::Sensed($l) => $body,
             RobotLoop::Plant($l) => $body,
             RobotLoop::Replayed($l) => $body,
-            RobotLoop::NetFt($l) => $body,
+            RobotLoop::Device($l) => $body,
         }
     };
 }

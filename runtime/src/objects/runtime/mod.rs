@@ -66,7 +66,10 @@ pub use control::{
     TelemetryPort,
 };
 pub use link_telemetry::{LINK_PERIOD, LinkPump, LinkSubscriptions};
-pub use sensors::{FeedStats, SensorFeed, SensorSource, VirtualSensor, run_sensor_feed};
+pub use sensors::{
+    FeedStats, LoopSensorRead, LoopSensorReader, SensorFeed, SensorSource, VirtualSensor,
+    run_sensor_feed,
+};
 pub use telemetry::{
     LoopShared, MAX_BATCH_RECORDS, Newest, Pump, Subscriptions, TickSink, record, run_pump,
 };

@@ -174,3 +174,53 @@ pub fn run_sensor_feed(feed: &mut SensorFeed, period: Duration, stop: &AtomicBoo
         feed.step(MonotonicClock::read());
     }
 }
+
+/// What the control loop asks of a sensor it reads in its own thread, its error reduced to a
+/// kind (the loop only counts a failed read as a sensor error and goes on without a wrench).
+pub trait LoopSensorRead: Send {
+    /// The newest wrench at `now`, in the sensor frame.
+    ///
+    /// # Errors
+    /// The kind of the sensor's own error.
+    fn read_wrench(&mut self, now: Timestamp) -> Result<Wrench, penelope_hal::ErrorKind>;
+    /// Where the sensor sits on the flange.
+    fn sensor_mount(&self) -> Pose;
+}
+
+impl<S: penelope_hal::ForceSensor + Send> LoopSensorRead for S {
+    fn read_wrench(&mut self, now: Timestamp) -> Result<Wrench, penelope_hal::ErrorKind> {
+        penelope_hal::Sensor::read(self, now).map_err(|e| penelope_hal::Error::kind(&e))
+    }
+
+    fn sensor_mount(&self) -> Pose {
+        penelope_hal::ForceSensor::mount(self)
+    }
+}
+
+/// A sensor read in the control loop's own thread, its type erased: a sensor kind's module
+/// gives one ([`LoopSensorReader::new`]) and the loop reads it without knowing the kind.
+///
+/// # Real-time
+/// One dynamic call per read, no allocation (the box is made when the loop is built).
+pub struct LoopSensorReader(Box<dyn LoopSensorRead>);
+
+impl LoopSensorReader {
+    /// The reader of `sensor`.
+    pub fn new(sensor: impl LoopSensorRead + 'static) -> LoopSensorReader {
+        LoopSensorReader(Box::new(sensor))
+    }
+
+    /// Where the sensor sits on the flange.
+    pub fn mount(&self) -> Pose {
+        self.0.sensor_mount()
+    }
+}
+
+impl penelope_hal::Sensor for LoopSensorReader {
+    type Error = penelope_hal::ErrorKind;
+    type Reading = Wrench;
+
+    fn read(&mut self, now: Timestamp) -> Result<Wrench, penelope_hal::ErrorKind> {
+        self.0.read_wrench(now)
+    }
+}
