@@ -5,12 +5,12 @@
 //!
 //! To add a kind (a sensor, say), write its module (declared beside `netft` in the registry) and
 //! add its line here; `docs/system-files.md` gets its row. A sensor read in the control loop's
-//! own thread, like `sensor/netft` ([`netft`]), is the example: its module holds its name (a
+//! own thread, like `sensor/netft` ([`netft`](super::netft)), is the example: its module holds its name (a
 //! [`Kind`] constant), its configuration type (`#[derive(Deserialize, Serialize, JsonSchema)]`,
 //! `#[serde(deny_unknown_fields, default)]`, a doc comment per field, and `impl KindConfig` with
 //! an `example` that sets the optional keys), its object (a `LoopSensorObject`, the registry's
 //! trait for such sensors: configure, release, describe, methods, and the reader the loop reads)
-//! and its [`KindEntry`], registered below as `netft::ENTRY`.
+//! and its [`KindEntry`], registered below as `super::netft::ENTRY`.
 //!
 //! `every_kind_round_trips_through_its_description` then checks the new kind's description
 //! against its parser, `the_creator_parses_each_kind_with_the_type_its_entry_describes` that its
@@ -22,7 +22,6 @@ use penelope_protocol::proto::KindInfo;
 pub use super::kind_entry::KindEntry;
 use super::kind_entry::Maker;
 use super::makers;
-use super::netft;
 use crate::objects::config::describe::{Described, described};
 use crate::objects::kinds::{
     GalilConfig, ImpedanceConfigToml, JointGroupsConfig, JointPidConfig, JointPositionConfig, Kind,
@@ -52,7 +51,8 @@ pub static KIND_TABLE: &[KindEntry] = &[
     entry(Kind::FPGA_BOARD, "NI PCI-7831R FPGA board for the FRHC (all six joints): the simulated plant's encoders and motors, bit-exact forward kinematics, Jacobian frames and tau = J^T F on the board, the results on the host after 61 (FK) and 92 (FK + force) cycles at 40 MHz plus the DMA transfers (`ctl describe` of the board shows them); the plant behind it takes board/sim's keys", described::<SimBoardConfig>(), makers::sim_board),
     entry(Kind::GALIL_BOARD, "Galil DMC motion board over a serial line or TCP (a DMC or `penelope galil-sim`)", described::<GalilConfig>(), makers::galil_board).as_real_device(),
     entry(Kind::VIRTUAL_SENSOR, "6-axis force sensor: a robot's plant contact at the wrist (bias, noise, low-pass), or an environment probed at a pose", described::<SensorConfig>(), makers::virtual_sensor),
-    netft::ENTRY,
+    super::netft::ENTRY,
+    super::test_signal::ENTRY,
     entry(Kind::OPERATOR_HAND, "the operator's hand on a simulated master: a scripted impedance that pushes the handle and holds the clutch", described::<HandConfig>(), makers::operator_hand),
     entry(Kind::REPLAY_SENSOR, "6-axis force sensor playing back a recorded wrench stream (an MCAP recording's controller channel, read at configure)", described::<ReplaySensorConfig>(), makers::replay),
     entry(Kind::OPERATOR_REPLAY, "the operator's hand played back from a recording: the master's handle moves, and the clutch is held, as recorded", described::<OperatorReplayConfig>(), makers::replay),

@@ -58,6 +58,7 @@ mod replay;
 mod sensors;
 mod take_back;
 mod teleop;
+mod test_signal;
 mod trajectories;
 
 pub(crate) use build::Built;
