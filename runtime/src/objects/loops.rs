@@ -11,7 +11,7 @@ use penelope_rt_core::control::ControlCommand;
 use penelope_rt_core::exec::{self, PeriodicConfig, Setting};
 use penelope_rt_core::safety::TeleopRole;
 
-use super::registry::{self, KindState, Launch};
+use super::registry::{KindState, Launch};
 use super::runtime::{self, LoopFault, LoopShared, Running, StopMode, StoppedLoop};
 use super::sim_world::{SteppedLoop, TickBody};
 use super::tick::TickStream;
@@ -66,72 +66,51 @@ impl Creator {
         let mut reg = self.lock()?;
         let built = reg.build_loop(name, &launch)?;
         let rt = launch.rt;
-        let scheduling = match (fifo, rt.priority) {
-            (true, Some(p)) => format!("SCHED_FIFO {p}"),
-            (false, Some(p)) => {
-                log::warn!(
-                    "controller `{name}`: SCHED_FIFO {p} is not permitted to this process; its loop runs at normal priority"
-                );
-                "normal (SCHED_FIFO refused)".to_string()
-            }
-            (_, None) => "normal".to_string(),
-        };
+        let scheduling = scheduling_label(name, fifo, rt.priority);
 
         let control_stop = Arc::new(AtomicBool::new(false));
         let comm_stop = Arc::new(AtomicBool::new(false));
         let fault = Arc::new(LoopFault::default());
         let (back_tx, back_rx) = sync_channel(1);
         let (comm_back_tx, comm_back_rx) = sync_channel(1);
-        let registry::Built {
-            control,
-            comm,
-            telemetry,
-            commands,
-            stop,
-            goto,
-            gains,
-            probe,
-            wrench,
-            source,
-            model,
-            joints,
-            timing,
-        } = built;
         let aux_stop = Arc::new(AtomicBool::new(false));
         let shared = Arc::new(LoopShared::default());
         let feed_stats = Arc::new(runtime::FeedStats::default());
         let pump = runtime::Pump::new(
-            telemetry,
+            built.telemetry,
             shared.clone(),
             self.subscriptions.clone(),
             name,
-            joints,
+            built.joints,
         );
-        let feed = match (source, wrench) {
-            (Some(source), Some(out)) => Some(runtime::SensorFeed {
+        // The feed of a sensor on another node: its stream's reader to the loop's wrench cell.
+        let (model, probe) = (built.model, built.probe);
+        let feed = built
+            .source
+            .zip(built.wrench)
+            .map(|(source, out)| runtime::SensorFeed {
                 source,
                 model,
                 state: probe,
                 out,
                 stats: feed_stats.clone(),
                 controller: name.to_string(),
-            }),
-            _ => None,
-        };
+            });
         // A teleoperation end's thread also wakes on its doorbell and socket (urgent samples);
         // without them (no descriptor left) it still ticks, as every other loop's does.
-        let comm_wake = comm.wake_on().unwrap_or_else(|e| {
+        let comm_wake = built.comm.wake_on().unwrap_or_else(|e| {
             log::warn!("controller `{name}`: urgent samples wait for the period ({e})");
             None
         });
-        let mut control = control;
+        let mut control = built.control;
         if self.sim.is_none() {
             // On the real clock the simulated world goes on when the control thread does not.
             control.keep_plant_moving();
         }
         let control_body =
             runtime::control_body(control, control_stop.clone(), back_tx, fault.clone());
-        let comm_body = runtime::comm_body(comm, fault.clone(), comm_stop.clone(), comm_back_tx);
+        let comm_body =
+            runtime::comm_body(built.comm, fault.clone(), comm_stop.clone(), comm_back_tx);
         let mut running = Running {
             control: None,
             control_stop,
@@ -139,40 +118,37 @@ impl Creator {
             comm: None,
             comm_stop,
             comm_back: comm_back_rx,
-            commands,
-            stop: stop.clone(),
-            goto,
-            gains,
+            commands: built.commands,
+            stop: built.stop.clone(),
+            goto: built.goto,
+            gains: built.gains,
             pump: None,
             aux_stop,
             feed: None,
             feed_stats,
             shared,
             fifo,
-            period: timing.period,
+            period: built.timing.period,
             fault,
         };
+        let bodies: (TickBody, TickBody) = (Box::new(control_body), Box::new(comm_body));
         let scheduling = if let Some(world) = &self.sim {
             let mut world = world
                 .lock()
                 .map_err(|_| ObjectError::Poisoned("simulated clock"))?;
-            let now = world.now();
-            world.add(
-                name,
-                SteppedLoop::new(
-                    now,
-                    Box::new(control_body),
-                    Box::new(comm_body),
-                    feed,
-                    pump,
-                    (timing.period, timing.comm_period, timing.sensor_period),
-                ),
+            let periods = (
+                built.timing.period,
+                built.timing.comm_period,
+                built.timing.sensor_period,
             );
+            let stepped = SteppedLoop::new(world.now(), bodies.0, bodies.1, feed, pump, periods);
+            world.add(name, stepped);
             "simulated clock".to_string()
         } else {
-            let bodies: (TickBody, TickBody) = (Box::new(control_body), Box::new(comm_body));
             let aux = (pump, feed, comm_wake);
-            if let Err(why) = start_threads(name, &mut running, bodies, aux, &timing, rt, fifo) {
+            if let Err(why) =
+                start_threads(name, &mut running, bodies, aux, &built.timing, rt, fifo)
+            {
                 // Stop what did start, give the board back, and say why.
                 let stopped = running.stop(StopMode::Deactivate);
                 reg.take_back(stopped, name, false);
@@ -180,14 +156,8 @@ impl Creator {
             }
             scheduling
         };
-        let o = reg.get_mut(name)?;
-        o.state = LifecycleState::Active;
-        if let KindState::Controller(c) = &mut o.body {
-            c.running = Some(running);
-            c.scheduling = Some(scheduling);
-            c.fault = None;
-        }
-        self.stops.insert(name, stop);
+        mark_active(&mut reg, name, running, scheduling)?;
+        self.stops.insert(name, built.stop);
         Ok(())
     }
 
@@ -581,4 +551,37 @@ fn sensor_stream(
             "sensor `{path}` answered {other:?}, not its data-plane address"
         ))),
     }
+}
+
+/// How a controller's threads are scheduled, as `describe` shows it: SCHED_FIFO at `priority`
+/// when the process may use it (a warning when it may not), else normal.
+fn scheduling_label(name: &str, fifo: bool, priority: Option<u8>) -> String {
+    match (fifo, priority) {
+        (true, Some(p)) => format!("SCHED_FIFO {p}"),
+        (false, Some(p)) => {
+            log::warn!(
+                "controller `{name}`: SCHED_FIFO {p} is not permitted to this process; its loop runs at normal priority"
+            );
+            "normal (SCHED_FIFO refused)".to_string()
+        }
+        (_, None) => "normal".to_string(),
+    }
+}
+
+/// Controller `name` is active: its running loop and how it is scheduled kept, its last fault
+/// cleared.
+fn mark_active(
+    reg: &mut crate::objects::Registry,
+    name: &str,
+    running: Running,
+    scheduling: String,
+) -> Result<(), ObjectError> {
+    let o = reg.get_mut(name)?;
+    o.state = LifecycleState::Active;
+    if let KindState::Controller(c) = &mut o.body {
+        c.running = Some(running);
+        c.scheduling = Some(scheduling);
+        c.fault = None;
+    }
+    Ok(())
 }

@@ -333,105 +333,117 @@ pub enum TrajectorySpec {
 /// [`ObjectError::BadConfig`].
 pub fn trajectory_spec(kind: Kind, text: &str) -> Result<TrajectorySpec, ObjectError> {
     let k = kind.as_str();
-    Ok(match kind {
-        Kind::STEP => {
-            let c: StepConfig = parse(k, text)?;
-            check_range(k, "delay_s", c.delay_s, 0.0, 3600.0)?;
-            TrajectorySpec::Step {
-                goal: goal_of(
-                    k,
-                    GoalKeys {
-                        goal: &c.goal,
-                        pose: &c.pose,
-                        position: &c.position,
-                        rpy_deg: &c.rpy_deg,
-                    },
-                )?,
-                delay: Duration::from_secs_f64(c.delay_s),
-            }
-        }
-        Kind::RAMP => {
-            let c: RampConfig = parse(k, text)?;
-            check_range(k, "duration_s", c.duration_s, 0.001, 3600.0)?;
-            TrajectorySpec::Ramp {
-                goal: goal_of(
-                    k,
-                    GoalKeys {
-                        goal: &c.goal,
-                        pose: &c.pose,
-                        position: &c.position,
-                        rpy_deg: &c.rpy_deg,
-                    },
-                )?,
-                duration: Duration::from_secs_f64(c.duration_s),
-            }
-        }
-        Kind::TRAPEZOIDAL => {
-            let c: TrapezoidalConfig = parse(k, text)?;
-            c.max_velocity.check(k, "max_velocity", 1e-4, 20.0)?;
-            c.max_acceleration
-                .check(k, "max_acceleration", 1e-4, 200.0)?;
-            if c.position.is_some() {
-                return Err(bad(
-                    k,
-                    "a trapezoidal move takes a joint goal (`goal` or `pose`); for a tool \
-                     `position` use a step, a ramp or a spline",
-                ));
-            }
-            TrajectorySpec::Trapezoidal {
-                goal: goal_of(
-                    k,
-                    GoalKeys {
-                        goal: &c.goal,
-                        pose: &c.pose,
-                        position: &c.position,
-                        rpy_deg: &c.rpy_deg,
-                    },
-                )?,
-                velocity: c.max_velocity,
-                acceleration: c.max_acceleration,
-            }
-        }
-        _ => {
-            let c: SplineConfig = parse(k, text)?;
-            let clamped = match c.ends.as_str() {
-                "clamped" => true,
-                "natural" => false,
-                other => {
-                    return Err(bad(
-                        k,
-                        format!("`ends` = {other:?} is not \"clamped\" or \"natural\""),
-                    ));
-                }
-            };
-            if c.waypoints.is_empty() || c.waypoints.len() > MAX_WAYPOINTS {
-                return Err(bad(k, format!("needs 1 to {MAX_WAYPOINTS} waypoints")));
-            }
-            let mut previous = 0.0;
-            let mut waypoints = Vec::with_capacity(c.waypoints.len());
-            for w in &c.waypoints {
-                check_range(k, "waypoints.at_s", w.at_s, 0.0, 3600.0)?;
-                if w.at_s <= previous {
-                    return Err(bad(
-                        k,
-                        "waypoint times must be strictly increasing and after 0",
-                    ));
-                }
-                previous = w.at_s;
-                waypoints.push((
-                    Duration::from_secs_f64(w.at_s),
-                    goal_of(
-                        k,
-                        GoalKeys {
-                            goal: &w.q,
-                            pose: &w.pose,
-                            position: &w.position,
-                            rpy_deg: &w.rpy_deg,
-                        },
-                    )?,
-                ));
-            }
-            TrajectorySpec::Spline { clamped, waypoints }
-        }
+    match kind {
+        Kind::STEP => step_spec(k, text),
+        Kind::RAMP => ramp_spec(k, text),
+        Kind::TRAPEZOIDAL => trapezoidal_spec(k, text),
+        _ => spline_spec(k, text),
+    }
+}
+
+/// `trajectory/step`.
+fn step_spec(k: &str, text: &str) -> Result<TrajectorySpec, ObjectError> {
+    let c: StepConfig = parse(k, text)?;
+    check_range(k, "delay_s", c.delay_s, 0.0, 3600.0)?;
+    Ok(TrajectorySpec::Step {
+        goal: goal_of(
+            k,
+            GoalKeys {
+                goal: &c.goal,
+                pose: &c.pose,
+                position: &c.position,
+                rpy_deg: &c.rpy_deg,
+            },
+        )?,
+        delay: Duration::from_secs_f64(c.delay_s),
     })
+}
+
+/// `trajectory/ramp`.
+fn ramp_spec(k: &str, text: &str) -> Result<TrajectorySpec, ObjectError> {
+    let c: RampConfig = parse(k, text)?;
+    check_range(k, "duration_s", c.duration_s, 0.001, 3600.0)?;
+    Ok(TrajectorySpec::Ramp {
+        goal: goal_of(
+            k,
+            GoalKeys {
+                goal: &c.goal,
+                pose: &c.pose,
+                position: &c.position,
+                rpy_deg: &c.rpy_deg,
+            },
+        )?,
+        duration: Duration::from_secs_f64(c.duration_s),
+    })
+}
+
+/// `trajectory/trapezoidal`.
+fn trapezoidal_spec(k: &str, text: &str) -> Result<TrajectorySpec, ObjectError> {
+    let c: TrapezoidalConfig = parse(k, text)?;
+    c.max_velocity.check(k, "max_velocity", 1e-4, 20.0)?;
+    c.max_acceleration
+        .check(k, "max_acceleration", 1e-4, 200.0)?;
+    if c.position.is_some() {
+        return Err(bad(
+            k,
+            "a trapezoidal move takes a joint goal (`goal` or `pose`); for a tool \
+                 `position` use a step, a ramp or a spline",
+        ));
+    }
+    Ok(TrajectorySpec::Trapezoidal {
+        goal: goal_of(
+            k,
+            GoalKeys {
+                goal: &c.goal,
+                pose: &c.pose,
+                position: &c.position,
+                rpy_deg: &c.rpy_deg,
+            },
+        )?,
+        velocity: c.max_velocity,
+        acceleration: c.max_acceleration,
+    })
+}
+
+/// `trajectory/spline`.
+fn spline_spec(k: &str, text: &str) -> Result<TrajectorySpec, ObjectError> {
+    let c: SplineConfig = parse(k, text)?;
+    let clamped = match c.ends.as_str() {
+        "clamped" => true,
+        "natural" => false,
+        other => {
+            return Err(bad(
+                k,
+                format!("`ends` = {other:?} is not \"clamped\" or \"natural\""),
+            ));
+        }
+    };
+    if c.waypoints.is_empty() || c.waypoints.len() > MAX_WAYPOINTS {
+        return Err(bad(k, format!("needs 1 to {MAX_WAYPOINTS} waypoints")));
+    }
+    let mut previous = 0.0;
+    let mut waypoints = Vec::with_capacity(c.waypoints.len());
+    for w in &c.waypoints {
+        check_range(k, "waypoints.at_s", w.at_s, 0.0, 3600.0)?;
+        if w.at_s <= previous {
+            return Err(bad(
+                k,
+                "waypoint times must be strictly increasing and after 0",
+            ));
+        }
+        previous = w.at_s;
+        waypoints.push((
+            Duration::from_secs_f64(w.at_s),
+            goal_of(
+                k,
+                GoalKeys {
+                    goal: &w.q,
+                    pose: &w.pose,
+                    position: &w.position,
+                    rpy_deg: &w.rpy_deg,
+                },
+            )?,
+        ));
+    }
+    Ok(TrajectorySpec::Spline { clamped, waypoints })
 }

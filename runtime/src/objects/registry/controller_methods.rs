@@ -60,53 +60,7 @@ impl Registry {
                 self.controller_mut(name)?.sensor = Some(sensor);
                 Ok(Reply::Unit)
             }
-            ControllerMethod::SetGains { gains } => {
-                let k = kind.as_str();
-                let model = self
-                    .controller_mut(name)?
-                    .robot
-                    .clone()
-                    .and_then(|r| self.robot(&r).ok().map(|r| r.model.clone()));
-                let c = self.controller_mut(name)?;
-                if matches!(c.config, ControllerConfig::Position(_)) {
-                    return Err(ObjectError::Unsupported {
-                        kind: k.to_string(),
-                        method: "set-gains (its only setting, max_velocity, is fixed at creation)"
-                            .into(),
-                    });
-                }
-                if matches!(c.config, ControllerConfig::Groups(_)) {
-                    return Err(ObjectError::Unsupported {
-                        kind: k.to_string(),
-                        method: "set-gains (set its members' gains: they reach the running group)"
-                            .into(),
-                    });
-                }
-                // The new keys replace those of the configuration; the rest stays.
-                let text = merged_gains(k, &c.config_text, &gains)?;
-                let (config, update) = gains_from(k, &c.config, &text, model.as_ref())?;
-                // To the running loop: its own, or the joint group's that runs this member.
-                if let Some(update) = update {
-                    let (run, member) = match self.controller_mut(name)?.running.is_some() {
-                        true => (self.controller_mut(name)?.running.as_mut(), None),
-                        false => match self.running_group_of(name) {
-                            Some((group, index)) => {
-                                (self.controller_mut(&group)?.running.as_mut(), Some(index))
-                            }
-                            None => (None, None),
-                        },
-                    };
-                    if let Some(run) = run {
-                        run.gains
-                            .push(RoutedGains { member, update })
-                            .map_err(|_| not_ready("gain changes queued; retry"))?;
-                    }
-                }
-                let c = self.controller_mut(name)?;
-                c.config = config;
-                c.config_text = text;
-                Ok(Reply::Unit)
-            }
+            ControllerMethod::SetGains { gains } => self.set_gains(name, kind, &gains),
             ControllerMethod::EStop => {
                 let c = self.controller_mut(name)?;
                 let run = c
@@ -119,40 +73,96 @@ impl Registry {
             }
             // Re-arming may start threads: the creator's job (`Creator::rearm`).
             ControllerMethod::Rearm => Err(ObjectError::internal("rearm is served by the creator")),
-            ControllerMethod::Status => {
-                let joints = self
-                    .controller_mut(name)?
-                    .robot
-                    .clone()
-                    .and_then(|r| self.robot(&r).ok().map(|r| r.model.joint_count()))
-                    .unwrap_or(MAX_JOINTS);
-                let c = self.controller_mut(name)?;
-                let (running, ticks, overruns, dropped, last) = match c.running.as_mut() {
-                    Some(run) => {
-                        let newest = run.shared.newest().map(|n| n.sample);
-                        let overruns = run.overruns();
-                        (
-                            true,
-                            newest.map_or(0, |s| s.seq),
-                            overruns,
-                            run.shared
-                                .dropped
-                                .load(std::sync::atomic::Ordering::Relaxed),
-                            newest,
-                        )
+            ControllerMethod::Status => self.status(name, state),
+        }
+    }
+
+    /// New gains for controller `name` (the keys given replace the configuration's), sent to
+    /// its running loop, or to the running joint group it is a member of.
+    fn set_gains(
+        &mut self,
+        name: &str,
+        kind: crate::objects::kinds::Kind,
+        gains: &str,
+    ) -> Result<Reply, ObjectError> {
+        let k = kind.as_str();
+        let model = self
+            .controller_mut(name)?
+            .robot
+            .clone()
+            .and_then(|r| self.robot(&r).ok().map(|r| r.model.clone()));
+        let c = self.controller_mut(name)?;
+        if matches!(c.config, ControllerConfig::Position(_)) {
+            return Err(ObjectError::Unsupported {
+                kind: k.to_string(),
+                method: "set-gains (its only setting, max_velocity, is fixed at creation)".into(),
+            });
+        }
+        if matches!(c.config, ControllerConfig::Groups(_)) {
+            return Err(ObjectError::Unsupported {
+                kind: k.to_string(),
+                method: "set-gains (set its members' gains: they reach the running group)".into(),
+            });
+        }
+        // The new keys replace those of the configuration; the rest stays.
+        let text = merged_gains(k, &c.config_text, gains)?;
+        let (config, update) = gains_from(k, &c.config, &text, model.as_ref())?;
+        // To the running loop: its own, or the joint group's that runs this member.
+        if let Some(update) = update {
+            let (run, member) = match self.controller_mut(name)?.running.is_some() {
+                true => (self.controller_mut(name)?.running.as_mut(), None),
+                false => match self.running_group_of(name) {
+                    Some((group, index)) => {
+                        (self.controller_mut(&group)?.running.as_mut(), Some(index))
                     }
-                    None => (false, c.last.map_or(0, |s| s.seq), 0, 0, c.last),
-                };
-                Ok(Reply::Status(ControlStatus {
-                    state,
-                    running,
-                    ticks,
-                    overruns,
-                    telemetry_dropped: dropped,
-                    last: last.map(|s| crate::objects::runtime::record(&s, joints)),
-                }))
+                    None => (None, None),
+                },
+            };
+            if let Some(run) = run {
+                run.gains
+                    .push(RoutedGains { member, update })
+                    .map_err(|_| not_ready("gain changes queued; retry"))?;
             }
         }
+        let c = self.controller_mut(name)?;
+        c.config = config;
+        c.config_text = text;
+        Ok(Reply::Unit)
+    }
+
+    /// Controller `name`'s running state and newest sample, shown as `state`.
+    fn status(&mut self, name: &str, state: LifecycleState) -> Result<Reply, ObjectError> {
+        let joints = self
+            .controller_mut(name)?
+            .robot
+            .clone()
+            .and_then(|r| self.robot(&r).ok().map(|r| r.model.joint_count()))
+            .unwrap_or(MAX_JOINTS);
+        let c = self.controller_mut(name)?;
+        let (running, ticks, overruns, dropped, last) = match c.running.as_mut() {
+            Some(run) => {
+                let newest = run.shared.newest().map(|n| n.sample);
+                let overruns = run.overruns();
+                (
+                    true,
+                    newest.map_or(0, |s| s.seq),
+                    overruns,
+                    run.shared
+                        .dropped
+                        .load(std::sync::atomic::Ordering::Relaxed),
+                    newest,
+                )
+            }
+            None => (false, c.last.map_or(0, |s| s.seq), 0, 0, c.last),
+        };
+        Ok(Reply::Status(ControlStatus {
+            state,
+            running,
+            ticks,
+            overruns,
+            telemetry_dropped: dropped,
+            last: last.map(|s| crate::objects::runtime::record(&s, joints)),
+        }))
     }
 }
 

@@ -96,49 +96,23 @@ impl Registry {
     }
 
     pub fn robot_method(&mut self, name: &str, m: RobotMethod) -> Result<Reply, ObjectError> {
+        match m {
+            RobotMethod::JointPositions
+            | RobotMethod::JointVelocities
+            | RobotMethod::JointAccelerations
+            | RobotMethod::Operational => self.measured_state(name, m),
+            RobotMethod::ToolWrench => self.tool_wrench(name),
+            RobotMethod::GoTo { pose, duration_s } => self.go_to(name, pose, duration_s),
+            RobotMethod::MapJoints { board, joints } => self.map_joints(name, board, joints),
+            m => self.robot_model_method(name, m),
+        }
+    }
+
+    /// What the robot's model computes, at given joints or the measured ones: nothing here
+    /// moves the robot or changes the object.
+    fn robot_model_method(&mut self, name: &str, m: RobotMethod) -> Result<Reply, ObjectError> {
         let n = self.robot(name)?.model.joint_count();
         match m {
-            RobotMethod::JointPositions => Ok(Reply::Joints(joints_from_vector(
-                &self.measured(name)?.0.position,
-                n,
-            ))),
-            RobotMethod::JointVelocities => Ok(Reply::Joints(joints_from_vector(
-                &self.measured(name)?.0.velocity,
-                n,
-            ))),
-            RobotMethod::JointAccelerations => Ok(Reply::Joints(joints_from_vector(
-                &self.measured(name)?.1,
-                n,
-            ))),
-            RobotMethod::Operational => {
-                let s = self.measured(name)?.0;
-                let model = &self.robot(name)?.model;
-                let o = model.operational_state(&s);
-                Ok(Reply::Operational(OperationalMsg {
-                    pose: PoseMsg::from(&o.pose),
-                    linear_velocity: o.twist.linear.into(),
-                    angular_velocity: o.twist.angular.into(),
-                }))
-            }
-            RobotMethod::ToolWrench => {
-                let driver = self.driver_of(name).ok_or_else(|| {
-                    not_ready(format!(
-                        "robot `{name}` is not driven by an active controller"
-                    ))
-                })?;
-                let c = self.controller_mut(&driver)?;
-                if c.sensor.is_none() {
-                    return Err(not_ready(format!(
-                        "controller `{driver}` has no force sensor"
-                    )));
-                }
-                let s = c
-                    .running
-                    .as_ref()
-                    .and_then(|r| r.shared.newest())
-                    .ok_or_else(|| not_ready("no sample yet"))?;
-                Ok(Reply::Wrench(WrenchMsg::from(&s.sample.wrench)))
-            }
             RobotMethod::ForwardKinematics { q } => {
                 let q = self.q_or_measured(name, &q)?;
                 Ok(Reply::Pose(PoseMsg::from(
@@ -227,83 +201,150 @@ impl Registry {
                 &self.robot(name)?.model.named_pose(pose),
                 n,
             ))),
-            RobotMethod::GoTo { pose, duration_s } => {
-                if !(duration_s.is_finite() && duration_s > 0.0 && duration_s <= 3600.0) {
-                    return Err(bad_arg("duration_s must be in (0, 3600]"));
-                }
-                let goal = self.robot(name)?.model.named_pose(pose);
-                let driver = self.driver_of(name).ok_or_else(|| {
-                    not_ready(format!(
-                        "robot `{name}` is not driven by an active controller (activate one)"
-                    ))
-                })?;
-                let c = self.controller_mut(&driver)?;
-                if c.config.teleop_side().is_some() {
-                    return Err(not_ready(format!(
-                        "robot `{name}` follows a teleoperation channel (`{driver}`): it goes \
-                         where the other side takes it"
-                    )));
-                }
-                let run = c
-                    .running
-                    .as_mut()
-                    .ok_or_else(|| not_ready("controller not running"))?;
-                run.goto
-                    .push(GoToCommand {
-                        goal,
-                        duration: Duration::from_secs_f64(duration_s),
-                    })
-                    .map_err(|_| not_ready("too many motions queued"))?;
-                Ok(Reply::Unit)
+            _ => Err(ObjectError::internal("robot method dispatch")),
+        }
+    }
+
+    /// The robot's measured joint state, or its tool's operational state.
+    fn measured_state(&mut self, name: &str, m: RobotMethod) -> Result<Reply, ObjectError> {
+        let n = self.robot(name)?.model.joint_count();
+        match m {
+            RobotMethod::JointPositions => Ok(Reply::Joints(joints_from_vector(
+                &self.measured(name)?.0.position,
+                n,
+            ))),
+            RobotMethod::JointVelocities => Ok(Reply::Joints(joints_from_vector(
+                &self.measured(name)?.0.velocity,
+                n,
+            ))),
+            RobotMethod::JointAccelerations => Ok(Reply::Joints(joints_from_vector(
+                &self.measured(name)?.1,
+                n,
+            ))),
+            RobotMethod::Operational => {
+                let s = self.measured(name)?.0;
+                let model = &self.robot(name)?.model;
+                let o = model.operational_state(&s);
+                Ok(Reply::Operational(OperationalMsg {
+                    pose: PoseMsg::from(&o.pose),
+                    linear_velocity: o.twist.linear.into(),
+                    angular_velocity: o.twist.angular.into(),
+                }))
             }
-            RobotMethod::MapJoints { board, joints } => {
-                let o = self.get(name)?;
-                if o.state != LifecycleState::Unconfigured {
-                    return Err(not_ready(format!(
-                        "map the joints of `{name}` before configure (cleanup first)"
-                    )));
-                }
-                penelope_protocol::proto::check_name(&board)?;
-                if joints.is_empty() || joints.len() > MAX_JOINTS {
-                    return Err(bad_arg(format!("map 1 to {MAX_JOINTS} joints")));
-                }
-                for (i, ja) in joints.iter().enumerate() {
-                    if usize::from(ja.joint) >= n {
-                        return Err(bad_arg(format!("robot `{name}` has no joint {}", ja.joint)));
-                    }
-                    if usize::from(ja.axis) >= MAX_AXES {
-                        return Err(bad_arg(format!("axis {} is past {MAX_AXES}", ja.axis)));
-                    }
-                    if joints[..i]
-                        .iter()
-                        .any(|o| o.joint == ja.joint || o.axis == ja.axis)
-                    {
-                        return Err(bad_arg("a joint or an axis appears twice"));
-                    }
-                }
-                let KindState::Robot(r) = &mut self.get_mut(name)?.body else {
-                    return Err(ObjectError::internal("robot body"));
-                };
-                // Replaces this board's mapping; joints mapped elsewhere move here.
-                r.maps.retain(|(b, _)| b != &board);
-                for (_, js) in r.maps.iter_mut() {
-                    js.retain(|x| !joints.iter().any(|y| y.joint == x.joint));
-                }
-                r.maps.retain(|(_, js)| !js.is_empty());
-                let previous = std::mem::take(&mut r.maps);
-                r.maps.clone_from(&previous);
-                r.maps.push((board, joints));
-                // An fpga board takes the FRHC only, and all of it: refused here already when
-                // the board exists (again at configure, when every board must).
-                if let Err(e) = self.fpga_board_of(name) {
-                    if let KindState::Robot(r) = &mut self.get_mut(name)?.body {
-                        r.maps = previous;
-                    }
-                    return Err(e);
-                }
-                Ok(Reply::Unit)
+            _ => Err(ObjectError::internal("robot method dispatch")),
+        }
+    }
+
+    /// The wrench the sensor of the controller driving `name` measured last.
+    fn tool_wrench(&mut self, name: &str) -> Result<Reply, ObjectError> {
+        let driver = self.driver_of(name).ok_or_else(|| {
+            not_ready(format!(
+                "robot `{name}` is not driven by an active controller"
+            ))
+        })?;
+        let c = self.controller_mut(&driver)?;
+        if c.sensor.is_none() {
+            return Err(not_ready(format!(
+                "controller `{driver}` has no force sensor"
+            )));
+        }
+        let s = c
+            .running
+            .as_ref()
+            .and_then(|r| r.shared.newest())
+            .ok_or_else(|| not_ready("no sample yet"))?;
+        Ok(Reply::Wrench(WrenchMsg::from(&s.sample.wrench)))
+    }
+
+    /// Queues a move of `name` to a named pose, for the controller driving it.
+    fn go_to(
+        &mut self,
+        name: &str,
+        pose: penelope_hal::NamedPose,
+        duration_s: f64,
+    ) -> Result<Reply, ObjectError> {
+        if !(duration_s.is_finite() && duration_s > 0.0 && duration_s <= 3600.0) {
+            return Err(bad_arg("duration_s must be in (0, 3600]"));
+        }
+        let goal = self.robot(name)?.model.named_pose(pose);
+        let driver = self.driver_of(name).ok_or_else(|| {
+            not_ready(format!(
+                "robot `{name}` is not driven by an active controller (activate one)"
+            ))
+        })?;
+        let c = self.controller_mut(&driver)?;
+        if c.config.teleop_side().is_some() {
+            return Err(not_ready(format!(
+                "robot `{name}` follows a teleoperation channel (`{driver}`): it goes \
+                 where the other side takes it"
+            )));
+        }
+        let run = c
+            .running
+            .as_mut()
+            .ok_or_else(|| not_ready("controller not running"))?;
+        run.goto
+            .push(GoToCommand {
+                goal,
+                duration: Duration::from_secs_f64(duration_s),
+            })
+            .map_err(|_| not_ready("too many motions queued"))?;
+        Ok(Reply::Unit)
+    }
+
+    /// Maps joints of `name` onto axes of `board` (before configure).
+    fn map_joints(
+        &mut self,
+        name: &str,
+        board: String,
+        joints: Vec<JointAxis>,
+    ) -> Result<Reply, ObjectError> {
+        let n = self.robot(name)?.model.joint_count();
+        let o = self.get(name)?;
+        if o.state != LifecycleState::Unconfigured {
+            return Err(not_ready(format!(
+                "map the joints of `{name}` before configure (cleanup first)"
+            )));
+        }
+        penelope_protocol::proto::check_name(&board)?;
+        if joints.is_empty() || joints.len() > MAX_JOINTS {
+            return Err(bad_arg(format!("map 1 to {MAX_JOINTS} joints")));
+        }
+        for (i, ja) in joints.iter().enumerate() {
+            if usize::from(ja.joint) >= n {
+                return Err(bad_arg(format!("robot `{name}` has no joint {}", ja.joint)));
+            }
+            if usize::from(ja.axis) >= MAX_AXES {
+                return Err(bad_arg(format!("axis {} is past {MAX_AXES}", ja.axis)));
+            }
+            if joints[..i]
+                .iter()
+                .any(|o| o.joint == ja.joint || o.axis == ja.axis)
+            {
+                return Err(bad_arg("a joint or an axis appears twice"));
             }
         }
+        let KindState::Robot(r) = &mut self.get_mut(name)?.body else {
+            return Err(ObjectError::internal("robot body"));
+        };
+        // Replaces this board's mapping; joints mapped elsewhere move here.
+        r.maps.retain(|(b, _)| b != &board);
+        for (_, js) in r.maps.iter_mut() {
+            js.retain(|x| !joints.iter().any(|y| y.joint == x.joint));
+        }
+        r.maps.retain(|(_, js)| !js.is_empty());
+        let previous = std::mem::take(&mut r.maps);
+        r.maps.clone_from(&previous);
+        r.maps.push((board, joints));
+        // An fpga board takes the FRHC only, and all of it: refused here already when
+        // the board exists (again at configure, when every board must).
+        if let Err(e) = self.fpga_board_of(name) {
+            if let KindState::Robot(r) = &mut self.get_mut(name)?.body {
+                r.maps = previous;
+            }
+            return Err(e);
+        }
+        Ok(Reply::Unit)
     }
 
     pub fn board_method(&mut self, name: &str, m: BoardMethod) -> Result<Reply, ObjectError> {
@@ -312,37 +353,7 @@ impl Registry {
         match (&o.body, m) {
             (KindState::SimBoard(s), BoardMethod::AxisCount) => Ok(Reply::Count(s.config.axes)),
             (KindState::Galil(g), BoardMethod::AxisCount) => Ok(Reply::Count(g.config.axes)),
-            (_, BoardMethod::AmplifiersEnabled) => {
-                // An idle board says what the device holds (a failed loop may leave a position
-                // board holding); a driven one, what its loop's safety state implies.
-                if !active {
-                    let on = match &o.body {
-                        KindState::Galil(g) => g.board.as_ref().is_some_and(GalilBoard::is_enabled),
-                        _ => self.objects.values().any(|r| match &r.body {
-                            KindState::Robot(r) => {
-                                r.maps.iter().any(|(b, _)| b == name)
-                                    && r.body.as_ref().is_some_and(|b| b.is_enabled())
-                            }
-                            _ => false,
-                        }),
-                    };
-                    return Ok(Reply::Flag(on));
-                }
-                let user = o.users.iter().next().cloned().unwrap_or_default();
-                let c = self.controller_mut(&user)?;
-                let on = c
-                    .running
-                    .as_ref()
-                    .and_then(|r| r.shared.newest())
-                    .is_some_and(|n| {
-                        use penelope_rt_core::safety::SafetyState;
-                        matches!(
-                            n.sample.state,
-                            SafetyState::Running | SafetyState::Holding | SafetyState::Fault
-                        )
-                    });
-                Ok(Reply::Flag(on))
-            }
+            (_, BoardMethod::AmplifiersEnabled) => self.amplifiers_enabled(name, active),
             (_, BoardMethod::Rearm) if active => Err(not_ready(format!(
                 "board `{name}` is driven by `{}`: re-arm that controller (it re-arms the board \
                  and its loop)",
@@ -359,73 +370,112 @@ impl Registry {
             },
             // A simulated board latches nothing.
             (_, BoardMethod::Rearm) => Ok(Reply::Unit),
-            (_, BoardMethod::ReadEncoders) => {
-                let axes = match &o.body {
-                    KindState::SimBoard(s) => s.config.axes as usize,
-                    KindState::Galil(g) => g.config.axes as usize,
-                    _ => 0,
-                };
-                let mut counts = vec![0i64; axes];
-                if let KindState::Galil(_) = &o.body
-                    && !active
-                {
-                    let KindState::Galil(g) = &mut self.get_mut(name)?.body else {
-                        unreachable_body()?
-                    };
-                    let b = g
-                        .board
-                        .as_mut()
-                        .ok_or_else(|| not_ready(format!("board `{name}` is not configured")))?;
-                    let mut st = [AxisState::default(); MAX_AXES];
-                    let count = b.axis_count().min(MAX_AXES);
-                    b.read_axes(
-                        penelope_rt_core::clock::MonotonicClock::read(),
-                        &mut st[..count],
-                    )
-                    .map_err(|e| ObjectError::device(format!("board `{name}`"), e))?;
-                    for (c, s) in counts.iter_mut().zip(st.iter()) {
-                        *c = s.position;
-                    }
-                    return Ok(Reply::Counts(counts));
-                }
-                // Every robot mapped onto it: its joints' counts from the measured state.
-                let robots: Vec<(String, Vec<JointAxis>)> = self
-                    .objects
-                    .iter()
-                    .filter_map(|(rn, ro)| match &ro.body {
-                        KindState::Robot(r) => r
-                            .maps
-                            .iter()
-                            .find(|(b, _)| b == name)
-                            .map(|(_, j)| (rn.clone(), j.clone())),
-                        _ => None,
-                    })
-                    .collect();
-                for (rn, joints) in robots {
-                    let Ok((state, _)) = self.measured(&rn) else {
-                        continue;
-                    };
-                    let r = self.robot(&rn)?;
-                    let zero = r.model.named_pose(r.start);
-                    let on_sim =
-                        r.body.is_some() || matches!(self.get(name)?.body, KindState::SimBoard(_));
-                    for ja in joints {
-                        let j = usize::from(ja.joint);
-                        let cpr = r.model.counts_per_radian(j);
-                        let offset = if on_sim {
-                            0
-                        } else {
-                            -((zero[j] * cpr).round() as i64)
-                        };
-                        if let Some(c) = counts.get_mut(usize::from(ja.axis)) {
-                            *c = (state.position[j] * cpr).floor() as i64 + offset;
-                        }
-                    }
-                }
-                Ok(Reply::Counts(counts))
-            }
+            (_, BoardMethod::ReadEncoders) => self.read_encoders(name, active),
             _ => Err(ObjectError::internal("board body")),
         }
+    }
+
+    /// Whether board `name`'s amplifiers are on: an idle board says what the device holds, a
+    /// driven one what its loop's safety state implies.
+    fn amplifiers_enabled(&mut self, name: &str, active: bool) -> Result<Reply, ObjectError> {
+        let o = self.get(name)?;
+        // An idle board says what the device holds (a failed loop may leave a position
+        // board holding); a driven one, what its loop's safety state implies.
+        if !active {
+            let on = match &o.body {
+                KindState::Galil(g) => g.board.as_ref().is_some_and(GalilBoard::is_enabled),
+                _ => self.objects.values().any(|r| match &r.body {
+                    KindState::Robot(r) => {
+                        r.maps.iter().any(|(b, _)| b == name)
+                            && r.body.as_ref().is_some_and(|b| b.is_enabled())
+                    }
+                    _ => false,
+                }),
+            };
+            return Ok(Reply::Flag(on));
+        }
+        let user = o.users.iter().next().cloned().unwrap_or_default();
+        let c = self.controller_mut(&user)?;
+        let on = c
+            .running
+            .as_ref()
+            .and_then(|r| r.shared.newest())
+            .is_some_and(|n| {
+                use penelope_rt_core::safety::SafetyState;
+                matches!(
+                    n.sample.state,
+                    SafetyState::Running | SafetyState::Holding | SafetyState::Fault
+                )
+            });
+        Ok(Reply::Flag(on))
+    }
+
+    /// Board `name`'s encoder counts: read from an idle Galil, else from the measured state of
+    /// every robot mapped onto it.
+    fn read_encoders(&mut self, name: &str, active: bool) -> Result<Reply, ObjectError> {
+        let o = self.get(name)?;
+        let axes = match &o.body {
+            KindState::SimBoard(s) => s.config.axes as usize,
+            KindState::Galil(g) => g.config.axes as usize,
+            _ => 0,
+        };
+        let mut counts = vec![0i64; axes];
+        if let KindState::Galil(_) = &o.body
+            && !active
+        {
+            let KindState::Galil(g) = &mut self.get_mut(name)?.body else {
+                unreachable_body()?
+            };
+            let b = g
+                .board
+                .as_mut()
+                .ok_or_else(|| not_ready(format!("board `{name}` is not configured")))?;
+            let mut st = [AxisState::default(); MAX_AXES];
+            let count = b.axis_count().min(MAX_AXES);
+            b.read_axes(
+                penelope_rt_core::clock::MonotonicClock::read(),
+                &mut st[..count],
+            )
+            .map_err(|e| ObjectError::device(format!("board `{name}`"), e))?;
+            for (c, s) in counts.iter_mut().zip(st.iter()) {
+                *c = s.position;
+            }
+            return Ok(Reply::Counts(counts));
+        }
+        // Every robot mapped onto it: its joints' counts from the measured state.
+        let robots: Vec<(String, Vec<JointAxis>)> = self
+            .objects
+            .iter()
+            .filter_map(|(rn, ro)| match &ro.body {
+                KindState::Robot(r) => r
+                    .maps
+                    .iter()
+                    .find(|(b, _)| b == name)
+                    .map(|(_, j)| (rn.clone(), j.clone())),
+                _ => None,
+            })
+            .collect();
+        for (rn, joints) in robots {
+            let Ok((state, _)) = self.measured(&rn) else {
+                continue;
+            };
+            let r = self.robot(&rn)?;
+            let zero = r.model.named_pose(r.start);
+            let on_sim = r.body.is_some() || matches!(self.get(name)?.body, KindState::SimBoard(_));
+            for ja in joints {
+                let j = usize::from(ja.joint);
+                let cpr = r.model.counts_per_radian(j);
+                let offset = if on_sim {
+                    0
+                } else {
+                    -((zero[j] * cpr).round() as i64)
+                };
+                if let Some(c) = counts.get_mut(usize::from(ja.axis)) {
+                    *c = (state.position[j] * cpr).floor() as i64 + offset;
+                }
+            }
+        }
+        Ok(Reply::Counts(counts))
     }
 
     pub fn sensor_method(&mut self, name: &str, m: SensorMethod) -> Result<Reply, ObjectError> {

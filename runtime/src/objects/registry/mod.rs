@@ -61,7 +61,6 @@ mod teleop;
 mod test_signal;
 mod trajectories;
 
-pub(crate) use build::Built;
 use galil::open_galil;
 use sensors::publisher_relations;
 use teleop::link_relations;
@@ -576,43 +575,55 @@ impl Registry {
             r.kinematics = kinematics;
         }
         if let Some(first) = sim_boards.first() {
-            let KindState::SimBoard(s) = &self.get(first)?.body else {
-                return Err(ObjectError::internal("sim body"));
-            };
-            let env = kinds::environment(Kind::SIM_BOARD.as_str(), &s.config.shapes)?;
-            let cfg = s.config.clone();
-            let r = self.robot(name)?;
-            let model = r.model.clone();
-            let q0 = model.named_pose(r.start);
-            let mut counts = JointVector::repeat(1.0);
-            let mut full = JointVector::repeat(100.0);
-            for j in 0..n {
-                counts[j] = model.counts_per_radian(j);
-                full[j] = finite_effort(&model, j);
-            }
-            let plant = PlantConfig {
-                substep: Duration::from_micros(cfg.substep_us),
-                motor_torque_limit: full,
-                friction: cfg.friction,
-            };
-            let board_cfg = DriverSimConfig {
-                counts_per_radian: counts,
-                effort_full_scale: full,
-                dac_bits: cfg.dac_bits,
-                position_kp: full * 200.0,
-                position_kd: full * 4.0,
-                velocity_cutoff_hz: 150.0,
-                command_timeout: (cfg.command_timeout_ms > 0)
-                    .then(|| Duration::from_millis(cfg.command_timeout_ms)),
-                brake: cfg.brake,
-            };
-            // The operator's hand holds a master's handle; anything else meets the board's
-            // environment (free space without shapes).
-            let contact = self.tool_contact(name, model.forward(&q0), env)?;
-            let body = SimBoard::new(model, plant, board_cfg, contact, q0, Timestamp::ZERO);
-            if let KindState::Robot(r) = &mut self.get_mut(name)?.body {
-                r.body = Some(Box::new(body));
-            }
+            self.make_simulated_body(name, first, n)?;
+        }
+        Ok(())
+    }
+
+    /// The simulated body of robot `name` (`n` joints) on simulated board `board`: its plant,
+    /// the board's encoders and amplifiers scaled to the robot, and what its tool touches.
+    fn make_simulated_body(
+        &mut self,
+        name: &str,
+        board: &str,
+        n: usize,
+    ) -> Result<(), ObjectError> {
+        let KindState::SimBoard(s) = &self.get(board)?.body else {
+            return Err(ObjectError::internal("sim body"));
+        };
+        let env = kinds::environment(Kind::SIM_BOARD.as_str(), &s.config.shapes)?;
+        let cfg = s.config.clone();
+        let r = self.robot(name)?;
+        let model = r.model.clone();
+        let q0 = model.named_pose(r.start);
+        let mut counts = JointVector::repeat(1.0);
+        let mut full = JointVector::repeat(100.0);
+        for j in 0..n {
+            counts[j] = model.counts_per_radian(j);
+            full[j] = finite_effort(&model, j);
+        }
+        let plant = PlantConfig {
+            substep: Duration::from_micros(cfg.substep_us),
+            motor_torque_limit: full,
+            friction: cfg.friction,
+        };
+        let board_cfg = DriverSimConfig {
+            counts_per_radian: counts,
+            effort_full_scale: full,
+            dac_bits: cfg.dac_bits,
+            position_kp: full * 200.0,
+            position_kd: full * 4.0,
+            velocity_cutoff_hz: 150.0,
+            command_timeout: (cfg.command_timeout_ms > 0)
+                .then(|| Duration::from_millis(cfg.command_timeout_ms)),
+            brake: cfg.brake,
+        };
+        // The operator's hand holds a master's handle; anything else meets the board's
+        // environment (free space without shapes).
+        let contact = self.tool_contact(name, model.forward(&q0), env)?;
+        let body = SimBoard::new(model, plant, board_cfg, contact, q0, Timestamp::ZERO);
+        if let KindState::Robot(r) = &mut self.get_mut(name)?.body {
+            r.body = Some(Box::new(body));
         }
         Ok(())
     }

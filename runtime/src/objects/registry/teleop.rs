@@ -140,64 +140,77 @@ impl Registry {
                 }
             }
             Some((listen, peer)) => {
-                let here = |r: &str| self.expect_class(r, Class::Robot).is_ok();
-                let side = match (here(&master), here(&slave)) {
-                    (true, false) => Side::Master,
-                    (false, true) => Side::Slave,
-                    (true, true) => {
-                        return Err(bad_arg(format!(
-                            "`{name}` has a `peer`, but both `{master}` and `{slave}` are on \
-                             this node (leave out listen and peer)"
-                        )));
-                    }
-                    (false, false) => {
-                        return Err(bad_arg(format!(
-                            "neither `{master}` nor `{slave}` is a robot on this node"
-                        )));
-                    }
-                };
-                let off_loopback = !(listen.ip().is_loopback() && peer.ip().is_loopback());
-                if off_loopback && self.datagram_key.is_none() {
-                    return Err(bad_arg(format!(
-                        "`{name}` crosses off loopback ({listen} to {peer}): the nodes need a \
-                         secret (--secret-file) so that its datagrams are authenticated"
-                    )));
-                }
-                // One key per direction of this channel, bound to both robots' names (the
-                // same on both nodes): another channel's datagrams do not verify here.
-                let (here, there) = match side {
-                    Side::Master => (&master, &slave),
-                    Side::Slave => (&slave, &master),
-                };
-                let keys = self
-                    .datagram_key
-                    .as_ref()
-                    .map(|k| k.directed("teleop", here, there));
-                let endpoint = Endpoint::bind_directed(listen, keys).map_err(|e| {
-                    ObjectError::device(format!("data plane: cannot bind {listen}"), e)
-                })?;
-                // Real times and kernel receive stamps on real time; the tick's on a
-                // simulated clock, so that simulated runs stay reproducible.
-                let time = match self.clock {
-                    ClockMode::RealTime => LinkTime::Real,
-                    ClockMode::Simulated => LinkTime::Tick,
-                };
-                TeleopLink::remote(
-                    side,
-                    endpoint,
-                    peer,
-                    time,
-                    faults.as_ref().map(|(f, seed)| (f, *seed)),
-                )
-                .map_err(|e| ObjectError::BadConfig {
-                    kind: kind.into(),
-                    message: format!("`faults`: {e}"),
-                })?
+                self.remote_link(name, (&master, &slave), (listen, peer), faults.as_ref())?
             }
         };
         if let KindState::Teleop(t) = &mut self.get_mut(name)?.body {
             t.link = Some(link);
         }
         Ok(())
+    }
+
+    /// One end of channel `name` (of `master` and `slave`) on the data plane, bound at
+    /// `listen` to `peer`: the side whose robot is on this node, its datagrams authenticated
+    /// off loopback, clocked as the creator is, with the configured faults.
+    fn remote_link(
+        &self,
+        name: &str,
+        (master, slave): (&str, &str),
+        (listen, peer): (std::net::SocketAddr, std::net::SocketAddr),
+        faults: Option<&(crate::dataplane::faults::FaultConfig, u64)>,
+    ) -> Result<TeleopLink, ObjectError> {
+        let kind = crate::objects::kinds::Kind::TELEOP.as_str();
+        let here = |r: &str| self.expect_class(r, Class::Robot).is_ok();
+        let side = match (here(master), here(slave)) {
+            (true, false) => Side::Master,
+            (false, true) => Side::Slave,
+            (true, true) => {
+                return Err(bad_arg(format!(
+                    "`{name}` has a `peer`, but both `{master}` and `{slave}` are on \
+                     this node (leave out listen and peer)"
+                )));
+            }
+            (false, false) => {
+                return Err(bad_arg(format!(
+                    "neither `{master}` nor `{slave}` is a robot on this node"
+                )));
+            }
+        };
+        let off_loopback = !(listen.ip().is_loopback() && peer.ip().is_loopback());
+        if off_loopback && self.datagram_key.is_none() {
+            return Err(bad_arg(format!(
+                "`{name}` crosses off loopback ({listen} to {peer}): the nodes need a \
+                 secret (--secret-file) so that its datagrams are authenticated"
+            )));
+        }
+        // One key per direction of this channel, bound to both robots' names (the
+        // same on both nodes): another channel's datagrams do not verify here.
+        let (here, there) = match side {
+            Side::Master => (master, slave),
+            Side::Slave => (slave, master),
+        };
+        let keys = self
+            .datagram_key
+            .as_ref()
+            .map(|k| k.directed("teleop", here, there));
+        let endpoint = Endpoint::bind_directed(listen, keys)
+            .map_err(|e| ObjectError::device(format!("data plane: cannot bind {listen}"), e))?;
+        // Real times and kernel receive stamps on real time; the tick's on a
+        // simulated clock, so that simulated runs stay reproducible.
+        let time = match self.clock {
+            ClockMode::RealTime => LinkTime::Real,
+            ClockMode::Simulated => LinkTime::Tick,
+        };
+        TeleopLink::remote(
+            side,
+            endpoint,
+            peer,
+            time,
+            faults.map(|(f, seed)| (f, *seed)),
+        )
+        .map_err(|e| ObjectError::BadConfig {
+            kind: kind.into(),
+            message: format!("`faults`: {e}"),
+        })
     }
 }
