@@ -184,7 +184,7 @@ fn slow_readers(naming: SocketAddr) -> Vec<(Child, ChildStdout, BufReader<ChildS
 /// The recording: every tick is there or counted as dropped, and the count is exact (the
 /// ticks `stopped` reports written).
 fn every_tick_recorded_or_counted(file: &Path, stopped: &serde_json::Value) {
-    let r = penelope_runtime::objects::recording::read_recording(&file).unwrap();
+    let r = penelope_runtime::objects::recording::read_recording(file).unwrap();
     let mut written = 0;
     for c in ["display", "follow"] {
         let ticks = &r.controllers[c];

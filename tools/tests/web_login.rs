@@ -204,6 +204,5 @@ fn the_secret_alone_gives_a_strict_cookie(addr: &str) -> String {
     for attribute in ["HttpOnly", "SameSite=Strict", "Path=/", "Max-Age=7200"] {
         assert!(cookie.contains(attribute), "{cookie}");
     }
-    let token = cookie.split(';').next().unwrap().to_string();
-    token
+    cookie.split(';').next().unwrap().to_string()
 }
