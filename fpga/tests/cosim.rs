@@ -103,24 +103,7 @@ fn directed_vectors(rng: &mut ChaCha8Rng) -> Vec<KinVector> {
         [1, -1, 1, -1, 1, -1],
     ];
     let frhc = DhTable::frhc();
-    let mut stress = [DhRow::IDENTITY; JOINTS];
-    for (j, r) in stress.iter_mut().enumerate() {
-        *r = DhRow {
-            a: if j % 2 == 0 {
-                -(1 << 24)
-            } else {
-                (1 << 24) - 1
-            },
-            d: if j % 3 == 0 {
-                (1 << 24) - 1
-            } else {
-                -(1 << 24)
-            },
-            alpha: [Alpha::Zero, Alpha::Plus90, Alpha::Pi, Alpha::Minus90][j % 4],
-            offset: edges[j],
-        };
-    }
-    let stress = DhTable::from_rows(stress, JOINTS).expect("six rows");
+    let stress = stress_table(&edges);
     let tables = [frhc, stress];
     for table in tables {
         for &e in &edges {
@@ -149,8 +132,47 @@ fn directed_vectors(rng: &mut ChaCha8Rng) -> Vec<KinVector> {
             }
         }
     }
-    // FRHC singular poses: elbow stretched or folded (q3 = -+90 deg), wrist aligned
-    // (theta5 = 0, i.e. q5 = -90 deg with the +90 deg offset), shoulder on the base axis.
+    singular_poses(frhc, &mut out);
+    // FK-only vectors.
+    for &e in &edges {
+        out.push(KinVector {
+            force: false,
+            flange: false,
+            q: [e; JOINTS],
+            wrench: [0; 6],
+            table: frhc,
+        });
+    }
+    rounding_ties(rng, frhc, &mut out);
+    out
+}
+
+/// A table at the edges of the word formats: lengths at their most negative and largest
+/// codes, every kind of twist, the joint offsets at angle edges.
+fn stress_table(edges: &[i32]) -> DhTable {
+    let mut stress = [DhRow::IDENTITY; JOINTS];
+    for (j, r) in stress.iter_mut().enumerate() {
+        *r = DhRow {
+            a: if j % 2 == 0 {
+                -(1 << 24)
+            } else {
+                (1 << 24) - 1
+            },
+            d: if j % 3 == 0 {
+                (1 << 24) - 1
+            } else {
+                -(1 << 24)
+            },
+            alpha: [Alpha::Zero, Alpha::Plus90, Alpha::Pi, Alpha::Minus90][j % 4],
+            offset: edges[j],
+        };
+    }
+    DhTable::from_rows(stress, JOINTS).expect("six rows")
+}
+
+/// FRHC singular poses: elbow stretched or folded (q3 = -+90 deg), wrist aligned (theta5 = 0,
+/// i.e. q5 = -90 deg with the +90 deg offset), shoulder on the base axis.
+fn singular_poses(frhc: DhTable, out: &mut Vec<KinVector>) {
     for q2 in [0, HALF_PI / 3 * 2, HALF_PI, -HALF_PI] {
         for q3 in [HALF_PI, -HALF_PI, 0, PI - 1] {
             for q5 in [-HALF_PI, 0, HALF_PI] {
@@ -166,17 +188,11 @@ fn directed_vectors(rng: &mut ChaCha8Rng) -> Vec<KinVector> {
             }
         }
     }
-    // FK-only vectors.
-    for &e in &edges {
-        out.push(KinVector {
-            force: false,
-            flange: false,
-            q: [e; JOINTS],
-            wrench: [0; 6],
-            table: frhc,
-        });
-    }
-    // Exact rounding ties in the lever node (p - o_j with low 7 bits 1000000b), found by search.
+}
+
+/// 500 exact rounding ties in the lever node (p - o_j with low 7 bits 1000000b), found by
+/// search.
+fn rounding_ties(rng: &mut ChaCha8Rng, frhc: DhTable, out: &mut Vec<KinVector>) {
     let mut ties = 0;
     while ties < 500 {
         let table = if rng.random_bool(0.5) {
@@ -192,7 +208,6 @@ fn directed_vectors(rng: &mut ChaCha8Rng) -> Vec<KinVector> {
             ties += 1;
         }
     }
-    out
 }
 
 fn vectors(random: usize, seed: u64) -> Vec<KinVector> {

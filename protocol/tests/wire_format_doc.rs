@@ -96,19 +96,26 @@ fn framed<T: Serialize>(msg: &T) -> Vec<u8> {
 
 /// Every message the document shows, by the name its block carries.
 fn examples() -> BTreeMap<&'static str, Vec<u8>> {
-    let pose = PoseMsg {
-        position: [0.5, 0.0, 0.25],
-        n: [1.0, 0.0, 0.0],
-        o: [0.0, -1.0, 0.0],
-        a: [0.0, 0.0, -1.0],
-    };
     let mut m = BTreeMap::new();
-    let ping = ClientMsg::Request {
+    session_examples(&mut m);
+    call_examples(&mut m);
+    creator_examples(&mut m);
+    m
+}
+
+/// The ping the examples send, plain and sealed.
+fn ping() -> ClientMsg {
+    ClientMsg::Request {
         id: 300,
         call: Call::Ping {
             payload: vec![0, 1, 2, 3, 4, 5, 6, 7],
         },
-    };
+    }
+}
+
+/// A session's opening and closing: the hellos, the Noise handshake as both sides make it, the
+/// first request sealed after it, a refused secret, and the goodbye.
+fn session_examples(m: &mut BTreeMap<&'static str, Vec<u8>>) {
     let client_hello = ClientMsg::Hello(ClientHello::new("ctl", Role::Reader));
     m.insert("client-hello", framed(&client_hello));
     m.insert(
@@ -149,7 +156,7 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
     // The first request after it, sealed; the node opens it back to the plain body.
     let (mut sealer, _) = client_keys.split();
     let (_, mut opener) = node_keys.split();
-    let plain = framed(&ping);
+    let plain = framed(&ping());
     let mut sealed = Vec::new();
     sealer.seal_frames(&plain, &mut sealed).expect("seals");
     assert_eq!(
@@ -164,6 +171,17 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
             ProtocolError::AuthFailed,
         ))),
     );
+    m.insert("client-bye", framed(&ClientMsg::Bye));
+}
+
+/// Calls to objects and their answers, errors, and the batches a subscription streams.
+fn call_examples(m: &mut BTreeMap<&'static str, Vec<u8>>) {
+    let pose = PoseMsg {
+        position: [0.5, 0.0, 0.25],
+        n: [1.0, 0.0, 0.0],
+        o: [0.0, -1.0, 0.0],
+        a: [0.0, 0.0, -1.0],
+    };
     m.insert(
         "response-forbidden",
         framed(&ServerMsg::Response {
@@ -197,7 +215,7 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
             result: Err(WireError::Call(CallError::UnknownName("slave2".into()))),
         }),
     );
-    m.insert("request-ping", framed(&ping));
+    m.insert("request-ping", framed(&ping()));
     m.insert(
         "telemetry-batch",
         framed(&ServerMsg::Telemetry(TelemetryBatch {
@@ -230,6 +248,11 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
             },
         ))),
     );
+}
+
+/// Calls to a node's creator and their answers: recording, its clock, the node-wide e-stop
+/// and a system file.
+fn creator_examples(m: &mut BTreeMap<&'static str, Vec<u8>>) {
     m.insert(
         "request-record-start",
         framed(&ClientMsg::Request {
@@ -294,8 +317,6 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
             }),
         }),
     );
-    m.insert("client-bye", framed(&ClientMsg::Bye));
-    m
 }
 
 /// One marked block of the document.

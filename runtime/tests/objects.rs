@@ -7,7 +7,7 @@ use penelope_protocol::proto::{
     BoardMethod, Call, CallError, Class, ControllerMethod, CreatorCall, JointAxis, Method,
     NamingCall, Reply, RobotMethod, TrajectoryMethod, WireError,
 };
-use penelope_protocol::service::Service;
+use penelope_protocol::service::{Service, Session};
 use penelope_runtime::objects::{Creator, CreatorConfig};
 
 mod common;
@@ -122,7 +122,17 @@ fn every_bad_input_gets_a_typed_error() {
     config.rt.priority = None;
     let c = Creator::new(config);
     let (s, _rx) = session(1);
-    let creator_call = |cc: CreatorCall| c.call(&s, Call::Creator(cc));
+    creation_refusals(&c, &s);
+    robot_query_refusals(&c, &s);
+    robot_command_refusals(&c, &s);
+    lifecycle_and_call_refusals(&c, &s);
+}
+
+/// Unknown kinds, bad names and configurations, a taken name, an unreachable board, a NaN
+/// time and the creator's limit; leaves `arm` (a PUMA 560, unconfigured), `dmc` (a Galil that
+/// failed to configure), `spl` (a spline) and `pid` (a joint PID), the limit of four.
+fn creation_refusals(c: &Creator, s: &Session) {
+    let creator_call = |cc: CreatorCall| c.call(s, Call::Creator(cc));
     let mk = |kind: &str, name: &str, config: &str| {
         creator_call(CreatorCall::Create {
             kind: kind.into(),
@@ -162,7 +172,7 @@ fn every_bad_input_gets_a_typed_error() {
     )
     .unwrap();
     assert!(matches!(
-        lifecycle(&c, &s, "dmc", Transition::Configure),
+        lifecycle(c, s, "dmc", Transition::Configure),
         Err(WireError::Call(CallError::Device(_)))
     ));
     assert_eq!(
@@ -177,8 +187,8 @@ fn every_bad_input_gets_a_typed_error() {
     .unwrap();
     assert!(matches!(
         call(
-            &c,
-            &s,
+            c,
+            s,
             (
                 "spl",
                 Method::Trajectory(TrajectoryMethod::Reference { t_s: 1.0 })
@@ -188,8 +198,8 @@ fn every_bad_input_gets_a_typed_error() {
     ));
     assert!(matches!(
         call(
-            &c,
-            &s,
+            c,
+            s,
             (
                 "spl",
                 Method::Trajectory(TrajectoryMethod::Reference { t_s: f64::NAN })
@@ -202,12 +212,15 @@ fn every_bad_input_gets_a_typed_error() {
         mk("robot/puma200", "one-too-many", ""),
         Err(WireError::Call(CallError::LimitReached { limit: 4, .. }))
     ));
+}
 
-    // Methods.
+/// A robot's queries with bad arguments, before it is configured, of another class, or of
+/// no object at all.
+fn robot_query_refusals(c: &Creator, s: &Session) {
     let fk = |q: Vec<f64>| {
         call(
-            &c,
-            &s,
+            c,
+            s,
             (
                 "arm",
                 Method::Robot(RobotMethod::ForwardKinematics { q: Some(q) }),
@@ -224,11 +237,11 @@ fn every_bad_input_gets_a_typed_error() {
         Err(WireError::Call(CallError::BadArgument(_)))
     ));
     assert!(matches!(
-        call(&c, &s, ("arm", Method::Robot(RobotMethod::JointPositions))),
+        call(c, s, ("arm", Method::Robot(RobotMethod::JointPositions))),
         Err(WireError::Call(CallError::NotReady(_)))
     ));
     assert!(matches!(
-        call(&c, &s, ("arm", Method::Board(BoardMethod::AxisCount))),
+        call(c, s, ("arm", Method::Board(BoardMethod::AxisCount))),
         Err(WireError::Call(CallError::WrongClass {
             expected: Class::Board,
             found: Class::Robot,
@@ -236,13 +249,17 @@ fn every_bad_input_gets_a_typed_error() {
         }))
     ));
     assert!(matches!(
-        call(&c, &s, ("ghost", Method::Describe)),
+        call(c, s, ("ghost", Method::Describe)),
         Err(WireError::Call(CallError::UnknownName(_)))
     ));
+}
+
+/// A robot's motions and conversions with bad arguments or before it is configured.
+fn robot_command_refusals(c: &Creator, s: &Session) {
     assert!(matches!(
         call(
-            &c,
-            &s,
+            c,
+            s,
             (
                 "arm",
                 Method::Robot(RobotMethod::GoTo {
@@ -255,8 +272,8 @@ fn every_bad_input_gets_a_typed_error() {
     ));
     assert!(matches!(
         call(
-            &c,
-            &s,
+            c,
+            s,
             (
                 "arm",
                 Method::Robot(RobotMethod::GoTo {
@@ -269,8 +286,8 @@ fn every_bad_input_gets_a_typed_error() {
     ));
     assert!(matches!(
         call(
-            &c,
-            &s,
+            c,
+            s,
             (
                 "arm",
                 Method::Robot(RobotMethod::JacobianInverse {
@@ -283,8 +300,8 @@ fn every_bad_input_gets_a_typed_error() {
     ));
     assert!(matches!(
         call(
-            &c,
-            &s,
+            c,
+            s,
             (
                 "arm",
                 Method::Robot(RobotMethod::CountsToRadians { counts: vec![1, 2] })
@@ -294,8 +311,8 @@ fn every_bad_input_gets_a_typed_error() {
     ));
     assert!(matches!(
         call(
-            &c,
-            &s,
+            c,
+            s,
             (
                 "arm",
                 Method::Robot(RobotMethod::MapJoints {
@@ -306,27 +323,31 @@ fn every_bad_input_gets_a_typed_error() {
         ),
         Err(WireError::Call(CallError::BadArgument(_)))
     ));
-    // Lifecycle refusals.
+}
+
+/// Transitions the lifecycle refuses, controller calls before they can run, and calls of the
+/// session (naming, subscriptions, ping).
+fn lifecycle_and_call_refusals(c: &Creator, s: &Session) {
     assert!(matches!(
-        lifecycle(&c, &s, "arm", Transition::Configure),
+        lifecycle(c, s, "arm", Transition::Configure),
         Err(WireError::Call(CallError::NotReady(_)))
     ));
     assert!(matches!(
-        lifecycle(&c, &s, "pid", Transition::Activate),
+        lifecycle(c, s, "pid", Transition::Activate),
         Err(WireError::Call(CallError::InvalidTransition { .. }))
     ));
     assert!(matches!(
-        lifecycle(&c, &s, "pid", Transition::Configure),
+        lifecycle(c, s, "pid", Transition::Configure),
         Err(WireError::Call(CallError::NotReady(_)))
     ));
     assert!(matches!(
-        lifecycle(&c, &s, "arm", Transition::Activate),
+        lifecycle(c, s, "arm", Transition::Activate),
         Err(WireError::Call(CallError::Unsupported { .. }))
     ));
     assert!(matches!(
         ctl(
-            &c,
-            &s,
+            c,
+            s,
             "pid",
             ControllerMethod::SetGains {
                 gains: "kp = \"x\"".into()
@@ -335,12 +356,12 @@ fn every_bad_input_gets_a_typed_error() {
         Err(WireError::Call(CallError::BadConfig { .. }))
     ));
     assert!(matches!(
-        ctl(&c, &s, "pid", ControllerMethod::EStop),
+        ctl(c, s, "pid", ControllerMethod::EStop),
         Err(WireError::Call(CallError::NotReady(_)))
     ));
     assert!(matches!(
         c.call(
-            &s,
+            s,
             Call::Naming(NamingCall::List {
                 context: "/".into()
             })
@@ -349,7 +370,7 @@ fn every_bad_input_gets_a_typed_error() {
     ));
     assert!(matches!(
         c.call(
-            &s,
+            s,
             Call::Subscribe {
                 object: "spl".into(),
                 decimation: 1
@@ -358,10 +379,10 @@ fn every_bad_input_gets_a_typed_error() {
         Err(WireError::Call(CallError::WrongClass { .. }))
     ));
     assert!(matches!(
-        c.call(&s, Call::Unsubscribe { subscription: 99 }),
+        c.call(s, Call::Unsubscribe { subscription: 99 }),
         Err(WireError::Call(CallError::UnknownName(_)))
     ));
     assert!(
-        matches!(c.call(&s, Call::Ping { payload: vec![1, 2] }), Ok(Reply::Pong(p)) if p == [1, 2])
+        matches!(c.call(s, Call::Ping { payload: vec![1, 2] }), Ok(Reply::Pong(p)) if p == [1, 2])
     );
 }

@@ -186,72 +186,11 @@ fn a_remote_puma_computes_what_the_local_model_does() {
     );
 
     let q = JointVector::from_row_slice(&[0.3, -0.7, 0.4, 0.2, -0.5, 1.1]);
-    // Forward kinematics, given and measured joints.
-    let fk = robot.forward_kinematics(Some(&q)).unwrap();
-    assert!(pose_close(&fk, &local.forward(&q), 1e-12));
-    let fk_measured = robot.forward_kinematics(None).unwrap();
-    assert!(pose_close(&fk_measured, &local.forward(&q0), 1e-12));
-    let op = robot.operational_state().unwrap();
-    assert!(pose_close(&op.pose, &fk_measured, 1e-12));
-    assert_eq!(op.twist.frame, Frame::Base);
+    let fk = kinematics_as_the_model(&robot, &local, &q, &q0);
 
-    // Jacobian and its damped inverse.
-    let j = robot.jacobian(Some(&q)).unwrap();
-    assert!((j - local.jacobian(&q, JacobianFrame::Base)).amax() < 1e-12);
-    let ji = robot.jacobian_inverse(Some(&q), 0.01).unwrap();
-    assert!((ji - local.jacobian_damped_inverse(&q, 0.01)).amax() < 1e-12);
+    statics_and_dynamics_as_the_model(&robot, &local, &q);
 
-    // Inverse kinematics finds q among its branches.
-    let sols = robot.inverse_kinematics(&fk).unwrap();
-    assert!(!sols.is_empty());
-    assert!(
-        sols.iter().any(|s| close(s, &q, n, 1e-6)),
-        "{q} not among {sols:?}"
-    );
-
-    // Statics: a base-frame and a tool-frame wrench, as the local model computes them.
-    let base = Wrench {
-        force: Vector3::new(1.0, -2.0, 3.0),
-        torque: Vector3::new(0.1, 0.2, -0.3),
-        frame: Frame::Base,
-    };
-    let tau = robot.wrench_to_torques(&base, Some(&q)).unwrap();
-    assert!(close(
-        &tau,
-        &local.wrench_to_torques(&q, &base).unwrap(),
-        n,
-        1e-12
-    ));
-    let tool = Wrench {
-        frame: Frame::Tool,
-        ..base
-    };
-    let tau = robot.wrench_to_torques(&tool, Some(&q)).unwrap();
-    assert!(close(
-        &tau,
-        &local.wrench_to_torques(&q, &tool).unwrap(),
-        n,
-        1e-9
-    ));
-
-    // Dynamics.
-    assert!(close(
-        &robot.gravity(Some(&q)).unwrap(),
-        &local.gravity(&q),
-        n,
-        1e-12
-    ));
-    let m = robot.inertia(Some(&q)).unwrap();
-    assert!((m - local.inertia(&q)).amax() < 1e-12);
-
-    // Encoder scaling, both ways.
-    let counts = robot.radians_to_counts(&q).unwrap();
-    assert_eq!(counts.len(), n);
-    for (jj, c) in counts.iter().enumerate() {
-        assert_eq!(*c, (q[jj] * local.counts_per_radian(jj)).round() as i64);
-    }
-    let back = robot.counts_to_radians(&counts).unwrap();
-    assert!(close(&back, &q, n, 1e-3));
+    encoder_scaling_as_the_model(&robot, &local, &q);
 
     // What it is.
     let info = robot.describe().unwrap();
@@ -285,12 +224,113 @@ fn a_remote_puma_computes_what_the_local_model_does() {
     assert!(matches!(reply, Reply::Joints(v) if v.len() == n));
 }
 
+/// Forward kinematics (given and measured joints), the operational state, the Jacobian and its
+/// damped inverse, and inverse kinematics, as the local model computes them; returns the pose
+/// of `q`.
+fn kinematics_as_the_model(
+    robot: &RobotProxy,
+    local: &SerialRobotModel,
+    q: &JointVector,
+    q0: &JointVector,
+) -> Pose {
+    let n = local.joint_count();
+    let fk = robot.forward_kinematics(Some(q)).unwrap();
+    assert!(pose_close(&fk, &local.forward(q), 1e-12));
+    let fk_measured = robot.forward_kinematics(None).unwrap();
+    assert!(pose_close(&fk_measured, &local.forward(q0), 1e-12));
+    let op = robot.operational_state().unwrap();
+    assert!(pose_close(&op.pose, &fk_measured, 1e-12));
+    assert_eq!(op.twist.frame, Frame::Base);
+
+    // Jacobian and its damped inverse.
+    let j = robot.jacobian(Some(q)).unwrap();
+    assert!((j - local.jacobian(q, JacobianFrame::Base)).amax() < 1e-12);
+    let ji = robot.jacobian_inverse(Some(q), 0.01).unwrap();
+    assert!((ji - local.jacobian_damped_inverse(q, 0.01)).amax() < 1e-12);
+
+    // Inverse kinematics finds q among its branches.
+    let sols = robot.inverse_kinematics(&fk).unwrap();
+    assert!(!sols.is_empty());
+    assert!(
+        sols.iter().any(|s| close(s, q, n, 1e-6)),
+        "{q} not among {sols:?}"
+    );
+    fk
+}
+
+/// Statics (a base-frame and a tool-frame wrench) and dynamics, as the local model computes
+/// them.
+fn statics_and_dynamics_as_the_model(
+    robot: &RobotProxy,
+    local: &SerialRobotModel,
+    q: &JointVector,
+) {
+    let n = local.joint_count();
+    let base = Wrench {
+        force: Vector3::new(1.0, -2.0, 3.0),
+        torque: Vector3::new(0.1, 0.2, -0.3),
+        frame: Frame::Base,
+    };
+    let tau = robot.wrench_to_torques(&base, Some(q)).unwrap();
+    assert!(close(
+        &tau,
+        &local.wrench_to_torques(q, &base).unwrap(),
+        n,
+        1e-12
+    ));
+    let tool = Wrench {
+        frame: Frame::Tool,
+        ..base
+    };
+    let tau = robot.wrench_to_torques(&tool, Some(q)).unwrap();
+    assert!(close(
+        &tau,
+        &local.wrench_to_torques(q, &tool).unwrap(),
+        n,
+        1e-9
+    ));
+
+    // Dynamics.
+    assert!(close(
+        &robot.gravity(Some(q)).unwrap(),
+        &local.gravity(q),
+        n,
+        1e-12
+    ));
+    let m = robot.inertia(Some(q)).unwrap();
+    assert!((m - local.inertia(q)).amax() < 1e-12);
+}
+
+/// Encoder scaling, both ways, as the local model's counts per radian give it.
+fn encoder_scaling_as_the_model(robot: &RobotProxy, local: &SerialRobotModel, q: &JointVector) {
+    let n = local.joint_count();
+    let counts = robot.radians_to_counts(q).unwrap();
+    assert_eq!(counts.len(), n);
+    for (jj, c) in counts.iter().enumerate() {
+        assert_eq!(*c, (q[jj] * local.counts_per_radian(jj)).round() as i64);
+    }
+    let back = robot.counts_to_radians(&counts).unwrap();
+    assert!(close(&back, q, n, 1e-3));
+}
+
 #[test]
 fn bad_paths_classes_and_arguments_are_typed_errors() {
     let lab = Lab::start();
     let robot = lab.puma();
     let client = &lab.client;
 
+    bad_paths_and_classes(client);
+
+    nan_and_nonsense_refused_before_sending_and_by_the_node(client, &robot);
+
+    the_nodes_own_refusals(client, &robot);
+    // Displays a user understands.
+    let e = client.robot("/lab/boards/sim0").unwrap_err();
+    assert_eq!(e.to_string(), "`/lab/boards/sim0` is a board, not a robot");
+}
+
+/// Unknown paths and names, a malformed spec, an unknown node, and a proxy of the wrong class.
+fn bad_paths_and_classes(client: &Client) {
     assert!(matches!(
         remote(client.robot("/lab/robots/nobody").unwrap_err()),
         WireError::Call(CallError::UnknownName(_))
@@ -313,7 +353,10 @@ fn bad_paths_classes_and_arguments_are_typed_errors() {
         }) => assert_eq!((expected, found), (Class::Sensor, Class::Robot)),
         other => panic!("{other:?}"),
     }
+}
 
+/// NaN and nonsense are refused before sending, and by the node when sent anyway.
+fn nan_and_nonsense_refused_before_sending_and_by_the_node(client: &Client, robot: &RobotProxy) {
     // NaN and nonsense are refused before sending...
     let mut q = JointVector::zeros();
     q[2] = f64::NAN;
@@ -370,8 +413,11 @@ fn bad_paths_classes_and_arguments_are_typed_errors() {
         remote(e),
         WireError::Call(CallError::BadArgument(_))
     ));
+}
 
-    // The node's own refusals.
+/// What the node itself refuses: motion before activation, a repeated transition, unknown kinds,
+/// taken names, bad configurations, and a proxy of the wrong class before anything is created.
+fn the_nodes_own_refusals(client: &Client, robot: &RobotProxy) {
     assert!(matches!(
         remote(robot.go_to(NamedPose::Work, 1.0).unwrap_err()),
         WireError::Call(CallError::NotReady(_))
@@ -402,9 +448,6 @@ fn bad_paths_classes_and_arguments_are_typed_errors() {
         WireError::Call(CallError::WrongClass { .. })
     ));
     assert!(node.list().unwrap().iter().all(|o| o.name != "twin"));
-    // Displays a user understands.
-    let e = client.robot("/lab/boards/sim0").unwrap_err();
-    assert_eq!(e.to_string(), "`/lab/boards/sim0` is a board, not a robot");
 }
 
 #[test]

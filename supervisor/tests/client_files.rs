@@ -3,6 +3,8 @@
 //! outside the node's robot-file directories). Each is refused at once, and the node keeps
 //! answering other calls meanwhile.
 
+use std::net::SocketAddr;
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -32,21 +34,7 @@ fn refusal(e: RpcError) -> String {
 fn robot_files_a_client_names_are_read_only_from_the_nodes_directories_regular_and_bounded() {
     let dir = scratch_dir("files", "robots");
     let outside = scratch_dir("files", "outside");
-    // A real URDF in the directory, and the same one outside it.
-    let puma = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../drivers/robots/puma560.urdf"
-    );
-    std::fs::copy(puma, dir.join("puma560.urdf")).unwrap();
-    std::fs::copy(puma, outside.join("puma560.urdf")).unwrap();
-    // A FIFO nobody writes (its open would block without O_NONBLOCK, its read forever).
-    nix::unistd::mkfifo(&dir.join("fifo.urdf"), nix::sys::stat::Mode::S_IRWXU).unwrap();
-    // A link in the directory to a file outside it.
-    std::os::unix::fs::symlink(outside.join("puma560.urdf"), dir.join("link.urdf")).unwrap();
-    // A sparse file past the bound.
-    let huge = std::fs::File::create(dir.join("huge.urdf")).unwrap();
-    huge.set_len(64 * 1024 * 1024).unwrap();
-    drop(huge);
+    hostile_files(&dir, &outside);
 
     let n = node("files", &dir);
     let client = Client::connect(n.address(), ClientConfig::admin("hostile")).unwrap();
@@ -65,26 +53,7 @@ fn robot_files_a_client_names_are_read_only_from_the_nodes_directories_regular_a
 
     // While the hostile calls go on, another client's calls are answered.
     let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    let address = n.address();
-    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
-    let watcher = std::thread::spawn(move || {
-        let client = Client::connect(address, ClientConfig::new("operator")).unwrap();
-        let lab = client.node("files").unwrap();
-        // Answered once before the hostile calls start (they take microseconds).
-        let t = Instant::now();
-        lab.list().unwrap();
-        let mut slowest = t.elapsed();
-        let mut calls = 1u32;
-        ready_tx.send(()).unwrap();
-        while !flag.load(Ordering::Relaxed) && calls < 100_000 {
-            let t = Instant::now();
-            lab.list().unwrap();
-            slowest = slowest.max(t.elapsed());
-            calls += 1;
-        }
-        (calls, slowest)
-    });
+    let (watcher, ready_rx) = another_client_listing(n.address(), stop.clone());
 
     ready_rx
         .recv_timeout(Duration::from_secs(30))
@@ -132,6 +101,56 @@ fn robot_files_a_client_names_are_read_only_from_the_nodes_directories_regular_a
     n.shutdown();
     let _ = std::fs::remove_dir_all(dir);
     let _ = std::fs::remove_dir_all(outside);
+}
+
+/// In `dir`: a real URDF, a FIFO nobody writes, a link to a file in `outside`, and a sparse
+/// file past the bound; in `outside`, the same URDF.
+fn hostile_files(dir: &Path, outside: &Path) {
+    let puma = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../drivers/robots/puma560.urdf"
+    );
+    std::fs::copy(puma, dir.join("puma560.urdf")).unwrap();
+    std::fs::copy(puma, outside.join("puma560.urdf")).unwrap();
+    // A FIFO nobody writes (its open would block without O_NONBLOCK, its read forever).
+    nix::unistd::mkfifo(&dir.join("fifo.urdf"), nix::sys::stat::Mode::S_IRWXU).unwrap();
+    // A link in the directory to a file outside it.
+    std::os::unix::fs::symlink(outside.join("puma560.urdf"), dir.join("link.urdf")).unwrap();
+    // A sparse file past the bound.
+    let huge = std::fs::File::create(dir.join("huge.urdf")).unwrap();
+    huge.set_len(64 * 1024 * 1024).unwrap();
+    drop(huge);
+}
+
+/// Another client listing the node's objects until `stop` (or 100,000 calls); it says on the
+/// channel when its first call was answered, and its thread answers how many calls it made
+/// and the slowest.
+fn another_client_listing(
+    address: SocketAddr,
+    flag: Arc<AtomicBool>,
+) -> (
+    std::thread::JoinHandle<(u32, Duration)>,
+    std::sync::mpsc::Receiver<()>,
+) {
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+    let watcher = std::thread::spawn(move || {
+        let client = Client::connect(address, ClientConfig::new("operator")).unwrap();
+        let lab = client.node("files").unwrap();
+        // Answered once before the hostile calls start (they take microseconds).
+        let t = Instant::now();
+        lab.list().unwrap();
+        let mut slowest = t.elapsed();
+        let mut calls = 1u32;
+        ready_tx.send(()).unwrap();
+        while !flag.load(Ordering::Relaxed) && calls < 100_000 {
+            let t = Instant::now();
+            lab.list().unwrap();
+            slowest = slowest.max(t.elapsed());
+            calls += 1;
+        }
+        (calls, slowest)
+    });
+    (watcher, ready_rx)
 }
 
 #[test]

@@ -103,10 +103,16 @@ fn bind_resolve_list_unbind_over_the_wire() {
             reference: r.clone()
         }]))
     );
-    // Typed errors cross the wire.
+    typed_errors_cross_the_wire(&mut c);
+    pipelined_unbinds_come_back_in_order(&mut c);
+    server.shutdown();
+}
+
+/// Typed errors cross the wire: a bad name, an unknown one, a creator call at a naming service.
+fn typed_errors_cross_the_wire(c: &mut Connection) {
     assert!(matches!(
         naming(
-            &mut c,
+            c,
             NamingCall::Resolve {
                 path: "no-slash".into()
             }
@@ -115,7 +121,7 @@ fn bind_resolve_list_unbind_over_the_wire() {
     ));
     assert!(matches!(
         naming(
-            &mut c,
+            c,
             NamingCall::Resolve {
                 path: "/lab-b/sensors/nope".into()
             }
@@ -129,7 +135,11 @@ fn bind_resolve_list_unbind_over_the_wire() {
         )))
     ));
     assert!(matches!(c.call(Call::NodeInfo), Ok(Reply::Node(info)) if info.hosts_naming));
-    // Pipelined calls come back in order.
+}
+
+/// Pipelined calls come back in order: an unbind, the same again (unknown now), and the list
+/// of the root, empty (the unregistered contexts went with their last entry).
+fn pipelined_unbinds_come_back_in_order(c: &mut Connection) {
     let answers = c
         .call_many(vec![
             Call::Naming(NamingCall::Unbind {
@@ -150,7 +160,6 @@ fn bind_resolve_list_unbind_over_the_wire() {
     ));
     // The unregistered contexts went with their last entry.
     assert_eq!(answers[2], Ok(Reply::Names(vec![])));
-    server.shutdown();
 }
 
 #[test]

@@ -15,8 +15,10 @@ use std::time::{Duration, Instant};
 
 use penelope_drivers::galil::DEFAULT_WATCHDOG;
 use penelope_drivers::galil::emulator::{ArmConfig, DmcConfig, PtyEmulator, PtyOptions};
-use penelope_hal::NamedPose;
-use penelope_protocol::client::{BoardProxy, Client, ControllerProxy, Lifecycle, RobotProxy};
+use penelope_hal::{JointVector, NamedPose};
+use penelope_protocol::client::{
+    BoardProxy, Client, ControllerProxy, Lifecycle, NodeProxy, RobotProxy,
+};
 use penelope_protocol::net::conn::{ClientConfig, RpcError};
 use penelope_protocol::proto::{CallError, WireError};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
@@ -38,7 +40,48 @@ fn a_node_drives_a_puma200_through_the_emulated_galil() {
     let client = Client::connect(node.address(), ClientConfig::admin("test")).unwrap();
     let lab = client.node("lab").unwrap();
 
-    // A device that is not there is a typed error at configure, and the object stays usable.
+    a_missing_device_is_a_typed_error_and_leaves_the_object_usable(&lab);
+
+    let (board, robot, start) = a_puma200_on_the_emulated_dmc(&lab, &emulator);
+
+    lab.create(
+        "trajectory/spline",
+        "hold",
+        "[[waypoints]]\nat_s = 0.5\npose = \"start\"\n",
+    )
+    .unwrap();
+    client
+        .object("/lab/trajectories/hold")
+        .unwrap()
+        .configure()
+        .unwrap();
+    a_torque_loop_holds_the_arm_then_the_dmc_servo_does(&lab, &board, &robot, start);
+
+    let servo = the_board_servo_takes_the_arm_to_work(&lab, &board, &robot, start);
+
+    // The cable is pulled: the loop faults with a typed cause, the node keeps answering.
+    emulator.unplug();
+    wait_for("a fault after the unplug", Duration::from_secs(30), || {
+        servo
+            .status()
+            .is_ok_and(|s| s.last.as_ref().is_some_and(|t| t.fault.is_some()))
+    });
+    let faulted = servo.status().unwrap();
+    println!("after the unplug: {faulted:?}");
+    assert!(
+        faulted.last.as_ref().is_some_and(|s| s.fault.is_some()),
+        "{faulted:?}"
+    );
+    assert!(lab.info().is_ok());
+
+    servo.deactivate().unwrap();
+    lab.destroy("dmc", true).unwrap();
+    node.shutdown();
+}
+
+/// A device that is not there is a typed error at configure, and the object stays usable
+/// (destroyed again here).
+fn a_missing_device_is_a_typed_error_and_leaves_the_object_usable(lab: &NodeProxy) {
     let missing: BoardProxy = lab
         .create_as(
             "board/galil",
@@ -51,7 +94,14 @@ fn a_node_drives_a_puma200_through_the_emulated_galil() {
         Err(RpcError::Remote(WireError::Call(CallError::Device(_))))
     ));
     lab.destroy("nowhere", false).unwrap();
+}
 
+/// The board on the emulator's line and a PUMA 200 mapped onto its six axes, configured; the
+/// joints read through the robot's scaling from its `start`. Returns them and `start`.
+fn a_puma200_on_the_emulated_dmc(
+    lab: &NodeProxy,
+    emulator: &PtyEmulator,
+) -> (BoardProxy, RobotProxy, JointVector) {
     // The board's watchdog at its longest: this test drives the arm; the watchdog's own test
     // is the next one, and a loaded test machine that stalls the node's loop for 30 ms is not
     // what this one judges.
@@ -82,18 +132,17 @@ fn a_node_drives_a_puma200_through_the_emulated_galil() {
     let from_counts = start + robot.counts_to_radians(&counts).unwrap();
     let q = robot.joint_positions().unwrap();
     assert!((q - from_counts).norm() < 1e-9, "{q:?} vs {from_counts:?}");
+    (board, robot, start)
+}
 
-    lab.create(
-        "trajectory/spline",
-        "hold",
-        "[[waypoints]]\nat_s = 0.5\npose = \"start\"\n",
-    )
-    .unwrap();
-    client
-        .object("/lab/trajectories/hold")
-        .unwrap()
-        .configure()
-        .unwrap();
+/// A torque loop holds the arm where it is; deactivated, the DMC's own servo holds it,
+/// amplifiers on.
+fn a_torque_loop_holds_the_arm_then_the_dmc_servo_does(
+    lab: &NodeProxy,
+    board: &BoardProxy,
+    robot: &RobotProxy,
+    start: JointVector,
+) {
     // A torque loop first: it holds the arm where it is (the emulated axes are bare motors with
     // no gravity to compensate). Then the same board in position mode must servo again.
     let pid: ControllerProxy = lab
@@ -121,7 +170,16 @@ fn a_node_drives_a_puma200_through_the_emulated_galil() {
     thread::sleep(Duration::from_millis(300));
     let still = robot.joint_positions().unwrap();
     assert!((still - start).amax() < 0.01, "{still:?} vs {start:?}");
+}
 
+/// Joint positions as targets for the board's own servo hold the arm, then take it to `work`;
+/// returns the servo controller, running.
+fn the_board_servo_takes_the_arm_to_work(
+    lab: &NodeProxy,
+    board: &BoardProxy,
+    robot: &RobotProxy,
+    start: JointVector,
+) -> ControllerProxy {
     // Joint positions as targets for the board's own servo (the DMC closes the loop): a torque
     // loop over a 115200-baud line (about 100 exchanges per second) cannot hold a PUMA.
     let servo: ControllerProxy = lab
@@ -163,25 +221,7 @@ fn a_node_drives_a_puma200_through_the_emulated_galil() {
         "{reached:?} vs work {work:?}: {:?}",
         servo.status()
     );
-
-    // The cable is pulled: the loop faults with a typed cause, the node keeps answering.
-    emulator.unplug();
-    wait_for("a fault after the unplug", Duration::from_secs(30), || {
-        servo
-            .status()
-            .is_ok_and(|s| s.last.as_ref().is_some_and(|t| t.fault.is_some()))
-    });
-    let faulted = servo.status().unwrap();
-    println!("after the unplug: {faulted:?}");
-    assert!(
-        faulted.last.as_ref().is_some_and(|s| s.fault.is_some()),
-        "{faulted:?}"
-    );
-    assert!(lab.info().is_ok());
-
-    servo.deactivate().unwrap();
-    lab.destroy("dmc", true).unwrap();
-    node.shutdown();
+    servo
 }
 
 #[test]
@@ -250,8 +290,18 @@ fn a_gravity_compensated_joint_pid_on_the_node_converges_on_the_emulated_puma200
     pid.configure().unwrap();
     pid.activate().unwrap();
 
-    // The arm itself (the emulator's plant), not the encoders' report of it, settles on the
-    // goal and stays there.
+    the_arm_settles_on_the_goal(&emulator, &pid, goal);
+
+    the_dmc_watchdog_turns_the_motors_off(&emulator);
+    assert!(lab.info().is_ok());
+    pid.deactivate().unwrap();
+    lab.destroy("dmc", true).unwrap();
+    node.shutdown();
+}
+
+/// The arm itself (the emulator's plant), not the encoders' report of it, settles on the goal
+/// and stays there, the PID without fault.
+fn the_arm_settles_on_the_goal(emulator: &PtyEmulator, pid: &ControllerProxy, goal: JointVector) {
     let arm = || emulator.inspect(|d| d.arm_joints()).unwrap();
     let end = Instant::now() + Duration::from_secs(20);
     let mut settled_since: Option<Instant> = None;
@@ -284,9 +334,11 @@ fn a_gravity_compensated_joint_pid_on_the_node_converges_on_the_emulated_puma200
         (arm() - goal).amax(),
         (arm() - goal).as_slice()
     );
+}
 
-    // The cable is pulled while the PID holds the arm against gravity: the DMC's own watchdog
-    // turns the motors off (the brakes then hold the arm).
+/// The cable is pulled while the PID holds the arm against gravity: the DMC's own watchdog
+/// turns the motors off (the brakes then hold the arm) within its bound.
+fn the_dmc_watchdog_turns_the_motors_off(emulator: &PtyEmulator) {
     emulator.unplug();
     let end = Instant::now() + Duration::from_secs(10);
     while emulator.inspect(|d| (0..6).any(|i| d.axis(i).unwrap().motor_on)) {
@@ -305,8 +357,4 @@ fn a_gravity_compensated_joint_pid_on_the_node_converges_on_the_emulated_puma200
         DEFAULT_WATCHDOG.as_millis()
     );
     assert!(silence <= DEFAULT_WATCHDOG, "{silence:?}");
-    assert!(lab.info().is_ok());
-    pid.deactivate().unwrap();
-    lab.destroy("dmc", true).unwrap();
-    node.shutdown();
 }

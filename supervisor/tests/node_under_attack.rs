@@ -113,34 +113,7 @@ fn a_node_under_attack_keeps_answering_and_its_loop_keeps_time() {
     let addr = node.address();
 
     let client = Client::connect(addr, ClientConfig::admin("operator")).unwrap();
-    let lab = client.node("lab").unwrap();
-    lab.create("board/sim", "sim0", "").unwrap();
-    let robot: RobotProxy = lab.create_as("robot/puma560", "arm", "").unwrap();
-    robot
-        .map_joints("sim0", &(0..6).map(|j| (j, j)).collect::<Vec<_>>())
-        .unwrap();
-    client
-        .object("/lab/boards/sim0")
-        .unwrap()
-        .configure()
-        .unwrap();
-    robot.configure().unwrap();
-    lab.create(
-        "trajectory/spline",
-        "hold",
-        "[[waypoints]]\nat_s = 0.5\npose = \"start\"\n",
-    )
-    .unwrap();
-    client
-        .object("/lab/trajectories/hold")
-        .unwrap()
-        .configure()
-        .unwrap();
-    let pid: ControllerProxy = lab.create_as("controller/joint-pid", "pid", "").unwrap();
-    pid.set_robot("arm").unwrap();
-    pid.set_trajectory("hold").unwrap();
-    pid.configure().unwrap();
-    pid.activate().unwrap();
+    let (robot, pid) = a_pid_holding_the_arm(&client);
     thread::sleep(Duration::from_millis(500));
 
     // Quiet window.
@@ -155,46 +128,11 @@ fn a_node_under_attack_keeps_answering_and_its_loop_keeps_time() {
     let made = Arc::new(AtomicU64::new(0));
     // The deaf subscriber connects before the attackers start: they may fill every connection
     // slot, and it is one of the attack, not its victim.
-    let mut deaf = Connection::connect(addr, &ClientConfig::new("deaf")).unwrap();
-    let subscribed = deaf.call(Call::Subscribe {
-        object: "pid".into(),
-        decimation: 1,
-    });
-    assert!(
-        matches!(subscribed, Ok(Reply::Subscribed { .. })),
-        "{subscribed:?}"
-    );
+    let deaf = deaf_subscriber(addr);
     let attackers: Vec<_> = (0..5)
         .map(|k| attack(addr, stop.clone(), made.clone(), k))
         .collect();
-    let flood_stop = stop.clone();
-    let flood = thread::spawn(move || {
-        let mut answered = 0u64;
-        let mut refused = 0u64;
-        if let Ok(mut c) = Connection::connect(addr, &ClientConfig::new("flood")) {
-            while !flood_stop.load(Ordering::Relaxed) {
-                let calls = vec![
-                    Call::Ping {
-                        payload: vec![0; 56]
-                    };
-                    256
-                ];
-                match c.call_many(calls) {
-                    Ok(results) => {
-                        for r in results {
-                            if r.is_ok() {
-                                answered += 1;
-                            } else {
-                                refused += 1;
-                            }
-                        }
-                    }
-                    Err(_) => break,
-                }
-            }
-        }
-        (answered, refused)
-    });
+    let flood = ping_flood(addr, stop.clone());
     let a0 = status(&pid);
     let started = Instant::now();
     // The operator's own calls keep being answered during the attack.
@@ -212,23 +150,7 @@ fn a_node_under_attack_keeps_answering_and_its_loop_keeps_time() {
     }
     let (flood_answered, flood_refused) = flood.join().unwrap();
     drop(deaf);
-    // Every attacking connection is closed again (handshake timeout 300 ms), and the memory the
-    // attack used is given back: tens of thousands of connections must not leave a trace.
-    let settle = Instant::now();
-    while node.stats().open > 2 && settle.elapsed() < Duration::from_secs(5) {
-        thread::sleep(Duration::from_millis(50));
-    }
-    let open_after = node.stats().open;
-    let rss_after = resident_kib();
-    println!(
-        "connections open after the attack: {open_after}; resident memory {rss_before} KiB \
-         before, {rss_after} KiB after"
-    );
-    assert!(open_after <= 2, "{:?}", node.stats());
-    assert!(
-        rss_after < rss_before + 32 * 1024,
-        "resident memory grew from {rss_before} to {rss_after} KiB"
-    );
+    attack_cleared_away(&node, rss_before);
 
     let quiet_ticks = q1.ticks - q0.ticks;
     let quiet_overruns = q1.overruns - q0.overruns;
@@ -263,4 +185,104 @@ fn a_node_under_attack_keeps_answering_and_its_loop_keeps_time() {
 
     pid.deactivate().unwrap();
     node.shutdown();
+}
+
+/// On the node `lab` of `client`: a PUMA 560 on a simulated board, configured, and a joint
+/// PID holding it at its start pose, active.
+fn a_pid_holding_the_arm(client: &Client) -> (RobotProxy, ControllerProxy) {
+    let lab = client.node("lab").unwrap();
+    lab.create("board/sim", "sim0", "").unwrap();
+    let robot: RobotProxy = lab.create_as("robot/puma560", "arm", "").unwrap();
+    robot
+        .map_joints("sim0", &(0..6).map(|j| (j, j)).collect::<Vec<_>>())
+        .unwrap();
+    client
+        .object("/lab/boards/sim0")
+        .unwrap()
+        .configure()
+        .unwrap();
+    robot.configure().unwrap();
+    lab.create(
+        "trajectory/spline",
+        "hold",
+        "[[waypoints]]\nat_s = 0.5\npose = \"start\"\n",
+    )
+    .unwrap();
+    client
+        .object("/lab/trajectories/hold")
+        .unwrap()
+        .configure()
+        .unwrap();
+    let pid: ControllerProxy = lab.create_as("controller/joint-pid", "pid", "").unwrap();
+    pid.set_robot("arm").unwrap();
+    pid.set_trajectory("hold").unwrap();
+    pid.configure().unwrap();
+    pid.activate().unwrap();
+    (robot, pid)
+}
+
+/// A client subscribed to the PID's every tick that never reads its telemetry.
+fn deaf_subscriber(addr: SocketAddr) -> Connection {
+    let mut deaf = Connection::connect(addr, &ClientConfig::new("deaf")).unwrap();
+    let subscribed = deaf.call(Call::Subscribe {
+        object: "pid".into(),
+        decimation: 1,
+    });
+    assert!(
+        matches!(subscribed, Ok(Reply::Subscribed { .. })),
+        "{subscribed:?}"
+    );
+    deaf
+}
+
+/// A client flooding pings beyond the rate limit, 256 a batch, until `stop`; its thread
+/// answers how many pings were answered and how many refused.
+fn ping_flood(addr: SocketAddr, stop: Arc<AtomicBool>) -> thread::JoinHandle<(u64, u64)> {
+    thread::spawn(move || {
+        let mut answered = 0u64;
+        let mut refused = 0u64;
+        if let Ok(mut c) = Connection::connect(addr, &ClientConfig::new("flood")) {
+            while !stop.load(Ordering::Relaxed) {
+                let calls = vec![
+                    Call::Ping {
+                        payload: vec![0; 56]
+                    };
+                    256
+                ];
+                match c.call_many(calls) {
+                    Ok(results) => {
+                        for r in results {
+                            if r.is_ok() {
+                                answered += 1;
+                            } else {
+                                refused += 1;
+                            }
+                        }
+                    }
+                    Err(_) => break,
+                }
+            }
+        }
+        (answered, refused)
+    })
+}
+
+/// Every attacking connection is closed again (handshake timeout 300 ms), and the memory the
+/// attack used is given back: tens of thousands of connections must not leave a trace.
+fn attack_cleared_away(node: &Node, rss_before: u64) {
+    let settle = Instant::now();
+    while node.stats().open > 2 && settle.elapsed() < Duration::from_secs(5) {
+        thread::sleep(Duration::from_millis(50));
+    }
+    let open_after = node.stats().open;
+    let rss_after = resident_kib();
+    println!(
+        "connections open after the attack: {open_after}; resident memory {rss_before} KiB \
+         before, {rss_after} KiB after"
+    );
+    assert!(open_after <= 2, "{:?}", node.stats());
+    assert!(
+        rss_after < rss_before + 32 * 1024,
+        "resident memory grew from {rss_before} to {rss_after} KiB"
+    );
 }

@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 
 use penelope_protocol::net::conn::{ClientConfig, Connection, RpcError};
 use penelope_protocol::net::frame::{FrameError, encode, encode_into, read_frame};
-use penelope_protocol::net::server::{ABUSE_STRIKES, NetError, Server, ServerConfig};
+use penelope_protocol::net::server::{ABUSE_STRIKES, NetError, Server, ServerConfig, ServerStats};
 use penelope_protocol::proto::{
     Call, CallError, ClientHello, ClientMsg, ProtocolError, Reply, Role, ServerMsg, TelemetryBatch,
     TelemetryRecord, WireError, WrenchMsg,
@@ -415,59 +415,12 @@ fn attacks_while_a_control_loop_runs() {
     assert!(ping(&mut good, 0).is_ok());
 
     // The quiet window.
-    let quiet: RunReport = {
-        let t = control_loop();
-        let end = Instant::now() + WINDOW;
-        let mut i = 0;
-        while Instant::now() < end {
-            i += 1;
-            assert_eq!(
-                ping(&mut good, i).unwrap(),
-                Reply::Pong(i.to_le_bytes().to_vec())
-            );
-            std::thread::sleep(Duration::from_millis(5));
-        }
-        t.stop_and_join().expect("join")
-    };
-
+    let quiet = quiet_window(&mut good);
     // The attack window, same length.
     let stalled = stalled_reader(addr, &service);
     let seen = Seen::default();
     let good_calls = AtomicU64::new(0);
-    let attack: RunReport = {
-        let t = control_loop();
-        let until = Instant::now() + WINDOW;
-        std::thread::scope(|scope| {
-            let seen = &seen;
-
-            scope.spawn(move || repeat(until, || garbage(addr, seen)));
-            scope.spawn(move || repeat(until, || oversized(addr, seen)));
-            scope.spawn(move || repeat(until, || half_frames(addr)));
-            scope.spawn(move || repeat(until, || stalled_hello(addr, seen)));
-            scope.spawn(move || repeat(until, || connection_flood(addr, seen)));
-            scope.spawn(move || repeat(until, || request_flood(addr, seen)));
-            scope.spawn(move || repeat(until, || wrong_secret(secured_addr, seen)));
-            scope.spawn(|| flood_telemetry(&service, seen, until));
-            scope.spawn(|| {
-                let mut rng = Rng(0x00c0_ffee_1234_5678);
-                while Instant::now() < until {
-                    handshake_fuzz(addr, &mut rng, seen);
-                }
-            });
-            // The good client, answered all along.
-            let mut i = 1_000_000;
-            while Instant::now() < until {
-                i += 1;
-                let r = ping(&mut good, i);
-                assert_eq!(r.unwrap(), Reply::Pong(i.to_le_bytes().to_vec()));
-                good_calls.fetch_add(1, Ordering::Relaxed);
-                std::thread::sleep(Duration::from_millis(5));
-            }
-            // The window ends here for the loop too (the attackers finish their last round
-            // after it).
-            t.stop_and_join().expect("join")
-        })
-    };
+    let attack = attack_window(addr, secured_addr, &service, &seen, &good_calls, &mut good);
 
     drop(stalled);
     // After: the old and a new client are answered.
@@ -477,92 +430,15 @@ fn attacks_while_a_control_loop_runs() {
         ping(&mut fresh, 8).unwrap(),
         Reply::Pong(8u64.to_le_bytes().to_vec())
     );
-    let mut ok_cfg = ClientConfig::new("friend");
-    ok_cfg.secret = Some(b"9e107d9d372bb6826bd81d3542a419d6".into());
-    // The friend shares the attacker's address, which the throttle of failed handshakes slows
-    // for a while (2 a second come back): it retries, within a bound.
-    let deadline = Instant::now() + Duration::from_secs(10);
-    let mut friend = loop {
-        match Connection::connect(secured_addr, &ok_cfg) {
-            Ok(c) => break c,
-            Err(RpcError::Remote(WireError::Protocol(ProtocolError::RateLimited { .. })))
-                if Instant::now() < deadline =>
-            {
-                std::thread::sleep(Duration::from_millis(100));
-            }
-            Err(e) => panic!("the friend was refused: {e}"),
-        }
-    };
+    let mut friend = friend_after_the_throttle(secured_addr);
     assert!(ping(&mut friend, 9).is_ok());
 
     let stats = server.stats();
-    let load = |c: &AtomicU64| c.load(Ordering::Relaxed);
     println!("server stats after the attacks: {stats:?}");
-    println!(
-        "attacks saw: malformed {}, too large {}, handshake timeouts {}, too many connections {}, \
-         rate-limited replies {}, rate-limit drops {}, auth failed {}, telemetry dropped {}, \
-         fuzz inputs {}; good calls during the attack {}",
-        load(&seen.malformed),
-        load(&seen.too_large),
-        load(&seen.handshake_timeouts),
-        load(&seen.too_many),
-        load(&seen.rate_limited_replies),
-        load(&seen.rate_limit_drops),
-        load(&seen.auth_failed),
-        load(&seen.telemetry_dropped),
-        load(&seen.fuzz_inputs),
-        load(&good_calls),
-    );
-    assert!(load(&seen.malformed) > 0, "garbage must get Malformed");
-    assert!(
-        load(&seen.too_large) > 0,
-        "an oversized length must get FrameTooLarge"
-    );
-    assert!(
-        load(&seen.handshake_timeouts) > 0,
-        "a silent client must time out"
-    );
-    assert!(stats.refused > 0, "the flood must hit the connection limit");
-    assert!(
-        load(&seen.rate_limited_replies) > 0,
-        "the request flood must be limited"
-    );
-    assert!(
-        load(&seen.rate_limit_drops) > 0,
-        "sustained abuse must be dropped"
-    );
-    assert!(load(&seen.auth_failed) > 0, "a wrong secret must fail");
-    assert!(
-        load(&seen.telemetry_dropped) > 0,
-        "a client that does not read loses telemetry"
-    );
-    assert!(load(&seen.fuzz_inputs) > 0);
-    assert!(load(&good_calls) > 10);
-    assert!(stats.timeouts > 0 && stats.dropped > 0 && stats.too_large > 0);
-    assert!(
-        service.subscribers.lock().unwrap().is_empty(),
-        "the stalled reader's session must be closed"
-    );
+    every_attack_met_its_answer(&stats, &seen, &good_calls, &service);
 
     // The control loop.
-    println!(
-        "control loop (1 ms, fifo {:?}): quiet window {} ticks, {} overruns, {} skipped; \
-         attack window {} ticks, {} overruns, {} skipped",
-        quiet.rt.fifo,
-        quiet.ticks,
-        quiet.overruns,
-        quiet.skipped,
-        attack.ticks,
-        attack.overruns,
-        attack.skipped
-    );
-    let tolerance = 5 + attack.ticks / 100;
-    assert!(
-        attack.overruns <= quiet.overruns + tolerance,
-        "the attacks disturbed the loop: {} overruns against {} quiet (tolerance {tolerance})",
-        attack.overruns,
-        quiet.overruns
-    );
+    the_loop_kept_its_time(&quiet, &attack);
 
     drop((good, fresh, friend));
     let sessions = server.stats().sessions;
@@ -589,6 +465,164 @@ fn attacks_while_a_control_loop_runs() {
         threads() <= baseline,
         "threads leaked: {} > {baseline}",
         threads()
+    );
+}
+
+/// The quiet window: the control loop runs for [`WINDOW`] while the good client pings.
+fn quiet_window(good: &mut Connection) -> RunReport {
+    let t = control_loop();
+    let end = Instant::now() + WINDOW;
+    let mut i = 0;
+    while Instant::now() < end {
+        i += 1;
+        assert_eq!(
+            ping(good, i).unwrap(),
+            Reply::Pong(i.to_le_bytes().to_vec())
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    t.stop_and_join().expect("join")
+}
+
+/// The attack window, as long as the quiet one: every attacker at once, from its own thread,
+/// while the control loop runs and the good client is answered all along (counted in
+/// `good_calls`).
+fn attack_window(
+    addr: SocketAddr,
+    secured_addr: SocketAddr,
+    service: &TestService,
+    seen: &Seen,
+    good_calls: &AtomicU64,
+    good: &mut Connection,
+) -> RunReport {
+    let t = control_loop();
+    let until = Instant::now() + WINDOW;
+    std::thread::scope(|scope| {
+        scope.spawn(move || repeat(until, || garbage(addr, seen)));
+        scope.spawn(move || repeat(until, || oversized(addr, seen)));
+        scope.spawn(move || repeat(until, || half_frames(addr)));
+        scope.spawn(move || repeat(until, || stalled_hello(addr, seen)));
+        scope.spawn(move || repeat(until, || connection_flood(addr, seen)));
+        scope.spawn(move || repeat(until, || request_flood(addr, seen)));
+        scope.spawn(move || repeat(until, || wrong_secret(secured_addr, seen)));
+        scope.spawn(|| flood_telemetry(service, seen, until));
+        scope.spawn(|| {
+            let mut rng = Rng(0x00c0_ffee_1234_5678);
+            while Instant::now() < until {
+                handshake_fuzz(addr, &mut rng, seen);
+            }
+        });
+        // The good client, answered all along.
+        let mut i = 1_000_000;
+        while Instant::now() < until {
+            i += 1;
+            let r = ping(good, i);
+            assert_eq!(r.unwrap(), Reply::Pong(i.to_le_bytes().to_vec()));
+            good_calls.fetch_add(1, Ordering::Relaxed);
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        // The window ends here for the loop too (the attackers finish their last round
+        // after it).
+        t.stop_and_join().expect("join")
+    })
+}
+
+/// The friend: a client with the secret, connected once the throttle lets it in.
+fn friend_after_the_throttle(secured_addr: SocketAddr) -> Connection {
+    let mut ok_cfg = ClientConfig::new("friend");
+    ok_cfg.secret = Some(b"9e107d9d372bb6826bd81d3542a419d6".into());
+    // The friend shares the attacker's address, which the throttle of failed handshakes slows
+    // for a while (2 a second come back): it retries, within a bound.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        match Connection::connect(secured_addr, &ok_cfg) {
+            Ok(c) => break c,
+            Err(RpcError::Remote(WireError::Protocol(ProtocolError::RateLimited { .. })))
+                if Instant::now() < deadline =>
+            {
+                std::thread::sleep(Duration::from_millis(100));
+            }
+            Err(e) => panic!("the friend was refused: {e}"),
+        }
+    }
+}
+
+/// Every attack got its typed error or was dropped, the good client was answered during them,
+/// and the stalled reader's session was closed.
+fn every_attack_met_its_answer(
+    stats: &ServerStats,
+    seen: &Seen,
+    good_calls: &AtomicU64,
+    service: &TestService,
+) {
+    let load = |c: &AtomicU64| c.load(Ordering::Relaxed);
+    println!(
+        "attacks saw: malformed {}, too large {}, handshake timeouts {}, too many connections {}, \
+         rate-limited replies {}, rate-limit drops {}, auth failed {}, telemetry dropped {}, \
+         fuzz inputs {}; good calls during the attack {}",
+        load(&seen.malformed),
+        load(&seen.too_large),
+        load(&seen.handshake_timeouts),
+        load(&seen.too_many),
+        load(&seen.rate_limited_replies),
+        load(&seen.rate_limit_drops),
+        load(&seen.auth_failed),
+        load(&seen.telemetry_dropped),
+        load(&seen.fuzz_inputs),
+        load(good_calls),
+    );
+    assert!(load(&seen.malformed) > 0, "garbage must get Malformed");
+    assert!(
+        load(&seen.too_large) > 0,
+        "an oversized length must get FrameTooLarge"
+    );
+    assert!(
+        load(&seen.handshake_timeouts) > 0,
+        "a silent client must time out"
+    );
+    assert!(stats.refused > 0, "the flood must hit the connection limit");
+    assert!(
+        load(&seen.rate_limited_replies) > 0,
+        "the request flood must be limited"
+    );
+    assert!(
+        load(&seen.rate_limit_drops) > 0,
+        "sustained abuse must be dropped"
+    );
+    assert!(load(&seen.auth_failed) > 0, "a wrong secret must fail");
+    assert!(
+        load(&seen.telemetry_dropped) > 0,
+        "a client that does not read loses telemetry"
+    );
+    assert!(load(&seen.fuzz_inputs) > 0);
+    assert!(load(good_calls) > 10);
+    assert!(stats.timeouts > 0 && stats.dropped > 0 && stats.too_large > 0);
+    assert!(
+        service.subscribers.lock().unwrap().is_empty(),
+        "the stalled reader's session must be closed"
+    );
+}
+
+/// The control loop saw no more overruns under attack than in the quiet window (plus a small
+/// tolerance).
+fn the_loop_kept_its_time(quiet: &RunReport, attack: &RunReport) {
+    println!(
+        "control loop (1 ms, fifo {:?}): quiet window {} ticks, {} overruns, {} skipped; \
+         attack window {} ticks, {} overruns, {} skipped",
+        quiet.rt.fifo,
+        quiet.ticks,
+        quiet.overruns,
+        quiet.skipped,
+        attack.ticks,
+        attack.overruns,
+        attack.skipped
+    );
+    let tolerance = 5 + attack.ticks / 100;
+    assert!(
+        attack.overruns <= quiet.overruns + tolerance,
+        "the attacks disturbed the loop: {} overruns against {} quiet (tolerance {tolerance})",
+        attack.overruns,
+        quiet.overruns
     );
 }
 

@@ -467,38 +467,7 @@ fn a_node_writes_only_its_own_context_and_only_an_admin_writes_anywhere() {
         naming(conn, bind(&format!("/{node}/sensors/ft"), node, false)).unwrap();
     }
 
-    // Node A against node B's context and registration.
-    assert!(forbidden(naming(
-        &mut a,
-        NamingCall::Unbind {
-            path: "/lab-b/sensors/ft".into()
-        }
-    )));
-    assert!(forbidden(naming(
-        &mut a,
-        bind("/lab-b/sensors/ft", "lab-a", true)
-    )));
-    assert!(forbidden(naming(
-        &mut a,
-        bind("/lab-b/other", "lab-a", false)
-    )));
-    assert!(forbidden(naming(
-        &mut a,
-        bind("/shared/ft", "lab-a", false)
-    )));
-    assert!(forbidden(naming(
-        &mut a,
-        NamingCall::Unregister {
-            node: "lab-b".into()
-        }
-    )));
-    assert!(forbidden(naming(&mut a, register("lab-b"))));
-    assert!(forbidden(naming(
-        &mut a,
-        NamingCall::Renew {
-            node: "lab-b".into()
-        }
-    )));
+    node_a_cannot_touch_node_bs_context_or_registration(&mut a);
     // B's entry is untouched.
     assert_eq!(
         tree.snapshot().resolve("/lab-b/sensors/ft").unwrap().node,
@@ -514,7 +483,62 @@ fn a_node_writes_only_its_own_context_and_only_an_admin_writes_anywhere() {
     )
     .unwrap();
 
-    // A reader reads and writes nothing.
+    let reader = a_reader_reads_and_writes_nothing(addr);
+
+    let mut admin = only_the_admin_secret_makes_an_admin(addr);
+    naming(&mut admin, bind("/shared/ft", "lab-b", false)).unwrap();
+    naming(
+        &mut admin,
+        NamingCall::Unregister {
+            node: "lab-b".into(),
+        },
+    )
+    .unwrap();
+    assert!(tree.snapshot().node("lab-b").is_none());
+    // B may unregister itself (it is gone already: the answer is the tree's, not Forbidden).
+    assert!(!forbidden(naming(
+        &mut b,
+        NamingCall::Unregister {
+            node: "lab-b".into()
+        }
+    )));
+    drop((a, b, reader, admin));
+    server.shutdown();
+
+    an_admin_claim_at_a_node_without_an_admin_secret_is_a_reader();
+}
+
+/// Node A against node B's context and registration: every write is forbidden.
+fn node_a_cannot_touch_node_bs_context_or_registration(a: &mut Connection) {
+    assert!(forbidden(naming(
+        a,
+        NamingCall::Unbind {
+            path: "/lab-b/sensors/ft".into()
+        }
+    )));
+    assert!(forbidden(naming(
+        a,
+        bind("/lab-b/sensors/ft", "lab-a", true)
+    )));
+    assert!(forbidden(naming(a, bind("/lab-b/other", "lab-a", false))));
+    assert!(forbidden(naming(a, bind("/shared/ft", "lab-a", false))));
+    assert!(forbidden(naming(
+        a,
+        NamingCall::Unregister {
+            node: "lab-b".into()
+        }
+    )));
+    assert!(forbidden(naming(a, register("lab-b"))));
+    assert!(forbidden(naming(
+        a,
+        NamingCall::Renew {
+            node: "lab-b".into()
+        }
+    )));
+}
+
+/// A reader reads and writes nothing; returns its connection, open.
+fn a_reader_reads_and_writes_nothing(addr: SocketAddr) -> Connection {
     let mut reader = Connection::connect(addr, &with_secret(ClientConfig::new("ctl"))).unwrap();
     assert!(
         naming(
@@ -535,8 +559,12 @@ fn a_node_writes_only_its_own_context_and_only_an_admin_writes_anywhere() {
             node: "lab-a".into()
         }
     )));
+    reader
+}
 
-    // An admin claim without the admin secret is refused; with it, it may unregister B.
+/// An admin claim without the admin secret, or with a wrong one, is refused; with it, the
+/// connection is an admin's (returned).
+fn only_the_admin_secret_makes_an_admin(addr: SocketAddr) -> Connection {
     assert!(matches!(
         Connection::connect(addr, &with_secret(ClientConfig::admin("ops"))),
         Err(RpcError::Remote(WireError::Protocol(
@@ -548,27 +576,11 @@ fn a_node_writes_only_its_own_context_and_only_an_admin_writes_anywhere() {
     assert!(Connection::connect(addr, &wrong).is_err());
     let mut cfg = with_secret(ClientConfig::admin("ops"));
     cfg.admin_secret = Some(ADMIN.into());
-    let mut admin = Connection::connect(addr, &cfg).unwrap();
-    naming(&mut admin, bind("/shared/ft", "lab-b", false)).unwrap();
-    naming(
-        &mut admin,
-        NamingCall::Unregister {
-            node: "lab-b".into(),
-        },
-    )
-    .unwrap();
-    assert!(tree.snapshot().node("lab-b").is_none());
-    // B may unregister itself (it is gone already: the answer is the tree's, not Forbidden).
-    assert!(!forbidden(naming(
-        &mut b,
-        NamingCall::Unregister {
-            node: "lab-b".into()
-        }
-    )));
-    drop((a, b, reader, admin));
-    server.shutdown();
+    Connection::connect(addr, &cfg).unwrap()
+}
 
-    // At a node without an admin secret, an admin claim is served as a reader.
+/// At a node without an admin secret, an admin claim is served as a reader.
+fn an_admin_claim_at_a_node_without_an_admin_secret_is_a_reader() {
     let (server, _) = naming_server(None);
     let mut cfg = with_secret(ClientConfig::admin("ops"));
     cfg.admin_secret = Some(ADMIN.into());

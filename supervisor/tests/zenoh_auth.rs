@@ -143,55 +143,9 @@ fn only_the_authenticated_operator_station_moves_the_slave_over_zenoh() {
     let rest = tool(&node);
     let taken = stats(&node).poses_taken;
 
-    // An authenticated participant that is no operator: it connects and may query the node,
-    // but its poses (2 cm away from the station's) are dropped by the access control.
-    let viewer = participant(port, Some(("viewer", "viewer-pw"))).unwrap();
-    wait_until("the viewer is connected to the node", || {
-        viewer.info().peers_zid().wait().next().is_some()
-    });
-    let intruder = viewer
-        .declare_publisher("station/hand/pose")
-        .wait()
-        .unwrap();
-    for i in 0..50 {
-        let x = start[0] + 0.02 + f64::from(i) * 1e-4;
-        intruder.put(pose([x, start[1], start[2]])).wait().unwrap();
-    }
-    // A query over the same link, after the puts: answered, so the node has seen them.
-    let replies = viewer.get("penelope/slave/objects").wait().unwrap();
-    let reply = replies
-        .recv_timeout(Duration::from_secs(20))
-        .expect("the node answers the viewer's query")
-        .expect("a reply");
-    assert!(reply.result().is_ok(), "the viewer may query");
-    assert_eq!(stats(&node).poses_taken, taken, "a viewer's pose was taken");
+    let (viewer, intruder) = a_viewers_poses_are_dropped(port, &node, start, taken);
 
-    // An anonymous participant: the node's transport refuses it (no credentials).
-    let anonymous = participant(port, None);
-    if let Ok(anonymous) = &anonymous {
-        let stranger = anonymous
-            .declare_publisher("station/hand/pose")
-            .wait()
-            .unwrap();
-        for _ in 0..50 {
-            stranger
-                .put(pose([start[0] - 0.02, start[1], start[2]]))
-                .wait()
-                .unwrap();
-        }
-        // Its attempt to connect is over once the station's own next pose is taken; it has
-        // no transport to the node.
-        let before = stats(&node).poses_taken;
-        wait_until("the station's pose after the stranger's", || {
-            hand.put(pose(start)).wait().unwrap();
-            stats(&node).poses_taken > before
-        });
-        assert_eq!(
-            anonymous.info().peers_zid().wait().count(),
-            0,
-            "an anonymous participant is connected"
-        );
-    }
+    let anonymous = an_anonymous_participant_gets_no_transport(port, &node, &hand, start);
     let after = stats(&node);
     println!(
         "anonymous session: {}; poses taken {} -> {} (the station's only), refused {}",
@@ -218,29 +172,106 @@ fn only_the_authenticated_operator_station_moves_the_slave_over_zenoh() {
     // cm away, and the slave stayed.
     drop(intruder);
 
-    // The station moves the slave 1 cm, at 25 mm/s (a jump would trip the velocity limit).
+    the_station_moves_the_slave_one_cm(&node, &hand, start, rest);
+    drop(hand);
+    let _ = station.close().wait();
+    let _ = viewer.close().wait();
+    node.shutdown();
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+/// An authenticated participant that is no operator: it connects and may query the node, but
+/// its poses (2 cm away from the station's) are dropped by the access control. Returns the
+/// participant and its publisher, still declared.
+fn a_viewers_poses_are_dropped(
+    port: u16,
+    node: &Node,
+    start: [f64; 3],
+    taken: u64,
+) -> (zenoh::Session, zenoh::pubsub::Publisher<'static>) {
+    let viewer = participant(port, Some(("viewer", "viewer-pw"))).unwrap();
+    wait_until("the viewer is connected to the node", || {
+        viewer.info().peers_zid().wait().next().is_some()
+    });
+    let intruder = viewer
+        .declare_publisher("station/hand/pose")
+        .wait()
+        .unwrap();
+    for i in 0..50 {
+        let x = start[0] + 0.02 + f64::from(i) * 1e-4;
+        intruder.put(pose([x, start[1], start[2]])).wait().unwrap();
+    }
+    // A query over the same link, after the puts: answered, so the node has seen them.
+    let replies = viewer.get("penelope/slave/objects").wait().unwrap();
+    let reply = replies
+        .recv_timeout(Duration::from_secs(20))
+        .expect("the node answers the viewer's query")
+        .expect("a reply");
+    assert!(reply.result().is_ok(), "the viewer may query");
+    assert_eq!(stats(node).poses_taken, taken, "a viewer's pose was taken");
+    (viewer, intruder)
+}
+
+/// An anonymous participant: the node's transport refuses it (no credentials). Returns its
+/// session (opened, never connected) or why it could not open one.
+fn an_anonymous_participant_gets_no_transport(
+    port: u16,
+    node: &Node,
+    hand: &zenoh::pubsub::Publisher<'_>,
+    start: [f64; 3],
+) -> zenoh::Result<zenoh::Session> {
+    let anonymous = participant(port, None);
+    if let Ok(anonymous) = &anonymous {
+        let stranger = anonymous
+            .declare_publisher("station/hand/pose")
+            .wait()
+            .unwrap();
+        for _ in 0..50 {
+            stranger
+                .put(pose([start[0] - 0.02, start[1], start[2]]))
+                .wait()
+                .unwrap();
+        }
+        // Its attempt to connect is over once the station's own next pose is taken; it has
+        // no transport to the node.
+        let before = stats(node).poses_taken;
+        wait_until("the station's pose after the stranger's", || {
+            hand.put(pose(start)).wait().unwrap();
+            stats(node).poses_taken > before
+        });
+        assert_eq!(
+            anonymous.info().peers_zid().wait().count(),
+            0,
+            "an anonymous participant is connected"
+        );
+    }
+    anonymous
+}
+
+/// The station moves the slave 1 cm, at 25 mm/s (a jump would trip the velocity limit).
+fn the_station_moves_the_slave_one_cm(
+    node: &Node,
+    hand: &zenoh::pubsub::Publisher<'_>,
+    start: [f64; 3],
+    rest: [f64; 3],
+) {
     for k in 1..=200u32 {
-        let taken = stats(&node).poses_taken;
+        let taken = stats(node).poses_taken;
         let to = [start[0] + 0.01 * f64::from(k) / 200.0, start[1], start[2]];
         hand.put(pose(to)).wait().unwrap();
         wait_until("the station's pose is taken", || {
-            stats(&node).poses_taken > taken
+            stats(node).poses_taken > taken
         });
-        advance(&node, 2);
+        advance(node, 2);
     }
-    advance(&node, 40);
-    let moved = tool(&node);
+    advance(node, 40);
+    let moved = tool(node);
     println!("the station moved the slave {:.4} m", distance(moved, rest));
     assert!(
         (distance(moved, rest) - 0.01).abs() < 2e-3,
         "the slave moved {} m, not 1 cm",
         distance(moved, rest)
     );
-    drop(hand);
-    let _ = station.close().wait();
-    let _ = viewer.close().wait();
-    node.shutdown();
-    let _ = std::fs::remove_dir_all(dir);
 }
 
 #[test]

@@ -14,7 +14,7 @@ use penelope_rt_core::cell::{LatestCell, Stamped, latest};
 use penelope_rt_core::comm::CommLoop;
 use penelope_rt_core::control::{ControlCommand, ControlConfig, ControlLoop, ControlPorts};
 use penelope_rt_core::controller::JointPid;
-use penelope_rt_core::exec::{self, Flow, PeriodicConfig};
+use penelope_rt_core::exec::{self, Flow, PeriodicConfig, PeriodicThread, Tick};
 use penelope_rt_core::ring::{Ring, ring};
 use penelope_rt_core::safety::{SafetyConfig, SafetyEvent, SafetyState};
 use penelope_rt_core::sim::{self, SimRunner, SimTask};
@@ -45,20 +45,8 @@ fn the_counter_sees_allocations() {
 
 #[test]
 fn control_and_comm_loops_allocate_nothing_over_100k_simulated_cycles() {
-    let model = DecoupledChain::six_joint();
     let start_q = JointVector::from([0.1, -0.2, 0.3, 0.0, 0.2, -0.1]);
-    let board = ChainBoard::new(model.clone(), CPR)
-        .with_position(start_q)
-        .with_noise(2, 42);
-    let config = ControlConfig::new(
-        Duration::from_millis(1),
-        SafetyConfig::slave(6, *model.limits()),
-    )
-    .with_counts_per_radian(CPR);
-    let controllers = [
-        JointPid::new(critically_damped_gains(&model, 40.0)),
-        JointPid::new(critically_damped_gains(&model, 20.0)),
-    ];
+    let (model, board, config, controllers) = a_noisy_six_joint_chain_and_two_pids(start_q);
 
     let reference = LatestCell::<Stamped<Reference>>::new();
     let (ref_tx, ref_rx) = reference.split().unwrap();
@@ -97,11 +85,7 @@ fn control_and_comm_loops_allocate_nothing_over_100k_simulated_cycles() {
                     }),
                 );
             }
-            let t_ms = now.as_nanos() / 1_000_000;
-            // Reference gaps: 100 ms every 20 s (hold, then recover); 1 s at 50 s (fault).
-            let short_gap = t_ms % 20_000 >= 10_000 && t_ms % 20_000 < 10_100;
-            let long_gap = (50_000..51_000).contains(&t_ms);
-            if !short_gap && !long_gap {
+            if !reference_cut(now.as_nanos() / 1_000_000) {
                 comm.tick(now);
             }
         });
@@ -119,21 +103,7 @@ fn control_and_comm_loops_allocate_nothing_over_100k_simulated_cycles() {
     let mut events = [0u64; SafetyEvent::ALL.len()];
     let mut samples = 0u64;
     let mut operator_body = |now: Timestamp| {
-        let t_ms = now.as_nanos() / 1_000_000;
-        let command = match t_ms {
-            0 => Some(ControlCommand::Activate),
-            // The e-stop after the gap at 70 s, so the trajectory restarted at the activation
-            // is published from its start, where the robot is held (one restarted inside the
-            // gap would first be seen 60 ms along, and a reset starts no motion: not followed).
-            51_500 | 70_230 => Some(ControlCommand::Rearm),
-            51_505 | 70_235 => Some(ControlCommand::Activate),
-            70_200 => Some(ControlCommand::EStop),
-            t if t % 1_000 == 500 => {
-                Some(ControlCommand::SwitchController(((t / 1_000) % 2) as u8))
-            }
-            _ => None,
-        };
-        if let Some(c) = command {
+        if let Some(c) = operator_command(now.as_nanos() / 1_000_000) {
             cmd_tx.push(c).unwrap();
         }
         while let Some(s) = tel_rx.pop() {
@@ -167,7 +137,57 @@ fn control_and_comm_loops_allocate_nothing_over_100k_simulated_cycles() {
         (0, 0),
         "the communication loop allocated/freed (allocs, frees)"
     );
-    // The run did what it claims.
+    the_run_did_what_it_claims(&events, samples);
+    assert_eq!(control.safety().state(), SafetyState::Running);
+}
+
+/// The plant of the simulated run: a six-joint chain at `start_q` on a board with encoder
+/// noise, its 1 ms slave control configuration, and two joint PIDs to switch between.
+fn a_noisy_six_joint_chain_and_two_pids(
+    start_q: JointVector,
+) -> (DecoupledChain, ChainBoard, ControlConfig, [JointPid; 2]) {
+    let model = DecoupledChain::six_joint();
+    let board = ChainBoard::new(model.clone(), CPR)
+        .with_position(start_q)
+        .with_noise(2, 42);
+    let config = ControlConfig::new(
+        Duration::from_millis(1),
+        SafetyConfig::slave(6, *model.limits()),
+    )
+    .with_counts_per_radian(CPR);
+    let controllers = [
+        JointPid::new(critically_damped_gains(&model, 40.0)),
+        JointPid::new(critically_damped_gains(&model, 20.0)),
+    ];
+    (model, board, config, controllers)
+}
+
+/// Whether the reference is cut at `t_ms`: 100 ms every 20 s (hold, then recover); 1 s at
+/// 50 s (fault).
+fn reference_cut(t_ms: u64) -> bool {
+    let short_gap = t_ms % 20_000 >= 10_000 && t_ms % 20_000 < 10_100;
+    let long_gap = (50_000..51_000).contains(&t_ms);
+    short_gap || long_gap
+}
+
+/// The operator's command at `t_ms`: activate, a controller switch every second, re-arms after
+/// the fault and after an e-stop.
+fn operator_command(t_ms: u64) -> Option<ControlCommand> {
+    match t_ms {
+        0 => Some(ControlCommand::Activate),
+        // The e-stop after the gap at 70 s, so the trajectory restarted at the activation
+        // is published from its start, where the robot is held (one restarted inside the
+        // gap would first be seen 60 ms along, and a reset starts no motion: not followed).
+        51_500 | 70_230 => Some(ControlCommand::Rearm),
+        51_505 | 70_235 => Some(ControlCommand::Activate),
+        70_200 => Some(ControlCommand::EStop),
+        t if t % 1_000 == 500 => Some(ControlCommand::SwitchController(((t / 1_000) % 2) as u8)),
+        _ => None,
+    }
+}
+
+/// The run did what it claims: the safety events it provokes, counted from the telemetry.
+fn the_run_did_what_it_claims(events: &[u64; SafetyEvent::ALL.len()], samples: u64) {
     let count = |e: SafetyEvent| events[e as usize];
     assert!(samples >= 100_000);
     assert!(
@@ -184,7 +204,6 @@ fn control_and_comm_loops_allocate_nothing_over_100k_simulated_cycles() {
     assert_eq!(count(SafetyEvent::Faulted), 1);
     assert_eq!(count(SafetyEvent::EStopped), 1);
     assert_eq!(count(SafetyEvent::Rearmed), 2);
-    assert_eq!(control.safety().state(), SafetyState::Running);
 }
 
 #[test]
@@ -219,48 +238,25 @@ fn periodic_threads_allocate_nothing_between_ticks() {
         hold_dma_latency: false,
         ..PeriodicConfig::new(name, period).normal_priority()
     };
-    // Counting starts in the first tick and stops in the last, so it covers the executor's own
-    // work between ticks (sleep, clock, histogram, live statistics) as well as the loops.
     let control_counts = Arc::new([AtomicU64::new(u64::MAX), AtomicU64::new(u64::MAX)]);
     let comm_counts = Arc::new([AtomicU64::new(u64::MAX), AtomicU64::new(u64::MAX)]);
-    let report_to = |since: (u64, u64), out: &[AtomicU64; 2]| {
-        let (a, f) = counts();
-        out[0].store(a - since.0, Ordering::Relaxed);
-        out[1].store(f - since.1, Ordering::Relaxed);
-    };
-    let out = control_counts.clone();
-    let mut first_tick_counts = None;
-    let control_thread = exec::spawn(
+    let control_thread = counted_thread(
         thread_config("alloc-control", Duration::from_micros(500)),
+        TICKS,
+        control_counts.clone(),
         move |tick| {
-            let since = *first_tick_counts.get_or_insert_with(counts);
             control.tick(tick.deadline);
             control.note_timing(tick.latency(), tick.previous_exec);
-            if tick.index + 1 == TICKS {
-                report_to(since, &out);
-                Flow::Stop
-            } else {
-                Flow::Continue
-            }
         },
-    )
-    .unwrap();
-    let out = comm_counts.clone();
-    let mut first_tick_counts = None;
-    let comm_thread = exec::spawn(
+    );
+    let comm_thread = counted_thread(
         thread_config("alloc-comm", Duration::from_millis(1)),
+        TICKS / 2,
+        comm_counts.clone(),
         move |tick| {
-            let since = *first_tick_counts.get_or_insert_with(counts);
             comm.tick(tick.deadline);
-            if tick.index + 1 == TICKS / 2 {
-                report_to(since, &out);
-                Flow::Stop
-            } else {
-                Flow::Continue
-            }
         },
-    )
-    .unwrap();
+    );
     let mut received = 0u64;
     let mut running = false;
     while !control_thread.is_finished() {
@@ -290,6 +286,32 @@ fn periodic_threads_allocate_nothing_between_ticks() {
     assert_eq!(comm_report.ticks, TICKS / 2);
     assert!(running, "the control loop never ran its controller");
     assert_eq!(received + tel_rx.dropped() as u64, TICKS);
+}
+
+/// A periodic thread running `body` for `ticks` ticks, then stopping; the process's
+/// allocations and frees from its first tick to its last go to `out`. Counting starts in the
+/// first tick and stops in the last, so it covers the executor's own work between ticks (sleep,
+/// clock, histogram, live statistics) as well as the body.
+fn counted_thread(
+    config: PeriodicConfig,
+    ticks: u64,
+    out: Arc<[AtomicU64; 2]>,
+    mut body: impl FnMut(&Tick) + Send + 'static,
+) -> PeriodicThread {
+    let mut first_tick_counts = None;
+    exec::spawn(config, move |tick| {
+        let since = *first_tick_counts.get_or_insert_with(counts);
+        body(&tick);
+        if tick.index + 1 == ticks {
+            let (a, f) = counts();
+            out[0].store(a - since.0, Ordering::Relaxed);
+            out[1].store(f - since.1, Ordering::Relaxed);
+            Flow::Stop
+        } else {
+            Flow::Continue
+        }
+    })
+    .unwrap()
 }
 
 /// The wave-variable halves and the two-port passivity controller, as the communication and

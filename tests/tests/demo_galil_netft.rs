@@ -78,21 +78,7 @@ fn the_galil_demo_with_a_net_ft_displays_the_wall_and_drops_to_zero_on_a_sensor_
     )
     .unwrap();
 
-    assert_eq!(DEMO_GALIL_NETFT.matches(DEVICE_LINE).count(), 1);
-    assert_eq!(DEMO_GALIL_NETFT.matches(ADDRESS_LINE).count(), 1);
-    let text = DEMO_GALIL_NETFT
-        .replace(
-            DEVICE_LINE,
-            // A board watchdog and a command timeout of 250 ms instead of 30 and 50: this test
-            // shares a loaded host, and a watchdog trip there is not what it is about (the
-            // watchdogs have their own tests).
-            &format!(
-                "device = \"{}\"\nwatchdog_ms = 250\ncommand_timeout_ms = 250",
-                dmc.path().display()
-            ),
-        )
-        .replace(ADDRESS_LINE, &format!("address = \"{}\"", ft.local_addr()));
-    let file = SystemFile::parse(&text).unwrap();
+    let file = the_demo_file_on_the_emulators(&dmc, &ft);
     let options = RunOptions {
         duration: Some(WHOLE_SCRIPT),
         clock: ClockMode::RealTime,
@@ -103,32 +89,7 @@ fn the_galil_demo_with_a_net_ft_displays_the_wall_and_drops_to_zero_on_a_sensor_
     // report's steady window, the second half of the contact phase), an error status for
     // FAULT_FOR, then healthy again. Bounded polls on the emulator's own contact force.
     let fault = std::thread::scope(|scope| {
-        let injector = scope.spawn(|| {
-            let give_up = Instant::now() + WHOLE_SCRIPT + Duration::from_secs(10);
-            let mut pressing_since: Option<Instant> = None;
-            loop {
-                if Instant::now() > give_up {
-                    return None;
-                }
-                std::thread::sleep(Duration::from_millis(1));
-                if ft.true_force_n() > 1.0 {
-                    let since = *pressing_since.get_or_insert_with(Instant::now);
-                    if since.elapsed() >= Duration::from_millis(300) {
-                        break;
-                    }
-                } else {
-                    pressing_since = None;
-                }
-            }
-            ft.faults().status(Status::ERROR | 0x20);
-            let at = ft.faults().injected_at();
-            let until = Instant::now() + FAULT_FOR;
-            while Instant::now() < until {
-                std::thread::sleep(Duration::from_millis(1));
-            }
-            ft.faults().clear();
-            at
-        });
+        let injector = scope.spawn(|| a_sensor_fault_once_the_wall_pushes(&ft));
         let out = run(&file, &options, &mut |_| {}).expect("the galil demo with a net f/t runs");
         (out, injector.join().unwrap())
     });
@@ -180,4 +141,52 @@ fn the_galil_demo_with_a_net_ft_displays_the_wall_and_drops_to_zero_on_a_sensor_
         sensor_errors > 100,
         "slave sensor-error ticks: {sensor_errors}"
     );
+}
+
+/// The demo file with the board on `dmc`'s line and the sensor at `ft`'s address.
+fn the_demo_file_on_the_emulators(dmc: &PtyEmulator, ft: &NetFtEmulator) -> SystemFile {
+    assert_eq!(DEMO_GALIL_NETFT.matches(DEVICE_LINE).count(), 1);
+    assert_eq!(DEMO_GALIL_NETFT.matches(ADDRESS_LINE).count(), 1);
+    let text = DEMO_GALIL_NETFT
+        .replace(
+            DEVICE_LINE,
+            // A board watchdog and a command timeout of 250 ms instead of 30 and 50: this test
+            // shares a loaded host, and a watchdog trip there is not what it is about (the
+            // watchdogs have their own tests).
+            &format!(
+                "device = \"{}\"\nwatchdog_ms = 250\ncommand_timeout_ms = 250",
+                dmc.path().display()
+            ),
+        )
+        .replace(ADDRESS_LINE, &format!("address = \"{}\"", ft.local_addr()));
+    SystemFile::parse(&text).unwrap()
+}
+
+/// Once the wall has pushed for 300 ms without a break, an error status for [`FAULT_FOR`],
+/// then healthy again; returns when it was injected (`None` if the wall never pushed).
+fn a_sensor_fault_once_the_wall_pushes(ft: &NetFtEmulator) -> Option<Timestamp> {
+    let give_up = Instant::now() + WHOLE_SCRIPT + Duration::from_secs(10);
+    let mut pressing_since: Option<Instant> = None;
+    loop {
+        if Instant::now() > give_up {
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+        if ft.true_force_n() > 1.0 {
+            let since = *pressing_since.get_or_insert_with(Instant::now);
+            if since.elapsed() >= Duration::from_millis(300) {
+                break;
+            }
+        } else {
+            pressing_since = None;
+        }
+    }
+    ft.faults().status(Status::ERROR | 0x20);
+    let at = ft.faults().injected_at();
+    let until = Instant::now() + FAULT_FOR;
+    while Instant::now() < until {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    ft.faults().clear();
+    at
 }

@@ -9,9 +9,9 @@ use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use penelope_hal::{LifecycleState, NamedPose};
+use penelope_hal::{LifecycleState, NamedPose, Pose};
 use penelope_protocol::client::{
-    Client, ControllerProxy, Lifecycle, RobotProxy, SensorProxy, TrajectoryProxy,
+    Client, ControllerProxy, Lifecycle, NodeProxy, RobotProxy, SensorProxy, TrajectoryProxy,
 };
 use penelope_protocol::net::conn::{ClientConfig, RpcError};
 use penelope_protocol::net::server::{NetError, Server, ServerConfig};
@@ -63,19 +63,7 @@ fn two_nodes_a_client_and_the_naming_tree() {
     let b = client.node("B").unwrap();
     assert!(a.kinds().unwrap().iter().any(|k| k.kind == "robot/puma560"));
 
-    // Node A: a simulated board and a PUMA 560 mapped onto it.
-    a.create("board/sim", "sim0", "").unwrap();
-    let robot: RobotProxy = a.create_as("robot/puma560", "slave", "").unwrap();
-    robot
-        .map_joints("sim0", &(0..6).map(|j| (j, j)).collect::<Vec<_>>())
-        .unwrap();
-    client
-        .object("/A/boards/sim0")
-        .unwrap()
-        .configure()
-        .unwrap();
-    robot.configure().unwrap();
-    assert_eq!(robot.path(), "/A/robots/slave");
+    let robot = a_puma_on_a_simulated_board(&client, &a);
 
     // Remote methods on the robot: joint positions and forward kinematics.
     let q = robot.joint_positions().unwrap();
@@ -88,11 +76,67 @@ fn two_nodes_a_client_and_the_naming_tree() {
     let tool_at = robot.forward_kinematics(Some(&q_start)).unwrap();
     assert!((tool.translation.vector - tool_at.translation.vector).norm() < 1e-3);
 
-    // Node B: a virtual force sensor whose floor (free space above) is 1 cm above the tool (so the
-    // probe pushes into it: about 5000 N/m × 0.01 m = 50 N along +z).
+    let sensor = a_wall_just_above_the_tool(&b, &tool);
+
+    let pid = a_pid_reading_the_sensor_on_b(&a);
+    assert_eq!(
+        entries(&client, "/A"),
+        [
+            "boards/",
+            "controllers/",
+            "creator",
+            "robots/",
+            "trajectories/"
+        ]
+    );
+    assert_eq!(entries(&client, "/B/sensors"), ["ft"]);
+
+    telemetry_carries_the_wrench_b_publishes(&client, &pid, &sensor);
+
+    everything_goes_but_what_an_active_object_uses_first(&client, &a, &b, &pid);
+
+    // A node killed mid-run (with an object bound) expires after its lease.
+    b.create("sensor/virtual", "ft2", "").unwrap();
+    assert_eq!(entries(&client, "/B/sensors"), ["ft2"]);
+    node_b.kill();
+    // Node A keeps renewing all along.
+    std::thread::sleep(LEASE * 2);
+    assert_eq!(entries(&client, "/"), ["A/"]);
+    assert!(matches!(
+        client.resolve("/B/sensors/ft2"),
+        Err(RpcError::Remote(WireError::Call(CallError::UnknownName(_))))
+    ));
+    naming.snapshot().check_invariants().unwrap();
+
+    // A clean shutdown unregisters at once.
+    node_a.shutdown();
+    assert!(entries(&client, "/").is_empty());
+    naming_server.shutdown();
+}
+
+/// Node A: a simulated board and a PUMA 560 mapped onto it, both configured.
+fn a_puma_on_a_simulated_board(client: &Client, a: &NodeProxy) -> RobotProxy {
+    a.create("board/sim", "sim0", "").unwrap();
+    let robot: RobotProxy = a.create_as("robot/puma560", "slave", "").unwrap();
+    robot
+        .map_joints("sim0", &(0..6).map(|j| (j, j)).collect::<Vec<_>>())
+        .unwrap();
+    client
+        .object("/A/boards/sim0")
+        .unwrap()
+        .configure()
+        .unwrap();
+    robot.configure().unwrap();
+    assert_eq!(robot.path(), "/A/robots/slave");
+    robot
+}
+
+/// Node B: a virtual force sensor whose floor (free space above) is 1 cm above the tool (so
+/// the probe pushes into it: about 5000 N/m × 0.01 m = 50 N along +z), published on the data
+/// plane (any free port on loopback): node A reads it there.
+fn a_wall_just_above_the_tool(b: &NodeProxy, tool: &Pose) -> SensorProxy {
     let p = tool.translation.vector;
     let wall_z = p.z + 0.01;
-    // Published on the data plane (any free port on loopback): node A reads it there.
     let sensor_config = format!(
         "publish = \"127.0.0.1:0\"\n[[shapes]]\nkind = \"plane\"\npoint = [{}, {}, {wall_z}]\n\
          normal = [0.0, 0.0, 1.0]\n",
@@ -101,14 +145,17 @@ fn two_nodes_a_client_and_the_naming_tree() {
     let sensor: SensorProxy = b.create_as("sensor/virtual", "ft", &sensor_config).unwrap();
     sensor.configure().unwrap();
     let velocity = nalgebra::Vector3::zeros();
-    let w = sensor.measure(&tool, &velocity).unwrap();
+    let w = sensor.measure(tool, &velocity).unwrap();
     assert!(
         w.force.norm() > 1.0,
         "the probe at the tool touches the wall: {w:?}"
     );
+    sensor
+}
 
-    // Node A: a trajectory and a controller bound to the robot, the trajectory and the remote
-    // sensor by its naming path.
+/// Node A: a trajectory and a controller bound to the robot, the trajectory and the remote
+/// sensor by its naming path, active.
+fn a_pid_reading_the_sensor_on_b(a: &NodeProxy) -> ControllerProxy {
     let trajectory: TrajectoryProxy = a
         .create_as(
             "trajectory/spline",
@@ -124,20 +171,16 @@ fn two_nodes_a_client_and_the_naming_tree() {
     pid.configure().unwrap();
     pid.activate().unwrap();
     assert_eq!(pid.state().unwrap(), LifecycleState::Active);
-    assert_eq!(
-        entries(&client, "/A"),
-        [
-            "boards/",
-            "controllers/",
-            "creator",
-            "robots/",
-            "trajectories/"
-        ]
-    );
-    assert_eq!(entries(&client, "/B/sensors"), ["ft"]);
+    pid
+}
 
-    // Telemetry: batches with increasing seq, and the wrench B publishes on the data plane
-    // visible in A's loop.
+/// Telemetry: batches with increasing seq, and the wrench B publishes on the data plane
+/// visible in A's loop.
+fn telemetry_carries_the_wrench_b_publishes(
+    client: &Client,
+    pid: &ControllerProxy,
+    sensor: &SensorProxy,
+) {
     let mut stream = client.subscribe("/A/controllers/pid", 1).unwrap();
     let mut last_seq = None;
     let mut samples = 0;
@@ -172,8 +215,16 @@ fn two_nodes_a_client_and_the_naming_tree() {
     let read = sensor.read().unwrap();
     assert!(read.force.norm() > 1.0, "{read:?}");
     drop(stream);
+}
 
-    // Destroying what an active object depends on is refused; then everything goes.
+/// Destroying what an active object depends on is refused; then everything goes, and the
+/// naming tree shows only the creators.
+fn everything_goes_but_what_an_active_object_uses_first(
+    client: &Client,
+    a: &NodeProxy,
+    b: &NodeProxy,
+    pid: &ControllerProxy,
+) {
     assert!(matches!(
         a.destroy("slave", false),
         Err(RpcError::Remote(WireError::Call(CallError::InUse { .. })))
@@ -185,31 +236,13 @@ fn two_nodes_a_client_and_the_naming_tree() {
     b.destroy("ft", false).unwrap();
     assert!(a.list().unwrap().is_empty());
     assert!(b.list().unwrap().is_empty());
-    assert_eq!(entries(&client, "/"), ["A/", "B/"]);
-    assert_eq!(entries(&client, "/A"), ["creator"]);
-    assert_eq!(entries(&client, "/B"), ["creator"]);
+    assert_eq!(entries(client, "/"), ["A/", "B/"]);
+    assert_eq!(entries(client, "/A"), ["creator"]);
+    assert_eq!(entries(client, "/B"), ["creator"]);
     assert!(matches!(
         client.resolve("/B/sensors/ft"),
         Err(RpcError::Remote(WireError::Call(CallError::UnknownName(_))))
     ));
-
-    // A node killed mid-run (with an object bound) expires after its lease.
-    b.create("sensor/virtual", "ft2", "").unwrap();
-    assert_eq!(entries(&client, "/B/sensors"), ["ft2"]);
-    node_b.kill();
-    // Node A keeps renewing all along.
-    std::thread::sleep(LEASE * 2);
-    assert_eq!(entries(&client, "/"), ["A/"]);
-    assert!(matches!(
-        client.resolve("/B/sensors/ft2"),
-        Err(RpcError::Remote(WireError::Call(CallError::UnknownName(_))))
-    ));
-    naming.snapshot().check_invariants().unwrap();
-
-    // A clean shutdown unregisters at once.
-    node_a.shutdown();
-    assert!(entries(&client, "/").is_empty());
-    naming_server.shutdown();
 }
 
 /// The same system behind a shared secret: the naming service and both nodes require it, the

@@ -19,7 +19,7 @@ use penelope_rt_core::control::{
     ControlCommand, ControlConfig, ControlLoop, ControlPorts, NoCommands,
 };
 use penelope_rt_core::safety::{SafetyConfig, SafetyState};
-use penelope_runtime::objects::runtime::{JointBoard, JointBoardError, SimDrive};
+use penelope_runtime::objects::runtime::{JointBoard, JointBoardError, SimDrive, SimObserver};
 use penelope_testkit::wait::wait_until;
 use penelope_tests::fixtures::{ConstantTorque, Discard, HangableThread};
 
@@ -103,27 +103,7 @@ fn hang_in_torque_mode(mut board: JointBoard, what: &str) -> Duration {
             .unwrap_or(false)
     });
     let delay = hung_at.elapsed();
-    let (stale_at, last_effort, held, enabled) = observer
-        .with_body(|b| {
-            (
-                b.command_stale_since().expect("tripped"),
-                b.plant().snapshot().joints.effort,
-                b.held_commands().to_vec(),
-                b.is_enabled(),
-            )
-        })
-        .expect("the drive is alive");
-    assert!(!enabled, "{what}: amplifiers still on");
-    assert!(
-        held.iter().all(|c| *c == AxisCommand::Off),
-        "{what}: {held:?}"
-    );
-    assert_eq!(last_effort, JointVector::zeros(), "{what}: torque left on");
-    // The world goes on without the control thread: the arm falls with no torque held.
-    let plant_then = observer.with_body(|b| b.plant().snapshot().time).unwrap();
-    wait_until("the plant keeps moving", || {
-        observer.with_body(|b| b.plant().snapshot().time).unwrap() > plant_then
-    });
+    let stale_at = the_drive_is_off_and_the_world_goes_on(&observer, what);
 
     // Let the thread go: its loop finds the board faulted, and says why.
     let now = thread.now();
@@ -149,6 +129,34 @@ fn hang_in_torque_mode(mut board: JointBoard, what: &str) -> Duration {
     assert!(!body.is_enabled(), "{what}: amplifiers on after the fault");
     assert!(body.plant().snapshot().time >= stale_at);
     delay
+}
+
+/// After the trip: amplifiers off, nothing held, no torque left on; and the world goes on
+/// without the control thread (the arm falls with no torque held). Returns when the command
+/// went stale.
+fn the_drive_is_off_and_the_world_goes_on(observer: &SimObserver, what: &str) -> Timestamp {
+    let (stale_at, last_effort, held, enabled) = observer
+        .with_body(|b| {
+            (
+                b.command_stale_since().expect("tripped"),
+                b.plant().snapshot().joints.effort,
+                b.held_commands().to_vec(),
+                b.is_enabled(),
+            )
+        })
+        .expect("the drive is alive");
+    assert!(!enabled, "{what}: amplifiers still on");
+    assert!(
+        held.iter().all(|c| *c == AxisCommand::Off),
+        "{what}: {held:?}"
+    );
+    assert_eq!(last_effort, JointVector::zeros(), "{what}: torque left on");
+    // The world goes on without the control thread: the arm falls with no torque held.
+    let plant_then = observer.with_body(|b| b.plant().snapshot().time).unwrap();
+    wait_until("the plant keeps moving", || {
+        observer.with_body(|b| b.plant().snapshot().time).unwrap() > plant_then
+    });
+    stale_at
 }
 
 fn check(delay: Duration, what: &str) {

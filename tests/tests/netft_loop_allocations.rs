@@ -6,6 +6,7 @@
 //! The counting allocator counts the allocations of this test's thread; this binary holds this
 //! one test only.
 
+use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use penelope_drivers::netft::Status;
@@ -26,7 +27,6 @@ static GLOBAL: CountingAllocator = CountingAllocator;
 
 #[test]
 fn control_ticks_reading_a_net_ft_allocate_nothing() {
-    use penelope_protocol::service::Service;
     let emu = NetFtEmulator::spawn(EmulatorConfig::default(), |_t: Duration| {
         [0.0, 0.0, 2.0, 0.0, 0.0, 0.0]
     })
@@ -34,57 +34,7 @@ fn control_ticks_reading_a_net_ft_allocate_nothing() {
     let mut config = CreatorConfig::new("alloc");
     config.rt.priority = None;
     let c = Creator::new(config);
-    let (outbox, _rx) = Outbox::bounded(16);
-    let s = Session {
-        id: 1,
-        peer: "127.0.0.1:1".parse().unwrap(),
-        client: "test".into(),
-        identity: penelope_protocol::service::Identity::IN_PROCESS,
-        outbox,
-    };
-    let ft = format!("address = \"{}\"\ntimeout_ms = 50", emu.local_addr());
-    for (kind, name, cfg) in [
-        ("robot/puma560", "arm", ""),
-        ("board/sim", "sim", ""),
-        ("trajectory/step", "hold", "pose = \"start\""),
-        ("controller/joint-pid", "pid", ""),
-        ("sensor/netft", "ft", ft.as_str()),
-    ] {
-        c.call(
-            &s,
-            Call::Creator(CreatorCall::Create {
-                kind: kind.into(),
-                name: name.into(),
-                config: cfg.into(),
-            }),
-        )
-        .unwrap();
-    }
-    call_object(
-        &c,
-        "arm",
-        Method::Robot(RobotMethod::MapJoints {
-            board: "sim".into(),
-            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
-        }),
-    );
-    for name in ["sim", "arm", "hold", "ft"] {
-        call_object(&c, name, Method::Transition(Transition::Configure));
-    }
-    for m in [
-        ControllerMethod::SetRobot {
-            robot: "arm".into(),
-        },
-        ControllerMethod::SetTrajectory {
-            trajectory: "hold".into(),
-        },
-        ControllerMethod::SetSensor {
-            sensor: "ft".into(),
-        },
-    ] {
-        call_object(&c, "pid", Method::Controller(m));
-    }
-    call_object(&c, "pid", Method::Transition(Transition::Configure));
+    a_pid_on_a_puma_reading_the_net_ft(&c, emu.local_addr());
 
     let mut d = c.detach_loop("pid").expect("the loop builds");
     assert!(d.wrench.is_none(), "a Net F/T is read in the loop, not fed");
@@ -138,4 +88,61 @@ fn control_ticks_reading_a_net_ft_allocate_nothing() {
     assert_eq!(during_fault, 0, "{during_fault} allocations, faulted");
     assert!(healthy > 4_000, "healthy ticks: {healthy}");
     assert_eq!(errors, 1000, "sensor-error ticks");
+}
+
+/// On `c`: a PUMA 560 on a simulated board holding its start pose, a Net F/T sensor at
+/// `address`, and a joint PID bound to them, all configured.
+fn a_pid_on_a_puma_reading_the_net_ft(c: &Creator, address: SocketAddr) {
+    use penelope_protocol::service::Service;
+    let (outbox, _rx) = Outbox::bounded(16);
+    let s = Session {
+        id: 1,
+        peer: "127.0.0.1:1".parse().unwrap(),
+        client: "test".into(),
+        identity: penelope_protocol::service::Identity::IN_PROCESS,
+        outbox,
+    };
+    let ft = format!("address = \"{}\"\ntimeout_ms = 50", address);
+    for (kind, name, cfg) in [
+        ("robot/puma560", "arm", ""),
+        ("board/sim", "sim", ""),
+        ("trajectory/step", "hold", "pose = \"start\""),
+        ("controller/joint-pid", "pid", ""),
+        ("sensor/netft", "ft", ft.as_str()),
+    ] {
+        c.call(
+            &s,
+            Call::Creator(CreatorCall::Create {
+                kind: kind.into(),
+                name: name.into(),
+                config: cfg.into(),
+            }),
+        )
+        .unwrap();
+    }
+    call_object(
+        c,
+        "arm",
+        Method::Robot(RobotMethod::MapJoints {
+            board: "sim".into(),
+            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
+        }),
+    );
+    for name in ["sim", "arm", "hold", "ft"] {
+        call_object(c, name, Method::Transition(Transition::Configure));
+    }
+    for m in [
+        ControllerMethod::SetRobot {
+            robot: "arm".into(),
+        },
+        ControllerMethod::SetTrajectory {
+            trajectory: "hold".into(),
+        },
+        ControllerMethod::SetSensor {
+            sensor: "ft".into(),
+        },
+    ] {
+        call_object(c, "pid", Method::Controller(m));
+    }
+    call_object(c, "pid", Method::Transition(Transition::Configure));
 }

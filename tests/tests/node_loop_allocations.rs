@@ -25,81 +25,7 @@ fn fifty_thousand_node_loop_ticks_allocate_nothing() {
     let mut config = CreatorConfig::new("alloc");
     config.rt.priority = None;
     let c = Creator::new(config);
-    let (outbox, _rx) = Outbox::bounded(16);
-    let s = Session {
-        id: 1,
-        peer: "127.0.0.1:1".parse().unwrap(),
-        client: "test".into(),
-        identity: penelope_protocol::service::Identity::IN_PROCESS,
-        outbox,
-    };
-    for (kind, name, cfg) in [
-        ("robot/puma560", "arm", ""),
-        (
-            "board/sim",
-            "sim",
-            "[[shapes]]\nkind = \"plane\"\npoint = [0, 0, -5]",
-        ),
-        (
-            "trajectory/trapezoidal",
-            "move",
-            "pose = \"work\"\nmax_velocity = 0.5",
-        ),
-        ("controller/joint-pid", "pid", ""),
-    ] {
-        c.call(
-            &s,
-            Call::Creator(CreatorCall::Create {
-                kind: kind.into(),
-                name: name.into(),
-                config: cfg.into(),
-            }),
-        )
-        .unwrap();
-    }
-    call_object(
-        &c,
-        "arm",
-        Method::Robot(RobotMethod::MapJoints {
-            board: "sim".into(),
-            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
-        }),
-    );
-    for name in ["sim", "arm", "move"] {
-        call_object(&c, name, Method::Transition(Transition::Configure));
-    }
-    call_object(
-        &c,
-        "pid",
-        Method::Controller(ControllerMethod::SetRobot {
-            robot: "arm".into(),
-        }),
-    );
-    call_object(
-        &c,
-        "pid",
-        Method::Controller(ControllerMethod::SetTrajectory {
-            trajectory: "move".into(),
-        }),
-    );
-    call_object(
-        &c,
-        "pid",
-        Method::Controller(ControllerMethod::SetSensor {
-            sensor: "arm-ft".into(),
-        }),
-    );
-    c.call(
-        &s,
-        Call::Creator(CreatorCall::Create {
-            kind: "sensor/virtual".into(),
-            name: "arm-ft".into(),
-            config: String::new(),
-        }),
-    )
-    .unwrap();
-    call_object(&c, "arm-ft", Method::Transition(Transition::Configure));
-    call_object(&c, "pid", Method::Transition(Transition::Configure));
+    a_pid_on_a_puma_with_a_virtual_sensor(&c);
 
     let mut detached = c.detach_loop("pid").expect("the loop builds");
     let mut wrench = detached.wrench.take().expect("a sensor is bound");
@@ -137,4 +63,84 @@ fn fifty_thousand_node_loop_ticks_allocate_nothing() {
     assert_eq!(last.seq, 50_000);
     assert_eq!(last.state, SafetyState::Running, "fault: {:?}", last.fault);
     assert!(detached.comm.published() > 20_000);
+}
+
+/// On `c`: a PUMA 560 on a simulated board, a trapezoidal move to `work`, a virtual force
+/// sensor, and a joint PID bound to them, all configured.
+fn a_pid_on_a_puma_with_a_virtual_sensor(c: &Creator) {
+    let (outbox, _rx) = Outbox::bounded(16);
+    let s = Session {
+        id: 1,
+        peer: "127.0.0.1:1".parse().unwrap(),
+        client: "test".into(),
+        identity: penelope_protocol::service::Identity::IN_PROCESS,
+        outbox,
+    };
+    for (kind, name, cfg) in [
+        ("robot/puma560", "arm", ""),
+        (
+            "board/sim",
+            "sim",
+            "[[shapes]]\nkind = \"plane\"\npoint = [0, 0, -5]",
+        ),
+        (
+            "trajectory/trapezoidal",
+            "move",
+            "pose = \"work\"\nmax_velocity = 0.5",
+        ),
+        ("controller/joint-pid", "pid", ""),
+    ] {
+        c.call(
+            &s,
+            Call::Creator(CreatorCall::Create {
+                kind: kind.into(),
+                name: name.into(),
+                config: cfg.into(),
+            }),
+        )
+        .unwrap();
+    }
+    call_object(
+        c,
+        "arm",
+        Method::Robot(RobotMethod::MapJoints {
+            board: "sim".into(),
+            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
+        }),
+    );
+    for name in ["sim", "arm", "move"] {
+        call_object(c, name, Method::Transition(Transition::Configure));
+    }
+    call_object(
+        c,
+        "pid",
+        Method::Controller(ControllerMethod::SetRobot {
+            robot: "arm".into(),
+        }),
+    );
+    call_object(
+        c,
+        "pid",
+        Method::Controller(ControllerMethod::SetTrajectory {
+            trajectory: "move".into(),
+        }),
+    );
+    call_object(
+        c,
+        "pid",
+        Method::Controller(ControllerMethod::SetSensor {
+            sensor: "arm-ft".into(),
+        }),
+    );
+    c.call(
+        &s,
+        Call::Creator(CreatorCall::Create {
+            kind: "sensor/virtual".into(),
+            name: "arm-ft".into(),
+            config: String::new(),
+        }),
+    )
+    .unwrap();
+    call_object(c, "arm-ft", Method::Transition(Transition::Configure));
+    call_object(c, "pid", Method::Transition(Transition::Configure));
 }

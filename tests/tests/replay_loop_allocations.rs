@@ -44,6 +44,38 @@ fn a_hundred_thousand_replayed_teleoperation_ticks_allocate_nothing() {
     let mut config = CreatorConfig::new("alloc");
     config.rt.priority = None;
     let c = Creator::new(config);
+    a_teleoperation_pair_replaying(&c, &file);
+    let mut master = c.detach_loop("display").expect("the master's loop builds");
+    let mut slave = c.detach_loop("follow").expect("the slave's loop builds");
+    assert!(
+        slave.wrench.is_none(),
+        "the replayed sensor is read in the loop, not fed through a cell"
+    );
+    let mut feed = |_: Timestamp| {};
+    step_teleop_pair(&mut master, &mut slave, 1..1001, &mut feed);
+    let allocated = step_teleop_pair(&mut master, &mut slave, 1001..101_001, &mut feed);
+    assert_eq!(
+        allocated, 0,
+        "the replayed teleoperation loops allocated or freed {allocated} times"
+    );
+    assert_pair_ran(&master, &slave, 101_000, 50_000);
+    // The hand played: the master's true pose at the end is the recording's last one.
+    let last = output.master.last().and_then(|t| t.truth).expect("truth");
+    let q = master.control.control_loop().last_sample().q;
+    for j in 0..6 {
+        assert!(
+            (q[j] - last.joints.position[j]).abs() < 1e-3,
+            "joint {j}: {} against the recording's {}",
+            q[j],
+            last.joints.position[j]
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// On `c`: the demo's teleoperation pair with the operator's hand and the wrist sensor
+/// replayed from the recording `file` (a quoted path), all configured.
+fn a_teleoperation_pair_replaying(c: &Creator, file: &str) {
     let wall =
         "[[shapes]]\nkind = \"plane\"\npoint = [0.350868, 0.127, 0.2902]\nstiffness = 4000.0";
     for (kind, name, cfg) in [
@@ -74,7 +106,7 @@ fn a_hundred_thousand_replayed_teleoperation_ticks_allocate_nothing() {
     }
     for (robot, board) in [("frhc", "frhc-io"), ("puma", "puma-io")] {
         call(
-            &c,
+            c,
             robot,
             Method::Robot(RobotMethod::MapJoints {
                 board: board.into(),
@@ -99,39 +131,13 @@ fn a_hundred_thousand_replayed_teleoperation_ticks_allocate_nothing() {
             });
         }
         for m in methods {
-            call(&c, controller, Method::Controller(m));
+            call(c, controller, Method::Controller(m));
         }
     }
     // Sensors (the recordings are read here) before the robots, as a system file does.
     for name in [
         "frhc-io", "puma-io", "wrist", "hand", "frhc", "puma", "link", "display", "follow",
     ] {
-        call(&c, name, Method::Transition(Transition::Configure));
+        call(c, name, Method::Transition(Transition::Configure));
     }
-    let mut master = c.detach_loop("display").expect("the master's loop builds");
-    let mut slave = c.detach_loop("follow").expect("the slave's loop builds");
-    assert!(
-        slave.wrench.is_none(),
-        "the replayed sensor is read in the loop, not fed through a cell"
-    );
-    let mut feed = |_: Timestamp| {};
-    step_teleop_pair(&mut master, &mut slave, 1..1001, &mut feed);
-    let allocated = step_teleop_pair(&mut master, &mut slave, 1001..101_001, &mut feed);
-    assert_eq!(
-        allocated, 0,
-        "the replayed teleoperation loops allocated or freed {allocated} times"
-    );
-    assert_pair_ran(&master, &slave, 101_000, 50_000);
-    // The hand played: the master's true pose at the end is the recording's last one.
-    let last = output.master.last().and_then(|t| t.truth).expect("truth");
-    let q = master.control.control_loop().last_sample().q;
-    for j in 0..6 {
-        assert!(
-            (q[j] - last.joints.position[j]).abs() < 1e-3,
-            "joint {j}: {} against the recording's {}",
-            q[j],
-            last.joints.position[j]
-        );
-    }
-    std::fs::remove_dir_all(&dir).unwrap();
 }

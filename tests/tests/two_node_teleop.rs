@@ -11,6 +11,7 @@ use penelope_protocol::proto::{
 };
 use penelope_rt_core::safety::SafetyEvent;
 use penelope_runtime::objects::clock::ClockMode;
+use penelope_runtime::objects::tick::TickStream;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::runs::DEMO_SYSTEM;
 use penelope_supervisor::system::{SystemFile, SystemFileError};
@@ -184,54 +185,76 @@ fn a_link_cut_in_contact_holds_the_slave_and_the_master_lets_go_then_resumes_wit
     // Every control tick of both sides, for the safety events.
     let ticks_a = a.creator().record_ticks("display", 1 << 15).unwrap();
     let ticks_b = b.creator().record_ticks("follow", 1 << 15).unwrap();
-    let step = |n: u32| {
-        for _ in 0..n {
-            a.creator().advance(Duration::from_millis(1)).unwrap();
-            b.creator().advance(Duration::from_millis(1)).unwrap();
-        }
-    };
-    // What the master's motors add to gravity compensation: the displayed force, in joint
-    // torques.
-    let display = |n: &Node| {
-        let r = last(n, "display");
-        let g = match n.call(Call::Object {
-            object: "frhc".into(),
-            method: Method::Robot(RobotMethod::Gravity {
-                q: Some(r.q.clone()),
-            }),
-        }) {
-            Ok(Reply::Joints(g)) => g,
-            other => panic!("{other:?}"),
-        };
-        r.effort
-            .iter()
-            .zip(g.iter())
-            .map(|(t, g)| (t - g) * (t - g))
-            .sum::<f64>()
-            .sqrt()
-    };
-    step(12_990);
+    step(&a, &b, 12_990);
     assert!(link(&a).starts_with("up") && link(&b).starts_with("up"));
-    let pressing = display(&a);
+    let pressing = displayed(&a);
     let at_cut = tool(&b, "follow");
-    step(10); // 13.000 s: the cut
-    step(6); // two communication periods and one tick of margin
+    step(&a, &b, 10); // 13.000 s: the cut
+    step(&a, &b, 6); // two communication periods and one tick of margin
     for n in [&a, &b] {
         assert!(link(n).starts_with("down"), "{}", link(n));
     }
+    slave_held_and_master_let_go(&a, &b, pressing, at_cut);
+    let largest_step = restored_without_a_jump(&a, &b);
+    each_transition_is_one_safety_event(&ticks_a, &ticks_b);
+    assert!(
+        largest_step < 2e-4,
+        "the slave jumped {} mm",
+        largest_step * 1000.0
+    );
+    step(&a, &b, 6_500); // the rest of the script, without a fault
+    last(&b, "follow");
+    last(&a, "display");
+    the_link_counted_every_sample(&a, &b);
+    a.shutdown();
+    b.shutdown();
+}
+
+/// Both nodes' simulated clocks `n` ms on, in turn, the master's first at each instant.
+fn step(a: &Node, b: &Node, n: u32) {
+    for _ in 0..n {
+        a.creator().advance(Duration::from_millis(1)).unwrap();
+        b.creator().advance(Duration::from_millis(1)).unwrap();
+    }
+}
+
+/// What the master's motors add to gravity compensation: the displayed force, in joint
+/// torques.
+fn displayed(n: &Node) -> f64 {
+    let r = last(n, "display");
+    let g = match n.call(Call::Object {
+        object: "frhc".into(),
+        method: Method::Robot(RobotMethod::Gravity {
+            q: Some(r.q.clone()),
+        }),
+    }) {
+        Ok(Reply::Joints(g)) => g,
+        other => panic!("{other:?}"),
+    };
+    r.effort
+        .iter()
+        .zip(g.iter())
+        .map(|(t, g)| (t - g) * (t - g))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// During the cut the slave holds the pose it was measured at, and the master displays
+/// nothing once its handle has come to rest.
+fn slave_held_and_master_let_go(a: &Node, b: &Node, pressing: f64, at_cut: [f64; 3]) {
     // The slave holds the pose it was measured at, so it stops pressing: the wall's
     // compliance lets it back out a little (away from the wall, +z), then it stays.
     // The master: the hand, no longer resisted, moves the handle to where it holds it (the
     // law's damping shows while it moves), then nothing is displayed.
-    step(100);
-    let held = tool(&b, "follow");
+    step(a, b, 100);
+    let held = tool(b, "follow");
     let mut drift: f64 = 0.0;
     let mut master_display: f64 = 0.0;
     for i in 0..380 {
-        step(1);
-        drift = drift.max(distance(held, tool(&b, "follow")));
+        step(a, b, 1);
+        drift = drift.max(distance(held, tool(b, "follow")));
         if i >= 280 {
-            master_display = master_display.max(display(&a));
+            master_display = master_display.max(displayed(a));
         }
     }
     println!(
@@ -253,16 +276,21 @@ fn a_link_cut_in_contact_holds_the_slave_and_the_master_lets_go_then_resumes_wit
         master_display < 0.05 * pressing,
         "the master still displays: {master_display} vs {pressing} before"
     );
+}
+
+/// Once the link is restored it is up on both nodes, and the slave goes on from where it is:
+/// the largest step it made in the 200 ms after, m.
+fn restored_without_a_jump(a: &Node, b: &Node) -> f64 {
     // Restored at 13.5 s: up again, and the slave goes on from where it is.
-    let mut before = tool(&b, "follow");
+    let mut before = tool(b, "follow");
     let mut largest_step: f64 = 0.0;
     for _ in 0..200 {
-        step(1);
-        let now = tool(&b, "follow");
+        step(a, b, 1);
+        let now = tool(b, "follow");
         largest_step = largest_step.max(distance(before, now));
         before = now;
     }
-    for n in [&a, &b] {
+    for n in [a, b] {
         assert!(
             link(n).starts_with("up") && link(n).ends_with("lost 1 times, restored 1 times"),
             "{}",
@@ -273,6 +301,11 @@ fn a_link_cut_in_contact_holds_the_slave_and_the_master_lets_go_then_resumes_wit
         "after the link returns: largest slave step {:.4} mm per ms",
         largest_step * 1000.0
     );
+    largest_step
+}
+
+/// Each transition is one safety event, at the instant its communication thread noticed it.
+fn each_transition_is_one_safety_event(ticks_a: &TickStream, ticks_b: &TickStream) {
     // Each transition is a safety event of the loop that runs the end, once, in the control
     // tick at the instant its communication thread noticed it: lost two communication periods
     // (the 4 ms link timeout) after the last sample heard before the cut, restored at the
@@ -280,8 +313,8 @@ fn a_link_cut_in_contact_holds_the_slave_and_the_master_lets_go_then_resumes_wit
     // step in turn, the master's first at each instant, so the master hears each of the
     // slave's samples one period (2 ms) after it left, the slave the master's at once.
     for (name, stream, lost_ms, restored_ms) in [
-        ("master", &ticks_a, 13_004, 13_502),
-        ("slave", &ticks_b, 13_002, 13_500),
+        ("master", ticks_a, 13_004, 13_502),
+        ("slave", ticks_b, 13_002, 13_500),
     ] {
         let mut ticks = Vec::new();
         stream.drain_into(&mut ticks);
@@ -298,16 +331,12 @@ fn a_link_cut_in_contact_holds_the_slave_and_the_master_lets_go_then_resumes_wit
         assert_eq!(lost, [lost_ms], "{name}");
         assert_eq!(back, [restored_ms], "{name}");
     }
-    assert!(
-        largest_step < 2e-4,
-        "the slave jumped {} mm",
-        largest_step * 1000.0
-    );
-    step(6_500); // the rest of the script, without a fault
-    last(&b, "follow");
-    last(&a, "display");
+}
+
+/// The channel's statistics on both nodes after the run.
+fn the_link_counted_every_sample(a: &Node, b: &Node) {
     // 20 s at one sample per 2 ms, less the cut; nothing refused; the heartbeats saw the cut.
-    for n in [&a, &b] {
+    for n in [a, b] {
         let stats = relation(n, "link-stats");
         println!("{}: {stats}", n.name());
         let taken: u64 = stats
@@ -319,8 +348,6 @@ fn a_link_cut_in_contact_holds_the_slave_and_the_master_lets_go_then_resumes_wit
         assert!(stats.contains(" 0 datagrams refused"), "{stats}");
         assert!(!stats.contains("heartbeats lost 0.0%"), "{stats}");
     }
-    a.shutdown();
-    b.shutdown();
 }
 
 /// The two-node system file (`config/demo-two-nodes.toml`, the paper's two-PC layout) run by

@@ -40,7 +40,15 @@ fn ctl_drives_a_node_through_the_naming_service() {
         ]),
     ]);
 
-    // Wait until the node is registered.
+    the_node_registers(naming);
+    a_script_sets_up_a_held_puma(naming);
+    single_verbs_json_and_the_tree(naming);
+    a_refusal_exits_1_and_bad_input_2(naming);
+    a_script_on_standard_input_tears_down(naming);
+}
+
+/// Waits until the node is registered (bounded).
+fn the_node_registers(naming: SocketAddr) {
     let deadline = Instant::now() + Duration::from_secs(30);
     loop {
         let o = PENELOPE.ctl(naming, &["ls"]);
@@ -54,8 +62,10 @@ fn ctl_drives_a_node_through_the_naming_service() {
         );
         std::thread::sleep(Duration::from_millis(100));
     }
+}
 
-    // Set up a PUMA 560 on a simulated board with a joint PID holding it, by script.
+/// Sets up a PUMA 560 on a simulated board with a joint PID holding it, by script.
+fn a_script_sets_up_a_held_puma(naming: SocketAddr) {
     let setup = scratch_file(
         "ctl",
         "setup.ctl",
@@ -94,8 +104,10 @@ fn ctl_drives_a_node_through_the_naming_service() {
     assert!(out.contains("loop running"), "{out}");
     let samples = out.lines().filter(|l| l.starts_with("t ")).count();
     assert_eq!(samples, 5, "{out}");
+}
 
-    // Single verbs, JSON, and the tree.
+/// Single verbs, JSON, and the tree.
+fn single_verbs_json_and_the_tree(naming: SocketAddr) {
     let o = PENELOPE.ctl(naming, &["--json", "call", "lab/slave", "gravity", "start"]);
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
@@ -129,8 +141,10 @@ fn ctl_drives_a_node_through_the_naming_service() {
         "{:?}",
         text(&o)
     );
+}
 
-    // Errors: a node's refusal exits 1, bad input exits 2.
+/// Errors: a node's refusal exits 1, bad input exits 2.
+fn a_refusal_exits_1_and_bad_input_2(naming: SocketAddr) {
     let o = PENELOPE.ctl(naming, &["destroy", "lab/slave"]);
     assert_eq!(o.status.code(), Some(1), "{:?}", text(&o));
     assert!(text(&o).1.contains("in use"), "{:?}", text(&o));
@@ -155,8 +169,10 @@ fn ctl_drives_a_node_through_the_naming_service() {
         "{:?}",
         text(&o)
     );
+}
 
-    // Tear down, the script from standard input; the tree is empty again but for the creator.
+/// Tears down, the script from standard input; the tree is empty again but for the creator.
+fn a_script_on_standard_input_tears_down(naming: SocketAddr) {
     let teardown = "deactivate lab/pid\n\
                     call lab/hold reference 0.5\n\
                     destroy lab/pid\n\

@@ -72,7 +72,29 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
     }
     let _children = Children(children);
 
-    // Every node registered.
+    every_node_registers(naming);
+    a_held_puma_on_every_node(naming);
+    the_red_button_stops_every_node(naming);
+    one_node_stops_only_its_loops(naming);
+
+    // One controller, by naming path.
+    let o = PENELOPE.ctl(naming, &["estop", "/north/controllers/pid"]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        out.contains("/north/controllers/pid: e-stop latched"),
+        "{out}"
+    );
+    wait_state(naming, "north", &["estop"]);
+    assert_ne!(loop_state(naming, "east"), "estop");
+
+    // Bad input: nothing to stop named.
+    let o = PENELOPE.ctl(naming, &["estop"]);
+    assert_eq!(o.status.code(), Some(2), "{:?}", text(&o));
+}
+
+/// Waits until every node is registered (bounded).
+fn every_node_registers(naming: SocketAddr) {
     let deadline = Instant::now() + Duration::from_secs(30);
     loop {
         let o = PENELOPE.ctl(naming, &["ls"]);
@@ -90,8 +112,10 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
         );
         std::thread::sleep(Duration::from_millis(100));
     }
+}
 
-    // A PUMA 560 held at its start pose by a running PID, on every node.
+/// A PUMA 560 held at its start pose by a running PID, on every node.
+fn a_held_puma_on_every_node(naming: SocketAddr) {
     for node in NODES {
         let setup = scratch_file(
             "estop",
@@ -117,8 +141,11 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
     for node in NODES {
         wait_state(naming, node, &["running", "holding"]);
     }
+}
 
-    // The whole system's red button: every node answers that its loop latched the stop.
+/// The whole system's red button: every node answers that its loop latched the stop, and
+/// their telemetry says so too.
+fn the_red_button_stops_every_node(naming: SocketAddr) {
     let started = Instant::now();
     let o = PENELOPE.ctl(naming, &["--json", "estop", "--all"]);
     let took = started.elapsed();
@@ -142,8 +169,10 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
     for node in NODES {
         wait_state(naming, node, &["estop"]);
     }
+}
 
-    // One node: only its loops.
+/// Re-armed, then one node stopped: only its loops.
+fn one_node_stops_only_its_loops(naming: SocketAddr) {
     for node in NODES {
         let o = PENELOPE.ctl(naming, &["rearm", &format!("{node}/pid")]);
         assert!(o.status.success(), "{node}: {:?}", text(&o));
@@ -162,19 +191,4 @@ fn ctl_estop_all_stops_every_controller_on_three_nodes() {
     for node in ["east", "north"] {
         assert_ne!(loop_state(naming, node), "estop", "{node} was stopped too");
     }
-
-    // One controller, by naming path.
-    let o = PENELOPE.ctl(naming, &["estop", "/north/controllers/pid"]);
-    let (out, err) = text(&o);
-    assert!(o.status.success(), "{err}");
-    assert!(
-        out.contains("/north/controllers/pid: e-stop latched"),
-        "{out}"
-    );
-    wait_state(naming, "north", &["estop"]);
-    assert_ne!(loop_state(naming, "east"), "estop");
-
-    // Bad input: nothing to stop named.
-    let o = PENELOPE.ctl(naming, &["estop"]);
-    assert_eq!(o.status.code(), Some(2), "{:?}", text(&o));
 }

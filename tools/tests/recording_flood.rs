@@ -14,10 +14,10 @@
 //! recording throughput bench (`penelope bench record`).
 
 use penelope_testkit::process::Penelope;
-use std::io::BufRead;
+use std::io::{BufRead, BufReader};
 use std::net::SocketAddr;
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
+use std::process::{ChildStderr, ChildStdout, Command, Output, Stdio};
 
 /// The binary under test.
 const PENELOPE: Penelope = Penelope::at(env!("CARGO_BIN_EXE_penelope"));
@@ -97,32 +97,7 @@ fn a_recording_under_a_flood_of_slow_readers_loses_nothing_uncounted_and_no_loop
     let (naming, _node, _out) = sim_node(&dir);
     ok(&ctl(naming, &["advance", "lab", "10ms"]));
 
-    // The slow readers, subscribed one at a time (the node bounds handshakes per address, and
-    // a burst of sixteen from loopback would evict some): each is ready once it says on stderr
-    // that the node acknowledged its subscription. From then on nobody reads its stdout.
-    let mut watchers = Vec::new();
-    for i in 0..WATCHERS {
-        let controller = if i % 2 == 0 { "display" } else { "follow" };
-        let mut w = Child(
-            PENELOPE
-                .command()
-                .args(["ctl", "--naming", &naming.to_string(), "--timeout", "300"])
-                .args(["watch", &format!("/lab/controllers/{controller}")])
-                .args(["--decimation", "1", "--json"])
-                .stdin(Stdio::null())
-                .stdout(Stdio::piped())
-                .stderr(Stdio::piped())
-                .spawn()
-                .unwrap(),
-        );
-        // Kept open, so that nothing it says later meets a closed pipe.
-        let mut stderr = std::io::BufReader::new(w.0.stderr.take().unwrap());
-        let mut said = String::new();
-        stderr.read_line(&mut said).unwrap();
-        assert!(said.starts_with("watching "), "watcher {i}: {said:?}");
-        let stdout = w.0.stdout.take().unwrap();
-        watchers.push((w, stdout, stderr));
-    }
+    let mut watchers = slow_readers(naming);
     // Samples flow only while the clock moves: once it has, every watcher prints (its first
     // line blocks only until the pump has delivered that advance's records).
     ok(&ctl(naming, &["advance", "lab", "10ms"]));
@@ -169,8 +144,47 @@ fn a_recording_under_a_flood_of_slow_readers_loses_nothing_uncounted_and_no_loop
         );
     }
 
-    // The recording: every tick is there or counted as dropped, and the count is exact.
-    let r = penelope_runtime::objects::recording::read_recording(&file).unwrap();
+    every_tick_recorded_or_counted(&file, &stopped);
+    // The node still answers while the watchers hang.
+    assert!(ctl(naming, &["ls"]).status.success());
+    drop(watchers);
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+/// The slow readers, subscribed one at a time (the node bounds handshakes per address, and
+/// a burst of sixteen from loopback would evict some): each is ready once it says on stderr
+/// that the node acknowledged its subscription. From then on nobody reads its stdout.
+fn slow_readers(naming: SocketAddr) -> Vec<(Child, ChildStdout, BufReader<ChildStderr>)> {
+    let mut watchers = Vec::new();
+    for i in 0..WATCHERS {
+        let controller = if i % 2 == 0 { "display" } else { "follow" };
+        let mut w = Child(
+            PENELOPE
+                .command()
+                .args(["ctl", "--naming", &naming.to_string(), "--timeout", "300"])
+                .args(["watch", &format!("/lab/controllers/{controller}")])
+                .args(["--decimation", "1", "--json"])
+                .stdin(Stdio::null())
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap(),
+        );
+        // Kept open, so that nothing it says later meets a closed pipe.
+        let mut stderr = std::io::BufReader::new(w.0.stderr.take().unwrap());
+        let mut said = String::new();
+        stderr.read_line(&mut said).unwrap();
+        assert!(said.starts_with("watching "), "watcher {i}: {said:?}");
+        let stdout = w.0.stdout.take().unwrap();
+        watchers.push((w, stdout, stderr));
+    }
+    watchers
+}
+
+/// The recording: every tick is there or counted as dropped, and the count is exact (the
+/// ticks `stopped` reports written).
+fn every_tick_recorded_or_counted(file: &Path, stopped: &serde_json::Value) {
+    let r = penelope_runtime::objects::recording::read_recording(file).unwrap();
     let mut written = 0;
     for c in ["display", "follow"] {
         let ticks = &r.controllers[c];
@@ -191,10 +205,6 @@ fn a_recording_under_a_flood_of_slow_readers_loses_nothing_uncounted_and_no_loop
         written += ticks.len() as u64;
     }
     assert_eq!(stopped["ticks"].as_u64(), Some(written), "{stopped}");
-    // The node still answers while the watchers hang.
-    assert!(ctl(naming, &["ls"]).status.success());
-    drop(watchers);
-    let _ = std::fs::remove_dir_all(dir);
 }
 
 /// The node's connections (local port `port`) with bytes queued to send, as `ss` (iproute2)

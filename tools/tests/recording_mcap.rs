@@ -55,8 +55,26 @@ fn the_demo_writes_run_mcap_with_every_tick_of_its_csv_files_and_replay_lists_it
     );
     let bytes = std::fs::read(out.join("run.mcap")).expect("run.mcap written");
 
-    // Channels: each with a JSON Schema, JSON messages.
-    let summary = mcap::Summary::read(&bytes)
+    let topics = channels_with_json_schemas(&bytes);
+    let by_topic = messages_by_topic(&bytes);
+    the_ticks_are_the_csv_rows(&by_topic, &out);
+    // What the recorder lost, per controller.
+    let recorder = &by_topic["/recorder"];
+    assert_eq!(recorder.len(), 2);
+    for r in recorder {
+        assert_eq!(r.value["dropped"], 0, "{}", r.value);
+    }
+    // The first ticks' safety state is an event.
+    assert!(by_topic["/safety"].len() >= 2);
+
+    recording_info_says_the_same(&out, &topics, &by_topic);
+    let _ = std::fs::remove_dir_all(out);
+}
+
+/// Channels: each with a JSON Schema, JSON messages; the controllers', the safety events' and
+/// the recorder's. Returns each topic's schema name.
+fn channels_with_json_schemas(bytes: &[u8]) -> BTreeMap<String, String> {
+    let summary = mcap::Summary::read(bytes)
         .unwrap()
         .expect("a summary section");
     let mut topics = BTreeMap::new();
@@ -77,8 +95,13 @@ fn the_demo_writes_run_mcap_with_every_tick_of_its_csv_files_and_replay_lists_it
     assert_eq!(topics["/safety"], "penelope.SafetyEvent");
     assert_eq!(topics["/recorder"], "penelope.RecorderDropped");
 
+    topics
+}
+
+/// Every message of the file, JSON, by topic.
+fn messages_by_topic(bytes: &[u8]) -> BTreeMap<String, Vec<Message>> {
     let mut by_topic: BTreeMap<String, Vec<Message>> = BTreeMap::new();
-    for m in mcap::MessageStream::new(&bytes).unwrap() {
+    for m in mcap::MessageStream::new(bytes).unwrap() {
         let m = m.unwrap();
         let value = serde_json::from_slice(&m.data).expect("messages are JSON");
         by_topic
@@ -90,6 +113,12 @@ fn the_demo_writes_run_mcap_with_every_tick_of_its_csv_files_and_replay_lists_it
             });
     }
 
+    by_topic
+}
+
+/// One message per tick row of the CSV files in `out`, with the same time, state, joints,
+/// efforts, tool position and true force, over the same 3 s span.
+fn the_ticks_are_the_csv_rows(by_topic: &BTreeMap<String, Vec<Message>>, out: &Path) {
     let master_csv = csv_rows(&out.join("telemetry-master.csv"));
     let slave_csv = csv_rows(&out.join("telemetry-slave.csv"));
     assert!(
@@ -154,16 +183,15 @@ fn the_demo_writes_run_mcap_with_every_tick_of_its_csv_files_and_replay_lists_it
         "span {span} ns vs {csv_span} s"
     );
     assert!((csv_span - 3.0).abs() < 0.01, "the run's 3 s: {csv_span}");
-    // What the recorder lost, per controller.
-    let recorder = &by_topic["/recorder"];
-    assert_eq!(recorder.len(), 2);
-    for r in recorder {
-        assert_eq!(r.value["dropped"], 0, "{}", r.value);
-    }
-    // The first ticks' safety state is an event.
-    assert!(by_topic["/safety"].len() >= 2);
+}
 
-    // `penelope recording info` says the same.
+/// `penelope recording info` says the same: the channels, their message counts and schemas,
+/// and the run's start, end and duration; in text too.
+fn recording_info_says_the_same(
+    out: &Path,
+    topics: &BTreeMap<String, String>,
+    by_topic: &BTreeMap<String, Vec<Message>>,
+) {
     let replay = PENELOPE
         .command()
         .args(["recording", "info"])
@@ -207,7 +235,6 @@ fn the_demo_writes_run_mcap_with_every_tick_of_its_csv_files_and_replay_lists_it
         text.contains("/controllers/follow") && text.contains("penelope.Tick"),
         "{text}"
     );
-    let _ = std::fs::remove_dir_all(out);
 }
 
 #[test]

@@ -8,6 +8,7 @@ use penelope_testkit::process::{Children, Penelope};
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::os::unix::fs::PermissionsExt;
+use std::path::Path;
 use std::time::Duration;
 
 /// The binary under test.
@@ -65,6 +66,49 @@ fn header<'a>(headers: &'a [(String, String)], name: &str) -> Option<&'a str> {
 fn a_browser_proves_the_secret_once_and_holds_a_strict_cookie() {
     let dir = std::env::temp_dir().join(format!("penelope-web-login-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
+    let (_children, addr) = a_node_and_its_web_server(&dir);
+
+    before_the_secret_only_the_login_page(&addr);
+
+    let token = the_secret_alone_gives_a_strict_cookie(&addr);
+    let with = [("Cookie", token.as_str())];
+    let (status, _, body) = request(&addr, "GET", "/api/tree", &with, "");
+    assert_eq!(status, 200, "{body}");
+    assert!(body.contains("/lab/creator"), "{body}");
+
+    // Even logged in, another origin changes nothing; the page's own origin does.
+    let create = r#"{"node":"lab","kind":"board/sim","name":"sim0"}"#;
+    let json = ("Content-Type", "application/json");
+    let evil = [with[0], json, ("Origin", "http://evil.example")];
+    let (status, _, body) = request(&addr, "POST", "/api/create", &evil, create);
+    assert_eq!(status, 403, "{body}");
+    let own_origin = format!("http://{addr}");
+    let own = [with[0], json, ("Origin", own_origin.as_str())];
+    let (status, _, body) = request(&addr, "POST", "/api/create", &own, create);
+    assert_eq!(status, 200, "{body}");
+    assert!(body.contains("/lab/boards/sim0"), "{body}");
+    // Unknown names and bad values are typed errors.
+    let (status, _, body) = request(
+        &addr,
+        "POST",
+        "/api/call",
+        &own,
+        r#"{"path":"lab/nobody","method":"describe"}"#,
+    );
+    assert_eq!(status, 404, "{body}");
+    assert!(body.contains("\"unknown-name\""), "{body}");
+
+    // Logging out ends the login.
+    let (status, _, _) = request(&addr, "POST", "/logout", &own, "");
+    assert_eq!(status, 303);
+    let (status, _, _) = request(&addr, "GET", "/api/tree", &with, "");
+    assert_eq!(status, 401);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A node with a secret and an admin secret in `dir`, and `penelope web` speaking to it as an
+/// admin; returns the children and the web server's address.
+fn a_node_and_its_web_server(dir: &Path) -> (Children, String) {
     let secret = dir.join("secret");
     std::fs::write(&secret, format!("{SECRET}\n")).unwrap();
     std::fs::set_permissions(&secret, std::fs::Permissions::from_mode(0o600)).unwrap();
@@ -119,9 +163,14 @@ fn a_browser_proves_the_secret_once_and_holds_a_strict_cookie() {
         .unwrap()
         .to_string();
 
-    // Before the secret: pages and assets send to the login, the API answers 401.
+    (children, addr)
+}
+
+/// Before the secret: pages and assets send to the login, the API answers 401, the login page
+/// asks for the secret.
+fn before_the_secret_only_the_login_page(addr: &str) {
     for path in ["/", "/assets/app.js", "/assets/uPlot.iife.min.js"] {
-        let (status, headers, body) = request(&addr, "GET", path, &[], "");
+        let (status, headers, body) = request(addr, "GET", path, &[], "");
         assert_eq!(
             (status, header(&headers, "location")),
             (303, Some("/login")),
@@ -130,60 +179,30 @@ fn a_browser_proves_the_secret_once_and_holds_a_strict_cookie() {
         assert!(body.is_empty(), "{path}: {body}");
     }
     for path in ["/api/tree", "/api/kinds", "/api/live?path=/lab/creator"] {
-        let (status, _, body) = request(&addr, "GET", path, &[], "");
+        let (status, _, body) = request(addr, "GET", path, &[], "");
         assert_eq!(status, 401, "{path}: {body}");
         assert!(body.contains("unauthenticated"), "{body}");
     }
-    let (status, _, body) = request(&addr, "GET", "/login", &[], "");
+    let (status, _, body) = request(addr, "GET", "/login", &[], "");
     assert_eq!(status, 200);
     assert!(body.contains("name=\"secret\""));
+}
 
-    // A wrong secret: 401, no cookie.
+/// A wrong secret: 401, no cookie. The secret: a cookie, HttpOnly, SameSite=Strict, expiring
+/// with --login-hours, that opens the API. Returns the cookie's `name=value`.
+fn the_secret_alone_gives_a_strict_cookie(addr: &str) -> String {
     let form = [("Content-Type", "application/x-www-form-urlencoded")];
-    let (status, headers, _) = request(&addr, "POST", "/login", &form, "secret=nope");
+    let (status, headers, _) = request(addr, "POST", "/login", &form, "secret=nope");
     assert_eq!(status, 401);
     assert!(header(&headers, "set-cookie").is_none());
 
     // The secret: a cookie, HttpOnly, SameSite=Strict, expiring with --login-hours.
     let body = format!("secret={}", SECRET.replace(' ', "+"));
-    let (status, headers, _) = request(&addr, "POST", "/login", &form, &body);
+    let (status, headers, _) = request(addr, "POST", "/login", &form, &body);
     assert_eq!(status, 303);
     let cookie = header(&headers, "set-cookie").expect("a login cookie");
     for attribute in ["HttpOnly", "SameSite=Strict", "Path=/", "Max-Age=7200"] {
         assert!(cookie.contains(attribute), "{cookie}");
     }
-    let token = cookie.split(';').next().unwrap().to_string();
-    let with = [("Cookie", token.as_str())];
-    let (status, _, body) = request(&addr, "GET", "/api/tree", &with, "");
-    assert_eq!(status, 200, "{body}");
-    assert!(body.contains("/lab/creator"), "{body}");
-
-    // Even logged in, another origin changes nothing; the page's own origin does.
-    let create = r#"{"node":"lab","kind":"board/sim","name":"sim0"}"#;
-    let json = ("Content-Type", "application/json");
-    let evil = [with[0], json, ("Origin", "http://evil.example")];
-    let (status, _, body) = request(&addr, "POST", "/api/create", &evil, create);
-    assert_eq!(status, 403, "{body}");
-    let own_origin = format!("http://{addr}");
-    let own = [with[0], json, ("Origin", own_origin.as_str())];
-    let (status, _, body) = request(&addr, "POST", "/api/create", &own, create);
-    assert_eq!(status, 200, "{body}");
-    assert!(body.contains("/lab/boards/sim0"), "{body}");
-    // Unknown names and bad values are typed errors.
-    let (status, _, body) = request(
-        &addr,
-        "POST",
-        "/api/call",
-        &own,
-        r#"{"path":"lab/nobody","method":"describe"}"#,
-    );
-    assert_eq!(status, 404, "{body}");
-    assert!(body.contains("\"unknown-name\""), "{body}");
-
-    // Logging out ends the login.
-    let (status, _, _) = request(&addr, "POST", "/logout", &own, "");
-    assert_eq!(status, 303);
-    let (status, _, _) = request(&addr, "GET", "/api/tree", &with, "");
-    assert_eq!(status, 401);
-    let _ = std::fs::remove_dir_all(&dir);
+    cookie.split(';').next().unwrap().to_string()
 }

@@ -45,6 +45,8 @@
 //! connection broke may thus run twice: harmless for queries and transitions, and a `create`
 //! that ran twice answers [`CallError::NameTaken`]. A timeout is never retried.
 
+mod naming;
+mod node;
 pub mod proxy;
 pub mod telemetry;
 
@@ -54,10 +56,12 @@ use std::sync::{Arc, Mutex, PoisonError};
 
 use crate::net::conn::{ClientConfig, Connection, RpcError};
 use crate::proto::{
-    Call, CallError, Class, CreatorCall, KindInfo, Method, NameEntry, NamingCall, NodeInfo,
-    ObjectInfo, ObjectRef, ProtocolError, Reply, StopReport, WireError,
+    Call, CallError, Class, Method, NameEntry, ObjectRef, ProtocolError, Reply, StopReport,
+    WireError,
 };
 
+pub use naming::{MAX_TREE_DEPTH, NamingProxy, join_path};
+pub use node::NodeProxy;
 pub use proxy::{
     BoardProxy, ControllerProxy, Lifecycle, ObjectHandle, ObjectProxy, RobotProxy, SensorProxy,
     TrajectoryProxy, TypedProxy,
@@ -67,9 +71,6 @@ pub use telemetry::{LinkStream, Streamed, Subscription, TelemetryStream};
 /// One node's answer to [`Client::estop_all`]: its name, and its report or why it was not
 /// reached.
 pub type NodeStop = (String, Result<StopReport, RpcError>);
-
-/// The deepest context [`NamingProxy::tree`] walks into.
-pub const MAX_TREE_DEPTH: usize = 16;
 
 /// One cached connection (empty until first used, or after it broke).
 type Slot = Arc<Mutex<Option<Connection>>>;
@@ -128,9 +129,7 @@ impl Client {
 
     /// The naming service.
     pub fn naming(&self) -> NamingProxy {
-        NamingProxy {
-            client: self.clone(),
-        }
+        NamingProxy::new(self.clone())
     }
 
     /// The node `node` (its creator, resolved at `/<node>/creator`).
@@ -141,11 +140,7 @@ impl Client {
         let path = crate::proto::object_path(node, Class::Creator, "");
         let reference = self.resolve(&path)?;
         let address = parse_address(&reference)?;
-        Ok(NodeProxy {
-            client: self.clone(),
-            reference,
-            address,
-        })
+        Ok(NodeProxy::new(self.clone(), reference, address))
     }
 
     /// The node answering at `address`, without the naming service.
@@ -157,17 +152,14 @@ impl Client {
             Reply::Node(info) => info,
             other => return Err(unexpected("node info", &other)),
         };
-        Ok(NodeProxy {
-            client: self.clone(),
-            reference: ObjectRef {
-                node: info.node.clone(),
-                address: address.to_string(),
-                name: String::new(),
-                class: Class::Creator,
-                kind: "creator".into(),
-            },
-            address,
-        })
+        let reference = ObjectRef {
+            node: info.node.clone(),
+            address: address.to_string(),
+            name: String::new(),
+            class: Class::Creator,
+            kind: "creator".into(),
+        };
+        Ok(NodeProxy::new(self.clone(), reference, address))
     }
 
     /// The nodes registered in the naming service (the contexts under `/` that hold a creator).
@@ -462,363 +454,4 @@ pub(crate) fn unexpected(expected: &str, reply: &Reply) -> RpcError {
         .take_while(|c| c.is_alphanumeric() || *c == '_')
         .collect();
     RpcError::Protocol(format!("expected {expected} in the reply, got {variant}"))
-}
-
-/// The naming service (the paper's CORBA naming service): one tree of contexts for the system.
-#[derive(Clone, Debug)]
-pub struct NamingProxy {
-    client: Client,
-}
-
-impl NamingProxy {
-    fn call(&self, call: NamingCall) -> Result<Reply, RpcError> {
-        self.client
-            .call_at(self.client.inner.naming, Call::Naming(call))
-    }
-
-    fn unit(&self, call: NamingCall) -> Result<(), RpcError> {
-        match self.call(call)? {
-            Reply::Unit => Ok(()),
-            other => Err(unexpected("nothing", &other)),
-        }
-    }
-
-    /// Binds the absolute `path` to `reference` (creating the contexts on the way); with
-    /// `rebind`, replaces an existing binding.
-    ///
-    /// # Errors
-    /// [`CallError::NameTaken`] if bound and not `rebind`, [`CallError::BadName`], transport
-    /// errors.
-    pub fn bind(&self, path: &str, reference: ObjectRef, rebind: bool) -> Result<(), RpcError> {
-        self.unit(NamingCall::Bind {
-            path: path.to_string(),
-            reference,
-            rebind,
-        })
-    }
-
-    /// What `path` names.
-    ///
-    /// # Errors
-    /// [`CallError::UnknownName`] when nothing is bound there; transport errors.
-    pub fn resolve(&self, path: &str) -> Result<ObjectRef, RpcError> {
-        match self.call(NamingCall::Resolve {
-            path: path.to_string(),
-        })? {
-            Reply::Resolved(r) => Ok(r),
-            other => Err(unexpected("a naming entry", &other)),
-        }
-    }
-
-    /// Removes the binding at `path` (and the contexts it leaves empty).
-    ///
-    /// # Errors
-    /// [`CallError::UnknownName`] when nothing is bound there; transport errors.
-    pub fn unbind(&self, path: &str) -> Result<(), RpcError> {
-        self.unit(NamingCall::Unbind {
-            path: path.to_string(),
-        })
-    }
-
-    /// The entries of the context `context` (`/` for the root).
-    ///
-    /// # Errors
-    /// [`CallError::UnknownName`] for no such context; transport errors.
-    pub fn list(&self, context: &str) -> Result<Vec<NameEntry>, RpcError> {
-        match self.call(NamingCall::List {
-            context: context.to_string(),
-        })? {
-            Reply::Names(names) => Ok(names),
-            other => Err(unexpected("names", &other)),
-        }
-    }
-
-    /// Every entry under `context`, depth first, as `(absolute path, depth, entry)` (depth 0 for
-    /// the entries of `context` itself), down to [`MAX_TREE_DEPTH`] levels.
-    ///
-    /// # Errors
-    /// As [`NamingProxy::list`]. A context that disappears during the walk is skipped.
-    pub fn tree(&self, context: &str) -> Result<Vec<(String, usize, NameEntry)>, RpcError> {
-        let mut out = Vec::new();
-        self.walk(context, 0, &mut out)?;
-        Ok(out)
-    }
-
-    fn walk(
-        &self,
-        context: &str,
-        depth: usize,
-        out: &mut Vec<(String, usize, NameEntry)>,
-    ) -> Result<(), RpcError> {
-        let entries = match self.list(context) {
-            Ok(e) => e,
-            Err(RpcError::Remote(WireError::Call(CallError::UnknownName(_)))) if depth > 0 => {
-                return Ok(());
-            }
-            Err(e) => return Err(e),
-        };
-        for entry in entries {
-            let path = join_path(context, entry.name());
-            let sub = matches!(entry, NameEntry::Context { .. });
-            out.push((path.clone(), depth, entry));
-            if sub && depth + 1 < MAX_TREE_DEPTH {
-                self.walk(&path, depth + 1, out)?;
-            }
-        }
-        Ok(())
-    }
-}
-
-/// `context/name` with exactly one `/` between.
-pub fn join_path(context: &str, name: &str) -> String {
-    let base = context.trim_end_matches('/');
-    format!("{base}/{name}")
-}
-
-/// One node, through its creator (the paper's `creatorImpl`): the kinds it can make, its objects,
-/// create and destroy.
-#[derive(Clone, Debug)]
-pub struct NodeProxy {
-    client: Client,
-    reference: ObjectRef,
-    address: SocketAddr,
-}
-
-impl NodeProxy {
-    /// The node's name.
-    #[allow(clippy::misnamed_getters)] // the creator's reference: its node is the name we want
-    pub fn name(&self) -> &str {
-        &self.reference.node
-    }
-
-    /// Where the node answers.
-    pub fn address(&self) -> SocketAddr {
-        self.address
-    }
-
-    fn creator(&self, call: CreatorCall) -> Result<Reply, RpcError> {
-        self.client.call_at(self.address, Call::Creator(call))
-    }
-
-    /// The node's identity.
-    ///
-    /// # Errors
-    /// Transport errors.
-    pub fn info(&self) -> Result<NodeInfo, RpcError> {
-        match self.client.call_at(self.address, Call::NodeInfo)? {
-            Reply::Node(info) => Ok(info),
-            other => Err(unexpected("node info", &other)),
-        }
-    }
-
-    /// The kinds this node can create, with their configuration keys.
-    ///
-    /// # Errors
-    /// Transport errors.
-    pub fn kinds(&self) -> Result<Vec<KindInfo>, RpcError> {
-        match self.creator(CreatorCall::Kinds)? {
-            Reply::Kinds(k) => Ok(k),
-            other => Err(unexpected("kinds", &other)),
-        }
-    }
-
-    /// The objects of this node.
-    ///
-    /// # Errors
-    /// Transport errors.
-    pub fn list(&self) -> Result<Vec<ObjectInfo>, RpcError> {
-        match self.creator(CreatorCall::List)? {
-            Reply::Objects(o) => Ok(o),
-            other => Err(unexpected("objects", &other)),
-        }
-    }
-
-    /// Makes an object of `kind` (`robot/puma560`) named `name`, configured by `config` (TOML
-    /// text, `""` for the defaults). It starts `unconfigured` and is bound in the naming tree at
-    /// `/<node>/<class context>/<name>`.
-    ///
-    /// # Errors
-    /// [`CallError::UnknownKind`], [`CallError::NameTaken`], [`CallError::BadName`],
-    /// [`CallError::BadConfig`], [`CallError::LimitReached`], transport errors.
-    pub fn create(&self, kind: &str, name: &str, config: &str) -> Result<ObjectInfo, RpcError> {
-        match self.creator(CreatorCall::Create {
-            kind: kind.to_string(),
-            name: name.to_string(),
-            config: config.to_string(),
-        })? {
-            Reply::Object(info) => Ok(info),
-            other => Err(unexpected("the new object", &other)),
-        }
-    }
-
-    /// [`NodeProxy::create`], then a proxy of class `P` for the new object, such as
-    /// `node.create_as::<RobotProxy>("robot/puma560", "slave", "")`.
-    ///
-    /// # Errors
-    /// Those of [`NodeProxy::create`]; [`CallError::WrongClass`] when `kind` is not of `P`'s
-    /// class (checked before anything is created).
-    pub fn create_as<P: TypedProxy>(
-        &self,
-        kind: &str,
-        name: &str,
-        config: &str,
-    ) -> Result<P, RpcError> {
-        let class = kind.split('/').next().and_then(Class::parse);
-        if let (Some(expected), Some(found)) = (P::CLASS, class)
-            && expected != found
-        {
-            return Err(RpcError::Remote(WireError::Call(CallError::WrongClass {
-                name: name.to_string(),
-                expected,
-                found,
-            })));
-        }
-        let info = self.create(kind, name, config)?;
-        P::from_handle(ObjectHandle::new(
-            self.client.clone(),
-            self.reference_of(&info),
-        )?)
-    }
-
-    /// A proxy of class `P` for the object `name` of this node (no naming lookup).
-    ///
-    /// # Errors
-    /// [`CallError::UnknownName`], [`CallError::WrongClass`], transport errors.
-    pub fn object<P: TypedProxy>(&self, name: &str) -> Result<P, RpcError> {
-        let info = self
-            .list()?
-            .into_iter()
-            .find(|o| o.name == name)
-            .ok_or_else(|| {
-                RpcError::Remote(WireError::Call(CallError::UnknownName(name.to_string())))
-            })?;
-        P::from_handle(ObjectHandle::new(
-            self.client.clone(),
-            self.reference_of(&info),
-        )?)
-    }
-
-    /// Removes the object `name` and its naming entry. Refused with [`CallError::InUse`] while
-    /// an active object depends on it, unless `force`: then those are stopped safely first.
-    ///
-    /// # Errors
-    /// [`CallError::UnknownName`], [`CallError::InUse`], transport errors.
-    pub fn destroy(&self, name: &str, force: bool) -> Result<(), RpcError> {
-        match self.creator(CreatorCall::Destroy {
-            name: name.to_string(),
-            force,
-        })? {
-            Reply::Unit | Reply::Object(_) => Ok(()),
-            other => Err(unexpected("nothing", &other)),
-        }
-    }
-
-    /// Moves the node's simulated clock on by `by`, stepping its active loops; returns the
-    /// clock's new time.
-    ///
-    /// # Errors
-    /// [`CallError::NotReady`] on a node clocked in real time; transport errors.
-    pub fn advance(&self, by: std::time::Duration) -> Result<std::time::Duration, RpcError> {
-        match self.creator(CreatorCall::Advance {
-            seconds: by.as_secs_f64(),
-        })? {
-            Reply::Duration(Some(t)) => Ok(std::time::Duration::from_secs_f64(t.max(0.0))),
-            other => Err(unexpected("a time", &other)),
-        }
-    }
-
-    /// Starts recording `objects` (none: every controller and linked channel) to the new MCAP
-    /// file `name` (a plain file name) in the node's recordings directory; returns the
-    /// controllers and channels recorded.
-    ///
-    /// # Errors
-    /// What [`CreatorCall::RecordStart`] lists; transport errors.
-    pub fn record_start(
-        &self,
-        name: &str,
-        objects: &[String],
-    ) -> Result<(Vec<String>, Vec<String>), RpcError> {
-        self.record_start_at(name, objects)
-            .map(|(_, controllers, links)| (controllers, links))
-    }
-
-    /// As [`record_start`](Self::record_start), with the file's path on the node's host first.
-    ///
-    /// # Errors
-    /// What [`CreatorCall::RecordStart`] lists; transport errors.
-    pub fn record_start_at(
-        &self,
-        name: &str,
-        objects: &[String],
-    ) -> Result<(String, Vec<String>, Vec<String>), RpcError> {
-        match self.creator(CreatorCall::RecordStart {
-            path: name.to_string(),
-            objects: objects.to_vec(),
-        })? {
-            Reply::Recording {
-                path,
-                controllers,
-                links,
-            } => Ok((path, controllers, links)),
-            other => Err(unexpected("a recording", &other)),
-        }
-    }
-
-    /// Ends the node's recording: its file and the ticks written.
-    ///
-    /// # Errors
-    /// What [`CreatorCall::RecordStop`] lists; transport errors.
-    pub fn record_stop(&self) -> Result<(String, u64), RpcError> {
-        match self.creator(CreatorCall::RecordStop)? {
-            Reply::Recorded { path, ticks } => Ok((path, ticks)),
-            other => Err(unexpected("a finished recording", &other)),
-        }
-    }
-
-    /// Applies the system file `text` to this node: the objects it places here are created,
-    /// related, configured and activated by the node, or none is kept. Returns the objects
-    /// created, in creation order.
-    ///
-    /// # Errors
-    /// What [`CreatorCall::ApplySystem`] lists; transport errors.
-    pub fn apply_system(&self, text: &str) -> Result<Vec<ObjectInfo>, RpcError> {
-        match self.creator(CreatorCall::ApplySystem {
-            text: text.to_string(),
-        })? {
-            Reply::Objects(o) => Ok(o),
-            other => Err(unexpected("the objects created", &other)),
-        }
-    }
-
-    /// Latches the e-stop of every loop running on this node, on a connection of its own
-    /// ([`Client::call_alone`]): the node answers without waiting for any other call. Returns
-    /// which loops latched it before the answer and which had yet to tick.
-    ///
-    /// # Errors
-    /// Transport errors.
-    pub fn estop(&self) -> Result<StopReport, RpcError> {
-        match self
-            .client
-            .call_alone(self.address, Call::Creator(CreatorCall::EStop))?
-        {
-            Reply::Stopped(report) => Ok(report),
-            other => Err(unexpected("an e-stop report", &other)),
-        }
-    }
-
-    /// The reference of one of this node's objects.
-    pub fn reference_of(&self, info: &ObjectInfo) -> ObjectRef {
-        ObjectRef {
-            node: self.reference.node.clone(),
-            address: self.reference.address.clone(),
-            name: info.name.clone(),
-            class: info.class,
-            kind: info.kind.clone(),
-        }
-    }
-
-    /// The naming path of one of this node's objects.
-    pub fn path_of(&self, info: &ObjectInfo) -> String {
-        crate::proto::object_path(&self.reference.node, info.class, &info.name)
-    }
 }

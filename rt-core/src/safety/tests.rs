@@ -1,8 +1,9 @@
 //! The safety layer's unit tests.
 
 use super::*;
+use core::time::Duration;
 use nalgebra::Vector3;
-use penelope_hal::Frame;
+use penelope_hal::{Frame, JointLimits};
 
 fn limits() -> JointLimits {
     JointLimits {

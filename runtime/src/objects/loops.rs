@@ -1,9 +1,9 @@
 //! The loops of active controllers: starting them (threads, or steps on the simulated clock),
 //! stopping them safely, taking failed ones out of service, and the simulated clock's controls.
 
-use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::sync::mpsc::sync_channel;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use penelope_hal::{LifecycleState, Timestamp};
@@ -11,9 +11,9 @@ use penelope_rt_core::control::ControlCommand;
 use penelope_rt_core::exec::{self, PeriodicConfig, Setting};
 use penelope_rt_core::safety::TeleopRole;
 
-use super::registry::{KindState, Launch};
+use super::registry::{self, KindState, Launch};
 use super::runtime::{self, LoopFault, LoopShared, Running, StopMode, StoppedLoop};
-use super::sim_world::{SteppedLoop, TickBody};
+use super::sim_world::{SimWorld, SteppedLoop, TickBody};
 use super::tick::TickStream;
 use super::{Creator, DetachedLoop, RtPolicy};
 use crate::objects::error::ObjectError;
@@ -66,89 +66,14 @@ impl Creator {
         let mut reg = self.lock()?;
         let built = reg.build_loop(name, &launch)?;
         let rt = launch.rt;
-        let scheduling = scheduling_label(name, fifo, rt.priority);
-
-        let control_stop = Arc::new(AtomicBool::new(false));
-        let comm_stop = Arc::new(AtomicBool::new(false));
-        let fault = Arc::new(LoopFault::default());
-        let (back_tx, back_rx) = sync_channel(1);
-        let (comm_back_tx, comm_back_rx) = sync_channel(1);
-        let aux_stop = Arc::new(AtomicBool::new(false));
-        let shared = Arc::new(LoopShared::default());
-        let feed_stats = Arc::new(runtime::FeedStats::default());
-        let pump = runtime::Pump::new(
-            built.telemetry,
-            shared.clone(),
-            self.subscriptions.clone(),
-            name,
-            built.joints,
-        );
-        // The feed of a sensor on another node: its stream's reader to the loop's wrench cell.
-        let (model, probe) = (built.model, built.probe);
-        let feed = built
-            .source
-            .zip(built.wrench)
-            .map(|(source, out)| runtime::SensorFeed {
-                source,
-                model,
-                state: probe,
-                out,
-                stats: feed_stats.clone(),
-                controller: name.to_string(),
-            });
-        // A teleoperation end's thread also wakes on its doorbell and socket (urgent samples);
-        // without them (no descriptor left) it still ticks, as every other loop's does.
-        let comm_wake = built.comm.wake_on().unwrap_or_else(|e| {
-            log::warn!("controller `{name}`: urgent samples wait for the period ({e})");
-            None
-        });
-        let mut control = built.control;
-        if self.sim.is_none() {
-            // On the real clock the simulated world goes on when the control thread does not.
-            control.keep_plant_moving();
-        }
-        let control_body =
-            runtime::control_body(control, control_stop.clone(), back_tx, fault.clone());
-        let comm_body =
-            runtime::comm_body(built.comm, fault.clone(), comm_stop.clone(), comm_back_tx);
-        let mut running = Running {
-            control: None,
-            control_stop,
-            control_back: back_rx,
-            comm: None,
-            comm_stop,
-            comm_back: comm_back_rx,
-            commands: built.commands,
-            stop: built.stop.clone(),
-            goto: built.goto,
-            gains: built.gains,
-            pump: None,
-            aux_stop,
-            feed: None,
-            feed_stats,
-            shared,
-            fifo,
-            period: built.timing.period,
-            fault,
-        };
-        let bodies: (TickBody, TickBody) = (Box::new(control_body), Box::new(comm_body));
+        let scheduling = scheduling(name, fifo, rt.priority);
+        let (mut running, bodies) = self.wire_loop(name, built, fifo);
+        let stop = running.stop.clone();
         let scheduling = if let Some(world) = &self.sim {
-            let mut world = world
-                .lock()
-                .map_err(|_| ObjectError::Poisoned("simulated clock"))?;
-            let periods = (
-                built.timing.period,
-                built.timing.comm_period,
-                built.timing.sensor_period,
-            );
-            let stepped = SteppedLoop::new(world.now(), bodies.0, bodies.1, feed, pump, periods);
-            world.add(name, stepped);
+            step_on_simulated_clock(world, name, bodies)?;
             "simulated clock".to_string()
         } else {
-            let aux = (pump, feed, comm_wake);
-            if let Err(why) =
-                start_threads(name, &mut running, bodies, aux, &built.timing, rt, fifo)
-            {
+            if let Err(why) = start_threads(name, &mut running, bodies, rt, fifo) {
                 // Stop what did start, give the board back, and say why.
                 let stopped = running.stop(StopMode::Deactivate);
                 reg.take_back(stopped, name, false);
@@ -156,9 +81,105 @@ impl Creator {
             }
             scheduling
         };
-        mark_active(&mut reg, name, running, scheduling)?;
-        self.stops.insert(name, built.stop);
+        let o = reg.get_mut(name)?;
+        o.state = LifecycleState::Active;
+        if let KindState::Controller(c) = &mut o.body {
+            c.running = Some(running);
+            c.scheduling = Some(scheduling);
+            c.fault = None;
+        }
+        self.stops.insert(name, stop);
         Ok(())
+    }
+
+    /// Wires the loop the registry built for controller `name`: the stop flags, fault record
+    /// and hand-back channels its bodies share with the [`Running`] that stops them, and the
+    /// bodies themselves, not started yet.
+    fn wire_loop(&self, name: &str, built: registry::Built, fifo: bool) -> (Running, LoopBodies) {
+        let control_stop = Arc::new(AtomicBool::new(false));
+        let comm_stop = Arc::new(AtomicBool::new(false));
+        let fault = Arc::new(LoopFault::default());
+        let (back_tx, back_rx) = sync_channel(1);
+        let (comm_back_tx, comm_back_rx) = sync_channel(1);
+        let registry::Built {
+            control,
+            comm,
+            telemetry,
+            commands,
+            stop,
+            goto,
+            gains,
+            probe,
+            wrench,
+            source,
+            model,
+            joints,
+            timing,
+        } = built;
+        let aux_stop = Arc::new(AtomicBool::new(false));
+        let shared = Arc::new(LoopShared::default());
+        let feed_stats = Arc::new(runtime::FeedStats::default());
+        let pump = runtime::Pump::new(
+            telemetry,
+            shared.clone(),
+            self.subscriptions.clone(),
+            name,
+            joints,
+        );
+        let feed = match (source, wrench) {
+            (Some(source), Some(out)) => Some(runtime::SensorFeed {
+                source,
+                model,
+                state: probe,
+                out,
+                stats: feed_stats.clone(),
+                controller: name.to_string(),
+            }),
+            _ => None,
+        };
+        // A teleoperation end's thread also wakes on its doorbell and socket (urgent samples);
+        // without them (no descriptor left) it still ticks, as every other loop's does.
+        let comm_wake = comm.wake_on().unwrap_or_else(|e| {
+            log::warn!("controller `{name}`: urgent samples wait for the period ({e})");
+            None
+        });
+        let mut control = control;
+        if self.sim.is_none() {
+            // On the real clock the simulated world goes on when the control thread does not.
+            control.keep_plant_moving();
+        }
+        let control_body =
+            runtime::control_body(control, control_stop.clone(), back_tx, fault.clone());
+        let comm_body = runtime::comm_body(comm, fault.clone(), comm_stop.clone(), comm_back_tx);
+        let running = Running {
+            control: None,
+            control_stop,
+            control_back: back_rx,
+            comm: None,
+            comm_stop,
+            comm_back: comm_back_rx,
+            commands,
+            stop,
+            goto,
+            gains,
+            pump: None,
+            aux_stop,
+            feed: None,
+            feed_stats,
+            shared,
+            fifo,
+            period: timing.period,
+            fault,
+        };
+        let bodies = LoopBodies {
+            control: Box::new(control_body),
+            comm: Box::new(comm_body),
+            pump,
+            feed,
+            comm_wake,
+            timing,
+        };
+        (running, bodies)
     }
 
     /// Takes every loop whose threads failed out of service: the control thread already
@@ -459,19 +480,74 @@ impl Creator {
 
 /// Starts the threads of a loop: control (SCHED_FIFO where permitted), communication, the
 /// telemetry pump and the sensor feed. On an error, what did start is in `running`.
+/// A controller's loop, wired and not started: what its threads (or the simulated clock's
+/// steps) run, and their periods.
+struct LoopBodies {
+    control: TickBody,
+    comm: TickBody,
+    pump: runtime::Pump,
+    feed: Option<runtime::SensorFeed>,
+    /// What wakes the communication thread before its period (a teleoperation end's doorbell
+    /// and socket); unused on the simulated clock.
+    comm_wake: Option<penelope_rt_core::wake::WakeOn>,
+    timing: crate::objects::config::LoopTiming,
+}
+
+/// How controller `name`'s control thread is scheduled, for `describe`; says once in the log
+/// when SCHED_FIFO was asked for and refused.
+fn scheduling(name: &str, fifo: bool, priority: Option<u8>) -> String {
+    match (fifo, priority) {
+        (true, Some(p)) => format!("SCHED_FIFO {p}"),
+        (false, Some(p)) => {
+            log::warn!(
+                "controller `{name}`: SCHED_FIFO {p} is not permitted to this process; its loop runs at normal priority"
+            );
+            "normal (SCHED_FIFO refused)".to_string()
+        }
+        (_, None) => "normal".to_string(),
+    }
+}
+
+/// Puts controller `name`'s loop on the simulated clock, stepped from the clock's present time.
+fn step_on_simulated_clock(
+    world: &Mutex<SimWorld>,
+    name: &str,
+    bodies: LoopBodies,
+) -> Result<(), ObjectError> {
+    let mut world = world
+        .lock()
+        .map_err(|_| ObjectError::Poisoned("simulated clock"))?;
+    let now = world.now();
+    let timing = bodies.timing;
+    world.add(
+        name,
+        SteppedLoop::new(
+            now,
+            bodies.control,
+            bodies.comm,
+            bodies.feed,
+            bodies.pump,
+            (timing.period, timing.comm_period, timing.sensor_period),
+        ),
+    );
+    Ok(())
+}
+
 fn start_threads(
     name: &str,
     running: &mut Running,
-    (control, comm): (TickBody, TickBody),
-    (mut pump, feed, comm_wake): (
-        runtime::Pump,
-        Option<runtime::SensorFeed>,
-        Option<penelope_rt_core::wake::WakeOn>,
-    ),
-    timing: &crate::objects::config::LoopTiming,
+    bodies: LoopBodies,
     rt: &RtPolicy,
     fifo: bool,
 ) -> Result<(), ObjectError> {
+    let LoopBodies {
+        control,
+        comm,
+        mut pump,
+        feed,
+        comm_wake,
+        timing,
+    } = bodies;
     let thread_name =
         |prefix: &str| -> String { format!("{prefix}{name}").chars().take(15).collect() };
     let mut control_cfg = PeriodicConfig::new(thread_name("ctl-"), timing.period);
@@ -551,37 +627,4 @@ fn sensor_stream(
             "sensor `{path}` answered {other:?}, not its data-plane address"
         ))),
     }
-}
-
-/// How a controller's threads are scheduled, as `describe` shows it: SCHED_FIFO at `priority`
-/// when the process may use it (a warning when it may not), else normal.
-fn scheduling_label(name: &str, fifo: bool, priority: Option<u8>) -> String {
-    match (fifo, priority) {
-        (true, Some(p)) => format!("SCHED_FIFO {p}"),
-        (false, Some(p)) => {
-            log::warn!(
-                "controller `{name}`: SCHED_FIFO {p} is not permitted to this process; its loop runs at normal priority"
-            );
-            "normal (SCHED_FIFO refused)".to_string()
-        }
-        (_, None) => "normal".to_string(),
-    }
-}
-
-/// Controller `name` is active: its running loop and how it is scheduled kept, its last fault
-/// cleared.
-fn mark_active(
-    reg: &mut crate::objects::Registry,
-    name: &str,
-    running: Running,
-    scheduling: String,
-) -> Result<(), ObjectError> {
-    let o = reg.get_mut(name)?;
-    o.state = LifecycleState::Active;
-    if let KindState::Controller(c) = &mut o.body {
-        c.running = Some(running);
-        c.scheduling = Some(scheduling);
-        c.fault = None;
-    }
-    Ok(())
 }

@@ -204,6 +204,119 @@ impl RemoteLink {
             }
         }
     }
+
+    /// The peer's newest sample among the datagrams waiting (at most [`RECEIVE_BURST`]), with
+    /// heartbeats answered and answers taken into the link's clock on the way (see
+    /// [`TeleopEnd::take_newest`]).
+    fn take_newest(&mut self, now: Timestamp) -> Option<TeleopSample> {
+        let mut newest = None;
+        let tick = nanos(now);
+        self.looked_at = Some(self.stamps.now(tick));
+        for _ in 0..RECEIVE_BURST {
+            let Some(Received {
+                from,
+                header,
+                payload: datagram,
+                kernel_realtime_ns,
+            }) = self.endpoint.receive_stamped::<LinkDatagram>()
+            else {
+                break;
+            };
+            if from != self.peer {
+                self.strangers += 1;
+                continue;
+            }
+            // t2 of a heartbeat, t4 of an answer.
+            let arrived = self.stamps.received(tick, kernel_realtime_ns);
+            self.heard_at = Some(arrived);
+            match datagram {
+                LinkDatagram::Sample { .. } => {
+                    if let Some(sample) = self.take_sample(now, &header, arrived, datagram) {
+                        newest = Some(sample);
+                    }
+                }
+                LinkDatagram::Heartbeat if header.stream == HEARTBEATS => {
+                    // t3: read as the answer leaves.
+                    let answer = self.heartbeats.next(self.stamps.now(tick));
+                    let payload = LinkDatagram::Answer {
+                        heartbeat: header.sequence,
+                        received_ns: arrived,
+                    };
+                    self.emit(tick, answer, payload);
+                }
+                LinkDatagram::Answer {
+                    heartbeat,
+                    received_ns,
+                } if header.stream == HEARTBEATS => {
+                    // Refusals (unmatched, duplicate, impossible times) are counted by the
+                    // clock and leave its estimate alone.
+                    let _ = self
+                        .clock
+                        .note_answer(heartbeat, received_ns, header.sent_ns, arrived);
+                }
+                _ => {}
+            }
+        }
+        newest
+    }
+
+    /// A sample datagram from the peer that `arrived` (this end's clock, ns), taken if it is
+    /// newer than every one taken before: counted, its one-way trip recorded, tapped for a
+    /// recorder, and returned with its send time on this node's clock. `None` for a sample the
+    /// stream refuses (duplicate, late, of an old session or another stream) and for any other
+    /// datagram.
+    fn take_sample(
+        &mut self,
+        now: Timestamp,
+        header: &Header,
+        arrived: i64,
+        datagram: LinkDatagram,
+    ) -> Option<TeleopSample> {
+        let LinkDatagram::Sample {
+            clutch,
+            reference,
+            wave,
+            energy,
+            urgent,
+        } = datagram
+        else {
+            return None;
+        };
+        if self.receiver.offer(header) != Verdict::Accepted {
+            return None;
+        }
+        self.taken += 1;
+        let sent_here = self
+            .clock
+            .from_common(header.sent_ns)
+            .unwrap_or(header.sent_ns);
+        self.one_way.record(arrived - sent_here);
+        // The sender's time on this node's clock, once heartbeats know the offset (before
+        // that, taken as is: one host, one clock).
+        let sent = self.stamps.to_node(sent_here);
+        if let Some(stream) = StreamName::of(header.stream) {
+            let _ = self.tap.push(StreamDatagram {
+                stream,
+                time_ns: now.as_nanos(),
+                sequence: header.sequence,
+                sent_ns: header.sent_ns,
+                arrived_ns: Some(self.stamps.to_node(arrived)),
+                one_way_ns: Some(arrived - sent_here),
+                clutch,
+                reference,
+                wave,
+                energy,
+            });
+        }
+        Some(TeleopSample {
+            sequence: self.taken,
+            sent: Timestamp::from_nanos(u64::try_from(sent).unwrap_or(0)),
+            clutch,
+            reference,
+            port: PortPayload { wave, energy },
+            urgent,
+        })
+    }
 }
 
 impl TeleopEnd {
@@ -353,97 +466,7 @@ impl TeleopEnd {
                 Fresh::New(s) => Some(TeleopSample { sent: now, ..s }),
                 _ => None,
             },
-            Transport::DataPlane(link) => {
-                let mut newest = None;
-                let tick = nanos(now);
-                link.looked_at = Some(link.stamps.now(tick));
-                for _ in 0..RECEIVE_BURST {
-                    let Some(Received {
-                        from,
-                        header,
-                        payload: datagram,
-                        kernel_realtime_ns,
-                    }) = link.endpoint.receive_stamped::<LinkDatagram>()
-                    else {
-                        break;
-                    };
-                    if from != link.peer {
-                        link.strangers += 1;
-                        continue;
-                    }
-                    // t2 of a heartbeat, t4 of an answer.
-                    let arrived = link.stamps.received(tick, kernel_realtime_ns);
-                    link.heard_at = Some(arrived);
-                    match datagram {
-                        LinkDatagram::Sample {
-                            clutch,
-                            reference,
-                            wave,
-                            energy,
-                            urgent,
-                        } => {
-                            if link.receiver.offer(&header) != Verdict::Accepted {
-                                continue;
-                            }
-                            link.taken += 1;
-                            let sent_here = link
-                                .clock
-                                .from_common(header.sent_ns)
-                                .unwrap_or(header.sent_ns);
-                            link.one_way.record(arrived - sent_here);
-                            // The sender's time on this node's clock, once heartbeats know
-                            // the offset (before that, taken as is: one host, one clock).
-                            let sent = link.stamps.to_node(sent_here);
-                            if let Some(stream) = StreamName::of(header.stream) {
-                                let _ = link.tap.push(StreamDatagram {
-                                    stream,
-                                    time_ns: now.as_nanos(),
-                                    sequence: header.sequence,
-                                    sent_ns: header.sent_ns,
-                                    arrived_ns: Some(link.stamps.to_node(arrived)),
-                                    one_way_ns: Some(arrived - sent_here),
-                                    clutch,
-                                    reference,
-                                    wave,
-                                    energy,
-                                });
-                            }
-                            newest = Some(TeleopSample {
-                                sequence: link.taken,
-                                sent: Timestamp::from_nanos(u64::try_from(sent).unwrap_or(0)),
-                                clutch,
-                                reference,
-                                port: PortPayload { wave, energy },
-                                urgent,
-                            });
-                        }
-                        LinkDatagram::Heartbeat if header.stream == HEARTBEATS => {
-                            // t3: read as the answer leaves.
-                            let answer = link.heartbeats.next(link.stamps.now(tick));
-                            let payload = LinkDatagram::Answer {
-                                heartbeat: header.sequence,
-                                received_ns: arrived,
-                            };
-                            link.emit(tick, answer, payload);
-                        }
-                        LinkDatagram::Answer {
-                            heartbeat,
-                            received_ns,
-                        } if header.stream == HEARTBEATS => {
-                            // Refusals (unmatched, duplicate, impossible times) are counted
-                            // by the clock and leave its estimate alone.
-                            let _ = link.clock.note_answer(
-                                heartbeat,
-                                received_ns,
-                                header.sent_ns,
-                                arrived,
-                            );
-                        }
-                        _ => {}
-                    }
-                }
-                newest
-            }
+            Transport::DataPlane(link) => link.take_newest(now),
         }
     }
 

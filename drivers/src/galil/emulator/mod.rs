@@ -497,119 +497,21 @@ impl Dmc {
                 self.echo = flag(rest)?;
                 Ok(Reply::Ack)
             }
-            "CW" => {
-                if rest == "?" {
-                    return Ok(Reply::Text(self.fmt_int(if self.marked {
-                        1.0
-                    } else {
-                        2.0
-                    })));
-                }
-                let first = rest.split(',').next().unwrap_or("").trim();
-                match first {
-                    "1" => self.marked = true,
-                    "2" => self.marked = false,
-                    "" => {}
-                    _ => return Err(6),
-                }
-                Ok(Reply::Ack)
-            }
+            "CW" => self.data_adjustment(rest),
             "LZ" => {
                 self.lz0 = !flag(rest)?;
                 Ok(Reply::Ack)
             }
-            "TC" => {
-                let code = std::mem::take(&mut self.error_code);
-                match rest {
-                    "" | "0" => Ok(Reply::Text(code.to_string())),
-                    "1" => Ok(Reply::Text(if code == 0 {
-                        "0".into()
-                    } else {
-                        format!("{code} {}", error_text(code))
-                    })),
-                    _ => Err(6),
-                }
-            }
-            "TM" => {
-                if rest == "?" {
-                    return Ok(Reply::Text(self.fmt_int(self.tm)));
-                }
-                let v = number(rest)?;
-                if !(250.0..=20_000.0).contains(&v) {
-                    return Err(6);
-                }
-                self.tm = v.round();
-                Ok(Reply::Ack)
-            }
-            "RS" => {
-                if !rest.is_empty() {
-                    return Err(1);
-                }
-                // A reset controller: programs and variables gone, motors off; the clock, the
-                // arm and the record of motor-off instants carry on.
-                let keep = self.pending_unsolicited.clone();
-                let arm = self.arm.take();
-                let (time, ticks) = (self.sim_time, self.ticks);
-                let (was_on, off_at, silent, last) = (
-                    self.was_on.clone(),
-                    self.off_at.clone(),
-                    self.silent_at_off.clone(),
-                    self.last_command_at,
-                );
-                *self = Dmc::new(self.config.clone());
-                self.sim_time = time;
-                self.ticks = ticks;
-                self.pending_unsolicited = keep;
-                self.was_on = was_on;
-                self.off_at = off_at;
-                self.silent_at_off = silent;
-                self.last_command_at = last;
-                if arm.is_some() {
-                    self.arm = arm;
-                    self.sync_arm();
-                }
-                self.note_motors();
-                Ok(Reply::Ack)
-            }
+            "TC" => Ok(Reply::Text(self.tell_code(rest)?)),
+            "TM" => self.sample_time(rest),
+            "RS" => self.reset(rest),
             "QZ" => Ok(Reply::Text(format!(
                 "{}, {}, {}, {}",
                 self.layout.axes, self.layout.general, self.layout.coordinated, self.layout.axis
             ))),
-            "QR" => {
-                let recs: Vec<AxisRecord> = self.axes.iter().map(axis_record).collect();
-                let mut buf = vec![0u8; self.layout.record_len()];
-                let n = encode_record(&self.layout, 0x07, self.sample, &recs, &mut buf)
-                    .map_err(|_| 1u16)?;
-                out.extend_from_slice(&buf[..n]);
-                Ok(Reply::Binary)
-            }
-            "SH" | "MO" | "BG" | "ST" => {
-                let axes = self.axes_arg(rest)?;
-                let mut result = Ok(());
-                for i in axes {
-                    let a = &mut self.axes[i];
-                    match mnemonic {
-                        "SH" => a.servo_here(),
-                        "MO" => a.motor_off(),
-                        "ST" => a.stop(),
-                        _ => {
-                            if let Err(code) = a.begin() {
-                                result = Err(code);
-                            }
-                        }
-                    }
-                }
-                result.map(|()| Reply::Ack)
-            }
-            "AB" => {
-                if !(rest.is_empty() || rest == "0" || rest == "1") {
-                    return Err(6);
-                }
-                for a in &mut self.axes {
-                    a.abort();
-                }
-                Ok(Reply::Ack)
-            }
+            "QR" => self.data_record(out),
+            "SH" | "MO" | "BG" | "ST" => self.axis_command(mnemonic, rest),
+            "AB" => self.abort(rest),
             "TP" | "TE" | "TV" | "TT" | "TS" | "SC" => {
                 let axes = self.axes_arg(rest)?;
                 let values: Vec<f64> = axes.iter().map(|&i| self.operand(mnemonic, i)).collect();
@@ -621,6 +523,125 @@ impl Dmc {
                 None => Err(1),
             },
         }
+    }
+
+    /// `CW`: whether unsolicited bytes are marked (their high bit set), or `CW ?` to ask.
+    fn data_adjustment(&mut self, rest: &str) -> Result<Reply, u16> {
+        if rest == "?" {
+            return Ok(Reply::Text(self.fmt_int(if self.marked {
+                1.0
+            } else {
+                2.0
+            })));
+        }
+        let first = rest.split(',').next().unwrap_or("").trim();
+        match first {
+            "1" => self.marked = true,
+            "2" => self.marked = false,
+            "" => {}
+            _ => return Err(6),
+        }
+        Ok(Reply::Ack)
+    }
+
+    /// `TC`: the last error code (`TC 1`: with its text), cleared by asking.
+    fn tell_code(&mut self, rest: &str) -> Result<String, u16> {
+        let code = std::mem::take(&mut self.error_code);
+        match rest {
+            "" | "0" => Ok(code.to_string()),
+            "1" => Ok(if code == 0 {
+                "0".into()
+            } else {
+                format!("{code} {}", error_text(code))
+            }),
+            _ => Err(6),
+        }
+    }
+
+    /// `TM`: the sample time, µs (250 to 20000), or `TM ?` to ask.
+    fn sample_time(&mut self, rest: &str) -> Result<Reply, u16> {
+        if rest == "?" {
+            return Ok(Reply::Text(self.fmt_int(self.tm)));
+        }
+        let v = number(rest)?;
+        if !(250.0..=20_000.0).contains(&v) {
+            return Err(6);
+        }
+        self.tm = v.round();
+        Ok(Reply::Ack)
+    }
+
+    /// `RS`: a reset controller: programs and variables gone, motors off; the clock, the arm and
+    /// the record of motor-off instants carry on.
+    fn reset(&mut self, rest: &str) -> Result<Reply, u16> {
+        if !rest.is_empty() {
+            return Err(1);
+        }
+        let keep = self.pending_unsolicited.clone();
+        let arm = self.arm.take();
+        let (time, ticks) = (self.sim_time, self.ticks);
+        let (was_on, off_at, silent, last) = (
+            self.was_on.clone(),
+            self.off_at.clone(),
+            self.silent_at_off.clone(),
+            self.last_command_at,
+        );
+        *self = Dmc::new(self.config.clone());
+        self.sim_time = time;
+        self.ticks = ticks;
+        self.pending_unsolicited = keep;
+        self.was_on = was_on;
+        self.off_at = off_at;
+        self.silent_at_off = silent;
+        self.last_command_at = last;
+        if arm.is_some() {
+            self.arm = arm;
+            self.sync_arm();
+        }
+        self.note_motors();
+        Ok(Reply::Ack)
+    }
+
+    /// `QR`: one binary data record of every axis, appended to `out`.
+    fn data_record(&self, out: &mut Vec<u8>) -> Result<Reply, u16> {
+        let recs: Vec<AxisRecord> = self.axes.iter().map(axis_record).collect();
+        let mut buf = vec![0u8; self.layout.record_len()];
+        let n =
+            encode_record(&self.layout, 0x07, self.sample, &recs, &mut buf).map_err(|_| 1u16)?;
+        out.extend_from_slice(&buf[..n]);
+        Ok(Reply::Binary)
+    }
+
+    /// `SH`, `MO`, `BG`, `ST` on the axes named in `rest` (all when none): servo here, motor
+    /// off, begin motion, stop. A `BG` refused on one axis still begins the others.
+    fn axis_command(&mut self, mnemonic: &str, rest: &str) -> Result<Reply, u16> {
+        let axes = self.axes_arg(rest)?;
+        let mut result = Ok(());
+        for i in axes {
+            let a = &mut self.axes[i];
+            match mnemonic {
+                "SH" => a.servo_here(),
+                "MO" => a.motor_off(),
+                "ST" => a.stop(),
+                _ => {
+                    if let Err(code) = a.begin() {
+                        result = Err(code);
+                    }
+                }
+            }
+        }
+        result.map(|()| Reply::Ack)
+    }
+
+    /// `AB` (`AB 0`, `AB 1`): aborts the motion of every axis.
+    fn abort(&mut self, rest: &str) -> Result<Reply, u16> {
+        if !(rest.is_empty() || rest == "0" || rest == "1") {
+            return Err(6);
+        }
+        for a in &mut self.axes {
+            a.abort();
+        }
+        Ok(Reply::Ack)
     }
 
     fn operand(&self, name: &str, axis: usize) -> f64 {

@@ -61,6 +61,7 @@ mod teleop;
 mod test_signal;
 mod trajectories;
 
+pub(crate) use build::Built;
 use galil::open_galil;
 use sensors::publisher_relations;
 use teleop::link_relations;
