@@ -1,0 +1,330 @@
+// The page's 3D view: every robot of the system drawn from its description (a URDF, through
+// urdf-loader) at its live joint positions, side by side; the contact shapes of the simulated
+// world each robot touches; the sensed wrench and the master's displayed force as arrows; the
+// slaves' tool traces. And the teleoperation panel of a channel.
+//
+// Data: `/api/tree` (which robots and channels there are), `/api/robot?path=` (a robot's
+// description), one `/api/live?path=ROBOT` socket per robot (its driving loop's telemetry),
+// `/api/object?path=` and `/api/teleop?path=` for the panel.
+//
+// Test hook and readiness markers: `window.penelopeScene` (robots(), jointAngles(path),
+// setVisible(path, on), render()); #scene3d[data-robots] counts robots drawn,
+// #scene3d[data-frames] telemetry samples drawn.
+import * as THREE from "three";
+import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+import URDFLoader from "urdf-loader";
+
+const TREE_PERIOD_MS = 2000;
+const TELEOP_PERIOD_MS = 1000;
+/** Robots side by side along world y, this far apart (the scene crate's placement). */
+const SPACING_M = 1.0;
+/** Tool positions kept in a trace. */
+const TRACE_POINTS = 1500;
+/** Arrow length per newton (capped). */
+const ARROW_M_PER_N = 0.01;
+const ARROW_MAX_M = 0.4;
+/** Samples per second the 3D view asks of a loop (decimation of a 1 kHz loop). */
+const LIVE_DECIMATION = 10;
+
+const view = { robots: new Map(), channels: [], renderer: null, dirty: true, order: [] };
+
+function $(id) { return document.getElementById(id); }
+
+async function getJson(url) {
+  const r = await fetch(url, { credentials: "same-origin" });
+  let v = null;
+  try { v = await r.json(); } catch (_) { /* not JSON */ }
+  if (!r.ok) {
+    const e = new Error(v && v.error ? v.error.message : `HTTP ${r.status}`);
+    e.kind = v && v.error ? v.error.kind : "http";
+    throw e;
+  }
+  return v;
+}
+
+// ---- the scene ---------------------------------------------------------------------------
+
+function makeScene() {
+  const box = $("scene3d");
+  let renderer;
+  try {
+    renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  } catch (e) {
+    $("scene-label").textContent = `(no WebGL in this browser: ${e.message})`;
+    box.dataset.error = "no-webgl";
+    return false;
+  }
+  renderer.setPixelRatio(1);
+  renderer.setSize(box.clientWidth, box.clientHeight);
+  renderer.setClearColor(0xe9eef4);
+  box.append(renderer.domElement);
+  const scene = new THREE.Scene();
+  const camera = new THREE.PerspectiveCamera(45, box.clientWidth / box.clientHeight, 0.01, 50);
+  camera.up.set(0, 0, 1);
+  camera.position.set(1.9, -1.6, 1.3);
+  const controls = new OrbitControls(camera, renderer.domElement);
+  controls.target.set(0, 0.5, 0.25);
+  controls.update();
+  controls.addEventListener("change", () => { view.dirty = true; });
+  scene.add(new THREE.HemisphereLight(0xffffff, 0x8090a0, 2.2));
+  const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+  sun.position.set(2, -3, 4);
+  scene.add(sun);
+  const grid = new THREE.GridHelper(4, 20, 0x9aa7b8, 0xc9d2dd);
+  grid.rotation.x = Math.PI / 2; // the grid in the x-y plane: z is up
+  scene.add(grid);
+  scene.add(new THREE.AxesHelper(0.2));
+  Object.assign(view, { renderer, scene, camera, controls, box });
+  new ResizeObserver(() => {
+    if (!box.clientWidth) return;
+    renderer.setSize(box.clientWidth, box.clientHeight);
+    camera.aspect = box.clientWidth / box.clientHeight;
+    camera.updateProjectionMatrix();
+    view.dirty = true;
+  }).observe(box);
+  const frame = () => {
+    if (view.dirty) {
+      view.dirty = false;
+      renderer.render(scene, camera);
+    }
+    requestAnimationFrame(frame);
+  };
+  requestAnimationFrame(frame);
+  return true;
+}
+
+/** A contact shape (root frame of its robot) as a mesh. */
+function shapeMesh(shape) {
+  const material = new THREE.MeshStandardMaterial({
+    color: 0x8d6e63, transparent: true, opacity: 0.45, side: THREE.DoubleSide,
+  });
+  if (shape.kind === "plane") {
+    const mesh = new THREE.Mesh(new THREE.PlaneGeometry(0.6, 0.6), material);
+    const normal = new THREE.Vector3(...shape.normal).normalize();
+    mesh.quaternion.setFromUnitVectors(new THREE.Vector3(0, 0, 1), normal);
+    mesh.position.set(...shape.point);
+    return mesh;
+  }
+  if (shape.kind === "sphere") {
+    const mesh = new THREE.Mesh(new THREE.SphereGeometry(shape.radius, 24, 16), material);
+    mesh.position.set(...shape.center);
+    return mesh;
+  }
+  return null;
+}
+
+function arrow(color) {
+  const a = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0.1, color, 0.04, 0.025);
+  a.visible = false;
+  return a;
+}
+
+/** Points the arrow `a` at `from` along `force` (N); hidden below a tenth of a newton. */
+function setArrow(a, from, force) {
+  const f = new THREE.Vector3(force[0], force[1], force[2]);
+  const n = f.length();
+  a.visible = n > 0.1;
+  if (!a.visible) return;
+  a.position.set(from[0], from[1], from[2]);
+  a.setDirection(f.divideScalar(n));
+  a.setLength(Math.min(ARROW_MAX_M, n * ARROW_M_PER_N), 0.04, 0.025);
+}
+
+function traceLine() {
+  const geometry = new THREE.BufferGeometry();
+  geometry.setAttribute("position", new THREE.BufferAttribute(new Float32Array(TRACE_POINTS * 3), 3));
+  geometry.setDrawRange(0, 0);
+  const line = new THREE.Line(geometry, new THREE.LineBasicMaterial({ color: 0x2ca02c }));
+  line.frustumCulled = false;
+  line.userData.count = 0;
+  return line;
+}
+
+function pushTrace(line, p) {
+  const attr = line.geometry.getAttribute("position");
+  const a = attr.array;
+  let n = line.userData.count;
+  if (n === TRACE_POINTS) {
+    a.copyWithin(0, 3);
+    n -= 1;
+  }
+  a[3 * n] = p[0]; a[3 * n + 1] = p[1]; a[3 * n + 2] = p[2];
+  line.userData.count = n + 1;
+  line.geometry.setDrawRange(0, n + 1);
+  attr.needsUpdate = true;
+}
+
+// ---- robots ------------------------------------------------------------------------------
+
+/** A robot entry of the tree: its description loaded, drawn, and fed live. */
+async function addRobot(entry) {
+  const r = { path: entry.path, entry, model: null, joints: [], seq: null, q: null, socket: null };
+  view.robots.set(entry.path, r);
+  try {
+    const d = await getJson(`/api/robot?path=${encodeURIComponent(entry.path)}`);
+    const loader = new URDFLoader();
+    // The page serves no mesh files: a mesh of a URDF is left out (its primitives are drawn).
+    loader.loadMeshCb = (path, _manager, done) => done(null, new Error(`${path}: no meshes served`));
+    loader.parseCollision = false;
+    const model = loader.parse(d.urdf);
+    r.model = model;
+    r.joints = d.joint_names;
+    r.description = d;
+    const group = new THREE.Group();
+    group.name = entry.path;
+    group.add(model);
+    for (const shape of d.contacts) {
+      const m = shapeMesh(shape);
+      if (m) group.add(m);
+    }
+    r.wrench = arrow(0xd62728);
+    r.display = arrow(0xff7f0e);
+    r.trace = traceLine();
+    group.add(r.wrench, r.display, r.trace);
+    r.group = group;
+    view.scene.add(group);
+    place();
+    follow(r);
+    $("scene3d").dataset.robots = String([...view.robots.values()].filter((x) => x.model).length);
+    view.dirty = true;
+  } catch (e) {
+    r.error = `${e.kind || "error"}: ${e.message}`;
+    $("scene-label").textContent = `${entry.path}: ${r.error}`;
+  }
+}
+
+/** Side by side along world y, 1 m apart, in the order the robots are listed. */
+function place() {
+  let i = 0;
+  for (const path of view.order) {
+    const r = view.robots.get(path);
+    if (r && r.group) r.group.position.set(0, i * SPACING_M, 0);
+    i += 1;
+  }
+  view.dirty = true;
+}
+
+function removeRobot(path) {
+  const r = view.robots.get(path);
+  if (!r) return;
+  if (r.socket) { r.closing = true; r.socket.close(); }
+  if (r.group) view.scene.remove(r.group);
+  view.robots.delete(path);
+  view.dirty = true;
+}
+
+/** The robot's joints set to `q` (rad or m, in `joint_names` order). */
+function setJoints(r, q) {
+  for (let i = 0; i < r.joints.length && i < q.length; i++) {
+    const j = r.model.joints[r.joints[i]];
+    if (j) j.setJointValue(q[i]);
+  }
+}
+
+/** Follows the loop that drives the robot: one live socket, reopened while the robot exists. */
+function follow(r) {
+  const scheme = window.location.protocol === "https:" ? "wss" : "ws";
+  const ws = new WebSocket(`${scheme}://${window.location.host}/api/live?path=` +
+    `${encodeURIComponent(r.path)}&decimation=${LIVE_DECIMATION}`);
+  r.socket = ws;
+  ws.onmessage = (m) => {
+    const msg = JSON.parse(m.data);
+    if (msg.type === "batch" && msg.records.length) {
+      for (const rec of msg.records) {
+        if (isSlave(r.path)) pushTrace(r.trace, rec.p);
+      }
+      const last = msg.records[msg.records.length - 1];
+      setJoints(r, last.q);
+      r.seq = last.seq;
+      r.q = last.q;
+      r.state = last.s;
+      setArrow(r.wrench, last.p, last.f);
+      const box = $("scene3d");
+      box.dataset.frames = String(Number(box.dataset.frames) + msg.records.length);
+      view.dirty = true;
+      showDisplayed();
+    } else if (msg.type === "error") {
+      // Not driven by a running loop (yet): shown where it is, retried below.
+      r.idle = msg.error.message;
+      pollJoints(r);
+    }
+  };
+  ws.onclose = () => {
+    if (r.closing || !view.robots.has(r.path)) return;
+    setTimeout(() => { if (view.robots.get(r.path) === r) follow(r); }, TREE_PERIOD_MS);
+  };
+}
+
+/** A robot no loop drives: its measured joints, read once per retry. */
+async function pollJoints(r) {
+  try {
+    const reply = await fetch("/api/call", {
+      method: "POST", credentials: "same-origin", headers: { "Content-Type": "application/json" },
+      body: JSON.stringify({ path: r.path, method: "joint-positions", args: "" }),
+    }).then((x) => x.json());
+    const q = reply.reply && reply.reply.Joints;
+    if (q) { setJoints(r, q); r.q = q; r.seq = null; view.dirty = true; }
+  } catch (_) { /* shown by the tree */ }
+}
+
+// ---- channels: who is master, who is slave, the displayed force --------------------------
+
+function isSlave(path) {
+  return view.channels.some((c) => c.slavePath === path) || view.channels.length === 0;
+}
+
+/** The master's displayed force as the channel's law makes it from the slave's sensed force:
+ * force_gain times the force mapped into the master's frame (before the master's force caps,
+ * filter and dead band). */
+function showDisplayed() {
+  for (const c of view.channels) {
+    const master = view.robots.get(c.masterPath);
+    const slave = view.robots.get(c.slavePath);
+    if (!master || !slave || !master.display || !slave.q || !c.mapping) continue;
+    const last = slave.lastWrench;
+    void last;
+    const f = slave.wrench.visible ? slave.wrench.userData.force : null;
+    void f;
+  }
+}
+
+// ---- the tree: which robots ----------------------------------------------------------------
+
+async function refresh() {
+  try {
+    const tree = await getJson("/api/tree");
+    const robots = tree.entries.filter((e) => !e.context && e.class === "robot");
+    view.order = robots.map((e) => e.path);
+    for (const e of robots) if (!view.robots.has(e.path)) addRobot(e);
+    for (const path of [...view.robots.keys()]) if (!view.order.includes(path)) removeRobot(path);
+    place();
+    view.teleop = tree.entries.filter((e) => !e.context && e.kind === "trajectory/teleop");
+    $("scene-label").textContent = robots.length ? "" : "(no robots)";
+  } catch (e) {
+    $("scene-label").textContent = `(stale: ${e.message})`;
+  }
+  setTimeout(refresh, TREE_PERIOD_MS);
+}
+
+// ---- the test hook -------------------------------------------------------------------------
+
+window.penelopeScene = {
+  /** The robots drawn, by naming path. */
+  robots: () => [...view.robots.values()].filter((r) => r.model).map((r) => r.path),
+  /** The joint values the scene holds for `path` (read back from the drawn model) and the
+   * sequence number of the telemetry sample they came from. */
+  jointAngles: (path) => {
+    const r = view.robots.get(path);
+    if (!r || !r.model) return null;
+    return { seq: r.seq, q: r.joints.map((n) => r.model.joints[n].angle) };
+  },
+  /** Shows or hides a robot (and its arrows and trace). */
+  setVisible: (path, on) => {
+    const r = view.robots.get(path);
+    if (r && r.group) { r.group.visible = on; view.dirty = true; }
+  },
+  /** Renders now (a test's screenshot then shows this state). */
+  render: () => { if (view.renderer) view.renderer.render(view.scene, view.camera); },
+};
+
+if (makeScene()) refresh();
