@@ -102,16 +102,22 @@ fn import_map(page: &str) -> &str {
 /// A CSP hash source for an inline script: `sha256-` and the base64 of its SHA-256.
 fn script_hash(script: &str) -> String {
     use sha2::Digest;
-    format!("sha256-{}", base64(&sha2::Sha256::digest(script.as_bytes())))
+    format!(
+        "sha256-{}",
+        base64(&sha2::Sha256::digest(script.as_bytes()))
+    )
 }
 
 /// Standard base64 with padding (RFC 4648), for the one hash above.
 fn base64(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8; 64] =
-        b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
     for chunk in bytes.chunks(3) {
-        let b = [chunk[0], *chunk.get(1).unwrap_or(&0), *chunk.get(2).unwrap_or(&0)];
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
         let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
         for i in 0..4 {
             if i <= chunk.len() {
@@ -134,7 +140,8 @@ fn html(body: String, status: StatusCode) -> Response {
     );
     h.insert(
         header::CONTENT_SECURITY_POLICY,
-        HeaderValue::from_str(&CSP).unwrap_or_else(|_| HeaderValue::from_static("default-src 'self'")),
+        HeaderValue::from_str(&CSP)
+            .unwrap_or_else(|_| HeaderValue::from_static("default-src 'self'")),
     );
     h.insert(header::X_FRAME_OPTIONS, HeaderValue::from_static("DENY"));
     h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
@@ -190,7 +197,10 @@ mod tests {
             "sha256-ungWv48Bz+pBQUDeXa4iI7ADYaOWF3qctBD/YfIAFa0="
         );
         let map = super::import_map(super::INDEX);
-        assert!(map.contains("\"three\": \"/assets/three.module.min.js\""), "{map}");
+        assert!(
+            map.contains("\"three\": \"/assets/three.module.min.js\""),
+            "{map}"
+        );
         assert!(super::CSP.contains(&super::script_hash(map)));
         assert_eq!(super::import_map("<p>no map</p>"), "");
     }

@@ -119,11 +119,12 @@ function arrow(color) {
   return a;
 }
 
-/** Points the arrow `a` at `from` along `force` (N); hidden below a tenth of a newton. */
+/** Points the arrow `a` at `from` along `force` (N); hidden below half a newton (a sensor's
+ * noise). */
 function setArrow(a, from, force) {
   const f = new THREE.Vector3(force[0], force[1], force[2]);
   const n = f.length();
-  a.visible = n > 0.1;
+  a.visible = n > 0.5;
   if (!a.visible) return;
   a.position.set(from[0], from[1], from[2]);
   a.setDirection(f.divideScalar(n));
@@ -160,13 +161,16 @@ function pushTrace(line, p) {
 async function addRobot(entry) {
   const r = { path: entry.path, entry, model: null, joints: [], seq: null, q: null, socket: null };
   view.robots.set(entry.path, r);
+  if (!view.scene) return; // no WebGL: said in the label
   try {
     const d = await getJson(`/api/robot?path=${encodeURIComponent(entry.path)}`);
     const loader = new URDFLoader();
     // The page serves no mesh files: a mesh of a URDF is left out (its primitives are drawn).
-    loader.loadMeshCb = (path, _manager, done) => done(null, new Error(`${path}: no meshes served`));
+    loader.loadMeshCb = (path, _manager, _material, done) => done(null, new Error(`${path}: no meshes served`));
     loader.parseCollision = false;
     const model = loader.parse(d.urdf);
+    // The measured joints are drawn as they are, also beyond the URDF's limits.
+    for (const j of Object.values(model.joints)) j.ignoreLimits = true;
     r.model = model;
     r.joints = d.joint_names;
     r.description = d;
@@ -237,6 +241,8 @@ function follow(r) {
       setJoints(r, last.q);
       r.seq = last.seq;
       r.q = last.q;
+      r.p = last.p;
+      r.f = last.f;
       r.state = last.s;
       setArrow(r.wrench, last.p, last.f);
       const box = $("scene3d");
@@ -269,23 +275,137 @@ async function pollJoints(r) {
 
 // ---- channels: who is master, who is slave, the displayed force --------------------------
 
+/** Whether `path` is the slave of a channel (its tool leaves a trace); with no channel in the
+ * system, every robot is. */
 function isSlave(path) {
-  return view.channels.some((c) => c.slavePath === path) || view.channels.length === 0;
+  return (view.teleop || []).length === 0 || view.channels.some((c) => c.slavePath === path);
+}
+
+/** `scale 1 force_gain 0.5 torque_gain 1 rotation_rpy_deg 0 0 0` as numbers. */
+function parseMapping(text) {
+  const w = text.split(/\s+/);
+  const at = (k) => Number(w[w.indexOf(k) + 1]);
+  const i = w.indexOf("rotation_rpy_deg");
+  return {
+    scale: at("scale"), forceGain: at("force_gain"), torqueGain: at("torque_gain"),
+    rpyDeg: i >= 0 ? [Number(w[i + 1]), Number(w[i + 2]), Number(w[i + 3])] : [0, 0, 0],
+  };
 }
 
 /** The master's displayed force as the channel's law makes it from the slave's sensed force:
- * force_gain times the force mapped into the master's frame (before the master's force caps,
- * filter and dead band). */
+ * force_gain times that force mapped into the master's base frame (before the master's force
+ * caps, filter and dead band), drawn at the master's tool. */
 function showDisplayed() {
   for (const c of view.channels) {
     const master = view.robots.get(c.masterPath);
     const slave = view.robots.get(c.slavePath);
-    if (!master || !slave || !master.display || !slave.q || !c.mapping) continue;
-    const last = slave.lastWrench;
-    void last;
-    const f = slave.wrench.visible ? slave.wrench.userData.force : null;
-    void f;
+    if (!master || !slave || !master.display || !master.p || !slave.f || !c.mapping) continue;
+    const [r, p, y] = c.mapping.rpyDeg.map((d) => (d * Math.PI) / 180);
+    // rotation_rpy_deg takes master-frame vectors to the slave's frame: its inverse back.
+    const toSlave = new THREE.Quaternion().setFromEuler(new THREE.Euler(r, p, y, "ZYX"));
+    const f = new THREE.Vector3(slave.f[0], slave.f[1], slave.f[2])
+      .applyQuaternion(toSlave.invert()).multiplyScalar(c.mapping.forceGain);
+    setArrow(master.display, master.p, [f.x, f.y, f.z]);
+    master.displayed = [f.x, f.y, f.z];
   }
+}
+
+// ---- the teleoperation panel ---------------------------------------------------------------
+
+/** The law a channel runs, by the kinds of its active controllers. */
+const LAWS = {
+  "controller/force-display": "position forward, force back",
+  "controller/position-error-master": "position error",
+  "controller/wave-master": "wave variables",
+  "controller/four-channel-master": "four-channel",
+};
+
+function row(name, value, cls) {
+  const tr = document.createElement("tr");
+  const a = document.createElement("td");
+  const b = document.createElement("td");
+  a.textContent = name;
+  b.textContent = value;
+  if (cls) b.className = cls;
+  tr.dataset.row = name;
+  tr.append(a, b);
+  return tr;
+}
+
+/** Reads the chosen channel and its controllers, and fills the panel. */
+async function refreshTeleop() {
+  const select = $("teleop-channel");
+  const paths = (view.teleop || []).map((e) => e.path);
+  if ([...select.options].map((o) => o.value).join("\n") !== paths.join("\n")) {
+    const keep = select.value;
+    select.replaceChildren(...paths.map((p) => Object.assign(document.createElement("option"), { value: p, textContent: p })));
+    if (paths.includes(keep)) select.value = keep;
+  }
+  const path = select.value;
+  const body = $("teleop-table").tBodies[0];
+  try {
+    const channels = [];
+    for (const e of view.teleop || []) {
+      const d = await getJson(`/api/object?path=${encodeURIComponent(e.path)}`);
+      const rel = Object.fromEntries((d.object.Object || { relations: [] }).relations);
+      const base = e.path.slice(0, e.path.lastIndexOf("/trajectories/"));
+      channels.push({
+        path: e.path, entry: e, relations: rel,
+        masterPath: `${base}/robots/${rel.master}`, slavePath: `${base}/robots/${rel.slave}`,
+        mapping: rel.mapping ? parseMapping(rel.mapping) : null,
+      });
+    }
+    view.channels = channels;
+    const c = channels.find((x) => x.path === path);
+    if (!c) { body.replaceChildren(); $("teleop-note").textContent = paths.length ? "" : "no teleoperation channel"; return; }
+    // Its controllers: those on its node whose trajectory it is.
+    const controllers = (view.tree || []).filter((e) => !e.context && e.class === "controller" && e.node === c.entry.node);
+    const halves = [];
+    for (const e of controllers) {
+      const d = await getJson(`/api/object?path=${encodeURIComponent(e.path)}`);
+      const rel = Object.fromEntries((d.object.Object || { relations: [] }).relations);
+      if (rel.trajectory !== c.entry.object) continue;
+      halves.push({ entry: e, status: d.status && d.status.Status });
+    }
+    const active = halves.filter((h) => h.entry.state === "active");
+    const law = active.map((h) => LAWS[h.entry.kind]).filter(Boolean);
+    const rows = [
+      row("master → slave", `${c.relations.master} → ${c.relations.slave}`),
+      row("law", law.length ? law.join(", ") : active.length ? active.map((h) => h.entry.kind).join(", ") : "none active"),
+    ];
+    if (c.mapping) {
+      rows.push(row("scale", `${c.mapping.scale} (slave motion per master motion)`));
+      rows.push(row("force gain", `${c.mapping.forceGain} (displayed per sensed force)`));
+    }
+    for (const h of active) {
+      const s = h.status;
+      const state = s && s.last ? s.last.state : "no tick yet";
+      const bad = ["estop", "fault", "faulted", "holding"].includes(state);
+      rows.push(row(h.entry.object, `${h.entry.kind.split("/")[1]}: ${state}` +
+        (s ? ` · ${s.ticks} ticks · ${s.overruns} overruns` : ""), bad ? "bad" : "good"));
+    }
+    // Link health: a channel linked to another node says how its link is; else it is local.
+    if (c.relations.link) rows.push(row("link", c.relations.link, /down|lost/.test(c.relations.link) ? "bad" : "good"));
+    else if (c.relations.zenoh) rows.push(row("link", c.relations.zenoh));
+    else rows.push(row("link", "both ends on this node (no network link)", "good"));
+    const master = view.robots.get(c.masterPath);
+    if (master && master.displayed) {
+      const n = Math.hypot(...master.displayed);
+      rows.push(row("displayed force", `${n.toFixed(2)} N (force gain × sensed)`));
+    }
+    rows.push(row("clutch, energy observers", "not carried live by the protocol: in the recording " +
+      "(/controllers/<name>: clutch, port_energy, channel_energy)"));
+    body.replaceChildren(...rows);
+    $("teleop-note").textContent = "";
+    $("teleop-panel").dataset.channel = c.path;
+  } catch (e) {
+    $("teleop-note").textContent = `(stale: ${e.message})`;
+  }
+}
+
+async function teleopLoop() {
+  await refreshTeleop();
+  setTimeout(teleopLoop, TELEOP_PERIOD_MS);
 }
 
 // ---- the tree: which robots ----------------------------------------------------------------
@@ -298,6 +418,7 @@ async function refresh() {
     for (const e of robots) if (!view.robots.has(e.path)) addRobot(e);
     for (const path of [...view.robots.keys()]) if (!view.order.includes(path)) removeRobot(path);
     place();
+    view.tree = tree.entries;
     view.teleop = tree.entries.filter((e) => !e.context && e.kind === "trajectory/teleop");
     $("scene-label").textContent = robots.length ? "" : "(no robots)";
   } catch (e) {
@@ -316,7 +437,15 @@ window.penelopeScene = {
   jointAngles: (path) => {
     const r = view.robots.get(path);
     if (!r || !r.model) return null;
-    return { seq: r.seq, q: r.joints.map((n) => r.model.joints[n].angle) };
+    // Where the drawn model puts its last frame (the tool), in the robot's base frame.
+    const tool = r.model.links[r.description.frames[r.description.frames.length - 1]];
+    let at = null;
+    if (tool) {
+      r.group.updateMatrixWorld(true);
+      const p = r.group.worldToLocal(tool.getWorldPosition(new THREE.Vector3()));
+      at = [p.x, p.y, p.z];
+    }
+    return { seq: r.seq, q: r.joints.map((n) => r.model.joints[n].angle), tool: at, p: r.p };
   },
   /** Shows or hides a robot (and its arrows and trace). */
   setVisible: (path, on) => {
@@ -327,4 +456,7 @@ window.penelopeScene = {
   render: () => { if (view.renderer) view.renderer.render(view.scene, view.camera); },
 };
 
-if (makeScene()) refresh();
+$("teleop-channel").addEventListener("change", refreshTeleop);
+makeScene();
+refresh();
+teleopLoop();
