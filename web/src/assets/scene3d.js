@@ -21,7 +21,7 @@ const SPACING_M = 1.0;
 /** Tool positions kept in a trace. */
 const TRACE_POINTS = 1500;
 /** Arrow length per newton (capped). */
-const ARROW_M_PER_N = 0.01;
+const ARROW_M_PER_N = 0.02;
 const ARROW_MAX_M = 0.4;
 /** Samples per second the 3D view asks of a loop (decimation of a 1 kHz loop). */
 const LIVE_DECIMATION = 10;
@@ -61,9 +61,9 @@ function makeScene() {
   const scene = new THREE.Scene();
   const camera = new THREE.PerspectiveCamera(45, box.clientWidth / box.clientHeight, 0.01, 50);
   camera.up.set(0, 0, 1);
-  camera.position.set(1.9, -1.6, 1.3);
+  camera.position.set(1.3, -0.45, 0.8);
   const controls = new OrbitControls(camera, renderer.domElement);
-  controls.target.set(0, 0.5, 0.25);
+  controls.target.set(0.2, 0.5, 0.15);
   controls.update();
   controls.addEventListener("change", () => { view.dirty = true; });
   scene.add(new THREE.HemisphereLight(0xffffff, 0x8090a0, 2.2));
@@ -86,11 +86,25 @@ function makeScene() {
     if (view.dirty) {
       view.dirty = false;
       renderer.render(scene, camera);
+      placeLabels();
     }
     requestAnimationFrame(frame);
   };
   requestAnimationFrame(frame);
   return true;
+}
+
+/** Each robot's name under its base, where the camera sees it. */
+function placeLabels() {
+  const w = view.box.clientWidth;
+  const h = view.box.clientHeight;
+  for (const r of view.robots.values()) {
+    if (!r.group || !r.label) continue;
+    const at = new THREE.Vector3(0, 0, -0.06).add(r.group.position).project(view.camera);
+    r.label.hidden = !r.group.visible || at.z > 1;
+    r.label.style.left = `${((at.x + 1) / 2) * w - 20}px`;
+    r.label.style.top = `${((1 - at.y) / 2) * h}px`;
+  }
 }
 
 /** A contact shape (root frame of its robot) as a mesh. */
@@ -186,6 +200,8 @@ async function addRobot(entry) {
     r.trace = traceLine();
     group.add(r.wrench, r.display, r.trace);
     r.group = group;
+    r.label = Object.assign(document.createElement("span"), { className: "robot-label", textContent: entry.object });
+    view.box.append(r.label);
     view.scene.add(group);
     place();
     follow(r);
@@ -213,6 +229,7 @@ function removeRobot(path) {
   if (!r) return;
   if (r.socket) { r.closing = true; r.socket.close(); }
   if (r.group) view.scene.remove(r.group);
+  if (r.label) r.label.remove();
   view.robots.delete(path);
   view.dirty = true;
 }
@@ -244,7 +261,8 @@ function follow(r) {
       r.p = last.p;
       r.f = last.f;
       r.state = last.s;
-      setArrow(r.wrench, last.p, last.f);
+      r.fBase = sensedInBase(r, last.f);
+      setArrow(r.wrench, last.p, r.fBase);
       const box = $("scene3d");
       box.dataset.frames = String(Number(box.dataset.frames) + msg.records.length);
       view.dirty = true;
@@ -259,6 +277,19 @@ function follow(r) {
     if (r.closing || !view.robots.has(r.path)) return;
     setTimeout(() => { if (view.robots.get(r.path) === r) follow(r); }, TREE_PERIOD_MS);
   };
+}
+
+/** The sensed force in the robot's base frame. A loop's telemetry carries the wrench as its
+ * sensor reports it: a wrist sensor (the simulated one, a Net F/T at the flange) in its own
+ * frame, which turns with the tool; that frame's rotation is taken as the drawn tool frame's
+ * (a sensor mounted with a rotation of its own would be drawn turned by it). */
+function sensedInBase(r, f) {
+  const tool = r.model.links[r.description.frames[r.description.frames.length - 1]];
+  const v = new THREE.Vector3(f[0], f[1], f[2]);
+  if (!tool) return [v.x, v.y, v.z];
+  r.group.updateMatrixWorld(true);
+  v.applyQuaternion(tool.getWorldQuaternion(new THREE.Quaternion()));
+  return [v.x, v.y, v.z];
 }
 
 /** A robot no loop drives: its measured joints, read once per retry. */
@@ -299,11 +330,11 @@ function showDisplayed() {
   for (const c of view.channels) {
     const master = view.robots.get(c.masterPath);
     const slave = view.robots.get(c.slavePath);
-    if (!master || !slave || !master.display || !master.p || !slave.f || !c.mapping) continue;
+    if (!master || !slave || !master.display || !master.p || !slave.fBase || !c.mapping) continue;
     const [r, p, y] = c.mapping.rpyDeg.map((d) => (d * Math.PI) / 180);
     // rotation_rpy_deg takes master-frame vectors to the slave's frame: its inverse back.
     const toSlave = new THREE.Quaternion().setFromEuler(new THREE.Euler(r, p, y, "ZYX"));
-    const f = new THREE.Vector3(slave.f[0], slave.f[1], slave.f[2])
+    const f = new THREE.Vector3(...slave.fBase)
       .applyQuaternion(toSlave.invert()).multiplyScalar(c.mapping.forceGain);
     setArrow(master.display, master.p, [f.x, f.y, f.z]);
     master.displayed = [f.x, f.y, f.z];
@@ -432,8 +463,10 @@ async function refresh() {
 window.penelopeScene = {
   /** The robots drawn, by naming path. */
   robots: () => [...view.robots.values()].filter((r) => r.model).map((r) => r.path),
-  /** The joint values the scene holds for `path` (read back from the drawn model) and the
-   * sequence number of the telemetry sample they came from. */
+  /** The joint values the scene holds for `path` (read back from the drawn model), the
+   * sequence number of the telemetry sample they came from, where the drawn model puts the
+   * tool (base frame, m), the sample's wrench (as its sensor reports it), the sensed force
+   * drawn (base frame) and, for a master, the displayed force drawn. */
   jointAngles: (path) => {
     const r = view.robots.get(path);
     if (!r || !r.model) return null;
@@ -445,7 +478,10 @@ window.penelopeScene = {
       const p = r.group.worldToLocal(tool.getWorldPosition(new THREE.Vector3()));
       at = [p.x, p.y, p.z];
     }
-    return { seq: r.seq, q: r.joints.map((n) => r.model.joints[n].angle), tool: at, p: r.p };
+    return {
+      seq: r.seq, q: r.joints.map((n) => r.model.joints[n].angle), tool: at, f: r.f,
+      forceInBase: r.fBase || null, displayed: r.displayed || null,
+    };
   },
   /** Shows or hides a robot (and its arrows and trace). */
   setVisible: (path, on) => {
