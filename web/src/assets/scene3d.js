@@ -66,6 +66,8 @@ function makeScene() {
   controls.target.set(0.2, 0.5, 0.15);
   controls.update();
   controls.addEventListener("change", () => { view.dirty = true; });
+  // Once someone turns the view, it stays theirs: no more framing by the page.
+  controls.addEventListener("start", () => { view.userMoved = true; });
   scene.add(new THREE.HemisphereLight(0xffffff, 0x8090a0, 2.2));
   const sun = new THREE.DirectionalLight(0xffffff, 1.6);
   sun.position.set(2, -3, 4);
@@ -92,6 +94,23 @@ function makeScene() {
   };
   requestAnimationFrame(frame);
   return true;
+}
+
+/** Points the camera at every robot drawn, from the front right and above, far enough to
+ * see them all (until someone turns the view). */
+function frameAll() {
+  if (view.userMoved) return;
+  const box = new THREE.Box3();
+  for (const r of view.robots.values()) if (r.model) box.expandByObject(r.model);
+  if (box.isEmpty()) return;
+  const sphere = box.getBoundingSphere(new THREE.Sphere());
+  const fov = (view.camera.fov * Math.PI) / 180;
+  const distance = (1.15 * sphere.radius) / Math.sin(Math.min(fov, fov * view.camera.aspect) / 2);
+  const from = new THREE.Vector3(1.0, -0.75, 0.55).normalize().multiplyScalar(distance);
+  view.controls.target.copy(sphere.center);
+  view.camera.position.copy(sphere.center).add(from);
+  view.controls.update();
+  view.dirty = true;
 }
 
 /** Each robot's name under its base, where the camera sees it. */
@@ -222,6 +241,12 @@ function place() {
     i += 1;
   }
   view.dirty = true;
+  if (view.framed !== view.order.join("\n") && view.order.every((p) => view.robots.get(p) && (view.robots.get(p).model || view.robots.get(p).error))) {
+    // Framed once every robot listed is drawn (at its first joints), again when they change.
+    view.framed = view.order.join("\n");
+    for (const r of view.robots.values()) if (r.group) r.group.updateMatrixWorld(true);
+    frameAll();
+  }
 }
 
 function removeRobot(path) {
