@@ -386,3 +386,27 @@ fn lifecycle_and_call_refusals(c: &Creator, s: &Session) {
         matches!(c.call(s, Call::Ping { payload: vec![1, 2] }), Ok(Reply::Pong(p)) if p == [1, 2])
     );
 }
+
+#[test]
+fn a_channel_says_its_mapping() {
+    let c = creator();
+    let (s, _rx) = session(1);
+    create(
+        &c,
+        &s,
+        "trajectory/teleop",
+        "link",
+        "master = \"frhc\"\nslave = \"puma\"\nscale = 2.0\nforce_gain = 0.25\ntorque_gain = 0.75\n\
+         rotation_rpy_deg = [0.0, 0.0, 90.0]",
+    );
+    let Ok(Reply::Object(info)) = call(&c, &s, ("link", Method::Describe)) else {
+        panic!("describe of a channel");
+    };
+    let mapping = info.relations.iter().find(|(k, _)| k == "mapping");
+    assert_eq!(
+        mapping.map(|(_, v)| v.as_str()),
+        Some("scale 2 force_gain 0.25 torque_gain 0.75 rotation_rpy_deg 0 0 90"),
+        "{:?}",
+        info.relations
+    );
+}

@@ -22,10 +22,13 @@
 //!   configuration keys, create, destroy, lifecycle, method calls, e-stop and re-arm.
 //! - `system`: experiments as wholes: system files (the demo's among them) sent to the
 //!   node, which applies them, recordings started, stopped and downloaded.
-//! - `live`: one WebSocket per plot: telemetry records thinned for a browser, and safety
-//!   events (changes of the loop's safety state) as they happen.
-//! - `assets`: the page, its script and style and the vendored uPlot, compiled into the
-//!   binary (nothing is fetched from the network when the page runs).
+//! - `live`: one WebSocket per plot (and per robot of the 3D view): telemetry records thinned
+//!   for a browser, and safety events (changes of the loop's safety state) as they happen.
+//! - `robots`: what the 3D view draws a robot from: its description (URDF, frames, joints,
+//!   the contact shapes of its simulated world).
+//! - `assets`: the page, its scripts and style and the vendored uPlot, three.js and
+//!   urdf-loader, compiled into the binary (nothing is fetched from the network when the page
+//!   runs).
 //! - [`cli`]: what the server shares with `penelope ctl`: method text parsed into calls, replies
 //!   formatted for people, usage errors, secret files.
 
@@ -36,6 +39,7 @@ mod assets;
 pub mod cli;
 mod doors;
 mod live;
+mod robots;
 mod session;
 mod system;
 
@@ -202,6 +206,7 @@ fn router(state: Arc<WebState>, hosts: Arc<doors::Hosts>) -> Router {
         .route("/api/record", post(system::record))
         .route("/api/recording", get(system::recording))
         .route("/api/live", get(live::socket))
+        .route("/api/robot", get(robots::robot))
         .route("/logout", post(session::logout))
         .route_layer(axum::middleware::from_fn_with_state(
             state.clone(),

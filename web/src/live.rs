@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 use axum::extract::ws::{Message, Utf8Bytes, WebSocket, WebSocketUpgrade};
 use axum::extract::{Query, State};
 use axum::response::{IntoResponse, Response};
-use penelope_protocol::proto::{ControllerMethod, Method, Reply, TelemetryRecord};
+use penelope_protocol::proto::{Class, ControllerMethod, Method, Reply, TelemetryRecord};
 use serde::Deserialize;
 use serde_json::{Value, json};
 use tokio::sync::mpsc;
@@ -190,7 +190,10 @@ fn read(
                 Err(mpsc::error::TrySendError::Closed(_)) => return,
             }
         }
-        if last_status.is_none_or(|t| t.elapsed() >= STATUS_PERIOD) {
+        // A robot's socket (the 3D view's) has no loop counters of its own to show.
+        if target.class == Class::Controller
+            && last_status.is_none_or(|t| t.elapsed() >= STATUS_PERIOD)
+        {
             last_status = Some(Instant::now());
             let status = client.call_ref(&target, Method::Controller(ControllerMethod::Status));
             if let Ok(Reply::Status(s)) = status {

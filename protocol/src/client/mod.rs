@@ -63,8 +63,8 @@ use crate::proto::{
 pub use naming::{MAX_TREE_DEPTH, NamingProxy, join_path};
 pub use node::NodeProxy;
 pub use proxy::{
-    BoardProxy, ControllerProxy, Lifecycle, ObjectHandle, ObjectProxy, RobotProxy, SensorProxy,
-    TrajectoryProxy, TypedProxy,
+    BoardProxy, ControllerProxy, Lifecycle, ObjectHandle, ObjectProxy, RobotDescription,
+    RobotProxy, SensorProxy, TrajectoryProxy, TypedProxy,
 };
 pub use telemetry::{LinkStream, Streamed, Subscription, TelemetryStream};
 

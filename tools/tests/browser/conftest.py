@@ -154,7 +154,10 @@ def make_browser():
     for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--disable-gpu",
                 "--no-proxy-server", "--window-size=1600,1100", "--no-first-run",
                 "--disable-background-networking", "--disable-component-update",
-                "--disable-sync", "--disable-default-apps"):
+                "--disable-sync", "--disable-default-apps",
+                # The 3D view's WebGL on the CPU (no GPU here): said explicitly, as Chromium
+                # no longer falls back to it by itself.
+                "--enable-unsafe-swiftshader"):
         options.add_argument(arg)
     # The driver is Debian's, named explicitly: Selenium must not look for (or fetch) another.
     return webdriver.Chrome(options=options, service=Service(executable_path=CHROMEDRIVER))

@@ -8,13 +8,15 @@ use crate::objects::registry::{
 use crate::objects::runtime::GoToCommand;
 use crate::objects::{KindState, Registry};
 use penelope_drivers::galil::GalilBoard;
+use penelope_drivers::sim::environment::Shape;
 use penelope_hal::{
     AxisState, Board, Dynamics, Frame, InverseKinematics, JacobianFrame, JointState, JointVector,
     Kinematics, LifecycleState, MAX_AXES, MAX_JOINTS, RobotModel, Timestamp,
 };
 use penelope_protocol::proto::{
-    BoardMethod, Class, JointAxis, Joints, MatrixMsg, OperationalMsg, PoseMsg, ReferenceMsg, Reply,
-    RobotMethod, SensorMethod, TrajectoryMethod, WrenchMsg, joints_from_vector, joints_to_vector,
+    BoardMethod, Class, ContactShapeMsg, JointAxis, Joints, MatrixMsg, OperationalMsg, PoseMsg,
+    ReferenceMsg, Reply, RobotDescriptionMsg, RobotMethod, SensorMethod, TrajectoryMethod,
+    WrenchMsg, joints_from_vector, joints_to_vector,
 };
 use std::time::Duration;
 
@@ -95,6 +97,35 @@ impl Registry {
         }
     }
 
+    /// The contact shapes of the simulated boards `robot` is mapped onto (in its base frame).
+    fn contacts_of(&self, robot: &str) -> Result<Vec<ContactShapeMsg>, ObjectError> {
+        let mut contacts = Vec::new();
+        for (board, _) in &self.robot(robot)?.maps {
+            let Ok(Object {
+                body: KindState::SimBoard(s),
+                ..
+            }) = self.get(board)
+            else {
+                continue;
+            };
+            let env = crate::objects::kinds::environment(
+                crate::objects::kinds::Kind::SIM_BOARD.as_str(),
+                &s.config.shapes,
+            )?;
+            contacts.extend(env.shapes().iter().map(|c| match c.shape {
+                Shape::Plane { point, normal } => ContactShapeMsg::Plane {
+                    point: point.into(),
+                    normal: normal.into_inner().into(),
+                },
+                Shape::Sphere { center, radius } => ContactShapeMsg::Sphere {
+                    center: center.into(),
+                    radius,
+                },
+            }));
+        }
+        Ok(contacts)
+    }
+
     pub fn robot_method(&mut self, name: &str, m: RobotMethod) -> Result<Reply, ObjectError> {
         match m {
             RobotMethod::JointPositions
@@ -113,6 +144,21 @@ impl Registry {
     fn robot_model_method(&mut self, name: &str, m: RobotMethod) -> Result<Reply, ObjectError> {
         let n = self.robot(name)?.model.joint_count();
         match m {
+            RobotMethod::Description
+            | RobotMethod::CountsToRadians { .. }
+            | RobotMethod::RadiansToCounts { .. }
+            | RobotMethod::NamedPose { .. } => self.robot_model_facts(name, m),
+            RobotMethod::LinkFrames { q } => {
+                let q = self.q_or_measured(name, &q)?;
+                Ok(Reply::Poses(
+                    self.robot(name)?
+                        .model
+                        .link_frames(&q)
+                        .iter()
+                        .map(PoseMsg::from)
+                        .collect(),
+                ))
+            }
             RobotMethod::ForwardKinematics { q } => {
                 let q = self.q_or_measured(name, &q)?;
                 Ok(Reply::Pose(PoseMsg::from(
@@ -171,6 +217,24 @@ impl Registry {
                 let q = self.q_or_measured(name, &q)?;
                 let m = self.robot(name)?.model.inertia(&q);
                 Ok(Reply::Matrix(MatrixMsg::from_block(&m, n, n)))
+            }
+            _ => Err(ObjectError::internal("robot method dispatch")),
+        }
+    }
+
+    /// What the robot's model is: its description (URDF, frames, joints, the contact shapes it
+    /// meets), its encoder scaling and its named poses.
+    fn robot_model_facts(&self, name: &str, m: RobotMethod) -> Result<Reply, ObjectError> {
+        let n = self.robot(name)?.model.joint_count();
+        match m {
+            RobotMethod::Description => {
+                let model = &self.robot(name)?.model;
+                Ok(Reply::RobotDescription(RobotDescriptionMsg {
+                    urdf: model.urdf(),
+                    frames: model.link_names(),
+                    joint_names: model.joint_names().to_vec(),
+                    contacts: self.contacts_of(name)?,
+                }))
             }
             RobotMethod::CountsToRadians { counts } => {
                 if counts.len() != n {

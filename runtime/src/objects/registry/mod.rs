@@ -278,6 +278,16 @@ impl Object {
             KindState::Teleop(t) => {
                 relations.push(("master".to_string(), t.config.master.clone()));
                 relations.push(("slave".to_string(), t.config.slave.clone()));
+                // The mapping, for clients that show the channel (the web page's panel).
+                let c = &t.config;
+                let [roll, pitch, yaw] = c.rotation_rpy_deg;
+                relations.push((
+                    "mapping".to_string(),
+                    format!(
+                        "scale {} force_gain {} torque_gain {} rotation_rpy_deg {roll} {pitch} {yaw}",
+                        c.scale, c.force_gain, c.torque_gain
+                    ),
+                ));
                 relations.extend(link_relations(&self.name, t, bridged));
             }
             KindState::Controller(c) => {
