@@ -28,8 +28,9 @@ use crate::topics::{self, StreamStats};
 
 /// How often the nodes are asked for their objects.
 pub const DISCOVERY_PERIOD: Duration = Duration::from_secs(2);
-/// How long a reader waits before it subscribes again after a refusal or a broken stream.
-const RETRY: Duration = Duration::from_secs(1);
+/// How long a reader waits before it subscribes again after a refusal (a controller that is
+/// not running) or a broken stream.
+const RETRY: Duration = Duration::from_secs(2);
 /// How long one wait for a record lasts (a stop is seen within it).
 const POLL: Duration = Duration::from_millis(200);
 /// How often a reader estimates its node's clock again.
@@ -335,16 +336,16 @@ impl Reader {
             let mut first: Option<(u64, u64)> = None;
             let mut clock_at = Instant::now();
             let mut seen = false;
-            let resubscribe = loop {
+            loop {
                 if self.stopped() {
-                    break false;
+                    break;
                 }
                 let record = match stream.recv_timeout(POLL) {
                     Ok(Some(r)) => r,
                     Ok(None) => continue,
                     Err(e) => {
                         self.pause(e.to_string());
-                        break false;
+                        break;
                     }
                 };
                 if !seen {
@@ -365,7 +366,7 @@ impl Reader {
                         let wanted = decimation_for(period, self.shared.rate_hz);
                         if wanted > 1 {
                             decimation = wanted;
-                            break true;
+                            break;
                         }
                         first = Some((record.seq, record.time_ns));
                     }
@@ -391,11 +392,9 @@ impl Reader {
                         .publish(self.channel, common, payload.as_bytes());
                 }
                 self.published(common);
-            };
-            drop(stream);
-            if !resubscribe {
-                continue;
             }
+            // Ended, or to subscribe again at the decimation measured.
+            drop(stream);
         }
     }
 
