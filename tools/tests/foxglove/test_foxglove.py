@@ -7,6 +7,7 @@ e-stop as a service that latches every loop's e-stop."""
 from __future__ import annotations
 
 import json
+import subprocess
 import time
 
 import pytest
@@ -143,3 +144,10 @@ def test_a_client_must_offer_the_protocol_and_a_foreign_page_is_refused(demo: Sy
     with connect(demo.url, subprotocols=["foxglove.websocket.v1"], open_timeout=30,
                  origin="https://app.foxglove.dev") as ws:
         assert json.loads(ws.recv(timeout=30))["op"] == "serverInfo"
+
+
+def test_a_listen_address_beyond_loopback_is_refused(penelope_bin: str):
+    r = subprocess.run([penelope_bin, "foxglove", "--listen", "0.0.0.0:0"], stdin=subprocess.DEVNULL,
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2, r
+    assert "loopback only" in r.stderr and "ssh -L" in r.stderr, r.stderr
