@@ -74,6 +74,9 @@ struct Inner {
     services: Vec<ServiceAd>,
     clients: HashMap<u64, ClientSlot>,
     next_client: u64,
+    /// The last message of each latched channel (a robot's description, the walls): what a
+    /// new subscriber gets at once.
+    latched: HashMap<u32, (u64, Vec<u8>)>,
     /// Clients disconnected for a full control queue.
     evicted: u64,
 }
@@ -130,6 +133,7 @@ impl Hub {
         if inner.channels.remove(&id).is_none() {
             return;
         }
+        inner.latched.remove(&id);
         for c in inner.clients.values_mut() {
             c.subscriptions.retain(|_, channel| *channel != id);
         }
@@ -167,6 +171,16 @@ impl Hub {
                     Err(mpsc::error::TrySendError::Closed(_)) => {}
                 }
             }
+        }
+    }
+
+    /// As [`publish`](Self::publish), and kept: every later subscriber of channel `id` gets it
+    /// when it subscribes (a description that rarely changes).
+    pub fn publish_latched(&self, id: u32, time_ns: u64, payload: &[u8]) {
+        self.publish(id, time_ns, payload);
+        let mut inner = self.lock();
+        if inner.channels.contains_key(&id) {
+            inner.latched.insert(id, (time_ns, payload.to_vec()));
         }
     }
 
@@ -243,6 +257,15 @@ impl Hub {
             return Err(format!("subscription id {sub} is already in use"));
         }
         c.subscriptions.insert(sub, channel);
+        if let Some((time_ns, payload)) = inner.latched.get(&channel) {
+            let frame = wire::message_data(sub, *time_ns, payload);
+            if let Some(c) = inner.clients.get_mut(&id) {
+                match c.data.try_send(Outgoing::Binary(frame)) {
+                    Ok(()) => c.queued += 1,
+                    Err(_) => c.dropped += 1,
+                }
+            }
+        }
         Ok(())
     }
 
@@ -359,6 +382,27 @@ mod tests {
         hub.unsubscribe(a.id, 42);
         hub.publish(tf, 8, b"{}");
         assert!(a.data.try_recv().is_err());
+    }
+
+    #[test]
+    fn a_latched_message_reaches_each_later_subscriber_once() {
+        let hub = Hub::new("penelope", "s1");
+        let d = hub.add_channel("/robot_description/puma", "penelope.RobotDescription", "{}");
+        hub.publish_latched(d, 5, b"{\"urdf\":1}");
+        let mut a = hub.connect(addr());
+        hub.subscribe(a.id, 1, d).unwrap();
+        match a.data.try_recv().unwrap() {
+            Outgoing::Binary(f) => assert_eq!(&f[13..], b"{\"urdf\":1}"),
+            other => panic!("{other:?}"),
+        }
+        assert!(a.data.try_recv().is_err());
+        hub.remove_channel(d);
+        let d2 = hub.add_channel("/robot_description/puma", "penelope.RobotDescription", "{}");
+        hub.subscribe(a.id, 2, d2).unwrap();
+        assert!(
+            a.data.try_recv().is_err(),
+            "a removed channel's message is forgotten"
+        );
     }
 
     #[test]
