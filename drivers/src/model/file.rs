@@ -349,6 +349,7 @@ impl RobotFile {
                 IkEntry::Auto => IkMethod::Auto,
                 IkEntry::Numerical => IkMethod::Numerical,
             },
+            links: None,
         })
     }
 

@@ -12,6 +12,7 @@ use penelope_hal::{
 use super::chain::{ChainError, ChainJoint, SerialChain};
 use super::dh::{JointKind, Rt};
 use super::dynamics::{self, LinkDynamics};
+use super::links::LinkTree;
 use super::numeric_ik::{self, DlsOptions};
 use super::puma::{self, PumaIk};
 
@@ -57,6 +58,9 @@ pub struct ModelSpec {
     pub poses: Vec<(String, JointVector)>,
     /// Inverse-kinematics method.
     pub ik: IkMethod,
+    /// The robot's links and its own URDF, for a robot read from a URDF (`None`: derived from
+    /// the chain: `base_link`, `link1`..`linkN`, `tool`; see [`super::links`]).
+    pub links: Option<LinkTree>,
 }
 
 /// Why a [`ModelSpec`] is not a valid model.
@@ -114,6 +118,7 @@ pub struct SerialRobotModel {
     dls: DlsOptions,
     base_inv: Rt,
     tool_inv: Rt,
+    links: LinkTree,
 }
 
 /// Number of seeds [`InverseKinematics::inverse_all`] tries on a numerical model.
@@ -161,6 +166,10 @@ impl SerialRobotModel {
         let seeds = ik_seeds(&named, &limits, n);
         let base_inv = Rt::from_pose(&spec.base).inverse();
         let tool_inv = Rt::from_pose(&spec.tool).inverse();
+        let links = match spec.links {
+            Some(links) if links.fits(n) => links,
+            _ => LinkTree::from_chain(&chain),
+        };
         Ok(SerialRobotModel {
             kind,
             name: spec.name,
@@ -183,6 +192,7 @@ impl SerialRobotModel {
             dls: DlsOptions::default(),
             base_inv,
             tool_inv,
+            links,
         })
     }
 
@@ -210,6 +220,31 @@ impl SerialRobotModel {
     /// Joint names.
     pub fn joint_names(&self) -> &[String] {
         &self.joint_names
+    }
+
+    /// The robot's frames, root first, the tool frame last: `base_link`, `link1`..`linkN`,
+    /// `tool` for a DH robot; a URDF robot's own link names (its chain's base link first, its
+    /// tip link last). See [`super::links`] for where each frame is.
+    pub fn link_names(&self) -> Vec<String> {
+        self.links.names()
+    }
+
+    /// The pose of each frame of [`link_names`](Self::link_names) in the root frame at `q`: the
+    /// root's is the identity, the last equals [`Kinematics::forward`].
+    ///
+    /// # Real-time
+    /// Allocates its answer: for recordings, viewers and clients, not a control loop.
+    pub fn link_frames(&self, q: &JointVector) -> Vec<Pose> {
+        self.links.frames(q)
+    }
+
+    /// A URDF whose link names are [`link_names`](Self::link_names): a URDF robot's own text;
+    /// for a DH robot one generated from the chain (fixed joints for the base and tool
+    /// transforms, revolute, continuous or prismatic joints with the limits, cylinders and boxes
+    /// as visual geometry), such that a URDF viewer's forward kinematics at `q` puts every link
+    /// at [`link_frames(q)`](Self::link_frames).
+    pub fn urdf(&self) -> String {
+        self.links.urdf(&self.name, &self.joint_names, &self.limits)
     }
 
     /// The kinematic chain (DH table, base and tool).

@@ -59,8 +59,8 @@ use crate::proto::{
 };
 
 pub use proxy::{
-    BoardProxy, ControllerProxy, Lifecycle, ObjectHandle, ObjectProxy, RobotProxy, SensorProxy,
-    TrajectoryProxy, TypedProxy,
+    BoardProxy, ControllerProxy, Lifecycle, ObjectHandle, ObjectProxy, RobotDescription,
+    RobotProxy, SensorProxy, TrajectoryProxy, TypedProxy,
 };
 pub use telemetry::{LinkStream, Streamed, Subscription, TelemetryStream};
 

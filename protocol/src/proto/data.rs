@@ -24,6 +24,26 @@ pub struct PoseMsg {
     pub a: [f64; 3],
 }
 
+/// A rigid contact shape of a simulated environment, in a robot's root frame (metres): the
+/// wire form of the simulator's shapes.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum ContactShapeMsg {
+    /// An infinite plane (a wall or a table): free space is on the side `normal` points to.
+    Plane {
+        /// A point on the plane, m.
+        point: [f64; 3],
+        /// Unit normal pointing into free space.
+        normal: [f64; 3],
+    },
+    /// A solid sphere.
+    Sphere {
+        /// Centre, m.
+        center: [f64; 3],
+        /// Radius, m.
+        radius: f64,
+    },
+}
+
 /// A wrench: force (N) and torque (N·m).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct WrenchMsg {

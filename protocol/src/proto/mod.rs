@@ -52,8 +52,8 @@ mod tests;
 
 pub use creator::CreatorCall;
 pub use data::{
-    Joints, MatrixMsg, OperationalMsg, PoseMsg, ReferenceMsg, WrenchMsg, joints_from_vector,
-    joints_to_vector,
+    ContactShapeMsg, Joints, MatrixMsg, OperationalMsg, PoseMsg, ReferenceMsg, WrenchMsg,
+    joints_from_vector, joints_to_vector,
 };
 pub use errors::{
     CallError, ProtocolError, WireError, call_error_kinds, check_name, parse_transition,
@@ -65,8 +65,8 @@ pub use object::{
     BoardMethod, ControllerMethod, JointAxis, Method, RobotMethod, SensorMethod, TrajectoryMethod,
 };
 pub use replies::{
-    ControlStatus, KindInfo, LinkBatch, LinkRecord, NodeInfo, ObjectInfo, Reply, StopReport,
-    TelemetryBatch, TelemetryRecord,
+    ControlStatus, KindInfo, LinkBatch, LinkRecord, NodeInfo, ObjectInfo, Reply,
+    RobotDescriptionMsg, StopReport, TelemetryBatch, TelemetryRecord,
 };
 
 /// The first four bytes of every hello: `PNLP`.

@@ -115,6 +115,15 @@ pub enum RobotMethod {
         /// One entry per joint to map.
         joints: Vec<JointAxis>,
     },
+    /// What a 3D viewer needs to draw the robot (its URDF, its frames, its joints, the contact
+    /// shapes its simulated tool touches): [`Reply::RobotDescription`] (appended last).
+    Description,
+    /// The pose of every frame of the description (root first, the tool last), in the root
+    /// frame: [`Reply::Poses`] (appended last).
+    LinkFrames {
+        /// Joint positions, rad (`None`: measured).
+        q: Option<Joints>,
+    },
 }
 
 /// One joint driven by one board axis.

@@ -7,8 +7,8 @@ use serde::{Deserialize, Serialize};
 #[cfg(doc)]
 use super::Call;
 use super::{
-    Class, Joints, MatrixMsg, NameEntry, ObjectRef, OperationalMsg, PoseMsg, ReferenceMsg,
-    WrenchMsg,
+    Class, ContactShapeMsg, Joints, MatrixMsg, NameEntry, ObjectRef, OperationalMsg, PoseMsg,
+    ReferenceMsg, WrenchMsg,
 };
 
 /// Every successful answer.
@@ -88,6 +88,28 @@ pub enum Reply {
     /// The answer to a node's e-stop ([`CreatorCall::EStop`](super::CreatorCall::EStop);
     /// appended last).
     Stopped(StopReport),
+    /// A robot's description ([`RobotMethod::Description`](super::RobotMethod::Description);
+    /// appended last).
+    RobotDescription(RobotDescriptionMsg),
+    /// Several poses, such as a robot's link frames
+    /// ([`RobotMethod::LinkFrames`](super::RobotMethod::LinkFrames); appended last).
+    Poses(Vec<PoseMsg>),
+}
+
+/// What a 3D viewer needs to draw a robot.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RobotDescriptionMsg {
+    /// A URDF whose link names are `frames`: a URDF robot's own, or one generated from the DH
+    /// table with simple link geometry.
+    pub urdf: String,
+    /// The robot's frames, root first, the tool frame last (what
+    /// [`RobotMethod::LinkFrames`](super::RobotMethod::LinkFrames) gives a pose for, in order).
+    pub frames: Vec<String>,
+    /// The joint names, one per joint.
+    pub joint_names: Vec<String>,
+    /// The contact shapes of the simulated environment the robot's tool touches (its simulated
+    /// board's), in the root frame; empty behind a real board.
+    pub contacts: Vec<ContactShapeMsg>,
 }
 
 /// What a node's e-stop reached.

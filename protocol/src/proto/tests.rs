@@ -104,6 +104,65 @@ fn every_message_round_trips_through_postcard() {
 }
 
 #[test]
+fn the_robot_description_variants_were_appended_and_round_trip() {
+    let index = |bytes: &[u8]| bytes[0];
+    // RobotMethod: MapJoints was the last (index 16); the new ones follow it.
+    let map = postcard::to_stdvec(&RobotMethod::MapJoints {
+        board: "b".into(),
+        joints: vec![],
+    })
+    .unwrap();
+    let description = postcard::to_stdvec(&RobotMethod::Description).unwrap();
+    let frames = RobotMethod::LinkFrames {
+        q: Some(vec![0.1, -0.2, 0.3]),
+    };
+    let frames_bytes = postcard::to_stdvec(&frames).unwrap();
+    assert_eq!(index(&map), 16);
+    assert_eq!(index(&description), 17);
+    assert_eq!(index(&frames_bytes), 18);
+    assert_eq!(
+        postcard::from_bytes::<RobotMethod>(&description).unwrap(),
+        RobotMethod::Description
+    );
+    assert_eq!(
+        postcard::from_bytes::<RobotMethod>(&frames_bytes).unwrap(),
+        frames
+    );
+    let pose = PoseMsg {
+        position: [0.1, 0.2, 0.3],
+        n: [1.0, 0.0, 0.0],
+        o: [0.0, 1.0, 0.0],
+        a: [0.0, 0.0, 1.0],
+    };
+    let replies = [
+        Reply::RobotDescription(RobotDescriptionMsg {
+            urdf: "<robot name=\"r\"/>".into(),
+            frames: vec!["base_link".into(), "link1".into(), "tool".into()],
+            joint_names: vec!["waist".into()],
+            contacts: vec![
+                ContactShapeMsg::Plane {
+                    point: [0.5, 0.0, 0.0],
+                    normal: [-1.0, 0.0, 0.0],
+                },
+                ContactShapeMsg::Sphere {
+                    center: [0.0, 0.4, 0.2],
+                    radius: 0.05,
+                },
+            ],
+        }),
+        Reply::Poses(vec![pose, pose]),
+    ];
+    // Reply::Stopped was the last (index 25); the new ones follow it.
+    let stopped = postcard::to_stdvec(&Reply::Stopped(StopReport::default())).unwrap();
+    assert_eq!(index(&stopped), 25);
+    for (k, r) in replies.into_iter().enumerate() {
+        let bytes = postcard::to_stdvec(&r).unwrap();
+        assert_eq!(usize::from(index(&bytes)), 26 + k);
+        assert_eq!(postcard::from_bytes::<Reply>(&bytes).unwrap(), r);
+    }
+}
+
+#[test]
 fn the_sensor_stream_variants_were_appended_and_moved_no_index() {
     // postcard encodes a variant by its index: the earlier sensor methods and replies keep
     // theirs, and the new ones come last.

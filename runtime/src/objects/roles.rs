@@ -83,7 +83,9 @@ fn method_needs(method: &Method) -> Needs {
             | RobotMethod::Inertia { .. }
             | RobotMethod::CountsToRadians { .. }
             | RobotMethod::RadiansToCounts { .. }
-            | RobotMethod::NamedPose { .. } => Needs::Watch,
+            | RobotMethod::NamedPose { .. }
+            | RobotMethod::Description
+            | RobotMethod::LinkFrames { .. } => Needs::Watch,
             RobotMethod::GoTo { .. } | RobotMethod::MapJoints { .. } => Needs::Operate,
         },
         Method::Board(m) => match m {

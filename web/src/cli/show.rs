@@ -217,6 +217,17 @@ pub fn reply(reply: &Reply, hint: Hint) -> String {
             r.stopped.join(", "),
             r.pending.join(", ")
         ),
+        Reply::RobotDescription(d) => format!(
+            "frames: {}
+joints: {}
+contact shapes: {}
+URDF: {} bytes",
+            d.frames.join(" "),
+            d.joint_names.join(" "),
+            d.contacts.len(),
+            d.urdf.len()
+        ),
+        Reply::Poses(list) => list.iter().map(pose).collect::<Vec<_>>().join("\n"),
     }
 }
 

@@ -233,7 +233,7 @@ pub fn parse(text: &str) -> Result<urdf_rs::Robot, UrdfError> {
 /// # Errors
 /// [`UrdfError`] naming the element at fault.
 pub fn model_from_str(text: &str, chain: &UrdfChain) -> Result<SerialRobotModel, UrdfError> {
-    let spec = spec_from_robot(&parse(text)?, chain)?;
+    let spec = spec_from_str(text, chain)?;
     Ok(SerialRobotModel::new("urdf", spec)?)
 }
 
@@ -259,7 +259,20 @@ pub fn spec_from_file(path: impl AsRef<Path>, chain: &UrdfChain) -> Result<Model
         path: path.display().to_string(),
         source,
     })?;
-    spec_from_robot(&parse(&text)?, chain)
+    spec_from_str(&text, chain)
+}
+
+/// The model definition of URDF text's chain, keeping the text as the robot's own description
+/// ([`SerialRobotModel::urdf`]).
+///
+/// # Errors
+/// As [`spec_from_robot`].
+pub fn spec_from_str(text: &str, chain: &UrdfChain) -> Result<ModelSpec, UrdfError> {
+    let mut spec = spec_from_robot(&parse(text)?, chain)?;
+    if let Some(links) = &mut spec.links {
+        links.set_urdf(text.to_string());
+    }
+    Ok(spec)
 }
 
 pub(super) fn pose_of(origin: &urdf_rs::Pose) -> Pose {
@@ -348,6 +361,9 @@ pub fn spec_from_robot(robot: &urdf_rs::Robot, chain: &UrdfChain) -> Result<Mode
         check_joint(j)?;
     }
     let moving = moving_joints(&path, base, tip)?;
+    // The description a viewer draws: the parser's re-serialisation of the robot (the callers
+    // that have the file's text put it back), or, should that fail, one generated from the tree.
+    let links = tree.link_tree(base, tip, &path, urdf_rs::write_to_string(robot).ok());
     let ChainWalk {
         joints,
         dynamics,
@@ -394,6 +410,7 @@ pub fn spec_from_robot(robot: &urdf_rs::Robot, chain: &UrdfChain) -> Result<Mode
             .map(|p| (p.to_string(), home))
             .collect(),
         ik: IkMethod::Auto,
+        links: Some(links),
     })
 }
 

@@ -9,8 +9,10 @@ use penelope_hal::JointLimits;
 use super::{UrdfChain, UrdfError, finite, pose_of, rt_of};
 use crate::model::axis_joint::AxisJoint;
 use crate::model::chain::ChainJoint;
+use crate::model::dh::JointKind;
 use crate::model::dh::Rt;
 use crate::model::dynamics::LinkDynamics;
+use crate::model::links::{LinkNode, LinkTree, Motion};
 
 /// A link body's mass properties accumulated about its frame's origin.
 #[derive(Clone, Copy, Debug)]
@@ -367,6 +369,63 @@ impl<'a> Tree<'a> {
             left_out,
             tool: pending,
         })
+    }
+}
+
+impl<'a> Tree<'a> {
+    /// Every link at or below `base` as a [`LinkTree`] (breadth first, `tip` reported last): the
+    /// moving joints of `path` move their links; any other joint is placed at its origin.
+    pub(super) fn link_tree(
+        &self,
+        base: &'a str,
+        tip: &'a str,
+        path: &[&'a urdf_rs::Joint],
+        text: Option<String>,
+    ) -> LinkTree {
+        let moving: BTreeMap<&str, usize> = path
+            .iter()
+            .filter(|j| j.joint_type != urdf_rs::JointType::Fixed)
+            .enumerate()
+            .map(|(k, j)| (j.name.as_str(), k))
+            .collect();
+        let mut nodes = vec![LinkNode {
+            name: base.to_string(),
+            parent: None,
+            origin: Rt {
+                r: Matrix3::identity(),
+                p: Vector3::zeros(),
+            },
+            motion: Motion::Fixed,
+        }];
+        let mut tip_index = 0;
+        let mut next = 0;
+        while next < nodes.len() {
+            let name = nodes[next].name.clone();
+            for j in self.children.get(name.as_str()).into_iter().flatten() {
+                let motion = match moving.get(j.name.as_str()) {
+                    Some(&index) => Motion::Joint {
+                        index,
+                        kind: match j.joint_type {
+                            urdf_rs::JointType::Prismatic => JointKind::Prismatic,
+                            _ => JointKind::Revolute,
+                        },
+                        axis: Vector3::from(j.axis.xyz.0).normalize(),
+                    },
+                    None => Motion::Fixed,
+                };
+                if j.child.link == tip {
+                    tip_index = nodes.len();
+                }
+                nodes.push(LinkNode {
+                    name: j.child.link.clone(),
+                    parent: Some(next),
+                    origin: rt_of(&j.origin),
+                    motion,
+                });
+            }
+            next += 1;
+        }
+        LinkTree::from_urdf(nodes, tip_index, text)
     }
 }
 

@@ -19,9 +19,25 @@ use crate::net::conn::RpcError;
 #[cfg(doc)]
 use crate::proto::WireError;
 use crate::proto::{
-    Class, JointAxis, Joints, Method, Reply, RobotMethod, WrenchMsg, joints_from_vector,
-    joints_to_vector,
+    Class, ContactShapeMsg, JointAxis, Joints, Method, Reply, RobotMethod, WrenchMsg,
+    joints_from_vector, joints_to_vector,
 };
+
+/// What a 3D viewer needs to draw a robot ([`RobotProxy::description`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RobotDescription {
+    /// A URDF whose link names are `frames` (a URDF robot's own, or one generated from the DH
+    /// table with simple link geometry).
+    pub urdf: String,
+    /// The robot's frames, root first, the tool frame last ([`RobotProxy::link_frames`] gives
+    /// their poses in this order).
+    pub frames: Vec<String>,
+    /// The joint names, one per joint.
+    pub joint_names: Vec<String>,
+    /// The contact shapes of the simulated environment the robot's tool touches, in the root
+    /// frame; empty behind a real board.
+    pub contacts: Vec<ContactShapeMsg>,
+}
 
 /// A remote robot (manipulator or joystick): the paper's `Puma200` class.
 #[derive(Clone, Debug)]
@@ -136,6 +152,39 @@ impl RobotProxy {
         match self.robot(RobotMethod::ForwardKinematics { q })? {
             Reply::Pose(p) => p.to_pose().map_err(|e| bad_reply("pose", &e)),
             other => Err(unexpected("a pose", &other)),
+        }
+    }
+
+    /// What a 3D viewer needs to draw the robot: its URDF, its frames (root first, the tool
+    /// last), its joint names and the contact shapes its simulated tool touches.
+    ///
+    /// # Errors
+    /// The node's error; transport errors.
+    pub fn description(&self) -> Result<RobotDescription, RpcError> {
+        match self.robot(RobotMethod::Description)? {
+            Reply::RobotDescription(d) => Ok(RobotDescription {
+                urdf: d.urdf,
+                frames: d.frames,
+                joint_names: d.joint_names,
+                contacts: d.contacts,
+            }),
+            other => Err(unexpected("a robot description", &other)),
+        }
+    }
+
+    /// The pose of every frame of [`description`](Self::description)'s `frames` at `q`
+    /// (`None`: measured), in the robot's root frame, in the same order.
+    ///
+    /// # Errors
+    /// As [`RobotProxy::forward_kinematics`].
+    pub fn link_frames(&self, q: Option<&JointVector>) -> Result<Vec<Pose>, RpcError> {
+        let q = self.q_msg(q)?;
+        match self.robot(RobotMethod::LinkFrames { q })? {
+            Reply::Poses(poses) => poses
+                .iter()
+                .map(|p| p.to_pose().map_err(|e| bad_reply("pose", &e)))
+                .collect(),
+            other => Err(unexpected("poses", &other)),
         }
     }
 

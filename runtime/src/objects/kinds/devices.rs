@@ -236,9 +236,8 @@ impl RobotConfig {
             tip: self.tip.clone(),
         };
         let text = read(file).map_err(|e| bad(kind, e))?;
-        let robot = models::urdf::parse(&text).map_err(|e| bad(kind, e.to_string()))?;
         let mut spec =
-            models::urdf::spec_from_robot(&robot, &chain).map_err(|e| bad(kind, e.to_string()))?;
+            models::urdf::spec_from_str(&text, &chain).map_err(|e| bad(kind, e.to_string()))?;
         let n = spec.joints.len();
         for (name, q) in &self.poses {
             if q.len() != n || !q.iter().all(|x| x.is_finite()) {

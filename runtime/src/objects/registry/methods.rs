@@ -8,13 +8,15 @@ use crate::objects::registry::{
 use crate::objects::runtime::GoToCommand;
 use crate::objects::{KindState, Registry};
 use penelope_drivers::galil::GalilBoard;
+use penelope_drivers::sim::environment::Shape;
 use penelope_hal::{
     AxisState, Board, Dynamics, Frame, InverseKinematics, JacobianFrame, JointState, JointVector,
     Kinematics, LifecycleState, MAX_AXES, MAX_JOINTS, RobotModel, Timestamp,
 };
 use penelope_protocol::proto::{
-    BoardMethod, Class, JointAxis, Joints, MatrixMsg, OperationalMsg, PoseMsg, ReferenceMsg, Reply,
-    RobotMethod, SensorMethod, TrajectoryMethod, WrenchMsg, joints_from_vector, joints_to_vector,
+    BoardMethod, Class, ContactShapeMsg, JointAxis, Joints, MatrixMsg, OperationalMsg, PoseMsg,
+    ReferenceMsg, Reply, RobotDescriptionMsg, RobotMethod, SensorMethod, TrajectoryMethod,
+    WrenchMsg, joints_from_vector, joints_to_vector,
 };
 use std::time::Duration;
 
@@ -93,6 +95,35 @@ impl Registry {
             Some(q) => Ok(joints_to_vector(q, n)?),
             None => Ok(self.measured(robot)?.0.position),
         }
+    }
+
+    /// The contact shapes of the simulated boards `robot` is mapped onto (in its base frame).
+    fn contacts_of(&self, robot: &str) -> Result<Vec<ContactShapeMsg>, ObjectError> {
+        let mut contacts = Vec::new();
+        for (board, _) in &self.robot(robot)?.maps {
+            let Ok(Object {
+                body: KindState::SimBoard(s),
+                ..
+            }) = self.get(board)
+            else {
+                continue;
+            };
+            let env = crate::objects::kinds::environment(
+                crate::objects::kinds::BOARD_SIM,
+                &s.config.shapes,
+            )?;
+            contacts.extend(env.shapes().iter().map(|c| match c.shape {
+                Shape::Plane { point, normal } => ContactShapeMsg::Plane {
+                    point: point.into(),
+                    normal: normal.into_inner().into(),
+                },
+                Shape::Sphere { center, radius } => ContactShapeMsg::Sphere {
+                    center: center.into(),
+                    radius,
+                },
+            }));
+        }
+        Ok(contacts)
     }
 
     pub fn robot_method(&mut self, name: &str, m: RobotMethod) -> Result<Reply, ObjectError> {
@@ -255,6 +286,26 @@ impl Registry {
                     })
                     .map_err(|_| not_ready("too many motions queued"))?;
                 Ok(Reply::Unit)
+            }
+            RobotMethod::Description => {
+                let model = &self.robot(name)?.model;
+                Ok(Reply::RobotDescription(RobotDescriptionMsg {
+                    urdf: model.urdf(),
+                    frames: model.link_names(),
+                    joint_names: model.joint_names().to_vec(),
+                    contacts: self.contacts_of(name)?,
+                }))
+            }
+            RobotMethod::LinkFrames { q } => {
+                let q = self.q_or_measured(name, &q)?;
+                Ok(Reply::Poses(
+                    self.robot(name)?
+                        .model
+                        .link_frames(&q)
+                        .iter()
+                        .map(PoseMsg::from)
+                        .collect(),
+                ))
             }
             RobotMethod::MapJoints { board, joints } => {
                 let o = self.get(name)?;
