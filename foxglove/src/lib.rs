@@ -6,6 +6,8 @@
 //!   slow client loses messages (counted) and never holds up a reader.
 //! - [`sources`]: which objects the nodes have, and one reader thread per stream, subscribed
 //!   through the protocol (the node decimates; no real-time thread sees the gateway).
+//! - [`robots`]: each robot's description, place, transforms and scene (`penelope-scene`
+//!   builds the messages, the node's model gives the frames).
 //! - [`clock`]: message times on the system's common clock (simulated time on a simulated node).
 //! - [`topics`]: the topics and their JSON Schemas, as in the recordings.
 //! - [`server`]: the WebSocket itself (origins, client cap, requests, the e-stop service).
@@ -14,6 +16,7 @@
 
 pub mod clock;
 pub mod hub;
+pub mod robots;
 pub mod server;
 pub mod sources;
 pub mod topics;
@@ -116,11 +119,24 @@ pub fn run(mut config: Config, stop: Arc<AtomicBool>) -> Result<(), Error> {
         "penelope.GatewayStats",
         topics::GATEWAY_SCHEMA,
     );
+    let schema = |name| penelope_scene::schema(name).unwrap_or("{}");
+    let tf = hub.add_channel(
+        penelope_scene::TOPIC_TF,
+        penelope_scene::FRAME_TRANSFORMS,
+        schema(penelope_scene::FRAME_TRANSFORMS),
+    );
+    let scene = hub.add_channel(
+        penelope_scene::TOPIC_SCENE,
+        penelope_scene::SCENE_UPDATE,
+        schema(penelope_scene::SCENE_UPDATE),
+    );
     let shared = Arc::new(Shared {
         client: client.clone(),
         hub: hub.clone(),
         rate_hz: config.rate_hz,
         latest_ns: AtomicU64::new(0),
+        scene_channels: (tf, scene),
+        robots: std::sync::Mutex::new(std::collections::HashMap::new()),
     });
     let state = Arc::new(ServerState {
         hub: hub.clone(),

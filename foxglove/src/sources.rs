@@ -24,6 +24,7 @@ use penelope_protocol::proto::{Class, ObjectInfo, object_path};
 
 use crate::clock::{NodeClock, local_ns};
 use crate::hub::Hub;
+use crate::robots::RobotView;
 use crate::topics::{self, StreamStats};
 
 /// How often the nodes are asked for their objects.
@@ -46,6 +47,10 @@ pub struct Shared {
     pub rate_hz: f64,
     /// The newest message time published, ns on the common clock (the server's time).
     pub latest_ns: AtomicU64,
+    /// The `/tf` and `/scene` channels.
+    pub scene_channels: (u32, u32),
+    /// The robots described so far, by `node/robot`.
+    pub robots: Mutex<HashMap<String, Arc<RobotView>>>,
 }
 
 /// One stream and its reader.
@@ -69,6 +74,8 @@ impl Drop for Stream {
 pub struct Sources {
     shared: Arc<Shared>,
     streams: HashMap<String, Stream>,
+    /// Each robot's place in the world, by `node/robot`, in the order they were found.
+    places: HashMap<String, usize>,
 }
 
 /// What a discovery found of one stream.
@@ -85,6 +92,7 @@ impl Sources {
         Sources {
             shared,
             streams: HashMap::new(),
+            places: HashMap::new(),
         }
     }
 
@@ -107,13 +115,26 @@ impl Sources {
     pub fn discover(&mut self) -> Result<(), RpcError> {
         let nodes = self.shared.client.nodes()?;
         let mut found: Vec<(String, Found)> = Vec::new();
+        let mut robots_found: Vec<String> = Vec::new();
         for node in &nodes {
             // A node that does not answer now keeps its streams (their readers retry).
             let Ok(objects) = node.list() else {
                 self.keep_node(node, &mut found);
+                let prefix = format!("{}/", node.name());
+                robots_found.extend(
+                    lock(&self.shared.robots)
+                        .keys()
+                        .filter(|k| k.starts_with(&prefix))
+                        .cloned(),
+                );
                 continue;
             };
             let hosts_naming = node.info().map(|i| i.hosts_naming).unwrap_or(false);
+            for info in objects.iter().filter(|o| o.class == Class::Robot) {
+                let key = format!("{}/{}", node.name(), info.name);
+                robots_found.push(key.clone());
+                self.describe_robot(node, info, key);
+            }
             for info in objects {
                 let streamed = info.class == Class::Controller || info.kind == "trajectory/teleop";
                 if streamed {
@@ -128,6 +149,16 @@ impl Sources {
                     ));
                 }
             }
+        }
+        // Robots gone: their descriptions with them.
+        let gone: Vec<(String, u32)> = lock(&self.shared.robots)
+            .iter()
+            .filter(|(k, _)| !robots_found.contains(k))
+            .map(|(k, r)| (k.clone(), r.description))
+            .collect();
+        for (key, channel) in gone {
+            lock(&self.shared.robots).remove(&key);
+            self.shared.hub.remove_channel(channel);
         }
         let keys: Vec<&String> = found.iter().map(|(k, _)| k).collect();
         let gone: Vec<String> = self
@@ -149,6 +180,32 @@ impl Sources {
             self.streams.insert(key, stream);
         }
         Ok(())
+    }
+
+    /// Describes the robot `info` of `node` (known by `key`) unless it is already: its place
+    /// is fixed the first time it is seen, its description asked until the node gives it.
+    fn describe_robot(&mut self, node: &NodeProxy, info: &ObjectInfo, key: String) {
+        if lock(&self.shared.robots).contains_key(&key) {
+            return;
+        }
+        let next = self.places.len();
+        let index = *self.places.entry(key.clone()).or_insert(next);
+        let proxy = match self.shared.client.robot(&node.path_of(info)) {
+            Ok(p) => p,
+            Err(_) => return,
+        };
+        let view = RobotView::describe(
+            &info.name,
+            proxy,
+            penelope_scene::default_placement(index),
+            self.shared.hub.clone(),
+            self.shared.scene_channels,
+            self.shared.latest_ns.load(Ordering::Acquire),
+        );
+        // A robot not configured yet has no model to describe: asked again next time.
+        if let Ok(view) = view {
+            lock(&self.shared.robots).insert(key, Arc::new(view));
+        }
     }
 
     /// Keeps the streams of a node that did not answer (marked as found).
@@ -197,8 +254,15 @@ impl Sources {
             clock: "unknown",
             ..StreamStats::default()
         }));
+        let robot = f
+            .info
+            .relations
+            .iter()
+            .find(|(relation, _)| relation == "robot")
+            .map(|(_, robot)| format!("{}/{robot}", f.node));
         let reader = Reader {
             shared: self.shared.clone(),
+            robot,
             path: object_path(&f.node, f.info.class, &f.info.name),
             address: f.address,
             hosts_naming: f.hosts_naming,
@@ -279,6 +343,8 @@ impl Thinning {
 
 struct Reader {
     shared: Arc<Shared>,
+    /// The robot the controller drives, by `node/robot`.
+    robot: Option<String>,
     path: String,
     address: SocketAddr,
     hosts_naming: bool,
@@ -390,6 +456,15 @@ impl Reader {
                     self.shared
                         .hub
                         .publish(self.channel, common, payload.as_bytes());
+                }
+                let robot = self
+                    .robot
+                    .as_ref()
+                    .and_then(|key| lock(&self.shared.robots).get(key).cloned());
+                if let Some(robot) = robot
+                    && let Err(e) = robot.draw(&record, common)
+                {
+                    lock(&self.stats).error = Some(format!("robot {}: {e}", robot.name));
                 }
                 self.published(common);
             }

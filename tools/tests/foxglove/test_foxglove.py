@@ -9,7 +9,9 @@ from __future__ import annotations
 import json
 import subprocess
 import time
+import xml.etree.ElementTree as ET
 
+import jsonschema
 import pytest
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
@@ -20,6 +22,9 @@ WAIT_S = 60.0
 WINDOW_S = 5.0
 SLAVE = "/controllers/follow"       # the demo's slave controller (puma)
 MASTER = "/controllers/display"     # its master controller (frhc)
+WELL_KNOWN = {"/tf": "foxglove.FrameTransforms", "/scene": "foxglove.SceneUpdate",
+              "/robot_description/puma": "penelope.RobotDescription",
+              "/robot_description/frhc": "penelope.RobotDescription"}
 
 
 @pytest.fixture
@@ -39,30 +44,64 @@ def test_server_info_advertisements_and_a_live_stream_whose_arm_moves(demo: Syst
     assert "time" in client.server_info["capabilities"]
     assert "services" in client.server_info["capabilities"]
     assert client.server_info["supportedEncodings"] == ["json"]
-    client.pump_until(lambda: client.channel(SLAVE) and client.channel(MASTER), WAIT_S,
-                      "the demo's controllers advertised")
+    client.pump_until(lambda: all(client.channel(t) for t in [SLAVE, MASTER, *WELL_KNOWN]),
+                      WAIT_S, "the demo's robots and controllers advertised")
     for c in client.channels.values():
         assert c["encoding"] == "json" and c["schemaEncoding"] == "jsonschema", c
         json.loads(c["schema"])
+    for topic, name in WELL_KNOWN.items():
+        assert client.channel(topic)["schemaName"] == name, topic
     assert client.channel(SLAVE)["schemaName"] == "penelope.Tick"
     assert client.channel("/penelope/gateway")["schemaName"] == "penelope.GatewayStats"
 
-    sub = client.subscribe(SLAVE)
-    client.pump_until(lambda: client.messages.get(sub), WAIT_S, "the first tick")
-    start = len(client.messages[sub])
+    # The description: latched, so it comes at once; its URDF parses and names the frames.
+    description = client.subscribe("/robot_description/puma")
+    client.pump_until(lambda: client.messages.get(description), WAIT_S, "the puma's description")
+    d = client.messages[description][0][1]
+    assert d["robot"] == "puma"
+    links = {link.get("name") for link in ET.fromstring(d["urdf"]).iter("link")}
+    assert set(d["frames"]) <= links, (d["frames"], links)
+
+    tf = client.subscribe("/tf")
+    scene = client.subscribe("/scene")
+    ticks = client.subscribe(SLAVE)
+    client.pump_until(lambda: client.messages.get(tf) and client.messages.get(ticks), WAIT_S,
+                      "the first transforms and ticks")
+    start = {s: len(client.messages[s]) for s in (tf, ticks)}
     client.pump_for(WINDOW_S)
-    window = client.messages[sub][start:]
-    print(f"{SLAVE}: {len(window)} messages in {WINDOW_S} s (rate 100/s)")
-    assert len(window) >= 20
-    # Not above the rate (100 per second), allowing for the window's edges.
-    assert len(window) <= 100 * WINDOW_S * 1.2
-    stamps = [t for t, _ in window]
+    window = client.messages[tf][start[tf]:]
+    puma = [(t, m) for t, m in window
+            if m["transforms"] and m["transforms"][0]["child_frame_id"].startswith("puma/")]
+    print(f"/tf: {len(window)} messages in {WINDOW_S} s, {len(puma)} of the puma "
+          f"(rate 100/s per robot)")
+    assert len(puma) >= 20
+    assert len(puma) <= 100 * WINDOW_S * 1.2, "not above the rate"
+    stamps = [t for t, _ in puma]
     assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps), "times go forward"
-    # Message time is the tick's on the common clock: this node hosts the naming service.
-    assert all(t == m["sample"]["time"] for t, m in window)
-    moved = max(spread([m["sample"]["q"][j] for _, m in window]) for j in range(6))
-    print(f"the slave's joints moved by up to {moved:.4f} rad in the window")
+    # Every transform is the well-known schema's, as advertised.
+    tf_schema = json.loads(client.channel("/tf")["schema"])
+    for _, m in puma[:5] + puma[-5:]:
+        jsonschema.validate(m, tf_schema)
+    first = puma[0][1]["transforms"]
+    assert first[0]["parent_frame_id"] == "world"
+    assert [x["child_frame_id"] for x in first] == [f"puma/{f}" for f in d["frames"]]
+    assert all(x["parent_frame_id"] == f"puma/{d['frames'][0]}" for x in first[1:])
+    # The arm moves: the tool frame's translation changes over the window.
+    tool = [m["transforms"][-1]["translation"] for _, m in puma]
+    moved = max(max(p[k] for p in tool) - min(p[k] for p in tool) for k in "xyz")
+    print(f"the puma's tool frame moved by up to {moved * 1000:.1f} mm in the window")
     assert moved > 1e-3
+    # Message time is the tick's on the common clock (this node hosts the naming service).
+    tick_times = {m["sample"]["time"] for _, m in client.messages[ticks]}
+    assert sum(t in tick_times for t in stamps) >= len(stamps) - 2
+    # The scene: the wall of the puma's world and its sensed wrench, valid SceneUpdates.
+    scene_schema = json.loads(client.channel("/scene")["schema"])
+    updates = [m for _, m in client.messages[scene]]
+    assert updates
+    for m in updates[:3] + updates[-3:]:
+        jsonschema.validate(m, scene_schema)
+    ids = {e["id"] for m in updates for e in m["entities"]}
+    assert "puma/contact0" in ids and "puma/sensed_wrench" in ids, ids
     # The server's time follows the messages'.
     assert client.times and client.times[-1] >= stamps[0]
 
