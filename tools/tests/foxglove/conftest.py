@@ -142,9 +142,9 @@ class FoxgloveClient:
     """An independent client of the Foxglove WebSocket protocol (`foxglove.websocket.v1`): the
     spec's JSON operations and little-endian binary frames, nothing of Penelope."""
 
-    def __init__(self, url: str, subprotocols=("foxglove.websocket.v1",)) -> None:
+    def __init__(self, url: str, subprotocols=("foxglove.websocket.v1",), sock=None) -> None:
         self.ws = connect(url, subprotocols=list(subprotocols), open_timeout=30,
-                          max_size=16 * 1024 * 1024).__enter__()
+                          max_size=16 * 1024 * 1024, sock=sock).__enter__()
         self.server_info: Optional[dict] = None
         self.channels: Dict[int, dict] = {}
         self.services: Dict[str, dict] = {}
@@ -155,6 +155,11 @@ class FoxgloveClient:
         self.messages: Dict[int, List[tuple]] = {}
         self.next_sub = 1
         self.subs: Dict[int, int] = {}
+
+    @classmethod
+    def over(cls, url: str, sock) -> "FoxgloveClient":
+        """A client over an already connected socket (one with a small receive buffer)."""
+        return cls(url, sock=sock)
 
     def close(self) -> None:
         self.ws.close()

@@ -190,3 +190,49 @@ def test_a_listen_address_beyond_loopback_is_refused(penelope_bin: str):
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2, r
     assert "loopback only" in r.stderr and "ssh -L" in r.stderr, r.stderr
+
+
+def test_a_client_that_does_not_read_loses_messages_counted_and_holds_up_no_one(demo: System):
+    """A client with a tiny receive buffer subscribes to `/tf` and never reads: the server's
+    queue for it fills and its messages are dropped and counted, while another client gets the
+    full rate and the node's subscriptions lose nothing."""
+    import socket
+    from urllib.parse import urlparse
+
+    url = urlparse(demo.url)
+    raw = socket.socket()
+    raw.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    raw.connect((url.hostname, url.port))
+    slow = FoxgloveClient.over(demo.url, raw)
+    watcher = FoxgloveClient(demo.url)
+    try:
+        slow.pump_until(lambda: slow.channel("/tf"), WAIT_S, "/tf advertised to the slow client")
+        slow.subscribe("/tf")
+        watcher.pump_until(lambda: watcher.channel("/tf") and watcher.channel("/penelope/gateway"),
+                           WAIT_S, "/tf advertised")
+        tf = watcher.subscribe("/tf")
+        stats = watcher.subscribe("/penelope/gateway")
+
+        def slow_dropped() -> int:
+            reports = watcher.messages.get(stats, [])
+            if not reports:
+                return 0
+            clients = reports[-1][1]["clients"]
+            return max((c["dropped"] for c in clients if c["subscriptions"] == 1), default=0)
+
+        watcher.pump_until(lambda: slow_dropped() > 0, WAIT_S, "the slow client's drops reported")
+        start = len(watcher.messages[tf])
+        watcher.pump_for(WINDOW_S)
+        got = len(watcher.messages[tf]) - start
+        last = watcher.messages[stats][-1][1]
+        print(f"while a client did not read: the other got {got} /tf messages in {WINDOW_S} s; "
+              f"the slow one's dropped {slow_dropped()}; streams {last['streams']}")
+        # The other client lost nothing, and no subscription to the node fell behind (the
+        # rate itself is the machine's to give: two robots at 100/s each on an idle one).
+        assert got >= 20
+        assert all(s["node_dropped"] == 0 for s in last["streams"])
+        mine = [c for c in last["clients"] if c["subscriptions"] == 2]
+        assert mine and mine[0]["dropped"] == 0
+    finally:
+        watcher.close()
+        slow.close()
