@@ -15,6 +15,7 @@
 
 use std::sync::Arc;
 
+use penelope_hal::nalgebra::Vector3;
 use penelope_hal::{JointVector, Pose};
 use penelope_protocol::client::RobotProxy;
 use penelope_protocol::net::conn::RpcError;
@@ -123,44 +124,122 @@ impl RobotView {
             self.hub.publish(self.tf, time_ns, &payload);
         }
         if scene {
-            let message = self.scene_update(record, &poses, time_ns);
+            let message = scene_update(
+                &self.name,
+                &self.frames,
+                &self.walls,
+                record,
+                &poses,
+                time_ns,
+            );
             let payload = serde_json::to_vec(&message).unwrap_or_default();
             self.hub.publish(self.scene, time_ns, &payload);
         }
         Ok(())
     }
+}
 
-    /// The robot's walls (in its root frame) and its sensed wrench as an arrow at the tool.
-    pub fn scene_update(
-        &self,
-        record: &TelemetryRecord,
-        poses: &[Pose],
-        time_ns: u64,
-    ) -> SceneUpdate {
-        let name = &self.name;
-        let root = frame_id(name, self.frames.first().map_or("", String::as_str));
-        let tool = frame_id(name, self.frames.last().map_or("", String::as_str));
-        let mut entities: Vec<_> = self
-            .walls
-            .iter()
-            .enumerate()
-            .map(|(k, w)| wall_entity(&format!("{name}/contact{k}"), &root, w, time_ns))
-            .collect();
-        // The wire's wrench is in the base frame; the arrow is drawn in the tool's.
-        let tool_pose = poses.last().copied().unwrap_or_else(Pose::identity);
-        let f = tool_pose.rotation.inverse()
-            * penelope_hal::nalgebra::Vector3::from(record.wrench.force);
-        entities.push(wrench_arrow(
-            &format!("{name}/sensed_wrench"),
-            &tool,
-            [f.x, f.y, f.z],
-            METRES_PER_NEWTON,
-            SENSED,
-            time_ns,
-        ));
-        SceneUpdate {
-            deletions: Vec::new(),
-            entities,
-        }
+/// `name`'s walls (in its root frame, the first of `frames`) and its sensed wrench as an arrow
+/// at the tool (the last frame, whose pose in the root frame is the last of `poses`).
+pub fn scene_update(
+    name: &str,
+    frames: &[String],
+    walls: &[ContactShape],
+    record: &TelemetryRecord,
+    poses: &[Pose],
+    time_ns: u64,
+) -> SceneUpdate {
+    let root = frame_id(name, frames.first().map_or("", String::as_str));
+    let tool = frame_id(name, frames.last().map_or("", String::as_str));
+    let mut entities: Vec<_> = walls
+        .iter()
+        .enumerate()
+        .map(|(k, w)| wall_entity(&format!("{name}/contact{k}"), &root, w, time_ns))
+        .collect();
+    // The wire's wrench is in the base frame; the arrow is drawn in the tool's.
+    let tool_pose = poses.last().copied().unwrap_or_else(Pose::identity);
+    let f = tool_pose.rotation.inverse() * Vector3::from(record.wrench.force);
+    entities.push(wrench_arrow(
+        &format!("{name}/sensed_wrench"),
+        &tool,
+        [f.x, f.y, f.z],
+        METRES_PER_NEWTON,
+        SENSED,
+        time_ns,
+    ));
+    SceneUpdate {
+        deletions: Vec::new(),
+        entities,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use penelope_hal::nalgebra::{Translation3, UnitQuaternion};
+    use penelope_protocol::proto::WrenchMsg;
+
+    #[test]
+    fn the_sensed_force_is_drawn_in_the_tool_frame_and_the_wall_in_the_root_frame() {
+        let frames: Vec<String> = ["base_link", "link1", "tool"].map(String::from).to_vec();
+        // The tool turned half a turn about x: a push up (+z, base) is -z in the tool's frame.
+        let tool = Pose::from_parts(
+            Translation3::new(0.3, 0.0, 0.2),
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
+        );
+        let record = TelemetryRecord {
+            time_ns: 9,
+            seq: 1,
+            q: vec![0.0; 6],
+            qd: vec![0.0; 6],
+            effort: vec![0.0; 6],
+            tool_position: [0.3, 0.0, 0.2],
+            wrench: WrenchMsg {
+                force: [0.0, 0.0, 20.0],
+                torque: [0.0; 3],
+            },
+            state: "running".into(),
+            fault: None,
+        };
+        let walls = [ContactShape::Plane {
+            point: [0.35, 0.1, 0.29],
+            normal: [0.0, 0.0, 1.0],
+        }];
+        let update = scene_update(
+            "puma",
+            &frames,
+            &walls,
+            &record,
+            &[Pose::identity(), Pose::identity(), tool],
+            9,
+        );
+        assert_eq!(update.entities.len(), 2);
+        let wall = &update.entities[0];
+        assert_eq!(
+            (wall.id.as_str(), wall.frame_id.as_str()),
+            ("puma/contact0", "puma/base_link")
+        );
+        assert_eq!(wall.cubes.len(), 1);
+        let arrow = &update.entities[1];
+        assert_eq!(
+            (arrow.id.as_str(), arrow.frame_id.as_str()),
+            ("puma/sensed_wrench", "puma/tool")
+        );
+        // The arrow points along the force in the tool frame: -z, 20 N at 1 cm/N = 0.2 m.
+        let a = &arrow.arrows[0];
+        assert!((a.shaft_length + a.head_length - 0.2).abs() < 1e-9);
+        let q = &a.pose.orientation;
+        let along = UnitQuaternion::from_quaternion(penelope_hal::nalgebra::Quaternion::new(
+            q.w, q.x, q.y, q.z,
+        )) * Vector3::x();
+        assert!(
+            (along - Vector3::new(0.0, 0.0, -1.0)).norm() < 1e-9,
+            "{along}"
+        );
+        // No force, no arrow (the entity stays, so the last arrow goes away).
+        let mut still = record.clone();
+        still.wrench.force = [0.0; 3];
+        let update = scene_update("puma", &frames, &[], &still, &[tool], 9);
+        assert!(update.entities[0].arrows.is_empty());
     }
 }

@@ -56,6 +56,8 @@ pub struct Shared {
 /// One stream and its reader.
 struct Stream {
     channel: u32,
+    /// The robot its controller drives, by `node/robot`, when it started.
+    robot: Option<String>,
     stop: Arc<AtomicBool>,
     stats: Arc<Mutex<StreamStats>>,
     reader: Option<JoinHandle<()>>,
@@ -173,8 +175,18 @@ impl Sources {
             }
         }
         for (key, f) in found {
-            if f.info.name.is_empty() || self.streams.contains_key(&key) {
+            if f.info.name.is_empty() {
                 continue;
+            }
+            // A controller bound to another robot since its reader started: started again.
+            match self.streams.get(&key) {
+                Some(s) if s.robot == robot_of(&f) => continue,
+                Some(_) => {
+                    if let Some(s) = self.streams.remove(&key) {
+                        self.shared.hub.remove_channel(s.channel);
+                    }
+                }
+                None => {}
             }
             let stream = self.start(&f);
             self.streams.insert(key, stream);
@@ -194,8 +206,17 @@ impl Sources {
             Ok(p) => p,
             Err(_) => return,
         };
+        // Frame ids and topics are by robot name; the second of a name says its node.
+        let taken = lock(&self.shared.robots)
+            .values()
+            .any(|r| r.name == info.name);
+        let name = if taken {
+            format!("{}@{}", info.name, node.name())
+        } else {
+            info.name.clone()
+        };
         let view = RobotView::describe(
-            &info.name,
+            &name,
             proxy,
             penelope_scene::default_placement(index),
             self.shared.hub.clone(),
@@ -254,12 +275,8 @@ impl Sources {
             clock: "unknown",
             ..StreamStats::default()
         }));
-        let robot = f
-            .info
-            .relations
-            .iter()
-            .find(|(relation, _)| relation == "robot")
-            .map(|(_, robot)| format!("{}/{robot}", f.node));
+        let robot = robot_of(f);
+        let reader_robot = robot.clone();
         let reader = Reader {
             shared: self.shared.clone(),
             robot,
@@ -283,11 +300,21 @@ impl Sources {
             .ok();
         Stream {
             channel,
+            robot: reader_robot,
             stop,
             stats,
             reader: handle,
         }
     }
+}
+
+/// The robot a found controller drives, by `node/robot`.
+fn robot_of(f: &Found) -> Option<String> {
+    f.info
+        .relations
+        .iter()
+        .find(|(relation, _)| relation == "robot")
+        .map(|(_, robot)| format!("{}/{robot}", f.node))
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
