@@ -101,12 +101,13 @@ class System:
     """A node `lab` hosting the naming service and running the demo's system, and
     `penelope foxglove` in front of it."""
 
-    def __init__(self, binary: str, node_args: List[str], fox_args: List[str]) -> None:
+    def __init__(self, binary: str, node_args: List[str], fox_args: List[str],
+                 system: Optional[Path] = DEMO) -> None:
         self.binary = binary
         self.naming = f"127.0.0.1:{free_port()}"
+        config = ["--config", str(system)] if system else []
         self.node = Process([binary, "node", "--name", "lab", "--host-naming", "--listen",
-                             self.naming, "--config", str(DEMO), "--priority", "0", *node_args],
-                            NODE_READY)
+                             self.naming, *config, "--priority", "0", *node_args], NODE_READY)
         try:
             self.fox = Process([binary, "foxglove", "--naming", self.naming, "--listen",
                                 "127.0.0.1:0", *fox_args], FOX_READY)

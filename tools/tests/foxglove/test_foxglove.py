@@ -236,3 +236,35 @@ def test_a_client_that_does_not_read_loses_messages_counted_and_holds_up_no_one(
     finally:
         watcher.close()
         slow.close()
+
+
+def test_objects_made_later_appear_and_a_controller_bound_later_draws_its_robot(penelope_bin: str):
+    """A node with no objects: the gateway finds a robot and a controller made with `ctl`
+    after it started, and the controller's robot once it is bound to it (after the gateway
+    already follows the controller)."""
+    system = System(penelope_bin, [], [], system=None)
+    try:
+        c = FoxgloveClient(system.url)
+        try:
+            c.pump_until(lambda: c.server_info is not None, WAIT_S, "serverInfo")
+            for line in ["create lab board/sim sim0 axes=6",
+                         "create lab robot/puma560 slave",
+                         "call /lab/robots/slave map-joints sim0 0:0 1:1 2:2 3:3 4:4 5:5",
+                         "configure lab/sim0", "configure lab/slave",
+                         "create lab trajectory/step hold pose=start",
+                         "create lab controller/joint-pid pid period_us=2000"]:
+                system.ctl(*line.split())
+            c.pump_until(lambda: c.channel("/controllers/pid")
+                         and c.channel("/robot_description/slave"), WAIT_S,
+                         "the new controller and robot advertised")
+            tf = c.subscribe("/tf")
+            for line in ["call lab/pid set-robot slave", "call lab/pid set-trajectory hold",
+                         "configure lab/hold", "configure lab/pid", "activate lab/pid"]:
+                system.ctl(*line.split())
+            c.pump_until(lambda: any(m["transforms"][0]["child_frame_id"] == "slave/base_link"
+                                     for _, m in c.messages.get(tf, [])),
+                         WAIT_S, "the bound robot's transforms")
+        finally:
+            c.close()
+    finally:
+        system.stop()
