@@ -16,7 +16,7 @@ import pytest
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from conftest import FoxgloveClient, System
+from conftest import DEMO, FOX_READY, FoxgloveClient, Process, System, free_port
 
 WAIT_S = 60.0
 WINDOW_S = 5.0
@@ -268,3 +268,44 @@ def test_objects_made_later_appear_and_a_controller_bound_later_draws_its_robot(
             c.close()
     finally:
         system.stop()
+
+
+def test_a_node_beside_the_naming_service_is_put_on_the_common_clock(penelope_bin: str):
+    """The naming service runs alone; the node is another process: the gateway estimates the
+    node's offset to the naming host's clock (`Call::Time` exchanges) and adds it. Both are this
+    host's monotonic clock, so the offset found is the estimate's error."""
+    naming = f"127.0.0.1:{free_port()}"
+    service = Process([penelope_bin, "naming", "--listen", naming], "Ctrl-C stops it")
+    node = fox = None
+    try:
+        node = Process([penelope_bin, "node", "--name", "lab", "--naming", naming, "--config",
+                        str(DEMO), "--priority", "0"], "Ctrl-C stops the node")
+        fox = Process([penelope_bin, "foxglove", "--naming", naming, "--listen", "127.0.0.1:0"],
+                      FOX_READY)
+        c = FoxgloveClient(fox.match.group(1))
+        try:
+            c.pump_until(lambda: c.channel(SLAVE) and c.channel("/penelope/gateway"), WAIT_S,
+                         "the slave's channel")
+            ticks = c.subscribe(SLAVE)
+            stats = c.subscribe("/penelope/gateway")
+
+            def follow_clock():
+                for _, m in c.messages.get(stats, []):
+                    for stream in m["streams"]:
+                        if stream["topic"] == SLAVE and stream["clock"] != "unknown":
+                            return stream["clock"]
+                return None
+
+            c.pump_until(lambda: len(c.messages.get(ticks, [])) >= 20 and follow_clock(),
+                         WAIT_S, "ticks and the stream's clock")
+            assert follow_clock() == "offset"
+            offsets = [t - m["sample"]["time"] for t, m in c.messages[ticks]]
+            print(f"common less node clock as estimated: {min(offsets)} .. {max(offsets)} ns "
+                  f"(the same host: the estimate's error)")
+            assert all(abs(o) < 5_000_000 for o in offsets)
+        finally:
+            c.close()
+    finally:
+        for p in (fox, node, service):
+            if p is not None:
+                p.stop()
