@@ -309,3 +309,41 @@ def test_a_node_beside_the_naming_service_is_put_on_the_common_clock(penelope_bi
         for p in (fox, node, service):
             if p is not None:
                 p.stop()
+
+
+def test_a_channel_linked_across_nodes_streams_its_link_statistics(penelope_bin: str):
+    """The demo split over two nodes (`config/demo-two-nodes.toml`): each end of the channel
+    `link` streams its link's statistics, on `/links/link` and `/links/link@<node>`."""
+    two = DEMO.parent / "demo-two-nodes.toml"
+    naming = f"127.0.0.1:{free_port()}"
+    master = slave = fox = None
+    try:
+        master = Process([penelope_bin, "node", "--name", "master", "--host-naming", "--listen",
+                          naming, "--config", str(two), "--priority", "0"], "Ctrl-C stops the node")
+        slave = Process([penelope_bin, "node", "--name", "slave", "--naming", naming, "--config",
+                         str(two), "--priority", "0"], "Ctrl-C stops the node")
+        fox = Process([penelope_bin, "foxglove", "--naming", naming, "--listen", "127.0.0.1:0"],
+                      FOX_READY)
+        c = FoxgloveClient(fox.match.group(1))
+        try:
+            topics = lambda: sorted(ch["topic"] for ch in c.channels.values()
+                                    if ch["topic"].startswith("/links/"))
+            c.pump_until(lambda: len(topics()) == 2, WAIT_S, "both ends' link channels")
+            assert all(c.channel(t)["schemaName"] == "penelope.LinkStats" for t in topics())
+            subs = [c.subscribe(t) for t in topics()]
+            c.pump_until(lambda: all(len(c.messages.get(s, [])) >= 3 for s in subs), WAIT_S,
+                         "link records from both ends")
+            schema = json.loads(c.channel(topics()[0])["schema"])
+            for s in subs:
+                last = c.messages[s][-1][1]
+                jsonschema.validate(last, schema)
+                assert last["down"] is False, last
+                assert last["samples_taken"] > 0, last
+            print("link ends:", [(t, c.messages[s][-1][1]["round_trip_ns"])
+                                 for t, s in zip(topics(), subs)])
+        finally:
+            c.close()
+    finally:
+        for p in (fox, slave, master):
+            if p is not None:
+                p.stop()
