@@ -144,6 +144,7 @@ pub fn run(mut config: Config, stop: Arc<AtomicBool>) -> Result<(), Error> {
         estop: config.estop,
         origins: config.allowed_origins.clone(),
         connected: AtomicUsize::new(0),
+        estops: AtomicUsize::new(0),
     });
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)

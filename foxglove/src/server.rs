@@ -45,7 +45,13 @@ pub struct ServerState {
     pub origins: Vec<String>,
     /// Clients connected now.
     pub connected: AtomicUsize,
+    /// E-stop calls under way (at most [`MAX_ESTOPS`]).
+    pub estops: AtomicUsize,
 }
+
+/// E-stop calls under way at once: each asks every node on connections of its own, so a
+/// client repeating the call cannot open connections without bound (the first is enough).
+pub const MAX_ESTOPS: usize = 4;
 
 /// The e-stop service as advertised.
 pub fn estop_service() -> ServiceAd {
@@ -238,10 +244,17 @@ fn handle(state: &Arc<ServerState>, id: u64, op: Result<ClientOp, wire::ParseErr
             if encoding != "json" {
                 return fail(&format!("requests are json, not {encoding}"));
             }
+            if state.estops.fetch_add(1, Ordering::AcqRel) >= MAX_ESTOPS {
+                state.estops.fetch_sub(1, Ordering::AcqRel);
+                return fail(&format!(
+                    "{MAX_ESTOPS} e-stops are under way already: every loop is being stopped"
+                ));
+            }
             let state = state.clone();
             // The client library blocks; an e-stop has a thread of the pool to itself.
             tokio::task::spawn_blocking(move || {
                 let answer = estop(&state.client);
+                state.estops.fetch_sub(1, Ordering::AcqRel);
                 let message = match answer {
                     Ok(body) => Outgoing::Binary(wire::service_call_response(
                         service_id,
