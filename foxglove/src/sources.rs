@@ -406,17 +406,19 @@ impl Reader {
     fn follow_ticks(&self) {
         let mut decimation = 1;
         while !self.stopped() {
-            let mut clock = match self.clock() {
-                Ok(c) => c,
-                Err(e) => {
-                    self.pause(format!("the node's clock: {e}"));
-                    continue;
-                }
-            };
+            // Subscribed first: a controller that is not running is refused before the
+            // clock's exchanges are spent on it.
             let mut stream = match self.shared.client.subscribe(&self.path, decimation) {
                 Ok(s) => s,
                 Err(e) => {
                     self.pause(e.to_string());
+                    continue;
+                }
+            };
+            let mut clock = match self.clock() {
+                Ok(c) => c,
+                Err(e) => {
+                    self.pause(format!("the node's clock: {e}"));
                     continue;
                 }
             };
@@ -502,13 +504,6 @@ impl Reader {
 
     fn follow_link(&self) {
         while !self.stopped() {
-            let clock = match self.clock() {
-                Ok(c) => c,
-                Err(e) => {
-                    self.pause(format!("the node's clock: {e}"));
-                    continue;
-                }
-            };
             let mut stream = match self.shared.client.watch_link(&self.path, 1) {
                 Ok(s) => s,
                 Err(e) => {
@@ -517,8 +512,14 @@ impl Reader {
                     continue;
                 }
             };
+            let mut clock = match self.clock() {
+                Ok(c) => c,
+                Err(e) => {
+                    self.pause(format!("the node's clock: {e}"));
+                    continue;
+                }
+            };
             lock(&self.stats).error = None;
-            let mut clock = clock;
             let mut seen = false;
             while !self.stopped() {
                 let record = match stream.recv_timeout(POLL) {
