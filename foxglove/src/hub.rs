@@ -303,6 +303,38 @@ impl Hub {
     }
 }
 
+/// Tells each client that loses messages so, at most once per `every`: the Foxglove app shows
+/// a `status` among its problems. Remembers what each was told in `told` (by client id: drops
+/// told, when).
+pub fn notices(
+    clients: &[ClientStats],
+    told: &mut HashMap<u64, (u64, std::time::Instant)>,
+    now: std::time::Instant,
+    every: std::time::Duration,
+) -> Vec<(u64, String)> {
+    told.retain(|id, _| clients.iter().any(|c| c.id == *id));
+    let mut out = Vec::new();
+    for c in clients {
+        let due = match told.get(&c.id) {
+            Some((before, at)) => c.dropped > *before && now.duration_since(*at) >= every,
+            None => c.dropped > 0,
+        };
+        if due {
+            told.insert(c.id, (c.dropped, now));
+            out.push((
+                c.id,
+                format!(
+                    "this client reads too slowly: {} of {} messages dropped so far (the robots \
+                     are not held up; subscribe to fewer topics or lower --rate)",
+                    c.dropped,
+                    c.dropped + c.queued
+                ),
+            ));
+        }
+    }
+    out
+}
+
 fn stats(id: u64, c: &ClientSlot) -> ClientStats {
     ClientStats {
         id,
@@ -430,6 +462,33 @@ mod tests {
         assert_eq!(fast_got, DATA_QUEUE + extra);
         assert_eq!(evicted, 0);
         drop(slow);
+    }
+
+    #[test]
+    fn a_client_losing_messages_is_told_at_most_once_per_period() {
+        let every = std::time::Duration::from_secs(5);
+        let t0 = std::time::Instant::now();
+        let client = |dropped| ClientStats {
+            id: 3,
+            address: "127.0.0.1:1".into(),
+            subscriptions: 1,
+            queued: 10,
+            dropped,
+        };
+        let mut told = HashMap::new();
+        assert!(notices(&[client(0)], &mut told, t0, every).is_empty());
+        let first = notices(&[client(4)], &mut told, t0, every);
+        assert_eq!(first.len(), 1);
+        assert!(first[0].1.contains("4 of 14"), "{}", first[0].1);
+        assert!(notices(&[client(9)], &mut told, t0 + every / 2, every).is_empty());
+        assert_eq!(notices(&[client(9)], &mut told, t0 + every, every).len(), 1);
+        assert!(
+            notices(&[client(9)], &mut told, t0 + every * 3, every).is_empty(),
+            "no new drops"
+        );
+        // A client gone is forgotten.
+        assert!(notices(&[], &mut told, t0 + every * 4, every).is_empty());
+        assert!(told.is_empty());
     }
 
     #[test]

@@ -41,6 +41,8 @@ pub const DEFAULT_RATE_HZ: f64 = 100.0;
 const TIME_PERIOD: Duration = Duration::from_millis(100);
 /// How often `/penelope/gateway` is published.
 const STATS_PERIOD: Duration = Duration::from_secs(1);
+/// How often at most a client that loses messages is told so.
+const NOTICE_PERIOD: Duration = Duration::from_secs(5);
 
 /// How `penelope foxglove` runs.
 #[derive(Clone, Debug)]
@@ -196,6 +198,7 @@ fn keep(shared: &Arc<Shared>, gateway_channel: u32, stop: &AtomicBool) {
     let mut last_stats = Instant::now();
     let mut last_time = 0;
     let mut complained = false;
+    let mut told = std::collections::HashMap::new();
     while !stop.load(Ordering::Acquire) {
         if last_discovery.is_none_or(|t| t.elapsed() >= DISCOVERY_PERIOD) {
             last_discovery = Some(Instant::now());
@@ -218,6 +221,10 @@ fn keep(shared: &Arc<Shared>, gateway_channel: u32, stop: &AtomicBool) {
         if last_stats.elapsed() >= STATS_PERIOD {
             last_stats = Instant::now();
             let (clients, evicted) = shared.hub.stats();
+            for (id, text) in hub::notices(&clients, &mut told, Instant::now(), NOTICE_PERIOD) {
+                let status = wire::status(wire::Level::Warning, &text);
+                shared.hub.send_control(id, hub::Outgoing::Text(status));
+            }
             let message = topics::gateway(&clients, evicted, &sources.stats()).to_string();
             shared
                 .hub

@@ -233,6 +233,9 @@ def test_a_client_that_does_not_read_loses_messages_counted_and_holds_up_no_one(
         assert all(s["node_dropped"] == 0 for s in last["streams"])
         mine = [c for c in last["clients"] if c["subscriptions"] == 2]
         assert mine and mine[0]["dropped"] == 0
+        # Once it reads, the slow client finds it was told (a status Foxglove shows).
+        slow.pump_until(lambda: any("reads too slowly" in st["message"] for st in slow.statuses),
+                        WAIT_S, "the slow client's notice")
     finally:
         watcher.close()
         slow.close()
