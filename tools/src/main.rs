@@ -54,6 +54,9 @@ enum Command {
     /// The web interface: the naming tree, object forms, lifecycle, live plots, e-stop, in a
     /// browser (loopback by default; elsewhere a login with the shared secret).
     Web(cmd::web::Args),
+    /// The live stream for Foxglove (`foxglove.websocket.v1`): the robots' transforms and
+    /// descriptions, the scene, ticks and links, on loopback; the e-stop as a service.
+    Foxglove(cmd::foxglove::Args),
 }
 
 fn main() -> ExitCode {
@@ -73,6 +76,7 @@ fn main() -> ExitCode {
         Command::Naming(args) => cmd::naming::run(args),
         Command::Ctl(args) => cmd::ctl::run(args),
         Command::Web(args) => cmd::web::run(args),
+        Command::Foxglove(args) => cmd::foxglove::run(args),
         Command::Secret(c) => cmd::secret::run(c),
         Command::Recording(c) => cmd::recording::run(c),
     };

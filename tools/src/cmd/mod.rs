@@ -7,6 +7,7 @@ pub mod ctl;
 pub mod demo;
 pub mod doctor;
 pub mod experiment;
+pub mod foxglove;
 pub mod galil;
 pub mod galil_sim;
 pub mod kin;
