@@ -393,6 +393,22 @@ impl Creator {
     /// name (created exclusively, links not followed: [`files::create_in`]), no recordings
     /// directory, an object neither a controller nor a channel; [`ObjectError::UnknownName`].
     pub fn record_start(&self, name: &str, objects: &[String]) -> Result<Reply, ObjectError> {
+        self.record_start_with(name, objects, recording::DEFAULT_SCENE_HZ)
+    }
+
+    /// As [`record_start`](Self::record_start), drawing the robots of the recorded controllers
+    /// in 3D at `scene_hz` of tick time ([`recording::scene`]; 0: their descriptions only).
+    ///
+    /// # Errors
+    /// As [`record_start`](Self::record_start); [`ObjectError::BadArgument`] for a rate out of
+    /// 0..=[`recording::scene::MAX_SCENE_HZ`].
+    pub fn record_start_with(
+        &self,
+        name: &str,
+        objects: &[String],
+        scene_hz: f64,
+    ) -> Result<Reply, ObjectError> {
+        recording::scene::check_rate(scene_hz)?;
         let mut recording = self
             .recording
             .lock()
@@ -449,6 +465,7 @@ impl Creator {
         }
         let controllers: Vec<String> = streams.iter().map(|(n, _)| n.clone()).collect();
         let linked: Vec<String> = links.iter().map(|(n, _)| n.clone()).collect();
+        let scene = self.scene_for(&controllers, scene_hz)?;
         // Created last, once everything else is checked: a refused call leaves no file.
         let (path, file) = files::create_in(dir, name)?;
         let path = path.display().to_string();
@@ -461,6 +478,7 @@ impl Creator {
             Some(self.lifecycle_events(crate::objects::recording::LIFECYCLE_CAPACITY)),
             &self.config.common_clock,
             self.node_time(),
+            scene,
         )
         .map_err(|e| {
             let _ = std::fs::remove_file(&path);
