@@ -408,7 +408,8 @@ impl Creator {
         objects: &[String],
         scene_hz: f64,
     ) -> Result<Reply, ObjectError> {
-        recording::scene::check_rate(scene_hz)?;
+        recording::scene::check_rate(scene_hz)
+            .map_err(|e| ObjectError::BadArgument(e.to_string()))?;
         let mut recording = self
             .recording
             .lock()
@@ -489,6 +490,26 @@ impl Creator {
             path: path.to_string(),
             controllers,
             links: linked,
+        })
+    }
+
+    /// The 3D scene of a recording of `controllers` at `rate_hz` of tick time: the robot each
+    /// drives (once per robot), side by side along world y in creation order, with the contact
+    /// shapes of its simulated boards ([`recording::scene`]).
+    ///
+    /// # Errors
+    /// [`ObjectError::BadArgument`] for a rate out of 0..=[`recording::scene::MAX_SCENE_HZ`];
+    /// [`ObjectError::Poisoned`].
+    pub fn scene_for(
+        &self,
+        controllers: &[String],
+        rate_hz: f64,
+    ) -> Result<recording::SceneConfig, ObjectError> {
+        let rate_hz = recording::scene::check_rate(rate_hz)
+            .map_err(|e| ObjectError::BadArgument(e.to_string()))?;
+        Ok(recording::SceneConfig {
+            robots: self.lock()?.scene_robots(controllers),
+            rate_hz,
         })
     }
 

@@ -23,14 +23,12 @@ use penelope_hal::{Frame, Pose, Wrench};
 use penelope_protocol::proto::ContactShapeMsg;
 use penelope_scene::{
     Color, ContactShape, FRAME_TRANSFORMS, FrameTransform, ROBOT_DESCRIPTION, RobotDescription,
-    SCENE_UPDATE, ScenePose, SceneUpdate, TOPIC_SCENE, TOPIC_TF, Timestamp, default_placement,
-    frame_id, robot_description_topic, robot_transforms, wall_entity, wrench_arrow,
+    SCENE_UPDATE, ScenePose, SceneUpdate, TOPIC_SCENE, TOPIC_TF, Timestamp, frame_id,
+    robot_description_topic, robot_transforms, wall_entity, wrench_arrow,
 };
 
 use super::RecordingError;
 use super::mcap_log::McapLog;
-use crate::objects::error::ObjectError;
-use crate::objects::registry::KindState;
 use crate::objects::tick::TickRecord;
 
 /// The default rate of a recording's `/tf` and `/scene`, Hz of tick time.
@@ -78,81 +76,20 @@ impl Default for SceneConfig {
     }
 }
 
+/// A scene rate out of 0..=[`MAX_SCENE_HZ`] Hz (or not a number).
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[error("the scene rate must be 0..={max} Hz, got {0}", max = MAX_SCENE_HZ)]
+pub struct BadSceneRate(pub f64);
+
 /// Checks a scene rate: finite, 0..=[`MAX_SCENE_HZ`].
 ///
 /// # Errors
-/// [`ObjectError::BadArgument`] saying what is wrong.
-pub fn check_rate(rate_hz: f64) -> Result<f64, ObjectError> {
+/// [`BadSceneRate`].
+pub fn check_rate(rate_hz: f64) -> Result<f64, BadSceneRate> {
     if rate_hz.is_finite() && (0.0..=MAX_SCENE_HZ).contains(&rate_hz) {
         Ok(rate_hz)
     } else {
-        Err(ObjectError::BadArgument(format!(
-            "the scene rate must be 0..={MAX_SCENE_HZ} Hz, got {rate_hz}"
-        )))
-    }
-}
-
-impl crate::objects::Creator {
-    /// The scene of a recording of `controllers`: the robot each drives (once per robot, the
-    /// first controller's ticks), placed side by side along world y in creation order, with
-    /// the contact shapes of its simulated boards, at `rate_hz`. A controller with no robot
-    /// bound draws nothing.
-    ///
-    /// # Errors
-    /// [`ObjectError::BadArgument`] for a bad rate; [`ObjectError::Poisoned`].
-    pub fn scene_for(
-        &self,
-        controllers: &[String],
-        rate_hz: f64,
-    ) -> Result<SceneConfig, ObjectError> {
-        let rate_hz = check_rate(rate_hz)?;
-        let registry = self.lock()?;
-        // Every robot of the node in creation order: its place in the row.
-        let mut order: Vec<(u64, &str)> = registry
-            .objects
-            .values()
-            .filter_map(|o| match &o.body {
-                KindState::Robot(r) => Some((r.created, o.name.as_str())),
-                _ => None,
-            })
-            .collect();
-        order.sort_unstable();
-        let mut robots: Vec<SceneRobot> = Vec::new();
-        for controller in controllers {
-            let Some(KindState::Controller(c)) = registry.objects.get(controller).map(|o| &o.body)
-            else {
-                continue;
-            };
-            let Some(robot) = &c.robot else { continue };
-            if robots.iter().any(|r| &r.robot == robot) {
-                continue;
-            }
-            let Some(KindState::Robot(r)) = registry.objects.get(robot).map(|o| &o.body) else {
-                continue;
-            };
-            let index = order.iter().position(|(_, n)| n == robot).unwrap_or(0);
-            let sensor_mount = c.sensor.as_ref().map(|sensor| {
-                match registry.objects.get(sensor).map(|o| &o.body) {
-                    Some(KindState::Sensor(s)) => {
-                        let [x, y, z] = s.config.mount_xyz;
-                        Pose::translation(x, y, z)
-                    }
-                    Some(KindState::ReplaySensor(s)) => s.config.mount(),
-                    Some(KindState::NetFt(s)) => s.config.mount,
-                    // A sensor on another node: its mount is not known here.
-                    _ => Pose::identity(),
-                }
-            });
-            robots.push(SceneRobot {
-                robot: robot.clone(),
-                controller: controller.clone(),
-                model: r.model.clone(),
-                placement: default_placement(index),
-                contacts: registry.contacts_of(robot).unwrap_or_default(),
-                sensor_mount,
-            });
-        }
-        Ok(SceneConfig { robots, rate_hz })
+        Err(BadSceneRate(rate_hz))
     }
 }
 

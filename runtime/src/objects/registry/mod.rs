@@ -51,6 +51,7 @@ mod laws;
 mod methods;
 mod netft;
 mod replay;
+mod scene_robots;
 mod sensors;
 mod take_back;
 mod teleop;
