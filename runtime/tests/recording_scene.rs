@@ -7,7 +7,10 @@ mod common;
 
 use common::{call, create, ctl, lifecycle, map, session};
 use penelope_hal::Transition;
-use penelope_protocol::proto::{ControllerMethod, Method, RobotMethod};
+use penelope_protocol::proto::{
+    Call, CallError, ControllerMethod, CreatorCall, Method, Reply, RobotMethod, WireError,
+};
+use penelope_protocol::service::Service;
 use penelope_runtime::objects::clock::ClockMode;
 use penelope_runtime::objects::{Creator, CreatorConfig};
 use std::collections::BTreeMap;
@@ -172,12 +175,39 @@ fn rate_zero_writes_descriptions_only_and_a_bad_rate_is_refused() {
     assert_eq!(topics["/robot_description/arm"].len(), 1);
     assert!(!topics.contains_key("/tf") && !topics.contains_key("/scene"));
     let c = sim_creator();
+    let (session, _rx) = session(2);
     for bad in [-1.0, f64::NAN, 1e6] {
         let name = format!("scene-bad-{}.mcap", std::process::id());
         assert!(c.record_start_with(&name, &[], bad).is_err(), "{bad}");
+        // The same through the wire's call: a bad argument.
+        let reply = c.call(
+            &session,
+            Call::Creator(CreatorCall::RecordStartScene {
+                path: name.clone(),
+                objects: vec![],
+                scene_hz: bad,
+            }),
+        );
+        assert!(
+            matches!(reply, Err(WireError::Call(CallError::BadArgument(_)))),
+            "{bad}: {reply:?}"
+        );
         assert!(
             !std::env::temp_dir().join(&name).exists(),
             "no file for a refused call"
         );
     }
+    // A good rate through the call starts the recording.
+    let name = format!("scene-call-{}.mcap", std::process::id());
+    let reply = c.call(
+        &session,
+        Call::Creator(CreatorCall::RecordStartScene {
+            path: name.clone(),
+            objects: vec![],
+            scene_hz: 25.0,
+        }),
+    );
+    assert!(matches!(reply, Ok(Reply::Recording { .. })), "{reply:?}");
+    c.record_stop().unwrap();
+    let _ = std::fs::remove_file(std::env::temp_dir().join(&name));
 }
