@@ -707,6 +707,31 @@ mod tests {
     }
 
     #[test]
+    fn a_scene_message_needs_a_schema_the_scene_crate_carries() {
+        let path = scratch("scene-schema.mcap");
+        let mut log = McapLog::create(&path, "lab").unwrap();
+        let tf = penelope_scene::FrameTransforms::default();
+        log.scene("/tf", penelope_scene::FRAME_TRANSFORMS, 5, &tf)
+            .unwrap();
+        log.scene("/tf", penelope_scene::FRAME_TRANSFORMS, 6, &tf)
+            .unwrap();
+        assert!(matches!(
+            log.scene("/x", "foxglove.NoSuchSchema", 7, &tf),
+            Err(RecordingError::Format { .. })
+        ));
+        log.finish(&[]).unwrap();
+        let summary = super::mcap_log::summarize(&path).unwrap();
+        let tf_channel = summary
+            .channels
+            .iter()
+            .find(|c| c.topic == "/tf")
+            .expect("a /tf channel");
+        assert_eq!(tf_channel.messages, 2, "one channel, two messages");
+        assert!(summary.channels.iter().all(|c| c.topic != "/x"));
+        let _ = std::fs::remove_file(path);
+    }
+
+    #[test]
     fn a_crafted_record_length_is_an_error_not_an_abort() {
         let path = scratch("crafted.mcap");
         std::fs::write(&path, crafted_mcap_with_a_huge_record()).unwrap();
