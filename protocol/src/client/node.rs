@@ -210,6 +210,31 @@ impl NodeProxy {
         }
     }
 
+    /// As [`record_start_at`](Self::record_start_at), drawing the recorded robots in 3D at
+    /// `scene_hz` of tick time ([`CreatorCall::RecordStartScene`]).
+    ///
+    /// # Errors
+    /// What [`CreatorCall::RecordStartScene`] lists; transport errors.
+    pub fn record_start_scene(
+        &self,
+        name: &str,
+        objects: &[String],
+        scene_hz: f64,
+    ) -> Result<(String, Vec<String>, Vec<String>), RpcError> {
+        match self.creator(CreatorCall::RecordStartScene {
+            path: name.to_string(),
+            objects: objects.to_vec(),
+            scene_hz,
+        })? {
+            Reply::Recording {
+                path,
+                controllers,
+                links,
+            } => Ok((path, controllers, links)),
+            other => Err(unexpected("a recording", &other)),
+        }
+    }
+
     /// Ends the node's recording: its file and the ticks written.
     ///
     /// # Errors

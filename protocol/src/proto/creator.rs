@@ -80,4 +80,16 @@ pub enum CreatorCall {
         /// The system file's TOML text.
         text: String,
     },
+    /// As [`CreatorCall::RecordStart`], drawing the recorded controllers' robots in 3D (`/tf`,
+    /// `/scene`) at `scene_hz` of tick time (0..=10000; 0: their descriptions only;
+    /// `RecordStart` draws at 100 Hz). A rate out of range is [`CallError::BadArgument`].
+    /// (Appended last.)
+    RecordStartScene {
+        /// The file's plain name in the node's recordings directory.
+        path: String,
+        /// The objects' names on the node (none: all of them).
+        objects: Vec<String>,
+        /// `/tf` and `/scene` per second of tick time.
+        scene_hz: f64,
+    },
 }

@@ -152,6 +152,15 @@ fn the_robot_description_variants_were_appended_and_round_trip() {
         }),
         Reply::Poses(vec![pose, pose]),
     ];
+    // CreatorCall::ApplySystem was the last (index 8); RecordStartScene follows it.
+    let scene = CreatorCall::RecordStartScene {
+        path: "run.mcap".into(),
+        objects: vec!["follow".into()],
+        scene_hz: 50.0,
+    };
+    let bytes = postcard::to_stdvec(&scene).unwrap();
+    assert_eq!(index(&bytes), 9);
+    assert_eq!(postcard::from_bytes::<CreatorCall>(&bytes).unwrap(), scene);
     // Reply::Stopped was the last (index 25); the new ones follow it.
     let stopped = postcard::to_stdvec(&Reply::Stopped(StopReport::default())).unwrap();
     assert_eq!(index(&stopped), 25);

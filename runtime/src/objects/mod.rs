@@ -398,6 +398,23 @@ impl Creator {
     /// name (created exclusively, links not followed: [`files::create_in`]), no recordings
     /// directory, an object neither a controller nor a channel; [`ObjectError::UnknownName`].
     pub fn record_start(&self, name: &str, objects: &[String]) -> Result<Reply, ObjectError> {
+        self.record_start_with(name, objects, recording::DEFAULT_SCENE_HZ)
+    }
+
+    /// As [`record_start`](Self::record_start), drawing the robots of the recorded controllers
+    /// in 3D at `scene_hz` of tick time ([`recording::scene`]; 0: their descriptions only).
+    ///
+    /// # Errors
+    /// As [`record_start`](Self::record_start); [`ObjectError::BadArgument`] for a rate out of
+    /// 0..=[`recording::scene::MAX_SCENE_HZ`].
+    pub fn record_start_with(
+        &self,
+        name: &str,
+        objects: &[String],
+        scene_hz: f64,
+    ) -> Result<Reply, ObjectError> {
+        recording::scene::check_rate(scene_hz)
+            .map_err(|e| ObjectError::BadArgument(e.to_string()))?;
         let mut recording = self
             .recording
             .lock()
@@ -454,6 +471,7 @@ impl Creator {
         }
         let controllers: Vec<String> = streams.iter().map(|(n, _)| n.clone()).collect();
         let linked: Vec<String> = links.iter().map(|(n, _)| n.clone()).collect();
+        let scene = self.scene_for(&controllers, scene_hz)?;
         // Created last, once everything else is checked: a refused call leaves no file.
         let (path, file) = files::create_in(dir, name)?;
         let path = path.display().to_string();
@@ -466,6 +484,7 @@ impl Creator {
             Some(self.lifecycle_events(crate::objects::recording::LIFECYCLE_CAPACITY)),
             &self.config.common_clock,
             self.node_time(),
+            scene,
         )
         .map_err(|e| {
             let _ = std::fs::remove_file(&path);
@@ -476,6 +495,26 @@ impl Creator {
             path: path.to_string(),
             controllers,
             links: linked,
+        })
+    }
+
+    /// The 3D scene of a recording of `controllers` at `rate_hz` of tick time: the robot each
+    /// drives (once per robot), side by side along world y in creation order, with the contact
+    /// shapes of its simulated boards ([`recording::scene`]).
+    ///
+    /// # Errors
+    /// [`ObjectError::BadArgument`] for a rate out of 0..=[`recording::scene::MAX_SCENE_HZ`];
+    /// [`ObjectError::Poisoned`].
+    pub fn scene_for(
+        &self,
+        controllers: &[String],
+        rate_hz: f64,
+    ) -> Result<recording::SceneConfig, ObjectError> {
+        let rate_hz = recording::scene::check_rate(rate_hz)
+            .map_err(|e| ObjectError::BadArgument(e.to_string()))?;
+        Ok(recording::SceneConfig {
+            robots: self.lock()?.scene_robots(controllers),
+            rate_hz,
         })
     }
 

@@ -51,6 +51,7 @@ pub fn needs(call: &Call) -> Needs {
             | CreatorCall::ApplySystem { .. } => Needs::Create,
             CreatorCall::Advance { .. }
             | CreatorCall::RecordStart { .. }
+            | CreatorCall::RecordStartScene { .. }
             | CreatorCall::RecordStop => Needs::Operate,
         },
         Call::Object { method, .. } => method_needs(method),

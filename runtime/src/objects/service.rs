@@ -95,6 +95,11 @@ impl Creator {
             Call::Creator(CreatorCall::RecordStart { path, objects }) => {
                 self.record_start(&path, &objects)
             }
+            Call::Creator(CreatorCall::RecordStartScene {
+                path,
+                objects,
+                scene_hz,
+            }) => self.record_start_with(&path, &objects, scene_hz),
             Call::Creator(CreatorCall::RecordStop) => self.record_stop(),
             // The node serves it: it binds what it creates in the naming tree.
             Call::Creator(CreatorCall::ApplySystem { .. }) => Err(ObjectError::Unsupported {

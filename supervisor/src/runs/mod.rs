@@ -251,6 +251,9 @@ pub struct RunInfo {
     pub sensor_mount: Pose,
     /// The master and slave controllers recorded.
     pub controllers: (String, String),
+    /// The master and slave robot objects, each with its place among the file's robots (the
+    /// 3D scene stands them side by side in this order).
+    pub robots: ((String, usize), (String, usize)),
 }
 
 impl RunInfo {

@@ -9,8 +9,10 @@ use std::path::Path;
 use penelope_hal::{Timestamp, Transition};
 use penelope_protocol::proto::{Call, Method};
 use penelope_runtime::objects::recording::mcap_log::{McapLog, McapTotals};
+use penelope_runtime::objects::recording::scene::{self, SceneWriter};
 use penelope_runtime::objects::recording::{
-    LIFECYCLE_CAPACITY, Recorder, Recording, RecordingError,
+    DEFAULT_SCENE_HZ, LIFECYCLE_CAPACITY, Recorder, Recording, RecordingError, SceneConfig,
+    SceneRobot,
 };
 use penelope_runtime::objects::tick::TickRecord;
 
@@ -20,15 +22,17 @@ use crate::system::SystemFile;
 
 /// Applies `file` to `node` as [`SystemFile::apply`] does, but starts recording each
 /// controller the file activates on this node (to `path`) before activating it, so the
-/// recording holds every tick from the first.
+/// recording holds every tick from the first; the robots they drive are drawn in 3D at
+/// `scene_hz` of tick time ([`penelope_runtime::objects::recording::scene`]).
 ///
 /// # Errors
-/// [`RunError`] when the file is refused, a controller cannot be recorded or activated, or the
-/// file cannot be created.
+/// [`RunError`] when the file is refused, a controller cannot be recorded or activated, the
+/// scene rate is out of range, or the file cannot be created.
 pub fn apply_recorded(
     node: &Node,
     file: &SystemFile,
     path: &Path,
+    scene_hz: f64,
 ) -> Result<(Vec<penelope_protocol::proto::ObjectInfo>, Recorder), RunError> {
     let mut deferred = file.clone();
     let mut to_activate = Vec::new();
@@ -60,6 +64,10 @@ pub fn apply_recorded(
             links.push((o.name.clone(), source));
         }
     }
+    let scene = node
+        .creator()
+        .scene_for(&to_activate, scene_hz)
+        .map_err(|e| RunError::Task(e.to_string()))?;
     let recorder = Recorder::start(
         path,
         node.name(),
@@ -68,6 +76,7 @@ pub fn apply_recorded(
         Some(lifecycle),
         node.creator().common_clock(),
         node.creator().node_time(),
+        scene,
     )
     .map_err(|e| RunError::Task(e.to_string()))?;
     for name in &to_activate {
@@ -160,6 +169,39 @@ pub fn from_recordings(
     }))
 }
 
+/// The 3D scene of a run: the master and the slave side by side in the file's order, the
+/// slave's environment and wrist sensor, at the default rate.
+fn run_scene(info: &super::RunInfo) -> SceneConfig {
+    let ((master, master_row), (slave, slave_row)) = &info.robots;
+    let (master_ctl, slave_ctl) = &info.controllers;
+    let contacts = info
+        .environment
+        .shapes()
+        .iter()
+        .map(|c| scene::contact_shape_msg(&c.shape))
+        .collect();
+    let master = SceneRobot {
+        robot: master.clone(),
+        controller: master_ctl.clone(),
+        model: info.master_model.float().clone(),
+        placement: penelope_scene::default_placement(*master_row),
+        contacts: Vec::new(),
+        sensor_mount: None,
+    };
+    let slave = SceneRobot {
+        robot: slave.clone(),
+        controller: slave_ctl.clone(),
+        model: info.slave_model.float().clone(),
+        placement: penelope_scene::default_placement(*slave_row),
+        contacts,
+        sensor_mount: Some(info.sensor_mount),
+    };
+    SceneConfig {
+        robots: vec![master, slave],
+        rate_hz: DEFAULT_SCENE_HZ,
+    }
+}
+
 /// Writes run `output` to `path`: both controllers' ticks (what the pump's recorder streams
 /// gave the run, cut to the run's duration as its CSV files are), their safety events, and
 /// what the streams lost; with `recipe`, a `run` metadata record saying how to run it again
@@ -179,6 +221,8 @@ pub fn write_run(
     let (master, slave) = &output.info.controllers;
     let m = log.add_controller(master)?;
     let s = log.add_controller(slave)?;
+    let mut scene = SceneWriter::new(run_scene(&output.info), &[master.clone(), slave.clone()]);
+    scene.describe(&mut log, output.info.start.as_nanos())?;
     // In time order, as a reader plays them.
     let (mut a, mut b) = (
         output.master.iter().peekable(),
@@ -193,6 +237,7 @@ pub fn write_run(
         };
         let Some((index, tick)) = next else { break };
         log.tick(index, tick)?;
+        scene.tick(&mut log, index, tick)?;
     }
     log.finish(&[output.dropped.0, output.dropped.1])
 }

@@ -76,6 +76,10 @@ pub(super) fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task,
         environment,
         sensor_mount,
         controllers: (master_ctl.name.clone(), slave_ctl.name.clone()),
+        robots: (
+            (teleop.master.clone(), robot_row(&file, &teleop.master)),
+            (teleop.slave.clone(), robot_row(&file, &teleop.slave)),
+        ),
     };
     Ok(Task {
         duration: options.duration.unwrap_or(script.duration()),
@@ -83,6 +87,15 @@ pub(super) fn find_task(file: &SystemFile, options: &RunOptions) -> Result<Task,
         info,
         node_of,
     })
+}
+
+/// The place of robot `name` among the file's robots, in file order (0 when absent).
+fn robot_row(file: &SystemFile, name: &str) -> usize {
+    file.objects
+        .iter()
+        .filter(|o| o.kind.starts_with("robot/"))
+        .position(|o| o.name == name)
+        .unwrap_or(0)
 }
 
 /// The options' seed into every virtual sensor, and their scale into the teleop channel.

@@ -82,6 +82,11 @@ pub struct Args {
     /// this node.
     #[arg(long, value_name = "FILE", requires = "config")]
     pub record: Option<PathBuf>,
+    /// How often that recording draws the robots in 3D (`/tf`, `/scene`: every link of every
+    /// recorded robot, the contact shapes, the force arrows), Hz of tick time, 0..=10000 (0:
+    /// the robots' descriptions only) [default: the system file's `record_scene_hz`, else 100].
+    #[arg(long, value_name = "HZ")]
+    pub record_scene_hz: Option<u32>,
     /// The directory `penelope ctl record start NODE NAME` creates its recordings in: a client
     /// names a plain file name there, created new, never through a link [default: the system
     /// file's `records`, else `recordings` under $XDG_STATE_HOME/penelope/NAME or
@@ -170,14 +175,23 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .record
             .clone()
             .or_else(|| file.nodes.get(node.name()).and_then(|p| p.record.clone()));
+        let scene_hz = args
+            .record_scene_hz
+            .or_else(|| file.nodes.get(node.name()).and_then(|p| p.record_scene_hz))
+            .map_or(
+                penelope_runtime::objects::recording::DEFAULT_SCENE_HZ,
+                f64::from,
+            );
         let applied = match &record {
             None => file.apply(&node).map_err(anyhow::Error::new),
-            Some(path) => penelope_supervisor::runs::recording::apply_recorded(&node, &file, path)
-                .map(|(created, r)| {
-                    recorder = Some(r);
-                    created
-                })
-                .map_err(anyhow::Error::new),
+            Some(path) => {
+                penelope_supervisor::runs::recording::apply_recorded(&node, &file, path, scene_hz)
+                    .map(|(created, r)| {
+                        recorder = Some(r);
+                        created
+                    })
+                    .map_err(anyhow::Error::new)
+            }
         };
         match applied {
             Ok(created) => print_created(&node, created),

@@ -29,7 +29,10 @@
 //!   its own, now and then;
 //! - `/recorder` (schema `penelope.RecorderDropped`): the ticks (per controller) and stream
 //!   samples (per channel) the recorder lost, as they grow and at the end (they also go into
-//!   the file's `recorder` metadata record).
+//!   the file's `recorder` metadata record);
+//! - the 3D scene ([`super::scene`]), in Foxglove's well-known schemas: `/tf`
+//!   (`foxglove.FrameTransforms`), `/scene` (`foxglove.SceneUpdate`) and
+//!   `/robot_description/<robot>` (`penelope.RobotDescription`).
 //!
 //! Log and publish times are on the system's common clock (see [`crate::common_clock`]: the
 //! naming service host's monotonic clock), so that the recordings of several hosts share one
@@ -173,6 +176,10 @@ pub struct McapLog {
     /// message's node time for its log time.
     clock: Option<u16>,
     clock_offset_ns: i64,
+    /// The 3D scene's channels (Foxglove's well-known schemas, [`penelope_scene`]) by topic,
+    /// and their schemas by name, added with their first message.
+    scene_channels: BTreeMap<String, u16>,
+    scene_schemas: BTreeMap<String, u16>,
     sequence: BTreeMap<u16, u32>,
     last_time: u64,
     totals: McapTotals,
@@ -256,6 +263,8 @@ impl McapLog {
             lifecycle: None,
             clock: None,
             clock_offset_ns: 0,
+            scene_channels: BTreeMap::new(),
+            scene_schemas: BTreeMap::new(),
             sequence: BTreeMap::new(),
             last_time: 0,
             totals: McapTotals::default(),
@@ -452,6 +461,50 @@ impl McapLog {
             m.insert("time_ns".into(), time_ns.into());
         }
         self.write(id, time_ns, &message)
+    }
+
+    /// The log time of node time `time_ns` (the common clock, as estimated now).
+    pub fn log_time(&self, time_ns: u64) -> u64 {
+        time_ns.saturating_add_signed(self.clock_offset_ns)
+    }
+
+    /// Writes a message of the 3D scene on `topic` with schema `schema` (one
+    /// [`penelope_scene::schema`] knows), at node time `time_ns`; the topic's channel (and the
+    /// schema) is added the first time.
+    ///
+    /// # Errors
+    /// [`RecordingError::Format`] for a schema the scene crate does not carry;
+    /// [`RecordingError::Mcap`].
+    pub fn scene(
+        &mut self,
+        topic: &str,
+        schema: &str,
+        time_ns: u64,
+        message: &impl Serialize,
+    ) -> Result<(), RecordingError> {
+        let id = match self.scene_channels.get(topic) {
+            Some(id) => *id,
+            None => {
+                let schema_id = match self.scene_schemas.get(schema) {
+                    Some(id) => *id,
+                    None => {
+                        let text = penelope_scene::schema(schema).ok_or_else(|| {
+                            RecordingError::Format {
+                                path: self.path.clone(),
+                                message: format!("no schema {schema}"),
+                            }
+                        })?;
+                        let id = self.add_schema(schema, text)?;
+                        self.scene_schemas.insert(schema.to_string(), id);
+                        id
+                    }
+                };
+                let id = self.add_channel(schema_id, topic, &BTreeMap::new())?;
+                self.scene_channels.insert(topic.to_string(), id);
+                id
+            }
+        };
+        self.write(id, time_ns, message)
     }
 
     /// Adds schema `name`, JSON Schema `text`.

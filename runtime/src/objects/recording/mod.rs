@@ -16,6 +16,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 pub mod mcap_log;
+pub mod scene;
 
 use crate::common_clock::CommonClock;
 use crate::objects::clock::ClockReader;
@@ -25,6 +26,7 @@ use crate::objects::tick::TickRecord;
 use crate::objects::tick::TickStream;
 use mcap_log::{CLOCK_TOPIC, CONTROLLER_TOPIC, LINK_TOPIC, McapLog, RECORDER_TOPIC, STREAM_TOPIC};
 use penelope_protocol::proto::LinkRecord;
+pub use scene::{DEFAULT_SCENE_HZ, SceneConfig, SceneRobot};
 
 /// How often the recorder writes what its streams hold.
 const DRAIN_EVERY: Duration = Duration::from_millis(50);
@@ -275,12 +277,15 @@ impl Recorder {
     /// datagrams are; samples from now on) and the node's `lifecycle` transitions (a reader
     /// from [`Creator::lifecycle_events`], if any), log times on `clock` (the node's estimate
     /// of the common clock: written to `/clock` every 100 ms); `node_time` is the node's
-    /// clock, which the link records and `/clock` are stamped with.
+    /// clock, which the link records and `/clock` are stamped with; `scene`: the robots drawn
+    /// in 3D from the streams' ticks ([`scene`], [`Creator::scene_for`]).
     ///
     /// [`Creator::lifecycle_events`]: crate::objects::Creator::lifecycle_events
+    /// [`Creator::scene_for`]: crate::objects::Creator::scene_for
     ///
     /// # Errors
     /// [`RecordingError::Io`] when the file cannot be created.
+    #[allow(clippy::too_many_arguments)]
     pub fn start(
         path: &Path,
         node: &str,
@@ -289,9 +294,12 @@ impl Recorder {
         lifecycle: Option<Receiver<LifecycleEvent>>,
         clock: &CommonClock,
         node_time: ClockReader,
+        scene: SceneConfig,
     ) -> Result<Recorder, RecordingError> {
         let log = McapLog::create(path, node)?;
-        Recorder::start_with(log, path, streams, links, lifecycle, clock, node_time)
+        Recorder::start_with(
+            log, path, streams, links, lifecycle, clock, node_time, scene,
+        )
     }
 
     /// As [`start`](Self::start), writing to `file`, already created (exclusively, links not
@@ -309,11 +317,15 @@ impl Recorder {
         lifecycle: Option<Receiver<LifecycleEvent>>,
         clock: &CommonClock,
         node_time: ClockReader,
+        scene: SceneConfig,
     ) -> Result<Recorder, RecordingError> {
         let log = McapLog::create_in(file, path, node)?;
-        Recorder::start_with(log, path, streams, links, lifecycle, clock, node_time)
+        Recorder::start_with(
+            log, path, streams, links, lifecycle, clock, node_time, scene,
+        )
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn start_with(
         mut log: McapLog,
         path: &Path,
@@ -322,12 +334,17 @@ impl Recorder {
         lifecycle: Option<Receiver<LifecycleEvent>>,
         clock: &CommonClock,
         node_time: ClockReader,
+        scene: SceneConfig,
     ) -> Result<Recorder, RecordingError> {
         let clock = clock.clone();
-        log.clock(node_time.now_ns(), clock.source(), &clock.estimate())?;
+        let start_ns = node_time.now_ns();
+        log.clock(start_ns, clock.source(), &clock.estimate())?;
         for (name, _) in &streams {
             log.add_controller(name)?;
         }
+        let names: Vec<String> = streams.iter().map(|(n, _)| n.clone()).collect();
+        let mut scene = scene::SceneWriter::new(scene, &names);
+        scene.describe(&mut log, start_ns)?;
         log.flush()?;
         // What the links' rings held before (or lost while nobody read them) is not this
         // recording's: from here on every sample is written or counted.
@@ -351,6 +368,7 @@ impl Recorder {
                     for (i, (_, stream)) in streams.iter().enumerate() {
                         while let Ok(record) = stream.ticks.try_recv() {
                             log.tick(i, &record)?;
+                            scene.tick(&mut log, i, &record)?;
                         }
                     }
                     for event in lifecycle.iter().flat_map(Receiver::try_iter) {
@@ -675,6 +693,7 @@ mod tests {
                 None,
                 &crate::common_clock::CommonClock::own(),
                 ClockReader::Real,
+                SceneConfig::default(),
             ),
             Err(RecordingError::Io { .. })
         ));
@@ -685,6 +704,31 @@ mod tests {
             Err(RecordingError::Format { .. })
         ));
         let _ = std::fs::remove_file(foreign);
+    }
+
+    #[test]
+    fn a_scene_message_needs_a_schema_the_scene_crate_carries() {
+        let path = scratch("scene-schema.mcap");
+        let mut log = McapLog::create(&path, "lab").unwrap();
+        let tf = penelope_scene::FrameTransforms::default();
+        log.scene("/tf", penelope_scene::FRAME_TRANSFORMS, 5, &tf)
+            .unwrap();
+        log.scene("/tf", penelope_scene::FRAME_TRANSFORMS, 6, &tf)
+            .unwrap();
+        assert!(matches!(
+            log.scene("/x", "foxglove.NoSuchSchema", 7, &tf),
+            Err(RecordingError::Format { .. })
+        ));
+        log.finish(&[]).unwrap();
+        let summary = super::mcap_log::summarize(&path).unwrap();
+        let tf_channel = summary
+            .channels
+            .iter()
+            .find(|c| c.topic == "/tf")
+            .expect("a /tf channel");
+        assert_eq!(tf_channel.messages, 2, "one channel, two messages");
+        assert!(summary.channels.iter().all(|c| c.topic != "/x"));
+        let _ = std::fs::remove_file(path);
     }
 
     #[test]

@@ -20,6 +20,9 @@ pub(crate) trait LoopSensorObject: Send {
     /// Closes it (`cleanup`, `shutdown`, `reset`): its threads stop and are joined.
     fn release(&mut self);
 
+    /// Where the sensor sits on the flange (its frame in the tool frame).
+    fn mount(&self) -> penelope_hal::Pose;
+
     /// What `describe` shows of it, as `(relation, value)` pairs.
     fn relations(&self) -> Vec<(String, String)>;
 

@@ -37,6 +37,7 @@ pub(super) fn robot(a: &MakeArgs<'_>) -> Result<KindState, ObjectError> {
         start,
         maps: Vec::new(),
         body: None,
+        created: super::ROBOTS_MADE.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
     })))
 }
 

@@ -98,7 +98,7 @@ impl Registry {
     }
 
     /// The contact shapes of the simulated boards `robot` is mapped onto (in its base frame).
-    fn contacts_of(&self, robot: &str) -> Result<Vec<ContactShapeMsg>, ObjectError> {
+    pub(crate) fn contacts_of(&self, robot: &str) -> Result<Vec<ContactShapeMsg>, ObjectError> {
         let mut contacts = Vec::new();
         for (board, _) in &self.robot(robot)?.maps {
             let Ok(Object {

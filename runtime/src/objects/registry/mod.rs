@@ -55,6 +55,7 @@ mod makers;
 mod methods;
 pub mod netft;
 mod replay;
+mod scene_robots;
 mod sensors;
 mod take_back;
 mod teleop;
@@ -114,7 +115,13 @@ pub(crate) struct RobotObj {
     pub maps: Vec<(String, Vec<JointAxis>)>,
     /// The simulated body (robots on simulated boards, configured, not running).
     pub body: Option<Box<SimBody>>,
+    /// When it was made, in the process's creation order (robots stand side by side in a 3D
+    /// scene in this order).
+    pub created: u64,
 }
+
+/// The creation order of robots ([`RobotObj::created`]).
+static ROBOTS_MADE: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 pub(crate) struct SimBoardObj {
     pub config: SimBoardConfig,

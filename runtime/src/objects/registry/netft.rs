@@ -169,6 +169,10 @@ impl LoopSensorObject for NetFtObj {
         self.sensor = None;
     }
 
+    fn mount(&self) -> Pose {
+        self.config.mount
+    }
+
     fn relations(&self) -> Vec<(String, String)> {
         let mut out = vec![("address".to_string(), self.config.address.to_string())];
         if let Some(ft) = &self.sensor {

@@ -123,6 +123,10 @@ impl LoopSensorObject for TestSignal {
 
     fn release(&mut self) {}
 
+    fn mount(&self) -> Pose {
+        Pose::identity()
+    }
+
     fn relations(&self) -> Vec<(String, String)> {
         vec![(
             "signal".to_string(),

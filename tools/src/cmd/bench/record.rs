@@ -30,8 +30,8 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use penelope_runtime::common_clock::CommonClock;
 use penelope_runtime::objects::clock::ClockReader;
-use penelope_runtime::objects::recording::Recorder;
 use penelope_runtime::objects::recording::mcap_log::McapLog;
+use penelope_runtime::objects::recording::{Recorder, SceneConfig};
 use penelope_runtime::objects::runtime::Subscriptions;
 use penelope_runtime::objects::tick::TickRecord;
 use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, run as run_task};
@@ -194,6 +194,7 @@ fn through_recorder(
         None,
         &CommonClock::own(),
         ClockReader::Real,
+        SceneConfig::default(),
     )?;
     let stop = Arc::new(AtomicBool::new(false));
     // The pump: every 10 ms, each controller's ten new ticks (on absolute deadlines, so a

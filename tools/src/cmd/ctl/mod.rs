@@ -241,6 +241,10 @@ pub enum RecordVerb {
         path: String,
         /// The controllers and channels to record, by name on the node (default: all).
         objects: Vec<String>,
+        /// How often the recording draws the recorded robots in 3D (`/tf`, `/scene`), Hz of
+        /// tick time, 0..=10000 (0: their descriptions only) [default: 100].
+        #[arg(long, value_name = "HZ")]
+        scene_hz: Option<f64>,
     },
     /// Stop the node's recording and close its file.
     Stop {
@@ -340,7 +344,8 @@ impl Ctl {
                 node,
                 path,
                 objects,
-            }) => self.record_start(&node, &path, &objects, json),
+                scene_hz,
+            }) => self.record_start(&node, &path, &objects, scene_hz, json),
             Verb::Record(RecordVerb::Stop { node }) => self.record_stop(&node, json),
             Verb::Configure { path } => self.method(&path, "configure", &[], json),
             Verb::Activate { path } => self.method(&path, "activate", &[], json),
@@ -425,16 +430,21 @@ impl Ctl {
         Ok(())
     }
 
-    /// `record start`: a node's recording of `objects` (all when empty) into `path`.
+    /// `record start`: a node's recording of `objects` (all when empty) into `path`, its 3D
+    /// scene at `scene_hz` (the node's default without).
     fn record_start(
         &mut self,
         node: &str,
         path: &str,
         objects: &[String],
+        scene_hz: Option<f64>,
         json: bool,
     ) -> anyhow::Result<()> {
-        let (path, controllers, links) =
-            self.client()?.node(node)?.record_start_at(path, objects)?;
+        let proxy = self.client()?.node(node)?;
+        let (path, controllers, links) = match scene_hz {
+            None => proxy.record_start_at(path, objects)?,
+            Some(hz) => proxy.record_start_scene(path, objects, hz)?,
+        };
         if json {
             say!(
                 "{}",

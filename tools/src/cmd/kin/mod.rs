@@ -63,7 +63,9 @@ pub enum FrameArg {
 /// The operations.
 #[derive(clap::Subcommand, Debug)]
 pub enum Op {
-    /// Forward kinematics: the tool pose T (4x4 homogeneous, metres) at --q.
+    /// Forward kinematics: the tool pose T (4x4 homogeneous, metres) at --q; with --json also
+    /// every link frame (`links`: name and T in the base frame, the root first, the tool last:
+    /// the frames a recording's `/tf` carries).
     Fk(JointArg),
     /// The geometric Jacobian at --q, rows [v; w] (m/s and rad/s per joint unit speed).
     Jacobian {
@@ -162,11 +164,18 @@ fn output(args: &Args) -> anyhow::Result<String> {
     Ok(out)
 }
 
-/// `kin fk`: the tool pose at `q` (the matrix; as text also the position and roll-pitch-yaw).
+/// `kin fk`: the tool pose at `q` (the matrix; as text also the position and roll-pitch-yaw;
+/// as JSON also every link frame).
 fn fk_output(m: &SerialRobotModel, q: &JointVector, json: bool) -> String {
     let t = m.forward_matrix(q);
     if json {
-        json!({ "T": rows(&t) }).to_string()
+        let links: Vec<serde_json::Value> = m
+            .link_names()
+            .into_iter()
+            .zip(m.link_frames(q))
+            .map(|(frame, pose)| json!({ "frame": frame, "T": rows(&pose.to_homogeneous()) }))
+            .collect();
+        json!({ "T": rows(&t), "links": links }).to_string()
     } else {
         let p = m.forward(q);
         let (roll, pitch, yaw) = p.rotation.euler_angles();
@@ -555,6 +564,20 @@ mod tests {
     fn json_shapes_follow_the_issue() {
         let t = json("puma560", Op::Fk(q("qn")));
         assert_eq!(t["T"].as_array().unwrap().len(), 4);
+        // Every link frame, the tool's last and equal to T.
+        let links = t["links"].as_array().unwrap();
+        assert_eq!(links.len(), 8);
+        assert_eq!(links[0]["frame"], "base_link");
+        assert_eq!(links[7]["frame"], "tool");
+        for r in 0..4 {
+            for c in 0..4 {
+                let (a, b) = (
+                    links[7]["T"][r][c].as_f64().unwrap(),
+                    t["T"][r][c].as_f64().unwrap(),
+                );
+                assert!((a - b).abs() < 1e-12, "T[{r}][{c}]: {a} vs {b}");
+            }
+        }
         assert!((t["T"][0][3].as_f64().unwrap() - 0.596_303_148_574_615_6).abs() < 1e-12);
         let j = json(
             "frhc",
@@ -669,7 +692,17 @@ mod tests {
                     qdd: "0,0,0,0,0,0".into(),
                 },
             };
-            let (from_urdf, from_dh) = (json(&puma, make()), json("puma560", make()));
+            // The link frames differ (a URDF's own links against a DH table's): the tool's is T.
+            let tool_only = |mut v: serde_json::Value| {
+                if let Some(o) = v.as_object_mut() {
+                    o.remove("links");
+                }
+                v
+            };
+            let (from_urdf, from_dh) = (
+                tool_only(json(&puma, make())),
+                tool_only(json("puma560", make())),
+            );
             let flat = |v: &serde_json::Value| -> Vec<f64> {
                 let mut out = Vec::new();
                 let mut stack = vec![v.clone()];
