@@ -7,11 +7,9 @@
 //! - `/robot_description/<robot>` (`penelope.RobotDescription`, latched: each subscriber gets
 //!   it at once);
 //! - `/tf` (`foxglove.FrameTransforms`): every frame of the robot at each published tick;
-//! - `/scene` (`foxglove.SceneUpdate`): the robot's contact shapes (the wall) and its sensed
-//!   wrench as an arrow at the tool.
-//!
-//! The arrow of the displayed force (the master's) is in the recordings only: the wire's tick
-//! does not carry the commanded wrench.
+//! - `/scene` (`foxglove.SceneUpdate`): the robot's contact shapes (the wall), its sensed
+//!   wrench and its displayed force (the commanded wrench: what a master's motors produce) as
+//!   arrows at the tool.
 
 use std::sync::Arc;
 
@@ -21,21 +19,11 @@ use penelope_protocol::client::RobotProxy;
 use penelope_protocol::net::conn::RpcError;
 use penelope_protocol::proto::{ContactShapeMsg, TelemetryRecord};
 use penelope_scene::{
-    Color, ContactShape, RobotDescription, SceneUpdate, frame_id, robot_transforms, wall_entity,
-    wrench_arrow,
+    ContactShape, DISPLAYED_COLOR, METRES_PER_NEWTON, RobotDescription, SENSED_COLOR, SceneUpdate,
+    frame_id, robot_transforms, wall_entity, wrench_arrow,
 };
 
 use crate::hub::Hub;
-
-/// An arrow's length per newton of force, m (as in the recordings).
-pub const METRES_PER_NEWTON: f64 = 0.01;
-/// The sensed wrench's colour (red, as in the recordings).
-pub const SENSED: Color = Color {
-    r: 0.9,
-    g: 0.15,
-    b: 0.1,
-    a: 1.0,
-};
 
 /// One robot as drawn: its proxy, frames, contact shapes and place, and the channels it feeds.
 pub struct RobotView {
@@ -156,17 +144,26 @@ pub fn scene_update(
         .enumerate()
         .map(|(k, w)| wall_entity(&format!("{name}/contact{k}"), &root, w, time_ns))
         .collect();
-    // The wire's wrench is in the base frame; the arrow is drawn in the tool's.
+    // The wire's wrenches are in the base frame; the arrows are drawn in the tool's.
     let tool_pose = poses.last().copied().unwrap_or_else(Pose::identity);
-    let f = tool_pose.rotation.inverse() * Vector3::from(record.wrench.force);
-    entities.push(wrench_arrow(
-        &format!("{name}/sensed_wrench"),
-        &tool,
-        [f.x, f.y, f.z],
-        METRES_PER_NEWTON,
-        SENSED,
-        time_ns,
-    ));
+    for (what, force, color) in [
+        ("sensed_wrench", record.wrench.force, SENSED_COLOR),
+        (
+            "displayed_force",
+            record.commanded_wrench.force,
+            DISPLAYED_COLOR,
+        ),
+    ] {
+        let f = tool_pose.rotation.inverse() * Vector3::from(force);
+        entities.push(wrench_arrow(
+            &format!("{name}/{what}"),
+            &tool,
+            [f.x, f.y, f.z],
+            METRES_PER_NEWTON,
+            color,
+            time_ns,
+        ));
+    }
     SceneUpdate {
         deletions: Vec::new(),
         entities,
@@ -200,6 +197,13 @@ mod tests {
             },
             state: "running".into(),
             fault: None,
+            commanded_wrench: WrenchMsg {
+                force: [0.0; 3],
+                torque: [0.0; 3],
+            },
+            clutch: None,
+            port_energy: None,
+            channel_energy: None,
         };
         let walls = [ContactShape::Plane {
             point: [0.35, 0.1, 0.29],
@@ -213,7 +217,11 @@ mod tests {
             &[Pose::identity(), Pose::identity(), tool],
             9,
         );
-        assert_eq!(update.entities.len(), 2);
+        // The wall, the sensed wrench, and the displayed force (none commanded: no arrow).
+        assert_eq!(update.entities.len(), 3);
+        let displayed = &update.entities[2];
+        assert_eq!(displayed.id, "puma/displayed_force");
+        assert!(displayed.arrows.is_empty());
         let wall = &update.entities[0];
         assert_eq!(
             (wall.id.as_str(), wall.frame_id.as_str()),

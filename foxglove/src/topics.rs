@@ -23,7 +23,7 @@ pub const GATEWAY_TOPIC: &str = "/penelope/gateway";
 pub const ESTOP_SERVICE: &str = "/penelope/estop";
 
 /// `penelope.Tick` as the live stream fills it.
-pub const TICK_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.Tick","description":"One control tick as the protocol carries it (TelemetryRecord), in the shape of a recorded tick: sample holds what the loop reported; truth (the simulated plant's) is not sent live and is null. Units: SI (rad, rad/s, N·m, m, N); time in ns on the node's clock.","type":"object","properties":{"sample":{"type":"object","properties":{"time":{"type":"integer","description":"the tick's instant, ns on the node's clock"},"seq":{"type":"integer","description":"tick counter of the loop"},"q":{"type":"array","items":{"type":"number"}},"qd":{"type":"array","items":{"type":"number"}},"effort":{"type":"array","items":{"type":"number"}},"tool_position":{"type":"array","items":{"type":"number"},"minItems":3,"maxItems":3},"wrench":{"type":"object","properties":{"force":{"type":"array","items":{"type":"number"}},"torque":{"type":"array","items":{"type":"number"}}},"required":["force","torque"]},"state":{"type":"string","description":"safety state after the tick"},"fault":{"description":"the latched fault's cause, null when none"}},"required":["time","seq","q","qd","effort","state"]},"truth":{"type":"null"}},"required":["sample","truth"]}"#;
+pub const TICK_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.Tick","description":"One control tick as the protocol carries it (TelemetryRecord), in the shape of a recorded tick: sample holds what the loop reported; truth (the simulated plant's) is not sent live and is null. Units: SI (rad, rad/s, N·m, m, N); time in ns on the node's clock.","type":"object","properties":{"sample":{"type":"object","properties":{"time":{"type":"integer","description":"the tick's instant, ns on the node's clock"},"seq":{"type":"integer","description":"tick counter of the loop"},"q":{"type":"array","items":{"type":"number"}},"qd":{"type":"array","items":{"type":"number"}},"effort":{"type":"array","items":{"type":"number"}},"tool_position":{"type":"array","items":{"type":"number"},"minItems":3,"maxItems":3},"wrench":{"type":"object","properties":{"force":{"type":"array","items":{"type":"number"}},"torque":{"type":"array","items":{"type":"number"}}},"required":["force","torque"]},"commanded_wrench":{"type":"object","description":"the wrench the loop commanded after its caps: a master's displayed force","properties":{"force":{"type":"array","items":{"type":"number"}},"torque":{"type":"array","items":{"type":"number"}}},"required":["force","torque"]},"state":{"type":"string","description":"safety state after the tick"},"fault":{"description":"the latched fault's cause, null when none"},"port_energy":{"type":["number","null"],"description":"the law's passivity observer energy, J"},"channel_energy":{"type":["number","null"],"description":"the two-port's energy at this side, J"}},"required":["time","seq","q","qd","effort","state"]},"truth":{"type":"null"},"clutch":{"type":["boolean","null"],"description":"the operator held the clutch (null: no hand holds this robot)"}},"required":["sample","truth"]}"#;
 
 /// `penelope.LinkStats`: a [`LinkRecord`] as the protocol has it (as in the recordings).
 pub const LINK_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.LinkStats","description":"One end's view of a data-plane link (LinkRecord in docs/wire-format.md); times in ns.","type":"object","properties":{"time_ns":{"type":"integer"},"down":{"type":"boolean"},"losses":{"type":"integer"},"restorations":{"type":"integer"},"samples_taken":{"type":"integer"},"samples_dropped":{"type":"integer"},"samples_missed":{"type":"integer"},"refused":{"type":"integer"},"clock_offset_ns":{"type":["integer","null"]},"round_trip_ns":{"type":["integer","null"]},"one_way_delay_ns":{"type":["integer","null"]},"jitter_ns":{"type":["integer","null"]},"last_heard_ns":{"type":["integer","null"]},"heartbeat_loss":{"type":"number"},"trips":{"type":"integer"},"trip_p50_ns":{"type":["integer","null"]},"trip_p99_ns":{"type":["integer","null"]},"trip_max_ns":{"type":["integer","null"]}},"required":["time_ns","down"]}"#;
@@ -45,9 +45,14 @@ pub fn tick(r: &TelemetryRecord) -> Value {
             "time": r.time_ns, "seq": r.seq, "q": r.q, "qd": r.qd, "effort": r.effort,
             "tool_position": r.tool_position,
             "wrench": { "force": r.wrench.force, "torque": r.wrench.torque },
+            "commanded_wrench": {
+                "force": r.commanded_wrench.force, "torque": r.commanded_wrench.torque,
+            },
             "state": r.state, "fault": r.fault,
+            "port_energy": r.port_energy, "channel_energy": r.channel_energy,
         },
         "truth": null,
+        "clutch": r.clutch,
     })
 }
 
@@ -98,12 +103,27 @@ mod tests {
             },
             state: "active".into(),
             fault: None,
+            commanded_wrench: WrenchMsg {
+                force: [0.0, 0.0, 0.75],
+                torque: [0.0; 3],
+            },
+            clutch: Some(true),
+            port_energy: None,
+            channel_energy: Some(-0.25),
         };
         let t = tick(&r);
         assert_eq!(t["sample"]["q"][1], 0.2);
         assert_eq!(t["sample"]["wrench"]["force"][2], -1.5);
         assert_eq!(t["sample"]["time"], 5);
         assert!(t["truth"].is_null());
+        assert_eq!(t["sample"]["commanded_wrench"]["force"][2], 0.75);
+        assert_eq!(
+            (
+                t["clutch"].as_bool(),
+                t["sample"]["channel_energy"].as_f64()
+            ),
+            (Some(true), Some(-0.25))
+        );
         for schema in [
             TICK_SCHEMA,
             LINK_SCHEMA,

@@ -49,6 +49,13 @@ fn record(seq: u64) -> TelemetryRecord {
         },
         state: "active".into(),
         fault: None,
+        commanded_wrench: WrenchMsg {
+            force: [0.0; 3],
+            torque: [0.0; 3],
+        },
+        clutch: None,
+        port_energy: None,
+        channel_energy: None,
     }
 }
 

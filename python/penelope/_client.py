@@ -387,7 +387,9 @@ class Controller(Proxy):
         return watch(self, decimation, count)
 
 
-_VECTORS = ("q", "qd", "effort", "tool_position", "force", "torque")
+_VECTORS = (
+    "q", "qd", "effort", "tool_position", "force", "torque", "commanded_force", "commanded_torque",
+)
 
 
 def _sample(d: Dict[str, Any]) -> Dict[str, Any]:
@@ -400,7 +402,10 @@ class Watch(Iterator[Dict[str, Any]]):
     """An iterator of telemetry samples on a connection of its own. Each sample is a dict:
     ``time_ns`` and ``seq`` (ints), the arrays ``q``, ``qd`` (rad, rad/s), ``effort`` (N·m),
     ``tool_position`` (m), ``force`` (N) and ``torque`` (N·m, base frame), ``state`` and
-    ``fault`` (strings, ``fault`` ``None`` when clear). Each wait is bounded by the client's
+    ``fault`` (strings, ``fault`` ``None`` when clear), ``commanded_force`` and
+    ``commanded_torque`` (the wrench the loop commanded after its caps: a master's displayed
+    force), ``clutch`` (bool, ``None`` when no hand holds the robot) and ``port_energy`` and
+    ``channel_energy`` (J, ``None`` for laws without those observers). Each wait is bounded by the client's
     timeout (:class:`Timeout`). Use as a context manager, or call :meth:`close`, to
     unsubscribe at once."""
 

@@ -117,5 +117,10 @@ pub fn record<'py>(py: Python<'py>, r: &TelemetryRecord) -> PyResult<Bound<'py, 
     d.set_item("torque", r.wrench.torque.to_vec())?;
     d.set_item("state", &r.state)?;
     d.set_item("fault", r.fault.clone())?;
+    d.set_item("commanded_force", r.commanded_wrench.force.to_vec())?;
+    d.set_item("commanded_torque", r.commanded_wrench.torque.to_vec())?;
+    d.set_item("clutch", r.clutch)?;
+    d.set_item("port_energy", r.port_energy)?;
+    d.set_item("channel_energy", r.channel_energy)?;
     Ok(d)
 }

@@ -121,6 +121,9 @@ def test_watch_yields_telemetry_samples(node) -> None:
         assert s["tool_position"].shape == (3,)
         assert s["force"].shape == (3,) and s["torque"].shape == (3,)
         assert isinstance(s["seq"], int) and isinstance(s["state"], str)
+        # A joint PID commands no wrench, no hand holds the robot, the law has no observers.
+        assert s["commanded_force"].shape == (3,) and not s["commanded_force"].any()
+        assert s["clutch"] is None and s["port_energy"] is None and s["channel_energy"] is None
     seqs = [s["seq"] for s in samples]
     assert seqs == sorted(seqs) and len(set(seqs)) == 5
     # A robot driven by an active controller streams the same loop.

@@ -120,6 +120,23 @@ fn scene_pose(position: V3<f64>, rotation: UnitQuaternion<f64>) -> ScenePose {
     }
 }
 
+/// An arrow's length per newton of force, m: the same in the recordings and live.
+pub const METRES_PER_NEWTON: f64 = 0.01;
+/// The sensed wrench's arrow colour (red).
+pub const SENSED_COLOR: Color = Color {
+    r: 0.9,
+    g: 0.15,
+    b: 0.1,
+    a: 1.0,
+};
+/// The displayed force's arrow colour (blue): what a master's motors are made to produce.
+pub const DISPLAYED_COLOR: Color = Color {
+    r: 0.1,
+    g: 0.4,
+    b: 0.95,
+    a: 1.0,
+};
+
 /// An entity `id` holding one arrow from the origin of `frame_id` along `force` (N, expressed
 /// in that frame), `metres_per_newton` long per newton (the head included), in `color`. A
 /// force under 1 mN (or a non-finite one) gives the entity without an arrow, so the previous

@@ -24,7 +24,8 @@ pub mod messages;
 pub mod schemas;
 
 pub use builders::{
-    ContactShape, default_placement, frame_id, robot_transforms, wall_entity, wrench_arrow,
+    ContactShape, DISPLAYED_COLOR, METRES_PER_NEWTON, SENSED_COLOR, default_placement, frame_id,
+    robot_transforms, wall_entity, wrench_arrow,
 };
 pub use messages::{
     ArrowPrimitive, Color, CubePrimitive, Duration, FrameTransform, FrameTransforms, KeyValuePair,

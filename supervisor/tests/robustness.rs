@@ -79,6 +79,13 @@ impl TestService {
             },
             state: "x".repeat(4000),
             fault: None,
+            commanded_wrench: WrenchMsg {
+                force: [0.0; 3],
+                torque: [0.0; 3],
+            },
+            clutch: None,
+            port_energy: None,
+            channel_energy: None,
         };
         let (mut sent, mut dropped) = (0, 0);
         for (_, outbox) in self.subscribers.lock().unwrap().iter() {

@@ -67,7 +67,7 @@ fn status_last(node: &Node, controller: &str) -> TelemetryRecord {
         Ok(Reply::Status(s)) => {
             let last = s.last.expect("ticked");
             assert!(last.fault.is_none(), "{controller}: {:?}", last.fault);
-            last
+            *last
         }
         other => panic!("{other:?}"),
     }

@@ -480,7 +480,7 @@ fn newest(node: &Node, controller: &str) -> TelemetryRecord {
         Ok(Reply::Status(s)) => {
             let last = s.last.expect("ticked");
             assert!(last.fault.is_none(), "{controller}: {:?}", last.fault);
-            last
+            *last
         }
         other => panic!("{other:?}"),
     }

@@ -56,7 +56,7 @@ fn last(node: &Node, controller: &str) -> TelemetryRecord {
         Ok(Reply::Status(s)) => {
             let last = s.last.expect("ticked");
             assert!(last.fault.is_none(), "{controller}: {:?}", last.fault);
-            last
+            *last
         }
         other => panic!("{other:?}"),
     }

@@ -125,6 +125,11 @@ fn compact(r: &TelemetryRecord, t0_ns: u64) -> Value {
         "f": [r.wrench.force[0], r.wrench.force[1], r.wrench.force[2],
               r.wrench.torque[0], r.wrench.torque[1], r.wrench.torque[2]],
         "s": r.state,
+        // The displayed force: the commanded wrench (what a master's motors produce).
+        "d": r.commanded_wrench.force,
+        "c": r.clutch,
+        "pe": r.port_energy,
+        "ce": r.channel_energy,
     })
 }
 

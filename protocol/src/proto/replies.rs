@@ -179,8 +179,9 @@ pub struct ControlStatus {
     pub overruns: u64,
     /// Telemetry samples dropped because the ring was full.
     pub telemetry_dropped: u64,
-    /// The newest sample (none before the first tick).
-    pub last: Option<TelemetryRecord>,
+    /// The newest sample (none before the first tick); boxed, so that a reply stays small
+    /// (the encoding is the record's).
+    pub last: Option<Box<TelemetryRecord>>,
 }
 
 /// One control tick as a client sees it (a compact `TelemetrySample` of `penelope-rt-core`).
@@ -204,6 +205,17 @@ pub struct TelemetryRecord {
     pub state: String,
     /// The latched fault, if any.
     pub fault: Option<String>,
+    /// The wrench the loop commanded, after its caps: a master's displayed force, what its
+    /// motors produce at the handle (tau = J^T F); zero when the reference carries none.
+    pub commanded_wrench: WrenchMsg,
+    /// Whether the operator held the clutch at this tick (`None`: no hand holds this robot, or
+    /// not known, as in a status reply).
+    pub clutch: Option<bool>,
+    /// The active law's passivity observer energy after this tick, J (`None`: the law has
+    /// none).
+    pub port_energy: Option<f64>,
+    /// The teleoperation two-port's energy at this side's port, J (`None`: the law has none).
+    pub channel_energy: Option<f64>,
 }
 
 /// A data-plane link's state and statistics as a client sees them (one end's view of a

@@ -286,6 +286,8 @@ function follow(r) {
       r.p = last.p;
       r.f = last.f;
       r.state = last.s;
+      r.d = last.d;
+      r.clutch = last.c;
       r.fBase = sensedInBase(r, last.f);
       setArrow(r.wrench, last.p, r.fBase);
       const box = $("scene3d");
@@ -348,21 +350,14 @@ function parseMapping(text) {
   };
 }
 
-/** The master's displayed force as the channel's law makes it from the slave's sensed force:
- * force_gain times that force mapped into the master's base frame (before the master's force
- * caps, filter and dead band), drawn at the master's tool. */
+/** The master's displayed force: the wrench its loop commanded after its caps (what its
+ * motors produce at the handle), in its base frame as the tick carries it, drawn at its tool. */
 function showDisplayed() {
   for (const c of view.channels) {
     const master = view.robots.get(c.masterPath);
-    const slave = view.robots.get(c.slavePath);
-    if (!master || !slave || !master.display || !master.p || !slave.fBase || !c.mapping) continue;
-    const [r, p, y] = c.mapping.rpyDeg.map((d) => (d * Math.PI) / 180);
-    // rotation_rpy_deg takes master-frame vectors to the slave's frame: its inverse back.
-    const toSlave = new THREE.Quaternion().setFromEuler(new THREE.Euler(r, p, y, "ZYX"));
-    const f = new THREE.Vector3(...slave.fBase)
-      .applyQuaternion(toSlave.invert()).multiplyScalar(c.mapping.forceGain);
-    setArrow(master.display, master.p, [f.x, f.y, f.z]);
-    master.displayed = [f.x, f.y, f.z];
+    if (!master || !master.display || !master.p || !master.d) continue;
+    setArrow(master.display, master.p, master.d);
+    master.displayed = master.d;
   }
 }
 
@@ -447,10 +442,25 @@ async function refreshTeleop() {
     const master = view.robots.get(c.masterPath);
     if (master && master.displayed) {
       const n = Math.hypot(...master.displayed);
-      rows.push(row("displayed force", `${n.toFixed(2)} N (force gain × sensed)`));
+      rows.push(row("displayed force", `${n.toFixed(2)} N (what the master's motors produce)`));
     }
-    rows.push(row("clutch, energy observers", "not carried live by the protocol: in the recording " +
-      "(/controllers/<name>: clutch, port_energy, channel_energy)"));
+    if (master && master.clutch !== undefined) {
+      rows.push(row("clutch", master.clutch === null ? "no hand holds the master"
+        : master.clutch ? "held: the slave follows" : "released: the slave holds",
+        master.clutch === false ? "bad" : "good"));
+    }
+    // The energy observers of the laws that have them (J; negative: energy given out that
+    // never entered), from each half's newest tick.
+    for (const h of active) {
+      const last = h.status && h.status.last;
+      if (!last) continue;
+      const e = [["port", last.port_energy], ["channel", last.channel_energy]]
+        .filter(([, v]) => v !== null && v !== undefined);
+      if (e.length) {
+        rows.push(row(`${h.entry.object} energy`, e.map(([k, v]) => `${k} ${v.toFixed(3)} J`).join(" · "),
+          e.some(([, v]) => v < 0) ? "bad" : "good"));
+      }
+    }
     body.replaceChildren(...rows);
     $("teleop-note").textContent = "";
     $("teleop-panel").dataset.channel = c.path;

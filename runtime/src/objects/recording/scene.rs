@@ -22,9 +22,10 @@ use penelope_hal::nalgebra::Vector3;
 use penelope_hal::{Frame, Pose, Wrench};
 use penelope_protocol::proto::ContactShapeMsg;
 use penelope_scene::{
-    Color, ContactShape, FRAME_TRANSFORMS, FrameTransform, ROBOT_DESCRIPTION, RobotDescription,
-    SCENE_UPDATE, ScenePose, SceneUpdate, TOPIC_SCENE, TOPIC_TF, Timestamp, frame_id,
-    robot_description_topic, robot_transforms, wall_entity, wrench_arrow,
+    ContactShape, DISPLAYED_COLOR, FRAME_TRANSFORMS, FrameTransform, METRES_PER_NEWTON,
+    ROBOT_DESCRIPTION, RobotDescription, SCENE_UPDATE, SENSED_COLOR, ScenePose, SceneUpdate,
+    TOPIC_SCENE, TOPIC_TF, Timestamp, frame_id, robot_description_topic, robot_transforms,
+    wall_entity, wrench_arrow,
 };
 
 use super::RecordingError;
@@ -37,8 +38,6 @@ pub const DEFAULT_SCENE_HZ: f64 = 100.0;
 pub const MAX_SCENE_HZ: f64 = 10_000.0;
 /// The name of a robot's sensor frame below its tool frame (`<robot>/sensor`).
 pub const SENSOR_FRAME: &str = "sensor";
-/// Arrow length per newton, m.
-const METRES_PER_NEWTON: f64 = 0.01;
 
 /// One robot of a recording's scene.
 #[derive(Clone, Debug)]
@@ -133,20 +132,6 @@ fn contact_shape(c: &ContactShapeMsg) -> ContactShape {
     }
 }
 
-/// The sensed wrench's colour (red) and the displayed force's (blue).
-const SENSED: Color = Color {
-    r: 0.9,
-    g: 0.15,
-    b: 0.1,
-    a: 1.0,
-};
-const DISPLAYED: Color = Color {
-    r: 0.1,
-    g: 0.4,
-    b: 0.95,
-    a: 1.0,
-};
-
 impl SceneWriter {
     /// The writer of `scene`, whose robots' ticks come from the recorder's streams named
     /// `streams` (in order).
@@ -240,8 +225,20 @@ impl SceneWriter {
             };
             let displayed = force_in_base(&record.sample.commanded_wrench, &tool_pose, &mount);
             for (what, frame, force, pose, color) in [
-                ("sensed_wrench", sensed_frame, sensed, sensed_pose, SENSED),
-                ("displayed_force", &tool, displayed, tool_pose, DISPLAYED),
+                (
+                    "sensed_wrench",
+                    sensed_frame,
+                    sensed,
+                    sensed_pose,
+                    SENSED_COLOR,
+                ),
+                (
+                    "displayed_force",
+                    &tool,
+                    displayed,
+                    tool_pose,
+                    DISPLAYED_COLOR,
+                ),
             ] {
                 let f = pose.rotation.inverse() * force;
                 entities.push(wrench_arrow(

@@ -161,7 +161,7 @@ impl Registry {
             ticks,
             overruns,
             telemetry_dropped: dropped,
-            last: last.map(|s| crate::objects::runtime::record(&s, joints)),
+            last: last.map(|s| Box::new(crate::objects::runtime::record(&s, None, joints))),
         }))
     }
 }

@@ -8,7 +8,6 @@ use crate::objects::registry::{
 use crate::objects::runtime::GoToCommand;
 use crate::objects::{KindState, Registry};
 use penelope_drivers::galil::GalilBoard;
-use penelope_drivers::sim::environment::Shape;
 use penelope_hal::{
     AxisState, Board, Dynamics, Frame, InverseKinematics, JacobianFrame, JointState, JointVector,
     Kinematics, LifecycleState, MAX_AXES, MAX_JOINTS, RobotModel, Timestamp,
@@ -112,16 +111,11 @@ impl Registry {
                 crate::objects::kinds::Kind::SIM_BOARD.as_str(),
                 &s.config.shapes,
             )?;
-            contacts.extend(env.shapes().iter().map(|c| match c.shape {
-                Shape::Plane { point, normal } => ContactShapeMsg::Plane {
-                    point: point.into(),
-                    normal: normal.into_inner().into(),
-                },
-                Shape::Sphere { center, radius } => ContactShapeMsg::Sphere {
-                    center: center.into(),
-                    radius,
-                },
-            }));
+            contacts.extend(
+                env.shapes()
+                    .iter()
+                    .map(|c| crate::objects::recording::scene::contact_shape_msg(&c.shape)),
+            );
         }
         Ok(contacts)
     }

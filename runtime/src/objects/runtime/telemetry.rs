@@ -285,7 +285,7 @@ impl Subscriptions {
             let records: Vec<TelemetryRecord> = ticks
                 .iter()
                 .filter(|x| x.sample.seq % s.decimation == 0)
-                .map(|x| record(&x.sample, joints))
+                .map(|x| record(&x.sample, x.clutch, joints))
                 .collect();
             // A pump that was held up drains up to a ring's worth at once: in batches that fit
             // a frame, or the writer would refuse the whole of it.
@@ -309,7 +309,7 @@ impl Subscriptions {
 }
 
 /// A sample as a client sees it.
-pub fn record(s: &TelemetrySample, joints: usize) -> TelemetryRecord {
+pub fn record(s: &TelemetrySample, clutch: Option<bool>, joints: usize) -> TelemetryRecord {
     TelemetryRecord {
         time_ns: s.time.as_nanos(),
         seq: s.seq,
@@ -320,6 +320,10 @@ pub fn record(s: &TelemetrySample, joints: usize) -> TelemetryRecord {
         wrench: WrenchMsg::from(&s.wrench),
         state: s.state.as_str().to_string(),
         fault: s.fault.map(|f| f.to_string()),
+        commanded_wrench: WrenchMsg::from(&s.commanded_wrench),
+        clutch,
+        port_energy: s.port_energy,
+        channel_energy: s.channel_energy,
     }
 }
 
