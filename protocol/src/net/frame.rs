@@ -422,7 +422,7 @@ impl FrameDecoder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::proto::{Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, Role};
+    use crate::proto::{Call, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, PROTOCOL_VERSION, Role};
 
     fn ping(n: usize) -> ClientMsg {
         ClientMsg::Request {
@@ -442,7 +442,18 @@ mod tests {
         assert_eq!(&hello[..4], &(hello.len() as u32 - 4).to_le_bytes());
         assert_eq!(
             &hello[4..],
-            &[0, b'P', b'N', b'L', b'P', 3, 2, b'a', b'b', 1][..]
+            &[
+                0,
+                b'P',
+                b'N',
+                b'L',
+                b'P',
+                PROTOCOL_VERSION as u8,
+                2,
+                b'a',
+                b'b',
+                1
+            ][..]
         );
     }
 
