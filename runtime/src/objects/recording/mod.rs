@@ -16,6 +16,7 @@ use std::time::{Duration, Instant};
 
 pub mod mcap_log;
 mod reader;
+pub mod ros2_topics;
 pub mod scene;
 
 use crate::common_clock::CommonClock;
