@@ -18,6 +18,7 @@
 //! data_plane = "127.0.0.1:7410"         # where a channel to a robot on another node binds
 //! record = "lab.mcap"                   # `penelope node` records from the first tick (MCAP)
 //! record_scene_hz = 100                 # its 3D scene's rate (/tf, /scene), Hz of tick time
+//! record_profile = "penelope"           # or "ros2": the ROS 2 topic set as CDR (docs/recordings.md)
 //! records = "/var/lib/penelope/rec"     # where `ctl record start NAME` creates its files
 //! robot_files = ["robots"]              # where a robot/urdf's `file` is read from
 //! zenoh = "tcp/127.0.0.1:7447"          # a Zenoh bridge to this router or peer (or a table
@@ -97,6 +98,9 @@ pub struct NodePolicy {
     /// How often that recording draws the robots in 3D (`/tf`, `/scene`), Hz of tick time, 0..=10000
     /// (0: their descriptions only; default 100; `--record-scene-hz` overrides it).
     pub record_scene_hz: Option<u32>,
+    /// What that recording holds: `"penelope"` (default) or `"ros2"` (the ROS 2 topic set as
+    /// CDR; `--record-profile` overrides it).
+    pub record_profile: Option<penelope_runtime::objects::recording::RecordProfile>,
     /// The directory `ctl record start` creates this node's recordings in (a client names a
     /// plain file name; `--records` overrides it; default: `recordings` under the node's
     /// state directory, `$XDG_STATE_HOME/penelope/<node>`).

@@ -9,10 +9,11 @@ use std::path::Path;
 use penelope_hal::{Timestamp, Transition};
 use penelope_protocol::proto::{Call, Method};
 use penelope_runtime::objects::recording::mcap_log::{McapLog, McapTotals};
+use penelope_runtime::objects::recording::ros2_log::Ros2Log;
 use penelope_runtime::objects::recording::scene::{self, SceneWriter};
 use penelope_runtime::objects::recording::{
-    DEFAULT_SCENE_HZ, LIFECYCLE_CAPACITY, Recorder, Recording, RecordingError, SceneConfig,
-    SceneRobot,
+    DEFAULT_SCENE_HZ, LIFECYCLE_CAPACITY, RecordProfile, Recorder, Recording, RecordingError,
+    SceneConfig, SceneRobot,
 };
 use penelope_runtime::objects::tick::TickRecord;
 
@@ -23,7 +24,8 @@ use crate::system::SystemFile;
 /// Applies `file` to `node` as [`SystemFile::apply`] does, but starts recording each
 /// controller the file activates on this node (to `path`) before activating it, so the
 /// recording holds every tick from the first; the robots they drive are drawn in 3D at
-/// `scene_hz` of tick time ([`penelope_runtime::objects::recording::scene`]).
+/// `scene_hz` of tick time ([`penelope_runtime::objects::recording::scene`]), in recording
+/// profile `profile` ([`RecordProfile`]).
 ///
 /// # Errors
 /// [`RunError`] when the file is refused, a controller cannot be recorded or activated, the
@@ -33,6 +35,7 @@ pub fn apply_recorded(
     file: &SystemFile,
     path: &Path,
     scene_hz: f64,
+    profile: RecordProfile,
 ) -> Result<(Vec<penelope_protocol::proto::ObjectInfo>, Recorder), RunError> {
     let mut deferred = file.clone();
     let mut to_activate = Vec::new();
@@ -68,7 +71,9 @@ pub fn apply_recorded(
         .creator()
         .scene_for(&to_activate, scene_hz)
         .map_err(|e| RunError::Task(e.to_string()))?;
-    let recorder = Recorder::start(
+    let recorder = Recorder::start_as(
+        profile,
+        None,
         path,
         node.name(),
         streams,
@@ -238,6 +243,35 @@ pub fn write_run(
         let Some((index, tick)) = next else { break };
         log.tick(index, tick)?;
         scene.tick(&mut log, index, tick)?;
+    }
+    log.finish(&[output.dropped.0, output.dropped.1])
+}
+
+/// Writes run `output` to `path` in the ROS 2 profile
+/// ([`penelope_runtime::objects::recording::ros2_log`]): both robots' ROS 2 topic sets at the
+/// scene's default rate, in time order. (`penelope demo --record-profile ros2`'s
+/// `run-ros2.mcap`, beside `run.mcap`.)
+///
+/// # Errors
+/// [`RecordingError`] when the file cannot be written.
+pub fn write_run_ros2(path: &Path, output: &RunOutput) -> Result<McapTotals, RecordingError> {
+    let (master, slave) = &output.info.controllers;
+    let mut log = Ros2Log::create(
+        path,
+        &output.info.system,
+        run_scene(&output.info),
+        &[master.clone(), slave.clone()],
+    )?;
+    let mut ticks: Vec<(usize, &TickRecord)> = output
+        .master
+        .iter()
+        .map(|t| (0, t))
+        .chain(output.slave.iter().map(|t| (1, t)))
+        .collect();
+    // In time order, the master's first at a tie, as `write_run` writes them.
+    ticks.sort_by_key(|(index, t)| (t.sample.time, *index));
+    for (index, tick) in ticks {
+        log.tick(index, tick)?;
     }
     log.finish(&[output.dropped.0, output.dropped.1])
 }

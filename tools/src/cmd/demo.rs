@@ -55,6 +55,11 @@ pub struct Args {
     /// its latency). Default: the file's boards.
     #[arg(long, value_parser = ["float", "fpga"])]
     kinematics: Option<String>,
+    /// Recording profile: `penelope` (`run.mcap` only) or `ros2`: also `run-ros2.mcap`, the
+    /// run's ROS 2 topic set as CDR with `ros2msg` schemas (`ros2 bag`, rosbags, Foxglove's
+    /// ROS views); `run.mcap`, which `penelope recording rerun` reads, is written as always.
+    #[arg(long, value_name = "PROFILE", default_value = "penelope", value_parser = ["penelope", "ros2"])]
+    record_profile: String,
 }
 
 /// Parses `20s`, `1.5s`, `1500ms`, `2m` or a bare number of seconds.
@@ -162,7 +167,13 @@ pub fn run_demo(args: Args) -> anyhow::Result<ExitCode> {
         .duration
         .unwrap_or_else(|| output.info.script.duration());
     let recipe = RunRecipe::new(&text, &options, args.kinematics.as_deref(), duration);
-    let written = write_outputs(&out_dir, &output, &report, &recipe)?;
+    let mut written = write_outputs(&out_dir, &output, &report, &recipe)?;
+    if args.record_profile == "ros2" {
+        let path = out_dir.join("run-ros2.mcap");
+        penelope_supervisor::runs::recording::write_run_ros2(&path, &output)
+            .with_context(|| format!("writing {}", path.display()))?;
+        written.push(path);
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         for f in &written {

@@ -22,6 +22,7 @@ use std::time::Duration;
 
 use anyhow::Context as _;
 use penelope_protocol::proto::{DEFAULT_PORT, ObjectInfo};
+use penelope_runtime::objects::recording::RecordProfile;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::system::SystemFile;
 use penelope_supervisor::zenoh_bridge::ZenohSettings;
@@ -87,6 +88,12 @@ pub struct Args {
     /// the robots' descriptions only) [default: the system file's `record_scene_hz`, else 100].
     #[arg(long, value_name = "HZ")]
     pub record_scene_hz: Option<u32>,
+    /// What that recording holds: `penelope` (every tick in full, events, links, the 3D
+    /// scene: what replay and task reports read) or `ros2` (the ROS 2 topic set as CDR with
+    /// `ros2msg` schemas, for `ros2 bag` and ROS tools; its rate is `--record-scene-hz`, 0:
+    /// every tick) [default: the system file's `record_profile`, else penelope].
+    #[arg(long, value_name = "PROFILE", value_parser = ["penelope", "ros2"])]
+    pub record_profile: Option<String>,
     /// The directory `penelope ctl record start NODE NAME` creates its recordings in: a client
     /// names a plain file name there, created new, never through a link [default: the system
     /// file's `records`, else `recordings` under $XDG_STATE_HOME/penelope/NAME or
@@ -182,16 +189,23 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 penelope_runtime::objects::recording::DEFAULT_SCENE_HZ,
                 f64::from,
             );
+        // (clap has checked the word.)
+        let profile = args
+            .record_profile
+            .as_deref()
+            .and_then(RecordProfile::from_name)
+            .or_else(|| file.nodes.get(node.name()).and_then(|p| p.record_profile))
+            .unwrap_or_default();
         let applied = match &record {
             None => file.apply(&node).map_err(anyhow::Error::new),
-            Some(path) => {
-                penelope_supervisor::runs::recording::apply_recorded(&node, &file, path, scene_hz)
-                    .map(|(created, r)| {
-                        recorder = Some(r);
-                        created
-                    })
-                    .map_err(anyhow::Error::new)
-            }
+            Some(path) => penelope_supervisor::runs::recording::apply_recorded(
+                &node, &file, path, scene_hz, profile,
+            )
+            .map(|(created, r)| {
+                recorder = Some(r);
+                created
+            })
+            .map_err(anyhow::Error::new),
         };
         match applied {
             Ok(created) => print_created(&node, created),

@@ -16,6 +16,7 @@ use std::time::{Duration, Instant};
 
 pub mod mcap_log;
 mod reader;
+pub mod ros2_log;
 pub mod ros2_topics;
 pub mod scene;
 
@@ -24,11 +25,12 @@ use crate::objects::clock::ClockReader;
 use crate::objects::lifecycle_feed::LifecycleEvent;
 use crate::objects::link_source::LinkSource;
 use crate::objects::tick::TickStream;
-use mcap_log::McapLog;
+use mcap_log::{McapLog, McapTotals};
 pub(crate) use reader::check_record_lengths;
 #[cfg(test)]
 pub(crate) use reader::crafted_mcap_with_a_huge_record;
 pub use reader::{Recording, read_recording};
+use ros2_log::Ros2Log;
 pub use scene::{DEFAULT_SCENE_HZ, SceneConfig, SceneRobot};
 
 /// How often the recorder writes what its streams hold.
@@ -65,6 +67,87 @@ pub enum RecordingError {
         /// What is wrong.
         message: String,
     },
+}
+
+/// Which messages a recording holds: `penelope` (every tick in full, safety events, links,
+/// streams, lifecycle, clock and the 3D scene: [`mcap_log`]; what Penelope's readers, replay
+/// and task reports need) or `ros2` (the ROS 2 topic set as CDR: [`ros2_log`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RecordProfile {
+    /// Penelope's own channels (JSON): the default.
+    #[default]
+    Penelope,
+    /// The ROS 2 topic set (CDR, `ros2msg` schemas).
+    Ros2,
+}
+
+impl RecordProfile {
+    /// Every profile, by name.
+    pub const ALL: [RecordProfile; 2] = [RecordProfile::Penelope, RecordProfile::Ros2];
+
+    /// `penelope` or `ros2`.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            RecordProfile::Penelope => "penelope",
+            RecordProfile::Ros2 => "ros2",
+        }
+    }
+
+    /// The profile named `name`.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|p| p.as_str() == name)
+    }
+}
+
+impl std::fmt::Display for RecordProfile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for RecordProfile {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::from_name(s)
+            .ok_or_else(|| format!("unknown recording profile `{s}` (penelope or ros2)"))
+    }
+}
+
+/// What the recorder's thread writes to: a file in one profile or the other.
+enum Sink {
+    Penelope(McapLog, scene::SceneWriter),
+    Ros2(Ros2Log),
+}
+
+impl Sink {
+    fn tick(
+        &mut self,
+        stream: usize,
+        record: &crate::objects::tick::TickRecord,
+    ) -> Result<(), RecordingError> {
+        match self {
+            Sink::Penelope(log, scene) => {
+                log.tick(stream, record)?;
+                scene.tick(log, stream, record)
+            }
+            Sink::Ros2(log) => log.tick(stream, record),
+        }
+    }
+
+    fn flush(&mut self) -> Result<(), RecordingError> {
+        match self {
+            Sink::Penelope(log, _) => log.flush(),
+            Sink::Ros2(log) => log.flush(),
+        }
+    }
+
+    fn finish(self, dropped: &[u64]) -> Result<McapTotals, RecordingError> {
+        match self {
+            Sink::Penelope(log, _) => log.finish(dropped),
+            Sink::Ros2(log) => log.finish(dropped),
+        }
+    }
 }
 
 /// Lifecycle events a recorder's reader holds before it loses some (transitions are rare: a
@@ -133,6 +216,57 @@ impl Recorder {
         )
     }
 
+    /// As [`start`](Self::start) in recording profile `profile`: a [`RecordProfile::Ros2`]
+    /// file holds the ROS 2 topic set of the recorded controllers' robots and the links'
+    /// `/diagnostics` ([`ros2_log`]; no lifecycle, streams or clock channels: `lifecycle` is
+    /// read and left out); `file`: already created (as [`start_in`](Self::start_in)), else
+    /// `path` is created.
+    ///
+    /// # Errors
+    /// [`RecordingError::Io`] when the file cannot be created or written.
+    #[allow(clippy::too_many_arguments)]
+    pub fn start_as(
+        profile: RecordProfile,
+        file: Option<std::fs::File>,
+        path: &Path,
+        node: &str,
+        streams: Vec<(String, TickStream)>,
+        links: Vec<(String, LinkSource)>,
+        lifecycle: Option<Receiver<LifecycleEvent>>,
+        clock: &CommonClock,
+        node_time: ClockReader,
+        scene: SceneConfig,
+    ) -> Result<Recorder, RecordingError> {
+        match (profile, file) {
+            (RecordProfile::Penelope, None) => Recorder::start(
+                path, node, streams, links, lifecycle, clock, node_time, scene,
+            ),
+            (RecordProfile::Penelope, Some(file)) => Recorder::start_in(
+                file, path, node, streams, links, lifecycle, clock, node_time, scene,
+            ),
+            (RecordProfile::Ros2, file) => {
+                let names: Vec<String> = streams.iter().map(|(n, _)| n.clone()).collect();
+                let mut log = match file {
+                    Some(file) => Ros2Log::create_in(file, path, node, scene, &names)?,
+                    None => Ros2Log::create(path, node, scene, &names)?,
+                };
+                if let Some(offset) = clock.estimate().offset_ns {
+                    log.set_clock_offset(offset);
+                }
+                log.flush()?;
+                Recorder::spawn(
+                    Sink::Ros2(log),
+                    path,
+                    streams,
+                    links,
+                    lifecycle,
+                    clock,
+                    node_time,
+                )
+            }
+        }
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn start_with(
         mut log: McapLog,
@@ -144,16 +278,37 @@ impl Recorder {
         node_time: ClockReader,
         scene: SceneConfig,
     ) -> Result<Recorder, RecordingError> {
-        let clock = clock.clone();
         let start_ns = node_time.now_ns();
         log.clock(start_ns, clock.source(), &clock.estimate())?;
         for (name, _) in &streams {
             log.add_controller(name)?;
         }
         let names: Vec<String> = streams.iter().map(|(n, _)| n.clone()).collect();
-        let mut scene = scene::SceneWriter::new(scene, &names);
+        let scene = scene::SceneWriter::new(scene, &names);
         scene.describe(&mut log, start_ns)?;
         log.flush()?;
+        Recorder::spawn(
+            Sink::Penelope(log, scene),
+            path,
+            streams,
+            links,
+            lifecycle,
+            clock,
+            node_time,
+        )
+    }
+
+    /// Starts the recorder's thread writing to `sink`.
+    fn spawn(
+        mut sink: Sink,
+        path: &Path,
+        streams: Vec<(String, TickStream)>,
+        links: Vec<(String, LinkSource)>,
+        lifecycle: Option<Receiver<LifecycleEvent>>,
+        clock: &CommonClock,
+        node_time: ClockReader,
+    ) -> Result<Recorder, RecordingError> {
+        let clock = clock.clone();
         // What the links' rings held before (or lost while nobody read them) is not this
         // recording's: from here on every sample is written or counted.
         let links: Vec<(String, LinkSource, u64)> = links
@@ -175,33 +330,50 @@ impl Recorder {
                     let stopping = flag.load(Ordering::Relaxed);
                     for (i, (_, stream)) in streams.iter().enumerate() {
                         while let Ok(record) = stream.ticks.try_recv() {
-                            log.tick(i, &record)?;
-                            scene.tick(&mut log, i, &record)?;
+                            sink.tick(i, &record)?;
                         }
                     }
                     for event in lifecycle.iter().flat_map(Receiver::try_iter) {
-                        log.lifecycle(&event)?;
+                        if let Sink::Penelope(log, _) = &mut sink {
+                            log.lifecycle(&event)?;
+                        }
                     }
                     for (channel, source, _) in &links {
                         source.drain_datagrams(|d| drained.push(d));
                         for d in drained.drain(..) {
-                            log.datagram(channel, &d)?;
+                            if let Sink::Penelope(log, _) = &mut sink {
+                                log.datagram(channel, &d)?;
+                            }
                         }
                     }
                     if stopping || links_at.is_none_or(|t| t.elapsed() >= LINK_EVERY) {
                         links_at = Some(Instant::now());
                         let now = node_time.now_ns();
-                        log.clock(now, clock.source(), &clock.estimate())?;
-                        for (channel, source, before) in &links {
-                            if let Some(stats) = source.latest() {
-                                log.link(channel, &stats.record(now))?;
+                        match &mut sink {
+                            Sink::Penelope(log, _) => {
+                                log.clock(now, clock.source(), &clock.estimate())?;
+                                for (channel, source, before) in &links {
+                                    if let Some(stats) = source.latest() {
+                                        log.link(channel, &stats.record(now))?;
+                                    }
+                                    let lost = source.datagrams_dropped().wrapping_sub(*before);
+                                    log.datagrams_dropped(channel, lost)?;
+                                }
+                                // What the streams lost so far, when it grew.
+                                for (i, (_, stream)) in streams.iter().enumerate() {
+                                    log.dropped(i, stream.dropped.load(Ordering::Relaxed))?;
+                                }
                             }
-                            let lost = source.datagrams_dropped().wrapping_sub(*before);
-                            log.datagrams_dropped(channel, lost)?;
-                        }
-                        // What the streams lost so far, when it grew.
-                        for (i, (_, stream)) in streams.iter().enumerate() {
-                            log.dropped(i, stream.dropped.load(Ordering::Relaxed))?;
+                            Sink::Ros2(log) => {
+                                if let Some(offset) = clock.estimate().offset_ns {
+                                    log.set_clock_offset(offset);
+                                }
+                                for (channel, source, _) in &links {
+                                    if let Some(stats) = source.latest() {
+                                        log.link(channel, &stats.record(now))?;
+                                    }
+                                }
+                            }
                         }
                     }
                     if stopping {
@@ -209,11 +381,11 @@ impl Recorder {
                             .iter()
                             .map(|(_, s)| s.dropped.load(Ordering::Relaxed))
                             .collect();
-                        return log.finish(&dropped).map(|t| t.ticks);
+                        return sink.finish(&dropped).map(|t| t.ticks);
                     }
                     if flushed.elapsed() >= FLUSH_EVERY {
                         flushed = Instant::now();
-                        log.flush()?;
+                        sink.flush()?;
                     }
                     // A batch writer: the streams hold a minute of ticks, so a twentieth of a
                     // second between batches costs nothing and keeps the writes few.

@@ -144,6 +144,13 @@ pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
     if let Ok(reader) = mcap::read::LinearReader::new_with_options(&bytes, options.into()) {
         for record in reader {
             match record {
+                Ok(mcap::records::Record::Header(h)) if h.profile == super::ros2_log::PROFILE => {
+                    return Err(bad(
+                        "a ROS 2 profile recording (read it with ROS 2 tools); replay and task \
+                         reports read the `penelope` profile"
+                            .into(),
+                    ));
+                }
                 Ok(mcap::records::Record::Header(h)) if h.profile != mcap_log::PROFILE => {
                     return Err(bad(format!("profile {:?}, not a node's", h.profile)));
                 }
