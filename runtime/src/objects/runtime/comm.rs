@@ -494,4 +494,13 @@ impl CommTask {
     pub fn published(&self) -> u64 {
         self.published
     }
+
+    /// Samples a teleoperation end has sent to the other side so far (`None` for a
+    /// trajectory).
+    pub fn teleop_samples_sent(&self) -> Option<u64> {
+        match &self.source {
+            ReferenceSource::Teleop(t) => Some(t.samples_sent()),
+            _ => None,
+        }
+    }
 }

@@ -101,6 +101,10 @@ pub struct Args {
     /// One JSON record per layout on standard output instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// The channel's handoff (`handoff` of `trajectory/teleop`): `event`, samples crossing as
+    /// they are made, or `periodic`, at the communication period [default: the file's].
+    #[arg(long, value_parser = ["event", "periodic"])]
+    pub handoff: Option<String>,
 }
 
 /// What one layout's run measured.
@@ -296,7 +300,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             eprintln!("running the {} layout ...", layout.name);
         }
         let record =
-            run_layout(&layout, duration).with_context(|| format!("the {} layout", layout.name))?;
+            run_layout(&layout, duration, args.handoff.as_deref()).with_context(|| format!("the {} layout", layout.name))?;
         if args.json {
             println!("{}", serde_json::to_string(&record)?);
         }
@@ -423,8 +427,30 @@ fn placed(file: &str, host_of: &dyn Fn(&str) -> Option<IpAddr>) -> anyhow::Resul
     Ok(table.to_string())
 }
 
+/// `file` with every teleoperation channel's `handoff` set to `handoff`.
+fn with_handoff(file: &str, handoff: &str) -> anyhow::Result<String> {
+    let mut table: toml::Table = file.parse().context("parsing the system file")?;
+    if let Some(trajectories) = table
+        .get_mut("trajectories")
+        .and_then(toml::Value::as_table_mut)
+    {
+        for (_, t) in trajectories.iter_mut() {
+            if let Some(t) = t.as_table_mut()
+                && t.get("kind").and_then(toml::Value::as_str) == Some("teleop")
+            {
+                t.insert("handoff".into(), toml::Value::String(handoff.into()));
+            }
+        }
+    }
+    Ok(table.to_string())
+}
+
 /// Runs the task in `layout` and measures it.
-pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result<LayoutRecord> {
+pub fn run_layout(
+    layout: &Layout,
+    duration: Option<Duration>,
+    handoff: Option<&str>,
+) -> anyhow::Result<LayoutRecord> {
     let exe = std::env::current_exe().context("finding the penelope binary")?;
     let scratch = ScratchDir(std::env::temp_dir().join(format!(
         "penelope-layout-{}-{}",
@@ -443,6 +469,10 @@ pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result
     let file_text = placed(layout.system, &|n| {
         host_of_node(n).map(|h| hosts.address(h))
     })?;
+    let file_text = match handoff {
+        Some(h) => with_handoff(&file_text, h)?,
+        None => file_text,
+    };
     let system_path = scratch.0.join("system.toml");
     std::fs::write(&system_path, &file_text)?;
     let system = SystemFile::parse(&file_text).map_err(|e| anyhow::anyhow!("{e}"))?;
