@@ -300,6 +300,10 @@ pub struct TeleopComm {
     sent_since_tick: bool,
     /// Control ticks in one communication period (the early-wake cap scales with them).
     ticks_per_period: u32,
+    /// When the channel's reference was last handed to the loop: a two-port controller steps
+    /// with the time since, so a second hand-on at the same instant (possible only on the
+    /// simulated clock) waits for the next wake rather than step it by zero.
+    handed_at: Option<Timestamp>,
 }
 
 impl TeleopComm {
@@ -346,6 +350,7 @@ impl TeleopComm {
             sent_sample: None,
             sent_since_tick: false,
             ticks_per_period: 1,
+            handed_at: None,
         })
     }
 
@@ -699,7 +704,8 @@ impl TeleopComm {
             return;
         };
         self.pending = Some(received);
-        if received.urgent || self.event_driven {
+        let later = self.handed_at.is_none_or(|t| now > t);
+        if received.urgent || (self.event_driven && later) {
             let contact = match self.end.side {
                 Side::Master => Wrench::default(),
                 Side::Slave => self.contact(&sample, &pose),
@@ -781,6 +787,7 @@ impl TeleopComm {
         out: &mut ReferenceOut,
     ) {
         let received = self.take_received(now);
+        self.handed_at = Some(now);
         let mut restored = false;
         if let Some(received) = received {
             if self.lost_at.take().is_some() {
