@@ -296,8 +296,11 @@ pub struct TeleopComm {
     event_driven: bool,
     /// The time of the loop's sample this end last sent: a sample is sent once at most.
     sent_sample: Option<Timestamp>,
-    /// A sample went out since the last periodic tick (else the tick sends: the floor).
-    sent_since_tick: bool,
+    /// When the last sample went out: a periodic tick sends when nothing went out for a
+    /// control period (the floor while the loop is silent).
+    sent_at: Option<Timestamp>,
+    /// The loop's control period.
+    control_period: Duration,
     /// Control ticks in one communication period (the early-wake cap scales with them).
     ticks_per_period: u32,
     /// When the channel's reference was last handed to the loop: a two-port controller steps
@@ -348,20 +351,30 @@ impl TeleopComm {
             pending: None,
             event_driven: false,
             sent_sample: None,
-            sent_since_tick: false,
+            sent_at: None,
+            control_period: Duration::ZERO,
             ticks_per_period: 1,
             handed_at: None,
         })
     }
 
-    /// Makes samples cross as `handoff` says, for a loop ticking `ticks_per_period` times in a
-    /// communication period. Event-driven handoff rings the other end's doorbell with every
+    /// Makes samples cross as `handoff` says, for a loop ticking every `control_period` and a
+    /// communication thread every `comm_period`. Event-driven handoff rings the other end's doorbell with every
     /// sample on cells, and takes [`MAX_EARLY_WAKES`](penelope_rt_core::wake::MAX_EARLY_WAKES)
     /// early wakes per control tick. A wave-variable end stays periodic: its transform steps
     /// once per communication period (call this after [`with_port_law`](Self::with_port_law)).
-    pub fn with_handoff(mut self, handoff: Handoff, ticks_per_period: u32) -> Self {
+    pub fn with_handoff(
+        mut self,
+        handoff: Handoff,
+        control_period: Duration,
+        comm_period: Duration,
+    ) -> Self {
         self.event_driven = handoff == Handoff::Event && self.wave.is_none();
-        self.ticks_per_period = ticks_per_period.max(1);
+        let ticks = comm_period
+            .as_nanos()
+            .div_ceil(control_period.as_nanos().max(1));
+        self.ticks_per_period = u32::try_from(ticks.max(1)).unwrap_or(u32::MAX);
+        self.control_period = control_period;
         self.end.wake_peer_with_every_sample(self.event_driven);
         self
     }
@@ -604,7 +617,7 @@ impl TeleopComm {
     fn send_own(&mut self, now: Timestamp, sample: &TelemetrySample, pose: &Pose) -> Wrench {
         self.sequence += 1;
         self.sent_sample = Some(sample.time);
-        self.sent_since_tick = true;
+        self.sent_at = Some(now);
         let contact = match self.end.side {
             Side::Master => Wrench::default(),
             Side::Slave => self.contact(sample, pose),
@@ -734,10 +747,15 @@ impl TeleopComm {
         }
         self.reanchor_after_a_latch(now, &sample, &pose);
         // Event-driven, the sample went out when it was made: the tick sends only a sample not
-        // yet sent, or, when nothing went out this period, the last one again (the floor that
-        // keeps the link heard while the loop is silent).
+        // yet sent, or, when nothing went out for a control period (the loop missed a tick),
+        // the last one again: the floor that keeps the link heard while the loop is silent
+        // (silence at most a communication and a control period, under the link's timeout of
+        // two communication periods).
         let fresh = self.sent_sample.is_none_or(|t| sample.time > t);
-        let contact = if !self.event_driven || fresh || !self.sent_since_tick {
+        let quiet = self
+            .sent_at
+            .is_none_or(|t| now.saturating_since(t) > self.control_period);
+        let contact = if !self.event_driven || fresh || quiet {
             self.send_own(now, &sample, &pose)
         } else {
             match self.end.side {
@@ -745,7 +763,6 @@ impl TeleopComm {
                 Side::Slave => self.contact(&sample, &pose),
             }
         };
-        self.sent_since_tick = false;
         self.hand_on(now, &sample, &pose, &contact, out);
     }
 

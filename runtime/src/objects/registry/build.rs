@@ -498,13 +498,6 @@ impl Registry {
                     .take(side)
                     .ok_or_else(|| ObjectError::internal("teleop end"))?;
                 let handoff = t.config.handoff;
-                // Control ticks in a communication period (the early-wake cap scales with them).
-                let ticks = plan
-                    .timing
-                    .comm_period
-                    .as_nanos()
-                    .div_ceil(plan.timing.period.as_nanos().max(1));
-                let ticks = u32::try_from(ticks.max(1)).unwrap_or(u32::MAX);
                 crate::objects::runtime::CommTask::teleop(
                     TeleopComm::new(end, mapping, kinematics.clone())?
                         .with_port_law(port_law, &mapping)?
@@ -512,7 +505,7 @@ impl Registry {
                         .with_sensor_mount(feed.sensor_mount)
                         .with_hand_wrench(side == Side::Master && plan.sensor.is_some())
                         .with_link_timeout(link_timeout)
-                        .with_handoff(handoff, ticks),
+                        .with_handoff(handoff, plan.timing.period, plan.timing.comm_period),
                     feed.reference,
                     feed.probe,
                     feed.goto,
