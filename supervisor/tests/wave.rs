@@ -172,7 +172,10 @@ fn the_force_display_takes_the_two_port_controller_from_its_config() {
         .master_channel_min_j
         .expect("observed without the controller");
     eprintln!("without the controller: periodic {min_plain} J, event-driven {min_event} J");
-    assert!(min_event > min_plain, "event-driven {min_event} J, periodic {min_plain} J");
+    assert!(
+        min_event > min_plain,
+        "event-driven {min_event} J, periodic {min_plain} J"
+    );
     // A force display has impedance causality: the admittance form is refused.
     assert!(run(&with_passivity("admittance"), &options, &mut |_| {}).is_err());
 }

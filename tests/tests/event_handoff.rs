@@ -167,8 +167,14 @@ fn event_handoff_sends_each_sample_once_however_often_the_thread_wakes() {
     );
     for (side, sent) in [("master", master), ("slave", slave)] {
         // At most one send per control tick; every tick's sample sent (the doorbell after it).
-        assert!(sent <= ticks, "{side}: {sent} sends over {ticks} control ticks");
-        assert!(sent >= ticks - 1, "{side}: {sent} sends over {ticks} control ticks");
+        assert!(
+            sent <= ticks,
+            "{side}: {sent} sends over {ticks} control ticks"
+        );
+        assert!(
+            sent >= ticks - 1,
+            "{side}: {sent} sends over {ticks} control ticks"
+        );
     }
 }
 

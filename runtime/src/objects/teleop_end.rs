@@ -411,8 +411,7 @@ impl TeleopEnd {
                 ..
             } => {
                 send.write(sample);
-                if wake_peer && let Some(peer) = peer
-                {
+                if wake_peer && let Some(peer) = peer {
                     peer.ring();
                 }
             }

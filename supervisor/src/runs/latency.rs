@@ -114,9 +114,16 @@ fn window(ticks: &[TickRecord], to: Timestamp) -> &[TickRecord] {
 /// The limit for the sample of `sender[k]`, µs: from its tick to the first later tick of
 /// `receiver` at or after the instant it was ready (the tick's wake-up latency and execution time, the
 /// latter as the next record notes it) plus `transport`. `None` past the receiver's last tick.
-fn limit(sender: &[TickRecord], k: usize, receiver: &[TickRecord], transport: Duration) -> Option<f64> {
+fn limit(
+    sender: &[TickRecord],
+    k: usize,
+    receiver: &[TickRecord],
+    transport: Duration,
+) -> Option<f64> {
     let s = &sender[k].sample;
-    let exec = sender.get(k + 1).map_or(s.exec_time, |n| n.sample.exec_time);
+    let exec = sender
+        .get(k + 1)
+        .map_or(s.exec_time, |n| n.sample.exec_time);
     let ready = s.time + s.wake_latency + exec + transport;
     // A tick at the sender's own instant cannot use its sample (on a simulated clock both
     // loops tick at the same instants, and nothing is late or takes time).

@@ -440,7 +440,10 @@ impl Registry {
         &self,
         plan: &LoopPlan,
         source: &LoopSource,
-    ) -> (Option<std::sync::Arc<penelope_rt_core::wake::Doorbell>>, bool) {
+    ) -> (
+        Option<std::sync::Arc<penelope_rt_core::wake::Doorbell>>,
+        bool,
+    ) {
         let LoopSource::Teleop(side, _, _, law) = source else {
             return (None, false);
         };

@@ -11,9 +11,7 @@ use std::time::{Duration, Instant};
 use penelope_runtime::dataplane::endpoint::{
     ControlBuffer, enable_kernel_stamps, receive_with_stamp,
 };
-pub use penelope_supervisor::runs::latency::{
-    EndToEnd, Percentiles, end_to_end,
-};
+pub use penelope_supervisor::runs::latency::{EndToEnd, Percentiles, end_to_end};
 
 /// A raw UDP echo: the baseline of the data plane's one-way trip. The server stamps each
 /// datagram's arrival as the kernel saw it (`SO_TIMESTAMPNS`) and sends it back in the answer,

@@ -299,8 +299,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         if !args.json {
             eprintln!("running the {} layout ...", layout.name);
         }
-        let record =
-            run_layout(&layout, duration, args.handoff.as_deref()).with_context(|| format!("the {} layout", layout.name))?;
+        let record = run_layout(&layout, duration, args.handoff.as_deref())
+            .with_context(|| format!("the {} layout", layout.name))?;
         if args.json {
             println!("{}", serde_json::to_string(&record)?);
         }
