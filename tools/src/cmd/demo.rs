@@ -291,6 +291,12 @@ fn print_task_figures(r: &Report) {
         r.clutch.max_step_mm, r.clutch.normal_max_step_mm
     );
     println!("  end-to-end latency, p50/p99 µs (limit: the wait for the receiving tick)");
+    if r.clock == "simulated" {
+        println!(
+            "    (simulated clock: both loops tick at the same instants, stepped in a fixed order, \
+             so a sample can be used at its own instant: 0 µs, below the limit)"
+        );
+    }
     for (what, e) in [
         ("motion->command", &r.latency.motion_to_command),
         ("contact->force", &r.latency.contact_to_force),
