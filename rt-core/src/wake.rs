@@ -38,9 +38,11 @@ use penelope_hal::Timestamp;
 
 use crate::clock::MonotonicClock;
 
-/// Early wakes a thread takes per period at most: beyond, it sleeps to its deadline. A socket
-/// that stays readable (datagrams the body leaves unread) or a doorbell rung every few
-/// microseconds must not turn a periodic thread into a busy one.
+/// Early wakes a thread takes per period at most, by default: beyond, it sleeps to its
+/// deadline. A socket that stays readable (datagrams the body leaves unread) or a doorbell rung
+/// every few microseconds must not turn a periodic thread into a busy one. A thread woken by
+/// every tick of a faster loop (a communication thread whose control loop rings it with each
+/// sample) takes this many per tick of that loop ([`WakeOn::per_period`]).
 pub const MAX_EARLY_WAKES: u32 = 4;
 
 /// Wakes a periodic thread before its deadline. Cheap to ring from any thread, including a
@@ -130,6 +132,9 @@ pub struct WakeOn {
     /// A socket whose data wakes the thread (owned here as a duplicate of the caller's
     /// descriptor, so it stays valid as long as the thread waits on it).
     pub readable: Option<OwnedFd>,
+    /// Early wakes taken per period at most ([`MAX_EARLY_WAKES`] unless
+    /// [`per_period`](Self::per_period) says otherwise).
+    pub max_early_wakes: u32,
 }
 
 impl WakeOn {
@@ -138,7 +143,16 @@ impl WakeOn {
         WakeOn {
             doorbell,
             readable: None,
+            max_early_wakes: MAX_EARLY_WAKES,
         }
+    }
+
+    /// At most [`MAX_EARLY_WAKES`] early wakes per tick of a loop that runs `ticks` times in
+    /// this thread's period (at least one): the cap on the rate of wakes, kept per tick of the
+    /// faster loop when that loop rings with every tick.
+    pub fn per_period(mut self, ticks: u32) -> Self {
+        self.max_early_wakes = MAX_EARLY_WAKES.saturating_mul(ticks.max(1));
+        self
     }
 
     /// Woken also when `socket` has data (the descriptor is duplicated).

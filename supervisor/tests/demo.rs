@@ -157,3 +157,24 @@ fn a_bad_configuration_is_a_clear_error_not_a_crash() {
     };
     assert!(run(&demo(), &options, &mut |_| {}).is_err());
 }
+
+#[test]
+fn the_report_gives_both_end_to_end_latencies_within_a_communication_and_a_control_period() {
+    // On the simulated clock the communication task steps at its period (no early wakes):
+    // a sample waits at most one communication period to cross and one control period to be
+    // used, and the limit is the receiving loop's next tick.
+    let (out, r) = simulate(Law::ForcePosition, 1, None);
+    let bound = (out.info.comm_period + out.info.control_period).as_secs_f64() * 1e6;
+    let tick = out.info.control_period.as_secs_f64() * 1e6;
+    for (what, e) in [
+        ("motion->command", &r.latency.motion_to_command),
+        ("contact->force", &r.latency.contact_to_force),
+    ] {
+        eprintln!("{what}: {e:?}");
+        assert!(e.latency.samples > 1000, "{what}: {e:?}");
+        assert!(e.latency.p99_us <= bound, "{what}: {e:?}");
+        assert!(e.latency.max_us <= bound, "{what}: {e:?}");
+        // Both loops tick at the same instants: the next tick is one control period on.
+        assert!((e.limit.p50_us - tick).abs() < 1.0, "{what}: {e:?}");
+    }
+}

@@ -39,7 +39,7 @@ use crate::cell::{ArcLatestReader, ArcLatestWriter, latest};
 use crate::clock::{MonotonicClock, sleep_until};
 pub use crate::sim::Flow;
 use crate::stats::{DurationStats, LatencyHistogram};
-use crate::wake::{MAX_EARLY_WAKES, WakeOn, Woken};
+use crate::wake::{WakeOn, Woken};
 
 mod rt_settings;
 pub use rt_settings::{apply_rt, hold_dma_latency, set_fifo};
@@ -303,8 +303,8 @@ where
 
 /// [`spawn`], woken also before a deadline by `wake` (a doorbell another thread rings, a socket
 /// with data): the body is then called with [`Tick::early`] set, at most
-/// [`MAX_EARLY_WAKES`] times a period; the periodic ticks keep
-/// their schedule.
+/// [`WakeOn::max_early_wakes`] times a period ([`MAX_EARLY_WAKES`](crate::wake::MAX_EARLY_WAKES) by default); the periodic
+/// ticks keep their schedule.
 ///
 /// # Errors
 /// As [`spawn`].
@@ -381,7 +381,7 @@ where
     let mut early_wakes = 0u32;
     while !stop.load(Ordering::Relaxed) {
         if let Some(wake) = wake
-            && early_wakes < MAX_EARLY_WAKES
+            && early_wakes < wake.max_early_wakes
             && wake.wait_until(deadline) == Woken::Early
         {
             // Outside the schedule: no latency, overrun or execution figures for it.
@@ -599,18 +599,22 @@ mod tests {
         assert!(report.ticks >= 2);
     }
 
-    #[test]
-    fn a_socket_left_unread_wakes_the_thread_at_most_max_early_wakes_a_period() {
-        use crate::wake::{Doorbell, MAX_EARLY_WAKES};
+    /// The early and periodic ticks of a thread woken by a socket that stays readable, over
+    /// three periods, with `per_period` ticks of a faster loop in its period (its cap).
+    fn ticks_of_an_unread_socket(per_period: Option<u32>) -> Vec<bool> {
+        use crate::wake::Doorbell;
         use std::os::fd::AsFd;
         let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
         std::net::UdpSocket::bind("127.0.0.1:0")
             .unwrap()
             .send_to(b"x", socket.local_addr().unwrap())
             .unwrap();
-        let wake = WakeOn::doorbell(Arc::new(Doorbell::new().unwrap()))
+        let mut wake = WakeOn::doorbell(Arc::new(Doorbell::new().unwrap()))
             .and_readable(socket.as_fd())
             .unwrap();
+        if let Some(n) = per_period {
+            wake = wake.per_period(n);
+        }
         let config = PeriodicConfig {
             lock_memory: false,
             hold_dma_latency: false,
@@ -630,9 +634,25 @@ mod tests {
         .unwrap();
         let ticks = rx.recv().unwrap();
         t.join().unwrap();
+        ticks
+    }
+
+    #[test]
+    fn a_socket_left_unread_wakes_the_thread_at_most_max_early_wakes_a_period() {
+        use crate::wake::MAX_EARLY_WAKES;
         // Each period: MAX_EARLY_WAKES early ticks, then the periodic one.
         let mut period = vec![true; MAX_EARLY_WAKES as usize];
         period.push(false);
-        assert_eq!(ticks, period.repeat(3));
+        assert_eq!(ticks_of_an_unread_socket(None), period.repeat(3));
+    }
+
+    #[test]
+    fn the_cap_scales_with_the_ticks_of_the_loop_that_rings() {
+        use crate::wake::MAX_EARLY_WAKES;
+        // Two control ticks per communication period: twice the early wakes, then the periodic
+        // tick; never more, however long the socket stays readable.
+        let mut period = vec![true; 2 * MAX_EARLY_WAKES as usize];
+        period.push(false);
+        assert_eq!(ticks_of_an_unread_socket(Some(2)), period.repeat(3));
     }
 }

@@ -139,6 +139,7 @@ impl Creator {
         };
         // A teleoperation end's thread also wakes on its doorbell and socket (urgent samples);
         // without them (no descriptor left) it still ticks, as every other loop's does.
+        let event_driven = comm.is_event_driven();
         let comm_wake = comm.wake_on().unwrap_or_else(|e| {
             log::warn!("controller `{name}`: urgent samples wait for the period ({e})");
             None
@@ -177,6 +178,7 @@ impl Creator {
             pump,
             feed,
             comm_wake,
+            event_driven,
             timing,
         };
         (running, bodies)
@@ -490,6 +492,9 @@ struct LoopBodies {
     /// What wakes the communication thread before its period (a teleoperation end's doorbell
     /// and socket); unused on the simulated clock.
     comm_wake: Option<penelope_rt_core::wake::WakeOn>,
+    /// The communication task hands samples on as they are made (on the simulated clock: an
+    /// early tick around each control tick, where the doorbell and the socket would wake it).
+    event_driven: bool,
     timing: crate::objects::config::LoopTiming,
 }
 
@@ -528,7 +533,8 @@ fn step_on_simulated_clock(
             bodies.feed,
             bodies.pump,
             (timing.period, timing.comm_period, timing.sensor_period),
-        ),
+        )
+        .event_driven(bodies.event_driven),
     );
     Ok(())
 }
@@ -547,6 +553,7 @@ fn start_threads(
         feed,
         comm_wake,
         timing,
+        ..
     } = bodies;
     let thread_name =
         |prefix: &str| -> String { format!("{prefix}{name}").chars().take(15).collect() };

@@ -30,6 +30,9 @@ pub struct SteppedLoop {
     next: [Timestamp; 3],
     ticks: [u64; 3],
     running: [bool; 2],
+    /// Event-driven handoff: the communication body gets an early tick just before each
+    /// control tick (what arrived is handed on) and just after it (the new sample is sent).
+    event_driven: bool,
 }
 
 /// The phases of an instant, in the order they run.
@@ -58,6 +61,25 @@ impl SteppedLoop {
             next: [now; 3],
             ticks: [0; 3],
             running: [true; 2],
+            event_driven: false,
+        }
+    }
+
+    /// Steps an event-driven communication task as its thread's doorbell and socket would
+    /// wake it: early, just before and just after each control tick.
+    pub fn event_driven(mut self, event_driven: bool) -> Self {
+        self.event_driven = event_driven;
+        self
+    }
+
+    /// An early tick of the communication body at `at`.
+    fn early_comm(&mut self, at: Timestamp) {
+        if self.event_driven && self.running[0] {
+            let tick = Tick {
+                early: true,
+                ..self.tick(COMM, at)
+            };
+            self.running[0] = (self.comm)(tick) == Flow::Continue;
         }
     }
 
@@ -86,7 +108,9 @@ impl SteppedLoop {
                 }
             }
             CONTROL if self.running[1] => {
+                self.early_comm(at);
                 self.running[1] = (self.control)(tick) == Flow::Continue;
+                self.early_comm(at);
             }
             _ => {}
         }

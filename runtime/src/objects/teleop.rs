@@ -75,6 +75,27 @@ pub struct TeleopConfig {
     /// a Zenoh bridge, `penelope node --zenoh ENDPOINT`): the key its poses come from; the
     /// slave is a robot here. Not with `listen`, `peer` or `faults`.
     pub zenoh_reference: Option<String>,
+    /// When a sample crosses: `event` (each control tick's new sample is sent at once and
+    /// handed to the other side's loop as it arrives; the communication period is then only
+    /// the floor when nothing is new), or `periodic` (the paper's decoupled mode: samples
+    /// leave and are handed on at the communication period `T_com`). A wave-variable law's
+    /// transform steps once per period either way.
+    pub handoff: Handoff,
+}
+
+/// When a teleoperation channel's samples cross ([`TeleopConfig::handoff`]).
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize, schemars::JsonSchema,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Handoff {
+    /// As they are made: the control tick's new sample wakes the communication thread, which
+    /// sends it at once (at most one send per control tick); the receiving thread hands it to
+    /// its loop at once. The period is the floor when nothing is new.
+    #[default]
+    Event,
+    /// At the communication period (`T_com`), as in the paper's decoupled threads.
+    Periodic,
 }
 
 impl Default for TeleopConfig {
@@ -92,6 +113,7 @@ impl Default for TeleopConfig {
             fault_seed: 1,
             link_timeout_ms: 0,
             zenoh_reference: None,
+            handoff: Handoff::Event,
         }
     }
 }
@@ -270,6 +292,21 @@ pub struct TeleopComm {
     /// A sample of the other side read on an early wake but not urgent: handed to the
     /// channel at the next tick, as if read then.
     pending: Option<TeleopSample>,
+    /// Samples cross as they are made ([`Handoff::Event`]; not for a wave end).
+    event_driven: bool,
+    /// The time of the loop's sample this end last sent: a sample is sent once at most.
+    sent_sample: Option<Timestamp>,
+    /// When the last sample went out: a periodic tick sends when nothing went out for a
+    /// control period (the floor while the loop is silent).
+    sent_at: Option<Timestamp>,
+    /// The loop's control period.
+    control_period: Duration,
+    /// Control ticks in one communication period (the early-wake cap scales with them).
+    ticks_per_period: u32,
+    /// When the channel's reference was last handed to the loop: a two-port controller steps
+    /// with the time since, so a second hand-on at the same instant (possible only on the
+    /// simulated clock) waits for the next wake rather than step it by zero.
+    handed_at: Option<Timestamp>,
 }
 
 impl TeleopComm {
@@ -312,7 +349,44 @@ impl TeleopComm {
             hand_wrench: false,
             events_sent: EventSet::EMPTY,
             pending: None,
+            event_driven: false,
+            sent_sample: None,
+            sent_at: None,
+            control_period: Duration::ZERO,
+            ticks_per_period: 1,
+            handed_at: None,
         })
+    }
+
+    /// Makes samples cross as `handoff` says, for a loop ticking every `control_period` and a
+    /// communication thread every `comm_period`. Event-driven handoff rings the other end's doorbell with every
+    /// sample on cells, and takes [`MAX_EARLY_WAKES`](penelope_rt_core::wake::MAX_EARLY_WAKES)
+    /// early wakes per control tick. A wave-variable end stays periodic: its transform steps
+    /// once per communication period (call this after [`with_port_law`](Self::with_port_law)).
+    pub fn with_handoff(
+        mut self,
+        handoff: Handoff,
+        control_period: Duration,
+        comm_period: Duration,
+    ) -> Self {
+        self.event_driven = handoff == Handoff::Event && self.wave.is_none();
+        let ticks = comm_period
+            .as_nanos()
+            .div_ceil(control_period.as_nanos().max(1));
+        self.ticks_per_period = u32::try_from(ticks.max(1)).unwrap_or(u32::MAX);
+        self.control_period = control_period;
+        self.end.wake_peer_with_every_sample(self.event_driven);
+        self
+    }
+
+    /// Whether samples cross as they are made ([`Handoff::Event`]).
+    pub fn is_event_driven(&self) -> bool {
+        self.event_driven
+    }
+
+    /// Samples this end has sent so far (its sequence number).
+    pub fn samples_sent(&self) -> u64 {
+        self.sequence
     }
 
     /// Runs what the law's half needs in this end: the wave-variable transform (a
@@ -390,7 +464,11 @@ impl TeleopComm {
     /// # Errors
     /// The OS's, when the socket's descriptor cannot be duplicated.
     pub fn wake_on(&self) -> std::io::Result<Option<penelope_rt_core::wake::WakeOn>> {
-        self.end.wake_on()
+        let wake = self.end.wake_on()?;
+        Ok(match wake {
+            Some(w) if self.event_driven => Some(w.per_period(self.ticks_per_period)),
+            other => other,
+        })
     }
 
     /// The end, given back when the loop stops.
@@ -538,6 +616,8 @@ impl TeleopComm {
     /// Kinematics and the end's bounded send; no allocation.
     fn send_own(&mut self, now: Timestamp, sample: &TelemetrySample, pose: &Pose) -> Wrench {
         self.sequence += 1;
+        self.sent_sample = Some(sample.time);
+        self.sent_at = Some(now);
         let contact = match self.end.side {
             Side::Master => Wrench::default(),
             Side::Slave => self.contact(sample, pose),
@@ -613,6 +693,10 @@ impl TeleopComm {
     /// observer integrating up to now). What else arrived waits for the tick. A wave-variable
     /// end does neither: its transform runs once per period.
     ///
+    /// With event-driven handoff every new sample of the loop goes out (once: a sample already
+    /// sent is not sent again, so sends never outnumber control ticks however often the thread
+    /// wakes), and every sample of the other side is handed on at once.
+    ///
     /// # Real-time
     /// As [`tick`](Self::tick).
     pub fn early(
@@ -625,14 +709,16 @@ impl TeleopComm {
             return;
         };
         let pose = self.model.forward(&sample.q);
-        if sample.events.gained_since(self.events_sent) {
+        let fresh = self.sent_sample.is_none_or(|t| sample.time > t);
+        if fresh && (self.event_driven || sample.events.gained_since(self.events_sent)) {
             self.send_own(now, &sample, &pose);
         }
         let Some(received) = self.take_received(now) else {
             return;
         };
         self.pending = Some(received);
-        if received.urgent {
+        let later = self.handed_at.is_none_or(|t| now > t);
+        if received.urgent || (self.event_driven && later) {
             let contact = match self.end.side {
                 Side::Master => Wrench::default(),
                 Side::Slave => self.contact(&sample, &pose),
@@ -660,7 +746,23 @@ impl TeleopComm {
             self.started = true;
         }
         self.reanchor_after_a_latch(now, &sample, &pose);
-        let contact = self.send_own(now, &sample, &pose);
+        // Event-driven, the sample went out when it was made: the tick sends only a sample not
+        // yet sent, or, when nothing went out for a control period (the loop missed a tick),
+        // the last one again: the floor that keeps the link heard while the loop is silent
+        // (silence at most a communication and a control period, under the link's timeout of
+        // two communication periods).
+        let fresh = self.sent_sample.is_none_or(|t| sample.time > t);
+        let quiet = self
+            .sent_at
+            .is_none_or(|t| now.saturating_since(t) > self.control_period);
+        let contact = if !self.event_driven || fresh || quiet {
+            self.send_own(now, &sample, &pose)
+        } else {
+            match self.end.side {
+                Side::Master => Wrench::default(),
+                Side::Slave => self.contact(&sample, &pose),
+            }
+        };
         self.hand_on(now, &sample, &pose, &contact, out);
     }
 
@@ -702,6 +804,7 @@ impl TeleopComm {
         out: &mut ReferenceOut,
     ) {
         let received = self.take_received(now);
+        self.handed_at = Some(now);
         let mut restored = false;
         if let Some(received) = received {
             if self.lost_at.take().is_some() {

@@ -104,6 +104,9 @@ pub struct TeleopEnd {
     /// loop on a new safety event, and, on cells, by the other end's thread when it sent an
     /// urgent sample (`None` if the OS had no descriptor for it: the thread then only ticks).
     doorbell: Option<Arc<Doorbell>>,
+    /// On cells: ring the other end's doorbell with every sample, not only an urgent one
+    /// (event-driven handoff).
+    wake_peer: bool,
 }
 
 /// A doorbell for an end; `None`, said in the log, when the OS refuses one.
@@ -370,7 +373,15 @@ impl TeleopEnd {
             })),
             sent: 0,
             doorbell: new_doorbell(),
+            wake_peer: false,
         })
+    }
+
+    /// Rings the other end's doorbell (on cells) with every sample sent when `every`, not
+    /// only with an urgent one: its thread hands each sample on as it comes (event-driven
+    /// handoff). Over the data plane the datagram itself wakes the other thread.
+    pub fn wake_peer_with_every_sample(&mut self, every: bool) {
+        self.wake_peer = every;
     }
 
     /// The sequence number of the last sample sent.
@@ -391,6 +402,7 @@ impl TeleopEnd {
     /// bounded heap work in a queue made at configure time, no allocation), or one or two
     /// non-blocking `sendto` calls (a refusal is counted, not waited on).
     pub fn publish(&mut self, sample: TeleopSample) {
+        let wake_peer = sample.urgent || self.wake_peer;
         match &mut self.transport {
             Transport::Cells {
                 send,
@@ -399,9 +411,7 @@ impl TeleopEnd {
                 ..
             } => {
                 send.write(sample);
-                if sample.urgent
-                    && let Some(peer) = peer
-                {
+                if wake_peer && let Some(peer) = peer {
                     peer.ring();
                 }
             }
@@ -608,6 +618,7 @@ impl TeleopLink {
                 },
                 sent: 0,
                 doorbell: master_bell.clone(),
+                wake_peer: false,
             }),
             slave: Some(TeleopEnd {
                 side: Side::Slave,
@@ -619,6 +630,7 @@ impl TeleopLink {
                 },
                 sent: 0,
                 doorbell: slave_bell,
+                wake_peer: false,
             }),
             local: (true, true),
             stats: None,
@@ -670,6 +682,7 @@ impl TeleopLink {
             transport: Transport::Bridged { send, receive },
             sent: 0,
             doorbell: new_doorbell(),
+            wake_peer: false,
         });
         (link, BridgedEnd { to_loop, from_loop })
     }

@@ -13,6 +13,7 @@
 //! experiment delay`).
 
 pub mod delay;
+pub mod latency;
 pub mod recording;
 pub mod report;
 pub mod rerun;

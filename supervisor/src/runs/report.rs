@@ -193,6 +193,9 @@ pub struct Report {
     pub energy: EnergyReport,
     /// Clutch.
     pub clutch: ClutchReport,
+    /// End-to-end latency each way beside its limit (the wait for the receiving tick: the
+    /// demo's channel is a pair of cells on one node).
+    pub latency: LatencyReport,
     /// Per-thread timing (real-time runs; empty on a simulated clock).
     pub timing: Vec<LoopTiming>,
     /// Safety events per robot: `robot/event -> count`.
@@ -611,6 +614,25 @@ fn safety_record(out: &RunOutput) -> (BTreeMap<String, u64>, Vec<String>) {
     (safety_events, faults)
 }
 
+/// The run's end-to-end latencies ([`latency`](super::latency)).
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+pub struct LatencyReport {
+    /// Master motion to slave command.
+    pub motion_to_command: super::latency::EndToEnd,
+    /// Slave contact to master force.
+    pub contact_to_force: super::latency::EndToEnd,
+}
+
+/// The run's latencies, its channel's cells taken as no transport.
+fn latency_report(out: &RunOutput) -> LatencyReport {
+    let zero = std::time::Duration::ZERO;
+    let (motion_to_command, contact_to_force) = super::latency::end_to_end(out, (zero, zero));
+    LatencyReport {
+        motion_to_command,
+        contact_to_force,
+    }
+}
+
 /// The run's report.
 pub fn report(out: &RunOutput) -> Report {
     let info = &out.info;
@@ -636,6 +658,7 @@ pub fn report(out: &RunOutput) -> Report {
         drag: drag_report(out),
         energy: energy_report(out),
         clutch: clutch_report(out),
+        latency: latency_report(out),
         timing: loop_timings(out),
         safety_events,
         faults,

@@ -301,6 +301,28 @@ fn print_task_figures(r: &Report) {
         "    largest reference step {:.3} mm (normal motion: {:.3} mm per tick)",
         r.clutch.max_step_mm, r.clutch.normal_max_step_mm
     );
+    println!("  end-to-end latency, p50/p99 µs (limit: the wait for the receiving tick)");
+    if r.clock == "simulated" {
+        println!(
+            "    (simulated clock: both loops tick at the same instants, stepped in a fixed order, \
+             so a sample can be used at its own instant: 0 µs, below the limit)"
+        );
+    }
+    for (what, e) in [
+        ("motion->command", &r.latency.motion_to_command),
+        ("contact->force", &r.latency.contact_to_force),
+    ] {
+        println!(
+            "    {what:<16} {:.0}/{:.0}   limit {:.0}/{:.0}   ratio {:.2}/{:.2}   over {} samples",
+            e.latency.p50_us,
+            e.latency.p99_us,
+            e.limit.p50_us,
+            e.limit.p99_us,
+            e.ratio_p50,
+            e.ratio_p99,
+            e.latency.samples
+        );
+    }
 }
 
 /// Each loop's wake-up latency, overruns and execution time (real clock only).

@@ -68,9 +68,11 @@ impl Registry {
         let stop = std::sync::Arc::new(penelope_rt_core::stop::StopLatch::new());
         let (goto_w, goto_r) = ring();
         let (gains_w, gains_r) = ring();
+        let (doorbell, every_sample) = self.teleop_doorbell(&plan, &source);
         let sink = TelemetryPort::new(tel_w, comm_w, probe_w, taken.truth)
             .with_clutch(self.clutch_of(&plan.robot))
-            .with_doorbell(self.teleop_doorbell(&plan, &source));
+            .with_doorbell(doorbell)
+            .ringing_every_sample(every_sample);
         let ports = ControlPorts {
             reference: ref_r,
             telemetry: sink,
@@ -430,19 +432,28 @@ impl Registry {
         })
     }
 
-    /// A teleoperation end's thread wakes on its loop's new safety events: the doorbell of
-    /// the end `source` takes, if it is one.
+    /// A teleoperation end's thread wakes on its loop's new safety events, and with
+    /// event-driven handoff on every sample: the doorbell of the end `source` takes, if it is
+    /// one, and whether every sample rings it (not for a wave-variable law, whose transform
+    /// steps once per communication period).
     fn teleop_doorbell(
         &self,
         plan: &LoopPlan,
         source: &LoopSource,
-    ) -> Option<std::sync::Arc<penelope_rt_core::wake::Doorbell>> {
-        let LoopSource::Teleop(side, ..) = source else {
-            return None;
+    ) -> (
+        Option<std::sync::Arc<penelope_rt_core::wake::Doorbell>>,
+        bool,
+    ) {
+        let LoopSource::Teleop(side, _, _, law) = source else {
+            return (None, false);
         };
         match self.objects.get(&plan.trajectory).map(|o| &o.body) {
-            Some(KindState::Teleop(t)) => t.link.as_ref().and_then(|l| l.doorbell(*side)),
-            _ => None,
+            Some(KindState::Teleop(t)) => (
+                t.link.as_ref().and_then(|l| l.doorbell(*side)),
+                t.config.handoff == crate::objects::teleop::Handoff::Event
+                    && !matches!(law, crate::objects::teleop_passivity::PortLaw::Wave(_)),
+            ),
+            _ => (None, false),
         }
     }
 
@@ -489,13 +500,15 @@ impl Registry {
                 let end = link
                     .take(side)
                     .ok_or_else(|| ObjectError::internal("teleop end"))?;
+                let handoff = t.config.handoff;
                 crate::objects::runtime::CommTask::teleop(
                     TeleopComm::new(end, mapping, kinematics.clone())?
                         .with_port_law(port_law, &mapping)?
                         .with_clutch(clutch)
                         .with_sensor_mount(feed.sensor_mount)
                         .with_hand_wrench(side == Side::Master && plan.sensor.is_some())
-                        .with_link_timeout(link_timeout),
+                        .with_link_timeout(link_timeout)
+                        .with_handoff(handoff, plan.timing.period, plan.timing.comm_period),
                     feed.reference,
                     feed.probe,
                     feed.goto,

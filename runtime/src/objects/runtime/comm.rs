@@ -494,4 +494,19 @@ impl CommTask {
     pub fn published(&self) -> u64 {
         self.published
     }
+
+    /// Whether this is a teleoperation end whose samples cross as they are made
+    /// ([`Handoff::Event`](crate::objects::teleop::Handoff::Event)).
+    pub fn is_event_driven(&self) -> bool {
+        matches!(&self.source, ReferenceSource::Teleop(t) if t.is_event_driven())
+    }
+
+    /// Samples a teleoperation end has sent to the other side so far (`None` for a
+    /// trajectory).
+    pub fn teleop_samples_sent(&self) -> Option<u64> {
+        match &self.source {
+            ReferenceSource::Teleop(t) => Some(t.samples_sent()),
+            _ => None,
+        }
+    }
 }

@@ -193,8 +193,12 @@ pub struct TelemetryPort {
     probe: ArcLatestWriter<TelemetrySample>,
     truth: Option<TapReader>,
     clutch: Option<Arc<AtomicBool>>,
-    /// Wakes the communication thread on a new safety event (a teleoperation end's).
+    /// Wakes the communication thread on a new safety event (a teleoperation end's), or with
+    /// every sample when `every_sample`.
     doorbell: Option<Arc<Doorbell>>,
+    /// Ring with every sample: the communication thread sends each as it is made
+    /// (event-driven handoff).
+    every_sample: bool,
     /// The previous sample's safety events.
     events: EventSet,
 }
@@ -214,6 +218,7 @@ impl TelemetryPort {
             truth,
             clutch: None,
             doorbell: None,
+            every_sample: false,
             events: EventSet::EMPTY,
         }
     }
@@ -222,6 +227,13 @@ impl TelemetryPort {
     /// communication thread then sends it at once (a teleoperation end's urgent sample).
     pub fn with_doorbell(mut self, doorbell: Option<Arc<Doorbell>>) -> Self {
         self.doorbell = doorbell;
+        self
+    }
+
+    /// Rings the doorbell with every sample (when `every`), not only on a new safety event:
+    /// the communication thread sends each sample as it is made (event-driven handoff).
+    pub fn ringing_every_sample(mut self, every: bool) -> Self {
+        self.every_sample = every;
         self
     }
 
@@ -236,11 +248,11 @@ impl TelemetryPort {
 impl TelemetrySink for TelemetryPort {
     /// # Real-time
     /// Three wait-free cell operations, an atomic load, one ring push, and on a new safety
-    /// event one non-blocking `write` (the doorbell).
+    /// event (with event-driven handoff: every sample) one non-blocking `write` (the doorbell).
     fn push(&mut self, sample: &TelemetrySample) -> bool {
         self.comm.write(*sample);
         self.probe.write(*sample);
-        if sample.events.gained_since(self.events)
+        if (self.every_sample || sample.events.gained_since(self.events))
             && let Some(bell) = &self.doorbell
         {
             bell.ring();

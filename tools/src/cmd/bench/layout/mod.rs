@@ -34,7 +34,7 @@ use penelope_supervisor::system::SystemFile;
 use serde::Serialize;
 
 use hosts::Hosts;
-use latency::{Echo, Percentiles};
+use latency::{Echo, EndToEnd, Percentiles};
 
 /// The demo's task split over two nodes.
 pub const TWO_NODES: &str = include_str!("../../../../../config/demo-two-nodes.toml");
@@ -101,6 +101,10 @@ pub struct Args {
     /// One JSON record per layout on standard output instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// The channel's handoff (`handoff` of `trajectory/teleop`): `event`, samples crossing as
+    /// they are made, or `periodic`, at the communication period [default: the file's].
+    #[arg(long, value_parser = ["event", "periodic"])]
+    pub handoff: Option<String>,
 }
 
 /// What one layout's run measured.
@@ -122,10 +126,11 @@ pub struct LayoutRecord {
     pub sensed_force_n: f64,
     /// `|displayed - expected| / |expected|` of the mean force in steady contact, percent.
     pub display_error_pct: f64,
-    /// Master motion to slave command.
-    pub motion_to_command: Percentiles,
-    /// Slave contact to master force.
-    pub contact_to_force: Percentiles,
+    /// Master motion to slave command, beside its limit (the data plane's one-way trip plus
+    /// the wait for the slave's tick).
+    pub motion_to_command: EndToEnd,
+    /// Slave contact to master force, beside its limit.
+    pub contact_to_force: EndToEnd,
     /// A raw UDP echo between the joystick's and the robot's hosts in the same run: half the
     /// round trip.
     pub udp_echo_one_way: Percentiles,
@@ -294,8 +299,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         if !args.json {
             eprintln!("running the {} layout ...", layout.name);
         }
-        let record =
-            run_layout(&layout, duration).with_context(|| format!("the {} layout", layout.name))?;
+        let record = run_layout(&layout, duration, args.handoff.as_deref())
+            .with_context(|| format!("the {} layout", layout.name))?;
         if args.json {
             println!("{}", serde_json::to_string(&record)?);
         }
@@ -314,19 +319,27 @@ pub fn all_layouts() -> Vec<Layout> {
 
 fn print_table(records: &[LayoutRecord]) {
     println!(
-        "{:<7} {:>5} {:>8} {:>8} {:>7} {:>15} {:>15} {:>13} {:>13} {:>9}",
+        "{:<7} {:>5} {:>8} {:>8} {:>7} {:>24} {:>24} {:>13} {:>13} {:>9}",
         "layout",
         "procs",
         "track mm",
         "display%",
         "force N",
-        "motion->cmd",
-        "contact->force",
+        "motion->cmd (limit) x",
+        "contact->force (limit) x",
         "data plane",
         "udp echo",
         "offset µs"
     );
     let pair = |a: f64, b: f64| format!("{a:.0}/{b:.0}");
+    let beside = |e: &EndToEnd| {
+        format!(
+            "{} ({}) {:.2}",
+            pair(e.latency.p50_us, e.latency.p99_us),
+            pair(e.limit.p50_us, e.limit.p99_us),
+            e.ratio_p99.max(e.ratio_p50)
+        )
+    };
     let opt = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v:.0}"));
     for r in records {
         let (trip, offset) = match &r.link {
@@ -347,14 +360,14 @@ fn print_table(records: &[LayoutRecord]) {
             None => ("-".into(), "-".into()),
         };
         println!(
-            "{:<7} {:>5} {:>8.3} {:>8.2} {:>7.2} {:>15} {:>15} {:>13} {:>13} {:>9}",
+            "{:<7} {:>5} {:>8.3} {:>8.2} {:>7.2} {:>24} {:>24} {:>13} {:>13} {:>9}",
             r.layout,
             r.processes,
             r.tracking_rms_mm,
             r.display_error_pct,
             r.sensed_force_n,
-            pair(r.motion_to_command.p50_us, r.motion_to_command.p99_us),
-            pair(r.contact_to_force.p50_us, r.contact_to_force.p99_us),
+            beside(&r.motion_to_command),
+            beside(&r.contact_to_force),
             trip,
             pair(r.udp_echo_one_way.p50_us, r.udp_echo_one_way.p99_us),
             offset,
@@ -362,8 +375,9 @@ fn print_table(records: &[LayoutRecord]) {
     }
     println!(
         "latencies in µs, p50/p99: motion->cmd from the master's control tick to the slave's \
-         that used it, contact->force from the slave's tick to the master's; data plane and udp \
-         echo one-way, send to kernel arrival (the worse direction); hosts are network \
+         that used it, contact->force from the slave's tick to the master's, beside their limit \
+         (the data plane's one-way trip plus the wait for the receiving tick, for the same \
+         samples) and the worse of the p50 and p99 ratios; data plane and udp echo one-way, send to kernel arrival (the worse direction); hosts are network \
          namespaces of this machine"
     );
 }
@@ -413,8 +427,30 @@ fn placed(file: &str, host_of: &dyn Fn(&str) -> Option<IpAddr>) -> anyhow::Resul
     Ok(table.to_string())
 }
 
+/// `file` with every teleoperation channel's `handoff` set to `handoff`.
+fn with_handoff(file: &str, handoff: &str) -> anyhow::Result<String> {
+    let mut table: toml::Table = file.parse().context("parsing the system file")?;
+    if let Some(trajectories) = table
+        .get_mut("trajectories")
+        .and_then(toml::Value::as_table_mut)
+    {
+        for (_, t) in trajectories.iter_mut() {
+            if let Some(t) = t.as_table_mut()
+                && t.get("kind").and_then(toml::Value::as_str) == Some("teleop")
+            {
+                t.insert("handoff".into(), toml::Value::String(handoff.into()));
+            }
+        }
+    }
+    Ok(table.to_string())
+}
+
 /// Runs the task in `layout` and measures it.
-pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result<LayoutRecord> {
+pub fn run_layout(
+    layout: &Layout,
+    duration: Option<Duration>,
+    handoff: Option<&str>,
+) -> anyhow::Result<LayoutRecord> {
     let exe = std::env::current_exe().context("finding the penelope binary")?;
     let scratch = ScratchDir(std::env::temp_dir().join(format!(
         "penelope-layout-{}-{}",
@@ -433,6 +469,10 @@ pub fn run_layout(layout: &Layout, duration: Option<Duration>) -> anyhow::Result
     let file_text = placed(layout.system, &|n| {
         host_of_node(n).map(|h| hosts.address(h))
     })?;
+    let file_text = match handoff {
+        Some(h) => with_handoff(&file_text, h)?,
+        None => file_text,
+    };
     let system_path = scratch.0.join("system.toml");
     std::fs::write(&system_path, &file_text)?;
     let system = SystemFile::parse(&file_text).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -634,6 +674,15 @@ fn layout_record(
         (Some(m), Some(s)) => Some(summary(m, s, &udp_echo_one_way)),
         _ => None,
     };
+    // The transport each way: the data plane's median one-way trip (cells on one node: none).
+    let trip = |t: Option<f64>| Duration::from_secs_f64(t.unwrap_or(0.0).max(0.0) / 1e6);
+    let transport = link.map_or((Duration::ZERO, Duration::ZERO), |l| {
+        (
+            trip(l.master_to_slave.p50_us),
+            trip(l.slave_to_master.p50_us),
+        )
+    });
+    let (motion_to_command, contact_to_force) = latency::end_to_end(output, transport);
     LayoutRecord {
         layout: layout.name.into(),
         hosts: layout.hosts.len(),
@@ -643,8 +692,8 @@ fn layout_record(
         tracking_against_master_rms_mm: rep.tracking.against_master_rms_mm,
         sensed_force_n: rep.contact.sensed_force_n,
         display_error_pct: rep.contact.display_error_pct,
-        motion_to_command: Percentiles::of(latency::motion_to_command(output)),
-        contact_to_force: Percentiles::of(latency::contact_to_force(output)),
+        motion_to_command,
+        contact_to_force,
         udp_echo_one_way,
         udp_echo_lost,
         dropped_ticks: output.dropped,
