@@ -379,6 +379,8 @@ impl Creator {
             probe: built.probe,
             wrench: built.wrench,
             gains: built.gains,
+            goto: built.goto,
+            motion: built.motion,
         })
     }
 
