@@ -463,3 +463,48 @@ fn every_refusal_is_typed() {
     assert_eq!((s.state.as_str(), s.is_busy), ("ENABLED", false));
     assert!(max_error(&measured(&c), &start) < MAX_SERVO_STEP_RAD);
 }
+
+#[test]
+fn the_communication_task_drops_a_servo_target_past_the_step_limit_itself() {
+    // A target that crossed the node's check in flight (here: written straight into the
+    // motion port) is checked again where the reference is published.
+    let (c, start) = puma();
+    let mut d = c.detach_loop("pid").expect("the loop builds");
+    let mut q0 = penelope_hal::JointVector::zeros();
+    q0.as_mut_slice()[..6].copy_from_slice(&start);
+    // Steps the loop over ticks `from..to`; the last tick's joint reference.
+    let run = |d: &mut penelope_runtime::objects::DetachedLoop, from: u64, to: u64| {
+        let mut reference = None;
+        for i in from..to {
+            let now = penelope_hal::Timestamp::from_nanos(i * 1_000_000);
+            if i % 2 == 0 {
+                d.comm.tick(now);
+            }
+            d.control.tick(now);
+            while let Some(r) = d.telemetry.pop() {
+                reference = Some(r.sample.reference_q);
+            }
+        }
+        reference.expect("the loop ticked")
+    };
+    run(&mut d, 1, 200);
+    let mut jump = q0;
+    jump[1] += MAX_SERVO_STEP_RAD * 2.0;
+    d.motion
+        .servo(penelope_runtime::objects::runtime::ServoTarget { q: jump });
+    let r = run(&mut d, 200, 300);
+    assert_eq!(d.motion.status().servo_dropped(), 1);
+    assert!(
+        (r[1] - start[1]).abs() < 1e-9,
+        "the reference moved to {}",
+        r[1]
+    );
+    // A target within the limit is taken.
+    let mut step = q0;
+    step[1] += MAX_SERVO_STEP_RAD * 0.5;
+    d.motion
+        .servo(penelope_runtime::objects::runtime::ServoTarget { q: step });
+    let r = run(&mut d, 300, 310);
+    assert_eq!(d.motion.status().servo_dropped(), 1);
+    assert!((r[1] - step[1]).abs() < 1e-12);
+}
