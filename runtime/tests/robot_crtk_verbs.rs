@@ -402,6 +402,16 @@ fn every_refusal_is_typed() {
     for d in [0.0, -1.0, f64::NAN, f64::INFINITY, 3600.5] {
         bad(mv(start.clone(), d), "a bad duration", "duration");
     }
+    // Too fast for the joints' velocity limits (the loop would fault on the way): refused,
+    // saying how long it must take.
+    let work = joints_of(ok(
+        &c,
+        "arm",
+        Method::Robot(RobotMethod::NamedPose {
+            pose: NamedPose::Work,
+        }),
+    ));
+    bad(mv(work.clone(), 0.5), "too fast", "velocity limit");
     let far = PoseMsg {
         position: [5.0, 0.0, 0.0],
         ..here

@@ -430,6 +430,34 @@ impl Registry {
         Ok(Reply::Unit)
     }
 
+    /// Refuses a move of robot `name` to `goal` in `duration` that the joints' velocity limits
+    /// forbid: the spline from rest to rest peaks at 1.5 times the mean speed, and a joint
+    /// measured past its limit faults the loop.
+    fn check_move_speed(
+        &mut self,
+        name: &str,
+        goal: &JointVector,
+        duration: Duration,
+    ) -> Result<(), ObjectError> {
+        let from = self.current_reference(name)?;
+        let model = &self.robot(name)?.model;
+        let limits = model.limits();
+        let t = duration.as_secs_f64();
+        for j in 0..model.joint_count() {
+            let distance = (goal[j] - from[j]).abs();
+            let peak = 1.5 * distance / t;
+            if peak > limits.velocity_max[j] {
+                return Err(bad_arg(format!(
+                    "joint {j}: {distance:.3} rad in {t} s peaks at {peak:.2} rad/s, past its \
+                     velocity limit of {} rad/s: take at least {:.2} s",
+                    limits.velocity_max[j],
+                    1.5 * distance / limits.velocity_max[j]
+                )));
+            }
+        }
+        Ok(())
+    }
+
     /// CRTK `move_jp`.
     fn move_joints(
         &mut self,
@@ -439,6 +467,7 @@ impl Registry {
     ) -> Result<Reply, ObjectError> {
         let duration = move_duration(duration_s)?;
         let goal = self.joint_goal(name, q)?;
+        self.check_move_speed(name, &goal, duration)?;
         self.start_move(name, goal, duration)
     }
 
@@ -451,6 +480,7 @@ impl Registry {
     ) -> Result<Reply, ObjectError> {
         let duration = move_duration(duration_s)?;
         let goal = self.tool_goal(name, &pose)?;
+        self.check_move_speed(name, &goal, duration)?;
         self.start_move(name, goal, duration)
     }
 
