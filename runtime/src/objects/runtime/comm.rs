@@ -590,8 +590,7 @@ impl CommTask {
             self.moves_taken += 1;
         }
         // A servo target (checked against the reference published last) cancels a move: CRTK's
-        // servo commands take over from move commands.
-        // A GoTo taken in the same tick wins (it is applied after the target would be).
+        // servo commands take over from move commands. A GoTo taken in the same tick wins.
         let reference = self.last_q.unwrap_or(measured);
         let servo = self.take_servo(reference).filter(|_| goto.is_none());
         // A motion interrupted by a latched fault or e-stop is abandoned for a hold where the
@@ -708,6 +707,7 @@ impl CommTask {
             None => out,
         };
         match (&out, self.cartesian) {
+            _ if self.servo_ref.is_some() => self.last_q = self.servo_ref.map(|j| j.position),
             (Reference::Joint(j), _) => self.last_q = Some(j.position),
             // A Cartesian law's joint trajectory was converted: its joints are the feed's.
             (Reference::Cartesian(_), true) => {
