@@ -43,6 +43,7 @@ fn ctl_drives_a_node_through_the_naming_service() {
     the_node_registers(naming);
     a_script_sets_up_a_held_puma(naming);
     single_verbs_json_and_the_tree(naming);
+    crtk_verbs_move_and_refuse_a_servo_jump(naming);
     a_refusal_exits_1_and_bad_input_2(naming);
     a_script_on_standard_input_tears_down(naming);
 }
@@ -141,6 +142,40 @@ fn single_verbs_json_and_the_tree(naming: SocketAddr) {
         "{:?}",
         text(&o)
     );
+}
+
+/// The CRTK verbs: a joint move is busy until it is over (bounded wait on the real clock), a
+/// servo jump past the step limit is refused (exit 1), a bad duration is bad input (exit 2).
+fn crtk_verbs_move_and_refuse_a_servo_jump(naming: SocketAddr) {
+    let o = PENELOPE.ctl(naming, &["call", "lab/slave", "move-jp", "work", "2.0"]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    let started = Instant::now();
+    let deadline = started + Duration::from_secs(30);
+    loop {
+        let o = PENELOPE.ctl(naming, &["call", "lab/slave", "operating-state"]);
+        let (out, err) = text(&o);
+        assert!(o.status.success(), "{err}");
+        if !out.contains("operating state: ENABLED") {
+            let status = PENELOPE.ctl(naming, &["call", "lab/pid", "status"]);
+            panic!("{out}\n{:?}", text(&status));
+        }
+        if out.contains("busy: false") {
+            break;
+        }
+        assert!(Instant::now() < deadline, "still busy: {out}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    println!(
+        "move-jp of 2 s: busy for {:.2} s (real clock, polled)",
+        started.elapsed().as_secs_f64()
+    );
+    let o = PENELOPE.ctl(naming, &["call", "lab/slave", "setpoints"]);
+    assert!(text(&o).0.contains("joints:"), "{:?}", text(&o));
+    let o = PENELOPE.ctl(naming, &["call", "lab/slave", "servo-jp", "start"]);
+    assert_eq!(o.status.code(), Some(1), "{:?}", text(&o));
+    assert!(text(&o).1.contains("step limit"), "{:?}", text(&o));
+    let o = PENELOPE.ctl(naming, &["call", "lab/slave", "move-jp", "start", "-1"]);
+    assert_eq!(o.status.code(), Some(2), "{:?}", text(&o));
 }
 
 /// Errors: a node's refusal exits 1, bad input exits 2.

@@ -108,6 +108,7 @@ impl Creator {
             commands,
             stop,
             goto,
+            motion,
             gains,
             probe,
             wrench,
@@ -162,6 +163,7 @@ impl Creator {
             commands,
             stop,
             goto,
+            motion,
             gains,
             pump: None,
             aux_stop,
@@ -379,6 +381,8 @@ impl Creator {
             probe: built.probe,
             wrench: built.wrench,
             gains: built.gains,
+            goto: built.goto,
+            motion: built.motion,
         })
     }
 

@@ -249,6 +249,10 @@ pub struct DetachedLoop {
     /// New gains to the control task (what `set-gains` sends a running loop).
     pub gains:
         penelope_rt_core::ring::ArcProducer<runtime::RoutedGains, { runtime::GAINS_CAPACITY }>,
+    /// Moves to the communication task (what GoTo, `move_jp` and `move_cp` push).
+    pub goto: penelope_rt_core::ring::ArcProducer<runtime::GoToCommand, { runtime::GOTO_CAPACITY }>,
+    /// Servo targets to the communication task, and its moves' status.
+    pub motion: runtime::MotionControl,
 }
 
 impl Creator {

@@ -86,8 +86,15 @@ fn method_needs(method: &Method) -> Needs {
             | RobotMethod::RadiansToCounts { .. }
             | RobotMethod::NamedPose { .. }
             | RobotMethod::Description
-            | RobotMethod::LinkFrames { .. } => Needs::Watch,
-            RobotMethod::GoTo { .. } | RobotMethod::MapJoints { .. } => Needs::Operate,
+            | RobotMethod::LinkFrames { .. }
+            | RobotMethod::Setpoints
+            | RobotMethod::OperatingState => Needs::Watch,
+            RobotMethod::GoTo { .. }
+            | RobotMethod::MapJoints { .. }
+            | RobotMethod::MoveJoints { .. }
+            | RobotMethod::MoveTool { .. }
+            | RobotMethod::ServoJoints { .. }
+            | RobotMethod::ServoTool { .. } => Needs::Operate,
         },
         Method::Board(m) => match m {
             BoardMethod::AxisCount | BoardMethod::ReadEncoders | BoardMethod::AmplifiersEnabled => {
@@ -212,6 +219,27 @@ mod tests {
             assert!(authorize_call(id(role), &estop).is_ok(), "{role:?}");
             assert!(authorize_call(id(role), &estop_node).is_ok(), "{role:?}");
             assert!(authorize_call(id(role), &list).is_ok(), "{role:?}");
+        }
+        // The CRTK verbs: moves and servo targets operate, the two reads are for everyone.
+        let robot = |method: RobotMethod| Call::Object {
+            object: "arm".into(),
+            method: Method::Robot(method),
+        };
+        for (method, reader_may) in [
+            (
+                RobotMethod::MoveJoints {
+                    q: vec![0.0],
+                    duration_s: 1.0,
+                },
+                false,
+            ),
+            (RobotMethod::ServoJoints { q: vec![0.0] }, false),
+            (RobotMethod::Setpoints, true),
+            (RobotMethod::OperatingState, true),
+        ] {
+            let call = robot(method);
+            assert_eq!(authorize_call(id(Role::Reader), &call).is_ok(), reader_may);
+            assert!(authorize_call(id(Role::Operator), &call).is_ok());
         }
         let e = authorize_call(id(Role::Reader), &create).unwrap_err();
         assert!(

@@ -41,6 +41,11 @@ Robots (Q: joint values in rad, space- or comma-separated, or a pose name nest|s
   counts-to-radians C...            encoder counts to rad;  radians-to-counts Q: the reverse
   named-pose nest|start|work        the joints of a named pose
   go-to nest|start|work SECONDS     move there through the robot's active controller
+  move-jp Q SECONDS                 CRTK move_jp: a smooth move to the joints Q (rad)
+  move-cp X Y Z [N O [A]] SECONDS   CRTK move_cp: a smooth move to a tool pose (as ik)
+  servo-jp Q | servo-cp X Y Z [N O [A]]
+                                    CRTK servo: jump the reference there (at most 0.05 rad a joint)
+  setpoints | operating-state       the reference followed now; DISABLED|ENABLED|PAUSED|FAULT, busy
   map-joints BOARD J:A [J:A...]     drive joint J by axis A of BOARD (0-based)
 Boards:
   axis-count | read-encoders | amplifiers-enabled
@@ -370,6 +375,39 @@ fn robot_joint_method(
             }
             robot(RobotMethod::GoTo { pose, duration_s }, none)
         }
+        "move-jp" | "move-cp" => {
+            let Some((secs, goal)) = args.split_last() else {
+                return Err(usage(format!("`{name}` needs a goal and SECONDS")));
+            };
+            let duration_s = number(secs, "duration")?;
+            if duration_s <= 0.0 {
+                return Err(usage("the duration must be > 0 s"));
+            }
+            if name == "move-jp" {
+                let q = joints(goal, lookup)?
+                    .ok_or_else(|| usage("`move-jp` needs Q (joint values or a pose name)"))?;
+                robot(RobotMethod::MoveJoints { q, duration_s }, none)
+            } else {
+                let pose = target(goal, lookup)?;
+                robot(RobotMethod::MoveTool { pose, duration_s }, none)
+            }
+        }
+        "servo-jp" => {
+            let q = joints(args, lookup)?.ok_or_else(|| usage("`servo-jp` needs Q"))?;
+            robot(RobotMethod::ServoJoints { q }, none)
+        }
+        "servo-cp" => {
+            let pose = target(args, lookup)?;
+            robot(RobotMethod::ServoTool { pose }, none)
+        }
+        "setpoints" | "setpoint" => {
+            no_args(name, args)?;
+            robot(RobotMethod::Setpoints, none)
+        }
+        "operating-state" => {
+            no_args(name, args)?;
+            robot(RobotMethod::OperatingState, none)
+        }
         "map-joints" => {
             let Some((board, pairs)) = args.split_first() else {
                 return Err(usage("`map-joints` needs BOARD J:A [J:A...]"));
@@ -570,6 +608,31 @@ mod tests {
                 duration_s: 2.0
             })
         );
+        let (m, _) = parse("move-jp", &words("0,0.1 -0.2 1.5"), &mut lookup).unwrap();
+        assert_eq!(
+            m,
+            Method::Robot(RobotMethod::MoveJoints {
+                q: vec![0.0, 0.1, -0.2],
+                duration_s: 1.5
+            })
+        );
+        let (m, _) = parse("move-cp", &words("0.5 0 0.2 1 0 0 0 -1 0 3"), &mut lookup).unwrap();
+        let Method::Robot(RobotMethod::MoveTool { pose, duration_s }) = m else {
+            panic!("{m:?}")
+        };
+        assert_eq!(
+            (pose.position, pose.a, duration_s),
+            ([0.5, 0.0, 0.2], [0.0, 0.0, -1.0], 3.0)
+        );
+        let (m, _) = parse("servo-jp", &words("0.1 0.2"), &mut lookup).unwrap();
+        assert_eq!(
+            m,
+            Method::Robot(RobotMethod::ServoJoints { q: vec![0.1, 0.2] })
+        );
+        let (m, _) = parse("operating-state", &[], &mut lookup).unwrap();
+        assert_eq!(m, Method::Robot(RobotMethod::OperatingState));
+        let (m, _) = parse("setpoints", &[], &mut lookup).unwrap();
+        assert_eq!(m, Method::Robot(RobotMethod::Setpoints));
         let (m, _) = parse("ik", &words("0.5 0 0.2 1 0 0 0 -1 0"), &mut lookup).unwrap();
         let Method::Robot(RobotMethod::InverseKinematics { pose }) = m else {
             panic!("{m:?}")
@@ -602,6 +665,15 @@ mod tests {
             ("fk", "0 inf"),
             ("go-to", "work -1"),
             ("go-to", "home 1"),
+            ("move-jp", ""),
+            ("move-jp", "2"),
+            ("move-jp", "0 0 0 0"),
+            ("move-jp", "0 0 0 nan"),
+            ("move-cp", "0.5 0 0.2"),
+            ("move-cp", "1 2 3"),
+            ("servo-jp", ""),
+            ("servo-cp", "1 2"),
+            ("operating-state", "now"),
             ("map-joints", "b 0-1"),
             ("frobnicate", ""),
             ("status", "now"),

@@ -100,7 +100,10 @@ impl Registry {
             cartesian,
             sensor_mount: plant_sensor.map(|c| c.mount).or(inputs.mount),
         };
-        let comm = self.comm_task(&plan, source, feed, &kinematics)?;
+        let (motion_w, motion_r) = crate::objects::runtime::motion_port();
+        let comm = self
+            .comm_task(&plan, source, feed, &kinematics)?
+            .with_motion(motion_r);
         let source = match (&plan.sensor, inputs.local) {
             (Some(_), None) => inputs.stream,
             (_, Some(_)) if plant_sensor.is_some() => None,
@@ -115,6 +118,7 @@ impl Registry {
             commands: cmd_w,
             stop,
             goto: goto_w,
+            motion: motion_w,
             gains: gains_w,
             probe: probe_r,
             wrench: wrench_w,
@@ -741,6 +745,8 @@ pub(crate) struct Built {
         GoToCommand,
         { crate::objects::runtime::GOTO_CAPACITY },
     >,
+    /// Servo targets to the communication task, and its moves' status.
+    pub motion: crate::objects::runtime::MotionControl,
     pub gains: penelope_rt_core::ring::ArcProducer<
         RoutedGains,
         { crate::objects::runtime::GAINS_CAPACITY },

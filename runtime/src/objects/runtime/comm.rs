@@ -9,12 +9,14 @@ use penelope_hal::{
     Frame, InverseKinematics, JacobianFrame, JointReference, JointSet, JointVector, Kinematics,
     MAX_JOINTS, Reference, Timestamp, Trajectory, TrajectoryError, Twist,
 };
-use penelope_rt_core::cell::{ArcLatestReader, Stamped};
+use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, Stamped, latest};
 use penelope_rt_core::ring::ArcConsumer;
 use penelope_rt_core::telemetry::TelemetrySample;
 use penelope_rt_core::trajectory::{
     CubicSpline, Goal, Ramp, SplineEnds, Step, Trapezoidal, Waypoint,
 };
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 /// The trajectories a node runs. Inline, not boxed: a GoTo swaps the variant in the
@@ -106,6 +108,120 @@ pub struct GoToCommand {
     pub goal: JointVector,
     /// Duration.
     pub duration: Duration,
+}
+
+/// The largest servo step (CRTK `servo_jp` / `servo_cp`): a target farther than this from the
+/// current reference, on any joint, is refused, so a stream cannot jump the arm. 0.05 rad per
+/// target is 50 rad/s at one target per millisecond: loose for a stream, tight for a mistake.
+pub const MAX_SERVO_STEP_RAD: f64 = 0.05;
+
+/// A move (GoTo, `move_jp`, `move_cp`) is over once its spline has ended and every joint is
+/// within this of the goal, rad...
+pub const MOVE_SETTLED_RAD: f64 = 1e-3;
+
+/// ...or this long after its spline ended, settled or not (a robot pushing against something
+/// never settles; a client waiting on `is_busy` must not wait forever).
+pub const MOVE_SETTLE_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// A servo target (CRTK `servo_jp`; `servo_cp` after inverse kinematics): the reference jumps to
+/// `q` and stays there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ServoTarget {
+    /// Joint positions, rad.
+    pub q: JointVector,
+}
+
+/// What the communication task tells the node about moves and servo targets: counters only,
+/// atomics, so neither side waits for the other.
+#[derive(Debug, Default)]
+pub struct MotionStatus {
+    /// Moves handed to the GoTo ring (counted by the node before the push).
+    requested: AtomicU64,
+    /// Moves the communication task took and saw end (reached, superseded, cancelled by a
+    /// servo target, abandoned for a fault).
+    completed: AtomicU64,
+    /// Servo targets the communication task dropped because they were farther than
+    /// [`MAX_SERVO_STEP_RAD`] from its reference when they arrived.
+    servo_dropped: AtomicU64,
+}
+
+impl MotionStatus {
+    /// Whether a move is queued or under way (CRTK `is_busy`).
+    pub fn is_busy(&self) -> bool {
+        self.completed.load(Ordering::Acquire) < self.requested.load(Ordering::Acquire)
+    }
+
+    /// Servo targets dropped by the communication task's own step check.
+    pub fn servo_dropped(&self) -> u64 {
+        self.servo_dropped.load(Ordering::Relaxed)
+    }
+}
+
+/// The node's end of a loop's motion port: servo targets in, the motion status out.
+pub struct MotionControl {
+    servo: ArcLatestWriter<ServoTarget>,
+    status: Arc<MotionStatus>,
+}
+
+impl MotionControl {
+    /// Counts a move about to be pushed onto the GoTo ring (before the push, so that
+    /// [`MotionStatus::is_busy`] is true from the moment the call returns).
+    pub fn move_requested(&self) {
+        self.status.requested.fetch_add(1, Ordering::AcqRel);
+    }
+
+    /// Takes back [`move_requested`](Self::move_requested) when the push failed.
+    pub fn move_not_queued(&self) {
+        self.status.requested.fetch_sub(1, Ordering::AcqRel);
+    }
+
+    /// Hands a servo target to the communication task (newest wins: one it has not taken yet is
+    /// replaced).
+    pub fn servo(&mut self, target: ServoTarget) {
+        self.servo.write(target);
+    }
+
+    /// The motion status.
+    pub fn status(&self) -> &MotionStatus {
+        &self.status
+    }
+}
+
+impl std::fmt::Debug for MotionControl {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MotionControl")
+            .field("status", &self.status)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The communication task's end of a motion port.
+pub struct MotionPort {
+    servo: ArcLatestReader<ServoTarget>,
+    status: Arc<MotionStatus>,
+}
+
+/// A new motion port, split into its two ends. Allocates here, once: a latest-value cell for
+/// servo targets (newest wins, no queue to fill: a stream faster than the communication period
+/// loses only superseded targets) and the shared counters.
+pub fn motion_port() -> (MotionControl, MotionPort) {
+    let (w, r) = latest();
+    let status = Arc::new(MotionStatus::default());
+    (
+        MotionControl {
+            servo: w,
+            status: status.clone(),
+        },
+        MotionPort { servo: r, status },
+    )
+}
+
+/// A move under way in a communication task.
+#[derive(Clone, Copy, Debug)]
+struct ActiveMove {
+    goal: JointVector,
+    /// When its spline ends.
+    end: Timestamp,
 }
 
 /// Where a communication task's references come from.
@@ -253,6 +369,20 @@ impl TrajectoryFeed {
     }
 }
 
+/// A joint reference as a Cartesian law follows it: forward kinematics and `J qd`.
+fn cartesian_of(model: &RobotKinematics, j: &JointReference) -> Reference {
+    let pose = model.forward(&j.position);
+    let v = model.jacobian(&j.position, JacobianFrame::Base) * j.velocity;
+    Reference::Cartesian(penelope_hal::CartesianReference {
+        pose,
+        twist: Twist {
+            linear: v.fixed_rows::<3>(0).into(),
+            angular: v.fixed_rows::<3>(3).into(),
+            frame: Frame::Base,
+        },
+    })
+}
+
 /// The per-tick body of a communication thread: starts the trajectory from the measured state
 /// (no jump), swaps in GoTo motions from the current reference (no jump in position or velocity),
 /// converts joint references to Cartesian ones for a Cartesian law (forward kinematics and
@@ -269,6 +399,20 @@ pub struct CommTask {
     /// Since the loop latched a fault or e-stop, and until it runs again (or a GoTo comes):
     /// the motion was interrupted, the trajectory is a hold where the robot is.
     reanchoring: bool,
+    /// Servo targets in, move status out (none for a task built without one).
+    motion: Option<MotionPort>,
+    /// Moves taken from the GoTo ring.
+    moves_taken: u64,
+    /// The move under way, until it ends.
+    active_move: Option<ActiveMove>,
+    /// In servo mode: when the newest servo target was taken. The reference is published with
+    /// this stamp, so that the loop's watchdog sees a stream that stopped.
+    servo_since: Option<Timestamp>,
+    /// In servo mode: the newest target, with the velocity between it and the one before (a
+    /// feed-forward, so that a joint law follows a stream without lagging it).
+    servo_ref: Option<JointReference>,
+    /// The joint reference published last.
+    last_q: Option<JointVector>,
 }
 
 impl CommTask {
@@ -303,6 +447,63 @@ impl CommTask {
             measured: None,
             published: 0,
             reanchoring: false,
+            motion: None,
+            moves_taken: 0,
+            active_move: None,
+            servo_since: None,
+            servo_ref: None,
+            last_q: None,
+        }
+    }
+
+    /// The same task taking servo targets from `port` and reporting its moves there.
+    pub fn with_motion(mut self, port: MotionPort) -> Self {
+        self.motion = Some(port);
+        self
+    }
+
+    /// The newest servo target not taken yet, if it is within [`MAX_SERVO_STEP_RAD`] of the
+    /// current reference (`reference`); a farther one is dropped and counted.
+    fn take_servo(&mut self, reference: JointVector) -> Option<JointVector> {
+        let port = self.motion.as_mut()?;
+        let Fresh::New(target) = port.servo.read() else {
+            return None;
+        };
+        let n = self.model.joint_count().min(MAX_JOINTS);
+        let within = (0..n).all(|j| {
+            target.q[j].is_finite() && (target.q[j] - reference[j]).abs() <= MAX_SERVO_STEP_RAD
+        });
+        if within {
+            Some(target.q)
+        } else {
+            port.status.servo_dropped.fetch_add(1, Ordering::Relaxed);
+            None
+        }
+    }
+
+    /// Ends the move under way (if any) and reports every move taken so far as ended.
+    fn end_move(&mut self) {
+        self.active_move = None;
+        if let Some(port) = &self.motion {
+            port.status
+                .completed
+                .store(self.moves_taken, Ordering::Release);
+        }
+    }
+
+    /// Ends the move under way once its spline has ended and the robot settled at its goal
+    /// (or [`MOVE_SETTLE_TIMEOUT`] after the spline's end).
+    fn check_move(&mut self, now: Timestamp, measured: &JointVector) {
+        let Some(m) = self.active_move else {
+            return;
+        };
+        if now < m.end {
+            return;
+        }
+        let n = self.model.joint_count().min(MAX_JOINTS);
+        let settled = (0..n).all(|j| (measured[j] - m.goal[j]).abs() <= MOVE_SETTLED_RAD);
+        if settled || now.saturating_since(m.end) >= MOVE_SETTLE_TIMEOUT {
+            self.end_move();
         }
     }
 
@@ -385,6 +586,13 @@ impl CommTask {
             return;
         };
         let goto = self.goto.pop();
+        if goto.is_some() {
+            self.moves_taken += 1;
+        }
+        // A servo target (checked against the reference published last) cancels a move: CRTK's
+        // servo commands take over from move commands. A GoTo taken in the same tick wins.
+        let reference = self.last_q.unwrap_or(measured);
+        let servo = self.take_servo(reference).filter(|_| goto.is_none());
         // A motion interrupted by a latched fault or e-stop is abandoned for a hold where the
         // robot is, re-taken every tick while latched and after the re-arm until the loop
         // follows it (the loop holds until a reference starts where it holds the robot): the
@@ -394,36 +602,65 @@ impl CommTask {
         if matches!(state, Some(SafetyState::Fault | SafetyState::EStop)) {
             self.reanchoring = true;
         }
-        if state == Some(SafetyState::Running) || goto.is_some() {
+        if state == Some(SafetyState::Running) || goto.is_some() || servo.is_some() {
             self.reanchoring = false;
         }
         let reanchor = self.reanchoring;
+        // A servo stream that stopped: the loop's watchdog saw the stale stamp and holds; the
+        // task then holds where the robot is with fresh stamps, so the loop runs on, still,
+        // instead of faulting after `stale_to_fault`.
+        let stream_stopped = servo.is_none()
+            && self.servo_since.is_some_and(|at| {
+                sample.is_some_and(|s| s.state == SafetyState::Holding && s.time > at)
+            });
+        if reanchor || stream_stopped || goto.is_some() {
+            self.servo_since = None;
+            self.servo_ref = None;
+        }
+        // A fault abandons the move, a servo target cancels it.
+        if reanchor || servo.is_some() {
+            self.end_move();
+        }
+        if let Some(q) = servo {
+            let velocity = match (self.servo_ref, self.servo_since) {
+                (Some(previous), Some(at)) if now > at => {
+                    (q - previous.position) / now.saturating_since(at).as_secs_f64()
+                }
+                _ => JointVector::zeros(),
+            };
+            self.servo_ref = Some(JointReference {
+                position: q,
+                velocity,
+                acceleration: JointVector::zeros(),
+            });
+            self.servo_since = Some(now);
+        }
+        if let Some(cmd) = goto {
+            self.servo_since = None;
+            self.active_move = Some(ActiveMove {
+                goal: cmd.goal,
+                end: now + cmd.duration,
+            });
+        }
+        let hold_here = reanchor || (stream_stopped && goto.is_none());
         let model = &self.model;
         let out = match &mut self.source {
             ReferenceSource::Teleop(_) => return,
             ReferenceSource::Trajectory(feed) => {
-                if reanchor {
+                if hold_here {
                     feed.hold_at(now, measured);
                 }
                 feed.start_once(now, measured, model);
+                if let Some(q) = servo {
+                    feed.hold_at(now, q);
+                }
                 if let Some(cmd) = goto
                     && let Ok(motion) = TrajectoryGenerator::go_to(cmd.goal, cmd.duration)
                 {
                     feed.go_to(motion, now, measured, model);
                 }
                 match feed.next(now, measured, model, self.cartesian) {
-                    Some(Reference::Joint(j)) if self.cartesian => {
-                        let pose = model.forward(&j.position);
-                        let v = model.jacobian(&j.position, JacobianFrame::Base) * j.velocity;
-                        Reference::Cartesian(penelope_hal::CartesianReference {
-                            pose,
-                            twist: Twist {
-                                linear: v.fixed_rows::<3>(0).into(),
-                                angular: v.fixed_rows::<3>(3).into(),
-                                frame: Frame::Base,
-                            },
-                        })
-                    }
+                    Some(Reference::Joint(j)) if self.cartesian => cartesian_of(model, &j),
                     Some(r) => r,
                     None => return,
                 }
@@ -434,10 +671,14 @@ impl CommTask {
                     ..JointReference::default()
                 };
                 for (joints, feed) in feeds.iter_mut() {
-                    if reanchor {
+                    if hold_here {
                         feed.hold_at(now, measured);
                     }
                     feed.start_once(now, measured, model);
+                    // A servo target moves the whole robot, as a GoTo does.
+                    if let Some(q) = servo {
+                        feed.hold_at(now, q);
+                    }
                     // A GoTo moves the whole robot: every group to its joints of the goal.
                     if let Some(cmd) = goto
                         && let Ok(motion) = TrajectoryGenerator::go_to(cmd.goal, cmd.duration)
@@ -458,11 +699,34 @@ impl CommTask {
                 Reference::Joint(merged)
             }
         };
+        // In servo mode the target itself, with its velocity (the feeds hold its position, for
+        // when the mode ends).
+        let out = match self.servo_ref {
+            Some(j) if self.cartesian => cartesian_of(&self.model, &j),
+            Some(j) => Reference::Joint(j),
+            None => out,
+        };
+        match (&out, self.cartesian) {
+            _ if self.servo_ref.is_some() => self.last_q = self.servo_ref.map(|j| j.position),
+            (Reference::Joint(j), _) => self.last_q = Some(j.position),
+            // A Cartesian law's joint trajectory was converted: its joints are the feed's.
+            (Reference::Cartesian(_), true) => {
+                self.last_q = match &self.source {
+                    ReferenceSource::Trajectory(f) => f.last.map(|j| j.position),
+                    _ => None,
+                }
+            }
+            _ => self.last_q = None,
+        }
         self.writer.write(Stamped {
-            stamp: now,
+            stamp: self.servo_since.unwrap_or(now),
             value: out,
         });
         self.published += 1;
+        self.check_move(now, &measured);
+        if self.active_move.is_none() {
+            self.end_move();
+        }
     }
 
     /// An early wake at `now`, between ticks (a teleoperation end's doorbell or socket): the

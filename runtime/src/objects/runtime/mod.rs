@@ -59,7 +59,11 @@ mod telemetry;
 mod threads;
 
 pub use board::{GalilSet, JointBoard, JointBoardError, MAX_PLANT_STEP_NS, SimDrive, SimObserver};
-pub use comm::{CommTask, GoToCommand, TrajectoryFeed, TrajectoryGenerator};
+pub use comm::{
+    CommTask, GoToCommand, MAX_SERVO_STEP_RAD, MOVE_SETTLE_TIMEOUT, MOVE_SETTLED_RAD,
+    MotionControl, MotionPort, MotionStatus, ServoTarget, TrajectoryFeed, TrajectoryGenerator,
+    motion_port,
+};
 pub(crate) use control::Loop;
 pub use control::{
     CellSensor, CellSensorError, ControlLaw, ControlTask, GainsUpdate, RobotLoop, RoutedGains,

@@ -30,6 +30,8 @@ pub struct Running {
     pub stop: Arc<penelope_rt_core::stop::StopLatch>,
     /// GoTo requests to the communication task.
     pub goto: ArcProducer<GoToCommand, GOTO_CAPACITY>,
+    /// Servo targets to the communication task, and its moves' status.
+    pub motion: crate::objects::runtime::MotionControl,
     /// New gains to the loop.
     pub gains: ArcProducer<RoutedGains, GAINS_CAPACITY>,
     /// The pump thread and its stop flag.
