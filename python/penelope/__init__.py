@@ -13,16 +13,23 @@ Errors are exceptions of the class named by the wire error's kind (:class:`Unkno
 
 from ._client import (
     Array,
+    Board,
     Client,
     Controller,
+    JointState,
+    Link,
+    LinkWatch,
     Object,
     Proxy,
+    Recording,
     Robot,
     Sensor,
+    Trajectory,
     Watch,
     connect,
     watch,
 )
+from ._recording import read_recording
 # One exception class per kind of error.
 from ._errors import (
     PenelopeError,
@@ -61,14 +68,21 @@ from ._native import __version__
 
 __all__ = [
     "Array",
+    "Board",
     "Client",
     "Controller",
+    "JointState",
+    "Link",
+    "LinkWatch",
     "Object",
     "Proxy",
+    "Recording",
     "Robot",
     "Sensor",
+    "Trajectory",
     "Watch",
     "connect",
+    "read_recording",
     "watch",
     "__version__",
     "PenelopeError",

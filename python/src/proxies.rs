@@ -1,8 +1,11 @@
 //! The typed proxies of remote objects, as Python classes: a robot, a sensor, a controller,
 //! and an object of any class (its lifecycle only).
 
-use penelope_protocol::client::{ControllerProxy, Lifecycle, ObjectProxy, RobotProxy, SensorProxy};
-use penelope_protocol::proto::parse_transition;
+use penelope_protocol::client::{
+    BoardProxy, ControllerProxy, Lifecycle, ObjectProxy, RobotProxy, SensorProxy, TrajectoryProxy,
+};
+use penelope_protocol::net::conn::RpcError;
+use penelope_protocol::proto::{Method, ReferenceMsg, Reply, TrajectoryMethod, parse_transition};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -79,6 +82,20 @@ pub struct Sensor {
 pub struct Controller {
     /// The Rust proxy.
     pub p: ControllerProxy,
+}
+
+/// A remote board (encoders and amplifiers).
+#[pyclass(module = "penelope._native", frozen)]
+pub struct Board {
+    /// The Rust proxy.
+    pub p: BoardProxy,
+}
+
+/// A remote trajectory.
+#[pyclass(module = "penelope._native", frozen)]
+pub struct Trajectory {
+    /// The Rust proxy.
+    pub p: TrajectoryProxy,
 }
 
 /// A remote object of any class.
@@ -163,6 +180,13 @@ methods_with_lifecycle!(Robot {
         Ok(values::first(&g, n))
     }
 
+    /// The wrench at the tool from the bound force sensor, `[fx, fy, fz, tx, ty, tz]`, base
+    /// frame.
+    fn tool_wrench(&self, py: Python<'_>) -> PyResult<Vec<f64>> {
+        let w = py.detach(|| self.p.tool_wrench()).map_err(Error)?;
+        Ok(values::wrench_values(&w))
+    }
+
     /// Maps joint `j` to axis `a` of `board` for each `(j, a)`.
     fn map_joints(&self, py: Python<'_>, board: &str, joints: Vec<(usize, usize)>) -> PyResult<()> {
         Ok(py.detach(|| self.p.map_joints(board, &joints)).map_err(Error)?)
@@ -198,6 +222,12 @@ methods_with_lifecycle!(Controller {
         Ok(py.detach(|| self.p.set_trajectory(trajectory)).map_err(Error)?)
     }
 
+    /// Relates the controller to the force sensor `sensor` (a name on its node, or the
+    /// naming path of a sensor on another node).
+    fn set_sensor(&self, py: Python<'_>, sensor: &str) -> PyResult<()> {
+        Ok(py.detach(|| self.p.set_sensor(sensor)).map_err(Error)?)
+    }
+
     /// Latches the emergency stop.
     fn estop(&self, py: Python<'_>) -> PyResult<()> {
         Ok(py.detach(|| self.p.estop()).map_err(Error)?)
@@ -222,5 +252,78 @@ methods_with_lifecycle!(Controller {
             None => d.set_item("last", py.None())?,
         }
         Ok(d)
+    }
+});
+
+methods_with_lifecycle!(Board {
+    /// Number of axes.
+    fn axis_count(&self, py: Python<'_>) -> PyResult<usize> {
+        Ok(py.detach(|| self.p.axis_count()).map_err(Error)?)
+    }
+
+    /// Encoder positions of every axis, counts.
+    fn read_encoders(&self, py: Python<'_>) -> PyResult<Vec<i64>> {
+        Ok(py.detach(|| self.p.read_encoders()).map_err(Error)?)
+    }
+
+    /// Whether the amplifiers are enabled (the board's word).
+    fn amplifiers_enabled(&self, py: Python<'_>) -> PyResult<bool> {
+        Ok(py.detach(|| self.p.amplifiers_enabled()).map_err(Error)?)
+    }
+
+    /// Asks the board to leave a fault it latched itself.
+    fn rearm(&self, py: Python<'_>) -> PyResult<()> {
+        Ok(py.detach(|| self.p.rearm()).map_err(Error)?)
+    }
+});
+
+methods_with_lifecycle!(Trajectory {
+    /// The reference at `t` seconds after the start, as the wire carries it (so a joint
+    /// reference keeps its joint count): a dict with `type` (`joint`, `cartesian`, `wrench`)
+    /// and `q`, `qd` / `pose` (16 values row by row) / `force`, `torque`.
+    fn reference<'py>(&self, py: Python<'py>, t: f64) -> PyResult<Bound<'py, PyDict>> {
+        if !t.is_finite() {
+            return Err(bad_argument(format!("time must be finite, got {t}")).into());
+        }
+        let r = py
+            .detach(|| {
+                match self
+                    .p
+                    .handle()
+                    .call(Method::Trajectory(TrajectoryMethod::Reference { t_s: t }))?
+                {
+                    Reply::Reference(r) => Ok(r),
+                    other => Err(RpcError::Protocol(format!(
+                        "expected a reference, got {other:?}"
+                    ))),
+                }
+            })
+            .map_err(Error)?;
+        let d = PyDict::new(py);
+        match r {
+            ReferenceMsg::Joint { q, qd } => {
+                d.set_item("type", "joint")?;
+                d.set_item("q", q)?;
+                d.set_item("qd", qd)?;
+            }
+            ReferenceMsg::Cartesian { pose } => {
+                let pose = pose
+                    .to_pose()
+                    .map_err(|e| Error(RpcError::Protocol(format!("a bad pose: {e}"))))?;
+                d.set_item("type", "cartesian")?;
+                d.set_item("pose", values::pose_rows(&pose))?;
+            }
+            ReferenceMsg::Wrench { wrench } => {
+                d.set_item("type", "wrench")?;
+                d.set_item("force", wrench.force.to_vec())?;
+                d.set_item("torque", wrench.torque.to_vec())?;
+            }
+        }
+        Ok(d)
+    }
+
+    /// The total duration, s (`None` for an endless trajectory).
+    fn duration(&self, py: Python<'_>) -> PyResult<Option<f64>> {
+        Ok(py.detach(|| self.p.duration()).map_err(Error)?)
     }
 });
