@@ -14,8 +14,9 @@ use penelope_protocol::net::auth::{self, ClientHandshake};
 use penelope_protocol::net::frame;
 use penelope_protocol::proto::{
     Call, CallError, ClientHello, ClientMsg, CreatorCall, DEFAULT_MAX_FRAME, LinkBatch, LinkRecord,
-    MAGIC, Method, PROTOCOL_VERSION, PoseMsg, ProtocolError, Reply, RobotMethod, Role, Security,
-    ServerHello, ServerMsg, StopReport, TelemetryBatch, TelemetryRecord, WireError, WrenchMsg,
+    MAGIC, Method, OperatingStateMsg, PROTOCOL_VERSION, PoseMsg, ProtocolError, Reply, RobotMethod,
+    Role, Security, ServerHello, ServerMsg, SetpointsMsg, StopReport, TelemetryBatch,
+    TelemetryRecord, WireError, WrenchMsg,
 };
 use serde::Serialize;
 
@@ -107,6 +108,7 @@ fn examples() -> BTreeMap<&'static str, Vec<u8>> {
     session_examples(&mut m);
     call_examples(&mut m);
     creator_examples(&mut m);
+    crtk_examples(&mut m);
     m
 }
 
@@ -322,6 +324,64 @@ fn creator_examples(m: &mut BTreeMap<&'static str, Vec<u8>>) {
             call: Call::Creator(CreatorCall::ApplySystem {
                 text: "[boards.io]\nkind = \"sim\"\n".into(),
             }),
+        }),
+    );
+}
+
+/// The CRTK verbs: a joint move, a servo target, the setpoints and the operating state.
+fn crtk_examples(m: &mut BTreeMap<&'static str, Vec<u8>>) {
+    let robot = |id: u64, method: RobotMethod| {
+        framed(&ClientMsg::Request {
+            id,
+            call: Call::Object {
+                object: "slave".into(),
+                method: Method::Robot(method),
+            },
+        })
+    };
+    m.insert(
+        "request-move-joints",
+        robot(
+            8,
+            RobotMethod::MoveJoints {
+                q: vec![0.0, -0.5, 0.5],
+                duration_s: 2.0,
+            },
+        ),
+    );
+    m.insert(
+        "request-servo-joints",
+        robot(
+            9,
+            RobotMethod::ServoJoints {
+                q: vec![0.0, -0.5, 0.5],
+            },
+        ),
+    );
+    m.insert(
+        "response-setpoints",
+        framed(&ServerMsg::Response {
+            id: 10,
+            result: Ok(Reply::Setpoints(SetpointsMsg {
+                time_ns: 1000,
+                joints: Some(vec![0.0, 0.5]),
+                pose: None,
+            })),
+        }),
+    );
+    m.insert(
+        "request-operating-state",
+        robot(11, RobotMethod::OperatingState),
+    );
+    m.insert(
+        "response-operating-state",
+        framed(&ServerMsg::Response {
+            id: 11,
+            result: Ok(Reply::OperatingState(OperatingStateMsg {
+                state: "ENABLED".into(),
+                is_homed: true,
+                is_busy: true,
+            })),
         }),
     );
 }

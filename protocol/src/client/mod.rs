@@ -64,7 +64,7 @@ pub use naming::{MAX_TREE_DEPTH, NamingProxy, join_path};
 pub use node::NodeProxy;
 pub use proxy::{
     BoardProxy, ControllerProxy, Lifecycle, ObjectHandle, ObjectProxy, RobotDescription,
-    RobotProxy, SensorProxy, TrajectoryProxy, TypedProxy,
+    RobotProxy, SensorProxy, Setpoints, TrajectoryProxy, TypedProxy,
 };
 pub use telemetry::{LinkStream, Streamed, Subscription, TelemetryStream};
 

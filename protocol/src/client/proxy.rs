@@ -340,4 +340,4 @@ mod robot;
 
 pub use control::{ControllerProxy, TrajectoryProxy, reference_of};
 pub use devices::{BoardProxy, SensorProxy};
-pub use robot::{RobotDescription, RobotProxy};
+pub use robot::{RobotDescription, RobotProxy, Setpoints};

@@ -65,15 +65,15 @@ pub use object::{
     BoardMethod, ControllerMethod, JointAxis, Method, RobotMethod, SensorMethod, TrajectoryMethod,
 };
 pub use replies::{
-    ControlStatus, KindInfo, LinkBatch, LinkRecord, NodeInfo, ObjectInfo, Reply,
-    RobotDescriptionMsg, StopReport, TelemetryBatch, TelemetryRecord,
+    ControlStatus, KindInfo, LinkBatch, LinkRecord, NodeInfo, ObjectInfo, OperatingStateMsg, Reply,
+    RobotDescriptionMsg, SetpointsMsg, StopReport, TelemetryBatch, TelemetryRecord,
 };
 
 /// The first four bytes of every hello: `PNLP`.
 pub const MAGIC: [u8; 4] = *b"PNLP";
 
 /// The version of this protocol; a hello with another version is refused.
-pub const PROTOCOL_VERSION: u16 = 4;
+pub const PROTOCOL_VERSION: u16 = 5;
 
 /// The default maximum frame body, bytes (256 KiB).
 pub const DEFAULT_MAX_FRAME: usize = 256 * 1024;

@@ -124,6 +124,47 @@ pub enum RobotMethod {
         /// Joint positions, rad (`None`: measured).
         q: Option<Joints>,
     },
+    /// CRTK `move_jp` (appended last, as are the five after it): a smooth joint motion from
+    /// the active controller's current reference to `q` (the [`RobotMethod::GoTo`] machinery:
+    /// a clamped spline, no jump): [`Reply::Unit`] once started. Refused with
+    /// [`CallError::BadArgument`] for a wrong joint count, a non-finite value, a target outside
+    /// the joint limits or a duration outside (0, 3600] s; [`CallError::NotReady`] without an
+    /// active controller that follows a joint trajectory. A servo target cancels it.
+    MoveJoints {
+        /// The goal, rad, one value per joint.
+        q: Joints,
+        /// Duration of the motion, s.
+        duration_s: f64,
+    },
+    /// CRTK `move_cp`: as [`RobotMethod::MoveJoints`] to a tool pose in the base frame (inverse
+    /// kinematics, the branch nearest the current reference; an unreachable pose is a
+    /// [`CallError::BadArgument`] saying why).
+    MoveTool {
+        /// The goal tool pose in the base frame.
+        pose: PoseMsg,
+        /// Duration of the motion, s.
+        duration_s: f64,
+    },
+    /// CRTK `servo_jp`: the newest joint target of a stream. The active controller's reference
+    /// jumps to it (no interpolation) and stays there; without a new target past the
+    /// controller's reference watchdog the loop holds. Same checks as
+    /// [`RobotMethod::MoveJoints`], plus the step limit: a target farther than the servo step
+    /// limit from the current reference (any joint) is refused. [`Reply::Unit`].
+    ServoJoints {
+        /// The target, rad, one value per joint.
+        q: Joints,
+    },
+    /// CRTK `servo_cp`: as [`RobotMethod::ServoJoints`] to a tool pose in the base frame (the
+    /// inverse-kinematics branch nearest the current reference, then the same step limit).
+    ServoTool {
+        /// The target tool pose in the base frame.
+        pose: PoseMsg,
+    },
+    /// CRTK `setpoint_js` / `setpoint_cp`: the reference the active controller follows now:
+    /// [`Reply::Setpoints`].
+    Setpoints,
+    /// CRTK `operating_state`: [`Reply::OperatingState`].
+    OperatingState,
 }
 
 /// One joint driven by one board axis.

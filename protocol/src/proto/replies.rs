@@ -94,6 +94,38 @@ pub enum Reply {
     /// Several poses, such as a robot's link frames
     /// ([`RobotMethod::LinkFrames`](super::RobotMethod::LinkFrames); appended last).
     Poses(Vec<PoseMsg>),
+    /// The reference a robot's active controller follows now
+    /// ([`RobotMethod::Setpoints`](super::RobotMethod::Setpoints); appended last, as is the
+    /// next).
+    Setpoints(SetpointsMsg),
+    /// A robot's CRTK operating state
+    /// ([`RobotMethod::OperatingState`](super::RobotMethod::OperatingState)).
+    OperatingState(OperatingStateMsg),
+}
+
+/// The reference the robot's active controller follows now (CRTK `setpoint_js` /
+/// `setpoint_cp`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SetpointsMsg {
+    /// The loop's time of the sample the setpoint was read from, ns.
+    pub time_ns: u64,
+    /// Joint reference, rad (`None` when the controller follows a tool pose only).
+    pub joints: Option<Joints>,
+    /// Tool pose reference in the base frame (forward kinematics of the joint reference when
+    /// the law is a joint law).
+    pub pose: Option<PoseMsg>,
+}
+
+/// CRTK's operating state of a robot.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct OperatingStateMsg {
+    /// `DISABLED` (no active controller), `ENABLED` (running), `PAUSED` (holding: a stale
+    /// reference, a clutch), `FAULT` (a latched fault or e-stop).
+    pub state: String,
+    /// Whether the joints' positions are known (encoders referenced; simulated: always).
+    pub is_homed: bool,
+    /// Whether a `move_jp` / `move_cp` (or a GoTo) is under way.
+    pub is_busy: bool,
 }
 
 /// What a 3D viewer needs to draw a robot.

@@ -252,3 +252,54 @@ fn the_error_kinds_are_the_variants_in_wire_order() {
         assert!(format!("{e:?}").contains(e.kind()), "{e:?}");
     }
 }
+
+#[test]
+fn the_crtk_verbs_were_appended_and_round_trip() {
+    // RobotMethod: LinkFrames was the last (index 18); the six verbs follow it in this order.
+    let pose = PoseMsg {
+        position: [0.4, 0.1, 0.2],
+        n: [1.0, 0.0, 0.0],
+        o: [0.0, -1.0, 0.0],
+        a: [0.0, 0.0, -1.0],
+    };
+    let links = postcard::to_stdvec(&RobotMethod::LinkFrames { q: None }).unwrap();
+    assert_eq!(links[0], 18);
+    let methods = [
+        RobotMethod::MoveJoints {
+            q: vec![0.1, -0.2, 0.3],
+            duration_s: 2.0,
+        },
+        RobotMethod::MoveTool {
+            pose,
+            duration_s: 1.5,
+        },
+        RobotMethod::ServoJoints { q: vec![0.0, 0.5] },
+        RobotMethod::ServoTool { pose },
+        RobotMethod::Setpoints,
+        RobotMethod::OperatingState,
+    ];
+    for (k, m) in methods.into_iter().enumerate() {
+        let bytes = postcard::to_stdvec(&m).unwrap();
+        assert_eq!(usize::from(bytes[0]), 19 + k, "{m:?}");
+        assert_eq!(postcard::from_bytes::<RobotMethod>(&bytes).unwrap(), m);
+    }
+    // Reply: Poses was the last (index 27).
+    assert_eq!(postcard::to_stdvec(&Reply::Poses(vec![])).unwrap(), [27, 0]);
+    let replies = [
+        Reply::Setpoints(SetpointsMsg {
+            time_ns: 5_000_000,
+            joints: Some(vec![0.0, -0.5, 0.5]),
+            pose: Some(pose),
+        }),
+        Reply::OperatingState(OperatingStateMsg {
+            state: "ENABLED".into(),
+            is_homed: true,
+            is_busy: false,
+        }),
+    ];
+    for (k, r) in replies.into_iter().enumerate() {
+        let bytes = postcard::to_stdvec(&r).unwrap();
+        assert_eq!(usize::from(bytes[0]), 28 + k, "{r:?}");
+        assert_eq!(postcard::from_bytes::<Reply>(&bytes).unwrap(), r);
+    }
+}

@@ -86,8 +86,15 @@ fn method_needs(method: &Method) -> Needs {
             | RobotMethod::RadiansToCounts { .. }
             | RobotMethod::NamedPose { .. }
             | RobotMethod::Description
-            | RobotMethod::LinkFrames { .. } => Needs::Watch,
-            RobotMethod::GoTo { .. } | RobotMethod::MapJoints { .. } => Needs::Operate,
+            | RobotMethod::LinkFrames { .. }
+            | RobotMethod::Setpoints
+            | RobotMethod::OperatingState => Needs::Watch,
+            RobotMethod::GoTo { .. }
+            | RobotMethod::MapJoints { .. }
+            | RobotMethod::MoveJoints { .. }
+            | RobotMethod::MoveTool { .. }
+            | RobotMethod::ServoJoints { .. }
+            | RobotMethod::ServoTool { .. } => Needs::Operate,
         },
         Method::Board(m) => match m {
             BoardMethod::AxisCount | BoardMethod::ReadEncoders | BoardMethod::AmplifiersEnabled => {

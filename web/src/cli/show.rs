@@ -228,6 +228,18 @@ URDF: {} bytes",
             d.urdf.len()
         ),
         Reply::Poses(list) => list.iter().map(pose).collect::<Vec<_>>().join("\n"),
+        Reply::Setpoints(s) => format!(
+            "setpoint at {} ns\njoints: {}\ntool: {}",
+            s.time_ns,
+            s.joints
+                .as_deref()
+                .map_or_else(|| "-".into(), |q| format!("{q:?}")),
+            s.pose.as_ref().map_or_else(|| "-".into(), pose)
+        ),
+        Reply::OperatingState(s) => format!(
+            "operating state: {} (homed: {}, busy: {})",
+            s.state, s.is_homed, s.is_busy
+        ),
     }
 }
 

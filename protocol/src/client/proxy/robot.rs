@@ -19,9 +19,21 @@ use crate::net::conn::RpcError;
 #[cfg(doc)]
 use crate::proto::WireError;
 use crate::proto::{
-    Class, ContactShapeMsg, JointAxis, Joints, Method, Reply, RobotMethod, WrenchMsg,
-    joints_from_vector, joints_to_vector,
+    Class, ContactShapeMsg, JointAxis, Joints, Method, OperatingStateMsg, Reply, RobotMethod,
+    WrenchMsg, joints_from_vector, joints_to_vector,
 };
+
+/// The reference a robot's active controller follows now ([`RobotProxy::setpoints`]; CRTK
+/// `setpoint_js` / `setpoint_cp`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Setpoints {
+    /// The loop's time of the sample the setpoint was read from, ns.
+    pub time_ns: u64,
+    /// Joint reference, rad (`None` when the controller follows a tool pose only).
+    pub joints: Option<JointVector>,
+    /// Tool pose reference in the base frame.
+    pub pose: Option<Pose>,
+}
 
 /// What a 3D viewer needs to draw a robot ([`RobotProxy::description`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -341,6 +353,105 @@ impl RobotProxy {
         }
         self.handle
             .unit(Method::Robot(RobotMethod::GoTo { pose, duration_s }))
+    }
+
+    /// A duration checked as the node will: finite, in (0, 3600] s.
+    fn duration_checked(duration_s: f64) -> Result<f64, RpcError> {
+        if duration_s.is_finite() && duration_s > 0.0 && duration_s <= 3600.0 {
+            Ok(duration_s)
+        } else {
+            Err(bad(format!(
+                "duration must be finite and in (0, 3600] s, got {duration_s}"
+            )))
+        }
+    }
+
+    /// CRTK `move_jp`: moves to the joint positions `q` (rad) in `duration_s` seconds along a
+    /// smooth joint trajectory from the active controller's current reference. Returns once the
+    /// motion started; [`RobotProxy::operating_state`]'s `is_busy` stays true until it ends.
+    ///
+    /// # Errors
+    /// [`CallError::BadArgument`] for a non-finite value, a target outside the joint limits or a
+    /// duration outside (0, 3600] s; [`CallError::NotReady`] when no active controller follows
+    /// a joint trajectory for the robot.
+    pub fn move_joints(&self, q: &JointVector, duration_s: f64) -> Result<(), RpcError> {
+        let duration_s = Self::duration_checked(duration_s)?;
+        let q = self.q_msg(Some(q))?.unwrap_or_default();
+        self.handle
+            .unit(Method::Robot(RobotMethod::MoveJoints { q, duration_s }))
+    }
+
+    /// CRTK `move_cp`: as [`RobotProxy::move_joints`] to a tool pose in the base frame (the
+    /// inverse-kinematics branch nearest the current reference).
+    ///
+    /// # Errors
+    /// As [`RobotProxy::move_joints`]; [`CallError::BadArgument`] for a pose the robot cannot
+    /// reach within its joint limits.
+    pub fn move_tool(&self, pose: &Pose, duration_s: f64) -> Result<(), RpcError> {
+        let duration_s = Self::duration_checked(duration_s)?;
+        let pose = pose_msg(pose)?;
+        self.handle
+            .unit(Method::Robot(RobotMethod::MoveTool { pose, duration_s }))
+    }
+
+    /// CRTK `servo_jp`: the newest target of a stream; the active controller's reference jumps
+    /// to `q` (rad) and stays there. Send one per control period or so: past the controller's
+    /// reference watchdog without a new target the loop holds.
+    ///
+    /// # Errors
+    /// As [`RobotProxy::move_joints`], and [`CallError::BadArgument`] for a target farther
+    /// than the servo step limit from the current reference.
+    pub fn servo_joints(&self, q: &JointVector) -> Result<(), RpcError> {
+        let q = self.q_msg(Some(q))?.unwrap_or_default();
+        self.handle
+            .unit(Method::Robot(RobotMethod::ServoJoints { q }))
+    }
+
+    /// CRTK `servo_cp`: as [`RobotProxy::servo_joints`] to a tool pose in the base frame.
+    ///
+    /// # Errors
+    /// As [`RobotProxy::servo_joints`]; [`CallError::BadArgument`] for an unreachable pose.
+    pub fn servo_tool(&self, pose: &Pose) -> Result<(), RpcError> {
+        let pose = pose_msg(pose)?;
+        self.handle
+            .unit(Method::Robot(RobotMethod::ServoTool { pose }))
+    }
+
+    /// CRTK `setpoint_js` / `setpoint_cp`: the reference the robot's active controller follows
+    /// now.
+    ///
+    /// # Errors
+    /// [`CallError::NotReady`] without an active controller or before its first tick.
+    pub fn setpoints(&self) -> Result<Setpoints, RpcError> {
+        match self.robot(RobotMethod::Setpoints)? {
+            Reply::Setpoints(s) => Ok(Setpoints {
+                time_ns: s.time_ns,
+                joints: s
+                    .joints
+                    .map(|q| joints_to_vector(&q, q.len()))
+                    .transpose()
+                    .map_err(|e| bad_reply("joint setpoint", &e))?,
+                pose: s
+                    .pose
+                    .map(|p| p.to_pose())
+                    .transpose()
+                    .map_err(|e| bad_reply("pose setpoint", &e))?,
+            }),
+            other => Err(unexpected("setpoints", &other)),
+        }
+    }
+
+    /// CRTK `operating_state`: `DISABLED`, `ENABLED`, `PAUSED` or `FAULT`, whether the joints
+    /// are homed, and whether a move is under way (`is_busy`: wait for a move by polling this
+    /// until false, bounded by its duration plus a margin).
+    ///
+    /// # Errors
+    /// The node's error; transport errors.
+    pub fn operating_state(&self) -> Result<OperatingStateMsg, RpcError> {
+        match self.robot(RobotMethod::OperatingState)? {
+            Reply::OperatingState(s) => Ok(s),
+            other => Err(unexpected("an operating state", &other)),
+        }
     }
 
     /// Maps joints onto axes of the board `board` (a name on the robot's node), as

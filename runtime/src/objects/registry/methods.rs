@@ -129,6 +129,17 @@ impl Registry {
             RobotMethod::ToolWrench => self.tool_wrench(name),
             RobotMethod::GoTo { pose, duration_s } => self.go_to(name, pose, duration_s),
             RobotMethod::MapJoints { board, joints } => self.map_joints(name, board, joints),
+            RobotMethod::MoveJoints { .. }
+            | RobotMethod::MoveTool { .. }
+            | RobotMethod::ServoJoints { .. }
+            | RobotMethod::ServoTool { .. }
+            | RobotMethod::Setpoints
+            | RobotMethod::OperatingState => {
+                self.robot(name)?;
+                Err(not_ready(format!(
+                    "robot `{name}`: {m:?} is not implemented yet"
+                )))
+            }
             m => self.robot_model_method(name, m),
         }
     }
