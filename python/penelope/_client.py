@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import time
 from dataclasses import dataclass
 from types import TracebackType
 from typing import (
@@ -16,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
+from ._errors import PenelopeError
 
 #: A float64 NumPy array.
 Array = npt.NDArray[np.float64]
@@ -75,6 +77,13 @@ def _joints(q: Optional[JointsLike]) -> Optional[List[float]]:
     if a.ndim != 1:
         raise _error("BadArgument", f"joint values must be a 1-D sequence, got shape {a.shape}")
     return [float(x) for x in a]
+
+
+def _pose(T: npt.ArrayLike) -> List[float]:
+    t = np.asarray(T, dtype=np.float64)
+    if t.shape != (4, 4):
+        raise _error("BadArgument", f"T must be 4x4, got shape {t.shape}")
+    return [float(x) for x in t.ravel()]
 
 
 def _error(kind: str, message: str) -> Exception:
@@ -428,10 +437,7 @@ class Robot(Proxy):
         """Inverse kinematics: every branch (joint vectors) reaching the 4x4 homogeneous
         transform ``T`` within the joint limits; possibly none. :class:`BadArgument` for a
         non-orthonormal rotation or a last row other than ``0 0 0 1``."""
-        t = np.asarray(T, dtype=np.float64)
-        if t.shape != (4, 4):
-            raise _error("BadArgument", f"T must be 4x4, got shape {t.shape}")
-        return [np.array(q, dtype=np.float64) for q in self._native.ik(t.ravel().tolist())]
+        return [np.array(q, dtype=np.float64) for q in self._native.ik(_pose(T))]
 
     def joint_positions(self) -> Array:
         """Measured joint positions, rad."""
@@ -500,6 +506,82 @@ class Robot(Proxy):
         6-vector ``[fx, fy, fz, tx, ty, tz]`` (N, N·m) in the base frame."""
         return self.tool_wrench()
 
+    def setpoints(self) -> "Setpoints":
+        """The reference the robot's active controller follows now, with the loop's time:
+        see :class:`Setpoints`. :class:`NotReady` without an active controller or before its
+        first tick."""
+        time_ns, joints, pose = self._native.setpoints()
+        return Setpoints(
+            position=None if joints is None else np.array(joints, dtype=np.float64),
+            pose=None if pose is None else np.array(pose, dtype=np.float64).reshape(4, 4),
+            time=time_ns * 1e-9,
+        )
+
+    def setpoint_js(self) -> Array:
+        """CRTK ``setpoint_js``: the joint reference the active controller follows, rad.
+        :class:`NotReady` when it follows a tool pose only (see :meth:`setpoint_cp`)."""
+        s = self.setpoints()
+        if s.position is None:
+            raise _error("NotReady", "the active controller follows a tool pose, not joints")
+        return s.position
+
+    def setpoint_cp(self) -> Array:
+        """CRTK ``setpoint_cp``: the tool pose the active controller follows (4x4, base
+        frame; forward kinematics of the joint reference for a joint law)."""
+        s = self.setpoints()
+        if s.pose is None:
+            raise _error("NotReady", "the active controller's reference has no tool pose")
+        return s.pose
+
+    def operating_state(self) -> "OperatingState":
+        """CRTK ``operating_state``: see :class:`OperatingState`."""
+        state, is_homed, is_busy = self._native.operating_state()
+        return OperatingState(state=state, is_homed=is_homed, is_busy=is_busy)
+
+    def move_jp(self, q: JointsLike, duration: float) -> "Move":
+        """CRTK ``move_jp``: moves to the joint positions ``q`` (rad, one per joint) in
+        ``duration`` s along a smooth trajectory from the active controller's reference;
+        returns at once with a :class:`Move` (call :meth:`Move.wait`). :class:`BadArgument`
+        for a wrong joint count, a non-finite value, a target outside the joint limits or a
+        duration outside (0, 3600] s; :class:`NotReady` without an active controller that
+        follows joints."""
+        qq = _joints(q)
+        assert qq is not None
+        self._native.move_jp(qq, float(duration))
+        return Move(self, float(duration))
+
+    def move_cp(self, T: npt.ArrayLike, duration: float) -> "Move":
+        """CRTK ``move_cp``: as :meth:`move_jp` to the 4x4 tool pose ``T`` (base frame; the
+        inverse-kinematics branch nearest the current reference). :class:`BadArgument` for an
+        unreachable pose."""
+        self._native.move_cp(_pose(T), float(duration))
+        return Move(self, float(duration))
+
+    def servo_jp(self, q: JointsLike) -> None:
+        """CRTK ``servo_jp``: the newest joint target of a stream; the active controller's
+        reference jumps to it (no interpolation). Send one every control period or so: past
+        the controller's reference watchdog the loop holds. :class:`BadArgument` as
+        :meth:`move_jp`, and for a target farther than the servo step limit from the current
+        reference."""
+        qq = _joints(q)
+        assert qq is not None
+        self._native.servo_jp(qq)
+
+    def servo_cp(self, T: npt.ArrayLike) -> None:
+        """CRTK ``servo_cp``: as :meth:`servo_jp` to the 4x4 tool pose ``T`` (base frame)."""
+        self._native.servo_cp(_pose(T))
+
+    def servo(self, rate: float = 500.0) -> "ServoLoop":
+        """A rate-paced loop for streaming targets: each ``servo_cp`` / ``servo_jp`` through
+        it sends, then sleeps until the next period. See :class:`ServoLoop`::
+
+            with robot.servo(rate=500) as s:
+                for T in poses:
+                    s.servo_cp(T)
+            print(s.achieved_rate, s.overruns)
+        """
+        return ServoLoop(self, rate)
+
     def map_joints(self, board: str, mapping: Union[Mapping[int, int], Sequence[Sequence[int]]]) -> None:
         """Maps joints to the axes of ``board`` (a board's name on the same node):
         ``{joint: axis}`` or ``[(joint, axis), ...]``."""
@@ -523,6 +605,148 @@ class JointState:
     effort: Array
     #: The loop's time of the tick, s (``None`` when no loop drives the robot).
     time: Optional[float]
+
+
+@dataclass(frozen=True)
+class Setpoints:
+    """The reference a robot's active controller follows (CRTK ``setpoint_js`` and
+    ``setpoint_cp``)."""
+
+    #: Joint reference, rad (``None`` when the controller follows a tool pose only).
+    position: Optional[Array]
+    #: Tool pose reference, 4x4 in the base frame (``None`` when there is none).
+    pose: Optional[Array]
+    #: The loop's time of the sample it was read from, s.
+    time: float
+
+
+@dataclass(frozen=True)
+class OperatingState:
+    """CRTK's operating state of a robot."""
+
+    #: ``"DISABLED"`` (no active controller), ``"ENABLED"`` (running), ``"PAUSED"`` (holding:
+    #: a stale reference, a clutch) or ``"FAULT"`` (a latched fault or e-stop).
+    state: str
+    #: Whether the joints' positions are known (simulated: always).
+    is_homed: bool
+    #: Whether a ``move_jp`` / ``move_cp`` is under way.
+    is_busy: bool
+
+
+class RobotFault(PenelopeError):
+    """A robot went to ``FAULT`` (a latched fault or e-stop) while :meth:`Move.wait` waited
+    for its motion. Raised by this client, not sent by a node."""
+
+    kind = "RobotFault"
+
+
+class Move:
+    """A motion under way (:meth:`Robot.move_jp`, :meth:`Robot.move_cp`)."""
+
+    #: Added to the motion's duration to bound :meth:`wait` by default, s: the node's loop and
+    #: this client's polling on a loaded machine.
+    MARGIN_S = 10.0
+
+    def __init__(self, robot: Robot, duration: float) -> None:
+        self.robot = robot
+        #: The motion's duration, s.
+        self.duration = duration
+        self._started = time.monotonic()
+
+    def wait(self, timeout: Optional[float] = None, poll: float = 0.005) -> "Move":
+        """Waits until the robot is no longer busy with the motion (polling
+        :meth:`Robot.operating_state` every ``poll`` s on the real clock), at most ``timeout``
+        s (default: the duration plus :attr:`MARGIN_S`, counted from the start); returns
+        ``self``. :class:`Timeout` past the bound; :class:`RobotFault` if the robot faults.
+        On a node with a simulated clock the motion advances only as the clock does: advance
+        it (:meth:`Client.advance`) before waiting."""
+        bound = self.duration + self.MARGIN_S if timeout is None else timeout
+        deadline = self._started + bound
+        while True:
+            state = self.robot.operating_state()
+            if state.state == "FAULT":
+                raise RobotFault(f"{self.robot.path} went to FAULT during its move", "RobotFault")
+            if not state.is_busy:
+                return self
+            if time.monotonic() > deadline:
+                raise _error("Timeout", f"{self.robot.path} still busy after {bound:.1f} s")
+            time.sleep(poll)
+
+
+class ServoLoop:
+    """A rate-paced stream of servo targets (:meth:`Robot.servo`): each :meth:`servo_cp` /
+    :meth:`servo_jp` sends its target and then sleeps until the next period of an absolute
+    schedule (``start + k / rate``), so the pace does not drift with the calls' own time. A
+    call that ends past its period's end is an overrun: counted, and the schedule restarts
+    from now (no burst of catch-up calls). The loop holds nothing on the node: when the stream
+    stops, the controller's reference watchdog holds the robot."""
+
+    def __init__(self, robot: Robot, rate: float) -> None:
+        if not (math.isfinite(rate) and 0.0 < rate <= 10_000.0):
+            raise _error("BadArgument", f"rate must be in (0, 10000] Hz, got {rate}")
+        self.robot = robot
+        #: The asked rate, Hz.
+        self.rate = float(rate)
+        #: The period, s.
+        self.period = 1.0 / self.rate
+        #: Targets sent.
+        self.calls = 0
+        #: Periods overrun (a call, with the sleep before it, that ended past its period).
+        self.overruns = 0
+        self._start: Optional[float] = None
+        self._next = 0.0
+        self._end: Optional[float] = None
+
+    def __enter__(self) -> "ServoLoop":
+        self._start = time.perf_counter()
+        self._next = self._start + self.period
+        return self
+
+    def __exit__(
+        self,
+        exc_type: Optional[Type[BaseException]],
+        exc: Optional[BaseException],
+        tb: Optional[TracebackType],
+    ) -> None:
+        self._end = time.perf_counter()
+
+    @property
+    def elapsed(self) -> float:
+        """Seconds since the loop started (until it ended, once it has)."""
+        if self._start is None:
+            return 0.0
+        end = self._end if self._end is not None else time.perf_counter()
+        return end - self._start
+
+    @property
+    def achieved_rate(self) -> float:
+        """Targets sent per second of the loop."""
+        e = self.elapsed
+        return self.calls / e if e > 0 else 0.0
+
+    def _pace(self) -> None:
+        if self._start is None:
+            self.__enter__()
+        self.calls += 1
+        now = time.perf_counter()
+        if now > self._next:
+            self.overruns += 1
+            self._next = now + self.period
+            return
+        time.sleep(self._next - now)
+        self._next += self.period
+
+    def servo_cp(self, T: npt.ArrayLike) -> None:
+        """Sends the tool-pose target ``T`` (:meth:`Robot.servo_cp`), then sleeps to the next
+        period."""
+        self.robot.servo_cp(T)
+        self._pace()
+
+    def servo_jp(self, q: JointsLike) -> None:
+        """Sends the joint target ``q`` (:meth:`Robot.servo_jp`), then sleeps to the next
+        period."""
+        self.robot.servo_jp(q)
+        self._pace()
 
 
 class Board(Proxy):

@@ -59,8 +59,8 @@ def _ticks(messages: List[Dict[str, Any]]) -> Channel:
         out["clutch"] = np.array(
             [-1 if m["clutch"] is None else int(m["clutch"]) for m in messages], dtype=np.int8
         )
-    truths = [m.get("truth") for m in messages]
-    if truths and all(t is not None for t in truths):
+    truths: List[Dict[str, Any]] = [m["truth"] for m in messages if m.get("truth") is not None]
+    if truths and len(truths) == len(messages):
         for k in _JOINT_FIELDS:
             out["truth_" + k] = _f64(
                 [t["joints"][{"q": "position", "qd": "velocity", "effort": "effort"}[k]]

@@ -107,6 +107,19 @@ pub struct Object {
 methods_with_lifecycle!(Object {});
 
 impl Robot {
+    /// The joint vector of a target `q`: exactly one value per joint (a short vector is not
+    /// padded with zeros: that would be a motion nobody asked for).
+    fn target(&self, py: Python<'_>, q: &[f64]) -> Result<penelope_hal::JointVector> {
+        let n = py.detach(|| self.p.joint_count())?;
+        if q.len() != n {
+            return Err(bad_argument(format!(
+                "{} joint values for a robot of {n} joints",
+                q.len()
+            )));
+        }
+        values::joints(q)
+    }
+
     /// The joint vector of `q`, `None` for the measured one.
     fn q(q: Option<Vec<f64>>) -> Result<Option<penelope_hal::JointVector>> {
         q.as_deref().map(values::joints).transpose()
@@ -185,6 +198,69 @@ methods_with_lifecycle!(Robot {
     fn tool_wrench(&self, py: Python<'_>) -> PyResult<Vec<f64>> {
         let w = py.detach(|| self.p.tool_wrench()).map_err(Error)?;
         Ok(values::wrench_values(&w))
+    }
+
+    /// CRTK `move_jp`: a smooth joint motion to `q` in `duration` s; returns once started.
+    fn move_jp(&self, py: Python<'_>, q: Vec<f64>, duration: f64) -> PyResult<()> {
+        let q = self.target(py, &q)?;
+        Ok(py.detach(|| self.p.move_joints(&q, duration)).map_err(Error)?)
+    }
+
+    /// CRTK `move_cp`: a smooth motion to the 4x4 tool pose `t` (row by row) in `duration` s.
+    fn move_cp(&self, py: Python<'_>, t: Vec<f64>, duration: f64) -> PyResult<()> {
+        let pose = values::pose_of_rows(&t)?;
+        Ok(py.detach(|| self.p.move_tool(&pose, duration)).map_err(Error)?)
+    }
+
+    /// CRTK `servo_jp`: the newest joint target of a stream.
+    fn servo_jp(&self, py: Python<'_>, q: Vec<f64>) -> PyResult<()> {
+        let q = self.target(py, &q)?;
+        Ok(py.detach(|| self.p.servo_joints(&q)).map_err(Error)?)
+    }
+
+    /// CRTK `servo_cp`: the newest tool-pose target of a stream (4x4, row by row).
+    fn servo_cp(&self, py: Python<'_>, t: Vec<f64>) -> PyResult<()> {
+        let pose = values::pose_of_rows(&t)?;
+        Ok(py.detach(|| self.p.servo_tool(&pose)).map_err(Error)?)
+    }
+
+    /// CRTK `setpoint_js` / `setpoint_cp`: `(time_ns, joints or None, 4x4 pose row by row or
+    /// None)`.
+    #[allow(clippy::type_complexity)]
+    fn setpoints(
+        &self,
+        py: Python<'_>,
+    ) -> PyResult<(u64, Option<Vec<f64>>, Option<Vec<f64>>)> {
+        let (s, n) = py.detach(|| {
+            Ok::<_, Error>((self.p.setpoints()?, self.p.joint_count()?))
+        })?;
+        Ok((
+            s.time_ns,
+            s.joints.as_ref().map(|q| values::first(q, n)),
+            s.pose.as_ref().map(values::pose_rows),
+        ))
+    }
+
+    /// For the benchmark (`scripts/bench-python`): `calls` `servo_cp` calls of the pose `t`
+    /// made by the Rust client alone (no Python between them), each timed, ns.
+    fn bench_servo_cp(&self, py: Python<'_>, t: Vec<f64>, calls: usize) -> PyResult<Vec<u64>> {
+        let pose = values::pose_of_rows(&t)?;
+        let times = py.detach(|| {
+            let mut times = Vec::with_capacity(calls);
+            for _ in 0..calls {
+                let start = std::time::Instant::now();
+                self.p.servo_tool(&pose)?;
+                times.push(u64::try_from(start.elapsed().as_nanos()).unwrap_or(u64::MAX));
+            }
+            Ok::<_, Error>(times)
+        })?;
+        Ok(times)
+    }
+
+    /// CRTK `operating_state`: `(state, is_homed, is_busy)`.
+    fn operating_state(&self, py: Python<'_>) -> PyResult<(String, bool, bool)> {
+        let s = py.detach(|| self.p.operating_state()).map_err(Error)?;
+        Ok((s.state, s.is_homed, s.is_busy))
     }
 
     /// Maps joint `j` to axis `a` of `board` for each `(j, a)`.
