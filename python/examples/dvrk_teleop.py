@@ -20,6 +20,7 @@ import argparse
 import json
 import math
 import sys
+import time
 from typing import Dict, List
 
 import numpy as np
@@ -32,6 +33,13 @@ CLUTCH = (1.0, 1.5)
 SCALE = 0.5
 #: The master's displayed force per unit of the slave's sensed force.
 FORCE_GAIN = 0.5
+#: The slave's joint PID: stiffer than the defaults, with an integral term against friction.
+PID_GAINS: Dict[str, List[float]] = {
+    "kp": [3600.0, 6400.0, 3600.0, 400.0, 400.0, 400.0],
+    "kd": [40.0, 40.0, 40.0, 10.0, 10.0, 10.0],
+    "ki": [8000.0, 8000.0, 8000.0, 800.0, 800.0, 800.0],
+    "integral_limit": [30.0, 30.0, 30.0, 3.0, 3.0, 3.0],
+}
 
 
 def hand_position(t: float, seconds: float) -> np.ndarray:
@@ -39,8 +47,8 @@ def hand_position(t: float, seconds: float) -> np.ndarray:
     in x-y, and from 40% of the run a press down of 4 cm (2 cm at the slave, with SCALE)."""
     press = min(max((t / seconds - 0.4) / 0.3, 0.0), 1.0)
     return np.array([
-        0.02 * math.sin(2 * math.pi * t / 2.0),
-        0.01 * (1 - math.cos(2 * math.pi * t / 2.0)),
+        0.02 * math.sin(2 * math.pi * t / 4.0),
+        0.01 * (1 - math.cos(2 * math.pi * t / 4.0)),
         -0.04 * press,
     ])
 
@@ -59,7 +67,8 @@ def run(c: penelope.Client, node: str, seconds: float, rate: float) -> Dict[str,
                          shapes=[{"kind": "plane", "point": [0.0, 0.0, wall_z],
                                   "normal": [0.0, 0.0, 1.0], "stiffness": 2000.0,
                                   "damping": 10.0}]) as wrist, \
-                c.create(node, "controller/joint-pid", "dvrk-pid", period_us=1000) as pid:
+                c.create(node, "controller/joint-pid", "dvrk-pid", PID_GAINS,
+                         period_us=1000) as pid:
             assert isinstance(pid, penelope.Controller)
             pid.set_robot(psm.name)
             pid.set_trajectory(hold.name)
@@ -68,6 +77,11 @@ def run(c: penelope.Client, node: str, seconds: float, rate: float) -> Dict[str,
             wrist.configure()
             pid.configure()
             pid.activate()
+            deadline = time.monotonic() + 30.0
+            while pid.status()["last"] is None:  # its first tick: a setpoint to start from
+                if time.monotonic() > deadline:
+                    raise TimeoutError("the slave's loop did not tick in 30 s")
+                time.sleep(0.01)
             return teleoperate(psm, seconds, rate)
 
 
