@@ -115,7 +115,10 @@ def teleoperate(psm: penelope.Robot, seconds: float, rate: float) -> Dict[str, f
                 target[:3, 3] += SCALE * (hand - hand_anchor)
             s.servo_cp(target)
             if k % 20 == 19:  # the force back to the hand, and a look at the tracking
-                f = psm.measured_cf()
+                try:
+                    f = psm.measured_cf()
+                except penelope.NotReady:  # the sensor feed's first sample is not in yet
+                    continue
                 displayed.append(float(-FORCE_GAIN * f[2]))
                 max_force = max(max_force, float(np.linalg.norm(f[:3])))
                 if target[2, 3] > slave_anchor[2, 3] - 0.005:  # before the wall

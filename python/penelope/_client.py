@@ -479,7 +479,7 @@ class Robot(Proxy):
         if driver is not None:
             try:
                 status = driver._native.status()
-            except Exception:  # the controller went away: look again next time
+            except PenelopeError:  # the controller went away: look again next time
                 self._driver = None
                 status = None
             last = None if status is None else status["last"]
