@@ -351,3 +351,37 @@ def test_each_refusal_is_a_typed_exception(node: Node) -> None:
             time.sleep(0.01)
         with pytest.raises(penelope.Timeout):
             robot.move_jp(robot.setpoint_js() - 0.05, 3.0).wait(timeout=0.2)
+
+
+def test_link_statistics_of_a_channel_between_two_nodes(penelope_bin: str, tmp_path: Path) -> None:
+    # The demo's system on two nodes (config/demo-two-nodes.toml), each on free ports, real clock.
+    root = Path(__file__).resolve().parents[2]
+    from conftest import free_port
+
+    text = (root / "config" / "demo-two-nodes.toml").read_text()
+    text = text.replace("127.0.0.1:7410", f"127.0.0.1:{free_port()}")
+    text = text.replace("127.0.0.1:7420", f"127.0.0.1:{free_port()}")
+    system = tmp_path / "two-nodes.toml"
+    system.write_text(text)
+    master = Node(penelope_bin, "master", ["--config", str(system)])
+    try:
+        slave = Node(penelope_bin, "slave", ["--config", str(system)], naming=master.naming)
+        try:
+            with penelope.connect(master.naming) as c:
+                link = c.link("master/link")
+                assert isinstance(link, penelope.Link)
+                deadline = time.monotonic() + 30.0
+                with link.watch() as w:
+                    for record in w:  # one every 100 ms; until samples and a delay estimate
+                        if record["samples_taken"] > 0 and record["one_way_delay_ns"] is not None:
+                            break
+                        assert time.monotonic() < deadline, record
+                assert not record["down"]
+                stats = link.statistics()
+                assert stats["samples_taken"] >= record["samples_taken"]
+                print(f"link master<->slave: one-way delay {stats['one_way_delay_ns']} ns, "
+                      f"{stats['samples_taken']} samples taken")
+        finally:
+            slave.stop()
+    finally:
+        master.stop()
