@@ -14,9 +14,9 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::errors::{Error, bad_argument};
-use crate::proxies::{self, Controller, Object, Robot, Sensor};
+use crate::proxies::{self, Board, Controller, Object, Robot, Sensor, Trajectory};
 use crate::values;
-use crate::watch::Watch;
+use crate::watch::{LinkWatch, Watch};
 
 /// A client of one system, through its naming service.
 #[pyclass(module = "penelope._native", frozen)]
@@ -118,6 +118,63 @@ impl Client {
             .detach(|| rust::Client::connect(address, config))
             .map_err(Error)?;
         Ok(Client { inner })
+    }
+
+    /// Closes every connection of this client (its proxies share them); every later call
+    /// through it or its proxies raises `penelope.Io`. Idempotent.
+    fn close(&self, py: Python<'_>) {
+        py.detach(|| self.inner.close());
+    }
+
+    /// Whether [`Client::close`] was called.
+    #[getter]
+    fn closed(&self) -> bool {
+        self.inner.is_closed()
+    }
+
+    /// The objects of `node`: dicts with `name`, `kind`, `class`, `state`, `relations`.
+    fn objects<'py>(&self, py: Python<'py>, node: &str) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        let list = py.detach(|| self.inner.node(node)?.list()).map_err(Error)?;
+        list.iter().map(|o| values::object_info(py, o)).collect()
+    }
+
+    /// Moves the simulated clock of `node` on by `seconds`, stepping its loops; returns the
+    /// clock's new time, s.
+    fn advance(&self, py: Python<'_>, node: &str, seconds: f64) -> PyResult<f64> {
+        if !(seconds.is_finite() && seconds >= 0.0) {
+            return Err(
+                bad_argument(format!("seconds must be finite and >= 0, got {seconds}")).into(),
+            );
+        }
+        let t = py
+            .detach(|| {
+                self.inner
+                    .node(node)?
+                    .advance(Duration::from_secs_f64(seconds))
+            })
+            .map_err(Error)?;
+        Ok(t.as_secs_f64())
+    }
+
+    /// Starts recording `objects` (empty: every controller and linked channel) of `node` to
+    /// the new file `name` in its recordings directory: `(path, controllers, links)`.
+    fn record_start(
+        &self,
+        py: Python<'_>,
+        node: &str,
+        name: &str,
+        objects: Vec<String>,
+    ) -> PyResult<(String, Vec<String>, Vec<String>)> {
+        Ok(py
+            .detach(|| self.inner.node(node)?.record_start_at(name, &objects))
+            .map_err(Error)?)
+    }
+
+    /// Ends the recording of `node`: `(path, ticks written)`.
+    fn record_stop(&self, py: Python<'_>, node: &str) -> PyResult<(String, u64)> {
+        Ok(py
+            .detach(|| self.inner.node(node)?.record_stop())
+            .map_err(Error)?)
     }
 
     /// The naming service's address.
@@ -278,6 +335,37 @@ impl Client {
     fn controller(&self, py: Python<'_>, spec: &str) -> PyResult<Controller> {
         let p = py.detach(|| self.inner.controller(spec)).map_err(Error)?;
         Ok(Controller { p })
+    }
+
+    /// The board at `spec`.
+    fn board(&self, py: Python<'_>, spec: &str) -> PyResult<Board> {
+        let p = py.detach(|| self.inner.board(spec)).map_err(Error)?;
+        Ok(Board { p })
+    }
+
+    /// The trajectory at `spec`.
+    fn trajectory(&self, py: Python<'_>, spec: &str) -> PyResult<Trajectory> {
+        let p = py.detach(|| self.inner.trajectory(spec)).map_err(Error)?;
+        Ok(Trajectory { p })
+    }
+
+    /// Subscribes to the link statistics of the teleop channel at `spec` (its end on that
+    /// node, linked to another node), one record in `decimation`; ends after `count` records.
+    #[pyo3(signature = (spec, decimation=1, count=None))]
+    fn watch_link(
+        &self,
+        py: Python<'_>,
+        spec: &str,
+        decimation: u32,
+        count: Option<u64>,
+    ) -> PyResult<LinkWatch> {
+        if decimation == 0 {
+            return Err(bad_argument("decimation must be at least 1").into());
+        }
+        let stream = py
+            .detach(|| self.inner.watch_link(spec, decimation))
+            .map_err(Error)?;
+        Ok(LinkWatch::new(stream, count))
     }
 
     /// The object at `spec`, whatever its class.

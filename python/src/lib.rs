@@ -33,7 +33,10 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<proxies::Sensor>()?;
     m.add_class::<proxies::Controller>()?;
     m.add_class::<proxies::Object>()?;
+    m.add_class::<proxies::Board>()?;
+    m.add_class::<proxies::Trajectory>()?;
     m.add_class::<watch::Watch>()?;
+    m.add_class::<watch::LinkWatch>()?;
     m.add_function(wrap_pyfunction!(errors::error_kinds, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -3,7 +3,7 @@
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
 use penelope_hal::{JointVector, MAX_JOINTS, Pose, Wrench};
-use penelope_protocol::proto::{KindInfo, ObjectInfo, ObjectRef, TelemetryRecord};
+use penelope_protocol::proto::{KindInfo, LinkRecord, ObjectInfo, ObjectRef, TelemetryRecord};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -122,5 +122,30 @@ pub fn record<'py>(py: Python<'py>, r: &TelemetryRecord) -> PyResult<Bound<'py, 
     d.set_item("clutch", r.clutch)?;
     d.set_item("port_energy", r.port_energy)?;
     d.set_item("channel_energy", r.channel_energy)?;
+    Ok(d)
+}
+
+/// One reading of a teleop channel's link statistics (times in ns, `None` when not yet
+/// estimated).
+pub fn link_record<'py>(py: Python<'py>, r: &LinkRecord) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("time_ns", r.time_ns)?;
+    d.set_item("down", r.down)?;
+    d.set_item("losses", r.losses)?;
+    d.set_item("restorations", r.restorations)?;
+    d.set_item("samples_taken", r.samples_taken)?;
+    d.set_item("samples_dropped", r.samples_dropped)?;
+    d.set_item("samples_missed", r.samples_missed)?;
+    d.set_item("refused", r.refused)?;
+    d.set_item("clock_offset_ns", r.clock_offset_ns)?;
+    d.set_item("round_trip_ns", r.round_trip_ns)?;
+    d.set_item("one_way_delay_ns", r.one_way_delay_ns)?;
+    d.set_item("jitter_ns", r.jitter_ns)?;
+    d.set_item("last_heard_ns", r.last_heard_ns)?;
+    d.set_item("heartbeat_loss", r.heartbeat_loss)?;
+    d.set_item("trips", r.trips)?;
+    d.set_item("trip_p50_ns", r.trip_p50_ns)?;
+    d.set_item("trip_p99_ns", r.trip_p99_ns)?;
+    d.set_item("trip_max_ns", r.trip_max_ns)?;
     Ok(d)
 }

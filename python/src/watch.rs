@@ -1,45 +1,34 @@
-//! A controller's telemetry (or that of the robot it drives), one record at a time, as a
-//! Python iterator.
+//! Subscriptions as Python iterators: a controller's telemetry (or that of the robot it
+//! drives) and a teleop channel's link statistics, one record at a time.
 
 use std::sync::{Mutex, PoisonError};
 
-use penelope_protocol::client::TelemetryStream;
+use penelope_protocol::client::{LinkStream, Streamed, Subscription, TelemetryStream};
 use penelope_protocol::net::conn::RpcError;
+use penelope_protocol::proto::LinkRecord;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::errors::Error;
 use crate::values;
 
-/// A telemetry subscription on a connection of its own; unsubscribes when closed or collected.
-#[pyclass(module = "penelope._native", frozen)]
-pub struct Watch {
-    stream: Mutex<Option<TelemetryStream>>,
+/// A subscription, its path and the records left (`None`: endless); the stream is `None`
+/// once closed or broken.
+struct Stream<R> {
+    stream: Mutex<Option<Subscription<R>>>,
     path: String,
     left: Mutex<Option<u64>>,
 }
 
-impl Watch {
-    /// Wraps `stream`, ending after `count` records (`None`: never).
-    pub fn new(stream: TelemetryStream, count: Option<u64>) -> Watch {
-        Watch {
+impl<R: Streamed + Send> Stream<R> {
+    fn new(stream: Subscription<R>, count: Option<u64>) -> Self {
+        Stream {
             path: stream.path().to_string(),
             stream: Mutex::new(Some(stream)),
             left: Mutex::new(count),
         }
     }
-}
 
-#[pymethods]
-impl Watch {
-    /// The watched object's naming path.
-    #[getter]
-    fn path(&self) -> &str {
-        &self.path
-    }
-
-    /// Batches the node dropped because this side read too slowly.
-    #[getter]
     fn dropped(&self, py: Python<'_>) -> u64 {
         // Without the GIL: another thread may hold the stream while it waits for a record.
         py.detach(|| {
@@ -48,12 +37,8 @@ impl Watch {
         })
     }
 
-    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
-        slf
-    }
-
-    /// The next record, as a dict; `StopIteration` after `count` records or `close()`.
-    fn __next__<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+    /// The next record; `None` after `count` records or `close()`.
+    fn next(&self, py: Python<'_>) -> Result<Option<R>, Error> {
         let finished = {
             let mut left = self.left.lock().unwrap_or_else(PoisonError::into_inner);
             match *left {
@@ -87,13 +72,9 @@ impl Watch {
                 }
             }
         });
-        match got.map_err(Error)? {
-            Some(r) => Ok(Some(values::record(py, &r)?)),
-            None => Ok(None),
-        }
+        got.map_err(Error)
     }
 
-    /// Unsubscribes and closes the connection (idempotent).
     fn close(&self, py: Python<'_>) {
         py.detach(|| {
             let taken = self
@@ -103,5 +84,100 @@ impl Watch {
                 .take();
             drop(taken);
         });
+    }
+}
+
+/// A telemetry subscription on a connection of its own; unsubscribes when closed or collected.
+#[pyclass(module = "penelope._native", frozen)]
+pub struct Watch {
+    inner: Stream<penelope_protocol::proto::TelemetryRecord>,
+}
+
+impl Watch {
+    /// Wraps `stream`, ending after `count` records (`None`: never).
+    pub fn new(stream: TelemetryStream, count: Option<u64>) -> Watch {
+        Watch {
+            inner: Stream::new(stream, count),
+        }
+    }
+}
+
+#[pymethods]
+impl Watch {
+    /// The watched object's naming path.
+    #[getter]
+    fn path(&self) -> &str {
+        &self.inner.path
+    }
+
+    /// Batches the node dropped because this side read too slowly.
+    #[getter]
+    fn dropped(&self, py: Python<'_>) -> u64 {
+        self.inner.dropped(py)
+    }
+
+    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    /// The next record, as a dict; `StopIteration` after `count` records or `close()`.
+    fn __next__<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        match self.inner.next(py)? {
+            Some(r) => Ok(Some(values::record(py, &r)?)),
+            None => Ok(None),
+        }
+    }
+
+    /// Unsubscribes and closes the connection (idempotent).
+    fn close(&self, py: Python<'_>) {
+        self.inner.close(py);
+    }
+}
+
+/// A link-statistics subscription on a connection of its own; unsubscribes when closed or
+/// collected.
+#[pyclass(module = "penelope._native", frozen)]
+pub struct LinkWatch {
+    inner: Stream<LinkRecord>,
+}
+
+impl LinkWatch {
+    /// Wraps `stream`, ending after `count` records (`None`: never).
+    pub fn new(stream: LinkStream, count: Option<u64>) -> LinkWatch {
+        LinkWatch {
+            inner: Stream::new(stream, count),
+        }
+    }
+}
+
+#[pymethods]
+impl LinkWatch {
+    /// The watched channel's naming path.
+    #[getter]
+    fn path(&self) -> &str {
+        &self.inner.path
+    }
+
+    /// Records the node dropped because this side read too slowly.
+    #[getter]
+    fn dropped(&self, py: Python<'_>) -> u64 {
+        self.inner.dropped(py)
+    }
+
+    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    /// The next link record, as a dict; `StopIteration` after `count` records or `close()`.
+    fn __next__<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        match self.inner.next(py)? {
+            Some(r) => Ok(Some(values::link_record(py, &r)?)),
+            None => Ok(None),
+        }
+    }
+
+    /// Unsubscribes and closes the connection (idempotent).
+    fn close(&self, py: Python<'_>) {
+        self.inner.close(py);
     }
 }

@@ -45,12 +45,15 @@ def free_port() -> int:
 class Node:
     """A `penelope node --host-naming` child process; `naming` is its address."""
 
-    def __init__(self, binary: str, name: str, extra: List[str]) -> None:
-        self.naming = f"127.0.0.1:{free_port()}"
+    def __init__(self, binary: str, name: str, extra: List[str],
+                 naming: Optional[str] = None) -> None:
+        # Hosting the naming service, or (given `naming`) registering in another node's.
+        self.naming = naming or f"127.0.0.1:{free_port()}"
         self._stderr = tempfile.TemporaryFile()
+        where = (["--naming", naming, "--listen", f"127.0.0.1:{free_port()}"] if naming
+                 else ["--host-naming", "--listen", self.naming])
         self.proc = subprocess.Popen(
-            [binary, "node", "--name", name, "--host-naming", "--listen", self.naming,
-             "--priority", "0", *extra],
+            [binary, "node", "--name", name, *where, "--priority", "0", *extra],
             stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE,
             stderr=self._stderr,
@@ -71,11 +74,13 @@ class Node:
             try:
                 line = lines.get(timeout=START_TIMEOUT_S)
             except queue.Empty:
+                log = self.log()
                 self.stop()
-                pytest.fail(f"the node printed no {READY!r} in {START_TIMEOUT_S} s: {self.log()}")
+                pytest.fail(f"the node printed no {READY!r} in {START_TIMEOUT_S} s: {log}")
             if line is None:
+                log = self.log()
                 self.stop()
-                pytest.fail(f"the node exited before it was ready: {self.log()}")
+                pytest.fail(f"the node exited before it was ready: {log}")
             self.output.append(line)
             if READY in line:
                 break

@@ -88,6 +88,8 @@ struct Inner {
     naming: SocketAddr,
     config: ClientConfig,
     pool: Mutex<HashMap<SocketAddr, Slot>>,
+    /// Set by [`Client::close`]: every later call is refused.
+    closed: std::sync::atomic::AtomicBool,
 }
 
 impl Client {
@@ -113,6 +115,7 @@ impl Client {
                 naming,
                 config,
                 pool: Mutex::new(HashMap::new()),
+                closed: std::sync::atomic::AtomicBool::new(false),
             }),
         }
     }
@@ -246,6 +249,7 @@ impl Client {
     /// # Errors
     /// The node's error ([`RpcError::Remote`]) or a transport error.
     pub fn call_at(&self, address: SocketAddr, call: Call) -> Result<Reply, RpcError> {
+        self.check_open()?;
         let slot = self.slot(address);
         let mut conn = lock(&slot);
         if conn.as_ref().is_some_and(|c| !c.is_usable()) {
@@ -281,6 +285,7 @@ impl Client {
     /// # Errors
     /// The node's error ([`RpcError::Remote`]) or a transport error.
     pub fn call_alone(&self, address: SocketAddr, call: Call) -> Result<Reply, RpcError> {
+        self.check_open()?;
         Connection::connect(address, &self.inner.config)?.call(call)
     }
 
@@ -406,6 +411,35 @@ impl Client {
     /// As [`Client::proxy`].
     pub fn trajectory(&self, path: &str) -> Result<TrajectoryProxy, RpcError> {
         self.proxy(path)
+    }
+
+    /// Closes every cached connection (of this client and of its clones and proxies, which
+    /// share them) and refuses every later call with an [`RpcError::Io`] of kind
+    /// `NotConnected`. Idempotent. Open telemetry subscriptions have connections of their own
+    /// and end when dropped.
+    pub fn close(&self) {
+        self.inner
+            .closed
+            .store(true, std::sync::atomic::Ordering::SeqCst);
+        let slots: Vec<Slot> = lock(&self.inner.pool).drain().map(|(_, s)| s).collect();
+        for slot in slots {
+            lock(&slot).take();
+        }
+    }
+
+    /// Whether [`Client::close`] was called.
+    pub fn is_closed(&self) -> bool {
+        self.inner.closed.load(std::sync::atomic::Ordering::SeqCst)
+    }
+
+    fn check_open(&self) -> Result<(), RpcError> {
+        if self.is_closed() {
+            return Err(RpcError::Io(std::io::Error::new(
+                std::io::ErrorKind::NotConnected,
+                "the client was closed",
+            )));
+        }
+        Ok(())
     }
 
     fn slot(&self, address: SocketAddr) -> Slot {
