@@ -10,7 +10,11 @@
 //! The physical limit of one sample is the transport plus the wait for the receiving loop's
 //! tick: from the sender's tick to the first tick of the receiver at or after the instant the
 //! sample was ready (the sender's tick, its wake-up latency and execution time) plus the
-//! transport's one-way trip. Two loops on one clock keep the phase they started with, so a run's
+//! transport's one-way trip. The estimate takes the transport's median trip and the sender's
+//! recorded times, so when the receiving tick falls within a few microseconds of the instant
+//! the sample is ready it can name the tick after the one the sample reached: a sample that
+//! reached an earlier tick shows that tick was within reach, and its limit is then its own
+//! latency (a limit is never above what was achieved). Two loops on one clock keep the phase they started with, so a run's
 //! figures are that phase plus the transport when the handoff is at the limit: the ratio of the
 //! measured figure to the limit says how much the architecture adds.
 
@@ -162,7 +166,8 @@ pub fn motion_to_command(out: &RunOutput, transport: Duration) -> Vec<(f64, f64)
         if let Some(j) = found {
             let at = index_of(&out.master, &master[j]);
             if let Some(l) = limit(&out.master, at, slave, transport) {
-                latencies.push((us(now.time, master[j].sample.time), l));
+                let latency = us(now.time, master[j].sample.time);
+                latencies.push((latency, l.min(latency)));
             }
         }
     }
@@ -190,7 +195,8 @@ pub fn contact_to_force(out: &RunOutput, transport: Duration) -> Vec<(f64, f64)>
         {
             let at = index_of(&out.slave, s);
             if let Some(l) = limit(&out.slave, at, master, transport) {
-                latencies.push((us(now.time, s.sample.time), l));
+                let latency = us(now.time, s.sample.time);
+                latencies.push((latency, l.min(latency)));
             }
         }
     }
