@@ -5,7 +5,7 @@
 //! joint becomes); one chain may mix them. Every joint transform is computed once per call (one
 //! `sin_cos` per revolute joint) and composed in place on the stack; nothing allocates. A chain
 //! of six revolute DH rows (both PUMAs, the FRHC) takes a faster path with the same arithmetic,
-//! equal bit for bit ([`super::dh6`]).
+//! equal bit for bit (`dh6.rs`).
 
 use nalgebra::{Matrix3, Vector3};
 use penelope_hal::{Jacobian, JacobianFrame, JointVector, MAX_JOINTS, Pose};
