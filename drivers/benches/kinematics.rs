@@ -1,5 +1,6 @@
 //! Per-call cost of the PUMA 560 model: forward kinematics, Jacobian, both from one pass,
-//! inverse kinematics (all 8 branches), gravity, inertia and Newton-Euler.
+//! inverse kinematics (all 8 branches), gravity, inertia and Newton-Euler; and the FRHC's
+//! forward kinematics and Jacobian (the master's model, called every control tick).
 //!
 //! `scripts/bench-kinematics` runs this beside the same calls of the Python Robotics Toolbox and
 //! prints the ratio table that BENCHMARKS.md quotes.
@@ -56,5 +57,23 @@ fn puma560(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, puma560);
+fn frhc(c: &mut Criterion) {
+    let m = model::frhc();
+    // A generic configuration near the FRHC's home [0, 60, 150, 0, 0, 0] deg.
+    let q = JointVector::from_column_slice(&[0.3, 0.9, 2.4, -0.6, 0.5, 0.4]);
+    let mut g = c.benchmark_group("frhc");
+    g.bench_function("fk", |b| b.iter(|| m.forward(black_box(&q))));
+    g.bench_function("jacobian", |b| {
+        b.iter(|| m.jacobian(black_box(&q), JacobianFrame::Base))
+    });
+    g.bench_function("fk+jacobian one pass", |b| {
+        b.iter(|| m.forward_and_jacobian(black_box(&q), JacobianFrame::Base))
+    });
+    g.bench_function("fk+jacobian one pass, tool frame", |b| {
+        b.iter(|| m.forward_and_jacobian(black_box(&q), JacobianFrame::Tool))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, puma560, frhc);
 criterion_main!(benches);

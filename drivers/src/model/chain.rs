@@ -3,13 +3,16 @@
 //!
 //! A joint is either a standard-DH row ([`DhLink`]) or an axis joint ([`AxisJoint`], what a URDF
 //! joint becomes); one chain may mix them. Every joint transform is computed once per call (one
-//! `sin_cos` per revolute joint) and composed in place on the stack; nothing allocates.
+//! `sin_cos` per revolute joint) and composed in place on the stack; nothing allocates. A chain
+//! of six revolute DH rows (both PUMAs, the FRHC) takes a faster path with the same arithmetic,
+//! equal bit for bit (`dh6.rs`).
 
 use nalgebra::{Matrix3, Vector3};
 use penelope_hal::{Jacobian, JacobianFrame, JointVector, MAX_JOINTS, Pose};
 
 use super::axis_joint::{AxisGeometry, AxisJoint};
 use super::dh::{DhLink, JointKind, LinkGeometry, Rt};
+use super::dh6::Dh6;
 
 /// Why a chain could not be built.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
@@ -158,6 +161,8 @@ pub struct SerialChain {
     base: Rt,
     tool: Rt,
     tool_identity: bool,
+    /// The fast path when the chain is six revolute DH rows (bit for bit the general one).
+    dh6: Option<Dh6>,
 }
 
 impl SerialChain {
@@ -212,12 +217,18 @@ impl SerialChain {
         }
         let base = Rt::from_pose(base);
         let tool = Rt::from_pose(tool);
+        let dh: [Option<&LinkGeometry>; MAX_JOINTS] = core::array::from_fn(|j| match &geo[j] {
+            JointGeometry::Dh(g) => Some(g),
+            JointGeometry::Axis(_) => None,
+        });
+        let dh6 = Dh6::new(&dh[..links.len()]);
         Ok(SerialChain {
             n: links.len(),
             links: geo,
             base,
             tool,
             tool_identity: tool.is_identity(),
+            dh6,
         })
     }
 
@@ -272,6 +283,15 @@ impl SerialChain {
     /// The flange frame (after the last link) in the world frame, without storing the others.
     #[inline]
     pub(crate) fn flange(&self, q: &JointVector) -> Rt {
+        match &self.dh6 {
+            Some(fast) => fast.flange(&self.base, q),
+            None => self.flange_general(q),
+        }
+    }
+
+    /// [`flange`](Self::flange) for any chain.
+    #[inline]
+    fn flange_general(&self, q: &JointVector) -> Rt {
         let mut r = self.base.r;
         let mut p = self.base.p;
         for j in 0..self.n {
@@ -337,7 +357,9 @@ impl SerialChain {
     /// # Real-time
     /// No allocation, bounded time.
     pub fn jacobian(&self, q: &JointVector, frame: JacobianFrame) -> Jacobian {
-        self.forward_and_jacobian_rt(q, frame).1
+        let mut jac = Jacobian::zeros();
+        self.forward_and_jacobian_into(q, frame, &mut jac);
+        jac
     }
 
     /// Forward kinematics and the Jacobian from one pass over the links (cheaper than calling
@@ -346,8 +368,11 @@ impl SerialChain {
     /// # Real-time
     /// No allocation, bounded time.
     pub fn forward_and_jacobian(&self, q: &JointVector, frame: JacobianFrame) -> (Pose, Jacobian) {
-        let (t, j) = self.forward_and_jacobian_rt(q, frame);
-        (t.to_pose(), j)
+        // Built in place: moving a 288-byte Jacobian costs a `memcpy` call per move.
+        let mut out = (Pose::identity(), Jacobian::zeros());
+        let t = self.forward_and_jacobian_into(q, frame, &mut out.1);
+        out.0 = t.to_pose();
+        out
     }
 
     /// One sweep storing only each joint's axis and a point on it (not whole frames), then one
@@ -358,6 +383,48 @@ impl SerialChain {
         q: &JointVector,
         frame: JacobianFrame,
     ) -> (Rt, Jacobian) {
+        let mut jac = Jacobian::zeros();
+        let t = self.forward_and_jacobian_into(q, frame, &mut jac);
+        (t, jac)
+    }
+
+    /// [`forward_and_jacobian_rt`](Self::forward_and_jacobian_rt) writing the Jacobian into
+    /// `jac`, which must be zero (the columns past the joint count are left as they are).
+    #[inline(always)]
+    fn forward_and_jacobian_into(
+        &self,
+        q: &JointVector,
+        frame: JacobianFrame,
+        jac: &mut Jacobian,
+    ) -> Rt {
+        match &self.dh6 {
+            Some(fast) => {
+                let sweep = fast.sweep(&self.base, q);
+                let e = self.tool_of(&sweep.flange);
+                for j in 0..6 {
+                    let z = sweep.axis[j];
+                    let v = z.cross(&(e.p - sweep.origin[j]));
+                    let (v, w) = match frame {
+                        JacobianFrame::Base => (v, z),
+                        JacobianFrame::Tool => (e.r.tr_mul(&v), e.r.tr_mul(&z)),
+                    };
+                    jac.fixed_view_mut::<3, 1>(0, j).copy_from(&v);
+                    jac.fixed_view_mut::<3, 1>(3, j).copy_from(&w);
+                }
+                e
+            }
+            None => self.forward_and_jacobian_general(q, frame, jac),
+        }
+    }
+
+    /// [`forward_and_jacobian_into`](Self::forward_and_jacobian_into) for any chain.
+    #[inline]
+    fn forward_and_jacobian_general(
+        &self,
+        q: &JointVector,
+        frame: JacobianFrame,
+        jac: &mut Jacobian,
+    ) -> Rt {
         let mut axis = [Vector3::zeros(); MAX_JOINTS];
         let mut origin = [Vector3::zeros(); MAX_JOINTS];
         let mut r = self.base.r;
@@ -366,7 +433,6 @@ impl SerialChain {
             ((r, p), (axis[j], origin[j])) = self.links[j].step(&r, &p, q[j]);
         }
         let e = self.tool_of(&Rt { r, p });
-        let mut jac = Jacobian::zeros();
         for j in 0..self.n {
             let z = axis[j];
             let (v, w) = match self.links[j].kind() {
@@ -380,6 +446,186 @@ impl SerialChain {
             jac.fixed_view_mut::<3, 1>(0, j).copy_from(&v);
             jac.fixed_view_mut::<3, 1>(3, j).copy_from(&w);
         }
-        (e, jac)
+        e
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use core::f64::consts::{FRAC_PI_2, PI};
+
+    use nalgebra::{Translation3, UnitQuaternion};
+    use proptest::prelude::*;
+
+    use super::*;
+
+    impl SerialChain {
+        /// The same chain, always on the general path.
+        fn general(&self) -> SerialChain {
+            SerialChain { dh6: None, ..*self }
+        }
+    }
+
+    fn pose_bits(p: &Pose) -> [u64; 7] {
+        let t = p.translation.vector;
+        let r = p.rotation.coords;
+        [t.x, t.y, t.z, r.x, r.y, r.z, r.w].map(f64::to_bits)
+    }
+
+    fn matrix_bits<const R: usize, const C: usize>(m: &nalgebra::SMatrix<f64, R, C>) -> Vec<u64> {
+        m.iter().map(|x| x.to_bits()).collect()
+    }
+
+    /// Every kinematics result of `chain` at `q` equals the general path's, bit for bit.
+    fn assert_fast_equals_general(chain: &SerialChain, q: &JointVector) {
+        assert!(chain.dh6.is_some(), "the chain should take the fast path");
+        let general = chain.general();
+        assert_eq!(
+            pose_bits(&chain.forward(q)),
+            pose_bits(&general.forward(q)),
+            "fk at {q:?}"
+        );
+        assert_eq!(
+            matrix_bits(&chain.forward_matrix(q)),
+            matrix_bits(&general.forward_matrix(q))
+        );
+        for frame in [JacobianFrame::Base, JacobianFrame::Tool] {
+            let (pose, jac) = chain.forward_and_jacobian(q, frame);
+            let (pose_g, jac_g) = general.forward_and_jacobian(q, frame);
+            assert_eq!(pose_bits(&pose), pose_bits(&pose_g), "{frame:?} at {q:?}");
+            assert_eq!(matrix_bits(&jac), matrix_bits(&jac_g), "{frame:?} at {q:?}");
+            assert_eq!(
+                matrix_bits(&chain.jacobian(q, frame)),
+                matrix_bits(&jac_g),
+                "{frame:?} at {q:?}"
+            );
+            let (t, j) = chain.forward_and_jacobian_rt(q, frame);
+            let (t_g, j_g) = general.forward_and_jacobian_rt(q, frame);
+            assert_eq!(matrix_bits(&t.r), matrix_bits(&t_g.r));
+            assert_eq!(matrix_bits(&t.p), matrix_bits(&t_g.p));
+            assert_eq!(matrix_bits(&j), matrix_bits(&j_g));
+        }
+    }
+
+    fn built_in_chains() -> Vec<SerialChain> {
+        crate::model::BUILT_IN
+            .iter()
+            .map(|name| *crate::model::by_name(name).unwrap().chain())
+            .collect()
+    }
+
+    /// A twist: the exact ones of the built-in tables (as degrees converted, like a DH file
+    /// does), or any.
+    fn alpha() -> impl Strategy<Value = f64> {
+        prop_oneof![
+            Just(0.0),
+            Just(90.0_f64.to_radians()),
+            Just((-90.0_f64).to_radians()),
+            Just(FRAC_PI_2),
+            Just(PI),
+            -PI..PI,
+        ]
+    }
+
+    /// A length: often exactly zero, as in the built-in tables.
+    fn length() -> impl Strategy<Value = f64> {
+        prop_oneof![Just(0.0), -1.0..1.0]
+    }
+
+    fn dh_row() -> impl Strategy<Value = DhLink> {
+        (length(), length(), alpha(), prop_oneof![Just(0.0), -PI..PI])
+            .prop_map(|(d, a, alpha, offset)| DhLink::revolute(d, a, alpha, offset))
+    }
+
+    /// The identity (the built-in robots' base and tool) or any pose.
+    fn pose() -> impl Strategy<Value = Pose> {
+        prop_oneof![
+            Just(Pose::identity()),
+            (
+                prop::array::uniform3(-1.0..1.0),
+                prop::array::uniform3(-PI..PI)
+            )
+                .prop_map(|(t, [r, p, y])| Pose::from_parts(
+                    Translation3::new(t[0], t[1], t[2]),
+                    UnitQuaternion::from_euler_angles(r, p, y)
+                )),
+        ]
+    }
+
+    /// Joint values: within a turn, far outside it (the other argument reductions of `sin_cos`),
+    /// and exact zeros.
+    fn joints() -> impl Strategy<Value = JointVector> {
+        prop::array::uniform6(prop_oneof![
+            Just(0.0),
+            -PI..PI,
+            -1.0e3..1.0e3,
+            -1.0e9..1.0e9
+        ])
+        .prop_map(|q| JointVector::from_column_slice(&q))
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig {
+            cases: 2000,
+            failure_persistence: None,
+            ..ProptestConfig::default()
+        })]
+
+        #[test]
+        fn the_built_in_robots_fast_path_equals_the_general_one_bit_for_bit(q in joints()) {
+            for chain in built_in_chains() {
+                assert_fast_equals_general(&chain, &q);
+            }
+        }
+
+        #[test]
+        fn any_six_revolute_dh_chains_fast_path_equals_the_general_one_bit_for_bit(
+            rows in prop::array::uniform6(dh_row()),
+            base in pose(),
+            tool in pose(),
+            q in joints(),
+        ) {
+            let chain = SerialChain::new(&rows, &base, &tool).unwrap();
+            assert_fast_equals_general(&chain, &q);
+        }
+    }
+
+    #[test]
+    fn only_six_revolute_dh_rows_take_the_fast_path() {
+        let row = DhLink::revolute(0.1, 0.2, FRAC_PI_2, 0.0);
+        let id = Pose::identity();
+        assert!(SerialChain::new(&[row; 6], &id, &id).unwrap().dh6.is_some());
+        assert!(SerialChain::new(&[row; 5], &id, &id).unwrap().dh6.is_none());
+        let mut rows = [row; 6];
+        rows[2] = DhLink::prismatic(0.0, 0.1, 0.0, 0.0);
+        assert!(SerialChain::new(&rows, &id, &id).unwrap().dh6.is_none());
+        let mut joints = [ChainJoint::Dh(row); 6];
+        joints[4] = ChainJoint::Axis(crate::model::AxisJoint::revolute(id, Vector3::z()));
+        let mixed = SerialChain::from_joints(&joints, &id, &id).unwrap();
+        assert!(mixed.dh6.is_none());
+        // Every built-in robot is six revolute DH rows.
+        assert!(built_in_chains().iter().all(|c| c.dh6.is_some()));
+    }
+
+    #[test]
+    fn a_non_finite_joint_value_gives_non_finite_results_on_both_paths() {
+        for chain in built_in_chains() {
+            for bad in [f64::NAN, f64::INFINITY] {
+                let mut q = JointVector::repeat(0.3);
+                q[3] = bad;
+                let (pose, jac) = chain.forward_and_jacobian(&q, JacobianFrame::Base);
+                let (pose_g, jac_g) = chain
+                    .general()
+                    .forward_and_jacobian(&q, JacobianFrame::Base);
+                assert!(pose.rotation.coords.iter().any(|x| x.is_nan()));
+                assert!(pose_g.rotation.coords.iter().any(|x| x.is_nan()));
+                // Joints before the bad one keep finite columns on both paths alike.
+                for c in 0..6 {
+                    for r in 0..6 {
+                        assert_eq!(jac[(r, c)].is_nan(), jac_g[(r, c)].is_nan(), "({r}, {c})");
+                    }
+                }
+            }
+        }
     }
 }

@@ -39,6 +39,7 @@
 pub mod axis_joint;
 pub mod chain;
 pub mod dh;
+mod dh6;
 pub mod dynamics;
 pub mod file;
 pub mod links;
