@@ -537,6 +537,13 @@ def test_the_3d_view_draws_both_arms_at_the_nodes_joint_angles(system, browser) 
         s_seen, m_seen = WebDriverWait(browser, 40, poll_frequency=0.05).until(pushing)
     except Exception:
         s_seen = m_seen = None
+    # The picture first, while the push lasts.
+    browser.execute_script("document.getElementById('scene3d').scrollIntoView()")
+    next_frames(browser)
+    SCREENSHOT_3D.parent.mkdir(parents=True, exist_ok=True)
+    png = browser.find_element(By.ID, "scene3d").screenshot_as_png
+    SCREENSHOT_3D.write_bytes(png)
+    assert SCREENSHOT_3D.stat().st_size > 10_000
     if s_seen is None:
         # Only a machine so slow that the push was over before the wait began may miss it.
         assert started > 11_000, f"no push on the wall seen from tick {started} on"
@@ -545,13 +552,24 @@ def test_the_3d_view_draws_both_arms_at_the_nodes_joint_angles(system, browser) 
         fx, fy, fz = s_seen["forceInBase"]
         print(f"pushing on the wall: sensed {s_seen['forceInBase']} N (base), displayed {m_seen['displayed']} N")
         assert abs(fx) < 0.2 * abs(fz) and abs(fy) < 0.2 * abs(fz), s_seen
-        assert -0.9 < m_seen["displayed"][2] / fz < -0.25, (s_seen, m_seen)
+        # The gain over the push, not at its first instant: at the start the sensed force rises
+        # faster than the master's filter follows (-0.246 seen there once). Pairs read for about a
+        # second (bounded count) while the push lasts; their sums give the displayed/sensed gain.
+        pairs = [(m_seen["displayed"][2], fz)]
+        last = s_seen["seq"]
+        for _ in range(20):
+            # The next reading 25 ticks of the slave's loop on (sampled by its clock, not ours).
+            def slave_after(d, after=last + 25):
+                a = d.execute_script("return window.penelopeScene.jointAngles(arguments[0])", slave)
+                return a if a and a["seq"] is not None and a["seq"] >= after else None
+
+            last = wait(browser, slave_after, "the slave's next sample")["seq"]
+            seen = pushing(browser)
+            if seen is not None:
+                pairs.append((seen[1]["displayed"][2], seen[0]["forceInBase"][2]))
+        gain = sum(d for d, _ in pairs) / sum(f for _, f in pairs)
+        print(f"displayed/sensed along z over {len(pairs)} readings in the push: {gain:.3f}")
+        assert -0.9 < gain < -0.25, pairs
         # The panel shows the operator's clutch, live from the master's ticks.
         wait(browser, lambda d: "clutch" in d.find_element(By.ID, "teleop-table").text,
              "the clutch in the teleoperation panel")
-    browser.execute_script("document.getElementById('scene3d').scrollIntoView()")
-    next_frames(browser)
-    SCREENSHOT_3D.parent.mkdir(parents=True, exist_ok=True)
-    png = browser.find_element(By.ID, "scene3d").screenshot_as_png
-    SCREENSHOT_3D.write_bytes(png)
-    assert SCREENSHOT_3D.stat().st_size > 10_000
