@@ -20,6 +20,7 @@
 
 pub mod naming;
 pub mod node;
+pub mod ros2;
 pub mod runs;
 pub mod system;
 pub mod zenoh_bridge;

@@ -23,6 +23,8 @@
 //! robot_files = ["robots"]              # where a robot/urdf's `file` is read from
 //! zenoh = "tcp/127.0.0.1:7447"          # a Zenoh bridge to this router or peer (or a table
 //!                                       # { connect = ENDPOINT, config = "zenoh.json5" })
+//! ros2 = true                           # in the ROS 2 graph over rmw_zenoh (or a table
+//!                                       # { domain_id = 0, rate_hz = 100 }; docs/ros2.md)
 //!
 //! [boards.puma-io]                      # <class>.<name>: boards, robots, sensors,
 //! kind = "sim"                          #   trajectories, controllers; `kind` without the class
@@ -111,6 +113,10 @@ pub struct NodePolicy {
     /// `penelope node` runs a Zenoh bridge ([`crate::zenoh_bridge`]) with these settings
     /// (`--zenoh` and `--zenoh-config` override them).
     pub zenoh: Option<crate::zenoh_bridge::ZenohSettings>,
+    /// `penelope node` appears in the ROS 2 graph over rmw_zenoh ([`crate::ros2`]): `true` or
+    /// `{ domain_id, rate_hz }` (`--ros2` and its options override it). Without `zenoh`, the
+    /// bridge connects to rmw_zenoh's router at `tcp/127.0.0.1:7447`.
+    pub ros2: Option<crate::ros2::Ros2Settings>,
 }
 
 impl NodePolicy {

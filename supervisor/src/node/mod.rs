@@ -104,6 +104,8 @@ pub struct NodeConfig {
     pub resolve_ttl: Duration,
     /// The Zenoh bridge's settings (`None`: no bridge).
     pub zenoh: Option<ZenohSettings>,
+    /// The node's ROS 2 presence on that bridge's session (`None`: none; needs `zenoh`).
+    pub ros2: Option<crate::ros2::Ros2Settings>,
 }
 
 impl NodeConfig {
@@ -123,6 +125,7 @@ impl NodeConfig {
             call_timeout: Duration::from_secs(2),
             resolve_ttl: Duration::from_secs(1),
             zenoh: None,
+            ros2: None,
             name,
         }
     }
@@ -362,7 +365,14 @@ impl Node {
                 &name,
                 Arc::downgrade(&creator),
                 settings,
+                config.ros2,
             )?),
+            None if config.ros2.is_some() => {
+                return Err(ZenohError::Config(
+                    "a ROS 2 presence runs on the Zenoh bridge: set `zenoh` too".into(),
+                )
+                .into());
+            }
             None => None,
         };
         let shared = Arc::new(Shared {

@@ -133,6 +133,8 @@ pub struct BridgeStats {
     pub poses_refused: u64,
     /// Queries of the object tree answered.
     pub queries: u64,
+    /// The ROS 2 presence's (zero without one).
+    pub ros2: crate::ros2::Ros2Stats,
 }
 
 /// A node's Zenoh bridge, in a build without the `zenoh` feature: it never starts.
@@ -150,6 +152,7 @@ impl ZenohBridge {
         _node: &str,
         _creator: std::sync::Weak<penelope_runtime::objects::Creator>,
         _settings: &ZenohSettings,
+        _ros2: Option<crate::ros2::Ros2Settings>,
     ) -> Result<ZenohBridge, ZenohError> {
         Err(ZenohError::NotBuilt)
     }

@@ -19,6 +19,8 @@ use zenoh::query::{Query, Queryable};
 
 use super::encoding::{self, EVENTS, FEEDBACK, LINK, TELEMETRY, objects_key, stream_key};
 use super::{BridgeStats, ZenohError, ZenohSettings};
+use crate::ros2::Ros2Settings;
+use crate::ros2::presence::{self, Ros2Presence};
 use penelope_protocol::proto::Class;
 use penelope_runtime::objects::Creator;
 use penelope_runtime::objects::bridged::BridgedChannels;
@@ -55,6 +57,7 @@ pub struct ZenohBridge {
     counters: Arc<Counters>,
     /// Ticks lost by the bridge's streams (summed by its thread).
     dropped: Arc<AtomicU64>,
+    ros2: Option<Arc<presence::Counters>>,
     stop: Option<(Sender<()>, JoinHandle<()>)>,
     _queryable: Queryable<()>,
 }
@@ -230,7 +233,7 @@ fn access_control(operators: &[String]) -> String {
 impl ZenohBridge {
     /// Opens a Zenoh session as `settings` say and starts bridging node `node`'s `creator`:
     /// the object tree's queryable at once, then its controllers, channels and reference keys
-    /// as they appear.
+    /// as they appear; with `ros2`, the node's ROS 2 presence too ([`crate::ros2`]).
     ///
     /// # Errors
     /// [`ZenohError`]: a configuration file that does not read or parse, a refused endpoint,
@@ -239,12 +242,22 @@ impl ZenohBridge {
         node: &str,
         creator: Weak<Creator>,
         settings: &ZenohSettings,
+        ros2: Option<Ros2Settings>,
     ) -> Result<ZenohBridge, ZenohError> {
         let session = zenoh::open(config(settings)?)
             .wait()
             .map_err(|e| ZenohError::Session(e.to_string()))?;
         let counters = Arc::new(Counters::default());
         let queryable = declare_objects(&session, node, creator.clone(), counters.clone())?;
+        let ros2 = match (ros2, creator.upgrade()) {
+            (Some(ros2), Some(c)) => Some(Ros2Presence::start(
+                &session,
+                node,
+                ros2,
+                c.node_time().now_ns(),
+            )?),
+            _ => None,
+        };
         let dropped = Arc::new(AtomicU64::new(0));
         let (stop, stopped) = mpsc::channel::<()>();
         let mut worker = Worker {
@@ -258,7 +271,9 @@ impl ZenohBridge {
             feedback: BTreeMap::new(),
             subscribers: BTreeMap::new(),
             channels: None,
+            ros2,
         };
+        let ros2 = worker.ros2.as_ref().map(Ros2Presence::counters);
         let thread = std::thread::Builder::new()
             .name(format!("zenoh-{node}"))
             .spawn(move || worker.run(&stopped))
@@ -267,6 +282,7 @@ impl ZenohBridge {
             session,
             counters,
             dropped,
+            ros2,
             stop: Some((stop, thread)),
             _queryable: queryable,
         })
@@ -287,6 +303,7 @@ impl ZenohBridge {
             poses_taken: n(&c.poses_taken),
             poses_refused: n(&c.poses_refused),
             queries: n(&c.queries),
+            ros2: self.ros2.as_ref().map(|c| c.stats()).unwrap_or_default(),
         }
     }
 
@@ -379,6 +396,7 @@ struct Worker {
     /// A subscriber per reference key (several channels may share one).
     subscribers: BTreeMap<String, Subscriber<()>>,
     channels: Option<BridgedChannels>,
+    ros2: Option<Ros2Presence>,
 }
 
 impl Worker {
@@ -421,7 +439,7 @@ impl Worker {
 
     /// Starts publishing new controllers and linked channels, and subscribes to new reference
     /// keys.
-    fn discover(&mut self, creator: &Creator) {
+    fn discover(&mut self, creator: &Arc<Creator>) {
         for info in creator.list() {
             if info.class == Class::Controller && !self.controllers.contains_key(&info.name) {
                 let Ok(ticks) = creator.record_ticks(&info.name, TICK_STREAM_CAPACITY) else {
@@ -433,6 +451,9 @@ impl Worker {
                 ) else {
                     continue;
                 };
+                if let Some(ros2) = &mut self.ros2 {
+                    ros2.add_controller(creator, &info.name);
+                }
                 self.controllers.insert(
                     info.name,
                     ControllerStreams {
@@ -465,6 +486,9 @@ impl Worker {
             .get_or_insert_with(|| creator.bridged_channels())
             .clone();
         for (channel, key) in channels.keys() {
+            if let Some(ros2) = &mut self.ros2 {
+                ros2.add_bridged_channel(&channels, &channel, &key);
+            }
             if !self.feedback.contains_key(&channel)
                 && let Some(publisher) = self.publisher(&channel, FEEDBACK)
             {
@@ -507,6 +531,9 @@ impl Worker {
                     self.counters.events.fetch_add(1, Ordering::Relaxed);
                 }
                 c.last = Some((record.sample.state, record.sample.fault));
+                if let Some(ros2) = &mut self.ros2 {
+                    ros2.tick(name, &record);
+                }
                 if let Ok(body) = encoding::tick_message(&record)
                     && c.telemetry.put(body).wait().is_ok()
                 {
@@ -520,9 +547,15 @@ impl Worker {
 
     fn publish_links(&mut self) {
         let now = penelope_rt_core::clock::MonotonicClock::read().as_nanos();
-        for (source, publisher) in self.links.values() {
-            if let Some(stats) = source.latest()
-                && let Ok(body) = serde_json::to_vec(&stats.record(now))
+        for (channel, (source, publisher)) in &self.links {
+            let Some(stats) = source.latest() else {
+                continue;
+            };
+            let record = stats.record(now);
+            if let Some(ros2) = &mut self.ros2 {
+                ros2.link(channel, &record);
+            }
+            if let Ok(body) = serde_json::to_vec(&record)
                 && publisher.put(body).wait().is_ok()
             {
                 self.counters.link_records.fetch_add(1, Ordering::Relaxed);

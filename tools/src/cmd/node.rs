@@ -24,6 +24,7 @@ use anyhow::Context as _;
 use penelope_protocol::proto::{DEFAULT_PORT, ObjectInfo};
 use penelope_runtime::objects::recording::RecordProfile;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
+use penelope_supervisor::ros2::Ros2Settings;
 use penelope_supervisor::system::SystemFile;
 use penelope_supervisor::zenoh_bridge::ZenohSettings;
 
@@ -122,6 +123,20 @@ pub struct Args {
     /// Overrides the system file's `operators`.
     #[arg(long, value_name = "USER")]
     pub zenoh_operator: Vec<String>,
+    /// Appear in the ROS 2 graph over rmw_zenoh as node `penelope_NAME` (docs/ros2.md): the
+    /// CRTK topics of every robot a controller here drives, `/tf`, `/diagnostics`, and
+    /// `servo_jp` / `servo_cp` subscriptions. Runs on the Zenoh bridge: without --zenoh it
+    /// connects to rmw_zenoh's router at `tcp/127.0.0.1:7447`. Overrides the system file's `ros2`.
+    #[arg(long)]
+    pub ros2: bool,
+    /// The ROS domain with --ros2 (0 to 232) [default: the system file's, else $ROS_DOMAIN_ID,
+    /// else 0].
+    #[arg(long, value_name = "N")]
+    pub ros2_domain_id: Option<u32>,
+    /// The ROS 2 topics' rate with --ros2, Hz of tick time (1 to 1000) [default: the system
+    /// file's, else 100].
+    #[arg(long, value_name = "HZ")]
+    pub ros2_rate_hz: Option<u32>,
     /// Lease in the naming service, ms (renewed every third of it).
     #[arg(long, value_name = "MS", default_value_t = 3000)]
     pub lease_ms: u64,
@@ -164,8 +179,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         config.creator.clock = penelope_runtime::objects::clock::ClockMode::Simulated;
     }
     set_file_dirs(&mut config, &args, file.as_ref());
-    let zenoh = zenoh_settings(&args, file.as_ref());
-    let config_zenoh = zenoh.clone();
+    let mut zenoh = zenoh_settings(&args, file.as_ref());
+    config.ros2 = ros2_settings(&args, file.as_ref())?;
+    if config.ros2.is_some() && zenoh.is_none() {
+        zenoh = Some(ZenohSettings {
+            connect: Some(RMW_ZENOH_ROUTER.into()),
+            ..ZenohSettings::default()
+        });
+    }
+    let (config_zenoh, config_ros2) = (zenoh.clone(), config.ros2);
     config.zenoh = zenoh;
 
     let signals = block_stop_signals()?;
@@ -174,7 +196,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         | penelope_supervisor::node::NodeError::BadLease(_) => crate::cmd::usage(e.to_string()),
         other => anyhow::Error::new(other).context(format!("starting node `{}`", args.name)),
     })?;
-    announce(&node, &naming, config_zenoh.as_ref());
+    announce(&node, &naming, config_zenoh.as_ref(), config_ros2);
     let mut recorder = None;
     if let Some(file) = file {
         // `--record`, else the file's `record` for this node.
@@ -287,8 +309,40 @@ fn zenoh_settings(args: &Args, file: Option<&SystemFile>) -> Option<ZenohSetting
     zenoh
 }
 
-/// Prints where the node listens, its naming service and its Zenoh bridge.
-fn announce(node: &Node, naming: &NamingChoice, zenoh: Option<&ZenohSettings>) {
+/// Where rmw_zenoh's router (`rmw_zenohd`) listens by default.
+const RMW_ZENOH_ROUTER: &str = "tcp/127.0.0.1:7447";
+
+/// The system file's ROS 2 settings for this node, then what the command line says.
+fn ros2_settings(args: &Args, file: Option<&SystemFile>) -> anyhow::Result<Option<Ros2Settings>> {
+    let mut ros2 = file
+        .and_then(|f| f.nodes.get(&args.name))
+        .and_then(|p| p.ros2);
+    if args.ros2 || args.ros2_domain_id.is_some() || args.ros2_rate_hz.is_some() {
+        let r = ros2.get_or_insert_with(|| Ros2Settings {
+            domain_id: std::env::var("ROS_DOMAIN_ID")
+                .ok()
+                .and_then(|d| d.trim().parse().ok())
+                .unwrap_or(0),
+            ..Ros2Settings::default()
+        });
+        if let Some(d) = args.ros2_domain_id {
+            r.domain_id = d;
+        }
+        if let Some(hz) = args.ros2_rate_hz {
+            r.rate_hz = hz;
+        }
+        r.check().map_err(crate::cmd::usage)?;
+    }
+    Ok(ros2)
+}
+
+/// Prints where the node listens, its naming service, its Zenoh bridge and its ROS 2 presence.
+fn announce(
+    node: &Node,
+    naming: &NamingChoice,
+    zenoh: Option<&ZenohSettings>,
+    ros2: Option<Ros2Settings>,
+) {
     let naming_text = match naming {
         NamingChoice::Host => format!("hosted here ({})", node.advertised()),
         NamingChoice::Remote(a) if node.is_registered() => a.to_string(),
@@ -308,6 +362,14 @@ fn announce(node: &Node, naming: &NamingChoice, zenoh: Option<&ZenohSettings>) {
                 .as_deref()
                 .unwrap_or("what its configuration file says"),
             node.name()
+        );
+    }
+    if let Some(r) = ros2 {
+        println!(
+            "ros2: node /penelope_{} in domain {} (rmw_zenoh), topics at {} Hz",
+            penelope_runtime::objects::recording::ros2_topics::ros_name(node.name()),
+            r.domain_id,
+            r.rate_hz
         );
     }
 }

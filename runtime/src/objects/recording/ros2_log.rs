@@ -32,6 +32,7 @@ use super::RecordingError;
 use super::mcap_log::McapTotals;
 use super::ros2_topics::{
     DIAGNOSTICS_TOPIC, RobotTopics, Ros2Payload, TopicMessage, link_diagnostics, robot_messages,
+    sensor_rate,
 };
 use super::scene::{SceneConfig, SceneRobot};
 use crate::objects::tick::TickRecord;
@@ -46,18 +47,6 @@ fn qos_yaml(reliability: u8) -> String {
     format!(
         "- history: 1\n  depth: 10\n  reliability: {reliability}\n  durability: 2\n  deadline:{infinite}\n  lifespan:{infinite}\n  liveliness: 1\n  liveliness_lease_duration:{infinite}\n  avoid_ros_namespace_conventions: false\n"
     )
-}
-
-/// Whether `topic` carries sensor-rate data (best effort, as ROS 2's sensor data QoS).
-fn best_effort(topic: &str) -> bool {
-    [
-        "/measured_js",
-        "/measured_cp",
-        "/measured_cf",
-        "/setpoint_js",
-    ]
-    .iter()
-    .any(|suffix| topic.ends_with(suffix))
 }
 
 /// One recorded robot: its description, the stream its ticks come from, its topics and when
@@ -197,7 +186,7 @@ impl Ros2Log {
         let meta = BTreeMap::from([
             (
                 "offered_qos_profiles".to_string(),
-                qos_yaml(if best_effort(topic) { 2 } else { 1 }),
+                qos_yaml(if sensor_rate(topic) { 2 } else { 1 }),
             ),
             ("topic_type_hash".to_string(), description.type_hash()),
         ]);

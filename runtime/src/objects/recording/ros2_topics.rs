@@ -74,6 +74,20 @@ pub fn ros_name(name: &str) -> String {
     out
 }
 
+/// Whether `topic` carries sensor-rate data (a robot's `measured_*` and `setpoint_js`):
+/// offered best effort, as ROS 2's sensor-data QoS profile; the others (`/tf`,
+/// `operating_state`, `/diagnostics`) reliable.
+pub fn sensor_rate(topic: &str) -> bool {
+    [
+        "/measured_js",
+        "/measured_cp",
+        "/measured_cf",
+        "/setpoint_js",
+    ]
+    .iter()
+    .any(|suffix| topic.ends_with(suffix))
+}
+
 /// A robot's topic names.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RobotTopics {

@@ -1,0 +1,242 @@
+//! The ROS 2 presence on the Zenoh bridge, end to end on loopback (scouting off): a test's Zenoh
+//! peer where rmw_zenoh's router would be, a node on a simulated clock whose channel is fed
+//! from Zenoh. The node declares its liveliness tokens; `/<channel>/operator_cp` and
+//! `/<channel>/clutch`, published as a ROS 2 node would (CDR and rmw_zenoh's attachment), reach
+//! the channel with the clutch; a payload that does not decode, or one without the attachment,
+//! is refused and counted, and the loop never notices. (The independent client's view, with
+//! Zenoh's Python binding and rosbags, is python/tests/test_ros2_rmw_zenoh.py.)
+//!
+//! Every wait is for something to happen, bounded; none is for a time to pass.
+#![cfg(feature = "zenoh")]
+
+use std::time::Duration;
+
+use penelope_protocol::proto::{Call, ControllerMethod, Method, Reply, TelemetryRecord};
+use penelope_ros2_msgs::{Joy, PoseStamped, RosMessage};
+use penelope_runtime::objects::bridged::BridgedCounts;
+use penelope_runtime::objects::clock::ClockMode;
+use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
+use penelope_supervisor::ros2::Ros2Settings;
+use penelope_supervisor::ros2::graph::topic_key;
+use penelope_supervisor::system::SystemFile;
+use penelope_supervisor::zenoh_bridge::{BridgeStats, ZenohSettings};
+use penelope_testkit::net::free_tcp_port;
+use penelope_testkit::wait::wait_until;
+use zenoh::Wait;
+use zenoh_ext::ZSerializer;
+
+/// A PUMA 200 following the poses of an operator station on Zenoh (channel `link`).
+const SLAVE_SYSTEM: &str = include_str!("data/zenoh_station_slave.toml");
+
+fn test_peer(port: u16) -> zenoh::Session {
+    let mut c = zenoh::Config::default();
+    c.insert_json5("mode", r#""peer""#).unwrap();
+    c.insert_json5("listen/endpoints", &format!(r#"["tcp/127.0.0.1:{port}"]"#))
+        .unwrap();
+    c.insert_json5("scouting/multicast/enabled", "false")
+        .unwrap();
+    zenoh::open(c).wait().expect("the test's peer opens")
+}
+
+fn slave_node(port: u16) -> Node {
+    let mut config = NodeConfig::new("slave", NamingChoice::None);
+    config.creator.rt.priority = None;
+    config.creator.clock = ClockMode::Simulated;
+    config.zenoh = Some(ZenohSettings {
+        connect: Some(format!("tcp/127.0.0.1:{port}")),
+        ..ZenohSettings::default()
+    });
+    config.ros2 = Some(Ros2Settings {
+        domain_id: 3,
+        rate_hz: 100,
+    });
+    let node = Node::start(config).expect("the node, its bridge and its ROS 2 presence start");
+    SystemFile::parse(SLAVE_SYSTEM)
+        .unwrap()
+        .apply(&node)
+        .expect("the slave's system");
+    node
+}
+
+fn stats(node: &Node) -> BridgeStats {
+    node.zenoh_stats().expect("the node runs a bridge")
+}
+
+fn status_last(node: &Node) -> TelemetryRecord {
+    match node.call(Call::Object {
+        object: "follow".into(),
+        method: Method::Controller(ControllerMethod::Status),
+    }) {
+        Ok(Reply::Status(s)) => *s.last.expect("ticked"),
+        other => panic!("{other:?}"),
+    }
+}
+
+/// What channel `link` took and refused.
+fn channel(node: &Node) -> BridgedCounts {
+    node.creator()
+        .bridged_channels()
+        .counts("link")
+        .expect("a bridged channel")
+}
+
+/// rmw_zenoh's attachment (Jazzy's named form).
+fn attachment(sequence: i64) -> zenoh::bytes::ZBytes {
+    let mut out = ZSerializer::new();
+    out.serialize("sequence_number");
+    out.serialize(sequence);
+    out.serialize("source_timestamp");
+    out.serialize(1_764_300_000_000_000_000i64);
+    out.serialize("source_gid");
+    out.serialize([7u8; 16]);
+    out.finish()
+}
+
+fn operator_pose(position: [f64; 3]) -> Vec<u8> {
+    let mut m = PoseStamped::default();
+    m.header.frame_id = "station".into();
+    m.pose.position.x = position[0];
+    m.pose.position.y = position[1];
+    m.pose.position.z = position[2];
+    m.pose.orientation.w = 1.0;
+    m.to_cdr()
+}
+
+fn joy(button: i32) -> Vec<u8> {
+    Joy {
+        buttons: vec![button],
+        ..Joy::default()
+    }
+    .to_cdr()
+}
+
+#[test]
+fn ros2_operator_poses_and_the_clutch_reach_a_bridged_channel_and_bad_ones_are_counted() {
+    let port = free_tcp_port();
+    let peer = test_peer(port);
+    let node = slave_node(port);
+    // The node, five publishers of the PUMA's topic set (no sensor: no measured_cf), its two
+    // servo subscriptions, and the channel's operator_cp and clutch.
+    wait_until("the node's ten liveliness tokens", || {
+        stats(&node).ros2.tokens >= 10
+    });
+    let graph: Vec<String> = peer
+        .liveliness()
+        .get("@ros2_lv/3/**")
+        .timeout(Duration::from_secs(10))
+        .wait()
+        .unwrap()
+        .iter()
+        .filter_map(|r| r.into_result().ok().map(|s| s.key_expr().to_string()))
+        .collect();
+    let kinds = |kind: &str| graph.iter().filter(|t| t.contains(kind)).count();
+    assert_eq!(
+        (kinds("/NN/"), kinds("/MP/"), kinds("/MS/")),
+        (1, 5, 4),
+        "{graph:#?}"
+    );
+    assert!(
+        graph.iter().all(|t| t.contains("/%/%/penelope_slave")),
+        "{graph:#?}"
+    );
+
+    let key = |topic: &str, description: &'static penelope_ros2_msgs::MessageDescription| {
+        topic_key(3, topic, description.type_name, &description.type_hash())
+    };
+    let operator_cp = peer
+        .declare_publisher(key("/link/operator_cp", PoseStamped::DESCRIPTION))
+        .wait()
+        .unwrap();
+    let clutch = peer
+        .declare_publisher(key("/link/clutch", Joy::DESCRIPTION))
+        .wait()
+        .unwrap();
+    let start = [0.4, 0.1, 0.3];
+    let mut sequence = 0;
+    let mut put = |publisher: &zenoh::pubsub::Publisher<'_>, payload: Vec<u8>| {
+        sequence += 1;
+        publisher
+            .put(payload)
+            .attachment(attachment(sequence))
+            .wait()
+            .unwrap();
+    };
+    // Ready when the channel took a pose from ROS 2: the subscription reached the test's peer.
+    wait_until("the channel takes an operator pose from ROS 2", || {
+        put(&operator_cp, operator_pose(start));
+        channel(&node).taken > 0
+    });
+    let advance = |ticks: u32| {
+        for _ in 0..ticks {
+            node.creator().advance(Duration::from_millis(1)).unwrap();
+        }
+    };
+    // Each message waited for: taken by the channel (a pose) or by the subscription (the Joy).
+    let mut offer = |publisher: &zenoh::pubsub::Publisher<'_>, payload: Vec<u8>, pose: bool| {
+        let (was_channel, was_ros2) = (channel(&node).taken, stats(&node).ros2.taken);
+        put(publisher, payload);
+        wait_until("the message taken", || {
+            if pose {
+                channel(&node).taken > was_channel
+            } else {
+                stats(&node).ros2.taken > was_ros2
+            }
+        });
+    };
+    // The station streams its pose every communication period (2 ms), as an operator's does.
+    let stream = |offer: &mut dyn FnMut(&zenoh::pubsub::Publisher<'_>, Vec<u8>, bool),
+                  position: [f64; 3],
+                  ticks: u32| {
+        for _ in 0..ticks / 2 {
+            offer(&operator_cp, operator_pose(position), true);
+            advance(2);
+        }
+    };
+    let offset = |dz: f64| [start[0], start[1], start[2] + dz];
+    stream(&mut offer, start, 500);
+    let anchor = status_last(&node).tool_position;
+    let moved = |node: &Node| status_last(node).tool_position[2] - anchor[2];
+
+    // The clutch pressed (button 0 of a Joy message) where the hand is, then held while the
+    // hand moves 2 cm up: the slave holds.
+    offer(&clutch, joy(1), false);
+    stream(&mut offer, start, 20);
+    stream(&mut offer, offset(0.02), 300);
+    let held = moved(&node);
+    assert!(held.abs() < 1e-3, "clutched, the slave moved {held} m");
+    // Released: the hand's motion from where it is now moves the slave (re-anchored): 1 cm up.
+    offer(&clutch, joy(0), false);
+    stream(&mut offer, offset(0.02), 20);
+    stream(&mut offer, offset(0.03), 500);
+    let followed = moved(&node);
+    println!(
+        "ros2 operator_cp and clutch: clutched the slave moved {:.3} mm for the hand's 20 mm; \
+         released it moved {:.3} mm for the hand's next 10 mm",
+        held * 1e3,
+        followed * 1e3
+    );
+    assert!(
+        (followed - 0.01).abs() < 2e-3,
+        "released, the slave moved {followed} m"
+    );
+
+    // Refused and counted, never reaching the channel: a payload that is no PoseStamped, a
+    // pose with NaN (the channel's own check), and a message without rmw_zenoh's attachment.
+    let (before, before_channel) = (stats(&node), channel(&node));
+    put(&operator_cp, b"\x00\x01\x00\x00not a pose".to_vec());
+    put(&operator_cp, operator_pose([f64::NAN, 0.0, 0.0]));
+    operator_cp.put(operator_pose(start)).wait().unwrap();
+    wait_until("three refusals counted", || {
+        stats(&node).ros2.refused >= before.ros2.refused + 3
+    });
+    let after = stats(&node);
+    let counts = channel(&node);
+    assert_eq!(counts.taken, before_channel.taken, "{counts:?}");
+    // The NaN one reached the channel's check and was refused there.
+    assert_eq!(counts.refused, before_channel.refused + 1, "{counts:?}");
+    node.creator().advance(Duration::from_millis(5)).unwrap();
+    let last = status_last(&node);
+    assert!(last.fault.is_none(), "{:?}", last.fault);
+    println!("ros2 presence: {after:?}");
+    node.shutdown();
+}
