@@ -40,6 +40,7 @@ PUBLISHED = {
 SUBSCRIBED = {
     "/slave/servo_jp": "sensor_msgs/msg/JointState",
     "/slave/servo_cp": "geometry_msgs/msg/PoseStamped",
+    "/slave/clutch": "sensor_msgs/msg/Joy",
 }
 
 

@@ -1,8 +1,8 @@
 //! The ROS 2 presence on the Zenoh bridge, end to end on loopback (scouting off): a test's Zenoh
 //! peer where rmw_zenoh's router would be, a node on a simulated clock whose channel is fed
-//! from Zenoh. The node declares its liveliness tokens; `/<channel>/operator_cp` and
-//! `/<channel>/clutch`, published as a ROS 2 node would (CDR and rmw_zenoh's attachment), reach
-//! the channel with the clutch; a payload that does not decode, or one without the attachment,
+//! from Zenoh. The node declares its liveliness tokens; the slave's `servo_cp` and `clutch`,
+//! published as a ROS 2 node would (CDR and rmw_zenoh's attachment), reach the channel as its
+//! operator pose with the clutch; a payload that does not decode, or one without the attachment,
 //! is refused and counted, and the loop never notices. (The independent client's view, with
 //! Zenoh's Python binding and rosbags, is python/tests/test_ros2_rmw_zenoh.py.)
 //!
@@ -111,14 +111,14 @@ fn joy(button: i32) -> Vec<u8> {
 }
 
 #[test]
-fn ros2_operator_poses_and_the_clutch_reach_a_bridged_channel_and_bad_ones_are_counted() {
+fn ros2_servo_cp_and_the_clutch_drive_a_slave_fed_from_zenoh_and_bad_ones_are_counted() {
     let port = free_tcp_port();
     let peer = test_peer(port);
     let node = slave_node(port);
-    // The node, five publishers of the PUMA's topic set (no sensor: no measured_cf), its two
-    // servo subscriptions, and the channel's operator_cp and clutch.
-    wait_until("the node's ten liveliness tokens", || {
-        stats(&node).ros2.tokens >= 10
+    // The node, five publishers of the PUMA's topic set (no sensor: no measured_cf), and its
+    // servo_jp, servo_cp and clutch subscriptions.
+    wait_until("the node's nine liveliness tokens", || {
+        stats(&node).ros2.tokens >= 9
     });
     let graph: Vec<String> = peer
         .liveliness()
@@ -132,7 +132,7 @@ fn ros2_operator_poses_and_the_clutch_reach_a_bridged_channel_and_bad_ones_are_c
     let kinds = |kind: &str| graph.iter().filter(|t| t.contains(kind)).count();
     assert_eq!(
         (kinds("/NN/"), kinds("/MP/"), kinds("/MS/")),
-        (1, 5, 4),
+        (1, 5, 3),
         "{graph:#?}"
     );
     assert!(
@@ -143,12 +143,12 @@ fn ros2_operator_poses_and_the_clutch_reach_a_bridged_channel_and_bad_ones_are_c
     let key = |topic: &str, description: &'static penelope_ros2_msgs::MessageDescription| {
         topic_key(3, topic, description.type_name, &description.type_hash())
     };
-    let operator_cp = peer
-        .declare_publisher(key("/link/operator_cp", PoseStamped::DESCRIPTION))
+    let servo_cp = peer
+        .declare_publisher(key("/puma/servo_cp", PoseStamped::DESCRIPTION))
         .wait()
         .unwrap();
     let clutch = peer
-        .declare_publisher(key("/link/clutch", Joy::DESCRIPTION))
+        .declare_publisher(key("/puma/clutch", Joy::DESCRIPTION))
         .wait()
         .unwrap();
     let start = [0.4, 0.1, 0.3];
@@ -163,7 +163,7 @@ fn ros2_operator_poses_and_the_clutch_reach_a_bridged_channel_and_bad_ones_are_c
     };
     // Ready when the channel took a pose from ROS 2: the subscription reached the test's peer.
     wait_until("the channel takes an operator pose from ROS 2", || {
-        put(&operator_cp, operator_pose(start));
+        put(&servo_cp, operator_pose(start));
         channel(&node).taken > 0
     });
     let advance = |ticks: u32| {
@@ -188,7 +188,7 @@ fn ros2_operator_poses_and_the_clutch_reach_a_bridged_channel_and_bad_ones_are_c
                   position: [f64; 3],
                   ticks: u32| {
         for _ in 0..ticks / 2 {
-            offer(&operator_cp, operator_pose(position), true);
+            offer(&servo_cp, operator_pose(position), true);
             advance(2);
         }
     };
@@ -210,7 +210,7 @@ fn ros2_operator_poses_and_the_clutch_reach_a_bridged_channel_and_bad_ones_are_c
     stream(&mut offer, offset(0.03), 500);
     let followed = moved(&node);
     println!(
-        "ros2 operator_cp and clutch: clutched the slave moved {:.3} mm for the hand's 20 mm; \
+        "ros2 servo_cp and clutch into the channel: clutched the slave moved {:.3} mm for the hand's 20 mm; \
          released it moved {:.3} mm for the hand's next 10 mm",
         held * 1e3,
         followed * 1e3
@@ -223,9 +223,9 @@ fn ros2_operator_poses_and_the_clutch_reach_a_bridged_channel_and_bad_ones_are_c
     // Refused and counted, never reaching the channel: a payload that is no PoseStamped, a
     // pose with NaN (the channel's own check), and a message without rmw_zenoh's attachment.
     let (before, before_channel) = (stats(&node), channel(&node));
-    put(&operator_cp, b"\x00\x01\x00\x00not a pose".to_vec());
-    put(&operator_cp, operator_pose([f64::NAN, 0.0, 0.0]));
-    operator_cp.put(operator_pose(start)).wait().unwrap();
+    put(&servo_cp, b"\x00\x01\x00\x00not a pose".to_vec());
+    put(&servo_cp, operator_pose([f64::NAN, 0.0, 0.0]));
+    servo_cp.put(operator_pose(start)).wait().unwrap();
     wait_until("three refusals counted", || {
         stats(&node).ros2.refused >= before.ros2.refused + 3
     });

@@ -169,6 +169,8 @@ impl OperatorPose {
 pub struct BridgedChannel {
     /// The Zenoh key expression its operator poses come from.
     pub key: String,
+    /// The robot the channel drives (its slave, on this node).
+    pub slave: String,
     end: BridgedEnd,
     /// Poses taken (handed to the loop).
     pub taken: u64,
@@ -208,13 +210,14 @@ impl BridgedChannels {
     }
 
     /// Registers (or replaces: a channel configured anew has new cells) channel `channel`,
-    /// whose operator poses come from `key`.
-    pub fn insert(&self, channel: &str, key: &str, end: BridgedEnd) {
+    /// whose operator poses come from `key` and drive robot `slave`.
+    pub fn insert(&self, channel: &str, key: &str, slave: &str, end: BridgedEnd) {
         self.with(|m| {
             m.insert(
                 channel.to_string(),
                 BridgedChannel {
                     key: key.to_string(),
+                    slave: slave.to_string(),
                     end,
                     taken: 0,
                     refused: 0,
@@ -232,6 +235,11 @@ impl BridgedChannels {
     /// `(channel, key)` of every bridged channel.
     pub fn keys(&self) -> Vec<(String, String)> {
         self.with(|m| m.iter().map(|(c, b)| (c.clone(), b.key.clone())).collect())
+    }
+
+    /// The key of the bridged channel that drives robot `robot`, if one does.
+    pub fn key_driving(&self, robot: &str) -> Option<String> {
+        self.with(|m| m.values().find(|b| b.slave == robot).map(|b| b.key.clone()))
     }
 
     /// What channel `channel` counted.

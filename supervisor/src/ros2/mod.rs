@@ -9,13 +9,15 @@
 //!   `measured_cp`, `measured_cf`, `setpoint_js`, `operating_state`, and `/tf`), the same
 //!   messages a recording's `ros2` profile writes; per channel linked to another node,
 //!   `/diagnostics` with its link statistics.
-//! - Subscribed, per robot: `/<robot>/servo_jp` (`sensor_msgs/msg/JointState`) and
-//!   `/<robot>/servo_cp` (`geometry_msgs/msg/PoseStamped`), the robot's CRTK servo methods
-//!   with every check they make (finite, within limits and reach, the servo step limit); per
-//!   channel fed from Zenoh (`zenoh_reference`), `/<channel>/operator_cp` (`PoseStamped`) and
-//!   `/<channel>/clutch` (`sensor_msgs/msg/Joy`, button 0 held: the clutch, as the dVRK's
-//!   foot pedal), its operator pose, through the channel's own checks. A payload that does not
-//!   decode is counted and dropped; none reaches a loop but through those methods and cells.
+//! - Subscribed, per robot: `/<robot>/servo_jp` (`sensor_msgs/msg/JointState`) into the
+//!   robot's CRTK `servo_jp`; `/<robot>/servo_cp` (`geometry_msgs/msg/PoseStamped`) into the
+//!   operator pose of the teleoperation channel fed from Zenoh (`zenoh_reference`) that drives
+//!   the robot when one does (the channel maps it, anchored and scaled, and its law and force
+//!   feedback apply), else into the robot's `servo_cp`; `/<robot>/clutch`
+//!   (`sensor_msgs/msg/Joy`, button 0 held, as the dVRK's foot pedal) the operator's clutch.
+//!   Every input goes through the checks of the path it takes (finite, within limits and
+//!   reach, the servo step limit, the channel's pose checks). A payload that does not decode
+//!   is counted and dropped; none reaches a loop but through those methods and cells.
 //!
 //! [`graph`] is the format (tokens, keys, QoS, GIDs); `attachment` and `presence` (feature
 //! `zenoh`) put it on the session. Who may put is the bridge's access control (docs/zenoh.md:

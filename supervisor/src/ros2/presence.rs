@@ -96,7 +96,7 @@ pub(crate) struct Ros2Presence {
     /// By topic.
     publishers: BTreeMap<String, TopicPublisher>,
     subscriptions: Vec<(Subscriber<()>, LivelinessToken)>,
-    /// Robots and channels whose subscriptions are declared.
+    /// Robots whose subscriptions are declared.
     served: BTreeSet<String>,
     counters: Arc<Counters>,
     scratch: Vec<u8>,
@@ -299,7 +299,11 @@ impl Ros2Presence {
         self.declare_publisher(&topics.operating_state, OperatingState::DESCRIPTION);
         self.declare_publisher(TF_TOPIC, TFMessage::DESCRIPTION);
         if self.served.insert(robot.robot.clone()) {
-            self.serve_robot(Arc::downgrade(creator), &robot.robot);
+            self.serve_robot(
+                Arc::downgrade(creator),
+                creator.bridged_channels(),
+                &robot.robot,
+            );
         }
         self.robots.insert(
             controller.to_string(),
@@ -311,8 +315,11 @@ impl Ros2Presence {
         );
     }
 
-    /// `/<robot>/servo_jp` and `/<robot>/servo_cp` into the robot's servo methods.
-    fn serve_robot(&mut self, creator: Weak<Creator>, robot: &str) {
+    /// `/<robot>/servo_jp` into the robot's `servo_jp`; `/<robot>/servo_cp` into the operator
+    /// pose of the channel fed from Zenoh that drives the robot, if one does (the clutch of
+    /// `/<robot>/clutch` with it), else into the robot's `servo_cp` (refused while the clutch
+    /// is held: the operator's hand is off).
+    fn serve_robot(&mut self, creator: Weak<Creator>, channels: BridgedChannels, robot: &str) {
         let ns = ros_name(robot);
         let call = move |creator: &Weak<Creator>, robot: &str, method: RobotMethod| {
             creator.upgrade().is_some_and(|c| {
@@ -330,40 +337,6 @@ impl Ros2Presence {
                     .is_ok_and(|m| call(&c, &r, RobotMethod::ServoJoints { q: m.position }))
             },
         );
-        let (c, r) = (creator, robot.to_string());
-        self.declare_subscription(
-            &format!("/{ns}/servo_cp"),
-            PoseStamped::DESCRIPTION,
-            move |bytes| {
-                PoseStamped::decode_cdr(bytes)
-                    .ok()
-                    .and_then(|m| checked_pose(&m))
-                    .is_some_and(|pose| {
-                        call(
-                            &c,
-                            &r,
-                            RobotMethod::ServoTool {
-                                pose: PoseMsg::from(&pose),
-                            },
-                        )
-                    })
-            },
-        );
-    }
-
-    /// Takes operator poses for `channel`, fed from Zenoh on `key`: `/<channel>/operator_cp`
-    /// (the pose) and `/<channel>/clutch` (button 0 of a Joy message, held or not; the pose
-    /// messages after it carry it).
-    pub(crate) fn add_bridged_channel(
-        &mut self,
-        channels: &BridgedChannels,
-        channel: &str,
-        key: &str,
-    ) {
-        if !self.served.insert(format!("channel {channel}")) {
-            return;
-        }
-        let ns = ros_name(channel);
         let clutch = Arc::new(AtomicBool::new(false));
         let held = clutch.clone();
         self.declare_subscription(&format!("/{ns}/clutch"), Joy::DESCRIPTION, move |bytes| {
@@ -375,22 +348,35 @@ impl Ros2Presence {
                 None => false,
             })
         });
-        let (channels, key) = (channels.clone(), key.to_string());
+        let r = robot.to_string();
         self.declare_subscription(
-            &format!("/{ns}/operator_cp"),
+            &format!("/{ns}/servo_cp"),
             PoseStamped::DESCRIPTION,
             move |bytes| {
                 let Ok(m) = PoseStamped::decode_cdr(bytes) else {
                     return false;
                 };
-                let (p, q) = (m.pose.position, m.pose.orientation);
-                let pose = OperatorPose {
-                    clutch: clutch.load(Ordering::Relaxed),
-                    position: [p.x, p.y, p.z],
-                    orientation: [q.w, q.x, q.y, q.z],
-                };
-                // The channel's own record and checks, as a Zenoh station's pose takes them.
-                channels.offer(&key, &pose.encode()).is_ok()
+                let clutched = clutch.load(Ordering::Relaxed);
+                if let Some(key) = channels.key_driving(&r) {
+                    let (p, q) = (m.pose.position, m.pose.orientation);
+                    let pose = OperatorPose {
+                        clutch: clutched,
+                        position: [p.x, p.y, p.z],
+                        orientation: [q.w, q.x, q.y, q.z],
+                    };
+                    // The channel's own record and checks, as a Zenoh station's pose takes them.
+                    return channels.offer(&key, &pose.encode()).is_ok();
+                }
+                !clutched
+                    && checked_pose(&m).is_some_and(|pose| {
+                        call(
+                            &creator,
+                            &r,
+                            RobotMethod::ServoTool {
+                                pose: PoseMsg::from(&pose),
+                            },
+                        )
+                    })
             },
         );
     }

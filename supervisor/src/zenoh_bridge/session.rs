@@ -486,9 +486,6 @@ impl Worker {
             .get_or_insert_with(|| creator.bridged_channels())
             .clone();
         for (channel, key) in channels.keys() {
-            if let Some(ros2) = &mut self.ros2 {
-                ros2.add_bridged_channel(&channels, &channel, &key);
-            }
             if !self.feedback.contains_key(&channel)
                 && let Some(publisher) = self.publisher(&channel, FEEDBACK)
             {

@@ -119,7 +119,7 @@ impl Registry {
                 )));
             }
             let (link, end) = TeleopLink::bridged(Side::Slave);
-            self.bridged.insert(name, &key, end);
+            self.bridged.insert(name, &key, &slave, end);
             if let KindState::Teleop(t) = &mut self.get_mut(name)?.body {
                 t.link = Some(link);
             }

@@ -182,7 +182,7 @@ fn zenoh_bridge(args: &Args) -> anyhow::Result<Trips> {
     let bridge = peer(None, Some(port))?;
     let channels = BridgedChannels::default();
     let (_link, end) = TeleopLink::bridged(Side::Slave);
-    channels.insert("link", KEY, end);
+    channels.insert("link", KEY, "slave", end);
     let sent: Arc<Vec<AtomicU64>> =
         Arc::new((0..args.samples).map(|_| AtomicU64::new(0)).collect());
     let arrivals = Arc::new(Mutex::new(Vec::with_capacity(args.samples)));
