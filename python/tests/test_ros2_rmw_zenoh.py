@@ -173,6 +173,12 @@ def test_a_ros2_client_sees_the_node_reads_its_topics_and_drives_it_by_servo_cp(
         assert len(js.name) == 6 and len(js.position) == 6, js
         np.testing.assert_allclose(js.position, robot.measured_js().position, atol=1e-3)
         assert messages["/slave/operating_state"][-1].state == "ENABLED"
+        # The wrist sensor's constant reading (its bias of 1, 2, 3 N), in the sensor's frame.
+        cf = messages["/slave/measured_cf"][-1]
+        force = [cf.wrench.force.x, cf.wrench.force.y, cf.wrench.force.z]
+        print(f"measured_cf: {force} N in frame {cf.header.frame_id}")
+        assert cf.header.frame_id == "slave/sensor", cf.header
+        np.testing.assert_allclose(np.linalg.norm(force), np.linalg.norm([1.0, 2.0, 3.0]), rtol=1e-6)
         frames = {t.child_frame_id for m in messages["/tf"] for t in m.transforms}
         assert len(frames) >= 6 and all(f.startswith("slave/") for f in frames), frames
         for topic, seen in attachments.items():
@@ -190,9 +196,9 @@ def test_a_ros2_client_sees_the_node_reads_its_topics_and_drives_it_by_servo_cp(
               f"sequence numbers consecutive on every topic")
         assert 80 <= rate <= 120, rate
 
-        # servo_cp as a ROS 2 publisher sends it: 2 cm along x in 1 mm steps, then hold.
-        servo = topics[("MS", "/slave/servo_cp")]
-        key = data_key("/slave/servo_cp", SUBSCRIBED["/slave/servo_cp"], servo["hash"])
+        # servo_cp as a ROS 2 publisher sends it: 2 cm along x in 0.5 mm steps, then the last.
+        servo_token = topics[("MS", "/slave/servo_cp")]
+        key = data_key("/slave/servo_cp", SUBSCRIBED["/slave/servo_cp"], servo_token["hash"])
         publisher = session.declare_publisher(key)
         gid = bytes(range(16))
         PoseStamped = store.types["geometry_msgs/msg/PoseStamped"]
@@ -203,24 +209,32 @@ def test_a_ros2_client_sees_the_node_reads_its_topics_and_drives_it_by_servo_cp(
         start = messages["/slave/measured_cp"][-1].pose
         # A payload no ROS 2 publisher would send is dropped, and the node goes on.
         publisher.put(b"\x00\x01\x00\x00garbage", attachment=attachment(1, gid))
-        target = start.position
-        for step in range(1, 21):
-            target = Point(x=start.position.x + 0.001 * step, y=start.position.y, z=start.position.z)
+        sequence = 1
+
+        def servo(target: Any) -> None:
+            """Publishes `target`, then waits for the next measured_cp (the robot's own topic
+            paces the stream: one target per reading, as a servo loop streams)."""
+            nonlocal sequence
+            sequence += 1
             msg = PoseStamped(
                 header=Header(stamp=Time(sec=int(time.time()), nanosec=0), frame_id="slave/base"),
                 pose=Pose(position=target, orientation=start.orientation))
             publisher.put(bytes(store.serialize_cdr(msg, "geometry_msgs/msg/PoseStamped")),
-                          attachment=attachment(step + 1, gid))
-            # One target per reading of measured_cp (the robot's own topic paces the stream).
+                          attachment=attachment(sequence, gid))
             count = len(messages["/slave/measured_cp"])
-            drain(lambda n=count: len(messages["/slave/measured_cp"]) > n)
+            drain(lambda: len(messages["/slave/measured_cp"]) > count)
+
+        for step in range(1, 41):
+            target = Point(x=start.position.x + 0.0005 * step, y=start.position.y, z=start.position.z)
+            servo(target)
 
         def arrived() -> bool:
-            drain(lambda n=len(messages["/slave/measured_cp"]): len(messages["/slave/measured_cp"]) > n)
+            # The stream goes on at the last target (a stopped stream holds where the arm is).
+            servo(target)
             p = messages["/slave/measured_cp"][-1].pose.position
-            return abs(p.x - target.x) < 1e-3 and abs(p.y - target.y) < 1e-3 and abs(p.z - target.z) < 1e-3
+            return max(abs(p.x - target.x), abs(p.y - target.y), abs(p.z - target.z)) < 0.5e-3
 
-        wait_for("the PUMA at the last servo_cp target, within 1 mm (its measured_cp)", arrived)
+        wait_for("the PUMA at the last servo_cp target, within 0.5 mm (its measured_cp)", arrived)
         tool = robot.measured_cp()
         moved = tool[0, 3] - start.position.x
         print(f"servo_cp over ROS 2: the tool moved {moved * 1000:.2f} mm along x (commanded 20 mm)")
