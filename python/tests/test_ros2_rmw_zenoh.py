@@ -181,9 +181,13 @@ def test_a_ros2_client_sees_the_node_reads_its_topics_and_drives_it_by_servo_cp(
         np.testing.assert_allclose(np.linalg.norm(force), np.linalg.norm([1.0, 2.0, 3.0]), rtol=1e-6)
         frames = {t.child_frame_id for m in messages["/tf"] for t in m.transforms}
         assert len(frames) >= 6 and all(f.startswith("slave/") for f in frames), frames
+        gaps = 0
         for topic, seen in attachments.items():
             sequence = [s for s, _, _ in seen]
-            assert sequence == list(range(sequence[0], sequence[0] + len(sequence))), topic
+            # Increasing; a gap is a message the publisher dropped under congestion (rmw_zenoh's
+            # keep-last publishers drop rather than block), counted.
+            assert all(b > a for a, b in zip(sequence, sequence[1:])), (topic, sequence)
+            gaps += sequence[-1] - sequence[0] + 1 - len(sequence)
             assert len({g for _, _, g in seen}) == 1 and len(seen[0][2]) == 16, topic
             assert abs(seen[-1][1] - time.time_ns()) < 60e9, topic
         # The header stamps are ROS time (the Unix epoch), as other nodes' are.
@@ -192,8 +196,8 @@ def test_a_ros2_client_sees_the_node_reads_its_topics_and_drives_it_by_servo_cp(
         stamps = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
                   for m in messages["/slave/measured_js"]]
         rate = (len(stamps) - 1) / ((stamps[-1] - stamps[0]) * 1e-9)
-        print(f"measured_js: {len(stamps)} messages at {rate:.1f} Hz of tick time, "
-              f"sequence numbers consecutive on every topic")
+        print(f"measured_js: {len(stamps)} messages at {rate:.1f} Hz of tick time; "
+              f"sequence numbers increasing on every topic, {gaps} gaps")
         assert 80 <= rate <= 120, rate
 
         # servo_cp as a ROS 2 publisher sends it: 2 cm along x in 0.5 mm steps, then the last.

@@ -12,7 +12,7 @@
 use std::time::Duration;
 
 use penelope_protocol::proto::{Call, ControllerMethod, Method, Reply, TelemetryRecord};
-use penelope_ros2_msgs::{Joy, PoseStamped, RosMessage};
+use penelope_ros2_msgs::{JointState, Joy, PoseStamped, RosMessage};
 use penelope_runtime::objects::bridged::BridgedCounts;
 use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
@@ -28,6 +28,33 @@ use zenoh_ext::ZSerializer;
 /// A PUMA 200 following the poses of an operator station on Zenoh (channel `link`).
 const SLAVE_SYSTEM: &str = include_str!("data/zenoh_station_slave.toml");
 
+/// A PUMA 560 on a simulated board held at its start pose by a joint PID: a robot that takes
+/// servo targets itself.
+const SERVO_SYSTEM: &str = r#"
+[boards.sim0]
+kind = "sim"
+
+[robots.arm]
+kind = "puma560"
+start = "start"
+joints = [{ board = "sim0", joints = [0, 1, 2, 3, 4, 5] }]
+
+[trajectories.hold]
+kind = "step"
+pose = "start"
+
+[controllers.pid]
+kind = "joint-pid"
+robot = "arm"
+trajectory = "hold"
+period_us = 1000
+# The defaults plus an integral term: the simulated joints' friction leaves no steady error.
+kp = [3600.0, 6400.0, 3600.0, 400.0, 400.0, 400.0]
+kd = [40.0, 40.0, 40.0, 10.0, 10.0, 10.0]
+ki = [8000.0, 8000.0, 8000.0, 800.0, 800.0, 800.0]
+integral_limit = [30.0, 30.0, 30.0, 3.0, 3.0, 3.0]
+"#;
+
 fn test_peer(port: u16) -> zenoh::Session {
     let mut c = zenoh::Config::default();
     c.insert_json5("mode", r#""peer""#).unwrap();
@@ -39,6 +66,10 @@ fn test_peer(port: u16) -> zenoh::Session {
 }
 
 fn slave_node(port: u16) -> Node {
+    ros2_node(port, SLAVE_SYSTEM)
+}
+
+fn ros2_node(port: u16, system: &str) -> Node {
     let mut config = NodeConfig::new("slave", NamingChoice::None);
     config.creator.rt.priority = None;
     config.creator.clock = ClockMode::Simulated;
@@ -51,10 +82,10 @@ fn slave_node(port: u16) -> Node {
         rate_hz: 100,
     });
     let node = Node::start(config).expect("the node, its bridge and its ROS 2 presence start");
-    SystemFile::parse(SLAVE_SYSTEM)
+    SystemFile::parse(system)
         .unwrap()
         .apply(&node)
-        .expect("the slave's system");
+        .expect("the test's system");
     node
 }
 
@@ -63,13 +94,38 @@ fn stats(node: &Node) -> BridgeStats {
 }
 
 fn status_last(node: &Node) -> TelemetryRecord {
+    status_of(node, "follow")
+}
+
+fn status_of(node: &Node, controller: &str) -> TelemetryRecord {
     match node.call(Call::Object {
-        object: "follow".into(),
+        object: controller.into(),
         method: Method::Controller(ControllerMethod::Status),
     }) {
         Ok(Reply::Status(s)) => *s.last.expect("ticked"),
         other => panic!("{other:?}"),
     }
+}
+
+/// The liveliness tokens of domain 3 as the test's peer sees them, once it sees `count` (a
+/// token propagates after it is declared: asked again until every one arrived). A node
+/// declares each subscription before its token, on one session: once the peer sees the token,
+/// it routes puts to the subscription.
+fn graph(peer: &zenoh::Session, count: usize) -> Vec<String> {
+    let mut graph = Vec::new();
+    wait_until("the peer sees the node's tokens", || {
+        graph = peer
+            .liveliness()
+            .get("@ros2_lv/3/**")
+            .timeout(Duration::from_secs(10))
+            .wait()
+            .unwrap()
+            .iter()
+            .filter_map(|r| r.into_result().ok().map(|s| s.key_expr().to_string()))
+            .collect();
+        graph.len() >= count
+    });
+    graph
 }
 
 /// What channel `link` took and refused.
@@ -117,18 +173,8 @@ fn ros2_servo_cp_and_the_clutch_drive_a_slave_fed_from_zenoh_and_bad_ones_are_co
     let node = slave_node(port);
     // The node, five publishers of the PUMA's topic set (no sensor: no measured_cf), and its
     // servo_jp, servo_cp and clutch subscriptions.
-    wait_until("the node's nine liveliness tokens", || {
-        stats(&node).ros2.tokens >= 9
-    });
-    let graph: Vec<String> = peer
-        .liveliness()
-        .get("@ros2_lv/3/**")
-        .timeout(Duration::from_secs(10))
-        .wait()
-        .unwrap()
-        .iter()
-        .filter_map(|r| r.into_result().ok().map(|s| s.key_expr().to_string()))
-        .collect();
+    let graph = graph(&peer, 9);
+    assert_eq!(stats(&node).ros2.tokens, 9);
     let kinds = |kind: &str| graph.iter().filter(|t| t.contains(kind)).count();
     assert_eq!(
         (kinds("/NN/"), kinds("/MP/"), kinds("/MS/")),
@@ -161,11 +207,6 @@ fn ros2_servo_cp_and_the_clutch_drive_a_slave_fed_from_zenoh_and_bad_ones_are_co
             .wait()
             .unwrap();
     };
-    // Ready when the channel took a pose from ROS 2: the subscription reached the test's peer.
-    wait_until("the channel takes an operator pose from ROS 2", || {
-        put(&servo_cp, operator_pose(start));
-        channel(&node).taken > 0
-    });
     let advance = |ticks: u32| {
         for _ in 0..ticks {
             node.creator().advance(Duration::from_millis(1)).unwrap();
@@ -238,5 +279,87 @@ fn ros2_servo_cp_and_the_clutch_drive_a_slave_fed_from_zenoh_and_bad_ones_are_co
     let last = status_last(&node);
     assert!(last.fault.is_none(), "{:?}", last.fault);
     println!("ros2 presence: {after:?}");
+    node.shutdown();
+}
+
+#[test]
+fn ros2_servo_jp_drives_a_robot_and_its_servo_cp_is_refused_while_the_clutch_is_held() {
+    let port = free_tcp_port();
+    let peer = test_peer(port);
+    let node = ros2_node(port, SERVO_SYSTEM);
+    graph(&peer, 9);
+    let key = |topic: &str, description: &'static penelope_ros2_msgs::MessageDescription| {
+        topic_key(3, topic, description.type_name, &description.type_hash())
+    };
+    let declare = |topic: &str, description| {
+        peer.declare_publisher(key(topic, description))
+            .wait()
+            .unwrap()
+    };
+    let servo_jp = declare("/arm/servo_jp", JointState::DESCRIPTION);
+    let servo_cp = declare("/arm/servo_cp", PoseStamped::DESCRIPTION);
+    let clutch = declare("/arm/clutch", Joy::DESCRIPTION);
+    let mut sequence = 0;
+    // Published, then waited for until the subscription counted it (taken or refused);
+    // whether it was taken.
+    let mut send = |publisher: &zenoh::pubsub::Publisher<'_>, payload: Vec<u8>| {
+        let before = stats(&node).ros2;
+        sequence += 1;
+        publisher
+            .put(payload)
+            .attachment(attachment(sequence))
+            .wait()
+            .unwrap();
+        wait_until("the message counted", || {
+            let now = stats(&node).ros2;
+            now.taken + now.refused > before.taken + before.refused
+        });
+        stats(&node).ros2.taken > before.taken
+    };
+    for _ in 0..20 {
+        node.creator().advance(Duration::from_millis(1)).unwrap();
+    }
+    let start = status_of(&node, "pid").q;
+    // servo_jp: joint 0 by 0.02 rad (within the step limit), held by streaming it.
+    let mut target = start.clone();
+    target[0] += 0.02;
+    let joints = JointState {
+        position: target.clone(),
+        ..JointState::default()
+    };
+    for _ in 0..100 {
+        assert!(send(&servo_jp, joints.to_cdr()), "servo_jp refused");
+        for _ in 0..5 {
+            node.creator().advance(Duration::from_millis(1)).unwrap();
+        }
+    }
+    let q = status_of(&node, "pid").q;
+    println!(
+        "ros2 servo_jp: joint 0 {:.4} -> {:.4} rad (target {:.4})",
+        start[0], q[0], target[0]
+    );
+    assert!((q[0] - target[0]).abs() < 2e-3, "{q:?} for {target:?}");
+    // A step past the servo step limit (0.05 rad) is refused by the robot's own check.
+    let mut far = target.clone();
+    far[0] += 0.3;
+    let jump = JointState {
+        position: far,
+        ..JointState::default()
+    };
+    assert!(!send(&servo_jp, jump.to_cdr()), "a 0.3 rad jump taken");
+    // The clutch held: servo_cp is refused (the operator's hand is off); released, taken.
+    let mut pose = PoseStamped::default();
+    let tool = status_of(&node, "pid").tool_position;
+    pose.pose.position.x = tool[0];
+    pose.pose.position.y = tool[1];
+    pose.pose.position.z = tool[2];
+    pose.pose.orientation.w = 1.0;
+    assert!(send(&clutch, joy(1)));
+    assert!(
+        !send(&servo_cp, pose.to_cdr()),
+        "servo_cp taken while clutched"
+    );
+    assert!(send(&clutch, joy(0)));
+    println!("ros2 presence: {:?}", stats(&node).ros2);
     node.shutdown();
 }

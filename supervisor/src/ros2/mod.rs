@@ -159,4 +159,19 @@ mod tests {
             assert!(e.contains(says), "{bad}: {e}");
         }
     }
+
+    #[test]
+    fn a_nodes_table_takes_ros2() {
+        let file = crate::system::SystemFile::parse(
+            "[nodes.lab]\nros2 = { domain_id = 4 }\n\n[boards.io]\nkind = \"sim\"\n",
+        )
+        .unwrap();
+        assert_eq!(
+            file.nodes["lab"].ros2,
+            Some(Ros2Settings {
+                domain_id: 4,
+                rate_hz: 100
+            })
+        );
+    }
 }
