@@ -21,6 +21,7 @@
 //! time, and noise comes from a seeded generator.
 
 pub mod board;
+pub mod camera;
 pub mod environment;
 pub mod force_sensor;
 pub mod operator;
