@@ -13,7 +13,11 @@ use penelope_protocol::proto::{ControllerMethod, JointAxis, Method, RobotMethod}
 use penelope_runtime::common_clock::CommonClock;
 use penelope_runtime::objects::tick::TickRecord;
 use penelope_runtime::objects::{Creator, CreatorConfig};
+use penelope_testkit::alloc::{CountingAllocator, counts};
 use penelope_tests::call_object;
+
+#[global_allocator]
+static GLOBAL: CountingAllocator = CountingAllocator;
 
 /// The control period of both loops (the kinds' default).
 const PERIOD_NS: i64 = 1_000_000;
@@ -175,4 +179,53 @@ fn the_grid_is_on_the_common_clock_when_it_is_another_hosts() {
     assert!(s.iter().all(|p| *p == PERIOD_NS / 2), "slave: {s:?}");
     // On this node's own clock, the grid is shifted by the offset (0.25 ms in the period).
     assert!(phases(&master, 0).iter().all(|p| *p == PERIOD_NS - 250_000));
+}
+
+#[test]
+fn a_phased_thread_allocates_nothing_between_its_first_tick_and_its_last_even_when_it_rephases() {
+    use penelope_rt_core::exec::{self, CommonOffset, Flow, PeriodicConfig, TickPhase};
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicU64, Ordering};
+    const TICKS: u64 = 2_000;
+    let offset = Arc::new(CommonOffset::new(123_456));
+    let config = PeriodicConfig {
+        lock_memory: false,
+        hold_dma_latency: false,
+        ..PeriodicConfig::new("alloc-phase", Duration::from_micros(500))
+            .normal_priority()
+            .tick_phase(TickPhase::new(Duration::from_micros(250), offset.clone()))
+    };
+    let out = Arc::new([AtomicU64::new(u64::MAX), AtomicU64::new(u64::MAX)]);
+    let seen = out.clone();
+    let last_deadline = Arc::new(AtomicU64::new(0));
+    let last = last_deadline.clone();
+    let mut first = None;
+    let thread = exec::spawn(config, move |tick| {
+        let since = *first.get_or_insert_with(counts);
+        if tick.index % 500 == 499 {
+            // A new estimate every 500 ticks: a re-phase each time.
+            offset.set(offset.get() + 200_000);
+        }
+        if tick.index + 1 == TICKS {
+            let (a, f) = counts();
+            seen[0].store(a - since.0, Ordering::Relaxed);
+            seen[1].store(f - since.1, Ordering::Relaxed);
+            last.store(tick.deadline.as_nanos(), Ordering::Relaxed);
+            Flow::Stop
+        } else {
+            Flow::Continue
+        }
+    })
+    .expect("the thread starts");
+    let report = thread.join().expect("the thread runs");
+    assert_eq!(report.ticks, TICKS);
+    let read = (
+        out[0].load(Ordering::Relaxed),
+        out[1].load(Ordering::Relaxed),
+    );
+    assert_eq!(
+        read,
+        (0, 0),
+        "the phased thread allocated/freed (allocs, frees)"
+    );
 }
