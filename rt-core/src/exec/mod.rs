@@ -594,7 +594,7 @@ mod tests {
         let exec = |seed: u64| {
             move |k: usize| {
                 let k = k as u64 ^ seed;
-                if k % 997 == 0 {
+                if k.is_multiple_of(997) {
                     2_400_000
                 } else {
                     50_000 + (k * 7919) % 400_000
