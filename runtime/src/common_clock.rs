@@ -21,6 +21,7 @@ use std::net::SocketAddr;
 use std::sync::{Arc, Mutex, PoisonError};
 
 use penelope_rt_core::clock::MonotonicClock;
+use penelope_rt_core::exec::CommonOffset;
 use serde::Serialize;
 
 use crate::dataplane::clock::{ClockError, LinkClock};
@@ -72,11 +73,14 @@ pub struct ClockEstimate {
 }
 
 /// A node's view of the common clock (shared: cloning shares the estimate). Not for the
-/// real-time threads: it locks.
+/// real-time threads: it locks; they read the offset from [`offset_cell`](Self::offset_cell).
 #[derive(Clone, Debug)]
 pub struct CommonClock {
     source: ClockSource,
     estimate: Arc<Mutex<Exchanges>>,
+    /// The newest offset estimate, published for the loops' tick phases (zero before the
+    /// first, as [`to_common`](Self::to_common) takes it).
+    offset: Arc<CommonOffset>,
 }
 
 #[derive(Debug, Default)]
@@ -100,7 +104,15 @@ impl CommonClock {
         CommonClock {
             source,
             estimate: Arc::new(Mutex::new(Exchanges::default())),
+            offset: Arc::new(CommonOffset::default()),
         }
+    }
+
+    /// The offset estimate (the common clock less this node's, ns), lock-free: what a periodic
+    /// thread with a [`TickPhase`](penelope_rt_core::exec::TickPhase) places its ticks with.
+    /// Every accepted exchange publishes its new estimate there.
+    pub fn offset_cell(&self) -> Arc<CommonOffset> {
+        self.offset.clone()
     }
 
     /// Where the common clock is.
@@ -142,6 +154,9 @@ impl CommonClock {
         e.next += 1;
         e.clock.note_sent(seq, t1);
         e.clock.note_answer(seq, t2, t3, t4)?;
+        if let Some(offset) = e.clock.offset() {
+            self.offset.set(offset);
+        }
         Ok(())
     }
 
@@ -220,6 +235,8 @@ mod tests {
         // Off by half the asymmetry: (60 - 40) / 2 µs.
         assert_eq!(e.offset_ns, Some(ahead + 10_000));
         assert_eq!(clock.to_common(5), 5 + (ahead + 10_000) as u64);
+        // Published for the loops' tick phases, to every clone.
+        assert_eq!(clock.clone().offset_cell().get(), ahead + 10_000);
         // A forged answer (received before it was asked) is refused; the estimate stays.
         let mut reads = [t, t + 100].into_iter();
         let forged = clock.exchange_with(|| reads.next().unwrap(), || Ok((t + 50, t + 10)));
@@ -234,5 +251,6 @@ mod tests {
         assert!(asked.is_ok());
         assert_eq!(clock.estimate().offset_ns, Some(0));
         assert_eq!(clock.to_common(42), 42);
+        assert_eq!(clock.offset_cell().get(), 0);
     }
 }

@@ -164,4 +164,17 @@ fn the_layout_does_what_the_demo_does(r: &serde_json::Value, demo: &Report) {
         let ratio = e["ratio_p50"].as_f64().unwrap_or(f64::NAN);
         assert!((0.5..=2.0).contains(&ratio), "{name} {key}: {e}");
     }
+    // Tick phase: the slave's loop ticks half a period (of 1 ms) after the master's on the
+    // common clock, so the median sample of either direction waits about half a period for
+    // its receiving tick (the transport and the offset estimate's error add microseconds; a
+    // sample that misses its tick waits a period more). Without the phase the two medians were
+    // whatever phase the loops started with, adding up to one period (743 and 257 µs, say).
+    for key in ["motion_to_command", "contact_to_force"] {
+        let p50 = r[key]["p50_us"].as_f64().unwrap_or(f64::NAN);
+        assert!(
+            (300.0..=700.0).contains(&p50),
+            "{name} {key}: p50 {p50} µs, not half a period: {}",
+            r[key]
+        );
+    }
 }

@@ -5,7 +5,9 @@
 //! how late it woke (the wake-up latency, as cyclictest does), calls the body with a [`Tick`],
 //! measures the body's execution time, and moves the deadline on by one period. Deadlines are
 //! absolute, so they never drift. When a body overruns past the next deadline the overrun is
-//! counted and the missed deadlines are skipped (not run late in a burst).
+//! counted and the missed deadlines are skipped (not run late in a burst). A thread given a
+//! [`TickPhase`] puts its deadlines on a grid of the system's common clock instead (`k·period +
+//! phase`), so that threads on different hosts tick at known phases to each other.
 //!
 //! Before the first tick the thread asks for its real-time rights: SCHED_FIFO at the configured
 //! priority, the CPU affinity, `mlockall(MCL_CURRENT | MCL_FUTURE)`, a prefaulted stack, and
@@ -42,7 +44,9 @@ use crate::stats::{DurationStats, LatencyHistogram};
 use crate::wake::{WakeOn, Woken};
 
 mod rt_settings;
+mod tick_phase;
 pub use rt_settings::{apply_rt, hold_dma_latency, set_fifo};
+pub use tick_phase::{CommonOffset, TickGrid, TickPhase};
 
 /// How a periodic thread runs.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -63,6 +67,9 @@ pub struct PeriodicConfig {
     pub stack_size: usize,
     /// Hold `/dev/cpu_dma_latency` at 0 (keeps idle CPUs out of deep sleep states).
     pub hold_dma_latency: bool,
+    /// Tick at this phase of the period on the common clock ([`TickPhase`]), or `None` to
+    /// tick one period after the start and every period from there.
+    pub tick_phase: Option<TickPhase>,
 }
 
 impl PeriodicConfig {
@@ -78,7 +85,14 @@ impl PeriodicConfig {
             prefault_stack: 256 * 1024,
             stack_size: 1024 * 1024,
             hold_dma_latency: true,
+            tick_phase: None,
         }
+    }
+
+    /// Ticks at `phase` into each period of the common clock ([`TickPhase`]).
+    pub fn tick_phase(mut self, phase: TickPhase) -> Self {
+        self.tick_phase = Some(phase);
+        self
     }
 
     /// Sets the SCHED_FIFO priority (1 to 99).
@@ -373,7 +387,15 @@ where
     let mut exec = DurationStats::new();
     let mut stats = LiveStats::default();
     let period = config.period;
-    let mut deadline = MonotonicClock::read() + period;
+    // A phased thread's deadlines are on the common clock's grid, and follow its offset.
+    let mut grid = config
+        .tick_phase
+        .as_ref()
+        .map(|p| (TickGrid::new(period, p.phase), &*p.offset));
+    let mut deadline = match &grid {
+        Some((g, offset)) => g.first(MonotonicClock::read(), offset.get()),
+        None => MonotonicClock::read() + period,
+    };
     let started = deadline;
     let mut index = 0u64;
     let mut previous_exec = Duration::ZERO;
@@ -420,7 +442,11 @@ where
         exec.record(previous_exec);
         index += 1;
 
-        deadline = next_deadline(deadline, period, end, &mut stats);
+        let ran = deadline;
+        deadline = next_deadline(ran, period, end, &mut stats);
+        if let Some((g, offset)) = grid.as_mut() {
+            deadline = g.follow(ran, end, deadline, offset.get());
+        }
         note_tick(&mut stats, index, late, previous_exec, &mut latency_sum);
         if let Some(w) = live.as_mut() {
             w.write(stats);
@@ -518,6 +544,169 @@ mod tests {
             assert_eq!(gap % 500_000, 0, "deadline drifted: gap {gap} ns");
         }
         assert_eq!(report.rt.fifo, Setting::NotRequested);
+    }
+
+    /// The deadlines (this host's clock) of a thread stepped as [`run_loop`] steps them, on a
+    /// simulated clock: its host's clock `host_ahead_ns` ahead of the common one, the offset
+    /// estimate it reads at tick `k` from `estimate(k)`, each tick's execution time from
+    /// `exec(k)` (an overrun when above the period).
+    fn simulated_deadlines(
+        phase: Duration,
+        host_ahead_ns: u64,
+        ticks: usize,
+        estimate: impl Fn(usize) -> i64,
+        exec: impl Fn(usize) -> u64,
+    ) -> (Vec<Timestamp>, u64, LiveStats) {
+        let period = Duration::from_millis(1);
+        let mut grid = TickGrid::new(period, phase);
+        let mut stats = LiveStats::default();
+        // Started at 7.3 ms of the common clock.
+        let mut deadline = grid.first(
+            Timestamp::from_nanos(7_300_000 + host_ahead_ns),
+            estimate(0),
+        );
+        let mut seen = Vec::with_capacity(ticks);
+        for k in 0..ticks {
+            seen.push(deadline);
+            let ran = deadline;
+            let end = ran + Duration::from_nanos(exec(k));
+            deadline = next_deadline(ran, period, end, &mut stats);
+            deadline = grid.follow(ran, end, deadline, estimate(k));
+        }
+        (seen, grid.rephased(), stats)
+    }
+
+    #[test]
+    fn a_slave_phased_half_a_period_ticks_half_a_period_after_its_master_on_the_common_clock() {
+        const T: i64 = 1_000_000;
+        // The master's host is the common clock; the slave's runs 3.7 s ahead of it, and its
+        // estimate is first 40 µs off (then 5 µs off, jittering by 2 µs after tick 4000).
+        let ahead = 3_700_000_000u64;
+        let slave_estimate = |k: usize| -> i64 {
+            let truth = -(ahead as i64);
+            if k < 4_000 {
+                truth + 40_000
+            } else {
+                truth + 5_000 + (k % 3) as i64 * 1_000
+            }
+        };
+        // Execution times of 50 to 450 µs, with an overrun of 2.4 ms now and then.
+        let exec = |seed: u64| {
+            move |k: usize| {
+                let k = k as u64 ^ seed;
+                if k.is_multiple_of(997) {
+                    2_400_000
+                } else {
+                    50_000 + (k * 7919) % 400_000
+                }
+            }
+        };
+        let n = 20_000;
+        let (master, master_rephased, master_stats) =
+            simulated_deadlines(Duration::ZERO, 0, n, |_| 0, exec(1));
+        let (slave, slave_rephased, slave_stats) = simulated_deadlines(
+            Duration::from_nanos(T as u64 / 2),
+            ahead,
+            n,
+            slave_estimate,
+            exec(2),
+        );
+        assert!(master_stats.overruns > 10 && slave_stats.overruns > 10);
+        assert_eq!(master_rephased, 0);
+        assert_eq!(slave_rephased, 1, "once, when the estimate moved 35 µs");
+        let on_common = |t: &Timestamp, host_ahead: u64| t.as_nanos() as i64 - host_ahead as i64;
+        let master: Vec<i64> = master.iter().map(|t| on_common(t, 0)).collect();
+        let slave: Vec<i64> = slave.iter().map(|t| on_common(t, ahead)).collect();
+        // Every slave tick sits half a period after the master's grid, within the estimate's
+        // error (40 µs, then 5 to 7 µs), skipped ticks or not; every master tick on its grid.
+        let mut checked = 0;
+        for (k, s) in slave.iter().enumerate() {
+            let after_master = (s - master[0]).rem_euclid(T);
+            let bound = if k <= 4_000 { 40_000 } else { 7_000 };
+            assert!(
+                (after_master - T / 2).abs() <= bound,
+                "slave tick {k} at {after_master} ns after the master's grid"
+            );
+            checked += 1;
+        }
+        assert_eq!(checked, n);
+        assert!(master.iter().all(|m| (m - master[0]) % T == 0));
+        // The ticks the master actually ran: each slave tick between two of them falls half a
+        // period after the one before it, within the error.
+        let mut pairs = 0;
+        for s in &slave[4_001..] {
+            let i = master.partition_point(|m| m <= s);
+            if i == 0 || i == master.len() || master[i] - master[i - 1] != T {
+                continue;
+            }
+            assert!((s - master[i - 1] - T / 2).abs() <= 7_000);
+            pairs += 1;
+        }
+        assert!(
+            pairs > 15_000,
+            "{pairs} slave ticks between consecutive master ticks"
+        );
+        // Never two ticks closer than half a period, re-phase or not.
+        for w in slave.windows(2).chain(master.windows(2)) {
+            assert!(w[1] - w[0] >= T / 2, "ticks {} ns apart", w[1] - w[0]);
+        }
+    }
+
+    #[test]
+    fn phased_threads_tick_on_the_common_clocks_grid_and_follow_a_new_offset() {
+        let period = Duration::from_millis(2);
+        let config = |name: &str, phase: Duration, offset: &Arc<CommonOffset>| PeriodicConfig {
+            lock_memory: false,
+            hold_dma_latency: false,
+            ..PeriodicConfig::new(name, period)
+                .normal_priority()
+                .tick_phase(TickPhase::new(phase, offset.clone()))
+        };
+        let offset = Arc::new(CommonOffset::new(250_000));
+        let run = |phase: Duration, moved_at: u64| {
+            let offset = offset.clone();
+            let cfg = config("test-phase", phase, &offset);
+            let (tx, rx) = std::sync::mpsc::channel();
+            let t = spawn(cfg, move |tick| {
+                if tick.index == moved_at {
+                    // A new estimate, 0.6 ms on (only the slave's thread moves it).
+                    offset.set(850_000);
+                }
+                let _ = tx.send(tick.deadline);
+                if tick.index == 59 {
+                    Flow::Stop
+                } else {
+                    Flow::Continue
+                }
+            })
+            .unwrap();
+            t.join().unwrap();
+            rx.try_iter().collect::<Vec<_>>()
+        };
+        let master = run(Duration::ZERO, u64::MAX);
+        let grid_pos = |t: &Timestamp, offset: u64, phase: u64| {
+            (t.as_nanos() + offset + 2_000_000 - phase) % 2_000_000
+        };
+        assert_eq!(master.len(), 60);
+        assert!(
+            master.iter().all(|t| grid_pos(t, 250_000, 0) == 0),
+            "{master:?}"
+        );
+        let slave = run(Duration::from_millis(1), 30);
+        // Before the new estimate: on the grid of the old offset; after: of the new one.
+        assert!(
+            slave[..31]
+                .iter()
+                .all(|t| grid_pos(t, 250_000, 1_000_000) == 0)
+        );
+        assert!(
+            slave[31..]
+                .iter()
+                .all(|t| grid_pos(t, 850_000, 1_000_000) == 0)
+        );
+        for w in slave.windows(2) {
+            assert!(w[1].saturating_since(w[0]) >= period / 2);
+        }
     }
 
     #[test]

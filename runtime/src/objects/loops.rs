@@ -141,6 +141,14 @@ impl Creator {
         // A teleoperation end's thread also wakes on its doorbell and socket (urgent samples);
         // without them (no descriptor left) it still ticks, as every other loop's does.
         let event_driven = comm.is_event_driven();
+        // A teleoperation end's control loop ticks at its side's phase on the common clock:
+        // the master's and the slave's half a period apart, whatever hosts they run on.
+        let tick_phase = comm.teleop_side().map(|side| {
+            exec::TickPhase::new(
+                side.tick_phase(timing.period),
+                self.config.common_clock.offset_cell(),
+            )
+        });
         let comm_wake = comm.wake_on().unwrap_or_else(|e| {
             log::warn!("controller `{name}`: urgent samples wait for the period ({e})");
             None
@@ -181,6 +189,7 @@ impl Creator {
             feed,
             comm_wake,
             event_driven,
+            tick_phase,
             timing,
         };
         (running, bodies)
@@ -499,6 +508,10 @@ struct LoopBodies {
     /// The communication task hands samples on as they are made (on the simulated clock: an
     /// early tick around each control tick, where the doorbell and the socket would wake it).
     event_driven: bool,
+    /// Where the control thread ticks on the common clock (a teleoperation end's side), or
+    /// `None`: one period after it starts. Unused on the simulated clock, where every loop is
+    /// stepped from the clock's time.
+    tick_phase: Option<exec::TickPhase>,
     timing: crate::objects::config::LoopTiming,
 }
 
@@ -556,6 +569,7 @@ fn start_threads(
         mut pump,
         feed,
         comm_wake,
+        tick_phase,
         timing,
         ..
     } = bodies;
@@ -566,6 +580,7 @@ fn start_threads(
     control_cfg.hold_dma_latency = rt.lock_memory;
     control_cfg.cpu = rt.cpu;
     control_cfg.priority = if fifo { rt.priority } else { None };
+    control_cfg.tick_phase = tick_phase;
     let mut comm_cfg = PeriodicConfig::new(thread_name("com-"), timing.comm_period);
     comm_cfg.lock_memory = false;
     comm_cfg.hold_dma_latency = false;

@@ -384,6 +384,11 @@ impl TeleopComm {
         self.event_driven
     }
 
+    /// The side of the channel this end runs.
+    pub fn side(&self) -> Side {
+        self.end.side
+    }
+
     /// Samples this end has sent so far (its sequence number).
     pub fn samples_sent(&self) -> u64 {
         self.sequence

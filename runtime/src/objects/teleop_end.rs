@@ -6,6 +6,7 @@
 use std::net::SocketAddr;
 use std::os::fd::AsFd;
 use std::sync::Arc;
+use std::time::Duration;
 
 use penelope_hal::{Reference, Timestamp};
 use penelope_rt_core::cell::{ArcLatestReader, ArcLatestWriter, Fresh, latest};
@@ -49,6 +50,19 @@ pub enum Side {
 }
 
 impl Side {
+    /// Where this side's control loop ticks in its period `period` on the common clock (its
+    /// tick phase): the master at 0, the slave half a period later. A sample of either side
+    /// then waits about half a period for the other side's next tick, in both directions,
+    /// instead of one direction waiting almost a period and the other almost nothing (the
+    /// phase two loops started with). Both sides ticking at the same period is what aligns
+    /// them.
+    pub fn tick_phase(self, period: Duration) -> Duration {
+        match self {
+            Side::Master => Duration::ZERO,
+            Side::Slave => period / 2,
+        }
+    }
+
     /// The streams this side sends on and receives from.
     fn streams(self) -> (StreamId, StreamId) {
         match self {
@@ -199,7 +213,7 @@ impl RemoteLink {
                 let _ = self.endpoint.send(&header, &datagram, self.peer);
             }
             Some(faults) => {
-                let at = std::time::Duration::from_nanos(u64::try_from(now).unwrap_or(0));
+                let at = Duration::from_nanos(u64::try_from(now).unwrap_or(0));
                 faults.send(at, (header, datagram));
                 while let Some((h, d)) = faults.poll(at) {
                     let _ = self.endpoint.send(&h, &d, self.peer);

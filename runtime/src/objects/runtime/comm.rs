@@ -765,6 +765,15 @@ impl CommTask {
         matches!(&self.source, ReferenceSource::Teleop(t) if t.is_event_driven())
     }
 
+    /// The side of the teleoperation channel this task runs (`None` for a trajectory): its
+    /// control loop's tick phase follows from it ([`Side::tick_phase`](crate::objects::teleop::Side::tick_phase)).
+    pub fn teleop_side(&self) -> Option<crate::objects::teleop::Side> {
+        match &self.source {
+            ReferenceSource::Teleop(t) => Some(t.side()),
+            _ => None,
+        }
+    }
+
     /// Samples a teleoperation end has sent to the other side so far (`None` for a
     /// trajectory).
     pub fn teleop_samples_sent(&self) -> Option<u64> {
