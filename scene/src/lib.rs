@@ -28,11 +28,13 @@ pub use builders::{
     robot_transforms, wall_entity, wrench_arrow,
 };
 pub use messages::{
-    ArrowPrimitive, Color, CubePrimitive, Duration, FrameTransform, FrameTransforms, KeyValuePair,
-    Quaternion, RobotDescription, SceneEntity, SceneEntityDeletion, ScenePose, SceneUpdate,
-    SpherePrimitive, Timestamp, Vector3,
+    ArrowPrimitive, CameraCalibration, Color, CompressedImage, CubePrimitive, Duration,
+    FrameTransform, FrameTransforms, KeyValuePair, Quaternion, RobotDescription, SceneEntity,
+    SceneEntityDeletion, ScenePose, SceneUpdate, SpherePrimitive, Timestamp, Vector3,
 };
-pub use schemas::{FRAME_TRANSFORMS, ROBOT_DESCRIPTION, SCENE_UPDATE, schema};
+pub use schemas::{
+    CAMERA_CALIBRATION, COMPRESSED_IMAGE, FRAME_TRANSFORMS, ROBOT_DESCRIPTION, SCENE_UPDATE, schema,
+};
 
 /// The topic of every robot's link transforms (`foxglove.FrameTransforms`).
 pub const TOPIC_TF: &str = "/tf";

@@ -267,3 +267,62 @@ pub struct RobotDescription {
     /// The robot's frames, root first (their ids are `<robot>/<frame>`).
     pub frames: Vec<String>,
 }
+
+/// `foxglove.CompressedImage`: a camera frame (JPEG, PNG, ...), its bytes base64 in the JSON
+/// encoding, stamped with its capture instant.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CompressedImage {
+    /// The frame's capture instant.
+    pub timestamp: Timestamp,
+    /// The camera's optical frame (x right, y down, z forward).
+    pub frame_id: String,
+    /// The compressed bytes, base64.
+    #[serde(with = "base64_bytes")]
+    pub data: Vec<u8>,
+    /// `jpeg`, `png`, `webp` or `avif`.
+    pub format: String,
+}
+
+/// `foxglove.CameraCalibration`: a pinhole camera's intrinsics, with which a 3D panel places
+/// the image in the scene and a user projects points onto it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CameraCalibration {
+    /// When it holds from.
+    pub timestamp: Timestamp,
+    /// The camera's optical frame.
+    pub frame_id: String,
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// `plumb_bob` (with `D` empty: no distortion).
+    pub distortion_model: String,
+    /// Distortion parameters.
+    #[serde(rename = "D")]
+    pub d: Vec<f64>,
+    /// Intrinsic matrix, row-major 3x3.
+    #[serde(rename = "K")]
+    pub k: [f64; 9],
+    /// Rectification matrix, row-major 3x3 (the identity for a monocular camera).
+    #[serde(rename = "R")]
+    pub r: [f64; 9],
+    /// Projection matrix, row-major 3x4.
+    #[serde(rename = "P")]
+    pub p: [f64; 12],
+}
+
+/// Bytes as a base64 string, as Foxglove's JSON encoding writes a `bytes` field.
+mod base64_bytes {
+    use base64::Engine as _;
+    use base64::engine::general_purpose::STANDARD;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(bytes: &[u8], s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&STANDARD.encode(bytes))
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<u8>, D::Error> {
+        let text = String::deserialize(d)?;
+        STANDARD.decode(text).map_err(serde::de::Error::custom)
+    }
+}

@@ -31,8 +31,13 @@ pub const ROBOT_DESCRIPTION_SCHEMA: &str = r#"{
 }
 "#;
 
+/// The camera frame's schema.
+pub const COMPRESSED_IMAGE: &str = "foxglove.CompressedImage";
+/// The camera calibration's schema.
+pub const CAMERA_CALIBRATION: &str = "foxglove.CameraCalibration";
+
 /// Every schema this crate knows: `(name, JSON Schema text)`.
-pub const ALL: [(&str, &str); 14] = [
+pub const ALL: [(&str, &str); 16] = [
     (
         FRAME_TRANSFORMS,
         include_str!("../schemas/FrameTransforms.json"),
@@ -71,6 +76,14 @@ pub const ALL: [(&str, &str); 14] = [
         include_str!("../schemas/KeyValuePair.json"),
     ),
     (ROBOT_DESCRIPTION, ROBOT_DESCRIPTION_SCHEMA),
+    (
+        COMPRESSED_IMAGE,
+        include_str!("../schemas/CompressedImage.json"),
+    ),
+    (
+        CAMERA_CALIBRATION,
+        include_str!("../schemas/CameraCalibration.json"),
+    ),
 ];
 
 /// The JSON Schema text of the schema `name` (such as `"foxglove.FrameTransforms"`), or

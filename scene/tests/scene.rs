@@ -292,3 +292,34 @@ fn a_wall_is_a_slab_whose_top_face_is_the_plane() {
     );
     assert_eq!(s.spheres[0].size.x, 0.2);
 }
+
+#[test]
+fn a_camera_frame_and_its_calibration_are_valid_and_the_bytes_round_trip() {
+    let image = penelope_scene::CompressedImage {
+        timestamp: penelope_scene::Timestamp::from_ns(2_000_000_017),
+        frame_id: "camera/optical".into(),
+        data: vec![0xff, 0xd8, 0xff, 0x00, 0x10, 0xd9],
+        format: "jpeg".into(),
+    };
+    check(penelope_scene::COMPRESSED_IMAGE, &image);
+    let v = serde_json::to_value(&image).unwrap();
+    assert_eq!(v["data"], "/9j/ABDZ", "Foxglove's base64 of the bytes");
+    let back: penelope_scene::CompressedImage = serde_json::from_value(v).unwrap();
+    assert_eq!(back, image);
+    let calibration = penelope_scene::CameraCalibration {
+        timestamp: penelope_scene::Timestamp::from_ns(0),
+        frame_id: "camera/optical".into(),
+        width: 640,
+        height: 480,
+        distortion_model: "plumb_bob".into(),
+        d: vec![],
+        k: [554.0, 0.0, 320.0, 0.0, 554.0, 240.0, 0.0, 0.0, 1.0],
+        r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        p: [
+            554.0, 0.0, 320.0, 0.0, 0.0, 554.0, 240.0, 0.0, 0.0, 0.0, 1.0, 0.0,
+        ],
+    };
+    check(penelope_scene::CAMERA_CALIBRATION, &calibration);
+    let v = serde_json::to_value(&calibration).unwrap();
+    assert_eq!(v["K"][2], 320.0);
+}

@@ -111,6 +111,15 @@ impl<'de> serde::Deserialize<'de> for Ros2Settings {
     }
 }
 
+/// Why a node's ROS 2 presence could not start.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Ros2Error {
+    /// The node's liveliness token could not be declared on the session.
+    #[error("the ROS 2 node's liveliness token {0}")]
+    NodeToken(String),
+}
+
 /// What a node's ROS 2 presence did so far.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Ros2Stats {

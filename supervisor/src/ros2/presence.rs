@@ -1,7 +1,7 @@
 //! The ROS 2 presence on the bridge's Zenoh session (feature `zenoh`): the node's liveliness
 //! tokens, the publishers of the CRTK topic set and `/diagnostics`, and the subscriptions that
 //! turn ROS 2 servo targets and operator poses into the node's own calls. Driven by the
-//! bridge's thread ([`crate::zenoh_bridge`]): it hands over what it discovers and every tick
+//! Zenoh bridge's thread: it hands over what it discovers and every tick
 //! it drains; the subscriptions' callbacks run on Zenoh's threads and reach the loops only
 //! through the robots' servo methods and the bridged channels' cells.
 
@@ -34,8 +34,7 @@ use zenoh::sample::Sample;
 
 use super::attachment::Attachment;
 use super::graph::{self, Endpoint, EntityKind, NodeIdentity, Qos};
-use super::{Ros2Settings, Ros2Stats};
-use crate::zenoh_bridge::ZenohError;
+use super::{Ros2Error, Ros2Settings, Ros2Stats};
 
 /// The presence's counters, shared with the subscriptions' callbacks.
 #[derive(Debug, Default)]
@@ -98,6 +97,9 @@ pub(crate) struct Ros2Presence {
     subscriptions: Vec<(Subscriber<()>, LivelinessToken)>,
     /// Robots whose subscriptions are declared.
     served: BTreeSet<String>,
+    /// Controllers with no robot yet (a system file binds one after creating the controller):
+    /// looked at again on each discovery.
+    pending: BTreeSet<String>,
     counters: Arc<Counters>,
     scratch: Vec<u8>,
 }
@@ -128,13 +130,13 @@ impl Ros2Presence {
     /// Declares node `penelope_<node>` in `settings`' domain on `session`.
     ///
     /// # Errors
-    /// [`ZenohError::Session`] when the token cannot be declared.
+    /// [`Ros2Error::NodeToken`] when the token cannot be declared.
     pub(crate) fn start(
         session: &zenoh::Session,
         node: &str,
         settings: Ros2Settings,
         node_time_ns: u64,
-    ) -> Result<Ros2Presence, ZenohError> {
+    ) -> Result<Ros2Presence, Ros2Error> {
         let identity = NodeIdentity {
             domain_id: settings.domain_id,
             zid: session.zid().to_string(),
@@ -148,7 +150,7 @@ impl Ros2Presence {
             .liveliness()
             .declare_token(token.clone())
             .wait()
-            .map_err(|e| ZenohError::Session(format!("ROS 2 node token {token}: {e}")))?;
+            .map_err(|e| Ros2Error::NodeToken(format!("{token}: {e}")))?;
         let counters = Arc::new(Counters::default());
         counters.tokens.fetch_add(1, Ordering::Relaxed);
         Ok(Ros2Presence {
@@ -164,6 +166,7 @@ impl Ros2Presence {
             publishers: BTreeMap::new(),
             subscriptions: Vec::new(),
             served: BTreeSet::new(),
+            pending: BTreeSet::new(),
             counters,
             scratch: Vec::new(),
         })
@@ -280,15 +283,18 @@ impl Ros2Presence {
         }
     }
 
-    /// Publishes the topic set of the robot `controller` drives (if it drives one), and takes
-    /// servo targets for it.
+    /// Publishes the topic set of the robot `controller` drives, and takes servo targets for
+    /// it; a controller with no robot yet is looked at again by [`Self::retry_pending`].
     pub(crate) fn add_controller(&mut self, creator: &Arc<Creator>, controller: &str) {
-        let Ok(scene) = creator.scene_for(&[controller.to_string()], 0.0) else {
+        let robot = creator
+            .scene_for(&[controller.to_string()], 0.0)
+            .ok()
+            .and_then(|scene| scene.robots.into_iter().next());
+        let Some(robot) = robot else {
+            self.pending.insert(controller.to_string());
             return;
         };
-        let Some(robot) = scene.robots.into_iter().next() else {
-            return;
-        };
+        self.pending.remove(controller);
         let topics = RobotTopics::new(&robot.robot);
         self.declare_publisher(&topics.measured_js, JointState::DESCRIPTION);
         self.declare_publisher(&topics.measured_cp, PoseStamped::DESCRIPTION);
@@ -313,6 +319,15 @@ impl Ros2Presence {
                 last_ns: None,
             },
         );
+    }
+
+    /// [`Self::add_controller`] again for the controllers that had no robot, while they exist.
+    pub(crate) fn retry_pending(&mut self, creator: &Arc<Creator>) {
+        for controller in std::mem::take(&mut self.pending) {
+            if creator.info(&controller).is_some() {
+                self.add_controller(creator, &controller);
+            }
+        }
     }
 
     /// `/<robot>/servo_jp` into the robot's `servo_jp`; `/<robot>/servo_cp` into the operator

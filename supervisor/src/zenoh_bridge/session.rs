@@ -250,12 +250,10 @@ impl ZenohBridge {
         let counters = Arc::new(Counters::default());
         let queryable = declare_objects(&session, node, creator.clone(), counters.clone())?;
         let ros2 = match (ros2, creator.upgrade()) {
-            (Some(ros2), Some(c)) => Some(Ros2Presence::start(
-                &session,
-                node,
-                ros2,
-                c.node_time().now_ns(),
-            )?),
+            (Some(ros2), Some(c)) => Some(
+                Ros2Presence::start(&session, node, ros2, c.node_time().now_ns())
+                    .map_err(|e| ZenohError::Session(e.to_string()))?,
+            ),
             _ => None,
         };
         let dropped = Arc::new(AtomicU64::new(0));
@@ -440,6 +438,9 @@ impl Worker {
     /// Starts publishing new controllers and linked channels, and subscribes to new reference
     /// keys.
     fn discover(&mut self, creator: &Arc<Creator>) {
+        if let Some(ros2) = &mut self.ros2 {
+            ros2.retry_pending(creator);
+        }
         for info in creator.list() {
             if info.class == Class::Controller && !self.controllers.contains_key(&info.name) {
                 let Ok(ticks) = creator.record_ticks(&info.name, TICK_STREAM_CAPACITY) else {
