@@ -654,8 +654,12 @@ class Move:
         self.duration = duration
         self._started = time.monotonic()
         # The loop the move was queued on: when the robot ends up with none, its status says
-        # whether it failed under the move.
-        self._driver = robot._driving_controller()
+        # whether it failed under the move (unknown if the node cannot list it now).
+        self._driver: Optional[Controller] = None
+        try:
+            self._driver = robot._driving_controller()
+        except PenelopeError:
+            pass
 
     def wait(self, timeout: Optional[float] = None, poll: float = 0.005) -> "Move":
         """Waits until the robot is no longer busy with the motion (polling
