@@ -17,7 +17,7 @@ use axum::extract::{ConnectInfo, State};
 use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
-use penelope_protocol::client::Client;
+use penelope_protocol::client::{Client, estop_reports};
 use serde_json::json;
 
 use crate::hub::{Hub, Outgoing};
@@ -285,23 +285,8 @@ fn estop(client: &Client) -> Result<String, String> {
     let answers = client
         .estop_all()
         .map_err(|e| format!("E-STOP could not list the nodes: {e}"))?;
-    let mut nodes = Vec::new();
-    let mut unreached = Vec::new();
-    for (node, answer) in answers {
-        match answer {
-            Ok(report) => nodes.push(json!(report)),
-            Err(e) => unreached.push(format!("{node}: {e}")),
-        }
-    }
-    if unreached.is_empty() {
-        Ok(json!({ "nodes": nodes }).to_string())
-    } else {
-        Err(format!(
-            "E-STOP did not reach every node: {} (stopped: {})",
-            unreached.join("; "),
-            serde_json::to_string(&nodes).unwrap_or_default()
-        ))
-    }
+    let nodes = estop_reports(answers).map_err(|e| e.to_string())?;
+    Ok(json!({ "nodes": nodes }).to_string())
 }
 
 #[cfg(test)]

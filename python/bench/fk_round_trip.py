@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import statistics
 import subprocess
 import sys
@@ -20,16 +19,11 @@ import time
 from typing import Callable, Dict, List
 
 import penelope
+from bench_node import bench_node, puma_on_sim_board, summary
 
 CALLS = int(os.environ.get("CALLS", "5000"))
 ROUNDS = int(os.environ.get("ROUNDS", "3"))
 Q = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6]
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def time_calls(call: Callable[[], object], n: int) -> List[int]:
@@ -44,40 +38,11 @@ def time_calls(call: Callable[[], object], n: int) -> List[int]:
     return ns
 
 
-def summary(ns: List[int]) -> Dict[str, float]:
-    ns = sorted(ns)
-    return {
-        "calls": len(ns),
-        "mean_us": statistics.fmean(ns) / 1e3,
-        "p50_us": ns[(len(ns) - 1) // 2] / 1e3,
-        "p99_us": ns[round((len(ns) - 1) * 0.99)] / 1e3,
-    }
-
-
 def main() -> int:
-    binary = os.environ["PENELOPE_BIN"]
     rust = os.environ["PENELOPE_FK_RUST"]
-    naming = f"127.0.0.1:{free_port()}"
-    node = subprocess.Popen(
-        [binary, "node", "--name", "bench", "--host-naming", "--listen", naming,
-         "--priority", "0"],
-        stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True,
-    )
-    try:
-        assert node.stdout is not None
-        for line in node.stdout:  # the readiness line, no fixed sleep
-            if "Ctrl-C stops the node" in line:
-                break
-        else:
-            print("the node exited before it was ready", file=sys.stderr)
-            return 1
+    with bench_node() as naming:
         c = penelope.connect(naming)
-        board = c.create("bench", "board/sim", "sim0", axes=6)
-        robot = c.create("bench", "robot/puma560", "slave")
-        assert isinstance(robot, penelope.Robot)
-        robot.map_joints("sim0", {j: j for j in range(6)})
-        board.configure()
-        robot.configure()
+        robot = puma_on_sim_board(c)
         native = robot._native  # the extension's proxy: fk as a flat list
         runs: Dict[str, List[int]] = {"python": [], "python-list": []}
         rust_runs: List[Dict[str, float]] = []
@@ -108,9 +73,6 @@ def main() -> int:
         print(json.dumps({"rust": r, "python": rows["python (Robot.fk -> 4x4 ndarray)"],
                           "python_list": rows["python (_native fk -> list)"]}))
         return 0
-    finally:
-        node.terminate()
-        node.wait(timeout=10)
 
 
 if __name__ == "__main__":

@@ -13,16 +13,14 @@ from __future__ import annotations
 
 import json
 import os
-import socket
-import statistics
-import subprocess
 import sys
 import time
-from typing import Dict, List
+from typing import List
 
 import numpy as np
 
 import penelope
+from bench_node import bench_node, puma_on_sim_board, summary
 
 CALLS = int(os.environ.get("CALLS", "5000"))
 ROUNDS = int(os.environ.get("ROUNDS", "3"))
@@ -30,48 +28,10 @@ RATE = float(os.environ.get("RATE", "500"))
 SECONDS = float(os.environ.get("SECONDS", "5"))
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
-
-
-def summary(ns: List[int]) -> Dict[str, float]:
-    ns = sorted(ns)
-    mean = statistics.fmean(ns)
-    return {
-        "calls": len(ns),
-        "calls_per_s": 1e9 / mean,
-        "mean_us": mean / 1e3,
-        "p50_us": ns[(len(ns) - 1) // 2] / 1e3,
-        "p99_us": ns[round((len(ns) - 1) * 0.99)] / 1e3,
-    }
-
-
 def main() -> int:
-    binary = os.environ["PENELOPE_BIN"]
-    naming = f"127.0.0.1:{free_port()}"
-    node = subprocess.Popen(
-        [binary, "node", "--name", "bench", "--host-naming", "--listen", naming,
-         "--priority", "0"],
-        stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True,
-    )
-    try:
-        assert node.stdout is not None
-        for line in node.stdout:  # the readiness line, no fixed sleep
-            if "Ctrl-C stops the node" in line:
-                break
-        else:
-            print("the node exited before it was ready", file=sys.stderr)
-            return 1
+    with bench_node() as naming:
         c = penelope.connect(naming)
-        board = c.create("bench", "board/sim", "sim0", axes=6)
-        robot = c.create("bench", "robot/puma560", "slave")
-        assert isinstance(robot, penelope.Robot)
-        robot.map_joints("sim0", {j: j for j in range(6)})
-        board.configure()
-        robot.configure()
+        robot = puma_on_sim_board(c)
         hold = c.create("bench", "trajectory/step", "hold", pose="start")
         pid = c.create("bench", "controller/joint-pid", "pid", period_us=1000)
         assert isinstance(pid, penelope.Controller)
@@ -115,9 +75,6 @@ def main() -> int:
                                     "achieved_hz": s.achieved_rate, "overruns": s.overruns}}))
         pid.deactivate()
         return 0
-    finally:
-        node.terminate()
-        node.wait(timeout=10)
 
 
 if __name__ == "__main__":

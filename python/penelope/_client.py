@@ -634,8 +634,9 @@ class OperatingState:
 
 
 class RobotFault(PenelopeError):
-    """A robot went to ``FAULT`` (a latched fault or e-stop) while :meth:`Move.wait` waited
-    for its motion. Raised by this client, not sent by a node."""
+    """A robot went to ``FAULT`` (a latched fault or e-stop), or the loop its motion was
+    queued on failed and was stopped, while :meth:`Move.wait` waited for the motion. Raised by
+    this client, not sent by a node."""
 
     kind = "RobotFault"
 
@@ -652,14 +653,23 @@ class Move:
         #: The motion's duration, s.
         self.duration = duration
         self._started = time.monotonic()
+        # The loop the move was queued on: when the robot ends up with none, its status says
+        # whether it failed under the move (unknown if the node cannot list it now).
+        self._driver: Optional[Controller] = None
+        try:
+            self._driver = robot._driving_controller()
+        except PenelopeError:
+            pass
 
     def wait(self, timeout: Optional[float] = None, poll: float = 0.005) -> "Move":
         """Waits until the robot is no longer busy with the motion (polling
         :meth:`Robot.operating_state` every ``poll`` s on the real clock), at most ``timeout``
         s (default: the duration plus :attr:`MARGIN_S`, counted from the start); returns
-        ``self``. :class:`Timeout` past the bound; :class:`RobotFault` if the robot faults.
-        On a node with a simulated clock the motion advances only as the clock does: advance
-        it (:meth:`Client.advance`) before waiting."""
+        ``self``. :class:`Timeout` past the bound; :class:`RobotFault` if the robot faults,
+        or if the loop the move was queued on failed and was stopped (the robot then has no
+        active controller: ``DISABLED``, not busy). On a node with a simulated clock the
+        motion advances only as the clock does: advance it (:meth:`Client.advance`) before
+        waiting."""
         bound = self.duration + self.MARGIN_S if timeout is None else timeout
         deadline = self._started + bound
         while True:
@@ -667,10 +677,30 @@ class Move:
             if state.state == "FAULT":
                 raise RobotFault(f"{self.robot.path} went to FAULT during its move", "RobotFault")
             if not state.is_busy:
+                if state.state == "DISABLED":
+                    self._raise_if_its_loop_failed()
                 return self
             if time.monotonic() > deadline:
                 raise _error("Timeout", f"{self.robot.path} still busy after {bound:.1f} s")
             time.sleep(poll)
+
+    def _raise_if_its_loop_failed(self) -> None:
+        """:class:`RobotFault` when the controller the move was queued on is in ``error``: its
+        loop failed and the node stopped it (a loop deactivated on purpose is no fault)."""
+        if self._driver is None:
+            return
+        try:
+            status = self._driver._native.status()
+        except PenelopeError:  # destroyed meanwhile: nothing says it failed
+            return
+        if status["state"] != "error":
+            return
+        last = status["last"]
+        cause = "" if last is None or last["fault"] is None else f" ({last['fault']})"
+        raise RobotFault(
+            f"{self.robot.path}: its controller {self._driver.path} failed during its move{cause}",
+            "RobotFault",
+        )
 
 
 class ServoLoop:

@@ -5,7 +5,7 @@ use std::sync::{Mutex, PoisonError};
 
 use penelope_protocol::client::{LinkStream, Streamed, Subscription, TelemetryStream};
 use penelope_protocol::net::conn::RpcError;
-use penelope_protocol::proto::LinkRecord;
+use penelope_protocol::proto::{LinkRecord, TelemetryRecord};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -87,97 +87,78 @@ impl<R: Streamed + Send> Stream<R> {
     }
 }
 
-/// A telemetry subscription on a connection of its own; unsubscribes when closed or collected.
-#[pyclass(module = "penelope._native", frozen)]
-pub struct Watch {
-    inner: Stream<penelope_protocol::proto::TelemetryRecord>,
-}
-
-impl Watch {
-    /// Wraps `stream`, ending after `count` records (`None`: never).
-    pub fn new(stream: TelemetryStream, count: Option<u64>) -> Watch {
-        Watch {
-            inner: Stream::new(stream, count),
+/// A Python iterator class over a subscription: `$class` wraps a [`Stream`] of `$record`
+/// (from a `$subscription`), each record turned into a dict by `$to_dict`. The two classes
+/// differ only in what they stream (pyo3 classes cannot be generic).
+macro_rules! watch_class {
+    (
+        $(#[doc = $doc:literal])*
+        $class:ident, $subscription:ty, $record:ty, $to_dict:path,
+        path: $path_doc:literal, dropped: $dropped_doc:literal, next: $next_doc:literal
+    ) => {
+        $(#[doc = $doc])*
+        #[pyclass(module = "penelope._native", frozen)]
+        pub struct $class {
+            inner: Stream<$record>,
         }
-    }
-}
 
-#[pymethods]
-impl Watch {
-    /// The watched object's naming path.
-    #[getter]
-    fn path(&self) -> &str {
-        &self.inner.path
-    }
-
-    /// Batches the node dropped because this side read too slowly.
-    #[getter]
-    fn dropped(&self, py: Python<'_>) -> u64 {
-        self.inner.dropped(py)
-    }
-
-    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
-        slf
-    }
-
-    /// The next record, as a dict; `StopIteration` after `count` records or `close()`.
-    fn __next__<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        match self.inner.next(py)? {
-            Some(r) => Ok(Some(values::record(py, &r)?)),
-            None => Ok(None),
+        impl $class {
+            /// Wraps `stream`, ending after `count` records (`None`: never).
+            pub fn new(stream: $subscription, count: Option<u64>) -> $class {
+                $class {
+                    inner: Stream::new(stream, count),
+                }
+            }
         }
-    }
 
-    /// Unsubscribes and closes the connection (idempotent).
-    fn close(&self, py: Python<'_>) {
-        self.inner.close(py);
-    }
-}
+        #[pymethods]
+        impl $class {
+            #[doc = $path_doc]
+            #[getter]
+            fn path(&self) -> &str {
+                &self.inner.path
+            }
 
-/// A link-statistics subscription on a connection of its own; unsubscribes when closed or
-/// collected.
-#[pyclass(module = "penelope._native", frozen)]
-pub struct LinkWatch {
-    inner: Stream<LinkRecord>,
-}
+            #[doc = $dropped_doc]
+            #[getter]
+            fn dropped(&self, py: Python<'_>) -> u64 {
+                self.inner.dropped(py)
+            }
 
-impl LinkWatch {
-    /// Wraps `stream`, ending after `count` records (`None`: never).
-    pub fn new(stream: LinkStream, count: Option<u64>) -> LinkWatch {
-        LinkWatch {
-            inner: Stream::new(stream, count),
+            fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+                slf
+            }
+
+            #[doc = $next_doc]
+            fn __next__<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+                match self.inner.next(py)? {
+                    Some(r) => Ok(Some($to_dict(py, &r)?)),
+                    None => Ok(None),
+                }
+            }
+
+            /// Unsubscribes and closes the connection (idempotent).
+            fn close(&self, py: Python<'_>) {
+                self.inner.close(py);
+            }
         }
-    }
+    };
 }
 
-#[pymethods]
-impl LinkWatch {
-    /// The watched channel's naming path.
-    #[getter]
-    fn path(&self) -> &str {
-        &self.inner.path
-    }
+watch_class!(
+    /// A telemetry subscription on a connection of its own; unsubscribes when closed or
+    /// collected.
+    Watch, TelemetryStream, TelemetryRecord, values::record,
+    path: "The watched object's naming path.",
+    dropped: "Batches the node dropped because this side read too slowly.",
+    next: "The next record, as a dict; `StopIteration` after `count` records or `close()`."
+);
 
-    /// Records the node dropped because this side read too slowly.
-    #[getter]
-    fn dropped(&self, py: Python<'_>) -> u64 {
-        self.inner.dropped(py)
-    }
-
-    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
-        slf
-    }
-
-    /// The next link record, as a dict; `StopIteration` after `count` records or `close()`.
-    fn __next__<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        match self.inner.next(py)? {
-            Some(r) => Ok(Some(values::link_record(py, &r)?)),
-            None => Ok(None),
-        }
-    }
-
-    /// Unsubscribes and closes the connection (idempotent).
-    fn close(&self, py: Python<'_>) {
-        self.inner.close(py);
-    }
-}
+watch_class!(
+    /// A link-statistics subscription on a connection of its own; unsubscribes when closed or
+    /// collected.
+    LinkWatch, LinkStream, LinkRecord, values::link_record,
+    path: "The watched channel's naming path.",
+    dropped: "Records the node dropped because this side read too slowly.",
+    next: "The next link record, as a dict; `StopIteration` after `count` records or `close()`."
+);

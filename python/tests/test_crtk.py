@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 import time
 from pathlib import Path
+from typing import Any, Dict, Optional, cast
 
 import numpy as np
 import pytest
@@ -351,6 +352,59 @@ def test_each_refusal_is_a_typed_exception(node: Node) -> None:
             time.sleep(0.01)
         with pytest.raises(penelope.Timeout):
             robot.move_jp(robot.setpoint_js() - 0.05, 3.0).wait(timeout=0.2)
+
+
+class _LoopStatus:
+    """A controller proxy's native side answering one fixed status."""
+
+    def __init__(self, state: str, fault: Optional[str]) -> None:
+        self._status = {"state": state, "running": False, "last": {"fault": fault}}
+
+    def status(self) -> Dict[str, Any]:
+        return self._status
+
+
+class _Driver:
+    """The controller a move was queued on, as :class:`penelope.Move` reads it."""
+
+    path = "/lab/controllers/pid"
+
+    def __init__(self, state: str, fault: Optional[str]) -> None:
+        self._native = _LoopStatus(state, fault)
+
+
+class _RobotWhoseLoopStops:
+    """A robot busy with a move for two polls, then with no active controller (``DISABLED``,
+    not busy): what a node answers once it stopped a loop under the move."""
+
+    path = "/lab/slave"
+
+    def __init__(self, driver: _Driver) -> None:
+        self._driver = driver
+        self.polls = 0
+
+    def _driving_controller(self) -> _Driver:
+        return self._driver
+
+    def operating_state(self) -> penelope.OperatingState:
+        self.polls += 1
+        if self.polls <= 2:
+            return penelope.OperatingState("ENABLED", True, True)
+        return penelope.OperatingState("DISABLED", True, False)
+
+
+def test_wait_raises_when_the_moves_loop_fails_between_two_polls() -> None:
+    # The loop failed (its controller in `error`): the fault the poll missed is raised.
+    robot = _RobotWhoseLoopStops(_Driver("error", "velocity limit on joint 3"))
+    move = penelope.Move(cast(penelope.Robot, robot), 1.0)
+    with pytest.raises(penelope.RobotFault, match="failed during its move.*velocity limit"):
+        move.wait(poll=0.001)
+    assert robot.polls == 3
+    # Deactivated on purpose (`inactive`): no fault, the wait ends as the move did.
+    robot = _RobotWhoseLoopStops(_Driver("inactive", None))
+    move = penelope.Move(cast(penelope.Robot, robot), 1.0)
+    assert move.wait(poll=0.001) is move
+    assert robot.polls == 3
 
 
 def test_link_statistics_of_a_channel_between_two_nodes(penelope_bin: str, tmp_path: Path) -> None:

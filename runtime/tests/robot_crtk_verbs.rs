@@ -7,12 +7,14 @@ use std::time::Duration;
 
 use penelope_hal::{NamedPose, Transition};
 use penelope_protocol::proto::{
-    CallError, JointAxis, Method, OperatingStateMsg, PoseMsg, Reply, RobotMethod, SetpointsMsg,
-    WireError,
+    CallError, Method, OperatingStateMsg, PoseMsg, Reply, RobotMethod, SetpointsMsg, WireError,
 };
 use penelope_runtime::objects::clock::ClockMode;
 use penelope_runtime::objects::runtime::MAX_SERVO_STEP_RAD;
 use penelope_runtime::objects::{Creator, CreatorConfig};
+
+mod common;
+use common::{arm_controller, max_error, ok, puma_on_sim_board};
 
 /// The joint PID's gains: its defaults, with an integral term.
 const PID: &str = "ki = [8000.0, 8000.0, 8000.0, 800.0, 800.0, 800.0]\n\
@@ -24,11 +26,6 @@ const TICK: Duration = Duration::from_millis(1);
 fn robot(c: &Creator, m: RobotMethod) -> Result<Reply, WireError> {
     c.call_object("arm", Method::Robot(m))
         .map_err(WireError::from)
-}
-
-fn ok(c: &Creator, name: &str, method: Method) -> Reply {
-    c.call_object(name, method)
-        .unwrap_or_else(|e| panic!("{name}: {e}"))
 }
 
 fn joints_of(r: Reply) -> Vec<f64> {
@@ -63,14 +60,6 @@ fn fk(c: &Creator, q: Option<Vec<f64>>) -> PoseMsg {
     }
 }
 
-fn max_error(a: &[f64], b: &[f64]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0, f64::max)
-}
-
 fn advance(c: &Creator, by: Duration) {
     c.advance(by).unwrap();
 }
@@ -82,19 +71,7 @@ fn puma() -> (Creator, Vec<f64>) {
     let mut config = CreatorConfig::new("crtk");
     config.clock = ClockMode::Simulated;
     config.rt.priority = None;
-    let c = Creator::new(config);
-    c.create("robot/puma560", "arm", "").unwrap();
-    c.create("board/sim", "sim", "").unwrap();
-    ok(
-        &c,
-        "arm",
-        Method::Robot(RobotMethod::MapJoints {
-            board: "sim".into(),
-            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
-        }),
-    );
-    ok(&c, "sim", Method::Transition(Transition::Configure));
-    ok(&c, "arm", Method::Transition(Transition::Configure));
+    let c = puma_on_sim_board(config);
     let start = joints_of(ok(
         &c,
         "arm",
@@ -109,20 +86,9 @@ fn puma() -> (Creator, Vec<f64>) {
         .join(", ");
     c.create("trajectory/step", "hold", &format!("goal = [{goal}]"))
         .unwrap();
-    // An integral term, so that joint friction leaves no steady-state error at the goal.
-    c.create("controller/joint-pid", "pid", PID).unwrap();
-    for m in [
-        penelope_protocol::proto::ControllerMethod::SetRobot {
-            robot: "arm".into(),
-        },
-        penelope_protocol::proto::ControllerMethod::SetTrajectory {
-            trajectory: "hold".into(),
-        },
-    ] {
-        ok(&c, "pid", Method::Controller(m));
-    }
     ok(&c, "hold", Method::Transition(Transition::Configure));
-    ok(&c, "pid", Method::Transition(Transition::Configure));
+    // An integral term, so that joint friction leaves no steady-state error at the goal.
+    arm_controller(&c, "controller/joint-pid", "pid", PID, "hold");
     (c, start)
 }
 

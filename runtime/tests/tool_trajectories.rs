@@ -3,15 +3,11 @@
 //! inverse kinematics in the communication task; a move that cannot take a tool goal says so.
 
 use penelope_hal::{Timestamp, Transition};
-use penelope_protocol::proto::{
-    CallError, ControllerMethod, JointAxis, Method, Reply, RobotMethod, WireError,
-};
+use penelope_protocol::proto::{CallError, Method, Reply, RobotMethod, WireError};
 use penelope_runtime::objects::{Creator, CreatorConfig};
 
-fn ok(c: &Creator, name: &str, method: Method) -> Reply {
-    c.call_object(name, method)
-        .unwrap_or_else(|e| panic!("{name}: {e}"))
-}
+mod common;
+use common::{arm_controller, ok, puma_on_sim_board};
 
 fn tool(c: &Creator, q: Option<Vec<f64>>) -> [f64; 3] {
     match ok(
@@ -30,19 +26,7 @@ fn tool(c: &Creator, q: Option<Vec<f64>>) -> [f64; 3] {
 fn follow(law: &str, law_config: &str) -> (f64, f64) {
     let mut config = CreatorConfig::new("tool");
     config.rt.priority = None;
-    let c = Creator::new(config);
-    c.create("robot/puma560", "arm", "").unwrap();
-    c.create("board/sim", "sim", "").unwrap();
-    ok(
-        &c,
-        "arm",
-        Method::Robot(RobotMethod::MapJoints {
-            board: "sim".into(),
-            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
-        }),
-    );
-    ok(&c, "sim", Method::Transition(Transition::Configure));
-    ok(&c, "arm", Method::Transition(Transition::Configure));
+    let c = puma_on_sim_board(config);
     let start = tool(&c, None);
     let goal = [start[0] + 0.05, start[1], start[2] - 0.03];
     c.create(
@@ -54,19 +38,8 @@ fn follow(law: &str, law_config: &str) -> (f64, f64) {
         ),
     )
     .unwrap();
-    c.create(law, "ctl", law_config).unwrap();
-    for m in [
-        ControllerMethod::SetRobot {
-            robot: "arm".into(),
-        },
-        ControllerMethod::SetTrajectory {
-            trajectory: "line".into(),
-        },
-    ] {
-        ok(&c, "ctl", Method::Controller(m));
-    }
     ok(&c, "line", Method::Transition(Transition::Configure));
-    ok(&c, "ctl", Method::Transition(Transition::Configure));
+    arm_controller(&c, law, "ctl", law_config, "line");
     let mut d = c.detach_loop("ctl").unwrap();
     let mut off_line: f64 = 0.0;
     let mut last = None;

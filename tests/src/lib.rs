@@ -3,6 +3,7 @@
 
 use penelope_testkit::alloc::allocations;
 
+pub mod arm;
 pub mod fixtures;
 pub mod papers_task;
 

@@ -99,16 +99,24 @@ pub fn papers_task() -> Creator {
     );
     create(&c, "controller/force-display", "display", "");
     create(&c, "controller/slave-tracking", "follow", "");
-    map_all(&c, "frhc", "frhc-io");
-    map_all(&c, "puma", "puma-io");
-    relate(&c, "display", "frhc", "link", None);
-    relate(&c, "follow", "puma", "link", Some("wrist"));
+    connect_and_configure(&c);
+    c
+}
+
+/// Connects the task's objects, created already: each robot mapped onto its board (`frhc` on
+/// `frhc-io`, `puma` on `puma-io`), `display` and `follow` bound to their robots and the
+/// channel `link` (`follow` with the sensor `wrist`), and configures every one in a system
+/// file's order (boards and sensors before robots, the channel before its laws).
+pub fn connect_and_configure(c: &Creator) {
+    map_all(c, "frhc", "frhc-io");
+    map_all(c, "puma", "puma-io");
+    relate(c, "display", "frhc", "link", None);
+    relate(c, "follow", "puma", "link", Some("wrist"));
     for name in [
         "frhc-io", "puma-io", "wrist", "hand", "frhc", "puma", "link", "display", "follow",
     ] {
-        ok(&c, name, Method::Transition(Transition::Configure));
+        ok(c, name, Method::Transition(Transition::Configure));
     }
-    c
 }
 
 /// Steps both sides of the task every control tick for `seconds` of simulated time: control

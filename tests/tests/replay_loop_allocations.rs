@@ -10,22 +10,17 @@
 
 use std::time::Duration;
 
-use penelope_hal::{Timestamp, Transition};
-use penelope_protocol::proto::{ControllerMethod, JointAxis, Method, RobotMethod};
+use penelope_hal::Timestamp;
 use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_supervisor::runs::recording::write_run;
 use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, run};
 use penelope_supervisor::system::SystemFile;
 use penelope_testkit::alloc::CountingAllocator;
+use penelope_tests::papers_task::connect_and_configure;
 use penelope_tests::{assert_pair_ran, step_teleop_pair};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
-
-fn call(c: &Creator, object: &str, method: Method) {
-    c.call_object(object, method)
-        .unwrap_or_else(|e| panic!("{object}: {e}"));
-}
 
 #[test]
 fn a_hundred_thousand_replayed_teleoperation_ticks_allocate_nothing() {
@@ -104,40 +99,6 @@ fn a_teleoperation_pair_replaying(c: &Creator, file: &str) {
         c.create(kind, name, &cfg)
             .unwrap_or_else(|e| panic!("{name}: {e}"));
     }
-    for (robot, board) in [("frhc", "frhc-io"), ("puma", "puma-io")] {
-        call(
-            c,
-            robot,
-            Method::Robot(RobotMethod::MapJoints {
-                board: board.into(),
-                joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
-            }),
-        );
-    }
-    for (controller, robot, sensor) in
-        [("display", "frhc", None), ("follow", "puma", Some("wrist"))]
-    {
-        let mut methods = vec![
-            ControllerMethod::SetRobot {
-                robot: robot.into(),
-            },
-            ControllerMethod::SetTrajectory {
-                trajectory: "link".into(),
-            },
-        ];
-        if let Some(sensor) = sensor {
-            methods.push(ControllerMethod::SetSensor {
-                sensor: sensor.into(),
-            });
-        }
-        for m in methods {
-            call(c, controller, Method::Controller(m));
-        }
-    }
     // Sensors (the recordings are read here) before the robots, as a system file does.
-    for name in [
-        "frhc-io", "puma-io", "wrist", "hand", "frhc", "puma", "link", "display", "follow",
-    ] {
-        call(c, name, Method::Transition(Transition::Configure));
-    }
+    connect_and_configure(c);
 }

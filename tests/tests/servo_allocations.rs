@@ -8,54 +8,25 @@
 //! stepped and the targets written); this binary holds this one test only.
 
 use penelope_hal::{JointVector, NamedPose, Timestamp, Transition};
-use penelope_protocol::proto::{ControllerMethod, JointAxis, Method, Reply, RobotMethod};
+use penelope_protocol::proto::{Method, Reply, RobotMethod};
 use penelope_rt_core::safety::SafetyState;
 use penelope_runtime::objects::runtime::{GoToCommand, ServoTarget};
-use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_testkit::alloc::{CountingAllocator, allocations};
+use penelope_tests::arm::{arm_controller, puma_on_sim_board};
+use penelope_tests::papers_task::ok;
 use std::time::Duration;
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
 
-fn call(c: &Creator, object: &str, method: Method) -> Reply {
-    c.call_object(object, method)
-        .unwrap_or_else(|e| panic!("{object}: {e}"))
-}
-
 #[test]
 fn servo_targets_and_moves_over_100k_ticks_allocate_nothing() {
-    let mut config = CreatorConfig::new("servo");
-    config.rt.priority = None;
-    let c = Creator::new(config);
-    c.create("robot/puma560", "arm", "").unwrap();
-    c.create("board/sim", "sim", "").unwrap();
-    call(
-        &c,
-        "arm",
-        Method::Robot(RobotMethod::MapJoints {
-            board: "sim".into(),
-            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
-        }),
-    );
-    call(&c, "sim", Method::Transition(Transition::Configure));
-    call(&c, "arm", Method::Transition(Transition::Configure));
+    let c = puma_on_sim_board("servo");
     c.create("trajectory/step", "hold", "pose = \"start\"")
         .unwrap();
-    c.create("controller/joint-pid", "pid", "").unwrap();
-    for m in [
-        ControllerMethod::SetRobot {
-            robot: "arm".into(),
-        },
-        ControllerMethod::SetTrajectory {
-            trajectory: "hold".into(),
-        },
-    ] {
-        call(&c, "pid", Method::Controller(m));
-    }
-    call(&c, "hold", Method::Transition(Transition::Configure));
-    call(&c, "pid", Method::Transition(Transition::Configure));
-    let start = match call(
+    ok(&c, "hold", Method::Transition(Transition::Configure));
+    arm_controller(&c, "controller/joint-pid", "pid", "", "hold");
+    let start = match ok(
         &c,
         "arm",
         Method::Robot(RobotMethod::NamedPose {

@@ -12,12 +12,12 @@
 
 use std::time::Duration;
 
-use penelope_hal::{Frame, Timestamp, Transition, Wrench};
-use penelope_protocol::proto::{ControllerMethod, JointAxis, Method, RobotMethod};
+use penelope_hal::{Frame, Timestamp, Wrench};
 use penelope_rt_core::cell::Stamped;
 use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_testkit::alloc::CountingAllocator;
-use penelope_tests::{assert_pair_ran, call_object, step_teleop_pair};
+use penelope_tests::papers_task::connect_and_configure;
+use penelope_tests::{assert_pair_ran, step_teleop_pair};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
@@ -80,41 +80,7 @@ fn ticks_allocate_nothing(frhc_board: &str, faults: &str, laws: (&str, &str, &st
         c.create(kind, name, cfg)
             .unwrap_or_else(|e| panic!("{name}: {e}"));
     }
-    for (robot, board) in [("frhc", "frhc-io"), ("puma", "puma-io")] {
-        call_object(
-            &c,
-            robot,
-            Method::Robot(RobotMethod::MapJoints {
-                board: board.into(),
-                joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
-            }),
-        );
-    }
-    for (controller, robot, sensor) in
-        [("display", "frhc", None), ("follow", "puma", Some("wrist"))]
-    {
-        let mut methods = vec![
-            ControllerMethod::SetRobot {
-                robot: robot.into(),
-            },
-            ControllerMethod::SetTrajectory {
-                trajectory: "link".into(),
-            },
-        ];
-        if let Some(sensor) = sensor {
-            methods.push(ControllerMethod::SetSensor {
-                sensor: sensor.into(),
-            });
-        }
-        for m in methods {
-            call_object(&c, controller, Method::Controller(m));
-        }
-    }
-    for name in [
-        "frhc-io", "puma-io", "wrist", "hand", "frhc", "puma", "link", "display", "follow",
-    ] {
-        call_object(&c, name, Method::Transition(Transition::Configure));
-    }
+    connect_and_configure(&c);
     let on_fpga = c
         .info("frhc")
         .expect("the FRHC")

@@ -10,40 +10,23 @@
 //! stepped); this binary holds this one test only.
 
 use penelope_hal::{JointVector, Timestamp, Transition};
-use penelope_protocol::proto::{ControllerMethod, JointAxis, Method, Reply, RobotMethod};
+use penelope_protocol::proto::{Method, Reply, RobotMethod};
 use penelope_rt_core::controller::JointPidGains;
 use penelope_rt_core::safety::SafetyState;
 use penelope_runtime::objects::runtime::{GainsUpdate, RoutedGains};
-use penelope_runtime::objects::{Creator, CreatorConfig, DetachedLoop};
+use penelope_runtime::objects::{Creator, DetachedLoop};
 use penelope_testkit::alloc::{CountingAllocator, allocations};
+use penelope_tests::arm::{arm_controller, puma_on_sim_board};
+use penelope_tests::papers_task::ok;
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
 
-fn call(c: &Creator, object: &str, method: Method) -> Reply {
-    c.call_object(object, method)
-        .unwrap_or_else(|e| panic!("{object}: {e}"))
-}
-
 /// A creator with a PUMA 560 `arm` on a simulated board, configured, and the spline `square`:
 /// a square of 4 cm in the tool's y-z plane, back and forth, every second a corner.
 fn arm_and_square(node: &str) -> Creator {
-    let mut config = CreatorConfig::new(node);
-    config.rt.priority = None;
-    let c = Creator::new(config);
-    c.create("robot/puma560", "arm", "").unwrap();
-    c.create("board/sim", "sim", "").unwrap();
-    call(
-        &c,
-        "arm",
-        Method::Robot(RobotMethod::MapJoints {
-            board: "sim".into(),
-            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
-        }),
-    );
-    call(&c, "sim", Method::Transition(Transition::Configure));
-    call(&c, "arm", Method::Transition(Transition::Configure));
-    let p = match call(
+    let c = puma_on_sim_board(node);
+    let p = match ok(
         &c,
         "arm",
         Method::Robot(RobotMethod::ForwardKinematics { q: None }),
@@ -67,36 +50,20 @@ fn arm_and_square(node: &str) -> Creator {
         ));
     }
     c.create("trajectory/spline", "square", &waypoints).unwrap();
-    call(&c, "square", Method::Transition(Transition::Configure));
+    ok(&c, "square", Method::Transition(Transition::Configure));
     c
-}
-
-/// Creates controller `name` of `kind` on `arm` following `trajectory`.
-fn controller(c: &Creator, kind: &str, name: &str, config: &str, trajectory: &str) {
-    c.create(kind, name, config).unwrap();
-    for m in [
-        ControllerMethod::SetRobot {
-            robot: "arm".into(),
-        },
-        ControllerMethod::SetTrajectory {
-            trajectory: trajectory.into(),
-        },
-    ] {
-        call(c, name, Method::Controller(m));
-    }
-    call(c, name, Method::Transition(Transition::Configure));
 }
 
 #[test]
 fn thirty_thousand_ticks_toward_tool_goals_allocate_nothing() {
     let c = arm_and_square("alloc");
-    controller(&c, "controller/joint-pid", "pid", "", "square");
+    arm_controller(&c, "controller/joint-pid", "pid", "", "square");
     let d = c.detach_loop("pid").expect("the loop builds");
     run_counted(d, None);
 
     // The same PID on joints 0-2 only, a position servo on the wrist.
     let c = arm_and_square("alloc-groups");
-    controller(&c, "controller/joint-pid", "pid", "", "square");
+    arm_controller(&c, "controller/joint-pid", "pid", "", "square");
     c.create(
         "trajectory/spline",
         "wrist-wave",
@@ -104,8 +71,8 @@ fn thirty_thousand_ticks_toward_tool_goals_allocate_nothing() {
          [[waypoints]]\nat_s = 10.0\nq = [0, 0, 0, -0.3, 0.3, -0.3]\n",
     )
     .unwrap();
-    call(&c, "wrist-wave", Method::Transition(Transition::Configure));
-    controller(
+    ok(&c, "wrist-wave", Method::Transition(Transition::Configure));
+    arm_controller(
         &c,
         "controller/joint-position",
         "servo",
@@ -118,7 +85,7 @@ fn thirty_thousand_ticks_toward_tool_goals_allocate_nothing() {
         r#"groups = [{ controller = "pid", joints = [0, 1, 2] }, { controller = "servo", joints = [3, 4, 5] }]"#,
     )
     .unwrap();
-    call(&c, "split", Method::Transition(Transition::Configure));
+    ok(&c, "split", Method::Transition(Transition::Configure));
     let d = c.detach_loop("split").expect("the group's loop builds");
     let stiffer = JointPidGains::pd(JointVector::repeat(800.0), JointVector::repeat(40.0));
     run_counted(

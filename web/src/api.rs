@@ -8,7 +8,7 @@ use axum::Json;
 use axum::extract::{Query, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
-use penelope_protocol::client::Client;
+use penelope_protocol::client::{Client, estop_reports};
 use penelope_protocol::net::conn::RpcError;
 use penelope_protocol::proto::{
     BoardMethod, CallError, Class, ControllerMethod, Method, NameEntry, ObjectRef, Reply,
@@ -421,26 +421,11 @@ pub(crate) async fn destroy(
 /// status when any).
 pub(crate) async fn estop_all(State(state): State<Arc<WebState>>) -> ApiResult {
     blocking(&state, |client| {
-        let answers = client.estop_all()?;
-        let mut nodes = Vec::new();
-        let mut unreached = Vec::new();
-        for (node, answer) in answers {
-            match answer {
-                Ok(report) => nodes.push(json!(report)),
-                Err(e) => unreached.push(format!("{node}: {e}")),
-            }
-        }
-        if !unreached.is_empty() {
-            return Err(ApiError {
-                status: StatusCode::BAD_GATEWAY,
-                kind: "estop-incomplete".into(),
-                message: format!(
-                    "E-STOP did not reach every node: {} (stopped: {})",
-                    unreached.join("; "),
-                    serde_json::to_string(&nodes).unwrap_or_default()
-                ),
-            });
-        }
+        let nodes = estop_reports(client.estop_all()?).map_err(|e| ApiError {
+            status: StatusCode::BAD_GATEWAY,
+            kind: "estop-incomplete".into(),
+            message: e.to_string(),
+        })?;
         Ok(Json(json!({ "nodes": nodes })))
     })
     .await

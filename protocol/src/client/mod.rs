@@ -45,6 +45,7 @@
 //! connection broke may thus run twice: harmless for queries and transitions, and a `create`
 //! that ran twice answers [`CallError::NameTaken`]. A timeout is never retried.
 
+mod estop;
 mod naming;
 mod node;
 pub mod proxy;
@@ -60,6 +61,7 @@ use crate::proto::{
     WireError,
 };
 
+pub use estop::{EStopIncomplete, estop_reports};
 pub use naming::{MAX_TREE_DEPTH, NamingProxy, join_path};
 pub use node::NodeProxy;
 pub use proxy::{

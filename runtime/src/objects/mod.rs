@@ -479,16 +479,20 @@ impl Creator {
         // Created last, once everything else is checked: a refused call leaves no file.
         let (path, file) = files::create_in(dir, name)?;
         let path = path.display().to_string();
-        let recorder = crate::objects::recording::Recorder::start_in(
-            file,
-            std::path::Path::new(&path),
-            &self.config.node,
+        let sources = recording::RecordingSources {
+            node: &self.config.node,
             streams,
             links,
-            Some(self.lifecycle_events(crate::objects::recording::LIFECYCLE_CAPACITY)),
-            &self.config.common_clock,
-            self.node_time(),
+            lifecycle: Some(self.lifecycle_events(recording::LIFECYCLE_CAPACITY)),
+            clock: &self.config.common_clock,
+            node_time: self.node_time(),
             scene,
+        };
+        let recorder = recording::Recorder::start(
+            recording::RecordProfile::Penelope,
+            std::path::Path::new(&path),
+            Some(file),
+            sources,
         )
         .map_err(|e| {
             let _ = std::fs::remove_file(&path);

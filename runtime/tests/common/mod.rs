@@ -1,5 +1,6 @@
 //! Helpers shared by the in-process creator tests (`objects.rs`, `object_control.rs`,
-//! `object_sensors.rs`): sessions, calls, object set-up and waiting. Each test binary uses a
+//! `object_sensors.rs`, `robot_crtk_verbs.rs`, `tool_trajectories.rs`): sessions, calls,
+//! object set-up and waiting. Each test binary uses a
 //! subset, hence `dead_code` is allowed here.
 
 #![allow(dead_code)]
@@ -148,4 +149,46 @@ pub fn wait_for(what: &str, timeout: Duration, mut ok: impl FnMut() -> bool) {
         assert!(t0.elapsed() < timeout, "timed out waiting for {what}");
         std::thread::sleep(Duration::from_millis(20));
     }
+}
+
+/// Calls `method` on `name` in process (no session), panicking with the reason on an error.
+pub fn ok(c: &Creator, name: &str, method: Method) -> Reply {
+    c.call_object(name, method)
+        .unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+/// A creator made with `config` holding a PUMA 560 `arm` on a simulated board `sim` (joint j
+/// on axis j), both configured.
+pub fn puma_on_sim_board(config: CreatorConfig) -> Creator {
+    let c = Creator::new(config);
+    c.create("robot/puma560", "arm", "").unwrap();
+    c.create("board/sim", "sim", "").unwrap();
+    ok(
+        &c,
+        "arm",
+        Method::Robot(RobotMethod::MapJoints {
+            board: "sim".into(),
+            joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
+        }),
+    );
+    ok(&c, "sim", Method::Transition(Transition::Configure));
+    ok(&c, "arm", Method::Transition(Transition::Configure));
+    c
+}
+
+/// Creates controller `name` of `kind` (its keys `config`) driving `arm` along `trajectory`
+/// (configured already), and configures it.
+pub fn arm_controller(c: &Creator, kind: &str, name: &str, config: &str, trajectory: &str) {
+    c.create(kind, name, config).unwrap();
+    for m in [
+        ControllerMethod::SetRobot {
+            robot: "arm".into(),
+        },
+        ControllerMethod::SetTrajectory {
+            trajectory: trajectory.into(),
+        },
+    ] {
+        ok(c, name, Method::Controller(m));
+    }
+    ok(c, name, Method::Transition(Transition::Configure));
 }

@@ -13,7 +13,7 @@ use penelope_runtime::objects::recording::ros2_log::Ros2Log;
 use penelope_runtime::objects::recording::scene::{self, SceneWriter};
 use penelope_runtime::objects::recording::{
     DEFAULT_SCENE_HZ, LIFECYCLE_CAPACITY, RecordProfile, Recorder, Recording, RecordingError,
-    SceneConfig, SceneRobot,
+    RecordingSources, SceneConfig, SceneRobot,
 };
 use penelope_runtime::objects::tick::TickRecord;
 
@@ -71,19 +71,17 @@ pub fn apply_recorded(
         .creator()
         .scene_for(&to_activate, scene_hz)
         .map_err(|e| RunError::Task(e.to_string()))?;
-    let recorder = Recorder::start_as(
-        profile,
-        None,
-        path,
-        node.name(),
+    let sources = RecordingSources {
+        node: node.name(),
         streams,
         links,
-        Some(lifecycle),
-        node.creator().common_clock(),
-        node.creator().node_time(),
+        lifecycle: Some(lifecycle),
+        clock: node.creator().common_clock(),
+        node_time: node.creator().node_time(),
         scene,
-    )
-    .map_err(|e| RunError::Task(e.to_string()))?;
+    };
+    let recorder =
+        Recorder::start(profile, path, None, sources).map_err(|e| RunError::Task(e.to_string()))?;
     for name in &to_activate {
         node.call(Call::Object {
             object: name.clone(),

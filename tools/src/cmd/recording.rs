@@ -10,7 +10,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use penelope_runtime::objects::recording::mcap_log::summarize;
+use penelope_runtime::objects::recording::mcap_log::{ChannelSummary, summarize};
 use penelope_supervisor::runs::rerun::{Rerun, rerun};
 
 use super::usage;
@@ -84,24 +84,8 @@ fn info(args: &InfoArgs) -> anyhow::Result<ExitCode> {
         secs(summary.end_ns),
         secs(summary.duration_ns())
     );
-    let width = summary
-        .channels
-        .iter()
-        .map(|c| c.topic.len())
-        .max()
-        .unwrap_or(5)
-        .max(5);
-    println!(
-        "  {:<width$}  {:<36}  {:>10}",
-        "topic", "schema", "messages"
-    );
-    for c in &summary.channels {
-        let schema = if c.schema.is_empty() {
-            "(none)".to_string()
-        } else {
-            format!("{} ({})", c.schema, c.schema_encoding)
-        };
-        println!("  {:<width$}  {:<36}  {:>10}", c.topic, schema, c.messages);
+    for line in channel_table(&summary.channels) {
+        println!("{line}");
     }
     for (name, entries) in &summary.metadata {
         // A long text (the `run` record's system file) is shown by its size.
@@ -115,6 +99,36 @@ fn info(args: &InfoArgs) -> anyhow::Result<ExitCode> {
         println!("  metadata {name}: {}", list.join(" "));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The channels as a table with a header: topic, schema (with its encoding) and message
+/// count, each column as wide as its widest cell (in characters), so that a long name moves
+/// the columns after it rather than pushing its own row out of line.
+fn channel_table(channels: &[ChannelSummary]) -> Vec<String> {
+    let rows: Vec<[String; 3]> = channels
+        .iter()
+        .map(|c| {
+            let schema = if c.schema.is_empty() {
+                "(none)".to_string()
+            } else {
+                format!("{} ({})", c.schema, c.schema_encoding)
+            };
+            [c.topic.clone(), schema, c.messages.to_string()]
+        })
+        .collect();
+    let header = ["topic", "schema", "messages"].map(String::from);
+    let width = |column: usize| {
+        std::iter::once(&header)
+            .chain(&rows)
+            .map(|row| row[column].chars().count())
+            .max()
+            .unwrap_or(0)
+    };
+    let (topic, schema, messages) = (width(0), width(1), width(2));
+    std::iter::once(&header)
+        .chain(&rows)
+        .map(|[t, s, m]| format!("  {t:<topic$}  {s:<schema$}  {m:>messages$}"))
+        .collect()
 }
 
 /// `penelope recording rerun`.
@@ -185,4 +199,61 @@ fn print_rerun(r: &Rerun) {
             "the rerun differs from the recording"
         }
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn channel(topic: &str, schema: &str, messages: u64) -> ChannelSummary {
+        ChannelSummary {
+            topic: topic.into(),
+            schema: schema.into(),
+            schema_encoding: if schema.is_empty() { "" } else { "jsonschema" }.into(),
+            message_encoding: "json".into(),
+            messages,
+        }
+    }
+
+    #[test]
+    fn the_channel_tables_columns_line_up_whatever_the_names_length() {
+        let channels = [
+            channel("/clock", "penelope.Clock", 7),
+            channel(
+                "/controllers/a-controller-with-a-very-long-name-indeed",
+                "penelope.Tick",
+                123_456,
+            ),
+            channel(
+                "/x",
+                "foxglove.FrameTransformsWithAVeryLongSchemaNameToo",
+                1,
+            ),
+            channel("/tf_static", "", 0),
+        ];
+        let lines = channel_table(&channels);
+        for line in &lines {
+            println!("{line}");
+        }
+        assert_eq!(lines.len(), 5, "a header and a row per channel");
+        // Where each line's schema column starts, and where its count ends.
+        let schema_at = |line: &str, schema: &str| line.find(schema).unwrap();
+        let starts = [
+            schema_at(&lines[0], "schema"),
+            schema_at(&lines[1], "penelope.Clock"),
+            schema_at(&lines[2], "penelope.Tick"),
+            schema_at(&lines[3], "foxglove.FrameTransforms"),
+            schema_at(&lines[4], "(none)"),
+        ];
+        assert!(starts.iter().all(|&s| s == starts[0]), "{starts:?}");
+        assert_eq!(starts[0], 2 + channels[1].topic.len() + 2);
+        let ends: Vec<usize> = lines.iter().map(|l| l.chars().count()).collect();
+        assert!(ends.iter().all(|&e| e == ends[0]), "{ends:?}");
+        assert!(lines[2].ends_with(" 123456"), "{}", lines[2]);
+        assert!(
+            lines[3].contains("foxglove.FrameTransformsWithAVeryLongSchemaNameToo (jsonschema)  "),
+            "{}",
+            lines[3]
+        );
+    }
 }

@@ -213,3 +213,390 @@ pub fn read_recording(path: &Path) -> Result<Recording, RecordingError> {
     }
     Ok(recording)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::objects::clock::ClockReader;
+    use crate::objects::recording::mcap_log::{self, McapLog};
+    use crate::objects::recording::{RecordProfile, Recorder, RecordingSources, SceneConfig};
+    use penelope_drivers::sim::tap::TapSample;
+    use penelope_hal::{JointVector, Timestamp};
+    use penelope_protocol::proto::LinkRecord;
+    use penelope_rt_core::safety::{EventSet, FaultCause, SafetyEvent, SafetyState};
+    use penelope_rt_core::telemetry::TelemetrySample;
+    use std::path::PathBuf;
+
+    fn scratch(name: &str) -> PathBuf {
+        std::env::temp_dir().join(format!("penelope-recording-{}-{name}", std::process::id()))
+    }
+
+    /// Ticks whose values need every bit of an f64 (thirds, tiny and huge numbers).
+    fn ticks(n: u64) -> Vec<TickRecord> {
+        (1..=n)
+            .map(|i| {
+                let x = i as f64 / 3.0;
+                let mut events = EventSet::EMPTY;
+                if i == 7 {
+                    events.insert(SafetyEvent::LinkLost);
+                }
+                TickRecord {
+                    sample: TelemetrySample {
+                        time: Timestamp::from_nanos(1_000_000 * i + 17),
+                        seq: i,
+                        q: JointVector::from_fn(|j, _| x * (j as f64 + 0.1) + 1e-300),
+                        qd: JointVector::from_fn(|j, _| -x / (j as f64 + 7.0)),
+                        effort: JointVector::from_fn(|j, _| 1e300 / (x + j as f64)),
+                        state: if i > 5 {
+                            SafetyState::Fault
+                        } else {
+                            SafetyState::Running
+                        },
+                        fault: (i > 5).then_some(FaultCause::VelocityLimit { joint: 3 }),
+                        events,
+                        port_energy: (i % 2 == 0).then_some(-x),
+                        ..TelemetrySample::default()
+                    },
+                    truth: Some(TapSample {
+                        kinetic_energy: x.sqrt(),
+                        interaction_work: -x * 1e-9,
+                        ..TapSample::default()
+                    }),
+                    clutch: (i % 3 == 0).then_some(i % 2 == 0),
+                }
+            })
+            .collect()
+    }
+
+    fn link(time_ns: u64) -> LinkRecord {
+        LinkRecord {
+            time_ns,
+            down: false,
+            losses: 1,
+            restorations: 1,
+            samples_taken: 99,
+            samples_dropped: 2,
+            samples_missed: 3,
+            refused: 0,
+            clock_offset_ns: Some(-12_345),
+            round_trip_ns: Some(250_000),
+            one_way_delay_ns: Some(125_000),
+            jitter_ns: None,
+            last_heard_ns: Some(1_000),
+            heartbeat_loss: 0.1 + 0.2,
+            trips: 40,
+            trip_p50_ns: Some(120_000),
+            trip_p99_ns: Some(300_000),
+            trip_max_ns: None,
+        }
+    }
+
+    #[test]
+    fn a_recording_reads_back_bit_for_bit_with_its_links_and_losses() {
+        let path = scratch("roundtrip.mcap");
+        let (a, b) = (ticks(40), ticks(25));
+        let mut log = McapLog::create(&path, "lab").unwrap();
+        log.add_controller("display").unwrap();
+        log.add_controller("follow").unwrap();
+        for t in &a {
+            log.tick(0, t).unwrap();
+        }
+        for t in &b {
+            log.tick(1, t).unwrap();
+        }
+        log.link("link", &link(5)).unwrap();
+        log.link("link", &link(9)).unwrap();
+        let datagrams = stream_samples();
+        for d in &datagrams {
+            log.datagram("link", d).unwrap();
+        }
+        assert!(log.datagrams_dropped("link", 3).unwrap());
+        assert!(
+            !log.datagrams_dropped("link", 3).unwrap(),
+            "written when it grows"
+        );
+        let totals = log.finish(&[0, 4]).unwrap();
+        assert_eq!(totals.ticks, 65);
+        let r = read_recording(&path).unwrap();
+        assert_eq!(r.node, "lab");
+        assert_eq!(r.controllers["display"], a, "every bit of every tick");
+        assert_eq!(r.controllers["follow"], b);
+        assert_eq!(r.links["link"], vec![link(5), link(9)]);
+        assert_eq!(r.dropped["display"], 0);
+        assert_eq!(r.dropped["follow"], 4);
+        assert_eq!(
+            r.datagrams["link"], datagrams,
+            "every bit of every stream sample"
+        );
+        assert_eq!(r.datagrams_dropped["link"], 3);
+        let topics: Vec<String> = mcap_log::summarize(&path)
+            .unwrap()
+            .channels
+            .into_iter()
+            .map(|c| c.topic)
+            .filter(|t| t.starts_with("/streams/"))
+            .collect();
+        assert_eq!(
+            topics,
+            [
+                "/streams/link/master-to-slave",
+                "/streams/link/slave-to-master"
+            ]
+        );
+        let _ = std::fs::remove_file(path);
+    }
+
+    #[test]
+    fn the_tick_schema_names_every_event_bit() {
+        let schema: serde_json::Value = serde_json::from_str(&mcap_log::tick_schema()).unwrap();
+        let events = schema["properties"]["sample"]["properties"]["events"]["description"]
+            .as_str()
+            .unwrap()
+            .to_string();
+        for e in penelope_rt_core::safety::SafetyEvent::ALL {
+            assert!(
+                events.contains(&format!("{} {}", e as u8, e.as_str())),
+                "{events}"
+            );
+        }
+        assert!(events.contains("14 sensor-error"), "{events}");
+    }
+
+    /// A sample sent each way and one taken, with every optional part.
+    fn stream_samples() -> Vec<StreamDatagram> {
+        use crate::objects::link_source::StreamName;
+        use penelope_hal::{CartesianReference, Reference};
+        use penelope_rt_core::teleop::{PortEnergy, WaveSample};
+        let pose = |x: f64| {
+            Reference::Cartesian(CartesianReference {
+                pose: penelope_hal::Pose::translation(x, 0.1 + 0.2, -1.0 / 3.0),
+                ..CartesianReference::default()
+            })
+        };
+        let d = |stream, k: u64, arrived: Option<i64>| StreamDatagram {
+            stream,
+            time_ns: k * 2_000_000,
+            sequence: k,
+            sent_ns: (k * 2_000_000) as i64 - 7,
+            arrived_ns: arrived,
+            one_way_ns: arrived.map(|a| a - (k * 2_000_000) as i64),
+            clutch: k.is_multiple_of(2),
+            reference: pose(k as f64 * 1e-3 + 1e-17),
+            wave: (k == 2).then(|| WaveSample {
+                wave: nalgebra::Vector3::new(0.5, -1.25, 3.0),
+                integral: nalgebra::Vector3::new(1e-3, 2e-3, -3e-3),
+                energy: nalgebra::Vector3::new(0.125, 0.0, 7.5),
+            }),
+            energy: (k == 3).then_some(PortEnergy { input: 0.375 }),
+        };
+        vec![
+            d(StreamName::MasterToSlave, 1, None),
+            d(StreamName::SlaveToMaster, 2, Some(4_000_123)),
+            d(StreamName::MasterToSlave, 3, None),
+        ]
+    }
+
+    #[test]
+    fn a_recording_cut_off_anywhere_reads_as_a_prefix_of_its_ticks() {
+        let path = scratch("cut.mcap");
+        let all = ticks(60);
+        let mut log = McapLog::create(&path, "lab").unwrap();
+        log.add_controller("display").unwrap();
+        for chunk in all.chunks(10) {
+            for t in chunk {
+                log.tick(0, t).unwrap();
+            }
+            log.flush().unwrap(); // what the recorder does every FLUSH_EVERY
+        }
+        log.finish(&[0]).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let cut = scratch("cut-part.mcap");
+        let mut seen = 0;
+        for len in (16..bytes.len()).step_by(97) {
+            std::fs::write(&cut, &bytes[..len]).unwrap();
+            let r = read_recording(&cut).unwrap();
+            let got = r
+                .controllers
+                .get("display")
+                .map_or(&[][..], |v| v.as_slice());
+            assert_eq!(got, &all[..got.len()], "cut at {len}: a prefix");
+            assert!(got.len() >= seen, "more of the file, no fewer ticks");
+            seen = got.len();
+        }
+        assert!(
+            seen >= 50,
+            "flushed chunks are read before the file ends: {seen}"
+        );
+        let _ = std::fs::remove_file(path);
+        let _ = std::fs::remove_file(cut);
+    }
+
+    #[test]
+    fn losses_are_written_as_they_grow_so_a_file_cut_off_still_has_them() {
+        let path = scratch("losses.mcap");
+        let mut log = McapLog::create(&path, "lab").unwrap();
+        log.add_controller("display").unwrap();
+        log.tick(0, &ticks(1)[0]).unwrap();
+        assert!(!log.dropped(0, 0).unwrap(), "nothing lost, nothing written");
+        assert!(log.dropped(0, 5).unwrap());
+        assert!(!log.dropped(0, 5).unwrap(), "written once");
+        assert!(!log.dropped(3, 5).unwrap(), "no such controller");
+        log.flush().unwrap();
+        // The node dies here: no summary, no final counts.
+        std::mem::forget(log);
+        let r = read_recording(&path).unwrap();
+        assert_eq!(r.dropped["display"], 5);
+        assert_eq!(r.controllers["display"].len(), 1);
+        let _ = std::fs::remove_file(path);
+    }
+
+    #[test]
+    fn an_unwritable_path_or_a_foreign_file_is_a_typed_error() {
+        let nowhere = Path::new("/nonexistent-dir/run.mcap");
+        assert!(matches!(
+            McapLog::create(nowhere, "lab"),
+            Err(RecordingError::Io { .. })
+        ));
+        assert!(matches!(
+            Recorder::start(
+                RecordProfile::Penelope,
+                nowhere,
+                None,
+                RecordingSources {
+                    node: "lab",
+                    streams: Vec::new(),
+                    links: Vec::new(),
+                    lifecycle: None,
+                    clock: &crate::common_clock::CommonClock::own(),
+                    node_time: ClockReader::Real,
+                    scene: SceneConfig::default(),
+                },
+            ),
+            Err(RecordingError::Io { .. })
+        ));
+        let foreign = scratch("foreign.mcap");
+        std::fs::write(&foreign, b"time_s,q\n0,1\n").unwrap();
+        assert!(matches!(
+            read_recording(&foreign),
+            Err(RecordingError::Format { .. })
+        ));
+        let _ = std::fs::remove_file(foreign);
+    }
+
+    #[test]
+    fn a_scene_message_needs_a_schema_the_scene_crate_carries() {
+        let path = scratch("scene-schema.mcap");
+        let mut log = McapLog::create(&path, "lab").unwrap();
+        let tf = penelope_scene::FrameTransforms::default();
+        log.scene("/tf", penelope_scene::FRAME_TRANSFORMS, 5, &tf)
+            .unwrap();
+        log.scene("/tf", penelope_scene::FRAME_TRANSFORMS, 6, &tf)
+            .unwrap();
+        assert!(matches!(
+            log.scene("/x", "foxglove.NoSuchSchema", 7, &tf),
+            Err(RecordingError::Format { .. })
+        ));
+        log.finish(&[]).unwrap();
+        let summary = mcap_log::summarize(&path).unwrap();
+        let tf_channel = summary
+            .channels
+            .iter()
+            .find(|c| c.topic == "/tf")
+            .expect("a /tf channel");
+        assert_eq!(tf_channel.messages, 2, "one channel, two messages");
+        assert!(summary.channels.iter().all(|c| c.topic != "/x"));
+        let _ = std::fs::remove_file(path);
+    }
+
+    #[test]
+    fn a_crafted_record_length_is_an_error_not_an_abort() {
+        let path = scratch("crafted.mcap");
+        std::fs::write(&path, crafted_mcap_with_a_huge_record()).unwrap();
+        for e in [
+            read_recording(&path).unwrap_err(),
+            mcap_log::summarize(&path).unwrap_err(),
+        ] {
+            assert!(
+                matches!(
+                    &e,
+                    RecordingError::Mcap {
+                        source: mcap::McapError::RecordTooLarge {
+                            len: 0x4141_4141_4141_4141,
+                            ..
+                        },
+                        ..
+                    }
+                ),
+                "{e}"
+            );
+        }
+        let _ = std::fs::remove_file(path);
+    }
+
+    /// A real recording, compressed and flushed in several chunks (written once).
+    fn a_recording() -> Vec<u8> {
+        static BYTES: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+        BYTES.get_or_init(write_a_recording).clone()
+    }
+
+    fn write_a_recording() -> Vec<u8> {
+        let path = scratch("prop-base.mcap");
+        let mut log = McapLog::create(&path, "lab").unwrap();
+        log.add_controller("display").unwrap();
+        for (i, t) in ticks(30).iter().enumerate() {
+            log.tick(0, t).unwrap();
+            if i % 10 == 9 {
+                log.flush().unwrap();
+            }
+        }
+        log.link("link", &link(5)).unwrap();
+        log.finish(&[0]).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let _ = std::fs::remove_file(path);
+        bytes
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(256))]
+        /// Mutated recordings (bytes overwritten, u64 fields set huge, cut off) are read or
+        /// refused with a typed error: never a panic or an abort.
+        #[test]
+        fn mutated_recordings_never_panic_or_abort(
+            edits in proptest::collection::vec((0usize..4096, 0u8..=255, 0u8..4), 1..6),
+            cut in 0usize..4096,
+            which in 0usize..2,
+        ) {
+            let mut bytes = if which == 0 {
+                a_recording()
+            } else {
+                crafted_mcap_with_a_huge_record()
+            };
+            for (at, byte, how) in edits {
+                let at = at % bytes.len();
+                match how {
+                    0 => bytes[at] = byte,
+                    // A length field (little-endian u64) set large at a random place.
+                    1 => {
+                        let end = (at + 8).min(bytes.len());
+                        for b in &mut bytes[at..end] {
+                            *b = 0x41;
+                        }
+                    }
+                    2 => {
+                        let end = (at + 8).min(bytes.len());
+                        bytes[at..end].fill(0xff);
+                    }
+                    _ => bytes[at] ^= 1 << (byte % 8),
+                }
+            }
+            if cut % 3 == 0 {
+                bytes.truncate(cut.max(8) % (bytes.len() + 1));
+            }
+            let path = scratch(&format!("prop-{}-{}.mcap", std::process::id(), cut));
+            std::fs::write(&path, &bytes).unwrap();
+            let _ = read_recording(&path);
+            let _ = mcap_log::summarize(&path);
+            let _ = std::fs::remove_file(path);
+        }
+    }
+}

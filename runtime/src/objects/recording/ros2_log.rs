@@ -328,7 +328,7 @@ mod tests {
     use super::*;
     use crate::common_clock::CommonClock;
     use crate::objects::clock::ClockReader;
-    use crate::objects::recording::{RecordProfile, Recorder, read_recording};
+    use crate::objects::recording::{RecordProfile, Recorder, RecordingSources, read_recording};
     use crate::objects::tick::TickStream;
 
     fn scratch(name: &str) -> PathBuf {
@@ -409,17 +409,19 @@ mod tests {
         for t in &all {
             send.send(*t).unwrap();
         }
-        let recorder = Recorder::start_as(
+        let recorder = Recorder::start(
             RecordProfile::Ros2,
-            None,
             &path,
-            "lab",
-            vec![("pid".into(), stream)],
-            Vec::new(),
             None,
-            &CommonClock::own(),
-            ClockReader::Real,
-            scene(100.0),
+            RecordingSources {
+                node: "lab",
+                streams: vec![("pid".into(), stream)],
+                links: Vec::new(),
+                lifecycle: None,
+                clock: &CommonClock::own(),
+                node_time: ClockReader::Real,
+                scene: scene(100.0),
+            },
         )
         .unwrap();
         assert_eq!(recorder.finish().unwrap(), 100, "every tick taken");

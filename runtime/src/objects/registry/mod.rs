@@ -45,6 +45,7 @@ use penelope_protocol::proto::{Class, JointAxis, ObjectInfo};
 mod build;
 pub mod catalog;
 mod controller_methods;
+mod crtk_methods;
 mod fpga;
 mod galil;
 mod groups;

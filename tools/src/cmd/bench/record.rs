@@ -31,7 +31,9 @@ use anyhow::Context as _;
 use penelope_runtime::common_clock::CommonClock;
 use penelope_runtime::objects::clock::ClockReader;
 use penelope_runtime::objects::recording::mcap_log::McapLog;
-use penelope_runtime::objects::recording::{Recorder, SceneConfig};
+use penelope_runtime::objects::recording::{
+    RecordProfile, Recorder, RecordingSources, SceneConfig,
+};
 use penelope_runtime::objects::runtime::Subscriptions;
 use penelope_runtime::objects::tick::TickRecord;
 use penelope_supervisor::runs::{DEMO_SYSTEM, RunOptions, run as run_task};
@@ -186,16 +188,16 @@ fn through_recorder(
     let dropped: Vec<_> = streams.iter().map(|(_, s)| s.dropped.clone()).collect();
     let path = dir.join(format!("recorder-{k}.mcap"));
     let _ = std::fs::remove_file(&path);
-    let recorder = Recorder::start(
-        &path,
-        "bench",
+    let sources = RecordingSources {
+        node: "bench",
         streams,
-        Vec::new(),
-        None,
-        &CommonClock::own(),
-        ClockReader::Real,
-        SceneConfig::default(),
-    )?;
+        links: Vec::new(),
+        lifecycle: None,
+        clock: &CommonClock::own(),
+        node_time: ClockReader::Real,
+        scene: SceneConfig::default(),
+    };
+    let recorder = Recorder::start(RecordProfile::Penelope, &path, None, sources)?;
     let stop = Arc::new(AtomicBool::new(false));
     // The pump: every 10 ms, each controller's ten new ticks (on absolute deadlines, so a
     // late batch does not lower the rate).
