@@ -197,6 +197,16 @@ fn ros2_servo_cp_and_the_clutch_drive_a_slave_fed_from_zenoh_and_bad_ones_are_co
         .declare_publisher(key("/puma/clutch", Joy::DESCRIPTION))
         .wait()
         .unwrap();
+    // What the slave end sends back, for the station: its tool pose on /link/feedback_cp.
+    let (feedback_tx, feedback) = std::sync::mpsc::channel::<PoseStamped>();
+    let _feedback = peer
+        .declare_subscriber(key("/link/feedback_cp", PoseStamped::DESCRIPTION))
+        .callback(move |s| {
+            let m = PoseStamped::decode_cdr(&s.payload().to_bytes()).expect("a PoseStamped");
+            let _ = feedback_tx.send(m);
+        })
+        .wait()
+        .unwrap();
     let start = [0.4, 0.1, 0.3];
     let mut sequence = 0;
     let mut put = |publisher: &zenoh::pubsub::Publisher<'_>, payload: Vec<u8>| {
@@ -260,6 +270,22 @@ fn ros2_servo_cp_and_the_clutch_drive_a_slave_fed_from_zenoh_and_bad_ones_are_co
         (followed - 0.01).abs() < 2e-3,
         "released, the slave moved {followed} m"
     );
+    // The feedback: every message in the slave's base frame; the newest at the slave's tool.
+    let tool = status_last(&node).tool_position;
+    let mut newest = feedback
+        .recv_timeout(Duration::from_secs(20))
+        .expect("feedback");
+    let mut count = 1;
+    wait_until("feedback from the slave's last tick", || {
+        while let Ok(m) = feedback.try_recv() {
+            assert_eq!(m.header.frame_id, "puma/base_link");
+            newest = m;
+            count += 1;
+        }
+        let p = &newest.pose.position;
+        (p.x - tool[0]).abs() < 1e-3 && (p.y - tool[1]).abs() < 1e-3 && (p.z - tool[2]).abs() < 1e-3
+    });
+    println!("ros2 feedback_cp: {count} messages, the newest at the slave's tool");
 
     // Refused and counted, never reaching the channel: a payload that is no PoseStamped, a
     // pose with NaN (the channel's own check), and a message without rmw_zenoh's attachment.

@@ -237,6 +237,11 @@ impl BridgedChannels {
         self.with(|m| m.iter().map(|(c, b)| (c.clone(), b.key.clone())).collect())
     }
 
+    /// The robot bridged channel `channel` drives.
+    pub fn slave_of(&self, channel: &str) -> Option<String> {
+        self.with(|m| m.get(channel).map(|b| b.slave.clone()))
+    }
+
     /// The key of the bridged channel that drives robot `robot`, if one does.
     pub fn key_driving(&self, robot: &str) -> Option<String> {
         self.with(|m| m.values().find(|b| b.slave == robot).map(|b| b.key.clone()))

@@ -8,7 +8,8 @@
 //!   [`ros2_topics`](penelope_runtime::objects::recording::ros2_topics) (`/<robot>/measured_js`,
 //!   `measured_cp`, `measured_cf`, `setpoint_js`, `operating_state`, and `/tf`), the same
 //!   messages a recording's `ros2` profile writes; per channel linked to another node,
-//!   `/diagnostics` with its link statistics.
+//!   `/diagnostics` with its link statistics; per channel fed from Zenoh, what its slave end
+//!   sends back for the operator station (`/<channel>/feedback_cp`, `feedback_cf`).
 //! - Subscribed, per robot: `/<robot>/servo_jp` (`sensor_msgs/msg/JointState`) into the
 //!   robot's CRTK `servo_jp`; `/<robot>/servo_cp` (`geometry_msgs/msg/PoseStamped`) into the
 //!   operator pose of the teleoperation channel fed from Zenoh (`zenoh_reference`) that drives

@@ -10,8 +10,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Weak};
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use penelope_hal::Pose;
 use penelope_hal::nalgebra::{Quaternion, Translation3, UnitQuaternion, Vector3};
+use penelope_hal::{Pose, Reference};
 use penelope_protocol::proto::{LinkRecord, Method, PoseMsg, RobotMethod};
 use penelope_ros2_msgs::{
     JointState, Joy, MessageDescription, OperatingState, PoseStamped, RosMessage, TFMessage,
@@ -415,6 +415,77 @@ impl Ros2Presence {
             ros2_topics::robot_messages(&robot.robot, record, stamp).into_topics(&robot.topics);
         for message in &messages {
             self.publish(message);
+        }
+    }
+
+    /// Publishes what the slave end of `channel` (fed from Zenoh) sends back, for an operator
+    /// station on ROS 2: `/<channel>/feedback_cp` (the slave's tool pose) and, when the sample
+    /// carries one, `/<channel>/feedback_cf` (its sensed wrench, about the tool origin), both
+    /// in the slave's base frame `<slave>/<root>`, stamped with the sample's time.
+    pub(crate) fn feedback(
+        &mut self,
+        channels: &BridgedChannels,
+        channel: &str,
+        sample: &penelope_rt_core::teleop::TeleopSample,
+    ) {
+        let Some(slave) = channels.slave_of(channel) else {
+            return;
+        };
+        let Some(root) = self
+            .robots
+            .values()
+            .find(|r| r.robot.robot == slave)
+            .and_then(|r| r.robot.model.link_names().into_iter().next())
+        else {
+            return;
+        };
+        let frame = penelope_scene::frame_id(&slave, &root);
+        let stamp = sample
+            .sent
+            .as_nanos()
+            .saturating_add_signed(self.unix_offset_ns);
+        let header = || penelope_ros2_msgs::Header {
+            stamp: penelope_ros2_msgs::Time::from_ns(stamp),
+            frame_id: frame.clone(),
+        };
+        let (pose, wrench) = match &sample.reference {
+            Reference::Cartesian(c) => (Some(c.pose), None),
+            Reference::Hybrid(h) => (Some(h.motion.pose), Some(h.wrench)),
+            Reference::Wrench(w) => (None, Some(*w)),
+            _ => (None, None),
+        };
+        let ns = ros_name(channel);
+        if let Some(pose) = pose {
+            let topic = format!("/{ns}/feedback_cp");
+            self.declare_publisher(&topic, PoseStamped::DESCRIPTION);
+            let q = pose.rotation.quaternion();
+            let t = pose.translation.vector;
+            let mut m = PoseStamped {
+                header: header(),
+                ..PoseStamped::default()
+            };
+            (m.pose.position.x, m.pose.position.y, m.pose.position.z) = (t.x, t.y, t.z);
+            let o = &mut m.pose.orientation;
+            (o.w, o.x, o.y, o.z) = (q.w, q.i, q.j, q.k);
+            self.publish(&TopicMessage {
+                topic,
+                payload: Ros2Payload::PoseStamped(m),
+            });
+        }
+        if let Some(w) = wrench {
+            let topic = format!("/{ns}/feedback_cf");
+            self.declare_publisher(&topic, WrenchStamped::DESCRIPTION);
+            let mut m = WrenchStamped {
+                header: header(),
+                ..WrenchStamped::default()
+            };
+            let (f, t) = (&mut m.wrench.force, &mut m.wrench.torque);
+            (f.x, f.y, f.z) = (w.force.x, w.force.y, w.force.z);
+            (t.x, t.y, t.z) = (w.torque.x, w.torque.y, w.torque.z);
+            self.publish(&TopicMessage {
+                topic,
+                payload: Ros2Payload::WrenchStamped(m),
+            });
         }
     }
 

@@ -566,6 +566,9 @@ impl Worker {
             return;
         };
         for (channel, sample) in channels.feedback() {
+            if let Some(ros2) = &mut self.ros2 {
+                ros2.feedback(channels, &channel, &sample);
+            }
             if let Some(publisher) = self.feedback.get(&channel)
                 && publisher
                     .put(encoding::feedback_message(&sample))

@@ -74,7 +74,8 @@ pub fn ros_name(name: &str) -> String {
     out
 }
 
-/// Whether `topic` carries sensor-rate data (a robot's `measured_*` and `setpoint_js`):
+/// Whether `topic` carries sensor-rate data (a robot's `measured_*` and `setpoint_js`, a
+/// channel's `feedback_*`):
 /// offered best effort, as ROS 2's sensor-data QoS profile; the others (`/tf`,
 /// `operating_state`, `/diagnostics`) reliable.
 pub fn sensor_rate(topic: &str) -> bool {
@@ -83,6 +84,8 @@ pub fn sensor_rate(topic: &str) -> bool {
         "/measured_cp",
         "/measured_cf",
         "/setpoint_js",
+        "/feedback_cp",
+        "/feedback_cf",
     ]
     .iter()
     .any(|suffix| topic.ends_with(suffix))
