@@ -9,17 +9,17 @@
 //! Every wait is for something to happen, bounded; none is for a time to pass.
 #![cfg(feature = "zenoh")]
 
+mod common;
+
 use std::time::Duration;
 
+use common::zenoh_peer::{bridged_node, stats, test_peer};
 use penelope_protocol::proto::{Call, ControllerMethod, Method, Reply, TelemetryRecord};
 use penelope_ros2_msgs::{JointState, Joy, PoseStamped, RosMessage};
 use penelope_runtime::objects::bridged::BridgedCounts;
-use penelope_runtime::objects::clock::ClockMode;
-use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
+use penelope_supervisor::node::Node;
 use penelope_supervisor::ros2::Ros2Settings;
 use penelope_supervisor::ros2::graph::topic_key;
-use penelope_supervisor::system::SystemFile;
-use penelope_supervisor::zenoh_bridge::{BridgeStats, ZenohSettings};
 use penelope_testkit::net::free_tcp_port;
 use penelope_testkit::wait::wait_until;
 use zenoh::Wait;
@@ -55,42 +55,16 @@ ki = [8000.0, 8000.0, 8000.0, 800.0, 800.0, 800.0]
 integral_limit = [30.0, 30.0, 30.0, 3.0, 3.0, 3.0]
 "#;
 
-fn test_peer(port: u16) -> zenoh::Session {
-    let mut c = zenoh::Config::default();
-    c.insert_json5("mode", r#""peer""#).unwrap();
-    c.insert_json5("listen/endpoints", &format!(r#"["tcp/127.0.0.1:{port}"]"#))
-        .unwrap();
-    c.insert_json5("scouting/multicast/enabled", "false")
-        .unwrap();
-    zenoh::open(c).wait().expect("the test's peer opens")
-}
-
 fn slave_node(port: u16) -> Node {
     ros2_node(port, SLAVE_SYSTEM)
 }
 
 fn ros2_node(port: u16, system: &str) -> Node {
-    let mut config = NodeConfig::new("slave", NamingChoice::None);
-    config.creator.rt.priority = None;
-    config.creator.clock = ClockMode::Simulated;
-    config.zenoh = Some(ZenohSettings {
-        connect: Some(format!("tcp/127.0.0.1:{port}")),
-        ..ZenohSettings::default()
-    });
-    config.ros2 = Some(Ros2Settings {
+    let ros2 = Ros2Settings {
         domain_id: 3,
         rate_hz: 100,
-    });
-    let node = Node::start(config).expect("the node, its bridge and its ROS 2 presence start");
-    SystemFile::parse(system)
-        .unwrap()
-        .apply(&node)
-        .expect("the test's system");
-    node
-}
-
-fn stats(node: &Node) -> BridgeStats {
-    node.zenoh_stats().expect("the node runs a bridge")
+    };
+    bridged_node("slave", port, system, Some(ros2))
 }
 
 fn status_last(node: &Node) -> TelemetryRecord {

@@ -9,15 +9,18 @@
 //! for a time to pass.
 #![cfg(feature = "zenoh")]
 
+mod common;
+
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
+use common::zenoh_peer::{bridged_node, stats, test_peer};
 use penelope_protocol::proto::{Call, ControllerMethod, Method, Reply, TelemetryRecord};
 use penelope_runtime::objects::clock::ClockMode;
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::system::SystemFile;
+use penelope_supervisor::zenoh_bridge::ZenohSettings;
 use penelope_supervisor::zenoh_bridge::encoding::OperatorPose;
-use penelope_supervisor::zenoh_bridge::{BridgeStats, ZenohSettings};
 use penelope_testkit::net::free_tcp_port;
 use penelope_testkit::wait::wait_until;
 use zenoh::Wait;
@@ -26,37 +29,9 @@ use zenoh::Wait;
 /// simulated board following the poses on `station/hand/pose`.
 const SLAVE_SYSTEM: &str = include_str!("data/zenoh_station_slave.toml");
 
-/// The test's Zenoh peer: listens on loopback only, no scouting.
-fn test_peer(port: u16) -> zenoh::Session {
-    let mut c = zenoh::Config::default();
-    c.insert_json5("mode", r#""peer""#).unwrap();
-    c.insert_json5("listen/endpoints", &format!(r#"["tcp/127.0.0.1:{port}"]"#))
-        .unwrap();
-    c.insert_json5("scouting/multicast/enabled", "false")
-        .unwrap();
-    zenoh::open(c).wait().expect("the test's peer opens")
-}
-
 /// Node `slave` on a simulated clock with a bridge to the test's peer, the system applied.
 fn slave_node(port: u16) -> Node {
-    let mut config = NodeConfig::new("slave", NamingChoice::None);
-    config.creator.rt.priority = None;
-    config.creator.clock = ClockMode::Simulated;
-    config.zenoh = Some(ZenohSettings {
-        connect: Some(format!("tcp/127.0.0.1:{port}")),
-        config: None,
-        operators: Vec::new(),
-    });
-    let node = Node::start(config).expect("the node and its bridge start");
-    SystemFile::parse(SLAVE_SYSTEM)
-        .unwrap()
-        .apply(&node)
-        .expect("the slave's system");
-    node
-}
-
-fn stats(node: &Node) -> BridgeStats {
-    node.zenoh_stats().expect("the node runs a bridge")
+    bridged_node("slave", port, SLAVE_SYSTEM, None)
 }
 
 fn status_last(node: &Node, controller: &str) -> TelemetryRecord {

@@ -179,3 +179,36 @@ pub fn step_papers_task(
     }
     (m_rows, s_rows)
 }
+
+/// The demo's two teleoperation loops as objects, configured (not active) on `config`'s node:
+/// an FRHC held by the scripted hand under force display (`display`), a PUMA 200 with a wrist
+/// sensor following against a wall 10 cm up (`follow`), the channel `link` between them with
+/// `link_settings` (TOML lines) added to its master and slave.
+pub fn wall_pair(config: CreatorConfig, link_settings: &str) -> Creator {
+    let c = Creator::new(config);
+    let wall = "[[shapes]]\nkind = \"plane\"\npoint = [0, 0, 0.1]";
+    let link = format!("master = \"frhc\"\nslave = \"puma\"\n{link_settings}");
+    for (kind, name, cfg) in [
+        ("robot/frhc", "frhc", ""),
+        ("board/sim", "frhc-io", ""),
+        ("sensor/operator-hand", "hand", "robot = \"frhc\""),
+        ("robot/puma200", "puma", ""),
+        ("board/sim", "puma-io", wall),
+        ("sensor/virtual", "wrist", wall),
+        ("trajectory/teleop", "link", link.as_str()),
+        ("controller/force-display", "display", ""),
+        ("controller/slave-tracking", "follow", ""),
+    ] {
+        create(&c, kind, name, cfg);
+    }
+    map_all(&c, "frhc", "frhc-io");
+    map_all(&c, "puma", "puma-io");
+    relate(&c, "display", "frhc", "link", None);
+    relate(&c, "follow", "puma", "link", Some("wrist"));
+    for name in [
+        "frhc-io", "puma-io", "wrist", "hand", "frhc", "puma", "link", "display", "follow",
+    ] {
+        ok(&c, name, Method::Transition(Transition::Configure));
+    }
+    c
+}

@@ -10,12 +10,12 @@
 
 use std::time::Duration;
 
-use penelope_hal::{Frame, Timestamp, Transition, Wrench};
-use penelope_protocol::proto::{ControllerMethod, JointAxis, Method, RobotMethod};
+use penelope_hal::{Frame, Timestamp, Wrench};
 use penelope_rt_core::cell::Stamped;
-use penelope_runtime::objects::{Creator, CreatorConfig, DetachedLoop};
+use penelope_runtime::objects::{CreatorConfig, DetachedLoop};
 use penelope_testkit::alloc::{CountingAllocator, allocations};
-use penelope_tests::{assert_pair_ran, call_object, step_teleop_pair};
+use penelope_tests::papers_task::wall_pair;
+use penelope_tests::{assert_pair_ran, step_teleop_pair};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
@@ -27,61 +27,7 @@ const FLOOD: usize = 25;
 fn pair(handoff: &str) -> (DetachedLoop, DetachedLoop) {
     let mut config = CreatorConfig::new("handoff");
     config.rt.priority = None;
-    let c = Creator::new(config);
-    let wall = "[[shapes]]\nkind = \"plane\"\npoint = [0, 0, 0.1]";
-    for (kind, name, cfg) in [
-        ("robot/frhc", "frhc", ""),
-        ("board/sim", "frhc-io", ""),
-        ("sensor/operator-hand", "hand", "robot = \"frhc\""),
-        ("robot/puma200", "puma", ""),
-        ("board/sim", "puma-io", wall),
-        ("sensor/virtual", "wrist", wall),
-        (
-            "trajectory/teleop",
-            "link",
-            &format!("master = \"frhc\"\nslave = \"puma\"\nhandoff = \"{handoff}\""),
-        ),
-        ("controller/force-display", "display", ""),
-        ("controller/slave-tracking", "follow", ""),
-    ] {
-        c.create(kind, name, cfg)
-            .unwrap_or_else(|e| panic!("{name}: {e}"));
-    }
-    for (robot, board) in [("frhc", "frhc-io"), ("puma", "puma-io")] {
-        call_object(
-            &c,
-            robot,
-            Method::Robot(RobotMethod::MapJoints {
-                board: board.into(),
-                joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
-            }),
-        );
-    }
-    for (controller, robot, sensor) in
-        [("display", "frhc", None), ("follow", "puma", Some("wrist"))]
-    {
-        let mut methods = vec![
-            ControllerMethod::SetRobot {
-                robot: robot.into(),
-            },
-            ControllerMethod::SetTrajectory {
-                trajectory: "link".into(),
-            },
-        ];
-        if let Some(sensor) = sensor {
-            methods.push(ControllerMethod::SetSensor {
-                sensor: sensor.into(),
-            });
-        }
-        for m in methods {
-            call_object(&c, controller, Method::Controller(m));
-        }
-    }
-    for name in [
-        "frhc-io", "puma-io", "wrist", "hand", "frhc", "puma", "link", "display", "follow",
-    ] {
-        call_object(&c, name, Method::Transition(Transition::Configure));
-    }
+    let c = wall_pair(config, &format!("handoff = \"{handoff}\""));
     let master = c.detach_loop("display").expect("the master's loop builds");
     let slave = c.detach_loop("follow").expect("the slave's loop builds");
     (master, slave)

@@ -9,12 +9,13 @@
 use std::time::{Duration, Instant};
 
 use penelope_hal::Transition;
-use penelope_protocol::proto::{ControllerMethod, JointAxis, Method, RobotMethod};
+use penelope_protocol::proto::Method;
 use penelope_runtime::common_clock::CommonClock;
 use penelope_runtime::objects::tick::TickRecord;
 use penelope_runtime::objects::{Creator, CreatorConfig};
 use penelope_testkit::alloc::{CountingAllocator, counts};
 use penelope_tests::call_object;
+use penelope_tests::papers_task::wall_pair;
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator;
@@ -29,62 +30,7 @@ fn teleop_node(clock: CommonClock) -> Creator {
     config.rt.priority = None;
     config.rt.lock_memory = false;
     config.common_clock = clock;
-    let c = Creator::new(config);
-    let wall = "[[shapes]]\nkind = \"plane\"\npoint = [0, 0, 0.1]";
-    for (kind, name, cfg) in [
-        ("robot/frhc", "frhc", ""),
-        ("board/sim", "frhc-io", ""),
-        ("sensor/operator-hand", "hand", "robot = \"frhc\""),
-        ("robot/puma200", "puma", ""),
-        ("board/sim", "puma-io", wall),
-        ("sensor/virtual", "wrist", wall),
-        (
-            "trajectory/teleop",
-            "link",
-            "master = \"frhc\"\nslave = \"puma\"",
-        ),
-        ("controller/force-display", "display", ""),
-        ("controller/slave-tracking", "follow", ""),
-    ] {
-        c.create(kind, name, cfg)
-            .unwrap_or_else(|e| panic!("{name}: {e}"));
-    }
-    for (robot, board) in [("frhc", "frhc-io"), ("puma", "puma-io")] {
-        call_object(
-            &c,
-            robot,
-            Method::Robot(RobotMethod::MapJoints {
-                board: board.into(),
-                joints: (0..6).map(|j| JointAxis { joint: j, axis: j }).collect(),
-            }),
-        );
-    }
-    for (controller, robot, sensor) in
-        [("display", "frhc", None), ("follow", "puma", Some("wrist"))]
-    {
-        let mut methods = vec![
-            ControllerMethod::SetRobot {
-                robot: robot.into(),
-            },
-            ControllerMethod::SetTrajectory {
-                trajectory: "link".into(),
-            },
-        ];
-        if let Some(sensor) = sensor {
-            methods.push(ControllerMethod::SetSensor {
-                sensor: sensor.into(),
-            });
-        }
-        for m in methods {
-            call_object(&c, controller, Method::Controller(m));
-        }
-    }
-    for name in [
-        "frhc-io", "puma-io", "wrist", "hand", "frhc", "puma", "link", "display", "follow",
-    ] {
-        call_object(&c, name, Method::Transition(Transition::Configure));
-    }
-    c
+    wall_pair(config, "")
 }
 
 /// Where each of `ticks` falls in the period of the common clock (this node's clock plus

@@ -1,0 +1,3 @@
+//! Set-up shared by this crate's integration tests.
+
+pub mod zenoh_peer;
