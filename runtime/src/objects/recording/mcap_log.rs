@@ -155,6 +155,21 @@ pub struct McapTotals {
     pub messages: u64,
 }
 
+/// An MCAP writer of profile `profile` on `file` (`path` names it in errors), Zstandard
+/// chunks, the library named `penelope <version>`: both profiles' files start so.
+pub(super) fn open_writer(
+    file: File,
+    path: &Path,
+    profile: &str,
+) -> Result<mcap::Writer<BufWriter<File>>, RecordingError> {
+    mcap::WriteOptions::new()
+        .profile(profile)
+        .library(concat!("penelope ", env!("CARGO_PKG_VERSION")))
+        .compression(Some(mcap::Compression::Zstd))
+        .create(BufWriter::new(file))
+        .map_err(RecordingError::mcap(path))
+}
+
 /// An MCAP file being written: see the [module](self).
 pub struct McapLog {
     writer: mcap::Writer<BufWriter<File>>,
@@ -205,16 +220,8 @@ impl McapLog {
     /// # Errors
     /// [`RecordingError`] when the header cannot be written.
     pub fn create_in(file: File, path: &Path, node: &str) -> Result<McapLog, RecordingError> {
-        let mcap_err = |source| RecordingError::Mcap {
-            path: path.to_path_buf(),
-            source,
-        };
-        let mut writer = mcap::WriteOptions::new()
-            .profile(PROFILE)
-            .library(concat!("penelope ", env!("CARGO_PKG_VERSION")))
-            .compression(Some(mcap::Compression::Zstd))
-            .create(BufWriter::new(file))
-            .map_err(mcap_err)?;
+        let mcap_err = RecordingError::mcap(path);
+        let mut writer = open_writer(file, path, PROFILE)?;
         let tick_schema = writer
             .add_schema("penelope.Tick", "jsonschema", tick_schema().as_bytes())
             .map_err(mcap_err)?;
@@ -281,10 +288,7 @@ impl McapLog {
         let channel = self
             .writer
             .add_channel(self.tick_schema, &topic, "json", &meta)
-            .map_err(|source| RecordingError::Mcap {
-                path: self.path.clone(),
-                source,
-            })?;
+            .map_err(RecordingError::mcap(&self.path))?;
         self.controllers.push(ControllerChannel {
             name: name.to_string(),
             channel,
@@ -316,10 +320,7 @@ impl McapLog {
         };
         self.writer
             .write_to_known_channel(&header, &bytes)
-            .map_err(|source| RecordingError::Mcap {
-                path: self.path.clone(),
-                source,
-            })?;
+            .map_err(RecordingError::mcap(&self.path))?;
         self.last_time = self.last_time.max(time);
         self.totals.messages += 1;
         Ok(())
@@ -511,10 +512,7 @@ impl McapLog {
     fn add_schema(&mut self, name: &str, text: &str) -> Result<u16, RecordingError> {
         self.writer
             .add_schema(name, "jsonschema", text.as_bytes())
-            .map_err(|source| RecordingError::Mcap {
-                path: self.path.clone(),
-                source,
-            })
+            .map_err(RecordingError::mcap(&self.path))
     }
 
     /// Adds a channel of JSON messages on `topic` with `schema` and `meta`.
@@ -526,10 +524,7 @@ impl McapLog {
     ) -> Result<u16, RecordingError> {
         self.writer
             .add_channel(schema, topic, "json", meta)
-            .map_err(|source| RecordingError::Mcap {
-                path: self.path.clone(),
-                source,
-            })
+            .map_err(RecordingError::mcap(&self.path))
     }
 
     /// The channel `existing` if it was added, else a new one on `topic` with its own
@@ -567,10 +562,9 @@ impl McapLog {
     /// # Errors
     /// [`RecordingError::Mcap`].
     pub fn flush(&mut self) -> Result<(), RecordingError> {
-        self.writer.flush().map_err(|source| RecordingError::Mcap {
-            path: self.path.clone(),
-            source,
-        })
+        self.writer
+            .flush()
+            .map_err(RecordingError::mcap(&self.path))
     }
 
     /// Writes a metadata record `name` (for example `run`: what `penelope recording rerun` needs
@@ -588,10 +582,7 @@ impl McapLog {
                 name: name.into(),
                 metadata: entries,
             })
-            .map_err(|source| RecordingError::Mcap {
-                path: self.path.clone(),
-                source,
-            })
+            .map_err(RecordingError::mcap(&self.path))
     }
 
     /// Writes to `/recorder` that controller `index`'s stream has lost `count` ticks so far,
@@ -633,10 +624,7 @@ impl McapLog {
             meta.insert(format!("dropped.streams.{channel}"), lost.to_string());
             meta.insert(format!("written.streams.{channel}"), written.to_string());
         }
-        let err = |source| RecordingError::Mcap {
-            path: self.path.clone(),
-            source,
-        };
+        let err = RecordingError::mcap(&self.path);
         self.writer
             .write_metadata(&mcap::records::Metadata {
                 name: "recorder".into(),
@@ -697,10 +685,7 @@ pub fn summarize(path: &Path) -> Result<McapSummary, RecordingError> {
         path: path.to_path_buf(),
         source,
     })?;
-    let err = |source| RecordingError::Mcap {
-        path: path.to_path_buf(),
-        source,
-    };
+    let err = RecordingError::mcap(path);
     super::check_record_lengths(&bytes).map_err(err)?;
     let mut profile = String::new();
     let mut metadata = BTreeMap::new();

@@ -7,7 +7,7 @@
 //! finishes a chunk every [`FLUSH_EVERY`], and [`read_recording`] takes every message up to a
 //! cut-off last record, so a recording can be read while its node is still writing it.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 pub mod mcap_log;
 mod profile;
@@ -52,4 +52,14 @@ pub enum RecordingError {
         /// What is wrong.
         message: String,
     },
+}
+
+impl RecordingError {
+    /// Maps the MCAP library's errors on file `path` to [`RecordingError::Mcap`].
+    pub(crate) fn mcap(path: &Path) -> impl Fn(mcap::McapError) -> RecordingError + Copy + '_ {
+        move |source| RecordingError::Mcap {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
 }

@@ -105,16 +105,8 @@ impl Ros2Log {
         scene: SceneConfig,
         streams: &[String],
     ) -> Result<Ros2Log, RecordingError> {
-        let mcap_err = |source| RecordingError::Mcap {
-            path: path.to_path_buf(),
-            source,
-        };
-        let mut writer = mcap::WriteOptions::new()
-            .profile(PROFILE)
-            .library(concat!("penelope ", env!("CARGO_PKG_VERSION")))
-            .compression(Some(mcap::Compression::Zstd))
-            .create(BufWriter::new(file))
-            .map_err(mcap_err)?;
+        let mcap_err = RecordingError::mcap(path);
+        let mut writer = super::mcap_log::open_writer(file, path, PROFILE)?;
         writer
             .write_metadata(&mcap::records::Metadata {
                 name: "node".into(),
@@ -151,13 +143,6 @@ impl Ros2Log {
         })
     }
 
-    fn mcap_err(&self) -> impl Fn(mcap::McapError) -> RecordingError + '_ {
-        |source| RecordingError::Mcap {
-            path: self.path.clone(),
-            source,
-        }
-    }
-
     /// The channel of `topic` for messages of type `description` (and its schema), added the
     /// first time.
     fn channel(
@@ -175,10 +160,7 @@ impl Ros2Log {
                 let id = self
                     .writer
                     .add_schema(description.type_name, "ros2msg", text.as_bytes())
-                    .map_err(|source| RecordingError::Mcap {
-                        path: self.path.clone(),
-                        source,
-                    })?;
+                    .map_err(RecordingError::mcap(&self.path))?;
                 self.schemas.insert(description.type_name, id);
                 id
             }
@@ -193,7 +175,7 @@ impl Ros2Log {
         let id = self
             .writer
             .add_channel(schema, topic, "cdr", &meta)
-            .map_err(self.mcap_err())?;
+            .map_err(RecordingError::mcap(&self.path))?;
         self.channels.insert(topic.to_string(), id);
         Ok(id)
     }
@@ -213,10 +195,7 @@ impl Ros2Log {
         };
         self.writer
             .write_to_known_channel(&header, &self.scratch)
-            .map_err(|source| RecordingError::Mcap {
-                path: self.path.clone(),
-                source,
-            })?;
+            .map_err(RecordingError::mcap(&self.path))?;
         self.totals.messages += 1;
         Ok(())
     }
@@ -278,10 +257,9 @@ impl Ros2Log {
     /// # Errors
     /// [`RecordingError::Mcap`].
     pub fn flush(&mut self) -> Result<(), RecordingError> {
-        self.writer.flush().map_err(|source| RecordingError::Mcap {
-            path: self.path.clone(),
-            source,
-        })
+        self.writer
+            .flush()
+            .map_err(RecordingError::mcap(&self.path))
     }
 
     /// Writes the `recorder` metadata record (ticks taken and lost per controller, `dropped`
@@ -301,16 +279,10 @@ impl Ros2Log {
                 name: "recorder".into(),
                 metadata: meta,
             })
-            .map_err(|source| RecordingError::Mcap {
-                path: self.path.clone(),
-                source,
-            })?;
+            .map_err(RecordingError::mcap(&self.path))?;
         self.writer
             .finish()
-            .map_err(|source| RecordingError::Mcap {
-                path: self.path.clone(),
-                source,
-            })?;
+            .map_err(RecordingError::mcap(&self.path))?;
         Ok(self.totals)
     }
 }
