@@ -52,6 +52,24 @@ pub enum Reference {
 }
 
 impl Reference {
+    /// The tool pose it asks for, if it asks for one (Cartesian and hybrid references).
+    pub fn pose(&self) -> Option<Pose> {
+        match self {
+            Reference::Cartesian(c) => Some(c.pose),
+            Reference::Hybrid(h) => Some(h.motion.pose),
+            Reference::Joint(_) | Reference::Wrench(_) => None,
+        }
+    }
+
+    /// The wrench it carries, if it carries one (wrench and hybrid references).
+    pub fn wrench(&self) -> Option<Wrench> {
+        match self {
+            Reference::Wrench(w) => Some(*w),
+            Reference::Hybrid(h) => Some(h.wrench),
+            Reference::Joint(_) | Reference::Cartesian(_) => None,
+        }
+    }
+
     /// True when no component is NaN or infinite. The control loop rejects references that fail
     /// this check before any controller sees them.
     pub fn is_finite(&self) -> bool {

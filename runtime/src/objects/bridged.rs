@@ -119,23 +119,37 @@ impl OperatorPose {
             b.copy_from_slice(&bytes[2 + 8 * i..10 + 8 * i]);
             *v = f64::from_le_bytes(b);
         }
-        if n.iter().any(|v| !v.is_finite()) {
+        OperatorPose {
+            clutch,
+            position: [n[0], n[1], n[2]],
+            orientation: [n[3], n[4], n[5], n[6]],
+        }
+        .checked()
+    }
+
+    /// The pose if it is one an operator's hand can give: every number finite, the position
+    /// within [`MAX_POSITION_M`] of the origin, the quaternion of unit norm (within
+    /// [`QUATERNION_NORM_TOLERANCE`]).
+    ///
+    /// # Errors
+    /// [`PoseError::NotFinite`], [`PoseError::OutOfReach`] or [`PoseError::NotUnit`].
+    pub fn checked(self) -> Result<OperatorPose, PoseError> {
+        if self
+            .position
+            .iter()
+            .chain(&self.orientation)
+            .any(|v| !v.is_finite())
+        {
             return Err(PoseError::NotFinite);
         }
-        let position = [n[0], n[1], n[2]];
-        if Vector3::from(position).norm() > MAX_POSITION_M {
+        if Vector3::from(self.position).norm() > MAX_POSITION_M {
             return Err(PoseError::OutOfReach);
         }
-        let orientation = [n[3], n[4], n[5], n[6]];
-        let norm = orientation.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let norm = self.orientation.iter().map(|v| v * v).sum::<f64>().sqrt();
         if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
             return Err(PoseError::NotUnit);
         }
-        Ok(OperatorPose {
-            clutch,
-            position,
-            orientation,
-        })
+        Ok(self)
     }
 
     /// The pose (orientation normalized).
@@ -263,7 +277,16 @@ impl BridgedChannels {
     /// and checked, it goes to the loop's cell as the channel's next sample; malformed, it is
     /// refused and counted. Returns whether it was taken.
     pub fn offer(&self, key: &str, payload: &[u8]) -> Result<(), PoseError> {
-        let decoded = OperatorPose::decode(payload);
+        self.take(key, OperatorPose::decode(payload))
+    }
+
+    /// As [`offer`](Self::offer), a pose already decoded (from another encoding: a ROS 2
+    /// message), [`checked`](OperatorPose::checked) here.
+    pub fn offer_pose(&self, key: &str, pose: OperatorPose) -> Result<(), PoseError> {
+        self.take(key, pose.checked())
+    }
+
+    fn take(&self, key: &str, decoded: Result<OperatorPose, PoseError>) -> Result<(), PoseError> {
         self.with(|m| {
             for b in m.values_mut().filter(|b| b.key == key) {
                 match decoded {

@@ -10,17 +10,13 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Weak};
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use penelope_hal::nalgebra::{Quaternion, Translation3, UnitQuaternion, Vector3};
-use penelope_hal::{Pose, Reference};
 use penelope_protocol::proto::{LinkRecord, Method, PoseMsg, RobotMethod};
 use penelope_ros2_msgs::{
     JointState, Joy, MessageDescription, OperatingState, PoseStamped, RosMessage, TFMessage,
     WrenchStamped,
 };
 use penelope_runtime::objects::Creator;
-use penelope_runtime::objects::bridged::{
-    BridgedChannels, MAX_POSITION_M, OperatorPose, QUATERNION_NORM_TOLERANCE,
-};
+use penelope_runtime::objects::bridged::{BridgedChannels, OperatorPose};
 use penelope_runtime::objects::recording::SceneRobot;
 use penelope_runtime::objects::recording::ros2_topics::{
     self, DIAGNOSTICS_TOPIC, RobotTopics, Ros2Payload, TF_TOPIC, TopicMessage, ros_name,
@@ -371,24 +367,23 @@ impl Ros2Presence {
                 let Ok(m) = PoseStamped::decode_cdr(bytes) else {
                     return false;
                 };
-                let clutched = clutch.load(Ordering::Relaxed);
+                let (p, q) = (m.pose.position, m.pose.orientation);
+                let pose = OperatorPose {
+                    clutch: clutch.load(Ordering::Relaxed),
+                    position: [p.x, p.y, p.z],
+                    orientation: [q.w, q.x, q.y, q.z],
+                };
                 if let Some(key) = channels.key_driving(&r) {
-                    let (p, q) = (m.pose.position, m.pose.orientation);
-                    let pose = OperatorPose {
-                        clutch: clutched,
-                        position: [p.x, p.y, p.z],
-                        orientation: [q.w, q.x, q.y, q.z],
-                    };
-                    // The channel's own record and checks, as a Zenoh station's pose takes them.
-                    return channels.offer(&key, &pose.encode()).is_ok();
+                    // The channel's own checks, as a Zenoh station's pose takes them.
+                    return channels.offer_pose(&key, pose).is_ok();
                 }
-                !clutched
-                    && checked_pose(&m).is_some_and(|pose| {
+                !pose.clutch
+                    && pose.checked().is_ok_and(|pose| {
                         call(
                             &creator,
                             &r,
                             RobotMethod::ServoTool {
-                                pose: PoseMsg::from(&pose),
+                                pose: PoseMsg::from(&pose.pose()),
                             },
                         )
                     })
@@ -448,12 +443,7 @@ impl Ros2Presence {
             stamp: penelope_ros2_msgs::Time::from_ns(stamp),
             frame_id: frame.clone(),
         };
-        let (pose, wrench) = match &sample.reference {
-            Reference::Cartesian(c) => (Some(c.pose), None),
-            Reference::Hybrid(h) => (Some(h.motion.pose), Some(h.wrench)),
-            Reference::Wrench(w) => (None, Some(*w)),
-            _ => (None, None),
-        };
+        let (pose, wrench) = (sample.reference.pose(), sample.reference.wrench());
         let ns = ros_name(channel);
         if let Some(pose) = pose {
             let topic = format!("/{ns}/feedback_cp");
@@ -526,23 +516,4 @@ impl Ros2Presence {
             self.counters.published.fetch_add(1, Ordering::Relaxed);
         }
     }
-}
-
-/// A ROS pose as a tool pose: finite, within reach of any robot, its quaternion of unit norm
-/// (then normalized); `None` otherwise.
-fn checked_pose(m: &PoseStamped) -> Option<Pose> {
-    let (p, q) = (&m.pose.position, &m.pose.orientation);
-    let numbers = [p.x, p.y, p.z, q.w, q.x, q.y, q.z];
-    if numbers.iter().any(|v| !v.is_finite()) {
-        return None;
-    }
-    let position = Vector3::new(p.x, p.y, p.z);
-    let norm = (q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
-    if position.norm() > MAX_POSITION_M || (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
-        return None;
-    }
-    Some(Pose::from_parts(
-        Translation3::from(position),
-        UnitQuaternion::from_quaternion(Quaternion::new(q.w, q.x, q.y, q.z)),
-    ))
 }

@@ -10,7 +10,6 @@
 //!
 //! Nothing here needs the `zenoh` crate: the encoding is tested in every build.
 
-use penelope_hal::Reference;
 use penelope_rt_core::safety::{FaultCause, SafetyState};
 use penelope_rt_core::teleop::TeleopSample;
 use serde_json::json;
@@ -87,12 +86,7 @@ pub fn event_message(
 /// sequence, time (ns, the node's clock), its robot's tool pose (position m, orientation
 /// `[w, x, y, z]`) and sensed wrench (N, N·m, the robot's base frame) where the sample has them.
 pub fn feedback_message(sample: &TeleopSample) -> Vec<u8> {
-    let (pose, wrench) = match &sample.reference {
-        Reference::Cartesian(c) => (Some(c.pose), None),
-        Reference::Hybrid(h) => (Some(h.motion.pose), Some(h.wrench)),
-        Reference::Wrench(w) => (None, Some(*w)),
-        _ => (None, None),
-    };
+    let (pose, wrench) = (sample.reference.pose(), sample.reference.wrench());
     let position = pose.map(|p| [p.translation.x, p.translation.y, p.translation.z]);
     let orientation = pose.map(|p| {
         let q = p.rotation.quaternion();
