@@ -28,6 +28,7 @@
 //!   [`ControllerProxy`], [`TrajectoryProxy`], and [`ObjectProxy`] for an object of any class.
 //!   Every one has the lifecycle methods of [`Lifecycle`].
 //! - [`TelemetryStream`]: the telemetry of a running loop on its own connection;
+//! - [`FrameStream`]: a camera's frames, on the common clock, on its own connection;
 //!   [`LinkStream`]: the link records of a channel linked to another node, likewise.
 //!
 //! # Errors
@@ -68,7 +69,7 @@ pub use proxy::{
     BoardProxy, ControllerProxy, Lifecycle, ObjectHandle, ObjectProxy, RobotDescription,
     RobotProxy, SensorProxy, Setpoints, TrajectoryProxy, TypedProxy,
 };
-pub use telemetry::{LinkStream, Streamed, Subscription, TelemetryStream};
+pub use telemetry::{FrameStream, LinkStream, Streamed, Subscription, TelemetryStream};
 
 /// One node's answer to [`Client::estop_all`]: its name, and its report or why it was not
 /// reached.
@@ -354,6 +355,18 @@ impl Client {
     pub fn watch_link(&self, path: &str, decimation: u32) -> Result<LinkStream, RpcError> {
         let reference = self.locate(path)?;
         LinkStream::open(&reference, &self.inner.config, decimation)
+    }
+
+    /// Opens a subscription to the frames of the camera at `path` (`sensor/sim-camera`,
+    /// `sensor/camera`) on a connection of its own: one frame in `decimation` (0 is taken as 1).
+    ///
+    /// # Errors
+    /// [`CallError::UnknownName`], [`CallError::WrongClass`] for an object that is not a
+    /// sensor, the node's refusal of a sensor that is not a camera or not running, or a
+    /// transport error.
+    pub fn watch_camera(&self, path: &str, decimation: u32) -> Result<FrameStream, RpcError> {
+        let reference = self.locate(path)?;
+        FrameStream::open(&reference, &self.inner.config, decimation)
     }
 
     /// A proxy of class `P` for the object at `path` (a naming path or `NODE/NAME`), after

@@ -1,6 +1,6 @@
 //! A subscription on a connection of its own: the control ticks of a running loop
-//! ([`TelemetryStream`]) or the link records of a channel linked to another node
-//! ([`LinkStream`]).
+//! ([`TelemetryStream`]), the link records of a channel linked to another node
+//! ([`LinkStream`]) or the frames of a camera ([`FrameStream`]).
 //!
 //! The node pushes batches as the loop runs (or, for a link, every 100 ms) and drops batches,
 //! never queues them without bound, when this side reads too slowly
@@ -12,7 +12,8 @@ use std::time::{Duration, Instant};
 use super::{parse_address, unexpected};
 use crate::net::conn::{ClientConfig, Connection, Pushed, RpcError};
 use crate::proto::{
-    Call, CallError, Class, LinkRecord, ObjectRef, Reply, TelemetryRecord, WireError, object_path,
+    Call, CallError, CameraFrame, Class, LinkRecord, ObjectRef, Reply, TelemetryRecord, WireError,
+    object_path,
 };
 
 /// What a subscription streams, record by record: a control tick or a link record.
@@ -40,7 +41,7 @@ impl Streamed for TelemetryRecord {
     fn unpack(pushed: Pushed) -> Option<(u64, u64, Vec<Self>)> {
         match pushed {
             Pushed::Telemetry(b) => Some((b.subscription, b.dropped, b.samples)),
-            Pushed::Link(_) => None,
+            Pushed::Link(_) | Pushed::Frames(_) => None,
         }
     }
 }
@@ -57,13 +58,32 @@ impl Streamed for LinkRecord {
     fn unpack(pushed: Pushed) -> Option<(u64, u64, Vec<Self>)> {
         match pushed {
             Pushed::Link(b) => Some((b.subscription, b.dropped, b.records)),
-            Pushed::Telemetry(_) => None,
+            Pushed::Telemetry(_) | Pushed::Frames(_) => None,
+        }
+    }
+}
+
+impl Streamed for CameraFrame {
+    const CLASS: Class = Class::Sensor;
+
+    /// A sensor (the node refuses a sensor that is not a camera).
+    fn streamed_by(class: Class) -> bool {
+        class == Class::Sensor
+    }
+
+    fn unpack(pushed: Pushed) -> Option<(u64, u64, Vec<Self>)> {
+        match pushed {
+            Pushed::Frames(b) => Some((b.subscription, b.dropped, b.frames)),
+            Pushed::Telemetry(_) | Pushed::Link(_) => None,
         }
     }
 }
 
 /// The control ticks of a controller (or of the robot it drives).
 pub type TelemetryStream = Subscription<TelemetryRecord>;
+
+/// The frames of a camera (`sensor/sim-camera`, `sensor/camera`), stamped on the common clock.
+pub type FrameStream = Subscription<CameraFrame>;
 
 /// The link records of a `trajectory/teleop` channel whose end on that node is linked to
 /// another node: its clock offset, delay, jitter, losses and counters, every 100 ms.

@@ -23,8 +23,8 @@ use std::time::{Duration, Instant};
 use crate::net::auth::{self, ClientHandshake, Opener, SealError, Sealer, Secret, open_message};
 use crate::net::frame::{FrameDecoder, FrameError, encode_into};
 use crate::proto::{
-    Call, CallError, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, LinkBatch, MAGIC, PROTOCOL_VERSION,
-    ProtocolError, Reply, Role, Security, ServerMsg, TelemetryBatch, WireError,
+    Call, CallError, ClientHello, ClientMsg, DEFAULT_MAX_FRAME, FrameBatch, LinkBatch, MAGIC,
+    PROTOCOL_VERSION, ProtocolError, Reply, Role, Security, ServerMsg, TelemetryBatch, WireError,
 };
 
 /// Pushed batches (telemetry and link records) kept while nobody asks for them; older ones are
@@ -173,6 +173,8 @@ pub enum Pushed {
     Telemetry(TelemetryBatch),
     /// Link records of a channel's subscription.
     Link(LinkBatch),
+    /// Frames of a camera's subscription.
+    Frames(FrameBatch),
 }
 
 impl Pushed {
@@ -181,6 +183,7 @@ impl Pushed {
         match self {
             Pushed::Telemetry(b) => b.subscription,
             Pushed::Link(b) => b.subscription,
+            Pushed::Frames(b) => b.subscription,
         }
     }
 }
@@ -562,6 +565,7 @@ impl Connection {
             ServerMsg::Response { id, result } => Ok(Incoming::Response(id, result)),
             ServerMsg::Telemetry(b) => Ok(Incoming::Pushed(Pushed::Telemetry(b))),
             ServerMsg::Link(b) => Ok(Incoming::Pushed(Pushed::Link(b))),
+            ServerMsg::Frames(b) => Ok(Incoming::Pushed(Pushed::Frames(b))),
             ServerMsg::Error(e) => {
                 let e = self.fail(e);
                 let _ = self.stream.shutdown(Shutdown::Both);

@@ -8,8 +8,8 @@ use serde::{Deserialize, Serialize};
 #[cfg(doc)]
 use super::NOISE_PATTERN;
 use super::{
-    CreatorCall, LinkBatch, MAGIC, Method, NamingCall, PROTOCOL_VERSION, Reply, TelemetryBatch,
-    WireError,
+    CreatorCall, FrameBatch, LinkBatch, MAGIC, Method, NamingCall, PROTOCOL_VERSION, Reply,
+    TelemetryBatch, WireError,
 };
 
 /// A message from a client to a node.
@@ -135,6 +135,8 @@ pub enum ServerMsg {
     /// Link records of a subscription to a channel linked to another node (appended last, so
     /// every earlier variant keeps its encoding).
     Link(LinkBatch),
+    /// Frames of a subscription to a camera (appended last).
+    Frames(FrameBatch),
 }
 
 /// The node's hello.
@@ -177,7 +179,8 @@ pub enum Call {
     /// controller (or a robot driven by an active controller), [`ServerMsg::Telemetry`]; for a
     /// `trajectory/teleop` channel whose end here is linked to another node,
     /// [`ServerMsg::Link`] every 100 ms (a channel with both ends on one node has no link:
-    /// [`CallError::NoLink`]).
+    /// [`CallError::NoLink`]); for a camera (`sensor/sim-camera`, `sensor/camera`),
+    /// [`ServerMsg::Frames`], one in `decimation` of its frames.
     Subscribe {
         /// The object's name on the node.
         object: String,

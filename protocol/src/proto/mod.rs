@@ -25,7 +25,8 @@
 //!    with a [`ServerMsg::Response`] carrying the same id. Requests may be pipelined (sent before
 //!    earlier answers arrive); answers come back in request order.
 //! 4. After [`Call::Subscribe`], the node also sends [`ServerMsg::Telemetry`] frames (a
-//!    controller) or [`ServerMsg::Link`] frames (a channel linked to another node) for that
+//!    controller), [`ServerMsg::Link`] frames (a channel linked to another node) or
+//!    [`ServerMsg::Frames`] (a camera) for that
 //!    subscription until [`Call::Unsubscribe`], the end of the connection or, for a channel, its
 //!    destruction or cleanup. They are dropped,
 //!    never queued without bound, when the client reads too slowly (`dropped` counts them).
@@ -40,6 +41,7 @@
 //! at the end of an enum is compatible for the receiver that knows it; anything else changes
 //! [`PROTOCOL_VERSION`].
 
+mod camera;
 mod creator;
 mod data;
 mod errors;
@@ -50,6 +52,7 @@ mod replies;
 #[cfg(test)]
 mod tests;
 
+pub use camera::{CameraFrame, CameraModelMsg, FrameBatch, ImageEncoding};
 pub use creator::CreatorCall;
 pub use data::{
     ContactShapeMsg, Joints, MatrixMsg, OperationalMsg, PoseMsg, ReferenceMsg, WrenchMsg,
