@@ -20,10 +20,10 @@ use super::error::V4l2Error;
 use super::format::{NegotiatedFormat, PixelFormat, choose_format};
 use super::intrinsics::PinholeIntrinsics;
 use super::mjpeg::mjpeg_to_jpeg;
-use super::sequence::SequenceTracker;
 use super::settings::V4l2Settings;
+use super::stamper::FrameStamper;
 use super::stats::CaptureStats;
-use super::timestamp::{BufferStamp, FLAG_ERROR, StampPolicy, TimestampSource, capture_instant};
+use super::timestamp::{BufferStamp, FLAG_ERROR, TimestampSource};
 use super::yuyv::{encode_rgb_jpeg, yuyv_to_rgb};
 
 /// `V4L2_CID_EXPOSURE_ABSOLUTE` (camera class base + 2): the exposure, in 100 µs units.
@@ -82,10 +82,8 @@ pub struct V4l2Camera {
     stream: MmapStream<'static>,
     negotiated: NegotiatedFormat,
     intrinsics: PinholeIntrinsics,
-    policy: StampPolicy,
+    stamper: FrameStamper,
     exposure_ns: Option<u64>,
-    sequence: SequenceTracker,
-    previous_stamp_ns: Option<u64>,
     /// The first frame, dequeued by `open` to show that the camera streams.
     pending: Option<RawBuffer>,
     /// Byte buffers of frames already handled, reused.
@@ -106,7 +104,7 @@ pub(super) fn open_capture_device(path: &Path) -> Result<(Device, DeviceIdentity
         Ok(caps) => caps,
         // ENOTTY: not a V4L2 device at all (a file, another kind of node)
         Err(e) if e.raw_os_error() == Some(nix::errno::Errno::ENOTTY as i32) => {
-            return Err(not_capture("none (not V4L2)".into(), String::new()));
+            return Err(not_capture("none".into(), "not a V4L2 device".into()));
         }
         Err(e) => return Err(V4l2Error::from_io(path, "VIDIOC_QUERYCAP", e)),
     };
@@ -202,9 +200,7 @@ impl V4l2Camera {
             stream,
             negotiated,
             intrinsics,
-            policy: settings.stamp_policy(),
-            sequence: SequenceTracker::new(),
-            previous_stamp_ns: None,
+            stamper: FrameStamper::new(settings.stamp_policy()),
             pending: None,
             spare: Vec::new(),
             rgb: Vec::new(),
@@ -227,7 +223,7 @@ impl V4l2Camera {
             }
             Err(e) => return Err(V4l2Error::from_io(path, "VIDIOC_STREAMON/DQBUF", e)),
         };
-        camera.stats.lost_by_driver += camera.sequence.observe(first.stamp.sequence);
+        camera.stamper.dequeued(&first.stamp, &mut camera.stats);
         camera.pending = Some(first);
         Ok(camera)
     }
@@ -277,7 +273,7 @@ impl V4l2Camera {
         data.clear();
         data.extend_from_slice(&bytes[..used]);
         let stamp = stamp_of(meta);
-        self.stats.lost_by_driver += self.sequence.observe(stamp.sequence);
+        self.stamper.dequeued(&stamp, &mut self.stats);
         Ok(Some(RawBuffer {
             data,
             stamp,
@@ -330,17 +326,12 @@ impl V4l2Camera {
         if self.stats.frames % EXPOSURE_REFRESH_FRAMES == EXPOSURE_REFRESH_FRAMES - 1 {
             self.exposure_ns = read_exposure(&self.device);
         }
-        let instant = capture_instant(
+        let instant = self.stamper.stamp(
             &raw.stamp,
             raw.dequeued_ns,
             self.exposure_ns,
-            self.previous_stamp_ns,
-            &self.policy,
+            &mut self.stats,
         );
-        if !matches!(instant.source, TimestampSource::Fallback(_)) {
-            self.previous_stamp_ns = Some(raw.stamp.timestamp_ns);
-        }
-        self.stats.count_source(instant.source);
         self.stats.frames += 1;
         Ok(CapturedFrame {
             sequence: raw.stamp.sequence,
@@ -380,11 +371,13 @@ impl V4l2Camera {
     }
 }
 
-/// The stamp fields of a dequeued buffer's metadata.
+/// The stamp fields of a dequeued buffer's metadata (`time_t` is 64 bits here, 32 on some
+/// 32-bit targets: the conversion is the identity on this one).
+#[allow(clippy::useless_conversion)]
 fn stamp_of(meta: &v4l::buffer::Metadata) -> BufferStamp {
     BufferStamp::from_timeval(
-        meta.timestamp.sec as i64,
-        meta.timestamp.usec as i64,
+        i64::from(meta.timestamp.sec),
+        i64::from(meta.timestamp.usec),
         meta.flags.bits(),
         meta.sequence,
     )

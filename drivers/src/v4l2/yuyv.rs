@@ -51,7 +51,7 @@ pub fn yuyv_to_rgb(
     stride: u32,
     rgb: &mut Vec<u8>,
 ) -> Result<(), YuyvError> {
-    if width == 0 || height == 0 || width % 2 != 0 || width > 65535 || height > 65535 {
+    if width == 0 || height == 0 || !width.is_multiple_of(2) || width > 65535 || height > 65535 {
         return Err(YuyvError::BadSize { width, height });
     }
     let (w, h) = (width as usize, height as usize);
