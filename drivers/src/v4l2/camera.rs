@@ -4,7 +4,7 @@
 //!
 //! Blocking calls and allocation: a camera is read from its own (non-real-time) thread.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use penelope_rt_core::clock::MonotonicClock;
@@ -17,14 +17,13 @@ use v4l::video::capture::Parameters;
 use v4l::{Device, Format, FourCC};
 
 use super::error::V4l2Error;
-use super::format::{NegotiatedFormat, PixelFormat, choose_format};
+use super::format::{NegotiatedFormat, choose_format};
 use super::intrinsics::PinholeIntrinsics;
-use super::mjpeg::mjpeg_to_jpeg;
+use super::pipeline::{BufferSource, CapturedFrame, FramePipeline, RawBuffer};
 use super::settings::V4l2Settings;
 use super::stamper::FrameStamper;
 use super::stats::CaptureStats;
-use super::timestamp::{BufferStamp, FLAG_ERROR, TimestampSource};
-use super::yuyv::{encode_rgb_jpeg, yuyv_to_rgb};
+use super::timestamp::BufferStamp;
 
 /// `V4L2_CID_EXPOSURE_ABSOLUTE` (camera class base + 2): the exposure, in 100 µs units.
 pub const CID_EXPOSURE_ABSOLUTE: u32 = 0x009a_0902;
@@ -33,27 +32,6 @@ pub const CID_EXPOSURE_ABSOLUTE: u32 = 0x009a_0902;
 const EXPOSURE_REFRESH_FRAMES: u64 = 30;
 /// `POLLIN`.
 const POLLIN: i16 = 0x0001;
-
-/// One captured frame.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct CapturedFrame {
-    /// The driver's frame counter (`v4l2_buffer.sequence`).
-    pub sequence: u32,
-    /// The capture instant (middle of the exposure) on the node's monotonic clock, ns.
-    pub capture_ns: u64,
-    /// When it was dequeued, node monotonic clock, ns.
-    pub dequeued_ns: u64,
-    /// Width, pixels.
-    pub width: u32,
-    /// Height, pixels.
-    pub height: u32,
-    /// The image as a baseline JPEG file.
-    pub jpeg: Vec<u8>,
-    /// Where `capture_ns` came from.
-    pub timestamp_source: TimestampSource,
-    /// The exposure used for the capture instant, ns (`None`: the driver reports none).
-    pub exposure_ns: Option<u64>,
-}
 
 /// What the driver says the device is.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -66,12 +44,45 @@ pub struct DeviceIdentity {
     pub bus: String,
 }
 
-/// A dequeued buffer's bytes and stamp, copied out so that its buffer goes back to the driver
-/// at once.
-struct RawBuffer {
-    data: Vec<u8>,
-    stamp: BufferStamp,
-    dequeued_ns: u64,
+/// The device's memory-mapped stream as a [`BufferSource`].
+struct DeviceStream {
+    path: PathBuf,
+    stream: MmapStream<'static>,
+    /// The first frame, dequeued by `open` to show that the camera streams.
+    pending: Option<RawBuffer>,
+}
+
+impl BufferSource for DeviceStream {
+    fn dequeue(
+        &mut self,
+        wait: Duration,
+        mut reuse: Vec<u8>,
+    ) -> Result<Option<RawBuffer>, V4l2Error> {
+        if let Some(first) = self.pending.take() {
+            return Ok(Some(first));
+        }
+        let path = self.path.as_path();
+        let ms = i32::try_from(wait.as_millis()).unwrap_or(i32::MAX);
+        // Poll first: `v4l` re-queues the previous buffer before it waits, and a wait of its
+        // own that timed out would leave it queueing that buffer twice on the next call.
+        match self.stream.handle().poll(POLLIN, ms) {
+            Ok(0) => return Ok(None),
+            Ok(_) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => return Ok(None),
+            Err(e) => return Err(V4l2Error::from_io(path, "poll", e)),
+        }
+        let (bytes, meta) = CaptureStream::next(&mut self.stream)
+            .map_err(|e| V4l2Error::from_io(path, "VIDIOC_DQBUF", e))?;
+        let dequeued_ns = MonotonicClock::read().0;
+        let used = (meta.bytesused as usize).min(bytes.len());
+        reuse.clear();
+        reuse.extend_from_slice(&bytes[..used]);
+        Ok(Some(RawBuffer {
+            data: reuse,
+            stamp: stamp_of(meta),
+            dequeued_ns,
+        }))
+    }
 }
 
 /// A V4L2 camera, streaming.
@@ -79,17 +90,11 @@ pub struct V4l2Camera {
     settings: V4l2Settings,
     identity: DeviceIdentity,
     device: Device,
-    stream: MmapStream<'static>,
+    source: DeviceStream,
+    pipeline: FramePipeline,
     negotiated: NegotiatedFormat,
     intrinsics: PinholeIntrinsics,
-    stamper: FrameStamper,
     exposure_ns: Option<u64>,
-    /// The first frame, dequeued by `open` to show that the camera streams.
-    pending: Option<RawBuffer>,
-    /// Byte buffers of frames already handled, reused.
-    spare: Vec<Vec<u8>>,
-    rgb: Vec<u8>,
-    stats: CaptureStats,
 }
 
 /// Opens a device node and checks it is a V4L2 device that captures video by streaming.
@@ -192,29 +197,14 @@ impl V4l2Camera {
         // A bound on every wait inside the crate: ours poll first, so it is never reached
         // unless the device stops answering.
         stream.set_timeout(settings.first_frame_timeout);
-        let mut camera = V4l2Camera {
-            settings: settings.clone(),
-            identity,
-            exposure_ns: read_exposure(&device),
-            device,
-            stream,
-            negotiated,
-            intrinsics,
-            stamper: FrameStamper::new(settings.stamp_policy()),
-            pending: None,
-            spare: Vec::new(),
-            rgb: Vec::new(),
-            stats: CaptureStats::default(),
-        };
         // The first dequeue queues every buffer and starts the stream.
-        let first = match CaptureStream::next(&mut camera.stream) {
+        let first = match CaptureStream::next(&mut stream) {
             Ok((bytes, meta)) => {
                 let dequeued_ns = MonotonicClock::read().0;
                 let used = (meta.bytesused as usize).min(bytes.len());
-                let stamp = stamp_of(meta);
                 RawBuffer {
                     data: bytes[..used].to_vec(),
-                    stamp,
+                    stamp: stamp_of(meta),
                     dequeued_ns,
                 }
             }
@@ -223,126 +213,36 @@ impl V4l2Camera {
             }
             Err(e) => return Err(V4l2Error::from_io(path, "VIDIOC_STREAMON/DQBUF", e)),
         };
-        camera.stamper.dequeued(&first.stamp, &mut camera.stats);
-        camera.pending = Some(first);
-        Ok(camera)
+        Ok(V4l2Camera {
+            settings: settings.clone(),
+            identity,
+            exposure_ns: read_exposure(&device),
+            device,
+            source: DeviceStream {
+                path: path.to_path_buf(),
+                stream,
+                pending: Some(first),
+            },
+            pipeline: FramePipeline::new(
+                negotiated,
+                settings.jpeg_quality,
+                FrameStamper::new(settings.stamp_policy()),
+            ),
+            negotiated,
+            intrinsics,
+        })
     }
 
     /// The next frame: the newest one the driver has (older ones waiting are dropped and
     /// counted), waiting up to `timeout` when none is ready. A garbled buffer is dropped,
     /// counted and returned as [`V4l2Error::Garbled`]; call again for the next frame.
     pub fn next(&mut self, timeout: Duration) -> Result<CapturedFrame, V4l2Error> {
-        let mut raw = match self.pending.take() {
-            Some(raw) => raw,
-            None => self
-                .dequeue_within(timeout)?
-                .ok_or(V4l2Error::Timeout(timeout))?,
-        };
-        // The newest frame wins: any buffer already filled is newer than `raw`.
-        for _ in 0..self.negotiated.buffers {
-            match self.dequeue_within(Duration::ZERO)? {
-                Some(newer) => {
-                    self.stats.dropped_behind += 1;
-                    let older = std::mem::replace(&mut raw, newer);
-                    self.spare.push(older.data);
-                }
-                None => break,
-            }
-        }
-        let result = self.frame_of(&raw);
-        self.spare.push(raw.data);
-        result
-    }
-
-    /// A filled buffer if one comes within `wait`, copied out (its buffer is re-queued at the
-    /// next dequeue).
-    fn dequeue_within(&mut self, wait: Duration) -> Result<Option<RawBuffer>, V4l2Error> {
-        let path = self.settings.device.as_path();
-        let ms = i32::try_from(wait.as_millis()).unwrap_or(i32::MAX);
-        match self.stream.handle().poll(POLLIN, ms) {
-            Ok(0) => return Ok(None),
-            Ok(_) => {}
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => return Ok(None),
-            Err(e) => return Err(V4l2Error::from_io(path, "poll", e)),
-        }
-        let (bytes, meta) = CaptureStream::next(&mut self.stream)
-            .map_err(|e| V4l2Error::from_io(path, "VIDIOC_DQBUF", e))?;
-        let dequeued_ns = MonotonicClock::read().0;
-        let used = (meta.bytesused as usize).min(bytes.len());
-        let mut data = self.spare.pop().unwrap_or_default();
-        data.clear();
-        data.extend_from_slice(&bytes[..used]);
-        let stamp = stamp_of(meta);
-        self.stamper.dequeued(&stamp, &mut self.stats);
-        Ok(Some(RawBuffer {
-            data,
-            stamp,
-            dequeued_ns,
-        }))
-    }
-
-    /// The frame a buffer holds, stamped; a garbled one is counted.
-    fn frame_of(&mut self, raw: &RawBuffer) -> Result<CapturedFrame, V4l2Error> {
-        let garbled = |reason: String| V4l2Error::Garbled {
-            sequence: raw.stamp.sequence,
-            reason,
-        };
-        let (width, height) = (self.negotiated.width, self.negotiated.height);
-        let jpeg = if raw.stamp.flags & FLAG_ERROR != 0 {
-            Err(garbled("the driver flagged the buffer as corrupted".into()))
-        } else {
-            match self.negotiated.format {
-                PixelFormat::Mjpeg => match mjpeg_to_jpeg(&raw.data) {
-                    Ok(f) if f.size == (width, height) => {
-                        self.stats.huffman_tables_inserted += u64::from(f.tables_inserted);
-                        Ok(f.bytes)
-                    }
-                    Ok(f) => Err(garbled(format!(
-                        "a {}x{} JPEG, {width}x{height} negotiated",
-                        f.size.0, f.size.1
-                    ))),
-                    Err(e) => Err(garbled(e.to_string())),
-                },
-                PixelFormat::Yuyv => yuyv_to_rgb(
-                    &raw.data,
-                    width,
-                    height,
-                    self.negotiated.stride,
-                    &mut self.rgb,
-                )
-                .and_then(|()| {
-                    encode_rgb_jpeg(&self.rgb, width, height, self.settings.jpeg_quality)
-                })
-                .map_err(|e| garbled(e.to_string())),
-            }
-        };
-        let jpeg = match jpeg {
-            Ok(jpeg) => jpeg,
-            Err(e) => {
-                self.stats.garbled += 1;
-                return Err(e);
-            }
-        };
-        if self.stats.frames % EXPOSURE_REFRESH_FRAMES == EXPOSURE_REFRESH_FRAMES - 1 {
+        let frames = self.pipeline.stats().frames;
+        if frames % EXPOSURE_REFRESH_FRAMES == EXPOSURE_REFRESH_FRAMES - 1 {
             self.exposure_ns = read_exposure(&self.device);
         }
-        let instant = self.stamper.stamp(
-            &raw.stamp,
-            raw.dequeued_ns,
-            self.exposure_ns,
-            &mut self.stats,
-        );
-        self.stats.frames += 1;
-        Ok(CapturedFrame {
-            sequence: raw.stamp.sequence,
-            capture_ns: instant.capture_ns,
-            dequeued_ns: raw.dequeued_ns,
-            width,
-            height,
-            jpeg,
-            timestamp_source: instant.source,
-            exposure_ns: self.exposure_ns,
-        })
+        self.pipeline
+            .next(&mut self.source, timeout, self.exposure_ns)
     }
 
     /// What the driver agreed to.
@@ -357,7 +257,7 @@ impl V4l2Camera {
 
     /// The counters since `open`.
     pub fn stats(&self) -> CaptureStats {
-        self.stats
+        self.pipeline.stats()
     }
 
     /// What the driver says the device is.

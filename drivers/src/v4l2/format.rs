@@ -84,7 +84,7 @@ pub struct NegotiatedFormat {
     pub stride: u32,
     /// Frames per second the driver set (`None`: it does not say).
     pub rate_hz: Option<f64>,
-    /// Memory-mapped buffers the driver allocated.
+    /// Memory-mapped buffers asked for (a driver may allocate more; `v4l` does not say).
     pub buffers: u32,
 }
 

@@ -3,6 +3,7 @@
 //! frames out as JPEG. The guide is `docs/v4l2.md`.
 //!
 //! - [`V4l2Camera`]: open, negotiate, [`next`](V4l2Camera::next) frame, counters.
+//! - [`FramePipeline`]: dequeued buffers to frames (the newest wins, garbled ones dropped).
 //! - [`timestamp`]: a buffer's stamp and flags to a capture instant, or a counted fallback.
 //! - [`mjpeg`]: MJPEG buffers checked and given the standard Huffman tables when missing.
 //! - [`yuyv`]: raw YUYV frames to RGB and JPEG.
@@ -13,6 +14,7 @@ mod error;
 mod format;
 mod intrinsics;
 pub mod mjpeg;
+mod pipeline;
 mod probe;
 mod sequence;
 mod settings;
@@ -21,10 +23,11 @@ mod stats;
 pub mod timestamp;
 pub mod yuyv;
 
-pub use camera::{CID_EXPOSURE_ABSOLUTE, CapturedFrame, DeviceIdentity, V4l2Camera};
+pub use camera::{CID_EXPOSURE_ABSOLUTE, DeviceIdentity, V4l2Camera};
 pub use error::V4l2Error;
 pub use format::{FormatPreference, NegotiatedFormat, PixelFormat, choose_format};
 pub use intrinsics::PinholeIntrinsics;
+pub use pipeline::{BufferSource, CapturedFrame, FramePipeline, RawBuffer};
 pub use probe::{DeviceReport, FormatReport, SizeReport, probe};
 pub use sequence::SequenceTracker;
 pub use settings::V4l2Settings;
