@@ -47,6 +47,7 @@
 //! joins the threads and gives the boards back.
 
 pub mod bridged;
+pub mod camera;
 pub mod clock;
 pub mod config;
 pub mod delay_line;
@@ -258,6 +259,7 @@ pub struct DetachedLoop {
 impl Creator {
     /// A creator with no objects.
     pub fn new(config: CreatorConfig) -> Self {
+        let subscriptions = Arc::new(Subscriptions::default());
         Creator {
             sim: (config.clock == ClockMode::Simulated)
                 .then(|| Arc::new(Mutex::new(SimWorld::default()))),
@@ -265,10 +267,18 @@ impl Creator {
             registry: Mutex::new(Registry {
                 datagram_key: config.datagram_key.clone(),
                 clock: config.clock,
+                camera_env: Some(registry::camera::CameraEnv {
+                    subscriptions: subscriptions.clone(),
+                    clock: config.common_clock.clone(),
+                    send_clock: match config.clock {
+                        ClockMode::Simulated => camera::SendClock::Simulated,
+                        _ => camera::SendClock::Real,
+                    },
+                }),
                 ..Registry::default()
             }),
             config,
-            subscriptions: Arc::new(Subscriptions::default()),
+            subscriptions,
             link_pump: Mutex::new(None),
             fifo: OnceLock::new(),
             recording: Mutex::new(None),
