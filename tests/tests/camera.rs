@@ -275,3 +275,126 @@ fn a_client_watches_the_camera_through_the_naming_service_at_its_rate() {
     drop(frames);
     lab.shutdown();
 }
+
+#[test]
+fn a_recording_holds_the_cameras_frames_and_calibration_at_their_capture_instants() {
+    let dir = penelope_testkit::scratch::scratch_dir("camera", "recording");
+    let mut config = NodeConfig::new("lab", NamingChoice::None);
+    config.creator.rt.priority = None;
+    config.creator.clock = ClockMode::Simulated;
+    config.creator.records = Some(dir.clone());
+    let lab = Node::start(config).unwrap();
+    apply(&lab, 3, 30.0);
+    let mut conn = Connection::connect(lab.address(), &ClientConfig::admin("camera-test")).unwrap();
+    subscribe(&mut conn, "camera").unwrap();
+    lab.creator().record_start("camera.mcap", &[]).unwrap();
+    let mut frames = BTreeMap::new();
+    for _ in 0..100 {
+        lab.creator().advance(Duration::from_millis(10)).unwrap();
+        take_frames(&mut conn, Duration::ZERO, &mut frames);
+    }
+    // Released to the subscriber means released to the recording's tap too.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while frames.keys().next_back().is_none_or(|k| *k < 28) {
+        assert!(Instant::now() < deadline, "frames {:?}", frames.keys());
+        take_frames(&mut conn, Duration::from_millis(200), &mut frames);
+    }
+    lab.creator().record_stop().unwrap();
+    let bytes = std::fs::read(dir.join("camera.mcap")).unwrap();
+    let (mut images, mut calibrations) = (Vec::new(), Vec::new());
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        let schema = m.channel.schema.as_ref().map(|s| s.name.clone());
+        let v: serde_json::Value = serde_json::from_slice(&m.data).unwrap();
+        let stamp = v["timestamp"]["sec"].as_u64().unwrap_or(0) * 1_000_000_000
+            + v["timestamp"]["nsec"].as_u64().unwrap_or(0);
+        match m.channel.topic.as_str() {
+            "/camera/image" => {
+                assert_eq!(schema.as_deref(), Some("foxglove.CompressedImage"));
+                assert_eq!(v["format"], "jpeg");
+                assert_eq!(v["frame_id"], "camera");
+                assert_eq!(m.log_time, stamp, "logged at its capture instant");
+                images.push(m.log_time);
+            }
+            "/camera/calibration" => {
+                assert_eq!(schema.as_deref(), Some("foxglove.CameraCalibration"));
+                assert_eq!(m.log_time, stamp);
+                calibrations.push(v);
+            }
+            _ => {}
+        }
+    }
+    let captured: Vec<u64> = frames.values().map(|f| f.capture_ns).collect();
+    println!(
+        "{} images recorded, {} frames to the subscriber",
+        images.len(),
+        captured.len()
+    );
+    assert!(images.len() >= 28, "{}", images.len());
+    for t in &captured {
+        assert!(
+            images.contains(t),
+            "frame captured at {t} ns recorded at that instant"
+        );
+    }
+    assert_eq!(calibrations.len(), 1);
+    let model = &frames.values().next().unwrap().model;
+    let k: Vec<f64> = calibrations[0]["K"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert_eq!(
+        k,
+        [
+            model.fx, 0.0, model.cx, 0.0, model.fy, model.cy, 0.0, 0.0, 1.0
+        ]
+    );
+    assert_eq!(calibrations[0]["P"].as_array().unwrap().len(), 12);
+    lab.shutdown();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_camera_is_refused_at_configure_for_an_unknown_robot_or_one_on_a_real_board() {
+    let lab = node(ClockMode::RealTime, NamingChoice::None);
+    let c = lab.creator();
+    c.create("sensor/sim-camera", "nobody", "robot = \"ghost\"")
+        .unwrap();
+    let err = c
+        .transition("nobody", penelope_hal::Transition::Configure)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("no robot `ghost`"), "{err}");
+    // A robot on a Galil board (nothing opened: the board is only created and mapped).
+    c.create("board/galil", "dmc", "address = \"127.0.0.1:1\"")
+        .unwrap();
+    c.create("robot/puma560", "arm", "").unwrap();
+    let map =
+        penelope_protocol::proto::Method::Robot(penelope_protocol::proto::RobotMethod::MapJoints {
+            board: "dmc".into(),
+            joints: (0..6)
+                .map(|j| penelope_protocol::proto::JointAxis { joint: j, axis: j })
+                .collect(),
+        });
+    lab.call(Call::Object {
+        object: "arm".into(),
+        method: map,
+    })
+    .unwrap();
+    c.create("sensor/sim-camera", "onreal", "robot = \"arm\"")
+        .unwrap();
+    let err = c
+        .transition("onreal", penelope_hal::Transition::Configure)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("not a simulated board"), "{err}");
+    // Configuration errors come at create, naming the key.
+    let err = c
+        .create("sensor/sim-camera", "still", "robot = \"arm\"\nrate_hz = 0")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("rate_hz"), "{err}");
+    lab.shutdown();
+}

@@ -401,7 +401,7 @@ impl Creator {
         })
     }
 
-    /// Starts recording `objects` (none: every controller and linked channel) to the new
+    /// Starts recording `objects` (none: every controller, linked channel and camera) to the new
     /// MCAP file `name` in the node's recordings directory ([`CreatorConfig::records`]): see
     /// [`CreatorCall::RecordStart`](penelope_protocol::proto::CreatorCall::RecordStart). The recorder is a thread of normal priority fed by the
     /// telemetry pump through bounded streams; no loop waits for it.
@@ -454,7 +454,11 @@ impl Creator {
         let names: Vec<String> = if objects.is_empty() {
             self.list()
                 .into_iter()
-                .filter(|o| o.class == Class::Controller || o.kind == kinds::Kind::TELEOP.as_str())
+                .filter(|o| {
+                    o.class == Class::Controller
+                        || o.kind == kinds::Kind::TELEOP.as_str()
+                        || o.kind == registry::camera::SIM_CAMERA.as_str()
+                })
                 .map(|o| o.name)
                 .collect()
         } else {
@@ -462,12 +466,15 @@ impl Creator {
         };
         let mut streams = Vec::new();
         let mut links = Vec::new();
+        let mut cameras = Vec::new();
         for name in &names {
             let info = self
                 .info(name)
                 .ok_or_else(|| ObjectError::UnknownName(name.clone()))?;
             if info.class == Class::Controller {
                 streams.push((name.clone(), self.record_ticks(name, RECORDER_CAPACITY)?));
+            } else if info.kind == registry::camera::SIM_CAMERA.as_str() {
+                cameras.push(name.clone());
             } else if info.kind == kinds::Kind::TELEOP.as_str() {
                 match self.link_source(name)? {
                     Some(source) => links.push((name.clone(), source)),
@@ -478,7 +485,7 @@ impl Creator {
                 }
             } else {
                 return Err(ObjectError::BadArgument(format!(
-                    "`{name}` is a {}: only controllers and channels are recorded",
+                    "`{name}` is a {}: only controllers, channels and cameras are recorded",
                     info.kind
                 )));
             }
@@ -498,11 +505,13 @@ impl Creator {
             node_time: self.node_time(),
             scene,
         };
-        let recorder = recording::Recorder::start(
+        let taps = self.lock()?.camera_taps(&cameras);
+        let recorder = recording::Recorder::start_with_cameras(
             recording::RecordProfile::Penelope,
             std::path::Path::new(&path),
             Some(file),
             sources,
+            taps,
         )
         .map_err(|e| {
             let _ = std::fs::remove_file(&path);
@@ -514,6 +523,27 @@ impl Creator {
             controllers,
             links: linked,
         })
+    }
+
+    /// A tap of every frame each running camera of this node releases from now on, by camera
+    /// name: what a recording writes ([`recording::Recorder::start_with_cameras`]). A reader
+    /// that falls behind loses frames (counted in the camera's `describe`), never the camera.
+    pub fn camera_taps(
+        &self,
+    ) -> Vec<(
+        String,
+        std::sync::mpsc::Receiver<penelope_protocol::proto::CameraFrame>,
+    )> {
+        let Ok(reg) = self.lock() else {
+            return Vec::new();
+        };
+        let names: Vec<String> = reg
+            .objects
+            .values()
+            .filter(|o| o.kind == registry::camera::SIM_CAMERA)
+            .map(|o| o.name.clone())
+            .collect();
+        reg.camera_taps(&names)
     }
 
     /// The 3D scene of a recording of `controllers` at `rate_hz` of tick time: the robot each

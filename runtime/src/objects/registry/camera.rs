@@ -129,6 +129,25 @@ impl Registry {
         Ok(())
     }
 
+    /// A tap of the frames of each of `cameras` that runs (a recording's), by name.
+    pub(crate) fn camera_taps(
+        &self,
+        cameras: &[String],
+    ) -> Vec<(
+        String,
+        std::sync::mpsc::Receiver<penelope_protocol::proto::CameraFrame>,
+    )> {
+        cameras
+            .iter()
+            .filter_map(|name| match self.objects.get(name).map(|o| &o.body) {
+                Some(KindState::Camera(c)) => {
+                    c.runner.as_ref().map(|r| (name.clone(), r.shared.tap()))
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
     /// Stops camera `name`'s thread and ends its subscriptions.
     pub(super) fn release_camera(&mut self, name: &str) {
         if let Some(KindState::Camera(c)) = self.objects.get_mut(name).map(|o| &mut o.body) {
