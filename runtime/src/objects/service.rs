@@ -11,12 +11,11 @@ use penelope_protocol::proto::{
 use penelope_protocol::service::{Outbox, Service, Session};
 
 use super::Creator;
-use super::camera::{FrameSink, FrameSubscriptionSpec};
 use super::error::ObjectError;
 use super::link_source::LinkSource;
 use super::registry::KindState;
 use super::roles;
-use super::runtime::{LinkPump, TickSink};
+use super::runtime::{FrameSink, FrameSubscriptionSpec, LinkPump, TickSink};
 
 /// The creator served alone (without its node): its errors become wire errors here, by the
 /// one conversion ([`error`](super::error)).

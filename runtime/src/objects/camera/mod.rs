@@ -4,15 +4,14 @@
 //! - [`config`]: its keys and their checks;
 //! - [`thread`]: the camera thread, fed by the watched robot's ticks (the plant's truth),
 //!   rendering, encoding and releasing frames;
-//! - [`subscribers`]: per subscriber a bounded queue that drops the oldest frame, the camera
-//!   link's faults, the counts.
+//! - the subscribers' side (per subscriber a bounded queue that drops the oldest frame, the
+//!   camera link's faults, the counts) is with the node's other subscriptions, in
+//!   [`crate::objects::runtime`] (`FrameSubscriptions`).
 //!
 //! `docs/cameras.md` is the guide.
 
 pub mod config;
-pub mod subscribers;
 pub mod thread;
 
 pub use config::{CameraSetup, SimCameraConfig};
-pub use subscribers::{FrameSink, FrameSubscriberStats, FrameSubscriptionSpec, FrameSubscriptions};
 pub use thread::{CameraRunner, CameraShared, CameraWorld, SendClock};

@@ -1,9 +1,9 @@
 //! Telemetry: the pump and the subscriptions (of controllers here; of channels' links in
 //! `link_telemetry`).
 
-use crate::objects::camera::{FrameSink, FrameSubscriptionSpec, FrameSubscriptions};
 use crate::objects::error::ObjectError;
 use crate::objects::link_source::LinkSource;
+use crate::objects::runtime::{FrameSink, FrameSubscriptionSpec, FrameSubscriptions};
 use crate::objects::runtime::{LinkSubscriptions, TELEMETRY_CAPACITY};
 use crate::objects::tick::{TickRecord, TickStream};
 use penelope_hal::JointVector;
