@@ -518,3 +518,40 @@ fn frames_across_the_demo_script_for_a_look() {
     println!("{} frames in {dir}", frames.len());
     lab.shutdown();
 }
+
+/// By hand, against a node started from the built binary (`--ignored`, with
+/// PENELOPE_NAMING=host:port, the node's or its naming service's address, and
+/// PENELOPE_CAMERA_PATH, `lab/camera` by default): 90 frames through `Client::watch_camera`,
+/// their rate by capture stamps and by arrival printed.
+#[test]
+#[ignore = "needs a running node"]
+fn watch_a_running_nodes_camera() {
+    let naming: std::net::SocketAddr = std::env::var("PENELOPE_NAMING")
+        .expect("PENELOPE_NAMING=host:port")
+        .parse()
+        .unwrap();
+    let path = std::env::var("PENELOPE_CAMERA_PATH").unwrap_or_else(|_| "lab/camera".into());
+    let client = Client::connect(naming, ClientConfig::new("camera-watcher")).unwrap();
+    let mut stream = client.watch_camera(&path, 1).unwrap();
+    let mut frames = Vec::new();
+    let began = Instant::now();
+    while frames.len() < 90 {
+        assert!(began.elapsed() < Duration::from_secs(60), "{}", frames.len());
+        if let Some(f) = stream.recv_timeout(Duration::from_secs(1)).unwrap() {
+            frames.push((Instant::now(), f));
+        }
+    }
+    let (first, last) = (&frames[0], &frames[frames.len() - 1]);
+    let by_capture = 89.0 / ((last.1.capture_ns - first.1.capture_ns) as f64 * 1e-9);
+    let by_arrival = 89.0 / (last.0 - first.0).as_secs_f64();
+    let gaps = frames
+        .windows(2)
+        .filter(|w| w[1].1.seq != w[0].1.seq + 1)
+        .count();
+    println!(
+        "{path}: 90 frames, {by_capture:.2} fps by capture stamps, {by_arrival:.2} fps by \
+         arrival, {gaps} gaps, {} bytes the last, capture to send {:.1} ms",
+        last.1.data.len(),
+        (last.1.sent_ns - last.1.capture_ns) as f64 * 1e-6
+    );
+}
