@@ -536,7 +536,11 @@ fn watch_a_running_nodes_camera() {
     let mut frames = Vec::new();
     let began = Instant::now();
     while frames.len() < 90 {
-        assert!(began.elapsed() < Duration::from_secs(60), "{}", frames.len());
+        assert!(
+            began.elapsed() < Duration::from_secs(60),
+            "{}",
+            frames.len()
+        );
         if let Some(f) = stream.recv_timeout(Duration::from_secs(1)).unwrap() {
             frames.push((Instant::now(), f));
         }

@@ -695,6 +695,8 @@ impl Creator {
             self.note_lifecycle(name, o.kind.as_str(), "destroy", "destroyed");
         }
         self.subscriptions.links().end_stale(name, None);
+        // A camera's subscriptions end with it.
+        self.subscriptions.frames().end_camera(name);
         Ok(())
     }
 

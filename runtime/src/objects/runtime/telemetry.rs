@@ -482,6 +482,29 @@ mod tests {
     use penelope_protocol::service::Outbox;
 
     #[test]
+    fn a_robots_stream_follows_whichever_controller_drives_it() {
+        let subs = Subscriptions::default();
+        let stream = subs.record_robot("puma", 64);
+        let tick = |seq: u64| {
+            let mut t = TickRecord::default();
+            t.sample.seq = seq;
+            t
+        };
+        subs.set_driver("follow", "puma");
+        subs.set_driver("other", "frhc");
+        subs.publish("follow", &[tick(1), tick(2)], 6);
+        subs.publish("other", &[tick(100)], 6);
+        // The slave's law switched: another controller now drives the same robot.
+        subs.set_driver("wave-follow", "puma");
+        subs.publish("wave-follow", &[tick(3)], 6);
+        subs.publish("unbound", &[tick(200)], 6);
+        let mut got = Vec::new();
+        stream.drain_into(&mut got);
+        let seqs: Vec<u64> = got.iter().map(|t| t.sample.seq).collect();
+        assert_eq!(seqs, [1, 2, 3]);
+    }
+
+    #[test]
     fn a_backlog_goes_out_in_batches_that_fit_a_frame_none_lost() {
         let subs = Subscriptions::default();
         let (outbox, rx) = Outbox::bounded(256);
