@@ -2,7 +2,7 @@
 //! watched robot's ticks (whichever controller drives it), it renders frame `k` from the plant's
 //! truth of the first tick at or after frame `k`'s capture instant, encodes it to JPEG and
 //! releases it when the ticks reach its ready time: to the camera's subscribers
-//! ([`FrameSubscriptions`]) and to a recording's taps. Everything it stamps is on the common
+//! ([`FrameSubscriptions`](crate::objects::runtime::FrameSubscriptions)) and to a recording's taps. Everything it stamps is on the common
 //! clock; the frames' pictures depend only on the ticks and the seed, so that on the simulated
 //! clock they are the same bytes run after run.
 
