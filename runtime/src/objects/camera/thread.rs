@@ -148,6 +148,9 @@ pub struct CameraWorld {
 pub struct CameraRunner {
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
+    /// On the real clock, the thread that sends frames held by the links' delays when due, so
+    /// that a frame being rendered never holds another's send up.
+    sender: Option<JoinHandle<()>>,
     /// What it shares.
     pub shared: Arc<CameraShared>,
 }
@@ -193,6 +196,21 @@ impl CameraRunner {
             taps: Mutex::new(Vec::new()),
         });
         let stop = Arc::new(AtomicBool::new(false));
+        let (sender, wake) = if send_clock == SendClock::Real {
+            let (wake, woken) = std::sync::mpsc::sync_channel(1);
+            let (name, frames, clock, flag) = (
+                name.to_string(),
+                subscriptions.clone(),
+                clock.clone(),
+                stop.clone(),
+            );
+            let handle = std::thread::Builder::new()
+                .name(format!("camera-send {name}"))
+                .spawn(move || send_when_due(&name, &frames, &clock, &woken, &flag))?;
+            (Some(handle), Some(wake))
+        } else {
+            (None, None)
+        };
         let mut thread = CameraThread {
             shared: shared.clone(),
             setup,
@@ -205,6 +223,7 @@ impl CameraRunner {
             next: 0,
             pending: VecDeque::new(),
             newest_ns: 0,
+            wake,
         };
         let flag = stop.clone();
         let handle = std::thread::Builder::new()
@@ -213,6 +232,7 @@ impl CameraRunner {
         Ok(CameraRunner {
             stop,
             thread: Some(handle),
+            sender,
             shared,
         })
     }
@@ -221,7 +241,10 @@ impl CameraRunner {
 impl Drop for CameraRunner {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Release);
-        if let Some(t) = self.thread.take() {
+        for t in [self.thread.take(), self.sender.take()]
+            .into_iter()
+            .flatten()
+        {
             let _ = t.join();
         }
     }
@@ -250,12 +273,41 @@ struct CameraThread {
     pending: VecDeque<Pending>,
     /// The newest tick's node time.
     newest_ns: u64,
+    /// Wakes the sender (real clock) when a frame enters the links.
+    wake: Option<SyncSender<()>>,
+}
+
+/// The real clock's sender: sleeps until a frame held by a link's delay is due (or a new frame
+/// enters the links, or [`WAIT`]), then moves the frames along.
+fn send_when_due(
+    name: &str,
+    subscriptions: &Subscriptions,
+    clock: &CommonClock,
+    woken: &std::sync::mpsc::Receiver<()>,
+    stop: &AtomicBool,
+) {
+    let now = || penelope_rt_core::clock::MonotonicClock::read().as_nanos();
+    while !stop.load(Ordering::Acquire) {
+        let wait = subscriptions
+            .frames()
+            .next_release(name)
+            .map_or(WAIT, |due| {
+                let due = u64::try_from(due.as_nanos()).unwrap_or(u64::MAX);
+                Duration::from_nanos(due.saturating_sub(now())).min(WAIT)
+            });
+        if let Err(RecvTimeoutError::Disconnected) = woken.recv_timeout(wait) {
+            return;
+        }
+        subscriptions
+            .frames()
+            .pump(name, now(), &|| clock.to_common(now()));
+    }
 }
 
 impl CameraThread {
     fn run(&mut self, stop: &AtomicBool) {
         while !stop.load(Ordering::Acquire) {
-            match self.stream.ticks.recv_timeout(WAIT) {
+            match self.stream.ticks.recv_timeout(self.wait()) {
                 Ok(tick) => {
                     self.tick(&tick);
                     while let Ok(t) = self.stream.ticks.try_recv() {
@@ -272,13 +324,40 @@ impl CameraThread {
                 self.stream.dropped.load(Ordering::Relaxed),
                 Ordering::Relaxed,
             );
-            // Frames held by the links' delays go on their way on the real clock even when no
-            // tick comes.
-            let now = self.node_now();
-            let stamp = self.stamp();
-            self.subscriptions
-                .frames()
-                .pump(&self.shared.name, now, &stamp);
+            // On the real clock a frame is released when its readout ends by the clock, not
+            // when the next batch of ticks (every telemetry period) says so; the sender thread
+            // moves frames held by the links' delays. On the simulated clock the ticks are the
+            // time: this thread moves them.
+            if self.send_clock == SendClock::Real {
+                let now = self.node_now();
+                self.release_ready(now);
+            } else {
+                let now = self.node_now();
+                let stamp = self.stamp();
+                self.subscriptions
+                    .frames()
+                    .pump(&self.shared.name, now, &stamp);
+            }
+        }
+    }
+
+    /// How long to wait for ticks: until the next frame's readout ends (real clock), at most
+    /// [`WAIT`].
+    fn wait(&self) -> Duration {
+        match (self.send_clock, self.pending.front()) {
+            (SendClock::Real, Some(p)) => {
+                Duration::from_nanos(p.ready_ns.saturating_sub(self.node_now())).min(WAIT)
+            }
+            _ => WAIT,
+        }
+    }
+
+    /// Releases the frames whose readout has ended by node time `now_ns`.
+    fn release_ready(&mut self, now_ns: u64) {
+        while self.pending.front().is_some_and(|p| p.ready_ns <= now_ns) {
+            if let Some(p) = self.pending.pop_front() {
+                self.release(p);
+            }
         }
     }
 
@@ -326,11 +405,7 @@ impl CameraThread {
             }
             self.next += 1;
         }
-        while self.pending.front().is_some_and(|p| p.ready_ns <= t) {
-            if let Some(p) = self.pending.pop_front() {
-                self.release(p);
-            }
-        }
+        self.release_ready(t);
     }
 
     /// Frame `seq` of `truth`, as JPEG.
@@ -377,6 +452,10 @@ impl CameraThread {
         self.subscriptions
             .frames()
             .publish(&self.shared.name, &frame, now, &stamp);
+        if let Some(wake) = &self.wake {
+            // Full: the sender is already due to look.
+            let _ = wake.try_send(());
+        }
     }
 }
 

@@ -240,6 +240,17 @@ impl FrameSubscriptions {
         }
     }
 
+    /// When the next of `camera`'s frames held by a link's delay is due, node time (`None`:
+    /// none is held): how long a camera thread may sleep before it pumps again.
+    pub fn next_release(&self, camera: &str) -> Option<Duration> {
+        self.list.lock().ok().and_then(|l| {
+            l.iter()
+                .filter(|s| s.camera == camera)
+                .filter_map(|s| s.link.next_release())
+                .min()
+        })
+    }
+
     /// The counts of `camera`'s subscriptions.
     pub fn stats_of(&self, camera: &str) -> Vec<FrameSubscriberStats> {
         self.list

@@ -4,6 +4,9 @@
 //! - `delay`: the tapping-on-a-stiff-wall task for each law and each round-trip delay, with a
 //!   stability verdict per run (`penelope_supervisor::runs::delay` defines the criterion), a
 //!   table, a stability-map plot and JSON.
+//! - `sync`: video and force reaching the operator, in the layouts of hosts, with a camera
+//!   whose link is delayed: the latency of each, the skew between them unaligned, and what is
+//!   left of it after alignment (`sync` module).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -18,6 +21,7 @@ use super::demo::parse_duration;
 use super::usage;
 
 mod map;
+mod sync;
 
 /// Which experiment to run.
 #[derive(clap::Subcommand, Debug)]
@@ -25,6 +29,10 @@ pub enum ExperimentCommand {
     /// Each law against each round-trip delay (half each way) on the simulated clock: stable
     /// or not, tracking, force tracking, drag, contact force; a table, a stability map, JSON.
     Delay(DelayArgs),
+    /// Video and force at the operator's station: a camera on the robot's node, its link
+    /// delayed; capture-to-display latency of the video, measurement-to-display latency of the
+    /// force, and their skew before and after alignment (p50, p99, max), per layout of hosts.
+    Sync(sync::SyncArgs),
 }
 
 /// Options of `penelope experiment delay`.
@@ -67,6 +75,7 @@ pub struct DelayArgs {
 pub fn run(command: ExperimentCommand) -> anyhow::Result<ExitCode> {
     match command {
         ExperimentCommand::Delay(args) => run_delay(args),
+        ExperimentCommand::Sync(args) => sync::run(args),
     }
 }
 

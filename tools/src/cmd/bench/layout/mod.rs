@@ -427,6 +427,23 @@ fn placed(file: &str, host_of: &dyn Fn(&str) -> Option<IpAddr>) -> anyhow::Resul
     Ok(table.to_string())
 }
 
+/// `file` with the tables of `extra` merged in (a table of `extra` adds its entries to the
+/// file's table of the same name, replacing an entry of the same name).
+fn with_tables(file: &str, extra: &toml::Table) -> anyhow::Result<String> {
+    let mut table: toml::Table = file.parse().context("parsing the system file")?;
+    for (section, entries) in extra {
+        match (table.get_mut(section), entries) {
+            (Some(toml::Value::Table(into)), toml::Value::Table(from)) => {
+                into.extend(from.clone());
+            }
+            _ => {
+                table.insert(section.clone(), entries.clone());
+            }
+        }
+    }
+    Ok(table.to_string())
+}
+
 /// `file` with every teleoperation channel's `handoff` set to `handoff`.
 fn with_handoff(file: &str, handoff: &str) -> anyhow::Result<String> {
     let mut table: toml::Table = file.parse().context("parsing the system file")?;
@@ -451,6 +468,52 @@ pub fn run_layout(
     duration: Option<Duration>,
     handoff: Option<&str>,
 ) -> anyhow::Result<LayoutRecord> {
+    let plan = LayoutPlan {
+        layout,
+        duration,
+        handoff,
+        extra: None,
+    };
+    run_layout_watched(&plan, None::<Watcher<()>>).map(|(record, _)| record)
+}
+
+/// What a layout run is: the layout, the task's length, the channel's handoff, and objects
+/// added to the system file.
+pub struct LayoutPlan<'a> {
+    /// Where each process runs.
+    pub layout: &'a Layout,
+    /// Length of the task (default: the operator's script, 20 s).
+    pub duration: Option<Duration>,
+    /// The channel's handoff, if not the file's.
+    pub handoff: Option<&'a str>,
+    /// TOML tables merged into the system file after its addresses are placed (a camera, say).
+    pub extra: Option<&'a toml::Table>,
+}
+
+/// What a watcher started on a host during a layout run is given.
+pub struct WatchContext {
+    /// The naming service's address.
+    pub naming: SocketAddr,
+    /// The shared secret's file.
+    pub secret_file: PathBuf,
+    /// The task's length: the watcher watches about this long.
+    pub task_length: Duration,
+}
+
+/// A client run on a host of the layout while the task runs (after every node is ready), and
+/// what it found: `(node whose host it runs on, the client)`.
+pub type Watcher<T> = (
+    &'static str,
+    Box<dyn FnOnce(WatchContext) -> anyhow::Result<T> + Send + 'static>,
+);
+
+/// Runs `plan` and measures it; with a watcher, runs it on its node's host during the task and
+/// returns what it found beside the layout's figures.
+pub fn run_layout_watched<T: Send + 'static>(
+    plan: &LayoutPlan<'_>,
+    watcher: Option<Watcher<T>>,
+) -> anyhow::Result<(LayoutRecord, Option<T>)> {
+    let (layout, duration) = (plan.layout, plan.duration);
     let exe = std::env::current_exe().context("finding the penelope binary")?;
     let scratch = ScratchDir(std::env::temp_dir().join(format!(
         "penelope-layout-{}-{}",
@@ -469,8 +532,12 @@ pub fn run_layout(
     let file_text = placed(layout.system, &|n| {
         host_of_node(n).map(|h| hosts.address(h))
     })?;
-    let file_text = match handoff {
+    let file_text = match plan.handoff {
         Some(h) => with_handoff(&file_text, h)?,
+        None => file_text,
+    };
+    let file_text = match plan.extra {
+        Some(extra) => with_tables(&file_text, extra)?,
         None => file_text,
     };
     let system_path = scratch.0.join("system.toml");
@@ -489,6 +556,20 @@ pub fn run_layout(
     launch.naming_service(&mut hosts, naming_host)?;
     let task_nodes = system_nodes_of_task(&system)?;
     let recordings = launch.nodes(&mut hosts, layout, task_nodes)?;
+    let task_length = duration.unwrap_or(Duration::from_secs(20));
+    let watching = match watcher {
+        Some((node, watch)) => {
+            let host = host_of_node(node)
+                .with_context(|| format!("the watcher's node `{node}` is not in the layout"))?;
+            let context = WatchContext {
+                naming,
+                secret_file: secret.clone(),
+                task_length,
+            };
+            Some(hosts.spawn_in(host, move || watch(context)))
+        }
+        None => None,
+    };
 
     // The raw UDP echo between the joystick's host and the robot's, alongside the task.
     let (echo, echo_addr) = start_echo(&hosts, layout.ends.1)?;
@@ -497,7 +578,6 @@ pub fn run_layout(
         clock: ClockMode::RealTime,
         ..RunOptions::default()
     };
-    let task_length = duration.unwrap_or(Duration::from_secs(20));
     let count = (task_length.as_millis() / 2) as usize;
     let addr_a = hosts.address(layout.ends.0);
     let pinger = hosts.spawn_in(layout.ends.0, move || {
@@ -514,6 +594,13 @@ pub fn run_layout(
     let (echoes, lost) = pinger
         .join()
         .map_err(|_| anyhow::anyhow!("the echo client's thread panicked"))??;
+    let watched = match watching {
+        Some(w) => Some(
+            w.join()
+                .map_err(|_| anyhow::anyhow!("the watcher's thread panicked"))??,
+        ),
+        None => None,
+    };
     drop(echo);
     hosts.stop_all(Duration::from_secs(15))?;
     // The finished recordings (their loss counts are written at the end).
@@ -522,13 +609,16 @@ pub fn run_layout(
         .map(|p| read_recording(p))
         .collect::<Result<_, _>>()?;
     let output = from_recordings(&system, &options, &read)?.unwrap_or(output);
-    Ok(layout_record(
-        layout,
-        &output,
-        &read,
-        task_nodes,
-        Percentiles::of(echoes),
-        lost,
+    Ok((
+        layout_record(
+            layout,
+            &output,
+            &read,
+            task_nodes,
+            Percentiles::of(echoes),
+            lost,
+        ),
+        watched,
     ))
 }
 
