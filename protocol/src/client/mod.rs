@@ -30,6 +30,8 @@
 //! - [`TelemetryStream`]: the telemetry of a running loop on its own connection;
 //! - [`FrameStream`]: a camera's frames, on the common clock, on its own connection;
 //!   [`LinkStream`]: the link records of a channel linked to another node, likewise.
+//! - [`sync`]: which force and pose sample belongs to a camera frame, and how far the video is
+//!   behind the hand (the alignment the web page, the Foxglove gateway and `experiment sync` use).
 //!
 //! # Errors
 //! Everything returns [`RpcError`], the error of the transport, so that the client, the nodes'
@@ -50,6 +52,7 @@ mod estop;
 mod naming;
 mod node;
 pub mod proxy;
+pub mod sync;
 pub mod telemetry;
 
 use std::collections::HashMap;
