@@ -534,7 +534,7 @@ pub fn project(model: &CameraModelMsg, point_in_base: [f64; 3]) -> Option<[f64; 
     let dot = |axis: &[f64; 3]| axis[0] * d[0] + axis[1] * d[1] + axis[2] * d[2];
     // The optical frame's axes in the base frame are the pose's columns n, o, a.
     let (x, y, z) = (dot(&pose.n), dot(&pose.o), dot(&pose.a));
-    if !(z > 1e-6) || !x.is_finite() || !y.is_finite() {
+    if z.is_nan() || z <= 1e-6 || !x.is_finite() || !y.is_finite() {
         return None;
     }
     Some([model.fx * x / z + model.cx, model.fy * y / z + model.cy])
