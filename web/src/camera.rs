@@ -322,12 +322,17 @@ fn recent_forces(history: &SampleHistory, plotted_to: &mut u64, t0: u64) -> Vec<
     for s in history.iter() {
         if s.time_ns >= plotted_to.saturating_add(PLOT_SPACING_NS) || *plotted_to == 0 {
             *plotted_to = s.time_ns;
-            let t = s.time_ns as f64 * 1e-9 - t0 as f64 * 1e-9;
+            let t = seconds_since(s.time_ns, t0);
             let f = s.wrench.force;
             out.push(json!([t, f[0], f[1], f[2]]));
         }
     }
     out
+}
+
+/// `time_ns - t0_ns` in seconds (negative before `t0_ns`).
+fn seconds_since(time_ns: u64, t0_ns: u64) -> f64 {
+    (i128::from(time_ns) - i128::from(t0_ns)) as f64 / 1e9
 }
 
 fn ms(ns: i64) -> f64 {
@@ -354,7 +359,7 @@ fn sample(model: &CameraModelMsg, a: Option<Aligned>, t0: u64) -> Value {
         Match::Oldest => "oldest",
     };
     json!({
-        "t": a.sample.time_ns as f64 * 1e-9 - t0 as f64 * 1e-9,
+        "t": seconds_since(a.sample.time_ns, t0),
         "p": a.sample.tool_position,
         "f": a.sample.wrench.force,
         "skew_ms": ms(a.skew_ns),
@@ -381,7 +386,7 @@ fn describe(
         "type": "frame",
         "seq": frame.seq,
         "capture_ns": frame.capture_ns,
-        "t": frame.capture_ns.saturating_sub(t0) as f64 * 1e-9,
+        "t": seconds_since(frame.capture_ns, t0),
         "width": frame.model.width,
         "height": frame.model.height,
         "encoding": frame.encoding.name(),
@@ -456,5 +461,51 @@ fn follow_link(client: &Client, path: &str, shared: &Shared, hand: &Hand) {
             Ok(None) => {}
             Err(_) => return,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use penelope_protocol::proto::WrenchMsg;
+
+    fn shared() -> Shared {
+        Shared {
+            queue: Mutex::new(VecDeque::new()),
+            ready: Notify::new(),
+            closed: AtomicBool::new(false),
+            dropped: AtomicU64::new(0),
+        }
+    }
+
+    #[test]
+    fn a_slow_socket_loses_the_oldest_frames_and_keeps_the_newest() {
+        let s = shared();
+        for k in 0..10u8 {
+            s.put((format!("{k}"), vec![k]));
+        }
+        assert_eq!(s.dropped.load(Ordering::Relaxed), 7);
+        let left: Vec<String> = std::iter::from_fn(|| s.take()).map(|(t, _)| t).collect();
+        assert_eq!(left, ["7", "8", "9"]);
+    }
+
+    #[test]
+    fn the_force_plot_gets_one_sample_per_10ms_and_none_twice() {
+        let mut history = SampleHistory::default();
+        for k in 0..100u64 {
+            history.push(ForceSample {
+                time_ns: 1_000_000_000 + k * 1_000_000,
+                tool_position: [0.0; 3],
+                wrench: WrenchMsg {
+                    force: [k as f64, 0.0, 0.0],
+                    torque: [0.0; 3],
+                },
+            });
+        }
+        let mut plotted_to = 0;
+        let first = recent_forces(&history, &mut plotted_to, 1_000_000_000);
+        assert_eq!(first.len(), 10);
+        assert_eq!(first[1], json!([0.01, 10.0, 0.0, 0.0]));
+        assert!(recent_forces(&history, &mut plotted_to, 1_000_000_000).is_empty());
     }
 }
