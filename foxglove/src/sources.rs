@@ -378,7 +378,8 @@ impl Sources {
         Stream {
             channel: channels[0],
             more_channels: more,
-            robot: None,
+            // As discovery compares it (a camera's relations may name a robot).
+            robot: robot_of(f),
             stop,
             stats,
             reader: handle,
