@@ -8,9 +8,12 @@
 //!   operator and a virtual force sensor.
 //! - [`galil`]: the Galil DMC protocol over any byte stream, its `Board`, and an emulator.
 //! - [`netft`]: the ATI Net F/T six-axis force/torque sensor over UDP (RDT), and an emulator.
+//! - [`v4l2`]: cameras on Linux V4L2 (UVC webcams), their kernel capture timestamps on the
+//!   node's clock, frames as JPEG.
 #![warn(missing_docs)]
 
 pub mod galil;
 pub mod model;
 pub mod netft;
 pub mod sim;
+pub mod v4l2;

@@ -109,6 +109,7 @@ fn server_msg() -> impl Strategy<Value = ServerMsg> {
                 subscription,
                 dropped,
                 samples: Vec::new(),
+                common_offset_ns: -7,
             })
         }),
         wire_error().prop_map(ServerMsg::Error),

@@ -231,6 +231,7 @@ fn call_examples(m: &mut BTreeMap<&'static str, Vec<u8>>) {
             subscription: 1,
             dropped: 0,
             samples: vec![record(1000), record(1001)],
+            common_offset_ns: 0,
         })),
     );
     m.insert(

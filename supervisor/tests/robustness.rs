@@ -93,6 +93,7 @@ impl TestService {
                 subscription: 1,
                 dropped: outbox.dropped(),
                 samples: vec![record.clone()],
+                common_offset_ns: 0,
             };
             if outbox.try_push(ServerMsg::Telemetry(batch)) {
                 sent += 1;

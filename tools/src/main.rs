@@ -38,6 +38,10 @@ enum Command {
     Netft(cmd::netft::Args),
     /// Emulate an ATI Net F/T on a UDP port (optionally with a Galil DMC whose arm it sits on).
     NetftSim(cmd::netft_sim::Args),
+    /// Check a V4L2 camera by hand: `probe DEVICE` lists its formats, sizes and rates and
+    /// captures a few frames with their timestamp source.
+    #[command(subcommand)]
+    Camera(cmd::camera::CameraCommand),
     /// Run a node: its creator, its objects and their real-time loops, served over TCP.
     Node(cmd::node::Args),
     /// Run the naming service alone.
@@ -72,6 +76,7 @@ fn main() -> ExitCode {
         Command::GalilSim(args) => cmd::galil_sim::run(args),
         Command::Netft(args) => cmd::netft::run(args),
         Command::NetftSim(args) => cmd::netft_sim::run(args),
+        Command::Camera(c) => cmd::camera::run(c),
         Command::Node(args) => cmd::node::run(args),
         Command::Naming(args) => cmd::naming::run(args),
         Command::Ctl(args) => cmd::ctl::run(args),

@@ -28,6 +28,12 @@ pub trait Streamed: Sized {
     /// `pushed`'s subscription, its count of dropped batches and its records, if it carries
     /// this kind of record.
     fn unpack(pushed: Pushed) -> Option<(u64, u64, Vec<Self>)>;
+
+    /// The sending node's common-clock offset that `pushed` carries, ns (`None`: it carries
+    /// none, as records already on the common clock or link records).
+    fn common_offset(_pushed: &Pushed) -> Option<i64> {
+        None
+    }
 }
 
 impl Streamed for TelemetryRecord {
@@ -41,6 +47,13 @@ impl Streamed for TelemetryRecord {
     fn unpack(pushed: Pushed) -> Option<(u64, u64, Vec<Self>)> {
         match pushed {
             Pushed::Telemetry(b) => Some((b.subscription, b.dropped, b.samples)),
+            Pushed::Link(_) | Pushed::Frames(_) => None,
+        }
+    }
+
+    fn common_offset(pushed: &Pushed) -> Option<i64> {
+        match pushed {
+            Pushed::Telemetry(b) => Some(b.common_offset_ns),
             Pushed::Link(_) | Pushed::Frames(_) => None,
         }
     }
@@ -101,6 +114,7 @@ pub struct Subscription<R> {
     path: String,
     pending: VecDeque<R>,
     dropped: u64,
+    common_offset_ns: i64,
     timeout: Duration,
     broken: bool,
 }
@@ -139,6 +153,7 @@ impl<R: Streamed> Subscription<R> {
             path: object_path(&reference.node, reference.class, &reference.name),
             pending: VecDeque::new(),
             dropped: 0,
+            common_offset_ns: 0,
             timeout: config.timeout,
             broken: false,
         })
@@ -157,6 +172,18 @@ impl<R: Streamed> Subscription<R> {
     /// Batches the node dropped so far because this side read too slowly.
     pub fn dropped(&self) -> u64 {
         self.dropped
+    }
+
+    /// The node's common-clock offset as its newest batch gave it, ns: a telemetry record's
+    /// time on the system's common clock is `time_ns` plus this ([`Subscription::to_common`]).
+    /// Zero before the first batch, and for records that carry none.
+    pub fn common_offset_ns(&self) -> i64 {
+        self.common_offset_ns
+    }
+
+    /// A time of the node's clock (`time_ns` of a telemetry record) on the common clock.
+    pub fn to_common(&self, node_ns: u64) -> u64 {
+        node_ns.saturating_add_signed(self.common_offset_ns)
     }
 
     /// How long the iterator waits for one record.
@@ -182,6 +209,11 @@ impl<R: Streamed> Subscription<R> {
             let left = deadline.saturating_duration_since(Instant::now());
             match self.conn.next_pushed(left) {
                 Ok(Some(pushed)) => {
+                    if pushed.subscription() == self.subscription
+                        && let Some(offset) = R::common_offset(&pushed)
+                    {
+                        self.common_offset_ns = offset;
+                    }
                     if let Some((subscription, dropped, records)) = R::unpack(pushed)
                         && subscription == self.subscription
                     {

@@ -76,7 +76,7 @@ pub use replies::{
 pub const MAGIC: [u8; 4] = *b"PNLP";
 
 /// The version of this protocol; a hello with another version is refused.
-pub const PROTOCOL_VERSION: u16 = 5;
+pub const PROTOCOL_VERSION: u16 = 6;
 
 /// The default maximum frame body, bytes (256 KiB).
 pub const DEFAULT_MAX_FRAME: usize = 256 * 1024;

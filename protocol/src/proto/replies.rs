@@ -301,6 +301,18 @@ pub struct TelemetryBatch {
     pub dropped: u64,
     /// Samples in time order.
     pub samples: Vec<TelemetryRecord>,
+    /// The node's common-clock offset when the batch was sent, ns: a sample's time on the
+    /// system's common clock is `time_ns + common_offset_ns` (zero on the node that hosts the
+    /// naming service, on a simulated clock, or without a naming service). What lets a viewer
+    /// put samples of several hosts, and camera frames, on one time line.
+    pub common_offset_ns: i64,
+}
+
+impl TelemetryBatch {
+    /// `time_ns` of one of its samples on the system's common clock.
+    pub fn to_common(&self, time_ns: u64) -> u64 {
+        time_ns.saturating_add_signed(self.common_offset_ns)
+    }
 }
 
 /// Link records of one subscription to a `trajectory/teleop` channel linked to another node

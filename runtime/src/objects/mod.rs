@@ -267,8 +267,10 @@ impl Creator {
                 clock: config.clock,
                 ..Registry::default()
             }),
+            subscriptions: Arc::new(Subscriptions::on_common_clock(
+                config.common_clock.offset_cell(),
+            )),
             config,
-            subscriptions: Arc::new(Subscriptions::default()),
             link_pump: Mutex::new(None),
             fifo: OnceLock::new(),
             recording: Mutex::new(None),

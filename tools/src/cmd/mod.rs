@@ -3,6 +3,7 @@
 use std::process::ExitCode;
 
 pub mod bench;
+pub mod camera;
 pub mod ctl;
 pub mod demo;
 pub mod doctor;

@@ -24,6 +24,7 @@ impl Service for Echo {
                             subscription: s,
                             dropped: 0,
                             samples: Vec::<TelemetryRecord>::new(),
+                            common_offset_ns: 0,
                         })
                     } else {
                         ServerMsg::Link(LinkBatch {

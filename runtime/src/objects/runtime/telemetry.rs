@@ -9,6 +9,7 @@ use penelope_hal::JointVector;
 use penelope_protocol::proto::{
     LinkBatch, TelemetryBatch, TelemetryRecord, WrenchMsg, joints_from_vector,
 };
+use penelope_rt_core::exec::CommonOffset;
 use penelope_rt_core::ring::ArcConsumer;
 use penelope_rt_core::telemetry::TelemetrySample;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -81,6 +82,8 @@ pub struct Subscriptions {
     recorders: Mutex<Vec<Recorder>>,
     /// The address of each session that subscribed (for the quota per address).
     peers: Mutex<std::collections::HashMap<u64, std::net::IpAddr>>,
+    /// The node's common-clock offset, sent with every batch.
+    common_offset: Arc<CommonOffset>,
 }
 
 /// An in-process consumer of every tick of one controller (not decimated), with the plant's
@@ -93,6 +96,15 @@ struct Recorder {
 }
 
 impl Subscriptions {
+    /// No subscriptions yet; batches carry the offset in `common_offset` (the node's common
+    /// clock's cell).
+    pub fn on_common_clock(common_offset: Arc<CommonOffset>) -> Self {
+        Subscriptions {
+            common_offset,
+            ..Subscriptions::default()
+        }
+    }
+
     /// How many there are (of controllers and of links).
     pub fn len(&self) -> usize {
         self.list.lock().map(|l| l.len()).unwrap_or(0) + self.links.len()
@@ -294,6 +306,7 @@ impl Subscriptions {
                     subscription: s.id,
                     dropped: s.dropped,
                     samples: samples.to_vec(),
+                    common_offset_ns: self.common_offset.get(),
                 };
                 if s.sink.ticks(batch) {
                     continue;
@@ -445,5 +458,25 @@ mod tests {
             seqs.extend(b.samples.iter().map(|r| r.seq));
         }
         assert_eq!(seqs, (1..=4096).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn every_batch_carries_the_nodes_common_clock_offset_as_it_is_now() {
+        let offset = Arc::new(CommonOffset::new(-3_700));
+        let subs = Subscriptions::on_common_clock(offset.clone());
+        let (outbox, rx) = Outbox::bounded(16);
+        subs.add(1, "follow", 1, Box::new(outbox), 8).unwrap();
+        let mut tick = TickRecord::default();
+        tick.sample.seq = 1;
+        tick.sample.time = penelope_hal::Timestamp::from_nanos(10_000);
+        subs.publish("follow", &[tick], 6);
+        offset.set(52_000);
+        tick.sample.seq = 2;
+        subs.publish("follow", &[tick], 6);
+        let mut common = Vec::new();
+        while let Ok(ServerMsg::Telemetry(b)) = rx.rx.try_recv() {
+            common.extend(b.samples.iter().map(|r| b.to_common(r.time_ns)));
+        }
+        assert_eq!(common, vec![6_300, 62_000]);
     }
 }
