@@ -8,8 +8,8 @@
 //! whatever the frame's delay.
 //!
 //! A reader follows the camera's frames; a helper thread of it follows the telemetry of the
-//! robot the camera's model names (every tick, on the common clock through its node's
-//! [`NodeClock`]). The haptic display is never delayed: only this view is aligned.
+//! robot the camera's model names (every tick, on the common clock with the offset its node
+//! sends with each batch). The haptic display is never delayed: only this view is aligned.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -23,8 +23,6 @@ use penelope_protocol::client::sync::{
 use penelope_protocol::proto::{CameraFrame, CameraModelMsg, TelemetryRecord};
 use penelope_scene::{CameraCalibration, CompressedImage, Timestamp};
 use serde_json::{Value, json};
-
-use crate::clock::NodeClock;
 
 /// The aligned force sample's schema.
 pub const ALIGNED_FORCE: &str = "penelope.AlignedForce";
@@ -195,9 +193,10 @@ pub struct RobotSamples {
 }
 
 impl RobotSamples {
-    /// Follows the robot at `path` (every tick) until dropped, its times made common by
-    /// `clock`; the subscription is asked again after a failure, while not stopped.
-    pub fn follow(client: Client, path: String, clock: NodeClock) -> Self {
+    /// Follows the robot at `path` (every tick) until dropped, its times made common with the
+    /// offset its node sends; the subscription is asked again after a failure, while not
+    /// stopped.
+    pub fn follow(client: Client, path: String) -> Self {
         let history = Arc::new(Mutex::new(SampleHistory::default()));
         let stop = Arc::new(AtomicBool::new(false));
         let (h, s) = (history.clone(), stop.clone());
@@ -211,7 +210,7 @@ impl RobotSamples {
                     };
                     while !s.load(Ordering::Acquire) {
                         match stream.recv_timeout(Duration::from_millis(200)) {
-                            Ok(Some(r)) => push(&h, &r, clock),
+                            Ok(Some(r)) => push(&h, &r, stream.common_offset_ns()),
                             Ok(None) => {}
                             Err(_) => break,
                         }
@@ -251,9 +250,8 @@ impl Drop for RobotSamples {
     }
 }
 
-fn push(history: &Mutex<SampleHistory>, r: &TelemetryRecord, clock: NodeClock) {
-    let mut sample = ForceSample::from_record(r, 0);
-    sample.time_ns = clock.to_common(r.time_ns);
+fn push(history: &Mutex<SampleHistory>, r: &TelemetryRecord, offset_ns: i64) {
+    let sample = ForceSample::from_record(r, offset_ns);
     history
         .lock()
         .unwrap_or_else(PoisonError::into_inner)

@@ -613,8 +613,7 @@ impl Reader {
                     && let Some(robot) = &frame.model.robot
                 {
                     let path = object_path(node, Class::Robot, robot);
-                    let clock = self.clock().unwrap_or(NodeClock::Common);
-                    let follower = RobotSamples::follow(self.shared.client.clone(), path, clock);
+                    let follower = RobotSamples::follow(self.shared.client.clone(), path);
                     samples = Some((robot.clone(), follower));
                 }
                 let (aligned, newest) = samples

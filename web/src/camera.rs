@@ -60,9 +60,6 @@ const ARROW_METRES_PER_NEWTON: f64 = 0.01;
 const PLOT_SPACING_NS: u64 = 10_000_000;
 /// How long a reader waits for a record before checking that the socket still wants it.
 const POLL: Duration = Duration::from_millis(200);
-/// The node's offset to the common clock of the robot's telemetry: zero while nodes share the
-/// naming service's kernel (see [`to_common`]).
-const TELEMETRY_OFFSET_NS: i64 = 0;
 
 /// `GET /api/camera?path=&decimation=&hand=&link=`.
 #[derive(Deserialize)]
@@ -203,9 +200,9 @@ fn read(client: &Client, q: &CameraQuery, decimation: u32, shared: &Arc<Shared>)
         let (client, path, shared, hand) =
             (client.clone(), path.clone(), shared.clone(), hand.clone());
         helpers.push(std::thread::spawn(move || {
-            follow_ticks(&client, &path, &shared, |r| {
+            follow_ticks(&client, &path, &shared, |r, offset| {
                 hand.tick_ns
-                    .store(to_common(r.time_ns, TELEMETRY_OFFSET_NS), Ordering::Release);
+                    .store(to_common(r.time_ns, offset), Ordering::Release);
             })
         }));
     }
@@ -246,8 +243,8 @@ fn read(client: &Client, q: &CameraQuery, decimation: u32, shared: &Arc<Shared>)
                 history.clone(),
             );
             helpers.push(std::thread::spawn(move || {
-                follow_ticks(&client, &p, &shared, |r| {
-                    let sample = ForceSample::from_record(r, TELEMETRY_OFFSET_NS);
+                follow_ticks(&client, &p, &shared, |r, offset| {
+                    let sample = ForceSample::from_record(r, offset);
                     history
                         .lock()
                         .unwrap_or_else(PoisonError::into_inner)
@@ -416,12 +413,13 @@ fn describe(
     })
 }
 
-/// Reads a loop's ticks into `each` until the socket closes; a failure is reported once.
+/// Reads a loop's ticks into `each`, with their node's offset to the common clock, until the
+/// socket closes; a failure is reported once.
 fn follow_ticks(
     client: &Client,
     path: &str,
     shared: &Shared,
-    mut each: impl FnMut(&penelope_protocol::proto::TelemetryRecord),
+    mut each: impl FnMut(&penelope_protocol::proto::TelemetryRecord, i64),
 ) {
     let mut stream = match client.subscribe(path, 1) {
         Ok(s) => s,
@@ -432,7 +430,7 @@ fn follow_ticks(
     };
     while !shared.closed.load(Ordering::Acquire) {
         match stream.recv_timeout(POLL) {
-            Ok(Some(r)) => each(&r),
+            Ok(Some(r)) => each(&r, stream.common_offset_ns()),
             Ok(None) => {}
             Err(e) => {
                 let e: ApiError = e.into();
