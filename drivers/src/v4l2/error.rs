@@ -9,6 +9,11 @@ use thiserror::Error;
 /// What went wrong with a V4L2 camera.
 #[derive(Debug, Error)]
 pub enum V4l2Error {
+    /// This build has no V4L2 capture (built without the `v4l2` feature).
+    #[error(
+        "{0}: this penelope was built without V4L2 capture: rebuild with `--features v4l2` (its bindings need libclang: `apt-get install libclang-dev`)"
+    )]
+    Unsupported(PathBuf),
     /// The device node does not exist.
     #[error("{0}: no such device")]
     NoSuchDevice(PathBuf),

@@ -3,13 +3,20 @@
 
 use std::path::Path;
 
+#[cfg(feature = "v4l2")]
 use v4l::frameinterval::FrameIntervalEnum;
+#[cfg(feature = "v4l2")]
 use v4l::framesize::FrameSizeEnum;
+#[cfg(feature = "v4l2")]
 use v4l::video::Capture;
+#[cfg(feature = "v4l2")]
 use v4l::{Device, FourCC};
 
-use super::camera::{DeviceIdentity, open_capture_device};
+use super::camera::DeviceIdentity;
+#[cfg(feature = "v4l2")]
+use super::camera::open_capture_device;
 use super::error::V4l2Error;
+#[cfg(feature = "v4l2")]
 use super::format::PixelFormat;
 
 /// A device's formats, sizes and rates.
@@ -46,6 +53,16 @@ pub struct SizeReport {
 }
 
 /// Lists what the device at `path` offers.
+///
+/// # Errors
+/// [`V4l2Error::Unsupported`] in a build without the `v4l2` feature.
+#[cfg(not(feature = "v4l2"))]
+pub fn probe(path: &Path) -> Result<DeviceReport, V4l2Error> {
+    Err(V4l2Error::Unsupported(path.to_path_buf()))
+}
+
+/// Lists what the device at `path` offers.
+#[cfg(feature = "v4l2")]
 pub fn probe(path: &Path) -> Result<DeviceReport, V4l2Error> {
     let (device, identity) = open_capture_device(path)?;
     let descriptions = device
@@ -63,6 +80,7 @@ pub fn probe(path: &Path) -> Result<DeviceReport, V4l2Error> {
     Ok(DeviceReport { identity, formats })
 }
 
+#[cfg(feature = "v4l2")]
 fn sizes_of(device: &Device, fourcc: FourCC) -> Vec<SizeReport> {
     let mut sizes = Vec::new();
     for size in device.enum_framesizes(fourcc).unwrap_or_default() {

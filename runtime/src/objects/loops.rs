@@ -65,6 +65,12 @@ impl Creator {
         let launch = self.launch(name)?;
         let mut reg = self.lock()?;
         let built = reg.build_loop(name, &launch)?;
+        // A camera watching this controller's robot takes its ticks from now on.
+        if let KindState::Controller(c) = &reg.get(name)?.body
+            && let Some(robot) = &c.robot
+        {
+            self.subscriptions.set_driver(name, robot);
+        }
         let rt = launch.rt;
         let scheduling = scheduling(name, fifo, rt.priority);
         let (mut running, bodies) = self.wire_loop(name, built, fifo);

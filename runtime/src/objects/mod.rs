@@ -47,6 +47,7 @@
 //! joins the threads and gives the boards back.
 
 pub mod bridged;
+pub mod camera;
 pub mod clock;
 pub mod config;
 pub mod delay_line;
@@ -258,6 +259,9 @@ pub struct DetachedLoop {
 impl Creator {
     /// A creator with no objects.
     pub fn new(config: CreatorConfig) -> Self {
+        let subscriptions = Arc::new(Subscriptions::on_common_clock(
+            config.common_clock.offset_cell(),
+        ));
         Creator {
             sim: (config.clock == ClockMode::Simulated)
                 .then(|| Arc::new(Mutex::new(SimWorld::default()))),
@@ -265,12 +269,18 @@ impl Creator {
             registry: Mutex::new(Registry {
                 datagram_key: config.datagram_key.clone(),
                 clock: config.clock,
+                camera_env: Some(registry::camera::CameraEnv {
+                    subscriptions: subscriptions.clone(),
+                    clock: config.common_clock.clone(),
+                    send_clock: match config.clock {
+                        ClockMode::Simulated => camera::SendClock::Simulated,
+                        _ => camera::SendClock::Real,
+                    },
+                }),
                 ..Registry::default()
             }),
-            subscriptions: Arc::new(Subscriptions::on_common_clock(
-                config.common_clock.offset_cell(),
-            )),
             config,
+            subscriptions,
             link_pump: Mutex::new(None),
             fifo: OnceLock::new(),
             recording: Mutex::new(None),
@@ -393,7 +403,7 @@ impl Creator {
         })
     }
 
-    /// Starts recording `objects` (none: every controller and linked channel) to the new
+    /// Starts recording `objects` (none: every controller, linked channel and camera) to the new
     /// MCAP file `name` in the node's recordings directory ([`CreatorConfig::records`]): see
     /// [`CreatorCall::RecordStart`](penelope_protocol::proto::CreatorCall::RecordStart). The recorder is a thread of normal priority fed by the
     /// telemetry pump through bounded streams; no loop waits for it.
@@ -446,7 +456,11 @@ impl Creator {
         let names: Vec<String> = if objects.is_empty() {
             self.list()
                 .into_iter()
-                .filter(|o| o.class == Class::Controller || o.kind == kinds::Kind::TELEOP.as_str())
+                .filter(|o| {
+                    o.class == Class::Controller
+                        || o.kind == kinds::Kind::TELEOP.as_str()
+                        || o.kind == registry::camera::SIM_CAMERA.as_str()
+                })
                 .map(|o| o.name)
                 .collect()
         } else {
@@ -454,12 +468,15 @@ impl Creator {
         };
         let mut streams = Vec::new();
         let mut links = Vec::new();
+        let mut cameras = Vec::new();
         for name in &names {
             let info = self
                 .info(name)
                 .ok_or_else(|| ObjectError::UnknownName(name.clone()))?;
             if info.class == Class::Controller {
                 streams.push((name.clone(), self.record_ticks(name, RECORDER_CAPACITY)?));
+            } else if info.kind == registry::camera::SIM_CAMERA.as_str() {
+                cameras.push(name.clone());
             } else if info.kind == kinds::Kind::TELEOP.as_str() {
                 match self.link_source(name)? {
                     Some(source) => links.push((name.clone(), source)),
@@ -470,7 +487,7 @@ impl Creator {
                 }
             } else {
                 return Err(ObjectError::BadArgument(format!(
-                    "`{name}` is a {}: only controllers and channels are recorded",
+                    "`{name}` is a {}: only controllers, channels and cameras are recorded",
                     info.kind
                 )));
             }
@@ -490,11 +507,13 @@ impl Creator {
             node_time: self.node_time(),
             scene,
         };
-        let recorder = recording::Recorder::start(
+        let taps = self.lock()?.camera_taps(&cameras);
+        let recorder = recording::Recorder::start_with_cameras(
             recording::RecordProfile::Penelope,
             std::path::Path::new(&path),
             Some(file),
             sources,
+            taps,
         )
         .map_err(|e| {
             let _ = std::fs::remove_file(&path);
@@ -506,6 +525,27 @@ impl Creator {
             controllers,
             links: linked,
         })
+    }
+
+    /// A tap of every frame each running camera of this node releases from now on, by camera
+    /// name: what a recording writes ([`recording::Recorder::start_with_cameras`]). A reader
+    /// that falls behind loses frames (counted in the camera's `describe`), never the camera.
+    pub fn camera_taps(
+        &self,
+    ) -> Vec<(
+        String,
+        std::sync::mpsc::Receiver<penelope_protocol::proto::CameraFrame>,
+    )> {
+        let Ok(reg) = self.lock() else {
+            return Vec::new();
+        };
+        let names: Vec<String> = reg
+            .objects
+            .values()
+            .filter(|o| o.kind == registry::camera::SIM_CAMERA)
+            .map(|o| o.name.clone())
+            .collect();
+        reg.camera_taps(&names)
     }
 
     /// The 3D scene of a recording of `controllers` at `rate_hz` of tick time: the robot each
@@ -657,6 +697,8 @@ impl Creator {
             self.note_lifecycle(name, o.kind.as_str(), "destroy", "destroyed");
         }
         self.subscriptions.links().end_stale(name, None);
+        // A camera's subscriptions end with it.
+        self.subscriptions.frames().end_camera(name);
         Ok(())
     }
 

@@ -5,8 +5,8 @@
 //! runtime passes here.
 
 use penelope_protocol::proto::{
-    Call, Class, ControllerMethod, CreatorCall, LinkBatch, Method, NodeInfo, Reply, ServerMsg,
-    TelemetryBatch, WireError,
+    Call, Class, ControllerMethod, CreatorCall, FrameBatch, LinkBatch, Method, NodeInfo, Reply,
+    ServerMsg, TelemetryBatch, WireError,
 };
 use penelope_protocol::service::{Outbox, Service, Session};
 
@@ -15,7 +15,7 @@ use super::error::ObjectError;
 use super::link_source::LinkSource;
 use super::registry::KindState;
 use super::roles;
-use super::runtime::{LinkPump, TickSink};
+use super::runtime::{FrameSink, FrameSubscriptionSpec, LinkPump, TickSink};
 
 /// The creator served alone (without its node): its errors become wire errors here, by the
 /// one conversion ([`error`](super::error)).
@@ -37,6 +37,17 @@ impl TickSink for Outbox {
 
     fn links(&self, batch: LinkBatch) -> bool {
         self.try_push(ServerMsg::Link(batch))
+    }
+
+    fn is_closed(&self) -> bool {
+        Outbox::is_closed(self)
+    }
+}
+
+/// A camera subscription's frames go to the session's outbox too, one frame per message.
+impl FrameSink for Outbox {
+    fn frames(&self, batch: FrameBatch) -> bool {
+        self.try_push(ServerMsg::Frames(batch))
     }
 
     fn is_closed(&self) -> bool {
@@ -143,6 +154,37 @@ impl Creator {
                         .ok_or_else(|| ObjectError::NoLink(object.into()))?;
                     drop(reg);
                     return self.subscribe_link(session, object, source, decimation);
+                }
+                (_, KindState::Camera(c)) => {
+                    if c.runner.is_none() {
+                        return Err(ObjectError::NotReady(format!(
+                            "camera `{object}` is not configured: its frames exist from `configure`"
+                        )));
+                    }
+                    let spec = FrameSubscriptionSpec {
+                        camera: object.to_string(),
+                        decimation,
+                        queue: c.setup.queue,
+                        link: c.setup.link.clone(),
+                        seed: c.setup.camera.seed,
+                    };
+                    drop(reg);
+                    self.check_subscription_quota(session)?;
+                    let id = self.subscriptions.add_frames(
+                        session.id,
+                        spec,
+                        Box::new(session.outbox.clone()),
+                        self.config.max_subscriptions,
+                    )?;
+                    return Ok(Reply::Subscribed { subscription: id });
+                }
+                (Class::Sensor, _) => {
+                    return Err(ObjectError::Unsupported {
+                        kind: o.kind.as_str().into(),
+                        method: "subscribe (of sensors, only a camera's frames are subscribed to; \
+                                 a force sensor's wrench is in its controller's telemetry)"
+                            .into(),
+                    });
                 }
                 (Class::Controller, _) => object.to_string(),
                 (Class::Robot, _) => reg.driver_of(object).ok_or_else(|| {

@@ -80,8 +80,10 @@ pub fn apply_recorded(
         node_time: node.creator().node_time(),
         scene,
     };
-    let recorder =
-        Recorder::start(profile, path, None, sources).map_err(|e| RunError::Task(e.to_string()))?;
+    // The node's cameras' frames too (configured above; their frames come once a loop runs).
+    let cameras = node.creator().camera_taps();
+    let recorder = Recorder::start_with_cameras(profile, path, None, sources, cameras)
+        .map_err(|e| RunError::Task(e.to_string()))?;
     for name in &to_activate {
         node.call(Call::Object {
             object: name.clone(),

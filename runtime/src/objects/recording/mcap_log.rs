@@ -32,7 +32,11 @@
 //!   the file's `recorder` metadata record);
 //! - the 3D scene ([`super::scene`]), in Foxglove's well-known schemas: `/tf`
 //!   (`foxglove.FrameTransforms`), `/scene` (`foxglove.SceneUpdate`) and
-//!   `/robot_description/<robot>` (`penelope.RobotDescription`).
+//!   `/robot_description/<robot>` (`penelope.RobotDescription`);
+//! - per camera on the node (`sensor/sim-camera`), `/<camera>/image`
+//!   (`foxglove.CompressedImage`, JPEG) stamped and logged at each frame's capture instant on
+//!   the common clock, and `/<camera>/calibration` (`foxglove.CameraCalibration`) with its
+//!   first frame.
 //!
 //! Log and publish times are on the system's common clock (see [`crate::common_clock`]: the
 //! naming service host's monotonic clock), so that the recordings of several hosts share one
@@ -305,13 +309,23 @@ impl McapLog {
         time: u64,
         message: &impl Serialize,
     ) -> Result<(), RecordingError> {
+        let time = time.saturating_add_signed(self.clock_offset_ns);
+        self.write_common(channel, time, message)
+    }
+
+    /// Writes `message` on `channel` at `time`, ns on the common clock.
+    fn write_common(
+        &mut self,
+        channel: u16,
+        time: u64,
+        message: &impl Serialize,
+    ) -> Result<(), RecordingError> {
         let bytes = serde_json::to_vec(message).map_err(|e| RecordingError::Format {
             path: self.path.clone(),
             message: e.to_string(),
         })?;
         let seq = self.sequence.entry(channel).or_insert(0);
         *seq = seq.wrapping_add(1);
-        let time = time.saturating_add_signed(self.clock_offset_ns);
         let header = mcap::records::MessageHeader {
             channel_id: channel,
             sequence: *seq,
@@ -483,7 +497,59 @@ impl McapLog {
         time_ns: u64,
         message: &impl Serialize,
     ) -> Result<(), RecordingError> {
-        let id = match self.scene_channels.get(topic) {
+        let id = self.scene_channel(topic, schema)?;
+        self.write(id, time_ns, message)
+    }
+
+    /// Writes camera `camera`'s `frame`: on `/<camera>/image` as a `foxglove.CompressedImage`
+    /// whose timestamp and log time are its capture instant (already on the common clock), and,
+    /// with the first frame, the camera's pinhole intrinsics on `/<camera>/calibration` as a
+    /// `foxglove.CameraCalibration` (K and P, no distortion) at the same instant.
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`], [`RecordingError::Format`].
+    pub fn camera_frame(
+        &mut self,
+        camera: &str,
+        frame: &penelope_protocol::proto::CameraFrame,
+    ) -> Result<(), RecordingError> {
+        use penelope_scene::{
+            CAMERA_CALIBRATION, COMPRESSED_IMAGE, CameraCalibration, CompressedImage, Timestamp,
+        };
+        let stamp = Timestamp::from_ns(frame.capture_ns);
+        let calibration_topic = format!("/{camera}/calibration");
+        if !self.scene_channels.contains_key(&calibration_topic) {
+            let m = &frame.model;
+            let id = self.scene_channel(&calibration_topic, CAMERA_CALIBRATION)?;
+            let calibration = CameraCalibration {
+                timestamp: stamp,
+                frame_id: m.frame_id.clone(),
+                width: m.width,
+                height: m.height,
+                distortion_model: "plumb_bob".into(),
+                d: Vec::new(),
+                k: [m.fx, 0.0, m.cx, 0.0, m.fy, m.cy, 0.0, 0.0, 1.0],
+                r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+                p: [
+                    m.fx, 0.0, m.cx, 0.0, 0.0, m.fy, m.cy, 0.0, 0.0, 0.0, 1.0, 0.0,
+                ],
+            };
+            self.write_common(id, frame.capture_ns, &calibration)?;
+        }
+        let id = self.scene_channel(&format!("/{camera}/image"), COMPRESSED_IMAGE)?;
+        let image = CompressedImage {
+            timestamp: stamp,
+            frame_id: frame.model.frame_id.clone(),
+            data: frame.data.clone(),
+            format: frame.encoding.name().to_string(),
+        };
+        self.write_common(id, frame.capture_ns, &image)
+    }
+
+    /// The channel of the 3D scene (or a camera's) on `topic` with schema `schema`, added
+    /// (with the schema) the first time.
+    fn scene_channel(&mut self, topic: &str, schema: &str) -> Result<u16, RecordingError> {
+        Ok(match self.scene_channels.get(topic) {
             Some(id) => *id,
             None => {
                 let schema_id = match self.scene_schemas.get(schema) {
@@ -504,8 +570,7 @@ impl McapLog {
                 self.scene_channels.insert(topic.to_string(), id);
                 id
             }
-        };
-        self.write(id, time_ns, message)
+        })
     }
 
     /// Adds schema `name`, JSON Schema `text`.

@@ -18,6 +18,7 @@ use crate::objects::clock::ClockReader;
 use crate::objects::lifecycle_feed::LifecycleEvent;
 use crate::objects::link_source::{LinkSource, StreamDatagram};
 use crate::objects::tick::{TickRecord, TickStream};
+use penelope_protocol::proto::CameraFrame;
 
 /// How often the recorder writes what its streams hold.
 const DRAIN_EVERY: Duration = Duration::from_millis(50);
@@ -140,6 +141,22 @@ impl Recorder {
         file: Option<File>,
         sources: RecordingSources<'_>,
     ) -> Result<Recorder, RecordingError> {
+        Recorder::start_with_cameras(profile, path, file, sources, Vec::new())
+    }
+
+    /// As [`start`](Self::start), also writing `cameras`' frames (each camera's name and a tap
+    /// of its frames): in a [`RecordProfile::Penelope`] file, `/<camera>/image` and
+    /// `/<camera>/calibration` ([`McapLog::camera_frame`]); a `ros2` file leaves them out.
+    ///
+    /// # Errors
+    /// As [`start`](Self::start).
+    pub fn start_with_cameras(
+        profile: RecordProfile,
+        path: &Path,
+        file: Option<File>,
+        sources: RecordingSources<'_>,
+        cameras: Vec<(String, Receiver<CameraFrame>)>,
+    ) -> Result<Recorder, RecordingError> {
         let names: Vec<String> = sources.streams.iter().map(|(n, _)| n.clone()).collect();
         let node = sources.node;
         let sink = match profile {
@@ -159,7 +176,9 @@ impl Recorder {
                 Sink::ros2(log, sources.clock)?
             }
         };
-        Recorder::spawn(RecorderThread::new(sink, sources), path)
+        let mut writer = RecorderThread::new(sink, sources);
+        writer.cameras = cameras;
+        Recorder::spawn(writer, path)
     }
 
     /// Starts the recorder's thread.
@@ -212,6 +231,8 @@ struct RecorderThread {
     node_time: ClockReader,
     /// A buffer for the datagrams taken from a link's ring.
     drained: Vec<StreamDatagram>,
+    /// Each camera's name and its frames.
+    cameras: Vec<(String, Receiver<CameraFrame>)>,
 }
 
 impl RecorderThread {
@@ -234,6 +255,7 @@ impl RecorderThread {
             clock: sources.clock.clone(),
             node_time: sources.node_time,
             drained: Vec::new(),
+            cameras: Vec::new(),
         }
     }
 
@@ -271,6 +293,13 @@ impl RecorderThread {
         for (i, (_, stream)) in self.streams.iter().enumerate() {
             while let Ok(record) = stream.ticks.try_recv() {
                 self.sink.tick(i, &record)?;
+            }
+        }
+        for (camera, frames) in &self.cameras {
+            for frame in frames.try_iter() {
+                if let Sink::Penelope(log, _) = &mut self.sink {
+                    log.camera_frame(camera, &frame)?;
+                }
             }
         }
         for event in self.lifecycle.iter().flat_map(Receiver::try_iter) {

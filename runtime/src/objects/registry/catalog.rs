@@ -53,6 +53,7 @@ pub static KIND_TABLE: &[KindEntry] = &[
     entry(Kind::VIRTUAL_SENSOR, "6-axis force sensor: a robot's plant contact at the wrist (bias, noise, low-pass), or an environment probed at a pose", described::<SensorConfig>(), makers::virtual_sensor),
     super::netft::ENTRY,
     super::test_signal::ENTRY,
+    super::camera::ENTRY,
     entry(Kind::OPERATOR_HAND, "the operator's hand on a simulated master: a scripted impedance that pushes the handle and holds the clutch", described::<HandConfig>(), makers::operator_hand),
     entry(Kind::REPLAY_SENSOR, "6-axis force sensor playing back a recorded wrench stream (an MCAP recording's controller channel, read at configure)", described::<ReplaySensorConfig>(), makers::replay),
     entry(Kind::OPERATOR_REPLAY, "the operator's hand played back from a recording: the master's handle moves, and the clutch is held, as recorded", described::<OperatorReplayConfig>(), makers::replay),

@@ -537,6 +537,7 @@ impl Registry {
                 });
             }
             KindState::LoopSensor(s) => return s.method(o.kind, m),
+            KindState::Camera(_) => return Err(super::camera::camera_method(o.kind, m)),
             KindState::ReplaySensor(_) | KindState::OperatorReplay(_) => {
                 return Err(ObjectError::Unsupported {
                     kind: o.kind.as_str().into(),

@@ -43,6 +43,7 @@ use crate::objects::runtime::{SimBody, VirtualSensor};
 use penelope_protocol::proto::{Class, JointAxis, ObjectInfo};
 
 mod build;
+pub(crate) mod camera;
 pub mod catalog;
 mod controller_methods;
 mod crtk_methods;
@@ -93,6 +94,8 @@ pub(crate) enum KindState {
     /// A sensor kind read in the control loop's own thread ([`loop_sensor`]).
     LoopSensor(Box<dyn loop_sensor::LoopSensorObject>),
     OperatorReplay(Box<crate::objects::replay::OperatorReplayObj>),
+    /// A `sensor/sim-camera` ([`camera`]).
+    Camera(Box<camera::CameraObj>),
 }
 
 /// A `trajectory/teleop`: its settings, and its cells once configured.
@@ -283,6 +286,7 @@ impl Object {
             }
             KindState::Sensor(s) => relations.extend(publisher_relations(s)),
             KindState::LoopSensor(s) => relations.extend(s.relations()),
+            KindState::Camera(c) => relations.extend(c.relations(&self.name)),
             KindState::Teleop(t) => {
                 relations.push(("master".to_string(), t.config.master.clone()));
                 relations.push(("slave".to_string(), t.config.slave.clone()));
@@ -391,6 +395,8 @@ pub(crate) struct Registry {
     pub clock: crate::objects::clock::ClockMode,
     /// The channels whose master is an operator station behind the Zenoh bridge.
     pub bridged: crate::objects::bridged::BridgedChannels,
+    /// What a camera's thread needs from the creator (set by the creator).
+    pub camera_env: Option<camera::CameraEnv>,
 }
 
 /// What activating a controller needs from the creator.
@@ -500,6 +506,7 @@ impl Registry {
                 KindState::Sensor(s) => s.publisher = None,
                 // A stop request to the box, and the I/O thread joined.
                 KindState::LoopSensor(s) => s.release(),
+                KindState::Camera(_) => self.release_camera(name),
                 b @ (KindState::ReplaySensor(_) | KindState::OperatorReplay(_)) => {
                     Registry::release_replay(b)
                 }
@@ -524,6 +531,7 @@ impl Registry {
             KindState::Teleop(_) => self.configure_teleop(name),
             KindState::Sensor(_) => self.configure_sensor(name),
             KindState::LoopSensor(s) => s.configure(),
+            KindState::Camera(_) => self.configure_camera(name),
             KindState::ReplaySensor(_) | KindState::OperatorReplay(_) => {
                 self.configure_replay(name)
             }

@@ -53,6 +53,7 @@ pub(crate) type Commands = penelope_rt_core::stop::StopAwareCommands<
 mod board;
 mod comm;
 mod control;
+mod frame_telemetry;
 mod link_telemetry;
 mod sensors;
 mod telemetry;
@@ -68,6 +69,9 @@ pub(crate) use control::Loop;
 pub use control::{
     CellSensor, CellSensorError, ControlLaw, ControlTask, GainsUpdate, RobotLoop, RoutedGains,
     TelemetryPort,
+};
+pub use frame_telemetry::{
+    FrameSink, FrameSubscriberStats, FrameSubscriptionSpec, FrameSubscriptions,
 };
 pub use link_telemetry::{LINK_PERIOD, LinkPump, LinkSubscriptions};
 pub use sensors::{

@@ -3,6 +3,7 @@
 
 use crate::objects::error::ObjectError;
 use crate::objects::link_source::LinkSource;
+use crate::objects::runtime::{FrameSink, FrameSubscriptionSpec, FrameSubscriptions};
 use crate::objects::runtime::{LinkSubscriptions, TELEMETRY_CAPACITY};
 use crate::objects::tick::{TickRecord, TickStream};
 use penelope_hal::JointVector;
@@ -80,17 +81,29 @@ pub struct Subscriptions {
     links: LinkSubscriptions,
     next: AtomicU64,
     recorders: Mutex<Vec<Recorder>>,
+    /// The cameras' subscriptions (one id space and one limit with the others).
+    frames: FrameSubscriptions,
+    /// The robot each running controller drives (a camera follows its robot's ticks).
+    drives: Mutex<std::collections::HashMap<String, String>>,
     /// The address of each session that subscribed (for the quota per address).
     peers: Mutex<std::collections::HashMap<u64, std::net::IpAddr>>,
     /// The node's common-clock offset, sent with every batch.
     common_offset: Arc<CommonOffset>,
 }
 
+/// Whose ticks a recorder takes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Watched {
+    Controller(String),
+    Robot(String),
+}
+
 /// An in-process consumer of every tick of one controller (not decimated), with the plant's
 /// truth: what a run's report and files are made of.
 #[derive(Debug)]
 struct Recorder {
-    controller: String,
+    /// Whose ticks: a controller's, or whichever controller drives a robot.
+    of: Watched,
     to: SyncSender<TickRecord>,
     dropped: Arc<AtomicU64>,
 }
@@ -107,7 +120,20 @@ impl Subscriptions {
 
     /// How many there are (of controllers and of links).
     pub fn len(&self) -> usize {
-        self.list.lock().map(|l| l.len()).unwrap_or(0) + self.links.len()
+        self.list.lock().map(|l| l.len()).unwrap_or(0) + self.links.len() + self.frames.len()
+    }
+
+    /// The subscriptions to cameras' frames.
+    pub fn frames(&self) -> &FrameSubscriptions {
+        &self.frames
+    }
+
+    /// Notes that controller `controller`'s loop drives `robot` (a camera watching `robot`
+    /// then takes its ticks).
+    pub fn set_driver(&self, controller: &str, robot: &str) {
+        if let Ok(mut d) = self.drives.lock() {
+            d.insert(controller.to_string(), robot.to_string());
+        }
     }
 
     /// The subscriptions to channels' links.
@@ -129,7 +155,8 @@ impl Subscriptions {
             .map_err(|_| ObjectError::Poisoned("subscriptions"))?;
         list.retain(|s| !s.sink.is_closed());
         self.links.retain_open();
-        if list.len() + self.links.len() >= limit as usize {
+        self.frames.retain_open();
+        if list.len() + self.links.len() + self.frames.len() >= limit as usize {
             return Err(ObjectError::LimitReached {
                 what: "subscriptions".into(),
                 limit,
@@ -184,6 +211,22 @@ impl Subscriptions {
         Ok(id)
     }
 
+    /// Adds one to a camera's frames (at most `limit` subscriptions in all), returning its id.
+    ///
+    /// # Errors
+    /// [`ObjectError::LimitReached`].
+    pub fn add_frames(
+        &self,
+        session: u64,
+        spec: FrameSubscriptionSpec,
+        sink: Box<dyn FrameSink>,
+        limit: u32,
+    ) -> Result<u64, ObjectError> {
+        let (_held, id) = self.admit(limit)?;
+        self.frames.add(id, session, spec, sink)?;
+        Ok(id)
+    }
+
     /// Removes subscription `id` of `session`; false if there was none.
     pub fn remove(&self, session: u64, id: u64) -> bool {
         let Ok(mut list) = self.list.lock() else {
@@ -191,7 +234,7 @@ impl Subscriptions {
         };
         let before = list.len();
         list.retain(|s| !(s.id == id && s.session == session));
-        list.len() != before || self.links.remove(session, id)
+        list.len() != before || self.links.remove(session, id) || self.frames.remove(session, id)
     }
 
     /// Removes every subscription of `session`.
@@ -200,6 +243,7 @@ impl Subscriptions {
             list.retain(|s| s.session != session);
         }
         self.links.remove_session(session);
+        self.frames.remove_session(session);
         if let Ok(mut peers) = self.peers.lock() {
             peers.remove(&session);
         }
@@ -238,7 +282,8 @@ impl Subscriptions {
                     .count()
             })
             .unwrap_or(0)
-            + self.links.count_of(|s| same.contains(&s));
+            + self.links.count_of(|s| same.contains(&s))
+            + self.frames.count_of(|s| same.contains(&s));
         if held >= quota as usize {
             return Err(ObjectError::LimitReached {
                 what: format!("subscriptions of one address ({peer})").into(),
@@ -251,11 +296,21 @@ impl Subscriptions {
     /// Records every tick of `controller` from now on into a stream holding up to `capacity`
     /// ticks; a reader that falls behind loses ticks (counted), never the loop.
     pub fn record(&self, controller: &str, capacity: usize) -> TickStream {
+        self.record_of(Watched::Controller(controller.to_string()), capacity)
+    }
+
+    /// Records every tick of whichever controller drives `robot` ([`set_driver`](Self::set_driver)),
+    /// across controller switches, as [`record`](Self::record) does.
+    pub fn record_robot(&self, robot: &str, capacity: usize) -> TickStream {
+        self.record_of(Watched::Robot(robot.to_string()), capacity)
+    }
+
+    fn record_of(&self, of: Watched, capacity: usize) -> TickStream {
         let (to, ticks) = std::sync::mpsc::sync_channel(capacity.max(1));
         let dropped = Arc::new(AtomicU64::new(0));
         if let Ok(mut r) = self.recorders.lock() {
             r.push(Recorder {
-                controller: controller.to_string(),
+                of,
                 to,
                 dropped: dropped.clone(),
             });
@@ -270,9 +325,18 @@ impl Subscriptions {
         if ticks.is_empty() {
             return;
         }
+        let robot = self
+            .drives
+            .lock()
+            .ok()
+            .and_then(|d| d.get(controller).cloned());
         if let Ok(mut recorders) = self.recorders.lock() {
             recorders.retain(|r| {
-                if r.controller != controller {
+                let mine = match &r.of {
+                    Watched::Controller(c) => c == controller,
+                    Watched::Robot(name) => robot.as_ref() == Some(name),
+                };
+                if !mine {
                     return true;
                 }
                 for t in ticks {
@@ -429,6 +493,29 @@ mod tests {
     use super::*;
     use penelope_protocol::proto::ServerMsg;
     use penelope_protocol::service::Outbox;
+
+    #[test]
+    fn a_robots_stream_follows_whichever_controller_drives_it() {
+        let subs = Subscriptions::default();
+        let stream = subs.record_robot("puma", 64);
+        let tick = |seq: u64| {
+            let mut t = TickRecord::default();
+            t.sample.seq = seq;
+            t
+        };
+        subs.set_driver("follow", "puma");
+        subs.set_driver("other", "frhc");
+        subs.publish("follow", &[tick(1), tick(2)], 6);
+        subs.publish("other", &[tick(100)], 6);
+        // The slave's law switched: another controller now drives the same robot.
+        subs.set_driver("wave-follow", "puma");
+        subs.publish("wave-follow", &[tick(3)], 6);
+        subs.publish("unbound", &[tick(200)], 6);
+        let mut got = Vec::new();
+        stream.drain_into(&mut got);
+        let seqs: Vec<u64> = got.iter().map(|t| t.sample.seq).collect();
+        assert_eq!(seqs, [1, 2, 3]);
+    }
 
     #[test]
     fn a_backlog_goes_out_in_batches_that_fit_a_frame_none_lost() {

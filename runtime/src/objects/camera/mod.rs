@@ -1,0 +1,17 @@
+//! Cameras on a node: `sensor/sim-camera`, a simulated camera watching a simulated robot on the
+//! same node, its frames served on the common clock.
+//!
+//! - [`config`]: its keys and their checks;
+//! - [`thread`]: the camera thread, fed by the watched robot's ticks (the plant's truth),
+//!   rendering, encoding and releasing frames;
+//! - the subscribers' side (per subscriber a bounded queue that drops the oldest frame, the
+//!   camera link's faults, the counts) is with the node's other subscriptions, in
+//!   [`crate::objects::runtime`] (`FrameSubscriptions`).
+//!
+//! `docs/cameras.md` is the guide.
+
+pub mod config;
+pub mod thread;
+
+pub use config::{CameraSetup, SimCameraConfig};
+pub use thread::{CameraRunner, CameraShared, CameraWorld, SendClock};
