@@ -28,8 +28,9 @@ async function cameraRefresh() {
         select.replaceChildren(...paths.map((p) => new Option(p, p)));
         if (CAM.path) select.value = CAM.path;
       }
-      // The first running camera is watched by itself, as the 3D view shows its robots.
-      const running = cameras.find((c) => c.state === "active");
+      // The first configured camera is watched by itself, as the 3D view shows its robots (a
+      // camera streams once configured: it has no loop to activate).
+      const running = cameras.find((c) => c.state === "active" || c.state === "inactive");
       if (!CAM.ws && running) cameraWatch(running.path);
       camEl("camera-label").textContent = cameras.length ? "" : "(no camera in the system)";
     }
