@@ -20,7 +20,7 @@ use penelope_protocol::client::sync::{
     Aligned, ForceSample, FrameFigures, Match, SampleHistory, describe_skew, force_arrow,
     monotonic_now_ns,
 };
-use penelope_protocol::proto::{CameraFrame, CameraModelMsg, TelemetryRecord};
+use penelope_protocol::proto::{CameraFrame, CameraModelMsg, PoseMsg, TelemetryRecord};
 use penelope_scene::{CameraCalibration, CompressedImage, Timestamp};
 use serde_json::{Value, json};
 
@@ -30,6 +30,9 @@ pub const ALIGNED_FORCE: &str = "penelope.AlignedForce";
 pub const ALIGNED_FORCE_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"penelope.AlignedForce","description":"The force and tool position of the robot a camera watches, measured at a frame's capture instant (interpolated between the two samples around it), stamped with that instant on the common clock; with the residual skew (the nearest measurement less the capture instant) and the newest sample's skew (what an unaligned view would show).","type":"object","properties":{"timestamp":{"type":"object","properties":{"sec":{"type":"integer"},"nsec":{"type":"integer"}}},"frame_seq":{"type":"integer"},"robot":{"type":"string"},"force":{"type":"array","items":{"type":"number"},"description":"N, the robot's base frame"},"torque":{"type":"array","items":{"type":"number"}},"tool_position":{"type":"array","items":{"type":"number"},"description":"m, the robot's base frame"},"how":{"type":"string","description":"interpolated, nearest, newest or oldest"},"residual_skew_ms":{"type":"number"},"unaligned_skew_ms":{"type":["number","null"]},"video_latency_ms":{"type":"number"},"operator_skew_ms":{"type":["number","null"],"description":"video latency less the force's: how far the picture is behind the hand"}},"required":["timestamp","force","tool_position","residual_skew_ms"]}"#;
 /// How long the force arrow is drawn in the robot's world: 1 cm per newton.
 pub const ARROW_METRES_PER_NEWTON: f64 = 0.01;
+/// How often the tool's orientation is read (the wrist sensor's force is in the tool's frame;
+/// the arrow is drawn in the base frame, turned by an orientation at most this old).
+const TOOL_POSE_PERIOD: Duration = Duration::from_millis(200);
 /// How long a frame waits for the samples of its capture instant to arrive.
 const WAIT_FOR_SAMPLES: Duration = Duration::from_millis(100);
 
@@ -263,6 +266,34 @@ fn pause(stop: &AtomicBool) {
     while !stop.load(Ordering::Acquire) && Instant::now() < until {
         std::thread::sleep(Duration::from_millis(50));
     }
+}
+
+/// The samples' sensed force (in the tool's frame) turned into the base frame by the tool's
+/// orientation, read from the robot at `robot_path` at most every [`TOOL_POSE_PERIOD`] (`tool`
+/// keeps the last); as they are when it cannot be read.
+pub fn in_base(
+    client: &Client,
+    robot_path: Option<&str>,
+    tool: &mut Option<(Instant, PoseMsg)>,
+    aligned: Option<Aligned>,
+    newest: Option<Aligned>,
+) -> (Option<Aligned>, Option<Aligned>) {
+    if let Some(path) = robot_path
+        && tool
+            .as_ref()
+            .is_none_or(|(at, _)| at.elapsed() >= TOOL_POSE_PERIOD)
+        && let Ok(pose) = client.robot(path).and_then(|r| r.forward_kinematics(None))
+    {
+        *tool = Some((Instant::now(), PoseMsg::from(&pose)));
+    }
+    let turn = |a: Option<Aligned>| match (a, tool.as_ref()) {
+        (Some(mut a), Some((_, pose))) => {
+            a.sample = a.sample.in_base(pose);
+            Some(a)
+        }
+        (a, _) => a,
+    };
+    (turn(aligned), turn(newest))
 }
 
 /// One frame's figures: displayed (handed to the Foxglove clients) now, the hand feeling the

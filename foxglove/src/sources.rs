@@ -599,6 +599,7 @@ impl Reader {
             };
             lock(&self.stats).error = None;
             let mut samples: Option<(String, RobotSamples)> = None;
+            let mut tool = None;
             while !self.stopped() {
                 let frame = match frames.recv_timeout(POLL) {
                     Ok(Some(f)) => f,
@@ -619,6 +620,18 @@ impl Reader {
                 let (aligned, newest) = samples
                     .as_ref()
                     .map_or((None, None), |(_, s)| s.for_frame(frame.capture_ns));
+                let robot_path = frame
+                    .model
+                    .robot
+                    .as_ref()
+                    .map(|r| object_path(node, Class::Robot, r));
+                let (aligned, newest) = cameras::in_base(
+                    &self.shared.client,
+                    robot_path.as_deref(),
+                    &mut tool,
+                    aligned,
+                    newest,
+                );
                 let figures = cameras::figures(&frame, aligned.as_ref(), newest.as_ref());
                 let at = frame.capture_ns;
                 let hub = &self.shared.hub;

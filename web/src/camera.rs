@@ -40,7 +40,7 @@ use penelope_protocol::client::sync::{
     Aligned, ForceSample, FrameFigures, Match, Percentiles, SampleHistory, SyncMeter,
     describe_skew, force_arrow, force_measured_ns, monotonic_now_ns, to_common,
 };
-use penelope_protocol::proto::{CameraFrame, CameraModelMsg, Class, object_path};
+use penelope_protocol::proto::{CameraFrame, CameraModelMsg, Class, PoseMsg, object_path};
 use serde::Deserialize;
 use serde_json::{Value, json};
 use tokio::sync::Notify;
@@ -60,6 +60,10 @@ const ARROW_METRES_PER_NEWTON: f64 = 0.01;
 const PLOT_SPACING_NS: u64 = 10_000_000;
 /// How long a reader waits for a record before checking that the socket still wants it.
 const POLL: Duration = Duration::from_millis(200);
+
+/// How often the tool's orientation is read (the wrist sensor's force is in the tool's frame;
+/// the arrow is drawn in the base frame, turned by an orientation at most this old).
+const TOOL_POSE_PERIOD: Duration = Duration::from_millis(200);
 
 /// `GET /api/camera?path=&decimation=&hand=&link=`.
 #[derive(Deserialize)]
@@ -217,6 +221,7 @@ fn read(client: &Client, q: &CameraQuery, decimation: u32, shared: &Arc<Shared>)
     let mut meter = SyncMeter::default();
     let mut t0: Option<u64> = None;
     let mut plotted_to = 0u64;
+    let mut tool: Option<(Instant, PoseMsg)> = None;
     while !shared.closed.load(Ordering::Acquire) {
         let frame = match frames.recv_timeout(POLL) {
             Ok(Some(frame)) => frame,
@@ -260,6 +265,23 @@ fn read(client: &Client, q: &CameraQuery, decimation: u32, shared: &Arc<Shared>)
         let newest = history.newest_for(frame.capture_ns);
         let recent = recent_forces(&history, &mut plotted_to, t0);
         drop(history);
+        if let Some(path) = &robot
+            && tool
+                .as_ref()
+                .is_none_or(|(at, _)| at.elapsed() >= TOOL_POSE_PERIOD)
+            && let Ok(pose) = client.robot(path).and_then(|r| r.forward_kinematics(None))
+        {
+            tool = Some((Instant::now(), PoseMsg::from(&pose)));
+        }
+        // The sensed force in the base frame, as the camera's pose is.
+        let in_base = |a: Option<Aligned>| match (a, &tool) {
+            (Some(mut a), Some((_, pose))) => {
+                a.sample = a.sample.in_base(pose);
+                Some(a)
+            }
+            (a, _) => a,
+        };
+        let (aligned, newest) = (in_base(aligned), in_base(newest));
         let display_ns = monotonic_now_ns();
         let hand_measured_ns = match hand.tick_ns.load(Ordering::Acquire) {
             u64::MAX if q.hand.is_some() => None,

@@ -43,7 +43,7 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use crate::proto::{CameraModelMsg, TelemetryRecord, WrenchMsg};
+use crate::proto::{CameraModelMsg, PoseMsg, TelemetryRecord, WrenchMsg};
 
 /// How far back a [`SampleHistory`] reaches by default: frames are tens of milliseconds late,
 /// so two seconds leave a wide margin for a slow link.
@@ -106,6 +106,16 @@ impl ForceSample {
             tool_position: record.tool_position,
             wrench: record.wrench,
         }
+    }
+
+    /// The same sample with its wrench turned from the tool's frame into the base frame by
+    /// the tool's orientation `tool` (see [`tool_to_base`]).
+    pub fn in_base(mut self, tool: &PoseMsg) -> Self {
+        self.wrench = WrenchMsg {
+            force: tool_to_base(self.wrench.force, tool),
+            torque: tool_to_base(self.wrench.torque, tool),
+        };
+        self
     }
 
     fn is_finite(&self) -> bool {
@@ -540,6 +550,13 @@ pub fn project(model: &CameraModelMsg, point_in_base: [f64; 3]) -> Option<[f64; 
     Some([model.fx * x / z + model.cx, model.fy * y / z + model.cy])
 }
 
+/// A vector of the tool frame (the sensed force of a [`TelemetryRecord`], which a wrist sensor
+/// gives in its tool's frame) in the robot's base frame, by the tool's orientation `tool`
+/// (its versors `n, o, a` in the base frame).
+pub fn tool_to_base(v: [f64; 3], tool: &PoseMsg) -> [f64; 3] {
+    std::array::from_fn(|i| tool.n[i] * v[0] + tool.o[i] * v[1] + tool.a[i] * v[2])
+}
+
 /// A force drawn on a frame: an arrow from the tool's pixel along the force.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ForceArrow {
@@ -551,8 +568,9 @@ pub struct ForceArrow {
     pub magnitude_n: f64,
 }
 
-/// The arrow of `sample`'s force at its tool as `model`'s camera sees it, the force drawn
-/// `metres_per_newton` long in the robot's world; `None` where [`project`] gives nothing.
+/// The arrow of `sample`'s force (in the base frame) at its tool as `model`'s camera sees it,
+/// the force drawn `metres_per_newton` long in the robot's world; `None` where [`project`]
+/// gives nothing.
 pub fn force_arrow(
     model: &CameraModelMsg,
     sample: &ForceSample,
@@ -778,7 +796,6 @@ mod tests {
     }
     #[test]
     fn a_point_projects_where_the_pinhole_puts_it() {
-        use crate::proto::PoseMsg;
         // A camera 2 m out along base x, looking back at the origin (z toward -x), image x
         // along base y, image y down (base -z).
         let model = CameraModelMsg {
@@ -818,5 +835,13 @@ mod tests {
             ..model
         };
         assert_eq!(force_arrow(&unplaced, &s, 0.01), None);
+        // A tool turned a quarter turn about base z: its x is base y.
+        let turned = PoseMsg {
+            position: [0.0; 3],
+            n: [0.0, 1.0, 0.0],
+            o: [-1.0, 0.0, 0.0],
+            a: [0.0, 0.0, 1.0],
+        };
+        assert_eq!(tool_to_base([2.0, 0.0, 5.0], &turned), [0.0, 2.0, 5.0]);
     }
 }
