@@ -54,7 +54,7 @@ pub(crate) const QUEUE_FRAMES: usize = 3;
 /// How long a frame waits for the force samples of its capture instant to arrive before it is
 /// shown beside the newest one (the force's link slower than the video's).
 const WAIT_FOR_SAMPLES: Duration = Duration::from_millis(100);
-/// The force arrow's length in the robot's world: 1 cm per newton.
+/// The force arrow's length in the robot's world: 1 cm per newton, as in the 3D view.
 const ARROW_METRES_PER_NEWTON: f64 = 0.01;
 /// The force plot's samples: at most one per this many ns (100 per second).
 const PLOT_SPACING_NS: u64 = 10_000_000;

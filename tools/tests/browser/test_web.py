@@ -622,6 +622,14 @@ def test_the_camera_panel_shows_the_frame_and_the_force_arrow(system, browser) -
     image = Image.open(io.BytesIO(png)).convert("RGB")
     colours = image.getcolors(maxcolors=1 << 20)
     assert colours is None or len(colours) > 50, "the frame is drawn"
+    # The README's picture: the panel with the aligned overlay, while the demo pushes.
+    wait(browser, lambda d: float(d.find_element(By.ID, "camera-canvas").get_attribute("data-force-n")
+                                  or 0) > 5.0, "the slave pressing the wall", timeout=60)
+    panel = browser.find_element(By.ID, "camera-panel")
+    browser.execute_script("arguments[0].scrollIntoView()", panel)
+    SCREENSHOT_CAMERA.parent.mkdir(parents=True, exist_ok=True)
+    SCREENSHOT_CAMERA.write_bytes(panel.screenshot_as_png)
+    assert SCREENSHOT_CAMERA.stat().st_size > 10_000
     aligned = sorted(residuals(browser, 15))
     browser.find_element(By.ID, "camera-align").click()
     newest = sorted(residuals(browser, 15))
@@ -629,10 +637,3 @@ def test_the_camera_panel_shows_the_frame_and_the_force_arrow(system, browser) -
     print(f"drawn sample's skew: aligned median {aligned[len(aligned) // 2]:.2f} ms, "
           f"newest median {newest[len(newest) // 2]:.2f} ms; readout {readout!r}")
     assert aligned[len(aligned) // 2] < newest[len(newest) // 2]
-    # The README's picture: the panel with the aligned overlay, while the demo pushes.
-    wait(browser, lambda d: camera_state(d)["arrow"] == "1", "the arrow again", timeout=60)
-    panel = browser.find_element(By.ID, "camera-panel")
-    browser.execute_script("arguments[0].scrollIntoView()", panel)
-    SCREENSHOT_CAMERA.parent.mkdir(parents=True, exist_ok=True)
-    SCREENSHOT_CAMERA.write_bytes(panel.screenshot_as_png)
-    assert SCREENSHOT_CAMERA.stat().st_size > 10_000

@@ -4,7 +4,7 @@
 // instants marked. Only this view is ever delayed: the haptic display never is.
 //
 // Readiness markers for tests: #camera-canvas[data-frames] counts frames drawn,
-// [data-arrow] is "1" when the last frame carried a force arrow, [data-skew-ms] the operator's
+// [data-arrow] is "1" when the last frame carried a force arrow ([data-force-n] its newtons), [data-skew-ms] the operator's
 // skew, [data-aligned-skew-ms] the drawn sample's residual skew.
 "use strict";
 
@@ -137,6 +137,7 @@ function cameraDraw(meta, bitmap) {
   g.fillText(`${text} · overlay ${aligned ? "at the frame's capture" : "newest (not aligned)"}`, 8 * scale, 21 * scale);
   canvas.dataset.frames = String(Number(canvas.dataset.frames || 0) + 1);
   canvas.dataset.arrow = sample && sample.arrow ? "1" : "0";
+  canvas.dataset.forceN = sample && sample.arrow ? sample.arrow.n.toFixed(2) : "";
   canvas.dataset.skewMs = f.operator_skew_ms === null ? "" : f.operator_skew_ms.toFixed(3);
   canvas.dataset.alignedSkewMs = sample ? sample.skew_ms.toFixed(3) : "";
   camEl("camera-skew").textContent = text;
