@@ -32,7 +32,7 @@ pub const ALIGNED_FORCE_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/dr
 pub const ARROW_METRES_PER_NEWTON: f64 = 0.01;
 /// How often the tool's orientation is read (the wrist sensor's force is in the tool's frame;
 /// the arrow is drawn in the base frame, turned by an orientation at most this old).
-const TOOL_POSE_PERIOD: Duration = Duration::from_millis(200);
+pub const TOOL_POSE_PERIOD: Duration = Duration::from_millis(200);
 /// How long a frame waits for the samples of its capture instant to arrive.
 const WAIT_FOR_SAMPLES: Duration = Duration::from_millis(100);
 
