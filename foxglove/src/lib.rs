@@ -6,6 +6,8 @@
 //!   slow client loses messages (counted) and never holds up a reader.
 //! - [`sources`]: which objects the nodes have, and one reader thread per stream, subscribed
 //!   through the protocol (the node decimates; no real-time thread sees the gateway).
+//! - [`cameras`]: each camera's frames, calibration, and the force measured at each frame's
+//!   capture instant drawn on it.
 //! - [`robots`]: each robot's description, place, transforms and scene (`penelope-scene`
 //!   builds the messages, the node's model gives the frames).
 //! - [`clock`]: message times on the system's common clock (simulated time on a simulated node).
@@ -14,6 +16,7 @@
 
 #![warn(missing_docs)]
 
+pub mod cameras;
 pub mod clock;
 pub mod hub;
 pub mod robots;

@@ -6,7 +6,9 @@
 //! - every controller: its ticks on `/controllers/<name>`, at most `rate` per second (the node
 //!   decimates to about that, measured from the loop's own period; the reader thins the rest);
 //! - every `trajectory/teleop` channel linked to another node: its link's statistics on
-//!   `/links/<channel>` (every 100 ms, as the node pushes them).
+//!   `/links/<channel>` (every 100 ms, as the node pushes them);
+//! - every camera (a sensor whose kind is a camera): its frames, calibration, the force drawn on
+//!   them and the force sample of each frame's capture instant ([`crate::cameras`]).
 //!
 //! A reader hands each message to the [`Hub`], which never waits; a node whose subscription the
 //! gateway reads too slowly drops batches itself (counted, reported on `/penelope/gateway`).
@@ -22,6 +24,7 @@ use penelope_protocol::client::{Client, NodeProxy};
 use penelope_protocol::net::conn::RpcError;
 use penelope_protocol::proto::{Class, ObjectInfo, object_path};
 
+use crate::cameras::{self, RobotSamples};
 use crate::clock::{NodeClock, local_ns};
 use crate::hub::Hub;
 use crate::robots::RobotView;
@@ -56,11 +59,27 @@ pub struct Shared {
 /// One stream and its reader.
 struct Stream {
     channel: u32,
+    /// A camera's other channels (calibration, annotations, force).
+    more_channels: Vec<u32>,
     /// The robot its controller drives, by `node/robot`, when it started.
     robot: Option<String>,
     stop: Arc<AtomicBool>,
     stats: Arc<Mutex<StreamStats>>,
     reader: Option<JoinHandle<()>>,
+}
+
+impl Stream {
+    fn remove_channels(&self, hub: &Hub) {
+        hub.remove_channel(self.channel);
+        for c in &self.more_channels {
+            hub.remove_channel(*c);
+        }
+    }
+}
+
+/// Whether an object is a camera (`sensor/sim-camera`, `sensor/camera`).
+fn is_camera(info: &ObjectInfo) -> bool {
+    info.class == Class::Sensor && info.kind.contains("camera")
 }
 
 impl Drop for Stream {
@@ -138,7 +157,9 @@ impl Sources {
                 self.describe_robot(node, info, key);
             }
             for info in objects {
-                let streamed = info.class == Class::Controller || info.kind == "trajectory/teleop";
+                let streamed = info.class == Class::Controller
+                    || info.kind == "trajectory/teleop"
+                    || is_camera(&info);
                 if streamed {
                     found.push((
                         format!("{}/{}", node.name(), info.name),
@@ -171,7 +192,7 @@ impl Sources {
             .collect();
         for key in gone {
             if let Some(s) = self.streams.remove(&key) {
-                self.shared.hub.remove_channel(s.channel);
+                s.remove_channels(&self.shared.hub);
             }
         }
         for (key, f) in found {
@@ -183,7 +204,7 @@ impl Sources {
                 Some(s) if s.robot == robot_of(&f) => continue,
                 Some(_) => {
                     if let Some(s) = self.streams.remove(&key) {
-                        self.shared.hub.remove_channel(s.channel);
+                        s.remove_channels(&self.shared.hub);
                     }
                 }
                 None => {}
@@ -252,6 +273,9 @@ impl Sources {
     }
 
     fn start(&self, f: &Found) -> Stream {
+        if is_camera(&f.info) {
+            return self.start_camera(f);
+        }
         let is_link = f.info.class == Class::Trajectory;
         let prefix = if is_link {
             topics::LINK_TOPIC
@@ -300,7 +324,62 @@ impl Sources {
             .ok();
         Stream {
             channel,
+            more_channels: Vec::new(),
             robot: reader_robot,
+            stop,
+            stats,
+            reader: handle,
+        }
+    }
+
+    /// A camera's four channels and the reader that fills them.
+    fn start_camera(&self, f: &Found) -> Stream {
+        // Names are unique on a node; across nodes the second of a name says its node.
+        let mut name = f.info.name.clone();
+        let image_topic = format!("/{name}/image");
+        if self
+            .shared
+            .hub
+            .topics()
+            .iter()
+            .any(|(_, t, _)| *t == image_topic)
+        {
+            name = format!("{name}@{}", f.node);
+        }
+        let channels: Vec<u32> = cameras::topics(&name)
+            .iter()
+            .map(|(topic, schema_name, schema)| {
+                self.shared.hub.add_channel(topic, schema_name, schema)
+            })
+            .collect();
+        let stop = Arc::new(AtomicBool::new(false));
+        let stats = Arc::new(Mutex::new(StreamStats {
+            topic: format!("/{name}/image"),
+            clock: "common",
+            ..StreamStats::default()
+        }));
+        let reader = Reader {
+            shared: self.shared.clone(),
+            robot: None,
+            path: object_path(&f.node, f.info.class, &f.info.name),
+            address: f.address,
+            hosts_naming: f.hosts_naming,
+            channel: channels[0],
+            stop: stop.clone(),
+            stats: stats.clone(),
+        };
+        let node = f.node.clone();
+        let more = channels[1..].to_vec();
+        let theirs = more.clone();
+        let handle = std::thread::Builder::new()
+            .name(format!("fox-{}", f.info.name).chars().take(15).collect())
+            .spawn(move || reader.follow_camera(&node, &theirs))
+            .ok();
+        Stream {
+            channel: channels[0],
+            more_channels: more,
+            // As discovery compares it (a camera's relations may name a robot).
+            robot: robot_of(f),
             stop,
             stats,
             reader: handle,
@@ -499,6 +578,79 @@ impl Reader {
             }
             // Ended, or to subscribe again at the decimation measured.
             drop(stream);
+        }
+    }
+
+    /// A camera's frames, each published with its calibration, its annotations and the force
+    /// sample of its capture instant (`more`: the calibration, annotations and force
+    /// channels).
+    fn follow_camera(&self, node: &str, more: &[u32]) {
+        let &[calibration_channel, annotations_channel, force_channel] = more else {
+            return;
+        };
+        while !self.stopped() {
+            let mut frames = match self.shared.client.watch_camera(&self.path, 1) {
+                Ok(s) => s,
+                Err(e) => {
+                    // A camera not running is refused: asked again later.
+                    self.pause(e.to_string());
+                    continue;
+                }
+            };
+            lock(&self.stats).error = None;
+            let mut samples: Option<(String, RobotSamples)> = None;
+            let mut tool = None;
+            while !self.stopped() {
+                let frame = match frames.recv_timeout(POLL) {
+                    Ok(Some(f)) => f,
+                    Ok(None) => continue,
+                    Err(e) => {
+                        self.pause(e.to_string());
+                        break;
+                    }
+                };
+                lock(&self.stats).node_dropped = frames.dropped();
+                if samples.is_none()
+                    && let Some(robot) = &frame.model.robot
+                {
+                    let path = object_path(node, Class::Robot, robot);
+                    let follower = RobotSamples::follow(self.shared.client.clone(), path);
+                    samples = Some((robot.clone(), follower));
+                }
+                let (aligned, newest) = samples
+                    .as_ref()
+                    .map_or((None, None), |(_, s)| s.for_frame(frame.capture_ns));
+                let robot_path = frame
+                    .model
+                    .robot
+                    .as_ref()
+                    .map(|r| object_path(node, Class::Robot, r));
+                let (aligned, newest) = cameras::in_base(
+                    &self.shared.client,
+                    robot_path.as_deref(),
+                    &mut tool,
+                    aligned,
+                    newest,
+                );
+                let figures = cameras::figures(&frame, aligned.as_ref(), newest.as_ref());
+                let at = frame.capture_ns;
+                let hub = &self.shared.hub;
+                if let Ok(text) = serde_json::to_vec(&cameras::calibration(&frame.model, at)) {
+                    hub.publish(calibration_channel, at, &text);
+                }
+                let text = cameras::annotations(&frame, aligned.as_ref(), &figures).to_string();
+                hub.publish(annotations_channel, at, text.as_bytes());
+                if let (Some(a), Some((robot, _))) = (&aligned, &samples) {
+                    let text = cameras::aligned_force(&frame, robot, a, &figures).to_string();
+                    hub.publish(force_channel, at, text.as_bytes());
+                }
+                if hub.has_subscribers(self.channel)
+                    && let Ok(text) = serde_json::to_vec(&cameras::image(&frame))
+                {
+                    hub.publish(self.channel, at, &text);
+                }
+                self.published(at);
+            }
         }
     }
 

@@ -33,7 +33,8 @@ pub use messages::{
     SceneEntityDeletion, ScenePose, SceneUpdate, SpherePrimitive, Timestamp, Vector3,
 };
 pub use schemas::{
-    CAMERA_CALIBRATION, COMPRESSED_IMAGE, FRAME_TRANSFORMS, ROBOT_DESCRIPTION, SCENE_UPDATE, schema,
+    CAMERA_CALIBRATION, COMPRESSED_IMAGE, FRAME_TRANSFORMS, IMAGE_ANNOTATIONS, ROBOT_DESCRIPTION,
+    SCENE_UPDATE, schema,
 };
 
 /// The topic of every robot's link transforms (`foxglove.FrameTransforms`).

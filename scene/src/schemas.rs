@@ -35,9 +35,11 @@ pub const ROBOT_DESCRIPTION_SCHEMA: &str = r#"{
 pub const COMPRESSED_IMAGE: &str = "foxglove.CompressedImage";
 /// The camera calibration's schema.
 pub const CAMERA_CALIBRATION: &str = "foxglove.CameraCalibration";
+/// The schema of 2D annotations drawn on a camera's frames (circles, lines, texts).
+pub const IMAGE_ANNOTATIONS: &str = "foxglove.ImageAnnotations";
 
 /// Every schema this crate knows: `(name, JSON Schema text)`.
-pub const ALL: [(&str, &str); 16] = [
+pub const ALL: [(&str, &str); 17] = [
     (
         FRAME_TRANSFORMS,
         include_str!("../schemas/FrameTransforms.json"),
@@ -83,6 +85,10 @@ pub const ALL: [(&str, &str); 16] = [
     (
         CAMERA_CALIBRATION,
         include_str!("../schemas/CameraCalibration.json"),
+    ),
+    (
+        IMAGE_ANNOTATIONS,
+        include_str!("../schemas/ImageAnnotations.json"),
     ),
 ];
 

@@ -20,6 +20,11 @@ const FILES: &[(&str, &str, &str)] = &[
         include_str!("assets/app.js"),
     ),
     (
+        "camera.js",
+        "text/javascript; charset=utf-8",
+        include_str!("assets/camera.js"),
+    ),
+    (
         "plots.js",
         "text/javascript; charset=utf-8",
         include_str!("assets/plots.js"),

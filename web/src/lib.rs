@@ -24,6 +24,8 @@
 //!   node, which applies them, recordings started, stopped and downloaded.
 //! - `live`: one WebSocket per plot (and per robot of the 3D view): telemetry records thinned
 //!   for a browser, and safety events (changes of the loop's safety state) as they happen.
+//! - `camera`: one WebSocket per camera panel: a camera's frames with the force and pose
+//!   samples measured at each frame's capture instant, and how far the video is behind the hand.
 //! - `robots`: what the 3D view draws a robot from: its description (URDF, frames, joints,
 //!   the contact shapes of its simulated world).
 //! - `assets`: the page, its scripts and style and the vendored uPlot, three.js and
@@ -36,6 +38,7 @@
 
 mod api;
 mod assets;
+mod camera;
 pub mod cli;
 mod doors;
 mod live;
@@ -206,6 +209,7 @@ fn router(state: Arc<WebState>, hosts: Arc<doors::Hosts>) -> Router {
         .route("/api/record", post(system::record))
         .route("/api/recording", get(system::recording))
         .route("/api/live", get(live::socket))
+        .route("/api/camera", get(camera::socket))
         .route("/api/robot", get(robots::robot))
         .route("/logout", post(session::logout))
         .route_layer(axum::middleware::from_fn_with_state(

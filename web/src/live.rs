@@ -59,16 +59,10 @@ pub(crate) async fn socket(
         return ApiError::bad_input(format!("decimation must be 1..=100000, got {decimation}"))
             .into_response();
     }
-    // Counted from here to the socket's end: a slot is taken before the upgrade is answered.
-    let open = state.live_sockets.fetch_add(1, Ordering::AcqRel);
-    if open >= MAX_SOCKETS {
-        state.live_sockets.fetch_sub(1, Ordering::AcqRel);
-        return ApiError::busy(format!(
-            "{MAX_SOCKETS} live plots are open on this server: close one first"
-        ))
-        .into_response();
-    }
-    let slot = SocketSlot(state.clone());
+    let slot = match SocketSlot::take(&state) {
+        Ok(slot) => slot,
+        Err(e) => return e.into_response(),
+    };
     upgrade
         .on_failed_upgrade(|_| ())
         .on_upgrade(move |ws| async move {
@@ -79,7 +73,22 @@ pub(crate) async fn socket(
 
 /// A live socket's place in [`WebState::live_sockets`], given back when dropped (also when
 /// the upgrade never completes and the future is dropped unrun).
-struct SocketSlot(Arc<WebState>);
+pub(crate) struct SocketSlot(pub(crate) Arc<WebState>);
+
+impl SocketSlot {
+    /// Takes a place (counted from here to the socket's end: before the upgrade is answered),
+    /// or says the server has [`MAX_SOCKETS`] open.
+    pub(crate) fn take(state: &Arc<WebState>) -> Result<SocketSlot, ApiError> {
+        let open = state.live_sockets.fetch_add(1, Ordering::AcqRel);
+        if open >= MAX_SOCKETS {
+            state.live_sockets.fetch_sub(1, Ordering::AcqRel);
+            return Err(ApiError::busy(format!(
+                "{MAX_SOCKETS} live plots and cameras are open on this server: close one first"
+            )));
+        }
+        Ok(SocketSlot(state.clone()))
+    }
+}
 
 impl Drop for SocketSlot {
     fn drop(&mut self) {

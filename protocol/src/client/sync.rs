@@ -43,7 +43,7 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use crate::proto::{TelemetryRecord, WrenchMsg};
+use crate::proto::{CameraModelMsg, PoseMsg, TelemetryRecord, WrenchMsg};
 
 /// How far back a [`SampleHistory`] reaches by default: frames are tens of milliseconds late,
 /// so two seconds leave a wide margin for a slow link.
@@ -106,6 +106,16 @@ impl ForceSample {
             tool_position: record.tool_position,
             wrench: record.wrench,
         }
+    }
+
+    /// The same sample with its wrench turned from the tool's frame into the base frame by
+    /// the tool's orientation `tool` (see [`tool_to_base`]).
+    pub fn in_base(mut self, tool: &PoseMsg) -> Self {
+        self.wrench = WrenchMsg {
+            force: tool_to_base(self.wrench.force, tool),
+            torque: tool_to_base(self.wrench.torque, tool),
+        };
+        self
     }
 
     fn is_finite(&self) -> bool {
@@ -525,6 +535,57 @@ pub fn describe_skew(operator_skew_ns: i64) -> String {
     }
 }
 
+/// Where a camera sees a point given in the base frame of the robot it watches: pixel
+/// coordinates (x right, y down, from the image's top-left corner); `None` when the camera's
+/// placement is not known or the point is behind it.
+pub fn project(model: &CameraModelMsg, point_in_base: [f64; 3]) -> Option<[f64; 2]> {
+    let pose = model.pose_in_robot_base.as_ref()?;
+    let d: [f64; 3] = std::array::from_fn(|i| point_in_base[i] - pose.position[i]);
+    let dot = |axis: &[f64; 3]| axis[0] * d[0] + axis[1] * d[1] + axis[2] * d[2];
+    // The optical frame's axes in the base frame are the pose's columns n, o, a.
+    let (x, y, z) = (dot(&pose.n), dot(&pose.o), dot(&pose.a));
+    if z.is_nan() || z <= 1e-6 || !x.is_finite() || !y.is_finite() {
+        return None;
+    }
+    Some([model.fx * x / z + model.cx, model.fy * y / z + model.cy])
+}
+
+/// A vector of the tool frame (the sensed force of a [`TelemetryRecord`], which a wrist sensor
+/// gives in its tool's frame) in the robot's base frame, by the tool's orientation `tool`
+/// (its versors `n, o, a` in the base frame).
+pub fn tool_to_base(v: [f64; 3], tool: &PoseMsg) -> [f64; 3] {
+    std::array::from_fn(|i| tool.n[i] * v[0] + tool.o[i] * v[1] + tool.a[i] * v[2])
+}
+
+/// A force drawn on a frame: an arrow from the tool's pixel along the force.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ForceArrow {
+    /// The tool's pixel.
+    pub tool_px: [f64; 2],
+    /// The arrow's tip: the tool's position plus the force times the scale, projected.
+    pub tip_px: [f64; 2],
+    /// The force's magnitude, N.
+    pub magnitude_n: f64,
+}
+
+/// The arrow of `sample`'s force (in the base frame) at its tool as `model`'s camera sees it,
+/// the force drawn `metres_per_newton` long in the robot's world; `None` where [`project`]
+/// gives nothing.
+pub fn force_arrow(
+    model: &CameraModelMsg,
+    sample: &ForceSample,
+    metres_per_newton: f64,
+) -> Option<ForceArrow> {
+    let f = sample.wrench.force;
+    let p = sample.tool_position;
+    let tip: [f64; 3] = std::array::from_fn(|i| p[i] + f[i] * metres_per_newton);
+    Some(ForceArrow {
+        tool_px: project(model, p)?,
+        tip_px: project(model, tip)?,
+        magnitude_n: (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -732,5 +793,55 @@ mod tests {
         let a = monotonic_now_ns();
         let b = monotonic_now_ns();
         assert!(a > 0 && b >= a);
+    }
+    #[test]
+    fn a_point_projects_where_the_pinhole_puts_it() {
+        // A camera 2 m out along base x, looking back at the origin (z toward -x), image x
+        // along base y, image y down (base -z).
+        let model = CameraModelMsg {
+            frame_id: "cam".into(),
+            width: 640,
+            height: 480,
+            fx: 500.0,
+            fy: 500.0,
+            cx: 320.0,
+            cy: 240.0,
+            pose_in_robot_base: Some(PoseMsg {
+                position: [2.0, 0.0, 0.0],
+                n: [0.0, 1.0, 0.0],
+                o: [0.0, 0.0, -1.0],
+                a: [-1.0, 0.0, 0.0],
+            }),
+            robot: Some("slave".into()),
+        };
+        assert_eq!(project(&model, [0.0, 0.0, 0.0]), Some([320.0, 240.0]));
+        // 0.2 m along base y at 2 m depth: 50 px right; 0.2 m up: 50 px up.
+        assert_eq!(project(&model, [0.0, 0.2, 0.2]), Some([370.0, 190.0]));
+        assert_eq!(project(&model, [3.0, 0.0, 0.0]), None);
+        let s = ForceSample {
+            time_ns: 0,
+            tool_position: [0.0; 3],
+            wrench: WrenchMsg {
+                force: [0.0, 3.0, 4.0],
+                torque: [0.0; 3],
+            },
+        };
+        let arrow = force_arrow(&model, &s, 0.01).unwrap();
+        assert_eq!(arrow.magnitude_n, 5.0);
+        assert_eq!(arrow.tool_px, [320.0, 240.0]);
+        assert!((arrow.tip_px[0] - 327.5).abs() < 1e-9 && (arrow.tip_px[1] - 230.0).abs() < 1e-9);
+        let unplaced = CameraModelMsg {
+            pose_in_robot_base: None,
+            ..model
+        };
+        assert_eq!(force_arrow(&unplaced, &s, 0.01), None);
+        // A tool turned a quarter turn about base z: its x is base y.
+        let turned = PoseMsg {
+            position: [0.0; 3],
+            n: [0.0, 1.0, 0.0],
+            o: [-1.0, 0.0, 0.0],
+            a: [0.0, 0.0, 1.0],
+        };
+        assert_eq!(tool_to_base([2.0, 0.0, 5.0], &turned), [0.0, 2.0, 5.0]);
     }
 }

@@ -1,7 +1,8 @@
 """`penelope web` in a real headless Chromium: the page lists a node's objects, creates and
 activates a robot and a controller and plots their joints live, an e-stop from the page
 reaches the loop, a page served beyond loopback asks for the secret, a cross-site form
-post is refused, and the 3D view draws the demo's arms at the node's joint angles."""
+post is refused, the 3D view draws the demo's arms at the node's joint angles, and the camera
+panel shows a camera's frames with the force of their capture instant."""
 
 from __future__ import annotations
 
@@ -26,6 +27,7 @@ PERIOD_US = 2000
 SUBSTEP_US = 200
 SCREENSHOT = REPO / "docs" / "web.png"
 SCREENSHOT_3D = REPO / "docs" / "web-3d.png"
+SCREENSHOT_CAMERA = REPO / "docs" / "web-camera.png"
 
 SETUP = f"""\
 create lab board/sim sim0 axes=6 substep_us={SUBSTEP_US}
@@ -573,3 +575,65 @@ def test_the_3d_view_draws_both_arms_at_the_nodes_joint_angles(system, browser) 
         # The panel shows the operator's clutch, live from the master's ticks.
         wait(browser, lambda d: "clutch" in d.find_element(By.ID, "teleop-table").text,
              "the clutch in the teleoperation panel")
+
+
+def camera_state(driver) -> dict:
+    c = driver.find_element(By.ID, "camera-canvas")
+    return {"frames": int(c.get_attribute("data-frames") or 0),
+            "arrow": c.get_attribute("data-arrow"),
+            "skew": c.get_attribute("data-skew-ms"),
+            "residual": c.get_attribute("data-aligned-skew-ms")}
+
+
+def residuals(driver, frames: int) -> list:
+    """The drawn sample's skew (ms) of the next `frames` frames drawn."""
+    seen: list = []
+    last = camera_state(driver)["frames"]
+
+    def more(d) -> bool:
+        nonlocal last
+        s = camera_state(d)
+        if s["frames"] > last and s["residual"]:
+            last = s["frames"]
+            seen.append(abs(float(s["residual"])))
+        return len(seen) >= frames
+
+    wait(driver, more, f"{frames} more camera frames", timeout=60)
+    return seen
+
+
+def test_the_camera_panel_shows_the_frame_and_the_force_arrow(system, browser) -> None:
+    """The demo with a camera: the panel watches it by itself, draws each frame with the force
+    arrow at the tool and the skew readout; the toggle switches the arrow between the sample of
+    the capture instant and the newest one, whose skew is larger. Takes the README's picture."""
+    from PIL import Image
+
+    open_page(browser, system)
+    Select(browser.find_element(By.ID, "system-file")).select_by_value("demo-camera.toml")
+    press(browser, By.ID, "system-load")
+    expect_message(browser, "lab: created and started")
+    wait(browser, lambda d: camera_state(d)["frames"] >= 10, "the camera's frames", timeout=90)
+    wait(browser, lambda d: camera_state(d)["arrow"] == "1", "the force arrow on a frame", timeout=60)
+    readout = browser.find_element(By.ID, "camera-skew").text
+    assert readout.startswith("video "), readout
+    assert "ms" in readout or "in step" in readout, readout
+    # The image is drawn: the canvas is not one colour.
+    png = browser.find_element(By.ID, "camera-canvas").screenshot_as_png
+    image = Image.open(io.BytesIO(png)).convert("RGB")
+    colours = image.getcolors(maxcolors=1 << 20)
+    assert colours is None or len(colours) > 50, "the frame is drawn"
+    # The README's picture: the panel with the aligned overlay, while the demo pushes.
+    wait(browser, lambda d: float(d.find_element(By.ID, "camera-canvas").get_attribute("data-force-n")
+                                  or 0) > 5.0, "the slave pressing the wall", timeout=60)
+    panel = browser.find_element(By.ID, "camera-panel")
+    browser.execute_script("arguments[0].scrollIntoView()", panel)
+    SCREENSHOT_CAMERA.parent.mkdir(parents=True, exist_ok=True)
+    SCREENSHOT_CAMERA.write_bytes(panel.screenshot_as_png)
+    assert SCREENSHOT_CAMERA.stat().st_size > 10_000
+    aligned = sorted(residuals(browser, 15))
+    browser.find_element(By.ID, "camera-align").click()
+    newest = sorted(residuals(browser, 15))
+    browser.find_element(By.ID, "camera-align").click()
+    print(f"drawn sample's skew: aligned median {aligned[len(aligned) // 2]:.2f} ms, "
+          f"newest median {newest[len(newest) // 2]:.2f} ms; readout {readout!r}")
+    assert aligned[len(aligned) // 2] < newest[len(newest) // 2]
