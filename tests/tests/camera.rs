@@ -7,11 +7,10 @@
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
-use nalgebra::{Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
-use penelope_hal::Pose;
+use nalgebra::Vector3;
 use penelope_protocol::client::Client;
 use penelope_protocol::net::conn::{ClientConfig, Connection, Pushed, RpcError};
-use penelope_protocol::proto::{Call, CallError, CameraFrame, CameraModelMsg, Reply, WireError};
+use penelope_protocol::proto::{Call, CallError, CameraFrame, Reply, WireError};
 use penelope_runtime::objects::clock::ClockMode;
 use penelope_runtime::objects::tick::{TickRecord, TickStream};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
@@ -72,26 +71,6 @@ fn take_frames(conn: &mut Connection, wait: Duration, into: &mut BTreeMap<u64, C
     }
 }
 
-/// The camera's optical frame in the robot's base frame, from what each frame carries.
-fn camera_pose(model: &CameraModelMsg) -> Pose {
-    let p = model.pose_in_robot_base.as_ref().expect("a placed camera");
-    let r = Matrix3::from_columns(&[Vector3::from(p.n), Vector3::from(p.o), Vector3::from(p.a)]);
-    Pose::from_parts(
-        Translation3::from(Vector3::from(p.position)),
-        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r)),
-    )
-}
-
-/// Where `model`'s camera sees the base-frame point `x`, pixels.
-fn project(model: &CameraModelMsg, x: &Vector3<f64>) -> (f64, f64) {
-    let c = camera_pose(model).inverse_transform_point(&(*x).into());
-    assert!(c.z > 0.0, "in front of the camera");
-    (
-        model.fx * c.x / c.z + model.cx,
-        model.fy * c.y / c.z + model.cy,
-    )
-}
-
 /// The centroid of the red tool marker's pixels in the decoded JPEG.
 fn red_centroid(frame: &CameraFrame) -> Option<(f64, f64)> {
     let mut decoder = zune_jpeg::JpegDecoder::new(frame.data.as_slice());
@@ -135,7 +114,8 @@ fn marker_error(frames: &BTreeMap<u64, CameraFrame>, ticks: &[TickRecord]) -> (f
         let Some((u, v)) = red_centroid(f) else {
             continue;
         };
-        let (pu, pv) = project(&f.model, &tool);
+        let [pu, pv] = penelope_protocol::client::sync::project(&f.model, [tool.x, tool.y, tool.z])
+            .expect("the tool in front of the camera");
         let e = ((u - pu).powi(2) + (v - pv).powi(2)).sqrt();
         worst = worst.max(e);
         seen += 1;
