@@ -49,6 +49,9 @@ pub struct CameraCounters {
     /// Frames not taken: their capture instant fell in a gap of the ticks (no controller
     /// drove the robot) longer than a frame period.
     pub skipped: AtomicU64,
+    /// Frames not rendered because the thread was behind the clock (a busy host, or a rate
+    /// the host cannot render): skipped so that the frames sent stay current, never queued.
+    pub behind: AtomicU64,
     /// Frames a recording's tap lost (full).
     pub tap_dropped: AtomicU64,
     /// Ticks the camera's stream lost (the thread fell behind by a minute of ticks).
@@ -394,6 +397,13 @@ impl CameraThread {
             if t - capture > period_ns {
                 // A gap in the ticks (no controller drove the robot): no truth of that instant.
                 self.shared.counters.skipped.fetch_add(1, Ordering::Relaxed);
+            } else if self.send_clock == SendClock::Real
+                && self.node_now() > timing.ready_ns(start, self.next) + period_ns
+            {
+                // The thread fell behind the clock (rendering slower than the rate, or a busy
+                // host): this frame would go out over a period late, so it is skipped and the
+                // newest due frame is rendered instead. Latency stays bounded; the rate drops.
+                self.shared.counters.behind.fetch_add(1, Ordering::Relaxed);
             } else {
                 let jpeg = self.render(&truth, self.next);
                 self.pending.push_back(Pending {

@@ -191,10 +191,11 @@ impl CameraObj {
         out.push((
             "frames".to_string(),
             format!(
-                "rendered {} released {} skipped {} ticks lost {} recording lost {}",
+                "rendered {} released {} skipped {} behind the clock {} ticks lost {} recording lost {}",
                 load(&counters.rendered),
                 load(&counters.released),
                 load(&counters.skipped),
+                load(&counters.behind),
                 load(&counters.ticks_dropped),
                 load(&counters.tap_dropped),
             ),
