@@ -53,6 +53,12 @@ pub struct CameraCounters {
     pub tap_dropped: AtomicU64,
     /// Ticks the camera's stream lost (the thread fell behind by a minute of ticks).
     pub ticks_dropped: AtomicU64,
+    /// A device camera's frames that came garbled (dropped, the next one taken).
+    pub garbled: AtomicU64,
+    /// A device camera's waits for a frame that timed out (it went on waiting).
+    pub timeouts: AtomicU64,
+    /// A device camera's fatal error (disconnected...): its frames ended.
+    pub fault: Mutex<Option<String>>,
     /// The last render and encode times, µs.
     times: Mutex<(VecDeque<u32>, VecDeque<u32>)>,
 }
@@ -111,6 +117,16 @@ pub struct CameraShared {
 }
 
 impl CameraShared {
+    /// A camera `name` of model `model`, with no tap yet.
+    pub fn new(name: &str, model: CameraModelMsg) -> Self {
+        CameraShared {
+            name: name.to_string(),
+            model,
+            counters: CameraCounters::default(),
+            taps: Mutex::new(Vec::new()),
+        }
+    }
+
     /// A new tap of every frame released from now on (a recording's), holding up to
     /// [`TAP_CAPACITY`] frames; a reader that falls behind loses frames (counted).
     pub fn tap(&self) -> std::sync::mpsc::Receiver<CameraFrame> {
@@ -121,7 +137,7 @@ impl CameraShared {
         from
     }
 
-    fn to_taps(&self, frame: &CameraFrame) {
+    pub(super) fn to_taps(&self, frame: &CameraFrame) {
         if let Ok(mut taps) = self.taps.lock() {
             taps.retain(|t| match t.try_send(frame.clone()) {
                 Ok(()) => true,
@@ -146,8 +162,8 @@ pub struct CameraWorld {
 /// The camera's running thread: stopped and joined when dropped.
 #[derive(Debug)]
 pub struct CameraRunner {
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
+    pub(super) stop: Arc<AtomicBool>,
+    pub(super) thread: Option<JoinHandle<()>>,
     /// What it shares.
     pub shared: Arc<CameraShared>,
 }
@@ -176,9 +192,9 @@ impl CameraRunner {
         send_clock: SendClock,
     ) -> std::io::Result<CameraRunner> {
         let c = &setup.camera.camera;
-        let shared = Arc::new(CameraShared {
-            name: name.to_string(),
-            model: CameraModelMsg {
+        let shared = Arc::new(CameraShared::new(
+            name,
+            CameraModelMsg {
                 frame_id: name.to_string(),
                 width: c.width,
                 height: c.height,
@@ -189,9 +205,7 @@ impl CameraRunner {
                 pose_in_robot_base: Some(PoseMsg::from(&c.pose)),
                 robot: Some(setup.robot.clone()),
             },
-            counters: CameraCounters::default(),
-            taps: Mutex::new(Vec::new()),
-        });
+        ));
         let stop = Arc::new(AtomicBool::new(false));
         let mut thread = CameraThread {
             shared: shared.clone(),
