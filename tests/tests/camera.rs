@@ -457,24 +457,28 @@ fn a_client_that_reads_nothing_for_2_s_then_gets_at_most_its_queue_of_old_frames
             }
         }
     }
-    // The oldest of the old frames were in the kernel's buffers; the newest 4 at most in the
-    // queue and the outbox.
-    let in_kernel: usize = old[..old.len().saturating_sub(4)].iter().sum();
+    // The old frames were in the sockets' kernel buffers (the server's send buffer, 64 KiB
+    // doubled by the kernel; the client's receive buffer, 128 KiB by default, whose queue may
+    // reach twice that) and at most 4 of them in the queue and the outbox. Without the bound
+    // all 2 s of frames came (55 here, 1.2 MB).
+    let old_bytes: usize = old.iter().sum();
+    let biggest = old.iter().max().copied().unwrap_or(0);
     println!(
-        "after 2 s unread: {} old frames ({in_kernel} bytes beyond the queue's 4), then current \
-         ones; dropped {dropped}; ages ms {:?}",
+        "after 2 s unread: {} old frames ({old_bytes} bytes), then current ones; dropped \
+         {dropped}; ages ms {:?}",
         old.len(),
         &ages_ms[..ages_ms.len().min(24)]
     );
-    let kernel_buffers = 2 * 64 * 1024 + 128 * 1024 + old.iter().max().copied().unwrap_or(0);
+    let bound = 2 * 64 * 1024 + 2 * 128 * 1024 + 4 * biggest;
     assert!(
-        in_kernel <= kernel_buffers,
-        "old frames beyond the queue's 4: {in_kernel} bytes, more than the sockets hold \
-         ({kernel_buffers}); ages {ages_ms:?}"
+        old_bytes <= bound,
+        "old frames: {old_bytes} bytes, more than the sockets and the queue hold ({bound}); \
+         ages {ages_ms:?}"
     );
-    // About 60 frames were taken in 2 s; all but the queue's and the outbox's were dropped.
+    // About 60 frames were taken in 2 s; those beyond the sockets, the queue and the outbox
+    // were dropped (none were without the bound).
     assert!(
-        dropped >= 40,
+        dropped >= 20,
         "drops counted in FrameBatch.dropped: {dropped}"
     );
     drop(conn);
