@@ -315,6 +315,14 @@ impl KindConfig for CameraConfig {
             eye: Some([1.6, -1.2, 1.0]),
             target: Some([0.3, 0.0, 0.3]),
             up: Some([0.0, 0.0, 1.0]),
+            link: FaultConfig {
+                delay_ms: 20.0,
+                outages: vec![OutageWindow {
+                    from_s: 10.0,
+                    to_s: 12.5,
+                }],
+                ..FaultConfig::default()
+            },
             ..Self::default()
         }
     }
@@ -493,7 +501,10 @@ mod tests {
             ("device = \"/dev/video0\"\nhfov_deg = 0", "hfov_deg"),
             ("device = \"/dev/video0\"\nqueue = 65", "queue"),
             ("device = \"/dev/video0\"\njpeg_quality = 0", "jpeg_quality"),
-            ("device = \"/dev/video0\"\nformat = \"h264\"", "format"),
+            (
+                "device = \"/dev/video0\"\nformat = \"h264\"",
+                "expected one of `auto`, `mjpeg`, `yuyv`",
+            ),
             (
                 "device = \"/dev/video0\"\nrobot = \"puma\"",
                 "robot, eye, target",
