@@ -7,12 +7,16 @@
 
 #[cfg(doc)]
 use crate::proto::CallError;
+use std::collections::HashMap;
 use std::net::SocketAddr;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
+use std::sync::mpsc::{
+    Receiver, RecvTimeoutError, SyncSender, TryRecvError, TrySendError, sync_channel,
+};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
-use crate::proto::{Call, Method, Reply, Role, ServerMsg, WireError};
+use crate::proto::{Call, FrameBatch, Method, Reply, Role, ServerMsg, WireError};
 
 /// What a node serves. Called from connection threads (never from a real-time thread), possibly
 /// from several at once.
@@ -108,14 +112,75 @@ pub struct Outbox {
     tx: SyncSender<ServerMsg>,
     dropped: Arc<AtomicU64>,
     closed: Arc<AtomicBool>,
+    frames_waiting: Arc<FramesWaiting>,
+}
+
+/// Per camera subscription, its frame batches in the outbox that the writer has not taken off
+/// yet: so that a slow reader's frames wait in the subscription's drop-oldest queue (which
+/// drops the oldest) rather than here (which would keep old video).
+#[derive(Debug, Default)]
+struct FramesWaiting(Mutex<HashMap<u64, usize>>);
+
+impl FramesWaiting {
+    /// Counts one more of `subscription`'s unless `limit` wait already.
+    fn take_slot(&self, subscription: u64, limit: usize) -> bool {
+        let Ok(mut map) = self.0.lock() else {
+            return false;
+        };
+        let n = map.entry(subscription).or_insert(0);
+        if *n >= limit {
+            return false;
+        }
+        *n += 1;
+        true
+    }
+
+    /// One fewer of `subscription`'s waits.
+    fn free_slot(&self, subscription: u64) {
+        if let Ok(mut map) = self.0.lock()
+            && let Some(n) = map.get_mut(&subscription)
+        {
+            *n = n.saturating_sub(1);
+            if *n == 0 {
+                map.remove(&subscription);
+            }
+        }
+    }
 }
 
 /// The connection writer's end of an [`Outbox`].
 #[derive(Debug)]
 pub struct OutboxReceiver {
-    /// Frames in push order.
+    /// Frames in push order. A writer takes them with [`OutboxReceiver::recv_timeout`] and
+    /// [`OutboxReceiver::try_recv`], which free camera frames' places; reading `rx` directly
+    /// (tests) leaves them taken.
     pub rx: Receiver<ServerMsg>,
     closed: Arc<AtomicBool>,
+    frames_waiting: Arc<FramesWaiting>,
+}
+
+impl OutboxReceiver {
+    /// The next message, waiting up to `timeout`.
+    ///
+    /// # Errors
+    /// As [`Receiver::recv_timeout`].
+    pub fn recv_timeout(&self, timeout: Duration) -> Result<ServerMsg, RecvTimeoutError> {
+        self.rx.recv_timeout(timeout).inspect(|m| self.taken(m))
+    }
+
+    /// The next message if one is queued.
+    ///
+    /// # Errors
+    /// As [`Receiver::try_recv`].
+    pub fn try_recv(&self) -> Result<ServerMsg, TryRecvError> {
+        self.rx.try_recv().inspect(|m| self.taken(m))
+    }
+
+    fn taken(&self, msg: &ServerMsg) {
+        if let ServerMsg::Frames(batch) = msg {
+            self.frames_waiting.free_slot(batch.subscription);
+        }
+    }
 }
 
 impl Drop for OutboxReceiver {
@@ -129,14 +194,41 @@ impl Outbox {
     pub fn bounded(capacity: usize) -> (Outbox, OutboxReceiver) {
         let (tx, rx) = sync_channel(capacity.max(1));
         let closed = Arc::new(AtomicBool::new(false));
+        let frames_waiting = Arc::new(FramesWaiting::default());
         (
             Outbox {
                 tx,
                 dropped: Arc::new(AtomicU64::new(0)),
                 closed: closed.clone(),
+                frames_waiting: frames_waiting.clone(),
             },
-            OutboxReceiver { rx, closed },
+            OutboxReceiver {
+                rx,
+                closed,
+                frames_waiting,
+            },
         )
+    }
+
+    /// Queues a camera subscription's `batch` unless `limit` of that subscription's batches
+    /// are in the outbox already, not yet taken off by the writer; `false` when refused (that
+    /// limit, full or closed: the caller keeps the batch, so a refusal here is not counted as
+    /// a drop).
+    pub fn try_push_frames(&self, batch: FrameBatch, limit: usize) -> bool {
+        let subscription = batch.subscription;
+        if !self.frames_waiting.take_slot(subscription, limit.max(1)) {
+            return false;
+        }
+        match self.tx.try_send(ServerMsg::Frames(batch)) {
+            Ok(()) => true,
+            Err(e) => {
+                self.frames_waiting.free_slot(subscription);
+                if matches!(e, TrySendError::Disconnected(_)) {
+                    self.closed.store(true, Ordering::Release);
+                }
+                false
+            }
+        }
     }
 
     /// Queues `msg` if there is room; `false` if it was dropped (full or closed).
@@ -193,5 +285,38 @@ mod tests {
         assert!(outbox.is_closed());
         assert!(!outbox.try_push(msg()));
         assert!(!outbox.push(msg()));
+    }
+
+    fn batch(subscription: u64) -> FrameBatch {
+        FrameBatch {
+            subscription,
+            dropped: 0,
+            frames: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_camera_subscription_holds_at_most_its_limit_of_frames_until_the_writer_takes_them() {
+        let (outbox, receiver) = Outbox::bounded(256);
+        assert!(outbox.try_push_frames(batch(1), 2));
+        assert!(outbox.try_push_frames(batch(1), 2));
+        assert!(
+            !outbox.try_push_frames(batch(1), 2),
+            "a third of subscription 1"
+        );
+        assert!(
+            outbox.try_push_frames(batch(2), 2),
+            "another subscription's own"
+        );
+        assert_eq!(outbox.dropped(), 0, "a refusal at the limit is not a drop");
+        assert!(matches!(receiver.try_recv(), Ok(ServerMsg::Frames(b)) if b.subscription == 1));
+        assert!(
+            outbox.try_push_frames(batch(1), 2),
+            "a place freed by the writer"
+        );
+        assert!(!outbox.try_push_frames(batch(1), 2));
+        drop(receiver);
+        assert!(!outbox.try_push_frames(batch(3), 2));
+        assert!(outbox.is_closed());
     }
 }

@@ -379,6 +379,92 @@ fn a_camera_is_refused_at_configure_for_an_unknown_robot_or_one_on_a_real_board(
     lab.shutdown();
 }
 
+/// A client that reads nothing for 2 s and then reads gets at most its queue (4) of old
+/// frames beyond what the sockets' kernel buffers hold (the server limits its send buffer to
+/// 64 KiB, doubled by the kernel; the client's receive buffer is the system's default, 128
+/// KiB), then current ones: the frames waited in its drop-oldest queue (the oldest dropped,
+/// counted in `FrameBatch.dropped`), not in the session's outbox (256 messages: without the
+/// bound, all 2 s of frames came, 55 of them here).
+#[test]
+fn a_client_that_reads_nothing_for_2_s_then_gets_at_most_its_queue_of_old_frames() {
+    // The node's own clock is the common one (no naming service): now is its monotonic time.
+    let now = || penelope_rt_core::clock::MonotonicClock::read().as_nanos();
+    let lab = node(ClockMode::RealTime, NamingChoice::None);
+    apply(&lab, 1, 30.0);
+    let mut conn = Connection::connect(lab.address(), &ClientConfig::admin("slow-reader")).unwrap();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        match subscribe(&mut conn, "camera") {
+            Ok(_) => break,
+            Err(e) => assert!(Instant::now() < deadline, "never subscribed: {e}"),
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    // Running: a first frame (read, so it is not one of the old ones).
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !matches!(
+        conn.next_pushed(Duration::from_secs(1)).unwrap(),
+        Some(Pushed::Frames(_))
+    ) {
+        assert!(Instant::now() < deadline, "no frame within 30 s");
+    }
+    // The slow reader: nothing read for 2 s (the scenario itself, not a wait for readiness).
+    std::thread::sleep(Duration::from_secs(2));
+    let period_ns = 1_000_000_000 / 30;
+    let (mut old, mut current, mut dropped) = (Vec::new(), 0usize, 0u64);
+    let mut ages_ms = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    // Read until 15 current frames came in a row of arrivals (or the deadline fails it).
+    while current < 15 {
+        assert!(
+            Instant::now() < deadline,
+            "15 current frames within 30 s: {current}"
+        );
+        let Some(Pushed::Frames(batch)) = conn.next_pushed(Duration::from_secs(1)).unwrap() else {
+            continue;
+        };
+        let received = now();
+        dropped = dropped.max(batch.dropped);
+        for f in batch.frames {
+            let age = received.saturating_sub(f.capture_ns);
+            ages_ms.push(age as f64 * 1e-6);
+            // Within a few frame periods of now (a busy 2-core machine: 5 periods).
+            if age > 5 * period_ns {
+                assert_eq!(current, 0, "an old frame after current ones: {ages_ms:?}");
+                old.push(f.data.len());
+            } else {
+                current += 1;
+            }
+        }
+    }
+    // The old frames were in the sockets' kernel buffers (the server's send buffer, 64 KiB
+    // doubled by the kernel; the client's receive buffer, 128 KiB by default, whose queue may
+    // reach twice that) and at most 4 of them in the queue and the outbox. Without the bound
+    // all 2 s of frames came (55 here, 1.2 MB).
+    let old_bytes: usize = old.iter().sum();
+    let biggest = old.iter().max().copied().unwrap_or(0);
+    println!(
+        "after 2 s unread: {} old frames ({old_bytes} bytes), then current ones; dropped \
+         {dropped}; ages ms {:?}",
+        old.len(),
+        &ages_ms[..ages_ms.len().min(24)]
+    );
+    let bound = 2 * 64 * 1024 + 2 * 128 * 1024 + 4 * biggest;
+    assert!(
+        old_bytes <= bound,
+        "old frames: {old_bytes} bytes, more than the sockets and the queue hold ({bound}); \
+         ages {ages_ms:?}"
+    );
+    // About 60 frames were taken in 2 s; those beyond the sockets, the queue and the outbox
+    // were dropped (none were without the bound).
+    assert!(
+        dropped >= 20,
+        "drops counted in FrameBatch.dropped: {dropped}"
+    );
+    drop(conn);
+    lab.shutdown();
+}
+
 /// Controller `name`'s ticks and overruns so far.
 fn ticks_and_overruns(lab: &Node, name: &str) -> (u64, u64) {
     use penelope_protocol::proto::{ControllerMethod, Method};
@@ -538,4 +624,168 @@ fn watch_a_running_nodes_camera() {
         last.1.data.len(),
         (last.1.sent_ns - last.1.capture_ns) as f64 * 1e-6
     );
+}
+
+/// A `sensor/camera` whose device does not exist, or is not a camera (`/dev/null`), is
+/// refused at configure with the device's typed error (in a build without `v4l2`, the build's
+/// own), and the node goes on serving.
+#[test]
+fn a_device_camera_on_a_missing_device_or_dev_null_is_refused_at_configure() {
+    let lab = node(ClockMode::RealTime, NamingChoice::None);
+    let c = lab.creator();
+    let unsupported = "built without V4L2 capture";
+    for (name, device, expected) in [
+        ("missing", "/dev/video-penelope-none", "no such device"),
+        ("null", "/dev/null", "not a streaming video capture device"),
+    ] {
+        c.create("sensor/camera", name, &format!("device = \"{device}\""))
+            .unwrap();
+        let err = c
+            .transition(name, penelope_hal::Transition::Configure)
+            .unwrap_err();
+        let text = err.to_string();
+        println!("{device}: {text}");
+        assert!(
+            matches!(
+                err,
+                penelope_runtime::objects::error::ObjectError::BadConfig { .. }
+            ),
+            "{err:?}"
+        );
+        assert!(text.contains(device), "{text}");
+        assert!(
+            text.contains(expected) || text.contains(unsupported),
+            "{text}"
+        );
+        let state = c.info(name).unwrap().state;
+        assert_eq!(state, penelope_hal::LifecycleState::Unconfigured);
+    }
+    assert!(matches!(lab.call(Call::NodeInfo), Ok(Reply::Node(_))));
+    lab.shutdown();
+}
+
+/// A fake device: a frame every 20 ms of the real clock, captured 10 ms before its dequeue;
+/// frame 5 garbled; disconnected after frame 40.
+struct FakeDevice {
+    sequence: u32,
+}
+
+impl penelope_runtime::objects::camera::FrameSource for FakeDevice {
+    fn next(
+        &mut self,
+        _timeout: Duration,
+    ) -> Result<penelope_drivers::v4l2::CapturedFrame, penelope_drivers::v4l2::V4l2Error> {
+        use penelope_drivers::v4l2::{CapturedFrame, TimestampSource, V4l2Error};
+        std::thread::sleep(Duration::from_millis(20));
+        let sequence = self.sequence;
+        self.sequence += 1;
+        if sequence == 5 {
+            return Err(V4l2Error::Garbled {
+                sequence,
+                reason: "no end-of-image marker".into(),
+            });
+        }
+        if sequence > 40 {
+            return Err(V4l2Error::Disconnected("/dev/video-fake".into()));
+        }
+        let dequeued_ns = penelope_rt_core::clock::MonotonicClock::read().as_nanos();
+        Ok(CapturedFrame {
+            sequence,
+            capture_ns: dequeued_ns - 10_000_000,
+            dequeued_ns,
+            width: 64,
+            height: 48,
+            jpeg: vec![0xFF, 0xD8, sequence as u8, 0xFF, 0xD9],
+            timestamp_source: TimestampSource::StartOfExposure,
+            exposure_ns: None,
+        })
+    }
+
+    fn intrinsics(&self) -> penelope_drivers::v4l2::PinholeIntrinsics {
+        penelope_drivers::v4l2::PinholeIntrinsics::from_horizontal_fov(64, 48, 60.0).unwrap()
+    }
+}
+
+/// `sensor/camera`'s thread on a fake device, on the real clock: its frames reach a
+/// `watch_camera` client with their capture and dequeue instants on the common clock, the
+/// garbled frame is counted and skipped, and the disconnect is reported by `describe` (its
+/// subscribers' frames end).
+#[test]
+fn a_device_cameras_frames_reach_a_watching_client_and_its_faults_are_reported() {
+    let lab = node(ClockMode::RealTime, NamingChoice::Host);
+    let c = lab.creator();
+    c.create(
+        "sensor/camera",
+        "cam",
+        "device = \"/dev/video-fake\"\nrobot = \"puma\"\neye = [1.6, -1.2, 1.0]\ntarget = [0.3, 0, 0.3]",
+    )
+    .unwrap();
+    c.set_frame_source(
+        "cam",
+        Box::new(|| Ok(Box::new(FakeDevice { sequence: 0 }) as _)),
+    )
+    .unwrap();
+    c.transition("cam", penelope_hal::Transition::Configure)
+        .unwrap();
+    let client = Client::connect(lab.address(), ClientConfig::admin("camera-test")).unwrap();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let mut frames = loop {
+        match client.watch_camera("lab/cam", 1) {
+            Ok(s) => break s,
+            Err(e) => assert!(Instant::now() < deadline, "never watchable: {e}"),
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let mut got = Vec::new();
+    // Until the fake's frames end (disconnected): nothing more within 2 s.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while let Some(f) = frames.recv_timeout(Duration::from_secs(2)).unwrap_or(None) {
+        assert!(Instant::now() < deadline, "frames for over 60 s");
+        got.push(f);
+    }
+    let seqs: Vec<u64> = got.iter().map(|f| f.seq).collect();
+    println!("frames {seqs:?}");
+    assert!(got.len() >= 10, "{seqs:?}");
+    assert!(!seqs.contains(&5), "the garbled frame skipped: {seqs:?}");
+    assert!(seqs.iter().all(|&s| s <= 40), "{seqs:?}");
+    assert!(seqs.windows(2).all(|w| w[0] < w[1]), "{seqs:?}");
+    for f in &got {
+        // On the node's own clock the common clock is the monotonic one: the capture instant
+        // as the device gave it, before its dequeue (ready) and its send.
+        assert_eq!(f.ready_ns - f.capture_ns, 10_000_000, "{}", f.seq);
+        assert!(f.sent_ns >= f.ready_ns, "{}", f.seq);
+        assert!(f.sent_ns - f.capture_ns < 5_000_000_000, "{}", f.seq);
+        assert_eq!((f.model.width, f.model.height), (64, 48));
+        assert_eq!(f.model.robot.as_deref(), Some("puma"));
+        assert!(f.model.pose_in_robot_base.is_some());
+    }
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let relations = loop {
+        let r = c.info("cam").unwrap().relations;
+        if r.iter().any(|(k, _)| k == "fault") {
+            break r;
+        }
+        assert!(Instant::now() < deadline, "no fault reported: {r:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    println!("{relations:?}");
+    let value = |key: &str| {
+        relations
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.clone())
+            .unwrap()
+    };
+    assert!(value("fault").contains("disconnected"), "{relations:?}");
+    assert!(value("frames").contains("garbled 1 "), "{relations:?}");
+    assert!(
+        !relations.iter().any(|(k, _)| k == "subscriber"),
+        "its subscriptions ended: {relations:?}"
+    );
+    // The node stays healthy: the camera is released, the node answers.
+    c.transition("cam", penelope_hal::Transition::Cleanup)
+        .unwrap();
+    drop(frames);
+    assert!(matches!(lab.call(Call::NodeInfo), Ok(Reply::Node(_))));
+    lab.shutdown();
 }

@@ -154,7 +154,23 @@ struct Wire {
     sealed: Vec<u8>,
 }
 
+/// A connection's socket send buffer once it carries camera frames, bytes (the kernel doubles
+/// it): so that a slow reader's frames wait in their subscription's drop-oldest queue, not by
+/// the megabyte in the kernel's autotuned buffer (seconds-old video).
+const FRAME_SEND_BUFFER: usize = 64 * 1024;
+
 impl Wire {
+    /// Limits the socket's send buffer to [`FRAME_SEND_BUFFER`] (autotuning off).
+    fn limit_send_buffer(&self) {
+        if let Err(e) = nix::sys::socket::setsockopt(
+            &self.stream,
+            nix::sys::socket::sockopt::SndBuf,
+            &FRAME_SEND_BUFFER,
+        ) {
+            log::debug!("send buffer not limited: {e}");
+        }
+    }
+
     /// Writes whole frames (plain ones, sealed here when the session is); `false` once the
     /// socket has failed (timeout: a client that does not read).
     fn send(&mut self, bytes: &[u8]) -> bool {
@@ -645,8 +661,9 @@ fn drain_outbox(
 ) {
     let max = shared.config.max_frame;
     let mut buf = Vec::with_capacity(4096);
+    let mut carries_frames = false;
     loop {
-        let first = match receiver.rx.recv_timeout(Duration::from_secs(1)) {
+        let first = match receiver.recv_timeout(Duration::from_secs(1)) {
             Ok(m) => m,
             Err(RecvTimeoutError::Timeout) => {
                 if closing.load(Ordering::Acquire) {
@@ -662,6 +679,10 @@ fn drain_outbox(
         let mut frames = 0u64;
         let mut next = Some(first);
         while let Some(msg) = next {
+            if !carries_frames && matches!(msg, ServerMsg::Frames(_)) {
+                carries_frames = true;
+                lock(wire).limit_send_buffer();
+            }
             match encode_into(&msg, max, &mut buf) {
                 Ok(()) => frames += 1,
                 Err(e) => log::warn!("outbox frame not sent: {e}"),
@@ -669,7 +690,7 @@ fn drain_outbox(
             if buf.len() >= OUT_FLUSH_AT {
                 break;
             }
-            next = receiver.rx.try_recv().ok();
+            next = receiver.try_recv().ok();
         }
         if !buf.is_empty() {
             let ok = lock(wire).send(&buf);

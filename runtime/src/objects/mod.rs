@@ -460,6 +460,7 @@ impl Creator {
                     o.class == Class::Controller
                         || o.kind == kinds::Kind::TELEOP.as_str()
                         || o.kind == registry::camera::SIM_CAMERA.as_str()
+                        || o.kind == registry::camera::CAMERA.as_str()
                 })
                 .map(|o| o.name)
                 .collect()
@@ -475,7 +476,9 @@ impl Creator {
                 .ok_or_else(|| ObjectError::UnknownName(name.clone()))?;
             if info.class == Class::Controller {
                 streams.push((name.clone(), self.record_ticks(name, RECORDER_CAPACITY)?));
-            } else if info.kind == registry::camera::SIM_CAMERA.as_str() {
+            } else if info.kind == registry::camera::SIM_CAMERA.as_str()
+                || info.kind == registry::camera::CAMERA.as_str()
+            {
                 cameras.push(name.clone());
             } else if info.kind == kinds::Kind::TELEOP.as_str() {
                 match self.link_source(name)? {
@@ -542,7 +545,7 @@ impl Creator {
         let names: Vec<String> = reg
             .objects
             .values()
-            .filter(|o| o.kind == registry::camera::SIM_CAMERA)
+            .filter(|o| registry::camera::is_camera(o.kind))
             .map(|o| o.name.clone())
             .collect();
         reg.camera_taps(&names)

@@ -44,10 +44,12 @@ impl TickSink for Outbox {
     }
 }
 
-/// A camera subscription's frames go to the session's outbox too, one frame per message.
+/// A camera subscription's frames go to the session's outbox too, one frame per message, at
+/// most `in_flight_limit` of them waiting there for the writer: a slow reader's frames wait in
+/// the subscription's drop-oldest queue, not in the outbox (which would keep old video).
 impl FrameSink for Outbox {
-    fn frames(&self, batch: FrameBatch) -> bool {
-        self.try_push(ServerMsg::Frames(batch))
+    fn frames(&self, batch: FrameBatch, in_flight_limit: usize) -> bool {
+        self.try_push_frames(batch, in_flight_limit)
     }
 
     fn is_closed(&self) -> bool {
@@ -164,9 +166,9 @@ impl Creator {
                     let spec = FrameSubscriptionSpec {
                         camera: object.to_string(),
                         decimation,
-                        queue: c.setup.queue,
-                        link: c.setup.link.clone(),
-                        seed: c.setup.camera.seed,
+                        queue: c.queue(),
+                        link: c.link().clone(),
+                        seed: c.seed(),
                     };
                     drop(reg);
                     self.check_subscription_quota(session)?;

@@ -56,6 +56,12 @@ pub struct CameraCounters {
     pub tap_dropped: AtomicU64,
     /// Ticks the camera's stream lost (the thread fell behind by a minute of ticks).
     pub ticks_dropped: AtomicU64,
+    /// A device camera's frames that came garbled (dropped, the next one taken).
+    pub garbled: AtomicU64,
+    /// A device camera's waits for a frame that timed out (it went on waiting).
+    pub timeouts: AtomicU64,
+    /// A device camera's fatal error (disconnected...): its frames ended.
+    pub fault: Mutex<Option<String>>,
     /// The last render and encode times, µs.
     times: Mutex<(VecDeque<u32>, VecDeque<u32>)>,
 }
@@ -114,6 +120,16 @@ pub struct CameraShared {
 }
 
 impl CameraShared {
+    /// A camera `name` of model `model`, with no tap yet.
+    pub fn new(name: &str, model: CameraModelMsg) -> Self {
+        CameraShared {
+            name: name.to_string(),
+            model,
+            counters: CameraCounters::default(),
+            taps: Mutex::new(Vec::new()),
+        }
+    }
+
     /// A new tap of every frame released from now on (a recording's), holding up to
     /// [`TAP_CAPACITY`] frames; a reader that falls behind loses frames (counted).
     pub fn tap(&self) -> std::sync::mpsc::Receiver<CameraFrame> {
@@ -124,7 +140,7 @@ impl CameraShared {
         from
     }
 
-    fn to_taps(&self, frame: &CameraFrame) {
+    pub(super) fn to_taps(&self, frame: &CameraFrame) {
         if let Ok(mut taps) = self.taps.lock() {
             taps.retain(|t| match t.try_send(frame.clone()) {
                 Ok(()) => true,
@@ -149,11 +165,11 @@ pub struct CameraWorld {
 /// The camera's running thread: stopped and joined when dropped.
 #[derive(Debug)]
 pub struct CameraRunner {
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
+    pub(super) stop: Arc<AtomicBool>,
+    pub(super) thread: Option<JoinHandle<()>>,
     /// On the real clock, the thread that sends frames held by the links' delays when due, so
-    /// that a frame being rendered never holds another's send up.
-    sender: Option<JoinHandle<()>>,
+    /// that a frame being rendered (or waited for) never holds another's send up.
+    pub(super) sender: Option<JoinHandle<()>>,
     /// What it shares.
     pub shared: Arc<CameraShared>,
 }
@@ -182,9 +198,9 @@ impl CameraRunner {
         send_clock: SendClock,
     ) -> std::io::Result<CameraRunner> {
         let c = &setup.camera.camera;
-        let shared = Arc::new(CameraShared {
-            name: name.to_string(),
-            model: CameraModelMsg {
+        let shared = Arc::new(CameraShared::new(
+            name,
+            CameraModelMsg {
                 frame_id: name.to_string(),
                 width: c.width,
                 height: c.height,
@@ -195,21 +211,10 @@ impl CameraRunner {
                 pose_in_robot_base: Some(PoseMsg::from(&c.pose)),
                 robot: Some(setup.robot.clone()),
             },
-            counters: CameraCounters::default(),
-            taps: Mutex::new(Vec::new()),
-        });
+        ));
         let stop = Arc::new(AtomicBool::new(false));
         let (sender, wake) = if send_clock == SendClock::Real {
-            let (wake, woken) = std::sync::mpsc::sync_channel(1);
-            let (name, frames, clock, flag) = (
-                name.to_string(),
-                subscriptions.clone(),
-                clock.clone(),
-                stop.clone(),
-            );
-            let handle = std::thread::Builder::new()
-                .name(format!("camera-send {name}"))
-                .spawn(move || send_when_due(&name, &frames, &clock, &woken, &flag))?;
+            let (handle, wake) = Sender::start(name, &subscriptions, &clock, &stop)?;
             (Some(handle), Some(wake))
         } else {
             (None, None)
@@ -281,29 +286,63 @@ struct CameraThread {
 }
 
 /// The real clock's sender: sleeps until a frame held by a link's delay is due (or a new frame
-/// enters the links, or [`WAIT`]), then moves the frames along.
-fn send_when_due(
-    name: &str,
-    subscriptions: &Subscriptions,
-    clock: &CommonClock,
-    woken: &std::sync::mpsc::Receiver<()>,
-    stop: &AtomicBool,
-) {
-    let now = || penelope_rt_core::clock::MonotonicClock::read().as_nanos();
-    while !stop.load(Ordering::Acquire) {
-        let wait = subscriptions
-            .frames()
-            .next_release(name)
-            .map_or(WAIT, |due| {
-                let due = u64::try_from(due.as_nanos()).unwrap_or(u64::MAX);
-                Duration::from_nanos(due.saturating_sub(now())).min(WAIT)
-            });
-        if let Err(RecvTimeoutError::Disconnected) = woken.recv_timeout(wait) {
-            return;
+/// enters the links, or [`WAIT`]), then moves the frames along, so that neither a frame being
+/// rendered nor a wait for the device's next frame holds a delayed frame's send up.
+pub(super) struct Sender;
+
+impl Sender {
+    /// Starts camera `name`'s sender; stops when `stop` is set or its waker is dropped. The
+    /// waker: a frame entered the links.
+    ///
+    /// # Errors
+    /// The thread could not be started.
+    pub(super) fn start(
+        name: &str,
+        subscriptions: &Arc<Subscriptions>,
+        clock: &CommonClock,
+        stop: &Arc<AtomicBool>,
+    ) -> std::io::Result<(JoinHandle<()>, SyncSender<()>)> {
+        let (wake, woken) = std::sync::mpsc::sync_channel(1);
+        let (name, frames, clock, flag) = (
+            name.to_string(),
+            subscriptions.clone(),
+            clock.clone(),
+            stop.clone(),
+        );
+        let handle = std::thread::Builder::new()
+            .name(format!("camera-send {name}"))
+            .spawn(move || Sender::run(&name, &frames, &clock, &woken, &flag))?;
+        Ok((handle, wake))
+    }
+
+    fn run(
+        name: &str,
+        subscriptions: &Subscriptions,
+        clock: &CommonClock,
+        woken: &std::sync::mpsc::Receiver<()>,
+        stop: &AtomicBool,
+    ) {
+        let now = || penelope_rt_core::clock::MonotonicClock::read().as_nanos();
+        while !stop.load(Ordering::Acquire) {
+            let wait = subscriptions
+                .frames()
+                .next_release(name)
+                .map_or(WAIT, |due| {
+                    let due = u64::try_from(due.as_nanos()).unwrap_or(u64::MAX);
+                    Duration::from_nanos(due.saturating_sub(now())).min(WAIT)
+                });
+            if let Err(RecvTimeoutError::Disconnected) = woken.recv_timeout(wait) {
+                return;
+            }
+            subscriptions
+                .frames()
+                .pump(name, now(), &|| clock.to_common(now()));
         }
-        subscriptions
-            .frames()
-            .pump(name, now(), &|| clock.to_common(now()));
+    }
+
+    /// Tells the sender a frame entered the links (a full waker: it is already due to look).
+    pub(super) fn wake(waker: &SyncSender<()>) {
+        let _ = waker.try_send(());
     }
 }
 
@@ -463,8 +502,7 @@ impl CameraThread {
             .frames()
             .publish(&self.shared.name, &frame, now, &stamp);
         if let Some(wake) = &self.wake {
-            // Full: the sender is already due to look.
-            let _ = wake.try_send(());
+            Sender::wake(wake);
         }
     }
 }

@@ -54,6 +54,7 @@ pub static KIND_TABLE: &[KindEntry] = &[
     super::netft::ENTRY,
     super::test_signal::ENTRY,
     super::camera::ENTRY,
+    super::camera::DEVICE_ENTRY,
     entry(Kind::OPERATOR_HAND, "the operator's hand on a simulated master: a scripted impedance that pushes the handle and holds the clutch", described::<HandConfig>(), makers::operator_hand),
     entry(Kind::REPLAY_SENSOR, "6-axis force sensor playing back a recorded wrench stream (an MCAP recording's controller channel, read at configure)", described::<ReplaySensorConfig>(), makers::replay),
     entry(Kind::OPERATOR_REPLAY, "the operator's hand played back from a recording: the master's handle moves, and the clutch is held, as recorded", described::<OperatorReplayConfig>(), makers::replay),

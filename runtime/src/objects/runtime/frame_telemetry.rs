@@ -15,9 +15,10 @@ use crate::objects::error::ObjectError;
 
 /// Where a camera subscription's frames go, without waiting.
 pub trait FrameSink: Send + Sync + std::fmt::Debug {
-    /// Hands over a batch; `false` when the sink is full or closed (the batch is kept by the
-    /// caller and offered again).
-    fn frames(&self, batch: FrameBatch) -> bool;
+    /// Hands over a batch; `false` when the sink is full or closed, or holds `in_flight_limit`
+    /// of this subscription's batches not yet sent on (the batch is kept by the caller and
+    /// offered again: the subscription's drop-oldest queue stays the bound end to end).
+    fn frames(&self, batch: FrameBatch, in_flight_limit: usize) -> bool;
     /// Whether the other end has gone (the subscription ends).
     fn is_closed(&self) -> bool;
 }
@@ -85,7 +86,7 @@ impl FrameSubscription {
                 dropped: self.stats.dropped + self.stats.lost,
                 frames: vec![frame],
             };
-            if self.sink.frames(batch.clone()) {
+            if self.sink.frames(batch.clone(), self.capacity) {
                 self.stats.sent += 1;
                 continue;
             }
@@ -283,7 +284,7 @@ mod tests {
     struct Shared(Arc<Reader>);
 
     impl FrameSink for Shared {
-        fn frames(&self, batch: FrameBatch) -> bool {
+        fn frames(&self, batch: FrameBatch, _in_flight_limit: usize) -> bool {
             if !self.0.open.load(Ordering::Relaxed) {
                 return false;
             }
