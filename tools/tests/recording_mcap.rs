@@ -403,7 +403,7 @@ fn ctl_record_starts_and_stops_a_recording_and_refuses_bad_input_with_the_reason
     refused(&["record", "start", "lab", path, "nosuch"], "nosuch");
     refused(
         &["record", "start", "lab", path, "hand"],
-        "only controllers and channels",
+        "only controllers, channels and cameras",
     );
     refused(&["record", "stop", "lab"], "not recording");
     assert!(!file.exists(), "nothing created by a refused start");
