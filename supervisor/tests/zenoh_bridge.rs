@@ -21,7 +21,7 @@ use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
 use penelope_supervisor::system::SystemFile;
 use penelope_supervisor::zenoh_bridge::ZenohSettings;
 use penelope_supervisor::zenoh_bridge::encoding::OperatorPose;
-use penelope_testkit::net::free_tcp_port;
+use penelope_testkit::net::{free_tcp_port, free_udp_port};
 use penelope_testkit::wait::wait_until;
 use zenoh::Wait;
 
@@ -300,15 +300,6 @@ fn the_queryable_answers_the_object_tree() {
     assert_eq!(one["name"], "follow");
     assert!(stats(&node).queries >= 2);
     node.shutdown();
-}
-
-/// A free loopback UDP port (the data plane's).
-fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
 }
 
 #[test]

@@ -3,7 +3,7 @@
 //! starts, and registers again after the naming service restarts and forgot everything.
 //! Every wait is for a condition, bounded by a deadline, never for a fixed time.
 
-use std::net::{SocketAddr, TcpListener};
+use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -13,15 +13,8 @@ use penelope_protocol::net::server::{Server, ServerConfig};
 use penelope_protocol::proto::{Call, CallError, CreatorCall, Reply, WireError};
 use penelope_supervisor::naming::{NamingLimits, NamingService};
 use penelope_supervisor::node::{NamingChoice, Node, NodeConfig};
+use penelope_testkit::net::free_tcp_addr;
 use penelope_testkit::wait::wait_until;
-
-/// A loopback address nobody listens on (yet).
-fn unused_address() -> SocketAddr {
-    TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-}
 
 fn naming_at(address: SocketAddr) -> (Arc<NamingService>, Server) {
     let naming = Arc::new(NamingService::new("naming", NamingLimits::default()));
@@ -35,7 +28,7 @@ fn resolves(client: &Client, path: &str) -> bool {
 
 #[test]
 fn a_node_started_before_its_naming_service_registers_when_it_starts_and_after_a_restart() {
-    let naming_addr = unused_address();
+    let naming_addr = free_tcp_addr();
     let mut config = NodeConfig::new("early", NamingChoice::Remote(naming_addr));
     config.lease = Duration::from_millis(600);
     let node = Node::start(config).expect("a silent naming service does not stop a node");
@@ -82,7 +75,7 @@ fn a_node_started_before_its_naming_service_registers_when_it_starts_and_after_a
 
 #[test]
 fn a_node_whose_naming_service_never_answers_keeps_serving_and_stops_cleanly() {
-    let naming_addr = unused_address();
+    let naming_addr = free_tcp_addr();
     let node = Node::start(NodeConfig::new("alone", NamingChoice::Remote(naming_addr))).unwrap();
     let client = Client::connect(node.address(), ClientConfig::admin("direct")).unwrap();
     // Reached directly, the node answers although it is not registered anywhere.

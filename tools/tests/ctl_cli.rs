@@ -2,7 +2,7 @@
 //! on free loopback ports, and `penelope ctl` creates, configures, activates, calls, watches and
 //! destroys objects through them, by script and by single verbs.
 
-use penelope_testkit::net::free_tcp_addr;
+use penelope_testkit::net::{free_tcp_addr, free_udp_port};
 use penelope_testkit::process::{Children, Penelope, text};
 use penelope_testkit::scratch::scratch_file;
 use std::net::{SocketAddr, TcpListener};
@@ -393,16 +393,9 @@ fn a_node_runs_the_teleoperation_system_file() {
 fn ctl_watches_a_channels_link_between_two_nodes() {
     let naming = free_tcp_addr();
     let (master, slave) = (free_tcp_addr(), free_tcp_addr());
-    let udp = || {
-        std::net::UdpSocket::bind("127.0.0.1:0")
-            .unwrap()
-            .local_addr()
-            .unwrap()
-            .port()
-    };
     let file = include_str!("../../config/demo-two-nodes.toml")
-        .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", udp()))
-        .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", udp()));
+        .replace("127.0.0.1:7410", &format!("127.0.0.1:{}", free_udp_port()))
+        .replace("127.0.0.1:7420", &format!("127.0.0.1:{}", free_udp_port()));
     let config = scratch_file("ctl", "two-nodes.toml", &file);
     let config = config.to_str().unwrap();
     let node = |name: &str, listen: SocketAddr| {

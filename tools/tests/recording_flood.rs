@@ -41,10 +41,7 @@ fn sim_node(
     Child,
     std::io::BufReader<std::process::ChildStdout>,
 ) {
-    let listen = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap();
+    let listen = penelope_testkit::net::free_tcp_addr();
     let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/demo.toml");
     let mut child = Child(
         PENELOPE

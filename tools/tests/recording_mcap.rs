@@ -273,10 +273,7 @@ impl Drop for Child {
 /// A `--sim-clock` node hosting its naming service on a free loopback port, running the system
 /// file `config` (with `extra` arguments), returned once it says it has applied the file.
 fn sim_node(config: &std::path::Path, extra: &[&str]) -> (std::net::SocketAddr, Child) {
-    let listen = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap();
+    let listen = penelope_testkit::net::free_tcp_addr();
     let child = PENELOPE
         .command()
         .args(["node", "--name", "lab", "--host-naming", "--listen"])

@@ -31,10 +31,7 @@ impl Drop for Child {
 /// time, then stops it with SIGINT.
 fn record_half_a_second(config: &Path, extra: &[&str]) {
     use std::io::BufRead;
-    let listen = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap();
+    let listen = penelope_testkit::net::free_tcp_addr();
     let mut node = Child(
         PENELOPE
             .command()

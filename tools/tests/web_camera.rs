@@ -4,9 +4,10 @@
 //! description (capture time, the force and pose sample aligned to it, the live skew figures)
 //! followed by its JPEG, the aligned sample's residual skew under a frame period.
 
+use penelope_testkit::net::free_tcp_addr;
 use penelope_testkit::process::{Children, Penelope};
 use std::io::{Read, Write};
-use std::net::{TcpListener, TcpStream};
+use std::net::TcpStream;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -42,11 +43,7 @@ fn percentile(values: &mut [f64], p: f64) -> f64 {
 #[test]
 fn the_camera_socket_sends_frames_with_the_force_of_their_capture_instant() {
     let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/demo-camera.toml");
-    let naming = TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .to_string();
+    let naming = free_tcp_addr().to_string();
     let (node, _) = PENELOPE.start(
         &[
             "node",

@@ -2,9 +2,10 @@
 //! every node and answers which loops latched it (here a node on loopback without a secret,
 //! its PID loop running, spoken to in plain HTTP; the browser tests press the button itself).
 
+use penelope_testkit::net::free_tcp_addr;
 use penelope_testkit::process::{Children, Penelope};
 use std::io::{Read, Write};
-use std::net::{TcpListener, TcpStream};
+use std::net::TcpStream;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -39,11 +40,7 @@ fn ctl(naming: &str, args: &[&str]) -> std::process::Output {
 
 #[test]
 fn the_pages_estop_latches_every_loop_of_every_node() {
-    let naming = TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .to_string();
+    let naming = free_tcp_addr().to_string();
     let (node, _) = PENELOPE.start(
         &[
             "node",
