@@ -18,7 +18,6 @@ use std::time::{Duration, Instant};
 use penelope_protocol::client::Client;
 use penelope_protocol::client::sync::{
     Aligned, ForceSample, FrameFigures, Match, SampleHistory, describe_skew, force_arrow,
-    monotonic_now_ns,
 };
 use penelope_protocol::proto::{CameraFrame, CameraModelMsg, PoseMsg, TelemetryRecord};
 use penelope_scene::{CameraCalibration, CompressedImage, Timestamp};
@@ -296,16 +295,17 @@ pub fn in_base(
     (turn(aligned), turn(newest))
 }
 
-/// One frame's figures: displayed (handed to the Foxglove clients) now, the hand feeling the
-/// newest sample (master and slave on one node; the web page's camera socket takes the
-/// master's loop and link when given).
+/// One frame's figures: displayed (handed to the Foxglove clients) at `display_ns` on the
+/// common clock, the hand feeling the newest sample (master and slave on one node; the web
+/// page's camera socket takes the master's loop and link when given).
 pub fn figures(
+    display_ns: u64,
     frame: &CameraFrame,
     aligned: Option<&Aligned>,
     newest: Option<&Aligned>,
 ) -> FrameFigures {
     FrameFigures::of(
-        monotonic_now_ns(),
+        display_ns,
         frame.capture_ns,
         newest.map(|n| n.sample.time_ns),
         aligned,

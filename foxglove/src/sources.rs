@@ -20,6 +20,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use penelope_protocol::client::clock::{CommonClockView, REFRESH};
 use penelope_protocol::client::{Client, NodeProxy};
 use penelope_protocol::net::conn::RpcError;
 use penelope_protocol::proto::{Class, ObjectInfo, object_path};
@@ -597,6 +598,15 @@ impl Reader {
                     continue;
                 }
             };
+            // The display instant on the common clock, though the gateway may run on another
+            // host than the naming service's.
+            let clock = match CommonClockView::follow(&self.shared.client, REFRESH) {
+                Ok(c) => c,
+                Err(e) => {
+                    self.pause(format!("the common clock: {e}"));
+                    continue;
+                }
+            };
             lock(&self.stats).error = None;
             let mut samples: Option<(String, RobotSamples)> = None;
             let mut tool = None;
@@ -632,7 +642,8 @@ impl Reader {
                     aligned,
                     newest,
                 );
-                let figures = cameras::figures(&frame, aligned.as_ref(), newest.as_ref());
+                let figures =
+                    cameras::figures(clock.now_ns(), &frame, aligned.as_ref(), newest.as_ref());
                 let at = frame.capture_ns;
                 let hub = &self.shared.hub;
                 if let Ok(text) = serde_json::to_vec(&cameras::calibration(&frame.model, at)) {

@@ -15,9 +15,12 @@
 //! - [`net::conn`]: the client side of one connection: requests, pipelining, subscriptions.
 //! - [`client`]: the naming-aware client and the typed proxies of remote objects (robots,
 //!   boards, sensors, controllers, trajectories), and their telemetry and link streams.
+//! - [`link_clock`]: another host's clock estimated from four-timestamp exchanges (the data
+//!   plane's heartbeats, [`proto::Call::Time`]), as NTP's clock filter does it.
 #![warn(missing_docs)]
 
 pub mod client;
+pub mod link_clock;
 pub mod net;
 pub mod proto;
 pub mod service;

@@ -24,7 +24,7 @@ use penelope_rt_core::clock::MonotonicClock;
 use penelope_rt_core::exec::CommonOffset;
 use serde::Serialize;
 
-use crate::dataplane::clock::{ClockError, LinkClock};
+use penelope_protocol::link_clock::{ClockError, LinkClock};
 use penelope_protocol::proto::{Reply, WireError};
 
 #[cfg(doc)]

@@ -7,7 +7,8 @@
 //! capture instant ([`SampleHistory::at`]) and the newest one, projects both forces as arrows
 //! on the image, and counts the live figures ([`FrameFigures`], [`SyncMeter`]). The display
 //! instant is when the server hands the frame to the socket (the browser paints it a few
-//! milliseconds later, not counted). Frames wait for the socket in a queue of
+//! milliseconds later, not counted), on the common clock as this server's host estimates it
+//! ([`CommonClockView`]: the server may run on another host than the naming service). Frames wait for the socket in a queue of
 //! [`QUEUE_FRAMES`] that drops the oldest: a slow browser sees fewer frames, never older ones,
 //! and never holds anything up.
 //!
@@ -36,9 +37,10 @@ use axum::extract::ws::{Message, Utf8Bytes, WebSocket, WebSocketUpgrade};
 use axum::extract::{Query, State};
 use axum::response::{IntoResponse, Response};
 use penelope_protocol::client::Client;
+use penelope_protocol::client::clock::{CommonClockView, REFRESH};
 use penelope_protocol::client::sync::{
     Aligned, ForceSample, FrameFigures, Match, Percentiles, SampleHistory, SyncMeter,
-    describe_skew, force_arrow, force_measured_ns, monotonic_now_ns, to_common,
+    describe_skew, force_arrow, force_measured_ns, to_common,
 };
 use penelope_protocol::proto::{CameraFrame, CameraModelMsg, Class, PoseMsg, object_path};
 use serde::Deserialize;
@@ -190,6 +192,12 @@ fn read(client: &Client, q: &CameraQuery, decimation: u32, shared: &Arc<Shared>)
         Ok(r) => r,
         Err(e) => return fail(e.into()),
     };
+    // The display instant on the common clock, though this server may run on another host
+    // than the naming service's.
+    let clock = match CommonClockView::follow(client, REFRESH) {
+        Ok(c) => c,
+        Err(e) => return fail(e.into()),
+    };
     let mut frames = match client.watch_camera(&q.path, decimation) {
         Ok(s) => s,
         Err(e) => return fail(e.into()),
@@ -282,7 +290,7 @@ fn read(client: &Client, q: &CameraQuery, decimation: u32, shared: &Arc<Shared>)
             (a, _) => a,
         };
         let (aligned, newest) = (in_base(aligned), in_base(newest));
-        let display_ns = monotonic_now_ns();
+        let display_ns = clock.now_ns();
         let hand_measured_ns = match hand.tick_ns.load(Ordering::Acquire) {
             u64::MAX if q.hand.is_some() => None,
             u64::MAX => newest.map(|n| n.sample.time_ns),

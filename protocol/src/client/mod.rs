@@ -30,6 +30,8 @@
 //! - [`TelemetryStream`]: the telemetry of a running loop on its own connection;
 //! - [`FrameStream`]: a camera's frames, on the common clock, on its own connection;
 //!   [`LinkStream`]: the link records of a channel linked to another node, likewise.
+//! - [`clock`]: the system's common clock on this client's host ([`clock::CommonClockView`]),
+//!   for views that compare a frame's capture instant with the instant they display it.
 //! - [`sync`]: which force and pose sample belongs to a camera frame, and how far the video is
 //!   behind the hand (the alignment the web page, the Foxglove gateway and `experiment sync` use).
 //!
@@ -48,6 +50,7 @@
 //! connection broke may thus run twice: harmless for queries and transitions, and a `create`
 //! that ran twice answers [`CallError::NameTaken`]. A timeout is never retried.
 
+pub mod clock;
 mod estop;
 mod naming;
 mod node;

@@ -13,7 +13,7 @@
 //! every time the end stamps, so that a test can put two ends on one host on clocks that
 //! disagree by a known amount.
 //!
-//! [`LinkClock`]: super::clock::LinkClock
+//! [`LinkClock`]: penelope_protocol::link_clock::LinkClock
 
 use nix::time::{ClockId, clock_gettime};
 use penelope_rt_core::clock::MonotonicClock;

@@ -19,7 +19,6 @@ use penelope_rt_core::teleop::{PortEnergy, PortPayload, TeleopSample, WaveSample
 
 use serde::{Deserialize, Serialize};
 
-use crate::dataplane::clock::LinkClock;
 use crate::dataplane::end_clock::{EndClock, LinkTime};
 use crate::dataplane::endpoint::{Endpoint, RECEIVE_BURST, Received};
 use crate::dataplane::faults::{FaultConfig, FaultConfigError, FaultyLink};
@@ -32,6 +31,7 @@ use crate::objects::link_source::{
     ChannelLinkStats, DatagramTap, LinkSource, MASTER_TO_SLAVE, SLAVE_TO_MASTER, StreamDatagram,
     StreamName,
 };
+use penelope_protocol::link_clock::LinkClock;
 
 /// The heartbeats and their answers, both ways (each answered, not newest-wins).
 pub const HEARTBEATS: StreamId = StreamId(0);

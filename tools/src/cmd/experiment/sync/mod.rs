@@ -24,10 +24,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use penelope_protocol::client::Client;
+use penelope_protocol::client::clock::{CommonClockView, REFRESH};
 use penelope_protocol::client::sync::{ForceSample, SampleHistory};
 use penelope_protocol::net::conn::{ClientConfig, RpcError};
-use penelope_protocol::proto::{Call, Reply, Role};
-use penelope_runtime::common_clock::CommonClock;
+use penelope_protocol::proto::Role;
 use penelope_supervisor::runs::latency::Percentiles;
 use serde::Serialize;
 
@@ -267,24 +267,9 @@ fn watch(context: &WatchContext, camera: &str, robot: &str) -> anyhow::Result<Wa
     config.role = Role::Reader;
     config.secret = crate::cmd::naming::read_secret(Some(&context.secret_file))?;
     let client = Client::connect(context.naming, config)?;
-    // This host's common clock, as a node's: four-timestamp exchanges with the naming service.
-    let clock = CommonClock::of_naming(context.naming);
-    for _ in 0..penelope_runtime::common_clock::EXCHANGES_AT_REGISTRATION {
-        clock
-            .exchange(|| match client.call_at(context.naming, Call::Time)? {
-                Reply::Time {
-                    received_ns,
-                    sent_ns,
-                } => Ok((received_ns, sent_ns)),
-                other => Err(penelope_protocol::proto::WireError::Protocol(
-                    penelope_protocol::proto::ProtocolError::Malformed(format!(
-                        "not a time: {other:?}"
-                    )),
-                )),
-            })
-            .context("estimating this host's common clock")?;
-    }
-    let now_common = || clock.to_common(penelope_rt_core::clock::MonotonicClock::read().as_nanos());
+    // This host's common clock, as a view's: four-timestamp exchanges with the naming service.
+    let clock =
+        CommonClockView::follow(&client, REFRESH).context("estimating this host's common clock")?;
 
     let frames = retry_until_ready(|| client.watch_camera(camera, 1))
         .with_context(|| format!("watching camera `{camera}`"))?;
@@ -324,7 +309,7 @@ fn watch(context: &WatchContext, camera: &str, robot: &str) -> anyhow::Result<Wa
         else {
             continue;
         };
-        let display_ns = now_common();
+        let display_ns = clock.now_ns();
         let aligned_skew_ns = history
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
