@@ -165,6 +165,7 @@ impl Creator {
                     }
                     let spec = FrameSubscriptionSpec {
                         camera: object.to_string(),
+                        kind: o.kind.as_str().into(),
                         decimation,
                         queue: c.queue(),
                         link: c.link().clone(),

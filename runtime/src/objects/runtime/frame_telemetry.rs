@@ -116,6 +116,8 @@ pub struct FrameSubscriptions {
 pub struct FrameSubscriptionSpec {
     /// The camera's name.
     pub camera: String,
+    /// Its kind (`sensor/sim-camera`, `sensor/camera`), for errors.
+    pub kind: String,
     /// One frame in `decimation` (by frame number).
     pub decimation: u32,
     /// Frames its queue holds.
@@ -171,7 +173,7 @@ impl FrameSubscriptions {
         // Each subscriber's link draws its own faults, from the camera's seed and its id.
         let link = FaultyLink::new(&spec.link, spec.seed ^ id, LINK_CAPACITY).map_err(|e| {
             ObjectError::BadConfig {
-                kind: "sensor/sim-camera".into(),
+                kind: spec.kind.clone(),
                 message: format!("link: {e}"),
             }
         })?;
@@ -321,6 +323,7 @@ mod tests {
 
     fn spec(queue: usize, link: FaultConfig) -> FrameSubscriptionSpec {
         FrameSubscriptionSpec {
+            kind: "sensor/sim-camera".into(),
             camera: "cam".into(),
             decimation: 1,
             queue,
