@@ -14,8 +14,10 @@ Errors are exceptions of the class named by the wire error's kind (:class:`Unkno
 from ._client import (
     Array,
     Board,
+    Camera,
     Client,
     Controller,
+    FrameWatch,
     JointState,
     Link,
     LinkWatch,
@@ -74,8 +76,10 @@ from ._native import __version__
 __all__ = [
     "Array",
     "Board",
+    "Camera",
     "Client",
     "Controller",
+    "FrameWatch",
     "JointState",
     "Link",
     "LinkWatch",

@@ -30,6 +30,9 @@ _P = TypeVar("_P", bound="Proxy")
 
 _BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
 
+#: The sensor kinds whose proxies are :class:`Camera`.
+CAMERA_KINDS = ("sensor/sim-camera", "sensor/camera")
+
 
 def _toml_value(v: Any) -> str:
     if isinstance(v, bool):
@@ -244,9 +247,12 @@ class Client:
 
     def proxy(self, path: str) -> "Proxy":
         """The proxy of the object at ``path``, of the class its naming entry says."""
-        cls = self._native.locate(path)["class"]
+        where = self._native.locate(path)
+        cls = where["class"]
         if cls == "robot":
             return self.robot(path)
+        if cls == "sensor" and where["kind"] in CAMERA_KINDS:
+            return self.camera(path)
         if cls == "sensor":
             return self.sensor(path)
         if cls == "controller":
@@ -265,6 +271,10 @@ class Client:
     def sensor(self, path: str) -> "Sensor":
         """The sensor at ``path``."""
         return Sensor(self, self._native.sensor(path))
+
+    def camera(self, path: str) -> "Camera":
+        """The camera (``sensor/sim-camera``, ``sensor/camera``) at ``path``, for its frames."""
+        return Camera(self, self._native.sensor(path))
 
     def controller(self, path: str) -> "Controller":
         """The controller at ``path``."""
@@ -857,6 +867,15 @@ class Sensor(Proxy):
         self._native.bias()
 
 
+class Camera(Sensor):
+    """A camera (``sensor/sim-camera``, ``sensor/camera``): its frames, each stamped with its
+    capture instant on the system's common clock."""
+
+    def watch(self, decimation: int = 1, count: Optional[int] = None) -> "FrameWatch":
+        """The frames as they come, one in ``decimation``: see :class:`FrameWatch`."""
+        return FrameWatch(self._client._native.watch_camera(self.path, decimation, count))
+
+
 class Controller(Proxy):
     """A remote controller."""
 
@@ -979,6 +998,50 @@ class LinkWatch(Iterator[Dict[str, Any]]):
         self._native.close()
 
     def __enter__(self) -> "LinkWatch":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class FrameWatch(Iterator[Dict[str, Any]]):
+    """An iterator of a camera's frames on a connection of its own; a context manager that
+    unsubscribes. Each frame is a dict: ``seq`` (the camera's frame number), ``capture_ns``
+    (the middle of its exposure), ``ready_ns`` (read out on the camera's node), ``sent_ns``
+    (handed to this subscription), all ns on the common clock; ``encoding`` (``"jpeg"``),
+    ``data`` (the encoded image, bytes) and ``model``: ``frame_id``, ``width``, ``height``,
+    ``fx``, ``fy``, ``cx``, ``cy`` (px), ``pose_in_robot_base`` (4x4 array, or ``None``) and
+    ``robot`` (the robot it watches, or ``None``). The node keeps a few frames per subscriber
+    and drops the oldest when this side reads too slowly (:attr:`dropped`)."""
+
+    def __init__(self, native: _native.FrameWatch) -> None:
+        self._native = native
+
+    @property
+    def path(self) -> str:
+        """The camera's naming path."""
+        return self._native.path
+
+    @property
+    def dropped(self) -> int:
+        """Frames the node dropped because this side read too slowly."""
+        return self._native.dropped
+
+    def __iter__(self) -> "FrameWatch":
+        return self
+
+    def __next__(self) -> Dict[str, Any]:
+        f = next(self._native)
+        pose = f["model"]["pose_in_robot_base"]
+        if pose is not None:
+            f["model"]["pose_in_robot_base"] = np.array(pose, dtype=np.float64).reshape(4, 4)
+        return f
+
+    def close(self) -> None:
+        """Unsubscribes and closes the connection."""
+        self._native.close()
+
+    def __enter__(self) -> "FrameWatch":
         return self
 
     def __exit__(self, *exc: object) -> None:

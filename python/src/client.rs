@@ -16,7 +16,7 @@ use pyo3::types::PyDict;
 use crate::errors::{Error, bad_argument};
 use crate::proxies::{self, Board, Controller, Object, Robot, Sensor, Trajectory};
 use crate::values;
-use crate::watch::{LinkWatch, Watch};
+use crate::watch::{FrameWatch, LinkWatch, Watch};
 
 /// A client of one system, through its naming service.
 #[pyclass(module = "penelope._native", frozen)]
@@ -366,6 +366,25 @@ impl Client {
             .detach(|| self.inner.watch_link(spec, decimation))
             .map_err(Error)?;
         Ok(LinkWatch::new(stream, count))
+    }
+
+    /// Subscribes to the frames of the camera at `spec` (`sensor/sim-camera`,
+    /// `sensor/camera`), one frame in `decimation`; ends after `count` frames.
+    #[pyo3(signature = (spec, decimation=1, count=None))]
+    fn watch_camera(
+        &self,
+        py: Python<'_>,
+        spec: &str,
+        decimation: u32,
+        count: Option<u64>,
+    ) -> PyResult<FrameWatch> {
+        if decimation == 0 {
+            return Err(bad_argument("decimation must be at least 1").into());
+        }
+        let stream = py
+            .detach(|| self.inner.watch_camera(spec, decimation))
+            .map_err(Error)?;
+        Ok(FrameWatch::new(stream, count))
     }
 
     /// The object at `spec`, whatever its class.

@@ -37,6 +37,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<proxies::Trajectory>()?;
     m.add_class::<watch::Watch>()?;
     m.add_class::<watch::LinkWatch>()?;
+    m.add_class::<watch::FrameWatch>()?;
     m.add_function(wrap_pyfunction!(errors::error_kinds, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -3,9 +3,12 @@
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
 use penelope_hal::{JointVector, MAX_JOINTS, Pose, Wrench};
-use penelope_protocol::proto::{KindInfo, LinkRecord, ObjectInfo, ObjectRef, TelemetryRecord};
+use penelope_protocol::proto::{
+    CameraFrame, CameraModelMsg, KindInfo, LinkRecord, ObjectInfo, ObjectRef, PoseMsg,
+    TelemetryRecord,
+};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyBytes, PyDict};
 
 use crate::errors::{Result, bad_argument};
 
@@ -148,4 +151,50 @@ pub fn link_record<'py>(py: Python<'py>, r: &LinkRecord) -> PyResult<Bound<'py, 
     d.set_item("trip_p99_ns", r.trip_p99_ns)?;
     d.set_item("trip_max_ns", r.trip_max_ns)?;
     Ok(d)
+}
+
+/// A camera frame as a dict: `seq`, `capture_ns`, `ready_ns`, `sent_ns` (ns on the common
+/// clock), `encoding` (`"jpeg"`), `data` (the encoded image, bytes) and `model` (see
+/// [`camera_model`]).
+pub fn camera_frame<'py>(py: Python<'py>, f: &CameraFrame) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("seq", f.seq)?;
+    d.set_item("capture_ns", f.capture_ns)?;
+    d.set_item("ready_ns", f.ready_ns)?;
+    d.set_item("sent_ns", f.sent_ns)?;
+    d.set_item("encoding", f.encoding.name())?;
+    d.set_item("data", PyBytes::new(py, &f.data))?;
+    d.set_item("model", camera_model(py, &f.model)?)?;
+    Ok(d)
+}
+
+/// A camera's model as a dict: `frame_id`, `width`, `height` (px), the pinhole's `fx`, `fy`,
+/// `cx`, `cy` (px), `pose_in_robot_base` (the optical frame in the watched robot's base, 4x4
+/// row by row, or `None`) and `robot` (the robot it watches, or `None`).
+pub fn camera_model<'py>(py: Python<'py>, m: &CameraModelMsg) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("frame_id", &m.frame_id)?;
+    d.set_item("width", m.width)?;
+    d.set_item("height", m.height)?;
+    d.set_item("fx", m.fx)?;
+    d.set_item("fy", m.fy)?;
+    d.set_item("cx", m.cx)?;
+    d.set_item("cy", m.cy)?;
+    d.set_item(
+        "pose_in_robot_base",
+        m.pose_in_robot_base.as_ref().map(pose_msg_rows),
+    )?;
+    d.set_item("robot", m.robot.as_deref())?;
+    Ok(d)
+}
+
+/// The 4x4 homogeneous transform of a pose message (its columns `n`, `o`, `a`, `position`),
+/// row by row.
+fn pose_msg_rows(p: &PoseMsg) -> Vec<f64> {
+    let mut rows = Vec::with_capacity(16);
+    for i in 0..3 {
+        rows.extend([p.n[i], p.o[i], p.a[i], p.position[i]]);
+    }
+    rows.extend([0.0, 0.0, 0.0, 1.0]);
+    rows
 }

@@ -1,11 +1,11 @@
 //! Subscriptions as Python iterators: a controller's telemetry (or that of the robot it
-//! drives) and a teleop channel's link statistics, one record at a time.
+//! drives), a teleop channel's link statistics and a camera's frames, one record at a time.
 
 use std::sync::{Mutex, PoisonError};
 
-use penelope_protocol::client::{LinkStream, Streamed, Subscription, TelemetryStream};
+use penelope_protocol::client::{FrameStream, LinkStream, Streamed, Subscription, TelemetryStream};
 use penelope_protocol::net::conn::RpcError;
-use penelope_protocol::proto::{LinkRecord, TelemetryRecord};
+use penelope_protocol::proto::{CameraFrame, LinkRecord, TelemetryRecord};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -88,8 +88,8 @@ impl<R: Streamed + Send> Stream<R> {
 }
 
 /// A Python iterator class over a subscription: `$class` wraps a [`Stream`] of `$record`
-/// (from a `$subscription`), each record turned into a dict by `$to_dict`. The two classes
-/// differ only in what they stream (pyo3 classes cannot be generic).
+/// (from a `$subscription`), each record turned into a dict by `$to_dict`. The
+/// classes differ only in what they stream (pyo3 classes cannot be generic).
 macro_rules! watch_class {
     (
         $(#[doc = $doc:literal])*
@@ -161,4 +161,12 @@ watch_class!(
     path: "The watched channel's naming path.",
     dropped: "Records the node dropped because this side read too slowly.",
     next: "The next link record, as a dict; `StopIteration` after `count` records or `close()`."
+);
+
+watch_class!(
+    /// A camera's frames on a connection of its own; unsubscribes when closed or collected.
+    FrameWatch, FrameStream, CameraFrame, values::camera_frame,
+    path: "The watched camera's naming path.",
+    dropped: "Frames the node dropped because this side read too slowly.",
+    next: "The next frame, as a dict; `StopIteration` after `count` frames or `close()`."
 );

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 import queue
-import socket
+import sys
 import subprocess
 import tempfile
 import threading
@@ -17,6 +17,9 @@ from pathlib import Path
 from typing import Iterator, List, Optional
 
 import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "testkit" / "python"))
+from penelope_ports import free_port  # noqa: E402
 
 READY = "Ctrl-C stops the node"
 START_TIMEOUT_S = 60.0
@@ -34,12 +37,6 @@ def pytest_configure(config: pytest.Config) -> None:
 @pytest.fixture(scope="session")
 def penelope_bin() -> str:
     return os.environ["PENELOPE_BIN"]
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class Node:

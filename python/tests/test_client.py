@@ -171,6 +171,42 @@ def wait_state(pid: penelope.Controller, *states: str) -> None:
         time.sleep(0.01)
 
 
+def test_a_cameras_frames_are_jpegs_stamped_on_the_common_clock_beside_the_telemetry(
+    node,
+) -> None:
+    c = penelope.connect(node.naming)
+    pid = running_pid(c)
+    cam = c.create(
+        "lab", "sensor/sim-camera", "cam", robot="slave", eye=[1.5, -1.0, 1.0],
+        target=[0.0, 0.0, 0.5], up=[0.0, 0.0, 1.0], width=160, height=120, rate_hz=30.0,
+    )
+    assert isinstance(cam, penelope.Camera)
+    cam.configure()
+    with cam.watch(count=3) as w:
+        assert w.path == "/lab/sensors/cam"
+        frames = list(w)
+    assert len(frames) == 3
+    seqs = [f["seq"] for f in frames]
+    assert seqs == sorted(seqs) and len(set(seqs)) == 3
+    for f in frames:
+        assert f["encoding"] == "jpeg" and f["data"][:2] == b"\xff\xd8"
+        assert f["capture_ns"] < f["ready_ns"] <= f["sent_ns"]
+        m = f["model"]
+        assert (m["width"], m["height"], m["robot"]) == (160, 120, "slave")
+        assert m["pose_in_robot_base"].shape == (4, 4)
+        # The optical axis (the pose's z) looks from the eye toward the target.
+        z = m["pose_in_robot_base"][:3, 2]
+        toward = np.array([0.0, 0.0, 0.5]) - np.array([1.5, -1.0, 1.0])
+        assert np.dot(z, toward / np.linalg.norm(toward)) > 0.999
+    # One clock: this node serves the naming service, so its ticks and the frames' capture
+    # instants are both its monotonic clock; the newest frame was captured within a second
+    # of the loop's newest tick.
+    tick_ns = pid.status()["last"]["time_ns"]
+    assert abs(tick_ns - frames[-1]["capture_ns"]) < 1_000_000_000
+    with pytest.raises(penelope.BadArgument):
+        cam.watch(decimation=0)
+
+
 def test_estop_of_a_node_and_of_everything_latches_the_running_loop(node) -> None:
     c = penelope.connect(node.naming)
     pid = running_pid(c)

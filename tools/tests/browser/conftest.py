@@ -11,14 +11,17 @@ import os
 import queue
 import re
 import shutil
-import socket
 import subprocess
+import sys
 import tempfile
 import threading
 from pathlib import Path
 from typing import Iterator, List, Optional
 
 import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "testkit" / "python"))
+from penelope_ports import free_port  # noqa: E402
 
 NODE_READY = "Ctrl-C stops the node"
 WEB_READY = re.compile(r"penelope web: serving (http://\S+/)")
@@ -42,12 +45,6 @@ def pytest_configure(config: pytest.Config) -> None:
 @pytest.fixture(scope="session")
 def penelope_bin() -> str:
     return os.environ["PENELOPE_BIN"]
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class Process:

@@ -14,6 +14,7 @@ import re
 import socket
 import struct
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -22,6 +23,9 @@ from typing import Callable, Dict, Iterator, List, Optional
 
 import pytest
 from websockets.sync.client import connect
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "testkit" / "python"))
+from penelope_ports import free_port  # noqa: E402
 
 NODE_READY = "Ctrl-C stops the node"
 FOX_READY = re.compile(r"penelope foxglove: serving (ws://\S+) ")
@@ -35,12 +39,6 @@ def pytest_configure(config: pytest.Config) -> None:
     if not binary or not os.access(binary, os.X_OK):
         raise pytest.UsageError(
             f"PENELOPE_BIN must name the `penelope` binary (scripts/test sets it); got {binary!r}")
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class Process:
