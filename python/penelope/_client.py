@@ -10,7 +10,8 @@ import time
 from dataclasses import dataclass
 from types import TracebackType
 from typing import (
-    Any, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Type, TypeVar, Union,
+    Any, Dict, Generic, Iterator, List, Mapping, Optional, Sequence, Tuple, Type, TypeVar,
+    Union,
 )
 
 import numpy as np
@@ -934,19 +935,16 @@ def _sample(d: Dict[str, Any]) -> Dict[str, Any]:
     return d
 
 
-class Watch(Iterator[Dict[str, Any]]):
-    """An iterator of telemetry samples on a connection of its own. Each sample is a dict:
-    ``time_ns`` and ``seq`` (ints), the arrays ``q``, ``qd`` (rad, rad/s), ``effort`` (N·m),
-    ``tool_position`` (m), ``force`` (N) and ``torque`` (N·m, base frame), ``state`` and
-    ``fault`` (strings, ``fault`` ``None`` when clear), ``commanded_force`` and
-    ``commanded_torque`` (the wrench the loop commanded after its caps: a master's displayed
-    force), ``clutch`` (bool, ``None`` when no hand holds the robot) and ``port_energy`` and
-    ``channel_energy`` (J, ``None`` for laws without those observers). Each wait is bounded by the client's
-    timeout (:class:`Timeout`). Use as a context manager, or call :meth:`close`, to
-    unsubscribe at once."""
+_N = TypeVar("_N", _native.Watch, _native.LinkWatch, _native.FrameWatch)
+_W = TypeVar("_W", bound="_Subscription[Any]")
 
-    def __init__(self, native: _native.Watch) -> None:
-        self._native = native
+
+class _Subscription(Iterator[Dict[str, Any]], Generic[_N]):
+    """What every subscription iterator shares: its native stream, its path, the records the
+    node dropped, and unsubscribing (:meth:`close`, or the end of a ``with`` block)."""
+
+    def __init__(self, native: _N) -> None:
+        self._native: _N = native
 
     @property
     def path(self) -> str:
@@ -955,39 +953,10 @@ class Watch(Iterator[Dict[str, Any]]):
 
     @property
     def dropped(self) -> int:
-        """Batches the node dropped because this side read too slowly."""
+        """What the node dropped because this side read too slowly."""
         return self._native.dropped
 
-    def __iter__(self) -> "Watch":
-        return self
-
-    def __next__(self) -> Dict[str, Any]:
-        return _sample(next(self._native))
-
-    def close(self) -> None:
-        """Unsubscribes and closes the connection."""
-        self._native.close()
-
-    def __enter__(self) -> "Watch":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-class LinkWatch(Iterator[Dict[str, Any]]):
-    """An iterator of a channel's link statistics (dicts, see :meth:`Link.statistics`) on a
-    connection of its own; a context manager that unsubscribes."""
-
-    def __init__(self, native: _native.LinkWatch) -> None:
-        self._native = native
-
-    @property
-    def path(self) -> str:
-        """The channel's naming path."""
-        return self._native.path
-
-    def __iter__(self) -> "LinkWatch":
+    def __iter__(self: _W) -> _W:
         return self
 
     def __next__(self) -> Dict[str, Any]:
@@ -997,14 +966,34 @@ class LinkWatch(Iterator[Dict[str, Any]]):
         """Unsubscribes and closes the connection."""
         self._native.close()
 
-    def __enter__(self) -> "LinkWatch":
+    def __enter__(self: _W) -> _W:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
 
 
-class FrameWatch(Iterator[Dict[str, Any]]):
+class Watch(_Subscription[_native.Watch]):
+    """An iterator of telemetry samples on a connection of its own. Each sample is a dict:
+    ``time_ns`` and ``seq`` (ints), the arrays ``q``, ``qd`` (rad, rad/s), ``effort`` (N·m),
+    ``tool_position`` (m), ``force`` (N) and ``torque`` (N·m, base frame), ``state`` and
+    ``fault`` (strings, ``fault`` ``None`` when clear), ``commanded_force`` and
+    ``commanded_torque`` (the wrench the loop commanded after its caps: a master's displayed
+    force), ``clutch`` (bool, ``None`` when no hand holds the robot) and ``port_energy`` and
+    ``channel_energy`` (J, ``None`` for laws without those observers). Each wait is bounded by
+    the client's timeout (:class:`Timeout`). Use as a context manager, or call :meth:`close`,
+    to unsubscribe at once; :attr:`dropped` counts the batches the node dropped."""
+
+    def __next__(self) -> Dict[str, Any]:
+        return _sample(next(self._native))
+
+
+class LinkWatch(_Subscription[_native.LinkWatch]):
+    """An iterator of a channel's link statistics (dicts, see :meth:`Link.statistics`) on a
+    connection of its own; a context manager that unsubscribes."""
+
+
+class FrameWatch(_Subscription[_native.FrameWatch]):
     """An iterator of a camera's frames on a connection of its own; a context manager that
     unsubscribes. Each frame is a dict: ``seq`` (the camera's frame number), ``capture_ns``
     (the middle of its exposure), ``ready_ns`` (read out on the camera's node), ``sent_ns``
@@ -1014,38 +1003,12 @@ class FrameWatch(Iterator[Dict[str, Any]]):
     ``robot`` (the robot it watches, or ``None``). The node keeps a few frames per subscriber
     and drops the oldest when this side reads too slowly (:attr:`dropped`)."""
 
-    def __init__(self, native: _native.FrameWatch) -> None:
-        self._native = native
-
-    @property
-    def path(self) -> str:
-        """The camera's naming path."""
-        return self._native.path
-
-    @property
-    def dropped(self) -> int:
-        """Frames the node dropped because this side read too slowly."""
-        return self._native.dropped
-
-    def __iter__(self) -> "FrameWatch":
-        return self
-
     def __next__(self) -> Dict[str, Any]:
         f = next(self._native)
         pose = f["model"]["pose_in_robot_base"]
         if pose is not None:
             f["model"]["pose_in_robot_base"] = np.array(pose, dtype=np.float64).reshape(4, 4)
         return f
-
-    def close(self) -> None:
-        """Unsubscribes and closes the connection."""
-        self._native.close()
-
-    def __enter__(self) -> "FrameWatch":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 class Recording:
