@@ -125,6 +125,27 @@ EXPECTED = {
         "axes": [0.5, -1.0],
         "buttons": [0, 1, 1],
     },
+    "sensor_msgs/msg/CompressedImage": {
+        "header": header(23, 24, "camera_optical"),
+        "format": "jpeg",
+        "data": [0xFF, 0xD8, 0xFF, 0xE0, 0x00, 0x10, 0xFF, 0xD9],
+    },
+    "sensor_msgs/msg/RegionOfInterest": {
+        "x_offset": 1, "y_offset": 2, "height": 3, "width": 4, "do_rectify": True,
+    },
+    "sensor_msgs/msg/CameraInfo": {
+        "header": header(25, 26, "camera_optical"),
+        "height": 480,
+        "width": 640,
+        "distortion_model": "plumb_bob",
+        "d": [0.0] * 5,
+        "k": [500.0, 0.0, 320.5, 0.0, 510.0, 240.25, 0.0, 0.0, 1.0],
+        "r": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        "p": [500.0, 0.0, 320.5, 0.0, 0.0, 510.0, 240.25, 0.0, 0.0, 0.0, 1.0, 0.0],
+        "binning_x": 0,
+        "binning_y": 0,
+        "roi": {"x_offset": 0, "y_offset": 0, "height": 0, "width": 0, "do_rectify": False},
+    },
     "tf2_msgs/msg/TFMessage": {
         "transforms": [
             WORLD_TO_BASE,

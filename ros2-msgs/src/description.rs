@@ -70,13 +70,16 @@ pub enum FieldKind {
     Nested(&'static MessageDescription),
 }
 
-/// One value, or an unbounded sequence of them (the only two shapes Penelope's types use).
+/// One value, an unbounded sequence of them, or a fixed-size array (the shapes Penelope's
+/// types use; bounded sequences and strings are not among them).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Shape {
     /// A single value.
     Single,
     /// `T[]`: an unbounded sequence.
     Sequence,
+    /// `T[N]`: exactly `N` values (no length on the wire).
+    Array(usize),
 }
 
 /// A field of a message.
@@ -115,7 +118,16 @@ impl FieldDescription {
         }
     }
 
-    /// The FieldType id: the element's id, + 144 for an unbounded sequence.
+    /// This field as a fixed-size array of `n`.
+    pub const fn array(self, n: usize) -> Self {
+        Self {
+            shape: Shape::Array(n),
+            ..self
+        }
+    }
+
+    /// The FieldType id: the element's id, + 48 for a fixed-size array, + 144 for an unbounded
+    /// sequence.
     pub const fn type_id(&self) -> u8 {
         let element = match self.kind {
             FieldKind::Primitive(primitive) => primitive.type_id(),
@@ -123,6 +135,7 @@ impl FieldDescription {
         };
         match self.shape {
             Shape::Single => element,
+            Shape::Array(_) => element + 48,
             Shape::Sequence => element + 144,
         }
     }
@@ -210,8 +223,15 @@ impl MessageDescription {
             push_json_string(json, field.name);
             json.push_str(", \"type\": {\"type_id\": ");
             json.push_str(&field.type_id().to_string());
-            // Capacities are 0: Penelope's types have no arrays, bounded sequences or strings.
-            json.push_str(", \"capacity\": 0, \"string_capacity\": 0, \"nested_type_name\": ");
+            // An array's capacity is its size; the other shapes' are 0 (Penelope's types have no
+            // bounded sequences or strings).
+            let capacity = match field.shape {
+                Shape::Array(n) => n,
+                Shape::Single | Shape::Sequence => 0,
+            };
+            json.push_str(&format!(
+                ", \"capacity\": {capacity}, \"string_capacity\": 0, \"nested_type_name\": "
+            ));
             match field.kind {
                 FieldKind::Nested(nested) => push_json_string(json, nested.type_name),
                 FieldKind::Primitive(_) => push_json_string(json, ""),

@@ -372,6 +372,153 @@ pub static JOY: MessageDescription = MessageDescription {
     ],
 };
 
+/// `sensor_msgs/msg/CompressedImage`: an encoded image (`format`: `"jpeg"`), stamped with its
+/// capture instant, in the camera's optical frame.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CompressedImage {
+    /// Capture instant and the camera's optical frame.
+    pub header: Header,
+    /// The encoding: `"jpeg"`, `"png"`.
+    pub format: String,
+    /// The encoded image.
+    pub data: Vec<u8>,
+}
+cdr_struct!(CompressedImage {
+    header,
+    format,
+    data
+});
+ros_message!(CompressedImage, COMPRESSED_IMAGE);
+
+/// Description of [`CompressedImage`].
+pub static COMPRESSED_IMAGE: MessageDescription = MessageDescription {
+    type_name: "sensor_msgs/msg/CompressedImage",
+    msg_text: "std_msgs/Header header\nstring format\nuint8[] data\n",
+    fields: &[
+        F::nested("header", &HEADER),
+        F::primitive("format", P::String),
+        F::primitive("data", P::Uint8).sequence(),
+    ],
+};
+
+/// `sensor_msgs/msg/RegionOfInterest`: a part of an image (all zero: the whole image).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RegionOfInterest {
+    /// Leftmost pixel.
+    pub x_offset: u32,
+    /// Topmost pixel.
+    pub y_offset: u32,
+    /// Height, px.
+    pub height: u32,
+    /// Width, px.
+    pub width: u32,
+    /// Whether the region is to be rectified.
+    pub do_rectify: bool,
+}
+cdr_struct!(RegionOfInterest {
+    x_offset,
+    y_offset,
+    height,
+    width,
+    do_rectify
+});
+ros_message!(RegionOfInterest, REGION_OF_INTEREST);
+
+/// Description of [`RegionOfInterest`].
+pub static REGION_OF_INTEREST: MessageDescription = MessageDescription {
+    type_name: "sensor_msgs/msg/RegionOfInterest",
+    msg_text: "uint32 x_offset\nuint32 y_offset\nuint32 height\nuint32 width\nbool do_rectify\n",
+    fields: &[
+        F::primitive("x_offset", P::Uint32),
+        F::primitive("y_offset", P::Uint32),
+        F::primitive("height", P::Uint32),
+        F::primitive("width", P::Uint32),
+        F::primitive("do_rectify", P::Bool),
+    ],
+};
+
+/// `sensor_msgs/msg/CameraInfo`: a camera's calibration, what `image_geometry` projects
+/// with: the intrinsic matrix `k`, the rectification `r` and the projection `p` (row-major).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CameraInfo {
+    /// Time and the camera's optical frame.
+    pub header: Header,
+    /// Image height, px.
+    pub height: u32,
+    /// Image width, px.
+    pub width: u32,
+    /// `"plumb_bob"`, `"rational_polynomial"`, ...
+    pub distortion_model: String,
+    /// The distortion coefficients (empty or zeros: none).
+    pub d: Vec<f64>,
+    /// The intrinsic matrix `[fx 0 cx; 0 fy cy; 0 0 1]`.
+    pub k: [f64; 9],
+    /// The rectification rotation (identity for a monocular camera).
+    pub r: [f64; 9],
+    /// The projection matrix `[fx' 0 cx' tx; 0 fy' cy' ty; 0 0 1 0]`.
+    pub p: [f64; 12],
+    /// Horizontal binning.
+    pub binning_x: u32,
+    /// Vertical binning.
+    pub binning_y: u32,
+    /// The region of the full image this one is.
+    pub roi: RegionOfInterest,
+}
+cdr_struct!(CameraInfo {
+    header,
+    height,
+    width,
+    distortion_model,
+    d,
+    k,
+    r,
+    p,
+    binning_x,
+    binning_y,
+    roi
+});
+ros_message!(CameraInfo, CAMERA_INFO);
+
+impl CameraInfo {
+    /// An ideal pinhole camera (no distortion, no rectification, no binning) of `width` x
+    /// `height` px with focal lengths `fx`, `fy` and principal point `cx`, `cy` (px).
+    pub fn pinhole(header: Header, width: u32, height: u32, f: [f64; 2], c: [f64; 2]) -> Self {
+        let ([fx, fy], [cx, cy]) = (f, c);
+        CameraInfo {
+            header,
+            height,
+            width,
+            distortion_model: "plumb_bob".into(),
+            d: vec![0.0; 5],
+            k: [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
+            r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            p: [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+            binning_x: 0,
+            binning_y: 0,
+            roi: RegionOfInterest::default(),
+        }
+    }
+}
+
+/// Description of [`CameraInfo`].
+pub static CAMERA_INFO: MessageDescription = MessageDescription {
+    type_name: "sensor_msgs/msg/CameraInfo",
+    msg_text: "std_msgs/Header header\nuint32 height\nuint32 width\nstring distortion_model\nfloat64[] d\nfloat64[9] k\nfloat64[9] r\nfloat64[12] p\nuint32 binning_x\nuint32 binning_y\nRegionOfInterest roi\n",
+    fields: &[
+        F::nested("header", &HEADER),
+        F::primitive("height", P::Uint32),
+        F::primitive("width", P::Uint32),
+        F::primitive("distortion_model", P::String),
+        F::primitive("d", P::Float64).sequence(),
+        F::primitive("k", P::Float64).array(9),
+        F::primitive("r", P::Float64).array(9),
+        F::primitive("p", P::Float64).array(12),
+        F::primitive("binning_x", P::Uint32),
+        F::primitive("binning_y", P::Uint32),
+        F::nested("roi", &REGION_OF_INTEREST),
+    ],
+};
+
 // ---------------------------------------------------------------- tf2_msgs
 
 /// `tf2_msgs/msg/TFMessage`: a batch of transforms (the `/tf` topic).
@@ -544,6 +691,9 @@ pub static ALL_TYPES: &[&MessageDescription] = &[
     &TRANSFORM_STAMPED,
     &JOINT_STATE,
     &JOY,
+    &COMPRESSED_IMAGE,
+    &REGION_OF_INTEREST,
+    &CAMERA_INFO,
     &TF_MESSAGE,
     &KEY_VALUE,
     &DIAGNOSTIC_STATUS,

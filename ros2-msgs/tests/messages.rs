@@ -118,6 +118,20 @@ fn every_type_round_trips_and_every_truncation_is_a_typed_error() {
         transforms: vec![transform_stamped(), transform_stamped()],
     });
     round_trip(&diagnostic_array());
+    round_trip(&CompressedImage {
+        header: header(5, "cam_optical"),
+        format: "jpeg".into(),
+        data: vec![0xff, 0xd8, 1, 2, 3, 0xff, 0xd9],
+    });
+    let mut info = CameraInfo::pinhole(
+        header(6, "cam_optical"),
+        640,
+        480,
+        [500.0; 2],
+        [320.0, 240.0],
+    );
+    info.roi.do_rectify = true;
+    round_trip(&info);
     round_trip(&OperatingState {
         header: header(4, ""),
         state: OperatingState::ENABLED.into(),
@@ -254,7 +268,7 @@ fn schema_text_lists_each_dependency_once() {
     }
     assert_eq!(schema.matches("MSG: ").count(), 6);
     assert_eq!(Time::schema_text(), "int32 sec\nuint32 nanosec\n");
-    assert_eq!(ALL_TYPES.len(), 18);
+    assert_eq!(ALL_TYPES.len(), 21);
 }
 
 #[test]

@@ -126,6 +126,25 @@ fn samples() -> String {
             axes: vec![0.5, -1.0],
             buttons: vec![0, 1, 1],
         }),
+        line(&CompressedImage {
+            header: header(23, 24, "camera_optical"),
+            format: "jpeg".into(),
+            data: vec![0xff, 0xd8, 0xff, 0xe0, 0x00, 0x10, 0xff, 0xd9],
+        }),
+        line(&RegionOfInterest {
+            x_offset: 1,
+            y_offset: 2,
+            height: 3,
+            width: 4,
+            do_rectify: true,
+        }),
+        line(&CameraInfo::pinhole(
+            header(25, 26, "camera_optical"),
+            640,
+            480,
+            [500.0, 510.0],
+            [320.5, 240.25],
+        )),
         line(&TFMessage {
             transforms: vec![
                 world_to_base(),

@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use common::zenoh_peer::{bridged_node, stats, test_peer};
 use penelope_protocol::proto::{Call, ControllerMethod, Method, Reply, TelemetryRecord};
-use penelope_ros2_msgs::{JointState, Joy, PoseStamped, RosMessage};
+use penelope_ros2_msgs::{CameraInfo, CompressedImage, JointState, Joy, PoseStamped, RosMessage};
 use penelope_runtime::objects::bridged::BridgedCounts;
 use penelope_supervisor::node::Node;
 use penelope_supervisor::ros2::Ros2Settings;
@@ -361,5 +361,83 @@ fn ros2_servo_jp_drives_a_robot_and_its_servo_cp_is_refused_while_the_clutch_is_
     );
     assert!(send(&clutch, joy(0)));
     println!("ros2 presence: {:?}", stats(&node).ros2);
+    node.shutdown();
+}
+
+#[test]
+fn a_cameras_frames_are_published_as_compressed_images_with_their_camera_info() {
+    let port = free_tcp_port();
+    let peer = test_peer(port);
+    let system = format!(
+        "{SERVO_SYSTEM}
+[sensors.wrist_cam]
+kind = \"sim-camera\"
+robot = \"arm\"
+eye = [1.5, -1.0, 1.0]
+target = [0.0, 0.0, 0.5]
+up = [0.0, 0.0, 1.0]
+width = 160
+height = 120
+rate_hz = 50.0
+"
+    );
+    let node = ros2_node(port, &system);
+    let key = |topic: &str, description: &'static penelope_ros2_msgs::MessageDescription| {
+        topic_key(3, topic, description.type_name, &description.type_hash())
+    };
+    let images = peer
+        .declare_subscriber(key(
+            "/wrist_cam/image_raw/compressed",
+            CompressedImage::DESCRIPTION,
+        ))
+        .wait()
+        .unwrap();
+    let infos = peer
+        .declare_subscriber(key("/wrist_cam/camera_info", CameraInfo::DESCRIPTION))
+        .wait()
+        .unwrap();
+    // The publishers' tokens: once the peer sees them, the node's puts reach its subscribers.
+    wait_until("the camera's publishers in the graph", || {
+        graph(&peer, 1)
+            .iter()
+            .filter(|t| t.contains("wrist_cam"))
+            .count()
+            >= 2
+    });
+    // Simulated time: frames are released as the ticks reach their readout.
+    let mut received = Vec::new();
+    let mut info = None;
+    wait_until("three frames and a camera info", || {
+        node.creator().advance(Duration::from_millis(5)).unwrap();
+        while let Ok(Some(sample)) = images.try_recv() {
+            received.push(CompressedImage::decode_cdr(&sample.payload().to_bytes()).unwrap());
+        }
+        if let Ok(Some(sample)) = infos.try_recv() {
+            info = Some(CameraInfo::decode_cdr(&sample.payload().to_bytes()).unwrap());
+        }
+        received.len() >= 3 && info.is_some()
+    });
+    for image in &received {
+        assert_eq!(image.format, "jpeg");
+        assert_eq!(&image.data[..2], &[0xff, 0xd8], "a JPEG");
+        assert!(!image.header.frame_id.is_empty());
+        // ROS time: the Unix epoch, as the robots' topics are stamped.
+        assert!(
+            image.header.stamp.sec > 1_600_000_000,
+            "{:?}",
+            image.header.stamp
+        );
+    }
+    // 50 fps: consecutive frames 20 ms apart on the capture clock.
+    let apart = received[1].header.stamp.as_ns() - received[0].header.stamp.as_ns();
+    assert_eq!(apart, 20_000_000, "capture instants 20 ms apart");
+    let info = info.unwrap();
+    assert_eq!((info.width, info.height), (160, 120));
+    assert_eq!(info.k[8], 1.0);
+    // The principal point at the image's centre.
+    let centre = (info.k[2] - 80.0).abs() <= 0.5 && (info.k[5] - 60.0).abs() <= 0.5;
+    assert!(info.k[0] > 0.0 && centre, "{:?}", info.k);
+    assert_eq!(info.header.frame_id, received[0].header.frame_id);
+    println!("ros2 presence with a camera: {:?}", stats(&node).ros2);
     node.shutdown();
 }

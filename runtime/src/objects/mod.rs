@@ -551,6 +551,20 @@ impl Creator {
         reg.camera_taps(&names)
     }
 
+    /// As [`camera_taps`](Self::camera_taps), of the cameras named `names` only (those that
+    /// run): for a reader that taps each camera once, as it finds them.
+    pub fn camera_taps_of(
+        &self,
+        names: &[String],
+    ) -> Vec<(
+        String,
+        std::sync::mpsc::Receiver<penelope_protocol::proto::CameraFrame>,
+    )> {
+        self.lock()
+            .map(|reg| reg.camera_taps(names))
+            .unwrap_or_default()
+    }
+
     /// The 3D scene of a recording of `controllers` at `rate_hz` of tick time: the robot each
     /// drives (once per robot), side by side along world y in creation order, with the contact
     /// shapes of its simulated boards ([`recording::scene`]).

@@ -1,5 +1,6 @@
 //! The ROS 2 presence on the bridge's Zenoh session (feature `zenoh`): the node's liveliness
-//! tokens, the publishers of the CRTK topic set and `/diagnostics`, and the subscriptions that
+//! tokens, the publishers of the CRTK topic set, the cameras' images and calibrations and
+//! `/diagnostics`, and the subscriptions that
 //! turn ROS 2 servo targets and operator poses into the node's own calls. Driven by the
 //! Zenoh bridge's thread: it hands over what it discovers and every tick
 //! it drains; the subscriptions' callbacks run on Zenoh's threads and reach the loops only
@@ -7,13 +8,14 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, TryRecvError};
 use std::sync::{Arc, Weak};
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use penelope_protocol::proto::{LinkRecord, Method, PoseMsg, RobotMethod};
+use penelope_protocol::proto::{CameraFrame, Class, LinkRecord, Method, PoseMsg, RobotMethod};
 use penelope_ros2_msgs::{
-    JointState, Joy, MessageDescription, OperatingState, PoseStamped, RosMessage, TFMessage,
-    WrenchStamped,
+    CameraInfo, CompressedImage, JointState, Joy, MessageDescription, OperatingState, PoseStamped,
+    RosMessage, TFMessage, WrenchStamped,
 };
 use penelope_runtime::objects::Creator;
 use penelope_runtime::objects::bridged::{BridgedChannels, OperatorPose};
@@ -96,6 +98,11 @@ pub(crate) struct Ros2Presence {
     /// Controllers with no robot yet (a system file binds one after creating the controller):
     /// looked at again on each discovery.
     pending: BTreeSet<String>,
+    /// The running cameras whose frames are published, by name: a tap of their frames.
+    cameras: BTreeMap<String, Receiver<CameraFrame>>,
+    /// The node's estimate of the common clock less its own clock, ns (frames are stamped on
+    /// the common clock; headers in ROS time, from the node's clock).
+    common_offset_ns: i64,
     counters: Arc<Counters>,
     scratch: Vec<u8>,
 }
@@ -163,6 +170,8 @@ impl Ros2Presence {
             subscriptions: Vec::new(),
             served: BTreeSet::new(),
             pending: BTreeSet::new(),
+            cameras: BTreeMap::new(),
+            common_offset_ns: 0,
             counters,
             scratch: Vec::new(),
         })
@@ -389,6 +398,61 @@ impl Ros2Presence {
                     })
             },
         );
+    }
+
+    /// Starts publishing the frames of the node's running cameras not published yet
+    /// (`/<camera>/image_raw/compressed`, `/<camera>/camera_info`), and takes the node's
+    /// newest estimate of the common clock. A camera that is not running yet is looked at
+    /// again on the next discovery.
+    pub(crate) fn add_cameras(&mut self, creator: &Arc<Creator>) {
+        self.common_offset_ns = creator.common_clock().estimate().offset_ns.unwrap_or(0);
+        // Sensors not tapped yet: the taps are of the running cameras among them.
+        let new: Vec<String> = creator
+            .list()
+            .into_iter()
+            .filter(|o| o.class == Class::Sensor && !self.cameras.contains_key(&o.name))
+            .map(|o| o.name)
+            .collect();
+        if new.is_empty() {
+            return;
+        }
+        for (camera, tap) in creator.camera_taps_of(&new) {
+            let [image, info] = ros2_topics::camera_topics(&camera);
+            self.declare_publisher(&image, CompressedImage::DESCRIPTION);
+            self.declare_publisher(&info, CameraInfo::DESCRIPTION);
+            self.cameras.insert(camera, tap);
+        }
+    }
+
+    /// Publishes every frame the cameras released since last time, stamped with its capture
+    /// instant in ROS time; a camera that stopped (its tap closed) is let go, to be tapped
+    /// again if it runs again.
+    pub(crate) fn frames(&mut self) {
+        let mut due = Vec::new();
+        let mut stopped = Vec::new();
+        for (camera, tap) in &self.cameras {
+            loop {
+                match tap.try_recv() {
+                    Ok(frame) => due.push((camera.clone(), frame)),
+                    Err(TryRecvError::Empty) => break,
+                    Err(TryRecvError::Disconnected) => {
+                        stopped.push(camera.clone());
+                        break;
+                    }
+                }
+            }
+        }
+        for camera in stopped {
+            self.cameras.remove(&camera);
+        }
+        for (camera, frame) in due {
+            let stamp = frame
+                .capture_ns
+                .saturating_add_signed(self.unix_offset_ns.saturating_sub(self.common_offset_ns));
+            for message in &ros2_topics::camera_messages(&camera, &frame, stamp) {
+                self.publish(message);
+            }
+        }
     }
 
     /// Takes tick `record` of `controller`: publishes its robot's topic set when the period

@@ -429,6 +429,9 @@ impl Worker {
             drop(creator);
             self.publish_ticks();
             self.publish_feedback();
+            if let Some(ros2) = &mut self.ros2 {
+                ros2.frames();
+            }
             if stopping {
                 return;
             }
@@ -440,6 +443,7 @@ impl Worker {
     fn discover(&mut self, creator: &Arc<Creator>) {
         if let Some(ros2) = &mut self.ros2 {
             ros2.retry_pending(creator);
+            ros2.add_cameras(creator);
         }
         for info in creator.list() {
             if info.class == Class::Controller && !self.controllers.contains_key(&info.name) {

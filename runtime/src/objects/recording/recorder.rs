@@ -146,7 +146,8 @@ impl Recorder {
 
     /// As [`start`](Self::start), also writing `cameras`' frames (each camera's name and a tap
     /// of its frames): in a [`RecordProfile::Penelope`] file, `/<camera>/image` and
-    /// `/<camera>/calibration` ([`McapLog::camera_frame`]); a `ros2` file leaves them out.
+    /// `/<camera>/calibration` ([`McapLog::camera_frame`]); in a `ros2` file,
+    /// `/<camera>/image_raw/compressed` and `/<camera>/camera_info` ([`Ros2Log::camera_frame`]).
     ///
     /// # Errors
     /// As [`start`](Self::start).
@@ -297,8 +298,9 @@ impl RecorderThread {
         }
         for (camera, frames) in &self.cameras {
             for frame in frames.try_iter() {
-                if let Sink::Penelope(log, _) = &mut self.sink {
-                    log.camera_frame(camera, &frame)?;
+                match &mut self.sink {
+                    Sink::Penelope(log, _) => log.camera_frame(camera, &frame)?,
+                    Sink::Ros2(log) => log.camera_frame(camera, &frame)?,
                 }
             }
         }

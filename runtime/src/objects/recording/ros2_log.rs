@@ -10,7 +10,9 @@
 //! reliable for `/tf`, `operating_state` and `/diagnostics`; `topic_type_hash`: the RIHS01
 //! hash). Each recorded robot's topics are written at the recording's scene rate
 //! ([`SceneConfig::rate_hz`](super::SceneConfig), default 100 Hz of tick time; 0: every
-//! tick), each channel's link statistics as `/diagnostics` as the recorder reads them.
+//! tick), each channel's link statistics as `/diagnostics` as the recorder reads them, and
+//! each camera's frames as `/<camera>/image_raw/compressed` and `/<camera>/camera_info`, logged
+//! at their capture instants.
 //! A metadata record `recorder` says how many ticks each controller's stream lost.
 //!
 //! Messages' log and publish times are their header stamps: the node time plus the node's
@@ -25,14 +27,14 @@ use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
-use penelope_protocol::proto::LinkRecord;
+use penelope_protocol::proto::{CameraFrame, LinkRecord};
 use penelope_ros2_msgs::MessageDescription;
 
 use super::RecordingError;
 use super::mcap_log::McapTotals;
 use super::ros2_topics::{
-    DIAGNOSTICS_TOPIC, RobotTopics, Ros2Payload, TopicMessage, link_diagnostics, robot_messages,
-    sensor_rate,
+    DIAGNOSTICS_TOPIC, RobotTopics, Ros2Payload, TopicMessage, camera_messages, link_diagnostics,
+    robot_messages, sensor_rate,
 };
 use super::scene::{SceneConfig, SceneRobot};
 use crate::objects::tick::TickRecord;
@@ -235,6 +237,23 @@ impl Ros2Log {
             for m in &messages {
                 self.write(m, stamp)?;
             }
+        }
+        Ok(())
+    }
+
+    /// Writes camera `camera`'s `frame` as `/<camera>/image_raw/compressed` and
+    /// `/<camera>/camera_info` ([`camera_messages`]), logged at its capture instant (on the
+    /// common clock already: no offset is added).
+    ///
+    /// # Errors
+    /// [`RecordingError::Mcap`].
+    pub fn camera_frame(
+        &mut self,
+        camera: &str,
+        frame: &CameraFrame,
+    ) -> Result<(), RecordingError> {
+        for message in &camera_messages(camera, frame, frame.capture_ns) {
+            self.write(message, frame.capture_ns)?;
         }
         Ok(())
     }
@@ -477,6 +496,78 @@ mod tests {
         let array = DiagnosticArray::decode_cdr(&diagnostics[0].5).unwrap();
         assert_eq!(array.status[0].level, DiagnosticStatus::ERROR);
         assert_eq!(array.header.stamp.as_ns(), 1_500_000_000);
+        let _ = std::fs::remove_file(path);
+    }
+
+    #[test]
+    fn a_cameras_frames_are_a_compressed_image_and_its_camera_info_at_the_capture_instant() {
+        use penelope_protocol::proto::{CameraModelMsg, ImageEncoding};
+        use penelope_ros2_msgs::{CameraInfo, CompressedImage};
+
+        let path = scratch("camera.mcap");
+        let mut log = Ros2Log::create(&path, "lab", scene(0.0), &["pid".to_string()]).unwrap();
+        // An offset the node would add to its own times: frames are on the common clock
+        // already, so it must not be added to them.
+        log.set_clock_offset(-500_000_000);
+        let model = CameraModelMsg {
+            frame_id: "camera_optical".into(),
+            width: 640,
+            height: 480,
+            fx: 500.0,
+            fy: 510.0,
+            cx: 320.0,
+            cy: 240.0,
+            pose_in_robot_base: None,
+            robot: Some("arm".into()),
+        };
+        for seq in 0..3u64 {
+            let frame = CameraFrame {
+                seq,
+                capture_ns: 2_000_000_000 + seq * 33_333_333,
+                ready_ns: 2_016_000_000 + seq * 33_333_333,
+                sent_ns: 2_017_000_000 + seq * 33_333_333,
+                encoding: ImageEncoding::Jpeg,
+                data: vec![0xff, 0xd8, seq as u8, 0xff, 0xd9],
+                model: model.clone(),
+            };
+            log.camera_frame("wrist cam", &frame).unwrap();
+        }
+        log.finish(&[]).unwrap();
+        let (_, messages) = messages(&path);
+        let images: Vec<_> = messages
+            .iter()
+            .filter(|m| m.0 == "/wrist_cam/image_raw/compressed")
+            .collect();
+        let infos: Vec<_> = messages
+            .iter()
+            .filter(|m| m.0 == "/wrist_cam/camera_info")
+            .collect();
+        assert_eq!((images.len(), infos.len()), (3, 3));
+        for (k, (image, info)) in images.iter().zip(&infos).enumerate() {
+            let capture = 2_000_000_000 + k as u64 * 33_333_333;
+            assert_eq!(
+                (image.1.as_str(), image.2.as_str()),
+                (CompressedImage::TYPE_NAME, "ros2msg")
+            );
+            assert_eq!(image.3, "cdr");
+            assert_eq!(
+                (image.4, info.4),
+                (capture, capture),
+                "logged at the capture instant"
+            );
+            let decoded = CompressedImage::decode_cdr(&image.5).unwrap();
+            assert_eq!(decoded.header.stamp.as_ns(), capture);
+            assert_eq!(decoded.header.frame_id, "camera_optical");
+            assert_eq!(decoded.format, "jpeg");
+            assert_eq!(decoded.data, vec![0xff, 0xd8, k as u8, 0xff, 0xd9]);
+            let info = CameraInfo::decode_cdr(&info.5).unwrap();
+            assert_eq!((info.width, info.height), (640, 480));
+            assert_eq!(
+                info.k,
+                [500.0, 0.0, 320.0, 0.0, 510.0, 240.0, 0.0, 0.0, 1.0]
+            );
+            assert_eq!(info.header, decoded.header);
+        }
         let _ = std::fs::remove_file(path);
     }
 }

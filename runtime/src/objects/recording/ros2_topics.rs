@@ -14,7 +14,15 @@
 //! | `/<robot>/operating_state` | `crtk_msgs/msg/OperatingState` | the safety state |
 //! | `/tf` | `tf2_msgs/msg/TFMessage` | every link frame at the measured `q` |
 //!
-//! and per teleoperation channel linked to another node, `/diagnostics`
+//! per camera `<camera>` on the node (`sensor/sim-camera`, `sensor/camera`), every frame:
+//!
+//! | topic | type | from the frame |
+//! |---|---|---|
+//! | `/<camera>/image_raw/compressed` | `sensor_msgs/msg/CompressedImage` | the JPEG, stamped with its capture instant on the common clock, in the camera's optical frame |
+//! | `/<camera>/camera_info` | `sensor_msgs/msg/CameraInfo` | the pinhole intrinsics (no distortion), same stamp and frame |
+//!
+//! (`image_transport`'s names: `image_raw` with its `compressed` transport), and per
+//! teleoperation channel linked to another node, `/diagnostics`
 //! (`diagnostic_msgs/msg/DiagnosticArray`): one status, `<channel>: link`, OK, WARN once the
 //! link has been lost (and restored) or ERROR while it is down, its figures as key-values.
 //!
@@ -40,11 +48,11 @@
 //! allocates.
 
 use penelope_hal::{Frame, Pose};
-use penelope_protocol::proto::LinkRecord;
+use penelope_protocol::proto::{CameraFrame, LinkRecord};
 use penelope_ros2_msgs::{
-    DiagnosticArray, DiagnosticStatus, Header, JointState, KeyValue, OperatingState, Point,
-    PoseStamped, Quaternion, RosMessage, TFMessage, Time, Transform, TransformStamped, Vector3,
-    Wrench, WrenchStamped,
+    CameraInfo, CompressedImage, DiagnosticArray, DiagnosticStatus, Header, JointState, KeyValue,
+    OperatingState, Point, PoseStamped, Quaternion, RosMessage, TFMessage, Time, Transform,
+    TransformStamped, Vector3, Wrench, WrenchStamped,
 };
 use penelope_rt_core::safety::SafetyState;
 use penelope_rt_core::telemetry::ReferenceKind;
@@ -74,8 +82,49 @@ pub fn ros_name(name: &str) -> String {
     out
 }
 
+/// Camera `camera`'s two topics: its compressed image's, then its calibration's.
+pub fn camera_topics(camera: &str) -> [String; 2] {
+    let name = ros_name(camera);
+    [
+        format!("/{name}/image_raw/compressed"),
+        format!("/{name}/camera_info"),
+    ]
+}
+
+/// A camera's frame as its two ROS 2 messages on [`camera_topics`] (see the module's table):
+/// the image, then its calibration, both stamped `stamp_ns` (the frame's capture instant on
+/// the caller's clock).
+pub fn camera_messages(camera: &str, frame: &CameraFrame, stamp_ns: u64) -> [TopicMessage; 2] {
+    let [image, info] = camera_topics(camera);
+    let header = Header {
+        stamp: Time::from_ns(stamp_ns),
+        frame_id: frame.model.frame_id.clone(),
+    };
+    let m = &frame.model;
+    [
+        TopicMessage {
+            topic: image,
+            payload: Ros2Payload::Image(CompressedImage {
+                header: header.clone(),
+                format: frame.encoding.name().into(),
+                data: frame.data.clone(),
+            }),
+        },
+        TopicMessage {
+            topic: info,
+            payload: Ros2Payload::CameraInfo(Box::new(CameraInfo::pinhole(
+                header,
+                m.width,
+                m.height,
+                [m.fx, m.fy],
+                [m.cx, m.cy],
+            ))),
+        },
+    ]
+}
+
 /// Whether `topic` carries sensor-rate data (a robot's `measured_*` and `setpoint_js`, a
-/// channel's `feedback_*`):
+/// channel's `feedback_*`, a camera's image and calibration):
 /// offered best effort, as ROS 2's sensor-data QoS profile; the others (`/tf`,
 /// `operating_state`, `/diagnostics`) reliable.
 pub fn sensor_rate(topic: &str) -> bool {
@@ -86,6 +135,8 @@ pub fn sensor_rate(topic: &str) -> bool {
         "/setpoint_js",
         "/feedback_cp",
         "/feedback_cf",
+        "/image_raw/compressed",
+        "/camera_info",
     ]
     .iter()
     .any(|suffix| topic.ends_with(suffix))
@@ -152,6 +203,10 @@ pub enum Ros2Payload {
     Tf(TFMessage),
     /// `diagnostic_msgs/msg/DiagnosticArray`.
     Diagnostics(DiagnosticArray),
+    /// `sensor_msgs/msg/CompressedImage`.
+    Image(CompressedImage),
+    /// `sensor_msgs/msg/CameraInfo` (boxed: its matrices would make every payload large).
+    CameraInfo(Box<CameraInfo>),
 }
 
 macro_rules! each_payload {
@@ -163,6 +218,11 @@ macro_rules! each_payload {
             Ros2Payload::OperatingState($m) => $body,
             Ros2Payload::Tf($m) => $body,
             Ros2Payload::Diagnostics($m) => $body,
+            Ros2Payload::Image($m) => $body,
+            Ros2Payload::CameraInfo(boxed) => {
+                let $m = &**boxed;
+                $body
+            }
         }
     };
 }
@@ -568,6 +628,9 @@ mod tests {
                 Ros2Payload::Tf(_) => Ros2Payload::Tf(TFMessage::decode_cdr(&bytes).unwrap()),
                 Ros2Payload::Diagnostics(_) => {
                     Ros2Payload::Diagnostics(DiagnosticArray::decode_cdr(&bytes).unwrap())
+                }
+                Ros2Payload::Image(_) | Ros2Payload::CameraInfo(_) => {
+                    unreachable!("a tick makes no camera messages")
                 }
             };
             assert_eq!(back, t.payload, "{}", t.topic);
