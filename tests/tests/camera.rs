@@ -701,8 +701,8 @@ impl penelope_runtime::objects::camera::FrameSource for FakeDevice {
         })
     }
 
-    fn intrinsics(&self) -> penelope_drivers::v4l2::PinholeIntrinsics {
-        penelope_drivers::v4l2::PinholeIntrinsics::from_horizontal_fov(64, 48, 60.0).unwrap()
+    fn intrinsics(&self) -> penelope_drivers::pinhole::PinholeIntrinsics {
+        penelope_drivers::pinhole::PinholeIntrinsics::from_horizontal_fov(64, 48, 60.0).unwrap()
     }
 }
 

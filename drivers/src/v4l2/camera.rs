@@ -18,12 +18,12 @@ use v4l::{Device, Format, FourCC};
 
 use super::error::V4l2Error;
 use super::format::{NegotiatedFormat, choose_format};
-use super::intrinsics::PinholeIntrinsics;
 use super::pipeline::{BufferSource, CapturedFrame, FramePipeline, RawBuffer};
 use super::settings::V4l2Settings;
 use super::stamper::FrameStamper;
 use super::stats::CaptureStats;
 use super::timestamp::BufferStamp;
+use crate::pinhole::PinholeIntrinsics;
 
 /// `V4L2_CID_EXPOSURE_ABSOLUTE` (camera class base + 2): the exposure, in 100 µs units.
 pub const CID_EXPOSURE_ABSOLUTE: u32 = 0x009a_0902;

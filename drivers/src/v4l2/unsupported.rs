@@ -6,10 +6,10 @@ use std::time::Duration;
 
 use super::error::V4l2Error;
 use super::format::NegotiatedFormat;
-use super::intrinsics::PinholeIntrinsics;
 use super::pipeline::CapturedFrame;
 use super::settings::V4l2Settings;
 use super::stats::CaptureStats;
+use crate::pinhole::PinholeIntrinsics;
 
 /// `V4L2_CID_EXPOSURE_ABSOLUTE`: the exposure in 100 µs units.
 pub const CID_EXPOSURE_ABSOLUTE: u32 = 0x009a_0902;

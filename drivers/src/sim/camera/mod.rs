@@ -88,7 +88,7 @@ impl SimCamera {
     /// links as capsules between consecutive frame origins, the tool's marker, then the noise.
     pub fn render(&self, view: &WorldView<'_>, frame: u64) -> Image {
         let c = &self.camera;
-        let mut image = Image::new(c.width, c.height, BACKGROUND);
+        let mut image = Image::new(c.intrinsics.width, c.intrinsics.height, BACKGROUND);
         for shape in view.contacts {
             match *shape {
                 Shape::Plane { point, normal } => raster::plane(

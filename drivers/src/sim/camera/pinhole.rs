@@ -1,9 +1,11 @@
-//! The pinhole camera model: intrinsics (focal lengths and principal point, pixels) and the
-//! camera's pose in the world, with the optical convention (z forward, x right, y down) that
+//! The pinhole camera model: intrinsics ([`PinholeIntrinsics`]: focal lengths and principal
+//! point, pixels) and the camera's pose in the world, with the optical convention (z forward, x right, y down) that
 //! ROS's and Foxglove's `CameraCalibration` use, so a frame's calibration describes it exactly.
 
 use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
 use penelope_hal::Pose;
+
+use crate::pinhole::PinholeIntrinsics;
 
 /// Why a camera cannot be made.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -26,21 +28,11 @@ pub enum CameraError {
 /// The largest image side, pixels.
 pub const MAX_SIDE: u32 = 4096;
 
-/// A pinhole camera.
+/// A pinhole camera: its intrinsics and its pose.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PinholeCamera {
-    /// Image width, pixels.
-    pub width: u32,
-    /// Image height, pixels.
-    pub height: u32,
-    /// Focal length along x, pixels.
-    pub fx: f64,
-    /// Focal length along y, pixels.
-    pub fy: f64,
-    /// Principal point x, pixels.
-    pub cx: f64,
-    /// Principal point y, pixels.
-    pub cy: f64,
+    /// Image size, focal lengths and principal point, pixels.
+    pub intrinsics: PinholeIntrinsics,
     /// The camera's optical frame in the world (z forward, x right, y down).
     pub pose: Pose,
 }
@@ -79,14 +71,10 @@ impl PinholeCamera {
             down,
             forward.into_inner(),
         ]));
-        let f = f64::from(width) / 2.0 / (hfov_deg.to_radians() / 2.0).tan();
+        let intrinsics = PinholeIntrinsics::from_horizontal_fov(width, height, hfov_deg)
+            .ok_or(CameraError::FieldOfView(hfov_deg))?;
         Ok(PinholeCamera {
-            width,
-            height,
-            fx: f,
-            fy: f,
-            cx: f64::from(width) / 2.0,
-            cy: f64::from(height) / 2.0,
+            intrinsics,
             pose: Pose::from_parts(eye.into(), rotation.into()),
         })
     }
@@ -98,34 +86,15 @@ impl PinholeCamera {
             .coords
     }
 
-    /// Where a point in the camera's frame falls on the image: `(u, v, depth)`, `u` and `v` in
-    /// pixels (the centre of the top-left pixel is (0.5, 0.5)), `depth` along the optical axis
-    /// (m); `None` behind or too close to the camera (1 mm).
+    /// Where a point in the camera's frame falls on the image
+    /// ([`PinholeIntrinsics::project`]).
     pub fn project_camera(&self, p: &Vector3<f64>) -> Option<[f64; 3]> {
-        (p.z > 1e-3).then(|| {
-            [
-                self.fx * p.x / p.z + self.cx,
-                self.fy * p.y / p.z + self.cy,
-                p.z,
-            ]
-        })
+        self.intrinsics.project(p)
     }
 
     /// [`project_camera`](Self::project_camera) of a world point.
     pub fn project(&self, world: &Vector3<f64>) -> Option<[f64; 3]> {
         self.project_camera(&self.to_camera(world))
-    }
-
-    /// The intrinsic matrix `K`, row-major (as `CameraCalibration.K`).
-    pub fn k(&self) -> [f64; 9] {
-        [self.fx, 0.0, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0]
-    }
-
-    /// The projection matrix `P` (3x4, row-major, no stereo baseline).
-    pub fn p(&self) -> [f64; 12] {
-        [
-            self.fx, 0.0, self.cx, 0.0, 0.0, self.fy, self.cy, 0.0, 0.0, 0.0, 1.0, 0.0,
-        ]
     }
 }
 

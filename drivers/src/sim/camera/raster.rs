@@ -61,8 +61,8 @@ fn shade(colour: Rgb, light: f64) -> Rgb {
 /// z = 1).
 fn ray(camera: &PinholeCamera, x: u32, y: u32) -> Vector3<f64> {
     Vector3::new(
-        (f64::from(x) + 0.5 - camera.cx) / camera.fx,
-        (f64::from(y) + 0.5 - camera.cy) / camera.fy,
+        (f64::from(x) + 0.5 - camera.intrinsics.cx) / camera.intrinsics.fx,
+        (f64::from(y) + 0.5 - camera.intrinsics.cy) / camera.intrinsics.fy,
         1.0,
     )
 }
@@ -137,7 +137,8 @@ pub fn sphere(
     let Some([u, v, depth]) = camera.project_camera(&c) else {
         return;
     };
-    let reach = radius * camera.fx.max(camera.fy) / (depth - radius).max(1e-3) + 2.0;
+    let reach =
+        radius * camera.intrinsics.fx.max(camera.intrinsics.fy) / (depth - radius).max(1e-3) + 2.0;
     for (x, y) in bounding_box(
         (image.width, image.height),
         u - reach,
@@ -186,7 +187,7 @@ pub fn capsule(
     let (Some(pa), Some(pb)) = (camera.project_camera(&p), camera.project_camera(&q)) else {
         return;
     };
-    let f = camera.fx.max(camera.fy);
+    let f = camera.intrinsics.fx.max(camera.intrinsics.fy);
     let (ra, rb) = (radius * f / pa[2], radius * f / pb[2]);
     let reach = ra.max(rb) + 1.0;
     let (du, dv) = (pb[0] - pa[0], pb[1] - pa[1]);

@@ -12,8 +12,9 @@ use std::sync::mpsc::{SyncSender, sync_channel};
 use std::sync::{Arc, PoisonError};
 use std::time::Duration;
 
-use penelope_drivers::v4l2::{CapturedFrame, PinholeIntrinsics, V4l2Camera, V4l2Error};
-use penelope_protocol::proto::{CameraFrame, CameraModelMsg, ImageEncoding, PoseMsg};
+use penelope_drivers::pinhole::PinholeIntrinsics;
+use penelope_drivers::v4l2::{CapturedFrame, V4l2Camera, V4l2Error};
+use penelope_protocol::proto::{CameraFrame, CameraModelMsg, ImageEncoding};
 
 use super::config::CameraPlacement;
 use super::thread::{CameraRunner, CameraShared, Sender};
@@ -134,17 +135,7 @@ impl CameraRunner {
 
 /// The model each frame carries: the source's intrinsics, the placement's pose.
 fn model(name: &str, k: PinholeIntrinsics, placement: Option<&CameraPlacement>) -> CameraModelMsg {
-    CameraModelMsg {
-        frame_id: name.to_string(),
-        width: k.width,
-        height: k.height,
-        fx: k.fx,
-        fy: k.fy,
-        cx: k.cx,
-        cy: k.cy,
-        pose_in_robot_base: placement.map(|p| PoseMsg::from(&p.pose)),
-        robot: placement.map(|p| p.robot.clone()),
-    }
+    super::model_msg(name, &k, placement.map(|p| (&p.pose, p.robot.as_str())))
 }
 
 struct CaptureLoop {

@@ -441,7 +441,13 @@ mod tests {
     #[test]
     fn a_camera_needs_only_its_robot_and_takes_the_documented_defaults() {
         let s = setup("robot = \"puma\"").unwrap();
-        assert_eq!((s.camera.camera.width, s.camera.camera.height), (640, 480));
+        assert_eq!(
+            (
+                s.camera.camera.intrinsics.width,
+                s.camera.camera.intrinsics.height
+            ),
+            (640, 480)
+        );
         assert_eq!(s.timing.rate_hz, 30.0);
         assert_eq!(s.queue, 4);
         assert_eq!(s.link, FaultConfig::default());

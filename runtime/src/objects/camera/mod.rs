@@ -18,3 +18,23 @@ pub mod thread;
 pub use capture::{FrameSource, SourceOpener};
 pub use config::{CameraConfig, CameraSetup, SimCameraConfig};
 pub use thread::{CameraRunner, CameraShared, CameraWorld, SendClock};
+
+use penelope_drivers::pinhole::PinholeIntrinsics;
+use penelope_hal::Pose;
+use penelope_protocol::proto::{CameraModelMsg, PoseMsg};
+
+/// The model camera `name`'s frames carry: its intrinsics, and its pose in the base frame of
+/// the robot it watches when it is placed.
+fn model_msg(name: &str, k: &PinholeIntrinsics, placed: Option<(&Pose, &str)>) -> CameraModelMsg {
+    CameraModelMsg {
+        frame_id: name.to_string(),
+        width: k.width,
+        height: k.height,
+        fx: k.fx,
+        fy: k.fy,
+        cx: k.cx,
+        cy: k.cy,
+        pose_in_robot_base: placed.map(|(pose, _)| PoseMsg::from(pose)),
+        robot: placed.map(|(_, robot)| robot.to_string()),
+    }
+}

@@ -18,7 +18,7 @@ use penelope_drivers::sim::camera::WorldView;
 use penelope_drivers::sim::environment::Shape;
 use penelope_drivers::sim::tap::TapSample;
 use penelope_hal::Pose;
-use penelope_protocol::proto::{CameraFrame, CameraModelMsg, ImageEncoding, PoseMsg};
+use penelope_protocol::proto::{CameraFrame, CameraModelMsg, ImageEncoding};
 
 use super::config::CameraSetup;
 use crate::common_clock::CommonClock;
@@ -200,17 +200,7 @@ impl CameraRunner {
         let c = &setup.camera.camera;
         let shared = Arc::new(CameraShared::new(
             name,
-            CameraModelMsg {
-                frame_id: name.to_string(),
-                width: c.width,
-                height: c.height,
-                fx: c.fx,
-                fy: c.fy,
-                cx: c.cx,
-                cy: c.cy,
-                pose_in_robot_base: Some(PoseMsg::from(&c.pose)),
-                robot: Some(setup.robot.clone()),
-            },
+            super::model_msg(name, &c.intrinsics, Some((&c.pose, &setup.robot))),
         ));
         let stop = Arc::new(AtomicBool::new(false));
         let (sender, wake) = if send_clock == SendClock::Real {

@@ -374,7 +374,7 @@ impl CameraObj {
 }
 
 fn sim_relations(s: &CameraSetup) -> Vec<(String, String)> {
-    let p = &s.camera.camera;
+    let p = &s.camera.camera.intrinsics;
     vec![
         ("robot".to_string(), s.robot.clone()),
         (

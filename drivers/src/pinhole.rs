@@ -1,6 +1,9 @@
-//! A camera's pinhole intrinsics when the driver gives none (V4L2 has no calibration): from the
-//! image size and a configured horizontal field of view, square pixels, the principal point at
-//! the image's centre.
+//! A camera's pinhole intrinsics (focal lengths and principal point, pixels), shared by the
+//! simulated camera ([`crate::sim::camera::PinholeCamera`], which adds its pose) and the V4L2
+//! one (which has no calibration: the intrinsics come from the image size and a configured
+//! horizontal field of view, square pixels, the principal point at the image's centre).
+
+use nalgebra::Vector3;
 
 /// Pinhole intrinsics of an (undistorted) image, in pixels.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -35,6 +38,32 @@ impl PinholeIntrinsics {
             cx: f64::from(width) / 2.0,
             cy: f64::from(height) / 2.0,
         })
+    }
+
+    /// Where a point in the camera's optical frame (z forward, x right, y down) falls on the
+    /// image: `(u, v, depth)`, `u` and `v` in pixels (the centre of the top-left pixel is (0.5,
+    /// 0.5)), `depth` along the optical axis (m); `None` behind or too close to the camera
+    /// (1 mm).
+    pub fn project(&self, p: &Vector3<f64>) -> Option<[f64; 3]> {
+        (p.z > 1e-3).then(|| {
+            [
+                self.fx * p.x / p.z + self.cx,
+                self.fy * p.y / p.z + self.cy,
+                p.z,
+            ]
+        })
+    }
+
+    /// The intrinsic matrix `K`, row-major (as `CameraCalibration.K` and ROS's `CameraInfo.k`).
+    pub fn k(&self) -> [f64; 9] {
+        [self.fx, 0.0, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0]
+    }
+
+    /// The projection matrix `P` (3x4, row-major, no stereo baseline).
+    pub fn p(&self) -> [f64; 12] {
+        [
+            self.fx, 0.0, self.cx, 0.0, 0.0, self.fy, self.cy, 0.0, 0.0, 0.0, 1.0, 0.0,
+        ]
     }
 }
 
