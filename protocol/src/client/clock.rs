@@ -193,8 +193,8 @@ mod tests {
     use crate::proto::{CallError, WireError};
     use crate::service::{Service, Session};
 
-    /// A naming service whose host booted `.0` ns before this one (its clock reads that much
-    /// more), and which answers nothing but the time.
+    /// A naming service whose host booted the given nanoseconds before this one (its clock
+    /// reads that much more), and which answers nothing but the time.
     struct BootedEarlier(i64);
 
     impl Service for BootedEarlier {

@@ -1,10 +1,9 @@
 //! The ROS 2 presence on the bridge's Zenoh session (feature `zenoh`): the node's liveliness
 //! tokens, the publishers of the CRTK topic set, the cameras' images and calibrations and
-//! `/diagnostics`, and the subscriptions that
-//! turn ROS 2 servo targets and operator poses into the node's own calls. Driven by the
-//! Zenoh bridge's thread: it hands over what it discovers and every tick
-//! it drains; the subscriptions' callbacks run on Zenoh's threads and reach the loops only
-//! through the robots' servo methods and the bridged channels' cells.
+//! `/diagnostics`, and the subscriptions that turn ROS 2 servo targets and operator poses into
+//! the node's own calls. Driven by the Zenoh bridge's thread: it hands over what it discovers
+//! and every tick and frame it drains; the subscriptions' callbacks run on Zenoh's threads and
+//! reach the loops only through the robots' servo methods and the bridged channels' cells.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
