@@ -74,18 +74,13 @@ pub fn image(frame: &CameraFrame) -> CompressedImage {
 
 /// A camera's optics as `foxglove.CameraCalibration` (no distortion: the image is a pinhole's).
 pub fn calibration(model: &CameraModelMsg, time_ns: u64) -> CameraCalibration {
-    let (fx, fy, cx, cy) = (model.fx, model.fy, model.cx, model.cy);
-    CameraCalibration {
-        timestamp: Timestamp::from_ns(time_ns),
-        frame_id: model.frame_id.clone(),
-        width: model.width,
-        height: model.height,
-        distortion_model: "plumb_bob".into(),
-        d: Vec::new(),
-        k: [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
-        r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-        p: [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
-    }
+    CameraCalibration::pinhole(
+        Timestamp::from_ns(time_ns),
+        model.frame_id.clone(),
+        (model.width, model.height),
+        [model.fx, model.fy],
+        [model.cx, model.cy],
+    )
 }
 
 fn ms(ns: i64) -> f64 {

@@ -311,6 +311,30 @@ pub struct CameraCalibration {
     pub p: [f64; 12],
 }
 
+impl CameraCalibration {
+    /// An ideal pinhole camera (no distortion, identity rectification) of `width` x `height`
+    /// px with focal lengths `f` = `[fx, fy]` and principal point `c` = `[cx, cy]` (px).
+    pub fn pinhole(
+        timestamp: Timestamp,
+        frame_id: String,
+        (width, height): (u32, u32),
+        [fx, fy]: [f64; 2],
+        [cx, cy]: [f64; 2],
+    ) -> Self {
+        CameraCalibration {
+            timestamp,
+            frame_id,
+            width,
+            height,
+            distortion_model: "plumb_bob".into(),
+            d: Vec::new(),
+            k: [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
+            r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            p: [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+        }
+    }
+}
+
 /// Bytes as a base64 string, as Foxglove's JSON encoding writes a `bytes` field.
 mod base64_bytes {
     use base64::Engine as _;

@@ -521,19 +521,13 @@ impl McapLog {
         if !self.scene_channels.contains_key(&calibration_topic) {
             let m = &frame.model;
             let id = self.scene_channel(&calibration_topic, CAMERA_CALIBRATION)?;
-            let calibration = CameraCalibration {
-                timestamp: stamp,
-                frame_id: m.frame_id.clone(),
-                width: m.width,
-                height: m.height,
-                distortion_model: "plumb_bob".into(),
-                d: Vec::new(),
-                k: [m.fx, 0.0, m.cx, 0.0, m.fy, m.cy, 0.0, 0.0, 1.0],
-                r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-                p: [
-                    m.fx, 0.0, m.cx, 0.0, 0.0, m.fy, m.cy, 0.0, 0.0, 0.0, 1.0, 0.0,
-                ],
-            };
+            let calibration = CameraCalibration::pinhole(
+                stamp,
+                m.frame_id.clone(),
+                (m.width, m.height),
+                [m.fx, m.fy],
+                [m.cx, m.cy],
+            );
             self.write_common(id, frame.capture_ns, &calibration)?;
         }
         let id = self.scene_channel(&format!("/{camera}/image"), COMPRESSED_IMAGE)?;
