@@ -53,18 +53,6 @@ impl PinholeIntrinsics {
             ]
         })
     }
-
-    /// The intrinsic matrix `K`, row-major (as `CameraCalibration.K` and ROS's `CameraInfo.k`).
-    pub fn k(&self) -> [f64; 9] {
-        [self.fx, 0.0, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0]
-    }
-
-    /// The projection matrix `P` (3x4, row-major, no stereo baseline).
-    pub fn p(&self) -> [f64; 12] {
-        [
-            self.fx, 0.0, self.cx, 0.0, 0.0, self.fy, self.cy, 0.0, 0.0, 0.0, 1.0, 0.0,
-        ]
-    }
 }
 
 #[cfg(test)]

@@ -278,22 +278,18 @@ impl<T: CdrField> CdrField for Vec<T> {
     }
 }
 
-impl<T: CdrField, const N: usize> CdrField for [T; N] {
+/// `T[N]`: exactly `N` elements, no length on the wire.
+impl<T: CdrField + Default + Copy, const N: usize> CdrField for [T; N] {
     fn write_cdr(&self, writer: &mut CdrWriter<'_>) {
         for element in self {
             element.write_cdr(writer);
         }
     }
     fn read_cdr(reader: &mut CdrReader<'_>) -> Result<Self, CdrError> {
-        let mut elements = Vec::with_capacity(N);
-        for _ in 0..N {
-            elements.push(T::read_cdr(reader)?);
+        let mut elements = [T::default(); N];
+        for element in &mut elements {
+            *element = T::read_cdr(reader)?;
         }
-        let read = elements.len();
-        elements.try_into().map_err(|_| CdrError::Truncated {
-            offset: reader.position,
-            needed: N,
-            available: read,
-        })
+        Ok(elements)
     }
 }
