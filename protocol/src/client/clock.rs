@@ -41,6 +41,23 @@ fn now_i64() -> i64 {
     i64::try_from(monotonic_now_ns()).unwrap_or(i64::MAX)
 }
 
+/// The server at `address`'s receive and answer times of one [`Call::Time`] (`t2`, `t3` of a
+/// four-timestamp exchange, on its clock): what a node's and a client's exchanges both ask.
+///
+/// # Errors
+/// The transport's, or [`RpcError::Protocol`] for an answer that is not a time.
+pub fn ask_time(client: &Client, address: SocketAddr) -> Result<(i64, i64), RpcError> {
+    match client.call_at(address, Call::Time)? {
+        Reply::Time {
+            received_ns,
+            sent_ns,
+        } => Ok((received_ns, sent_ns)),
+        other => Err(RpcError::Protocol(format!(
+            "{address} answered a time call with {other:?}"
+        ))),
+    }
+}
+
 /// One exchange of times with the server at `address`, taken into `clock` (`seq`: its number).
 fn exchange(
     client: &Client,
@@ -50,44 +67,48 @@ fn exchange(
 ) -> Result<(), RpcError> {
     let t1 = now_i64();
     clock.note_sent(seq, t1);
-    let reply = client.call_at(address, Call::Time)?;
+    let (t2, t3) = ask_time(client, address)?;
     let t4 = now_i64();
-    let Reply::Time {
-        received_ns,
-        sent_ns,
-    } = reply
-    else {
-        return Err(RpcError::Protocol(format!(
-            "{address} answered a time call with {reply:?}"
-        )));
-    };
     clock
-        .note_answer(seq, received_ns, sent_ns, t4)
+        .note_answer(seq, t2, t3, t4)
         .map(drop)
         .map_err(|e| RpcError::Protocol(format!("{address}'s time answer refused: {e}")))
+}
+
+/// [`FILTER_LEN`] exchanges with the server at `address` into a new filter; an implausible
+/// answer is skipped (the filter counts it), a transport error ends it.
+///
+/// # Errors
+/// The transport's, or [`RpcError::Protocol`] when no answer was a plausible time.
+fn estimate(client: &Client, address: SocketAddr) -> Result<LinkClock, RpcError> {
+    let mut clock = LinkClock::new();
+    let mut refused = None;
+    for seq in 0..FILTER_LEN as u64 {
+        match exchange(client, address, &mut clock, seq) {
+            Ok(()) => {}
+            Err(e @ RpcError::Protocol(_)) => refused = Some(e),
+            Err(e) => return Err(e),
+        }
+    }
+    match clock.offset() {
+        Some(_) => Ok(clock),
+        None => {
+            Err(refused.unwrap_or_else(|| RpcError::Protocol(format!("no time from {address}"))))
+        }
+    }
 }
 
 /// The clock of the server at `address` less this host's monotonic clock, ns, and the round
 /// trip of the exchange it comes from: [`FILTER_LEN`] exchanges, the least round trip's wins.
 ///
 /// # Errors
-/// The transport's, or [`RpcError::Protocol`] when no answer was a plausible time.
+/// As [`estimate`]'s: the transport's, or no plausible time.
 pub fn offset_to(client: &Client, address: SocketAddr) -> Result<(i64, i64), RpcError> {
-    let mut clock = LinkClock::new();
-    let mut last = None;
-    for seq in 0..FILTER_LEN as u64 {
-        if let Err(e) = exchange(client, address, &mut clock, seq) {
-            if matches!(e, RpcError::Protocol(_)) {
-                last = Some(e);
-                continue;
-            }
-            return Err(e);
-        }
-    }
-    match (clock.offset(), clock.delay()) {
-        (Some(offset), Some(round_trip)) => Ok((offset, round_trip)),
-        _ => Err(last.unwrap_or_else(|| RpcError::Protocol(format!("no time from {address}")))),
-    }
+    let clock = estimate(client, address)?;
+    Ok((
+        clock.offset().unwrap_or_default(),
+        clock.delay().unwrap_or_default(),
+    ))
 }
 
 /// The common clock on this host, kept fresh: an estimate of the naming service's clock less
@@ -108,17 +129,9 @@ impl CommonClockView {
     /// As [`offset_to`]: the first estimate failed.
     pub fn follow(client: &Client, refresh: Duration) -> Result<Self, RpcError> {
         let address = client.naming_address();
-        let mut clock = LinkClock::new();
-        let mut seq = 0;
-        for _ in 0..FILTER_LEN {
-            exchange(client, address, &mut clock, seq)?;
-            seq += 1;
-        }
-        let first = clock.offset().ok_or_else(|| {
-            RpcError::Protocol(format!(
-                "no plausible time from the naming service {address}"
-            ))
-        })?;
+        let mut clock = estimate(client, address)?;
+        let mut seq = FILTER_LEN as u64;
+        let first = clock.offset().unwrap_or_default();
         let offset_ns = Arc::new(AtomicI64::new(first));
         let (stop, stopped) = mpsc::channel();
         let (shared, client) = (offset_ns.clone(), client.clone());

@@ -8,6 +8,7 @@ use std::sync::mpsc::{self, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
 use super::{REGISTER_RETRY_FIRST, REGISTER_RETRY_MAX, Shared, local_session, lock};
+use penelope_protocol::client::clock::ask_time;
 use penelope_protocol::net::conn::RpcError;
 use penelope_protocol::proto::{
     Call, CallError, Class, Method, NamingCall, ObjectInfo, ObjectRef, Reply, WireError,
@@ -209,15 +210,7 @@ impl Shared {
         };
         let result = self
             .common_clock
-            .exchange(|| match client.call_at(address, Call::Time)? {
-                Reply::Time {
-                    received_ns,
-                    sent_ns,
-                } => Ok((received_ns, sent_ns)),
-                other => Err(WireError::Call(CallError::Internal(format!(
-                    "the naming service answered a time call with {other:?}"
-                )))),
-            });
+            .exchange(|| Ok(ask_time(client, address)?));
         if let Err(e) = result {
             log::debug!("node {}: no time exchange with {address}: {e}", self.name);
         }
