@@ -102,7 +102,7 @@ fn estimate(client: &Client, address: SocketAddr) -> Result<LinkClock, RpcError>
 /// trip of the exchange it comes from: [`FILTER_LEN`] exchanges, the least round trip's wins.
 ///
 /// # Errors
-/// As [`estimate`]'s: the transport's, or no plausible time.
+/// The transport's, or [`RpcError::Protocol`] when no answer was a plausible time.
 pub fn offset_to(client: &Client, address: SocketAddr) -> Result<(i64, i64), RpcError> {
     let clock = estimate(client, address)?;
     Ok((
